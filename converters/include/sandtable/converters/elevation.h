@@ -1,0 +1,62 @@
+#pragma once
+// Elevation conversion: GDAL rasters (DTED, SRTM .hgt/.hgt.zip, USGS DEM,
+// GeoTIFF, ...) into a database directory holding a manifest and a
+// memory-mapped grid file at constant post spacing in a projected frame.
+#include <array>
+#include <atomic>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/manifest.h"
+#include "sandtable/formats/result.h"
+
+namespace sandtable::convert {
+
+/// fraction in [0, 1] and the stage that is running.
+using ProgressFn = std::function<void(double, const std::string&)>;
+
+struct ElevationOptions {
+  std::vector<std::string> sources;  ///< files, directories or globs
+  std::string output;                ///< database directory to create
+  std::string crs = "utm";           ///< utm | cassini | EPSG:n
+  double spacing = 0;                ///< metres; 0 = the sources' finest native spacing
+  std::string resample = "weighted"; ///< weighted | bilinear | cubic | average
+  /// Optional crop, lon/lat degrees: west, south, east, north.
+  std::optional<std::array<double, 4>> extent;
+  double moduleSize = 1000.0;  ///< seed: 1 km load modules
+  int levels = 4;              ///< seed: 4 levels of detail
+  double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent
+  bool force = false;          ///< replace an existing output directory
+  int threads = 0;             ///< 0 = all cores
+};
+
+struct ElevationReport {
+  std::uint64_t posts = 0;
+  std::uint64_t voidsFilled = 0;
+  double seconds = 0;
+  double resampleSeconds = 0;
+  double postsPerSecond = 0;
+  manifest::Manifest manifest;
+};
+
+/// Expands files, directories (recursively, by raster extension) and globs.
+Result<std::vector<std::string>> expandSources(const std::vector<std::string>& args);
+
+/// Runs the whole build and publishes `options.output` atomically: on any
+/// failure or cancellation no output directory is left behind.
+Result<ElevationReport> buildElevation(const ElevationOptions& options, const ProgressFn& progress);
+
+/// Asks a running build to stop (safe from a signal handler).
+void requestCancel();
+bool cancelRequested();
+
+/// Weighted resampling kernel (seed Figure 13, refined): a distance-weighted
+/// least-squares plane through every source post within `radius` of the
+/// target, evaluated at the target. Offsets are in metres. Exact for planes.
+/// Returns NaN when no post has weight.
+double weightedPlaneEstimate(const double* dx, const double* dy, const double* z, std::size_t n,
+                             double radius);
+
+}  // namespace sandtable::convert

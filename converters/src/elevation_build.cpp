@@ -1,0 +1,264 @@
+// The elevation build: sources -> frame -> resample -> fill -> grid file ->
+// manifest -> atomic publish of the database directory.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+#include "elevation_internal.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/grid.h"
+
+namespace sandtable::convert {
+namespace fs = std::filesystem;
+
+namespace {
+std::atomic<bool> gCancel{false};
+}
+
+void requestCancel() { gCancel.store(true); }
+bool cancelRequested() { return gCancel.load(); }
+
+namespace {
+
+using detail::Frame;
+
+/// Material indices written by an elevation-only build.
+enum Material : std::uint8_t { kGround = 0, kWater = 1, kFilledVoid = 2 };
+
+/// Removes the partial directory unless the build was published.
+class PartialDirectory {
+ public:
+  explicit PartialDirectory(std::string path) : path_(std::move(path)) {}
+  ~PartialDirectory() {
+    if (!published_) {
+      std::error_code ec;
+      fs::remove_all(path_, ec);
+    }
+  }
+  const std::string& path() const { return path_; }
+  void published() { published_ = true; }
+
+ private:
+  std::string path_;
+  bool published_ = false;
+};
+
+std::string utcNow() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char s[32];
+  std::strftime(s, sizeof s, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return s;
+}
+
+Result<bool> checkOptions(const ElevationOptions& o) {
+  static const char* kKernels[] = {"weighted", "bilinear", "cubic", "average"};
+  if (std::find(std::begin(kKernels), std::end(kKernels), o.resample) == std::end(kKernels)) {
+    return Problem{"--resample", 0, "build: unknown --resample \"" + o.resample +
+                                        "\"; use weighted, bilinear, cubic or average"};
+  }
+  if (o.output.empty()) return Problem{"-o", 0, "build: no output directory (-o DB)"};
+  std::error_code ec;
+  if (fs::exists(o.output, ec) && !o.force) {
+    return Problem{o.output, 0, "build: the output already exists; choose another -o or pass --force to replace it"};
+  }
+  const fs::path parent = fs::absolute(o.output).parent_path();
+  if (!fs::is_directory(parent, ec)) {
+    return Problem{o.output, 0, "build: the parent directory " + parent.string() + " does not exist"};
+  }
+  if (o.spacing < 0 || !std::isfinite(o.spacing)) return Problem{"--spacing", 0, "build: --spacing must be positive"};
+  if (!(o.moduleSize > 0) || o.levels < 1 || o.levels > 16) {
+    return Problem{"--module-size", 0, "build: module size must be positive and levels 1..16"};
+  }
+  return true;
+}
+
+float postAt(const std::vector<float>& g, const Frame& f, long i, long j) {
+  i = std::clamp(i, 0L, long(f.postsX) - 1);
+  j = std::clamp(j, 0L, long(f.postsZ) - 1);
+  return g[std::size_t(j) * f.postsX + std::size_t(i)];
+}
+
+/// One block of the grid file. Posts beyond the grid's edge repeat the
+/// edge posts, so every block is complete and plausible.
+void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& filled, const Frame& f,
+               std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
+  const double inv2s = 1.0 / (2.0 * f.spacing);
+  for (std::uint32_t lz = 0; lz < grid::kBlockPosts; ++lz) {
+    for (std::uint32_t lx = 0; lx < grid::kBlockPosts; ++lx) {
+      const long i = std::min<long>(bx * grid::kBlockPosts + lx, long(f.postsX) - 1);
+      const long j = std::min<long>(bz * grid::kBlockPosts + lz, long(f.postsZ) - 1);
+      const std::size_t k = lz * grid::kBlockPosts + lx;
+      const float h = postAt(g, f, i, j);
+      b.elevation[k] = h;
+      // Central differences; one-sided on the grid edge (clamped index).
+      const double dx = (postAt(g, f, i + 1, j) - postAt(g, f, i - 1, j)) * inv2s *
+                        (i == 0 || i == long(f.postsX) - 1 ? 2.0 : 1.0);
+      const double dz = (postAt(g, f, i, j + 1) - postAt(g, f, i, j - 1)) * inv2s *
+                        (j == 0 || j == long(f.postsZ) - 1 ? 2.0 : 1.0);
+      const double len = std::sqrt(dx * dx + 1.0 + dz * dz);
+      b.normalX[k] = grid::toSnorm(static_cast<float>(-dx / len));
+      b.normalY[k] = grid::toSnorm(static_cast<float>(1.0 / len));
+      b.normalZ[k] = grid::toSnorm(static_cast<float>(-dz / len));
+      const bool wasVoid = filled[std::size_t(j) * f.postsX + std::size_t(i)] != 0;
+      b.material[k] = wasVoid ? kFilledVoid : (h <= 0.0f ? kWater : kGround);
+    }
+  }
+}
+
+Result<grid::Header> writeGrid(const std::string& path, const Frame& f, const std::vector<float>& g,
+                               const std::vector<std::uint8_t>& filled, int threads, const ProgressFn& progress) {
+  const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
+  auto writer = grid::GridWriter::create(path, h);
+  if (!writer) return writer.problems();
+  std::atomic<std::uint64_t> next{0}, done{0};
+  std::mutex mutex;
+  std::string firstError;
+  auto worker = [&] {
+    auto block = std::make_unique<grid::BlockData>();
+    for (std::uint64_t k; (k = next++) < h.blockCount() && !cancelRequested();) {
+      const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
+      fillBlock(g, filled, f, bx, bz, *block);
+      const std::string err = writer.value()->writeBlock(bx, bz, *block);
+      std::lock_guard lock(mutex);
+      if (!err.empty() && firstError.empty()) firstError = err;
+      const std::uint64_t d = ++done;
+      if (progress && (d % 64 == 0 || d == h.blockCount())) progress(double(d) / double(h.blockCount()), "writing grid");
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < detail::threadCount(threads); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
+  if (!firstError.empty()) return Problem{path, 0, firstError};
+  if (std::string err = writer.value()->finish(); !err.empty()) return Problem{path, 0, err};
+  return writer.value()->header();
+}
+
+std::string fsyncDirectory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return "cannot open " + dir;
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  return rc == 0 ? std::string() : "cannot fsync " + dir;
+}
+
+/// Renames the finished directory into place, replacing an old one only
+/// after the new one is complete.
+std::string publish(const std::string& partial, const std::string& output) {
+  if (std::string e = fsyncDirectory(partial); !e.empty()) return e;
+  std::error_code ec;
+  std::string old;
+  if (fs::exists(output, ec)) {
+    old = output + ".old." + std::to_string(::getpid());
+    fs::rename(output, old, ec);
+    if (ec) return "cannot move the old " + output + " aside: " + ec.message();
+  }
+  fs::rename(partial, output, ec);
+  if (ec) return "cannot rename " + partial + " to " + output + ": " + ec.message();
+  if (!old.empty()) fs::remove_all(old, ec);
+  fsyncDirectory(fs::absolute(output).parent_path().string());
+  return {};
+}
+
+manifest::Manifest makeManifest(const ElevationOptions& o, const Frame& f, const grid::Header& h,
+                                const std::vector<detail::Source>& sources) {
+  manifest::Manifest m;
+  m.toolVersion = SANDTABLE_VERSION;
+  m.createdUtc = utcNow();
+  m.crsWkt = f.crs.wkt;
+  m.crsName = f.crs.name;
+  m.epsg = f.crs.epsg;
+  m.originEasting = h.originEasting;
+  m.originNorthing = h.originNorthing;
+  m.spacing = h.spacing;
+  m.postsX = h.postsX;
+  m.postsZ = h.postsZ;
+  m.blockPosts = h.blockPosts;
+  m.minElevation = h.minElevation;
+  m.maxElevation = h.maxElevation;
+  m.cornersLonLat = f.cornersLonLat;
+  m.moduleSize = o.moduleSize;
+  m.levels = o.levels;
+  for (const auto& s : sources) m.sources.push_back({s.path, s.bytes, s.crc, s.driver});
+  return m;
+}
+
+}  // namespace
+
+Result<ElevationReport> buildElevation(const ElevationOptions& o, const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (auto ok = checkOptions(o); !ok) return ok.problems();
+  auto paths = expandSources(o.sources);
+  if (!paths) return paths.problems();
+  auto sources = detail::openSources(paths.value(), o.threads, progress);
+  if (!sources) return sources.problems();
+  auto frame = detail::planFrame(o, sources.value());
+  if (!frame) return frame.problems();
+  const Frame& f = frame.value();
+
+  PartialDirectory partial(o.output + ".partial." + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::create_directories(partial.path(), ec);
+  if (ec) return Problem{partial.path(), 0, "build: cannot create the work directory: " + ec.message()};
+
+  const std::string vrt = partial.path() + "/mosaic.vrt";
+  if (std::string e = detail::buildMosaic(sources.value(), vrt); !e.empty()) return Problem{o.output, 0, e};
+  std::vector<float> g;
+  const auto tr = std::chrono::steady_clock::now();
+  const std::string err = o.resample == "weighted" ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
+                                                   : detail::resampleGdal(vrt, f, o.resample, o.threads, g, progress);
+  const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+  if (!err.empty()) return Problem{o.output, 0, err};
+  std::vector<std::uint8_t> filled(g.size());
+  for (std::size_t k = 0; k < g.size(); ++k) filled[k] = std::isnan(g[k]) ? 1 : 0;
+  auto voids = detail::fillVoids(f, g, progress);
+  if (!voids) return voids.problems();
+  fs::remove(vrt, ec);
+
+  const std::string gridPath = partial.path() + "/" + manifest::kGridFileName;
+  auto header = writeGrid(gridPath, f, g, filled, o.threads, progress);
+  if (!header) return header.problems();
+  g = {};  // release before checksumming
+
+  ElevationReport report;
+  report.manifest = makeManifest(o, f, header.value(), sources.value());
+  manifest::FileEntry entry{manifest::kGridFileName, 0, 0};
+  if (!crc32File(gridPath, entry.crc, entry.bytes)) return Problem{gridPath, 0, "build: cannot re-read the grid"};
+  report.manifest.files.push_back(entry);
+  report.posts = std::uint64_t(f.postsX) * f.postsZ;
+  report.voidsFilled = voids.value();
+  report.resampleSeconds = resampleSeconds;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
+  report.manifest.build = {
+      {"crs_request", o.crs},        {"resample", o.resample},
+      {"spacing_request_m", o.spacing}, {"voids_filled", report.voidsFilled},
+      {"posts", report.posts},       {"seconds", report.seconds},
+      {"resample_seconds", resampleSeconds}, {"posts_per_second", report.postsPerSecond},
+      {"void_fill", "GDALFillNodata (inverse-distance interpolation)"},
+      {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m)"}, {"2", "filled void"}}}};
+  if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
+
+  const std::string text = manifest::encode(report.manifest);
+  if (std::string e = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
+                                      std::as_bytes(std::span(text.data(), text.size())));
+      !e.empty()) {
+    return Problem{o.output, 0, "build: " + e};
+  }
+  if (cancelRequested()) return Problem{o.output, 0, "build: cancelled"};
+  if (std::string e = publish(partial.path(), o.output); !e.empty()) return Problem{o.output, 0, "build: " + e};
+  partial.published();
+  return report;
+}
+
+}  // namespace sandtable::convert

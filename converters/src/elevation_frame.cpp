@@ -1,0 +1,142 @@
+// Choosing the target frame: CRS, extent and post spacing.
+#include <algorithm>
+#include <cmath>
+
+#include "elevation_internal.h"
+
+namespace sandtable::convert::detail {
+namespace {
+
+using Box = std::array<double, 4>;  // west, south, east, north
+
+Result<Box> lonLatExtent(const ElevationOptions& o, const std::vector<Source>& sources) {
+  Box b = sources.front().lonLatBox;
+  for (const auto& s : sources) {
+    b = {std::min(b[0], s.lonLatBox[0]), std::min(b[1], s.lonLatBox[1]),
+         std::max(b[2], s.lonLatBox[2]), std::max(b[3], s.lonLatBox[3])};
+  }
+  if (!o.extent) return b;
+  const Box& e = *o.extent;
+  if (!(e[0] < e[2] && e[1] < e[3])) {
+    return Problem{"--extent", 0, "frame: --extent must be WEST SOUTH EAST NORTH with west < east and south < north"};
+  }
+  const Box c = {std::max(b[0], e[0]), std::max(b[1], e[1]), std::min(b[2], e[2]), std::min(b[3], e[3])};
+  if (!(c[0] < c[2] && c[1] < c[3])) {
+    return Problem{"--extent", 0, "frame: --extent does not overlap the sources (they cover lon " +
+                                      std::to_string(b[0]) + ".." + std::to_string(b[2]) + ", lat " +
+                                      std::to_string(b[1]) + ".." + std::to_string(b[3]) + ")"};
+  }
+  return c;
+}
+
+/// Ground metres per degree of latitude and longitude (WGS 84 series).
+std::array<double, 2> metresPerDegree(double latDeg) {
+  const double lat = latDeg * M_PI / 180.0;
+  return {111412.84 * std::cos(lat) - 93.5 * std::cos(3 * lat),
+          111132.954 - 559.822 * std::cos(2 * lat) + 1.175 * std::cos(4 * lat)};
+}
+
+/// Largest |scale - 1| of the projection at this point, east and north.
+double scaleError(const GeoTransformer& t, double lon, double lat, bool& ok) {
+  constexpr double d = 0.001;
+  double e0, n0, e1, n1, e2, n2;
+  ok = t.toProjected(lon, lat, e0, n0) && t.toProjected(lon + d, lat, e1, n1) &&
+       t.toProjected(lon, lat + d, e2, n2);
+  if (!ok) return INFINITY;
+  const auto m = metresPerDegree(lat);
+  const double kx = std::hypot(e1 - e0, n1 - n0) / (d * m[0]);
+  const double ky = std::hypot(e2 - e0, n2 - n0) / (d * m[1]);
+  return std::max(std::fabs(kx - 1), std::fabs(ky - 1));
+}
+
+struct Inner {
+  double west = -INFINITY, east = INFINITY, south = -INFINITY, north = INFINITY;
+};
+
+/// Projects the box edges and keeps the largest axis-aligned rectangle
+/// inside them, so every target post has source data around it.
+Result<Inner> projectBox(const GeoTransformer& t, const Box& b, const std::string& crsName,
+                         double maxScaleError) {
+  Inner in;
+  double worst = 0, worstLon = 0, worstLat = 0;
+  constexpr int kSteps = 64;
+  for (int k = 0; k <= kSteps; ++k) {
+    const double f = double(k) / kSteps;
+    const double lon = b[0] + f * (b[2] - b[0]), lat = b[1] + f * (b[3] - b[1]);
+    const double pts[4][2] = {{b[0], lat}, {b[2], lat}, {lon, b[1]}, {lon, b[3]}};
+    for (int e = 0; e < 4; ++e) {
+      double x, y;
+      bool ok = t.toProjected(pts[e][0], pts[e][1], x, y);
+      const double err = ok ? scaleError(t, pts[e][0], pts[e][1], ok) : INFINITY;
+      if (!ok) {
+        return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: lon " +
+                                       std::to_string(pts[e][0]) + " lat " + std::to_string(pts[e][1]) +
+                                       " does not project; use --crs utm or cassini"};
+      }
+      if (err > worst) worst = err, worstLon = pts[e][0], worstLat = pts[e][1];
+      if (e == 0) in.west = std::max(in.west, x);
+      if (e == 1) in.east = std::min(in.east, x);
+      if (e == 2) in.south = std::max(in.south, y);
+      if (e == 3) in.north = std::min(in.north, y);
+    }
+  }
+  if (worst > maxScaleError) {
+    return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: its scale error reaches " +
+                                   std::to_string(worst * 100) + "% at lon " + std::to_string(worstLon) +
+                                   " lat " + std::to_string(worstLat) + " (limit " +
+                                   std::to_string(maxScaleError * 100) +
+                                   "%); use --crs utm or cassini, or a smaller extent"};
+  }
+  if (!(in.west < in.east && in.south < in.north)) {
+    return Problem{"--crs", 0, "frame: the extent is empty in " + crsName};
+  }
+  return in;
+}
+
+}  // namespace
+
+Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& sources) {
+  auto box = lonLatExtent(o, sources);
+  if (!box) return box.problems();
+  const Box& b = box.value();
+  const double cLon = 0.5 * (b[0] + b[2]), cLat = 0.5 * (b[1] + b[3]);
+  auto crs = resolveCrs(o.crs, cLon, cLat);
+  if (!crs) return crs.problems();
+  auto t = GeoTransformer::create(crs->wkt);
+  if (!t) return t.problems();
+  auto inner = projectBox(*t.value(), b, crs->name, o.maxScaleError);
+  if (!inner) return inner.problems();
+
+  Frame f;
+  f.crs = crs.value();
+  f.spacing = o.spacing > 0 ? o.spacing : std::max(0.01, std::round(nativeSpacingMetres(sources) * 100) / 100);
+  if (!(f.spacing > 0) || !std::isfinite(f.spacing)) return Problem{"--spacing", 0, "frame: spacing must be positive"};
+  const double s = f.spacing;
+  // Snap to whole multiples of the spacing so databases of one area align.
+  f.originEasting = std::ceil(inner->west / s - 1e-9) * s;
+  f.originNorthing = std::floor(inner->north / s + 1e-9) * s;
+  const double east = std::floor(inner->east / s + 1e-9) * s;
+  const double south = std::ceil(inner->south / s - 1e-9) * s;
+  const double nx = std::round((east - f.originEasting) / s) + 1;
+  const double nz = std::round((f.originNorthing - south) / s) + 1;
+  if (nx < 2 || nz < 2) {
+    return Problem{"--spacing", 0, "frame: the extent holds fewer than 2 x 2 posts at " + std::to_string(s) +
+                                       " m spacing; use a smaller --spacing"};
+  }
+  if (nx > grid::kMaxPostsPerAxis || nz > grid::kMaxPostsPerAxis || nx * nz > 4.0e9) {
+    return Problem{"--spacing", 0, "frame: " + std::to_string(nx) + " x " + std::to_string(nz) +
+                                       " posts is too many; use a larger --spacing or --extent"};
+  }
+  f.postsX = static_cast<std::uint32_t>(nx);
+  f.postsZ = static_cast<std::uint32_t>(nz);
+  const double xs[4] = {f.originEasting, east, east, f.originEasting};
+  const double ys[4] = {f.originNorthing, f.originNorthing, south, south};
+  for (int k = 0; k < 4; ++k) {
+    if (!t.value()->toLonLat(xs[k], ys[k], f.cornersLonLat[k][0], f.cornersLonLat[k][1])) {
+      return Problem{"--crs", 0, "frame: a corner of the grid does not transform back to lon/lat"};
+    }
+  }
+  return f;
+}
+
+}  // namespace sandtable::convert::detail

@@ -1,0 +1,403 @@
+// Resampling the source mosaic onto the target grid, and void filling.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <mutex>
+#include <thread>
+
+#include <cpl_string.h>
+#include <gdal_alg.h>
+#include <gdal_priv.h>
+#include <gdal_utils.h>
+#include <ogr_spatialref.h>
+
+#include "elevation_internal.h"
+
+namespace sandtable::convert {
+
+namespace {
+
+/// Running sums of a distance-weighted least-squares plane z = a + b x + c y.
+struct PlaneSums {
+  double w = 0, wx = 0, wy = 0, wxx = 0, wxy = 0, wyy = 0, wz = 0, wxz = 0, wyz = 0;
+
+  void add(double x, double y, double z, double weight) {
+    w += weight;
+    wx += weight * x;
+    wy += weight * y;
+    wxx += weight * x * x;
+    wxy += weight * x * y;
+    wyy += weight * y * y;
+    wz += weight * z;
+    wxz += weight * x * z;
+    wyz += weight * y * z;
+  }
+
+  /// The plane's value at (0, 0); the weighted mean when the posts are
+  /// (nearly) collinear and the plane is not determined.
+  double estimate() const {
+    if (w <= 0) return NAN;
+    // Centre on the weighted centroid for conditioning.
+    const double mx = wx / w, my = wy / w, mz = wz / w;
+    const double sxx = wxx - w * mx * mx, sxy = wxy - w * mx * my, syy = wyy - w * my * my;
+    const double sxz = wxz - w * mx * mz, syz = wyz - w * my * mz;
+    const double det = sxx * syy - sxy * sxy;
+    if (!(det > 1e-9 * (sxx * syy + 1e-30))) return mz;
+    const double b = (sxz * syy - syz * sxy) / det;
+    const double c = (syz * sxx - sxz * sxy) / det;
+    return mz - b * mx - c * my;
+  }
+};
+
+std::string lastGdalError() {
+  const char* m = CPLGetLastErrorMsg();
+  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
+}
+
+}  // namespace
+
+double weightedPlaneEstimate(const double* dx, const double* dy, const double* z, std::size_t n,
+                             double radius) {
+  PlaneSums s;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double d = std::hypot(dx[k], dy[k]);
+    if (d < radius) s.add(dx[k], dy[k], z[k], 1.0 - d / radius);
+  }
+  return s.estimate();
+}
+
+namespace detail {
+
+std::string buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath) {
+  std::vector<const char*> names;
+  for (const auto& s : sources) names.push_back(s.path.c_str());
+  const char* args[] = {"-resolution", "highest", "-q", nullptr};
+  GDALBuildVRTOptions* opts = GDALBuildVRTOptionsNew(const_cast<char**>(args), nullptr);
+  int usageError = 0;
+  CPLErrorReset();
+  GDALDatasetH vrt = GDALBuildVRT(vrtPath.c_str(), static_cast<int>(names.size()), nullptr,
+                                  names.data(), opts, &usageError);
+  GDALBuildVRTOptionsFree(opts);
+  if (!vrt) {
+    return "mosaic: cannot build a mosaic of the sources: " + lastGdalError() +
+           " (all sources must share one coordinate system)";
+  }
+  GDALClose(vrt);
+  return {};
+}
+
+namespace {
+
+/// Target post -> fractional source post index, on a sparse lattice of
+/// exact PROJ transforms with bilinear interpolation in between (like
+/// GDAL's approximate transformer), plus the local Jacobian.
+struct Lattice {
+  static constexpr std::uint32_t kStep = 8;
+  std::uint32_t i0 = 0, j0 = 0, cols = 0, rows = 0;
+  std::vector<std::uint32_t> ci, rj;  // target columns / rows of lattice nodes
+  std::vector<double> px, py;
+
+  bool build(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, OGRCoordinateTransformation& ct,
+             const std::array<double, 6>& g) {
+    ci.clear();
+    rj.clear();
+    for (std::uint32_t i = 0; i < f.postsX - 1; i += kStep) ci.push_back(i);
+    ci.push_back(f.postsX - 1);
+    for (std::uint32_t j = jBegin; j < jEnd - 1; j += kStep) rj.push_back(j);
+    rj.push_back(jEnd - 1);
+    if (rj.size() == 1) rj.push_back(jEnd - 1);  // a one-row strip still needs two rows
+    cols = static_cast<std::uint32_t>(ci.size());
+    rows = static_cast<std::uint32_t>(rj.size());
+    px.resize(std::size_t(cols) * rows);
+    py.resize(px.size());
+    for (std::uint32_t r = 0; r < rows; ++r) {
+      for (std::uint32_t c = 0; c < cols; ++c) {
+        px[r * cols + c] = f.originEasting + ci[c] * f.spacing;
+        py[r * cols + c] = f.originNorthing - rj[r] * f.spacing;
+      }
+    }
+    if (!ct.Transform(static_cast<int>(px.size()), px.data(), py.data())) return false;
+    for (std::size_t k = 0; k < px.size(); ++k) {
+      const double X = px[k], Y = py[k];
+      // Post index, with post k at pixel centre k + 0.5.
+      px[k] = (X - g[0]) / g[1] - 0.5;
+      py[k] = (Y - g[3]) / g[5] - 0.5;
+    }
+    return true;
+  }
+};
+
+/// Cell of the lattice containing target post (i, j), with its
+/// interpolated source position and target-metres-per-source-post matrix.
+struct PostMap {
+  double px, py;
+  double m[2][2];  // metres east/south per source post step in x / y
+  double hx, hy;   // search half-widths in source posts
+};
+
+bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i, std::uint32_t j,
+             double spacing, double radius, PostMap& out) {
+  const double di = L.ci[c + 1] - L.ci[c];
+  const double dj = std::max(1u, L.rj[r + 1] - L.rj[r]);
+  const double fx = (i - L.ci[c]) / di, fz = L.rj[r + 1] == L.rj[r] ? 0.0 : (j - L.rj[r]) / dj;
+  auto at = [&](const std::vector<double>& v, std::uint32_t cc, std::uint32_t rr) { return v[rr * L.cols + cc]; };
+  auto lerp = [&](const std::vector<double>& v) {
+    const double top = at(v, c, r) + fx * (at(v, c + 1, r) - at(v, c, r));
+    const double bot = at(v, c, r + 1) + fx * (at(v, c + 1, r + 1) - at(v, c, r + 1));
+    return top + fz * (bot - top);
+  };
+  out.px = lerp(L.px);
+  out.py = lerp(L.py);
+  // Source posts per target post, along target i and j.
+  const double aXi = (at(L.px, c + 1, r) - at(L.px, c, r)) / di;
+  const double aYi = (at(L.py, c + 1, r) - at(L.py, c, r)) / di;
+  double aXj = (at(L.px, c, r + 1) - at(L.px, c, r)) / dj;
+  double aYj = (at(L.py, c, r + 1) - at(L.py, c, r)) / dj;
+  if (L.rj[r + 1] == L.rj[r]) {  // single-row strip: assume a conformal frame
+    aXj = -aYi;
+    aYj = aXi;
+  }
+  const double det = aXi * aYj - aXj * aYi;
+  if (!(std::fabs(det) > 1e-15)) return false;
+  out.m[0][0] = spacing * aYj / det;
+  out.m[0][1] = -spacing * aXj / det;
+  out.m[1][0] = -spacing * aYi / det;
+  out.m[1][1] = spacing * aXi / det;
+  const double rPosts = radius / spacing;
+  out.hx = rPosts * (std::fabs(aXi) + std::fabs(aXj)) + 1;
+  out.hy = rPosts * (std::fabs(aYi) + std::fabs(aYj)) + 1;
+  return true;
+}
+
+struct Window {
+  int x0 = 0, y0 = 0, w = 0, h = 0;
+  std::vector<float> v;
+  float at(int x, int y) const { return v[std::size_t(y - y0) * w + (x - x0)]; }
+};
+
+std::string readWindow(GDALRasterBand& band, const Lattice& L, double pad, Window& win) {
+  const auto [pxMin, pxMax] = std::minmax_element(L.px.begin(), L.px.end());
+  const auto [pyMin, pyMax] = std::minmax_element(L.py.begin(), L.py.end());
+  const int W = band.GetXSize(), H = band.GetYSize();
+  win.x0 = std::clamp(static_cast<int>(std::floor(*pxMin - pad)), 0, W - 1);
+  win.y0 = std::clamp(static_cast<int>(std::floor(*pyMin - pad)), 0, H - 1);
+  const int x1 = std::clamp(static_cast<int>(std::ceil(*pxMax + pad)), 0, W - 1);
+  const int y1 = std::clamp(static_cast<int>(std::ceil(*pyMax + pad)), 0, H - 1);
+  win.w = x1 - win.x0 + 1;
+  win.h = y1 - win.y0 + 1;
+  win.v.resize(std::size_t(win.w) * win.h);
+  if (band.RasterIO(GF_Read, win.x0, win.y0, win.w, win.h, win.v.data(), win.w, win.h, GDT_Float32, 0, 0) !=
+      CE_None) {
+    return "resample: cannot read the sources: " + lastGdalError();
+  }
+  int hasNoData = 0;
+  const double nd = band.GetNoDataValue(&hasNoData);
+  for (float& x : win.v) {
+    if (!std::isfinite(x) || (hasNoData && x == static_cast<float>(nd)) || x < kMinValid || x > kMaxValid) x = NAN;
+  }
+  return {};
+}
+
+double estimatePost(const Window& win, const PostMap& p, double radius) {
+  PlaneSums s;
+  const int xa = std::max(win.x0, static_cast<int>(std::ceil(p.px - p.hx)));
+  const int xb = std::min(win.x0 + win.w - 1, static_cast<int>(std::floor(p.px + p.hx)));
+  const int ya = std::max(win.y0, static_cast<int>(std::ceil(p.py - p.hy)));
+  const int yb = std::min(win.y0 + win.h - 1, static_cast<int>(std::floor(p.py + p.hy)));
+  const double r2 = radius * radius;
+  for (int y = ya; y <= yb; ++y) {
+    const double dy = y - p.py;
+    for (int x = xa; x <= xb; ++x) {
+      const float v = win.at(x, y);
+      if (std::isnan(v)) continue;
+      const double dx = x - p.px;
+      const double e = p.m[0][0] * dx + p.m[0][1] * dy;
+      const double n = p.m[1][0] * dx + p.m[1][1] * dy;
+      const double d2 = e * e + n * n;
+      if (d2 < r2) s.add(e, n, v, 1.0 - std::sqrt(d2) / radius);
+    }
+  }
+  return s.estimate();
+}
+
+std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, double radius,
+                          GDALRasterBand& band, OGRCoordinateTransformation& ct,
+                          const std::array<double, 6>& g, Lattice& L, Window& win, float* out) {
+  if (!L.build(f, jBegin, jEnd, ct, g)) return "resample: PROJ failed to transform target posts to the sources";
+  PostMap probe{};
+  if (!mapPost(L, 0, 0, 0, jBegin, f.spacing, radius, probe)) return "resample: degenerate transform";
+  const std::string err = readWindow(band, L, std::max(probe.hx, probe.hy) + 2, win);
+  if (!err.empty()) return err;
+  for (std::uint32_t r = 0; r + 1 < L.rows; ++r) {
+    const std::uint32_t jLast = (r + 2 == L.rows) ? L.rj[r + 1] : L.rj[r + 1] - 1;
+    for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
+      for (std::uint32_t c = 0; c + 1 < L.cols; ++c) {
+        const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
+        for (std::uint32_t i = L.ci[c]; i <= iLast; ++i) {
+          PostMap p{};
+          const bool ok = mapPost(L, c, r, i, j, f.spacing, radius, p);
+          out[std::size_t(j) * f.postsX + i] = ok ? static_cast<float>(estimatePost(win, p, radius)) : NAN;
+        }
+      }
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
+                             const ProgressFn& progress) {
+  out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
+  constexpr std::uint32_t kStripRows = 64;
+  const std::uint32_t strips = (f.postsZ + kStripRows - 1) / kStripRows;
+  std::atomic<std::uint32_t> next{0}, done{0};
+  std::mutex mutex;
+  std::string firstError;
+  // Seed Figure 13 uses one grid size; never less than a source cell's
+  // diagonal, so every target post sees the source posts around it.
+  double sourceDiagonal = 0;
+  {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
+    if (!ds) return "resample: cannot open the mosaic: " + lastGdalError();
+    std::array<double, 6> g{};
+    ds->GetGeoTransform(g.data());
+    const bool geographic = ds->GetSpatialRef() && ds->GetSpatialRef()->IsGeographic();
+    const double lat = 0.5 * (f.cornersLonLat[0][1] + f.cornersLonLat[2][1]);
+    const auto m = postMetres(g, geographic, lat);
+    sourceDiagonal = std::hypot(m[0], m[1]);
+  }
+  const double radius = std::max(f.spacing, sourceDiagonal * 1.01);
+  auto worker = [&] {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
+    if (!ds) {
+      std::lock_guard lock(mutex);
+      if (firstError.empty()) firstError = "resample: cannot open the mosaic: " + lastGdalError();
+      return;
+    }
+    std::array<double, 6> g{};
+    ds->GetGeoTransform(g.data());
+    OGRSpatialReference dst, src(*ds->GetSpatialRef());
+    dst.importFromWkt(f.crs.wkt.c_str());
+    dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&dst, &src));
+    Lattice L;
+    Window win;
+    for (std::uint32_t s; (s = next++) < strips;) {
+      if (cancelRequested()) return;
+      {
+        std::lock_guard lock(mutex);
+        if (!firstError.empty()) return;
+      }
+      const std::uint32_t j0 = s * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
+      const std::string err = resampleStrip(f, j0, j1, radius, *ds->GetRasterBand(1), *ct, g, L, win, out.data());
+      std::lock_guard lock(mutex);
+      if (!err.empty() && firstError.empty()) firstError = err;
+      const std::uint32_t d = ++done;
+      if (progress) progress(double(d) / strips, "resampling");
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threadCount(threads); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (cancelRequested()) return "build: cancelled";
+  return firstError;
+}
+
+namespace {
+
+/// A MEM dataset whose single band aliases `data` (no copy).
+GDALDataset* wrapBuffer(void* data, GDALDataType type, std::uint32_t w, std::uint32_t h, const Frame& f) {
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDataset* ds = mem->Create("", static_cast<int>(w), static_cast<int>(h), 0, type, nullptr);
+  if (!ds) return nullptr;
+  char ptr[64];
+  std::snprintf(ptr, sizeof ptr, "DATAPOINTER=%p", data);
+  char* opts[] = {ptr, nullptr};
+  if (ds->AddBand(type, opts) != CE_None) {
+    GDALClose(ds);
+    return nullptr;
+  }
+  const double s = f.spacing;
+  double g[6] = {f.originEasting - s / 2, s, 0, f.originNorthing + s / 2, 0, -s};
+  ds->SetGeoTransform(g);
+  ds->SetProjection(f.crs.wkt.c_str());
+  return ds;
+}
+
+int gdalProgress(double fraction, const char*, void* data) {
+  const auto* p = static_cast<const ProgressFn*>(data);
+  if (*p) (*p)(fraction, "resampling");
+  return cancelRequested() ? FALSE : TRUE;
+}
+
+int fillProgress(double fraction, const char*, void* data) {
+  const auto* p = static_cast<const ProgressFn*>(data);
+  if (*p) (*p)(fraction, "filling voids");
+  return cancelRequested() ? FALSE : TRUE;
+}
+
+}  // namespace
+
+std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
+                         std::vector<float>& out, const ProgressFn& progress) {
+  out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
+  GDALDataset* dst = wrapBuffer(out.data(), GDT_Float32, f.postsX, f.postsZ, f);
+  if (!dst) return "resample: cannot create the in-memory target: " + lastGdalError();
+  dst->GetRasterBand(1)->SetNoDataValue(NAN);
+  GDALDatasetH src = GDALOpen(vrtPath.c_str(), GA_ReadOnly);
+  if (!src) {
+    GDALClose(dst);
+    return "resample: cannot open the mosaic: " + lastGdalError();
+  }
+  const std::string nthreads = "NUM_THREADS=" + std::to_string(threadCount(threads));
+  const char* args[] = {"-r", kernel.c_str(), "-multi", "-wo", nthreads.c_str(), "-wo", "INIT_DEST=NO_DATA",
+                        "-wm", "512", "-q", nullptr};
+  GDALWarpAppOptions* opts = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
+  GDALWarpAppOptionsSetProgress(opts, gdalProgress, const_cast<ProgressFn*>(&progress));
+  int usageError = 0;
+  CPLErrorReset();
+  GDALDatasetH res = GDALWarp(nullptr, dst, 1, &src, opts, &usageError);
+  GDALWarpAppOptionsFree(opts);
+  GDALClose(src);
+  GDALClose(dst);  // does not free `out`: the band only aliases it
+  if (cancelRequested()) return "build: cancelled";
+  if (!res) return "resample: GDAL warp failed: " + lastGdalError();
+  for (float& v : out) {
+    if (!(v >= kMinValid && v <= kMaxValid)) v = NAN;
+  }
+  return {};
+}
+
+Result<std::uint64_t> fillVoids(const Frame& f, std::vector<float>& grid, const ProgressFn& progress) {
+  std::uint64_t voids = 0;
+  std::vector<std::uint8_t> mask(grid.size());
+  for (std::size_t k = 0; k < grid.size(); ++k) {
+    const bool v = std::isnan(grid[k]);
+    voids += v;
+    mask[k] = v ? 0 : 255;
+  }
+  if (voids == 0) return std::uint64_t{0};
+  if (voids == grid.size()) return Problem{"build", 0, "fill: no target post has source data"};
+  GDALDataset* ds = wrapBuffer(grid.data(), GDT_Float32, f.postsX, f.postsZ, f);
+  GDALDataset* mds = wrapBuffer(mask.data(), GDT_Byte, f.postsX, f.postsZ, f);
+  if (!ds || !mds) return Problem{"build", 0, "fill: cannot wrap the grid: " + lastGdalError()};
+  const char* opts[] = {"TEMP_FILE_DRIVER=MEM", nullptr};
+  // Search far enough for any void: the whole grid's diagonal in posts.
+  const double reach = std::hypot(double(f.postsX), double(f.postsZ));
+  const CPLErr err = GDALFillNodata(ds->GetRasterBand(1), mds->GetRasterBand(1), reach, 0, 0,
+                                    const_cast<char**>(opts), fillProgress, const_cast<ProgressFn*>(&progress));
+  GDALClose(ds);
+  GDALClose(mds);
+  if (cancelRequested()) return Problem{"build", 0, "build: cancelled"};
+  if (err != CE_None) return Problem{"build", 0, "fill: GDALFillNodata failed: " + lastGdalError()};
+  for (float v : grid) {
+    if (std::isnan(v)) return Problem{"build", 0, "fill: voids remain after interpolation"};
+  }
+  return voids;
+}
+
+}  // namespace detail
+}  // namespace sandtable::convert

@@ -1,0 +1,176 @@
+#pragma once
+// The memory-mapped elevation grid file, version 1 (docs/FORMAT.md, "grid").
+//
+// Layout: a 4096-byte header page, a page-aligned block table, then square
+// blocks of kBlockPosts x kBlockPosts posts. Each block holds elevation
+// (float32), a unit normal (3 x int16 snorm) and a material index (uint8)
+// for every post, as separate planes, so one 4 KiB page of elevation is a
+// 32 x 32 post square of ground. Every block carries its own CRC-32.
+//
+// World frame (seed Figure 6): origin at the north-west corner post, X east,
+// Y up, Z south. Post (i, j) lies at easting originEasting + i * spacing and
+// northing originNorthing - j * spacing.
+//
+// Thread safety: GridFile is immutable after open(); every const method may
+// be called from any thread. GridWriter::writeBlock may be called
+// concurrently for distinct blocks; finish() must run alone.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/result.h"
+
+namespace sandtable::grid {
+
+inline constexpr std::array<char, 8> kMagic = {'S', 'A', 'N', 'D', 'G', 'R', 'I', 'D'};
+inline constexpr std::uint32_t kVersion = 1;
+inline constexpr std::uint64_t kPageBytes = 4096;
+inline constexpr std::uint32_t kHeaderFieldBytes = 128;  ///< fields + CRC; rest of page is zero
+inline constexpr std::uint32_t kBlockPosts = 64;
+inline constexpr std::uint32_t kPostsPerBlock = kBlockPosts * kBlockPosts;
+inline constexpr std::uint64_t kElevationPlane = 0;
+inline constexpr std::uint64_t kNormalXPlane = kElevationPlane + 4ull * kPostsPerBlock;
+inline constexpr std::uint64_t kNormalYPlane = kNormalXPlane + 2ull * kPostsPerBlock;
+inline constexpr std::uint64_t kNormalZPlane = kNormalYPlane + 2ull * kPostsPerBlock;
+inline constexpr std::uint64_t kMaterialPlane = kNormalZPlane + 2ull * kPostsPerBlock;
+inline constexpr std::uint64_t kBlockBytes = kMaterialPlane + 1ull * kPostsPerBlock;
+inline constexpr std::uint32_t kBlockEntryBytes = 16;
+/// Largest grid accepted, per axis (about 4,000 km at 1 m posts).
+inline constexpr std::uint32_t kMaxPostsPerAxis = 4u << 20;
+static_assert(kBlockBytes == 45056 && kBlockBytes % kPageBytes == 0,
+              "a block must be a whole number of pages");
+
+/// Header fields (decoded). Offsets are in docs/FORMAT.md.
+struct Header {
+  std::uint32_t version = kVersion;
+  std::uint32_t postsX = 0;
+  std::uint32_t postsZ = 0;
+  std::uint32_t blockPosts = kBlockPosts;
+  std::uint32_t blocksX = 0;
+  std::uint32_t blocksZ = 0;
+  std::uint32_t flags = 0;
+  double spacing = 0;
+  double originEasting = 0;
+  double originNorthing = 0;
+  float minElevation = 0;
+  float maxElevation = 0;
+  std::uint64_t blockTableOffset = 0;
+  std::uint64_t dataOffset = 0;
+  std::uint64_t blockBytes = kBlockBytes;
+  std::uint64_t fileBytes = 0;
+  std::uint32_t tableCrc = 0;
+
+  std::uint64_t blockCount() const { return std::uint64_t(blocksX) * blocksZ; }
+};
+
+/// Byte offsets of header fields; shared by writer, reader and docs.
+namespace field {
+inline constexpr std::size_t magic = 0, version = 8, headerBytes = 12, postsX = 16,
+                             postsZ = 20, blockPosts = 24, blocksX = 28, blocksZ = 32,
+                             flags = 36, spacing = 40, originEasting = 48,
+                             originNorthing = 56, minElevation = 64, maxElevation = 68,
+                             blockTableOffset = 72, dataOffset = 80, blockBytes = 88,
+                             fileBytes = 96, tableCrc = 104, headerCrc = 124;
+}
+
+/// One block-table entry.
+struct BlockEntry {
+  std::uint32_t crc = 0;
+  float minElevation = 0;
+  float maxElevation = 0;
+  std::uint32_t reserved = 0;
+};
+
+/// Derives block counts and offsets for a grid of postsX x postsZ.
+Header makeHeader(std::uint32_t postsX, std::uint32_t postsZ, double spacing,
+                  double originEasting, double originNorthing);
+
+/// Encodes the header page (4096 bytes, CRC filled in).
+std::vector<std::byte> encodeHeader(const Header& h);
+/// Decodes and checks a header page. `fileSize` is the real size on disk.
+Result<Header> decodeHeader(std::span<const std::byte> bytes, const std::string& file,
+                            std::uint64_t fileSize);
+
+/// One block's contents, decoded. Posts are row-major: index = z * 64 + x.
+struct BlockData {
+  std::array<float, kPostsPerBlock> elevation{};
+  std::array<std::int16_t, kPostsPerBlock> normalX{};
+  std::array<std::int16_t, kPostsPerBlock> normalY{};
+  std::array<std::int16_t, kPostsPerBlock> normalZ{};
+  std::array<std::uint8_t, kPostsPerBlock> material{};
+};
+
+/// Encodes a block's bytes (kBlockBytes) into `out`.
+void encodeBlock(const BlockData& b, std::span<std::byte> out);
+/// Snorm helpers: int16 = round(v * 32767).
+std::int16_t toSnorm(float v);
+inline float fromSnorm(std::int16_t v) { return float(v) / 32767.0f; }
+
+/// Writes a grid file. The file appears at `path` only when finish() succeeds.
+class GridWriter {
+ public:
+  static Result<std::unique_ptr<GridWriter>> create(const std::string& path, const Header& h);
+  ~GridWriter();
+  GridWriter(const GridWriter&) = delete;
+  GridWriter& operator=(const GridWriter&) = delete;
+
+  /// Writes block (bx, bz). Safe to call concurrently for distinct blocks.
+  std::string writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b);
+  /// Writes table and header, fsyncs, and renames into place. "" or error.
+  std::string finish();
+  const Header& header() const { return header_; }
+
+ private:
+  GridWriter(std::string path, std::string tmp, int fd, Header h);
+  std::string path_, tmp_;
+  int fd_ = -1;
+  Header header_;
+  std::vector<BlockEntry> entries_;
+  bool finished_ = false;
+};
+
+/// A read-only, memory-mapped grid. open() checks only the header and the
+/// file size (O(1)); validateGrid() checks every byte.
+class GridFile {
+ public:
+  static Result<std::shared_ptr<const GridFile>> open(const std::string& path);
+  ~GridFile();
+  GridFile(const GridFile&) = delete;
+  GridFile& operator=(const GridFile&) = delete;
+
+  const Header& header() const { return header_; }
+  const std::string& path() const { return path_; }
+  std::uint32_t postsX() const { return header_.postsX; }
+  std::uint32_t postsZ() const { return header_.postsZ; }
+  double spacing() const { return header_.spacing; }
+
+  /// Elevation at post (i, j); i < postsX, j < postsZ (asserted).
+  float elevation(std::uint32_t i, std::uint32_t j) const;
+  /// Unit normal in the world frame (X east, Y up, Z south).
+  std::array<float, 3> normal(std::uint32_t i, std::uint32_t j) const;
+  std::uint8_t material(std::uint32_t i, std::uint32_t j) const;
+  /// Raw bytes of block (bx, bz), kBlockBytes long.
+  std::span<const std::byte> blockBytes(std::uint32_t bx, std::uint32_t bz) const;
+  BlockEntry blockEntry(std::uint32_t bx, std::uint32_t bz) const;
+  std::span<const std::byte> bytes() const { return {base_, size_}; }
+
+ private:
+  GridFile() = default;
+  std::string path_;
+  Header header_;
+  const std::byte* base_ = nullptr;
+  std::size_t size_ = 0;
+  const std::byte* postAddress(std::uint32_t i, std::uint32_t j, std::uint64_t plane,
+                               std::uint32_t width) const;
+};
+
+/// Every check on a grid file: header, sizes, table, block CRCs, zero
+/// padding, NaN/inf, unit normals, plausible elevations, header min/max.
+/// Each problem names the file and byte offset.
+std::vector<Problem> validateGrid(const std::string& path);
+
+}  // namespace sandtable::grid
