@@ -1,0 +1,66 @@
+#include "test_support.h"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <random>
+#include <sstream>
+
+namespace sandtable::test {
+namespace fs = std::filesystem;
+
+TempDir::TempDir(const std::string& tag) {
+  std::random_device rd;
+  path_ = (fs::temp_directory_path() / (tag + "-" + std::to_string(::getpid()) + "-" + std::to_string(rd()))).string();
+  fs::create_directories(path_);
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  fs::remove_all(path_, ec);
+}
+
+namespace {
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+}  // namespace
+
+CommandResult runCli(const std::vector<std::string>& args) {
+  TempDir io("cli");
+  std::string cmd = quote(SANDTABLE_CLI);
+  for (const auto& a : args) cmd += " " + quote(a);
+  cmd += " >" + quote(io / "out") + " 2>" + quote(io / "err") + " </dev/null";
+  const int rc = std::system(cmd.c_str());
+  CommandResult r;
+  r.exitCode = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  r.out = slurp(io / "out");
+  r.err = slurp(io / "err");
+  return r;
+}
+
+std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const std::string name = e.path().filename().string();
+    for (const auto& x : exts) {
+      if (name.size() > x.size() && name.compare(name.size() - x.size(), x.size(), x) == 0) {
+        out.push_back(e.path().string());
+        break;
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace sandtable::test

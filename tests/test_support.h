@@ -1,0 +1,47 @@
+#pragma once
+// Shared helpers for the integration tests: temp directories, the CLI,
+// and the real data in ../shared/data.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace sandtable::test {
+
+/// ../shared/data relative to the repository root.
+inline std::string dataDir() { return std::string(SANDTABLE_SOURCE_DIR) + "/../shared/data"; }
+inline std::string data(const std::string& rel) { return dataDir() + "/" + rel; }
+inline bool haveData() { return std::filesystem::is_directory(dataDir() + "/elevation"); }
+
+#define SANDTABLE_REQUIRE_DATA()                                                  \
+  do {                                                                            \
+    if (!::sandtable::test::haveData()) GTEST_SKIP() << "no ../shared/data here"; \
+  } while (0)
+
+/// A fresh directory under the system temp dir, removed at scope exit.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& tag = "st");
+  ~TempDir();
+  const std::string& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+struct CommandResult {
+  int exitCode = -1;
+  std::string out;  ///< stdout
+  std::string err;  ///< stderr
+};
+
+/// Runs the sandtable CLI with arguments (shell-quoted here).
+CommandResult runCli(const std::vector<std::string>& args);
+
+/// Every file (recursively) under `dir` matching the extensions.
+std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts);
+
+}  // namespace sandtable::test
