@@ -21,6 +21,7 @@ namespace {
 /// Running sums of a distance-weighted least-squares plane z = a + b x + c y.
 struct PlaneSums {
   double w = 0, wx = 0, wy = 0, wxx = 0, wxy = 0, wyy = 0, wz = 0, wxz = 0, wyz = 0;
+  double zMin = INFINITY, zMax = -INFINITY;
 
   void add(double x, double y, double z, double weight) {
     w += weight;
@@ -32,10 +33,14 @@ struct PlaneSums {
     wz += weight * z;
     wxz += weight * x * z;
     wyz += weight * y * z;
+    zMin = std::min(zMin, z);
+    zMax = std::max(zMax, z);
   }
 
-  /// The plane's value at (0, 0); the weighted mean when the posts are
-  /// (nearly) collinear and the plane is not determined.
+  /// The plane's value at (0, 0). Falls back to the weighted mean when the
+  /// posts are spread along a line (next to a void, say), where the plane's
+  /// slope across that line is undetermined; and never leaves the range of
+  /// the posts used, so a plane can not extrapolate into a spike.
   double estimate() const {
     if (w <= 0) return NAN;
     // Centre on the weighted centroid for conditioning.
@@ -43,10 +48,13 @@ struct PlaneSums {
     const double sxx = wxx - w * mx * mx, sxy = wxy - w * mx * my, syy = wyy - w * my * my;
     const double sxz = wxz - w * mx * mz, syz = wyz - w * my * mz;
     const double det = sxx * syy - sxy * sxy;
-    if (!(det > 1e-9 * (sxx * syy + 1e-30))) return mz;
+    const double tr = sxx + syy;
+    const double root = std::sqrt(std::max(0.0, tr * tr - 4 * det));
+    const double lMin = 0.5 * (tr - root), lMax = 0.5 * (tr + root);
+    if (!(lMax > 0) || lMin < 0.05 * lMax) return mz;
     const double b = (sxz * syy - syz * sxy) / det;
     const double c = (syz * sxx - sxz * sxy) / det;
-    return mz - b * mx - c * my;
+    return std::clamp(mz - b * mx - c * my, zMin, zMax);
   }
 };
 

@@ -1,0 +1,414 @@
+#include "sandtable/runtime/renderer.h"
+
+#include <epoxy/gl.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+
+#include "egl_context.h"
+
+namespace sandtable::runtime {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+// The tint's stops are spread over at most this many metres above the
+// lowest land, so a 300 m hill database still shows the whole palette and
+// mountains turn white from about 2,000 m above their valleys (rock at
+// 0.66 of the range, snow complete at 0.84).
+constexpr float kTintRangeMetres = 2500.0f;
+// Linear fog starts at this fraction of the view distance.
+constexpr float kFogStartFraction = 0.25f;
+
+const char* kTerrainVertexShader = R"(#version 450 core
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec3 aNormal;
+uniform mat4 uViewProjection;
+uniform vec3 uEye;
+out vec3 vNormal;
+out float vElevation;
+out float vDistance;
+void main() {
+  gl_Position = uViewProjection * vec4(aPosition, 1.0);
+  vNormal = aNormal;
+  vElevation = aPosition.y;
+  vDistance = distance(aPosition, uEye);
+}
+)";
+
+const char* kTerrainFragmentShader = R"(#version 450 core
+in vec3 vNormal;
+in float vElevation;
+in float vDistance;
+uniform float uTintBase;
+uniform float uTintRange;
+uniform vec3 uSun;
+uniform vec3 uFogColor;
+uniform float uFogStart;
+uniform float uFogEnd;
+uniform bool uFog;
+out vec4 fragColor;
+
+const int kStops = 6;
+const float kAt[kStops] = float[](0.0, 0.15, 0.32, 0.50, 0.66, 0.84);
+const vec3 kTint[kStops] = vec3[](
+  vec3(0.30, 0.52, 0.24),   // lowland green
+  vec3(0.55, 0.65, 0.33),   // upland olive
+  vec3(0.76, 0.68, 0.48),   // tan
+  vec3(0.56, 0.43, 0.30),   // brown
+  vec3(0.52, 0.51, 0.50),   // grey rock
+  vec3(0.96, 0.96, 0.98));  // snow
+
+vec3 hypsometric(float elevation) {
+  if (elevation <= 0.0) return vec3(0.16, 0.34, 0.60);  // sea level and below
+  float t = clamp((elevation - uTintBase) / uTintRange, 0.0, 1.0);
+  vec3 c = kTint[0];
+  for (int k = 1; k < kStops; ++k) {
+    c = mix(c, kTint[k], smoothstep(kAt[k - 1], kAt[k], t));
+  }
+  return c;
+}
+
+void main() {
+  vec3 n = normalize(vNormal);
+  float light = 0.38 + 0.62 * max(dot(n, uSun), 0.0);
+  vec3 color = hypsometric(vElevation) * light;
+  if (uFog) {
+    float f = clamp((vDistance - uFogStart) / (uFogEnd - uFogStart), 0.0, 1.0);
+    color = mix(color, uFogColor, f);
+  }
+  fragColor = vec4(color, 1.0);
+}
+)";
+
+// A full-screen triangle from gl_VertexID; the colour follows the angle of
+// each pixel's view ray above the horizon, so the horizon tracks the pitch.
+const char* kSkyVertexShader = R"(#version 450 core
+out vec2 vNdc;
+void main() {
+  vec2 p = vec2((gl_VertexID == 1) ? 3.0 : -1.0, (gl_VertexID == 2) ? 3.0 : -1.0);
+  vNdc = p;
+  gl_Position = vec4(p, 0.0, 1.0);
+}
+)";
+
+const char* kSkyFragmentShader = R"(#version 450 core
+in vec2 vNdc;
+uniform vec2 uTanHalfFov;
+uniform float uPitch;
+uniform vec3 uHorizon;
+uniform vec3 uZenith;
+out vec4 fragColor;
+void main() {
+  vec3 ray = normalize(vec3(vNdc * uTanHalfFov, -1.0));
+  float sinElevation = ray.y * cos(uPitch) - ray.z * sin(uPitch);
+  fragColor = vec4(mix(uHorizon, uZenith, smoothstep(0.0, 0.6, sinElevation)), 1.0);
+}
+)";
+
+std::string shaderLog(GLuint obj, bool program) {
+  GLint len = 0;
+  program ? glGetProgramiv(obj, GL_INFO_LOG_LENGTH, &len) : glGetShaderiv(obj, GL_INFO_LOG_LENGTH, &len);
+  std::string log(std::size_t(std::max(len, 1)), '\0');
+  program ? glGetProgramInfoLog(obj, len, nullptr, log.data())
+          : glGetShaderInfoLog(obj, len, nullptr, log.data());
+  return log.c_str();
+}
+
+GLuint compile(GLenum type, const char* source, std::string& error) {
+  const GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &source, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    error = "shader compile failed: " + shaderLog(s, false);
+    glDeleteShader(s);
+    return 0;
+  }
+  return s;
+}
+
+GLuint link(const char* vs, const char* fs, std::string& error) {
+  const GLuint v = compile(GL_VERTEX_SHADER, vs, error);
+  if (!v) return 0;
+  const GLuint f = compile(GL_FRAGMENT_SHADER, fs, error);
+  if (!f) {
+    glDeleteShader(v);
+    return 0;
+  }
+  const GLuint p = glCreateProgram();
+  glAttachShader(p, v);
+  glAttachShader(p, f);
+  glLinkProgram(p);
+  glDeleteShader(v);
+  glDeleteShader(f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    error = "shader link failed: " + shaderLog(p, true);
+    glDeleteProgram(p);
+    return 0;
+  }
+  return p;
+}
+
+Eigen::Vector3f toVec(Rgb c) { return {c.r / 255.0f, c.g / 255.0f, c.b / 255.0f}; }
+
+/// OpenGL perspective projection (right-handed eye space, looking down -Z).
+Eigen::Matrix4d perspective(double vfovDeg, double aspect, double nearPlane, double farPlane) {
+  const double f = 1.0 / std::tan(vfovDeg * kDegToRad / 2.0);
+  Eigen::Matrix4d m = Eigen::Matrix4d::Zero();
+  m(0, 0) = f / aspect;
+  m(1, 1) = f;
+  m(2, 2) = (farPlane + nearPlane) / (nearPlane - farPlane);
+  m(2, 3) = 2.0 * farPlane * nearPlane / (nearPlane - farPlane);
+  m(3, 2) = -1.0;
+  return m;
+}
+
+/// World-to-eye for an eye at `eye` turned to heading (clockwise from -Z)
+/// and pitched (positive up).
+Eigen::Matrix4d lookFrom(const Eigen::Vector3d& eye, double headingDeg, double pitchDeg) {
+  const double h = headingDeg * kDegToRad, p = pitchDeg * kDegToRad;
+  const Eigen::Vector3d forward(std::cos(p) * std::sin(h), std::sin(p), -std::cos(p) * std::cos(h));
+  const Eigen::Vector3d right(std::cos(h), 0.0, std::sin(h));
+  const Eigen::Vector3d up = right.cross(forward);
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m.block<1, 3>(0, 0) = right.transpose();
+  m.block<1, 3>(1, 0) = up.transpose();
+  m.block<1, 3>(2, 0) = -forward.transpose();
+  m(0, 3) = -right.dot(eye);
+  m(1, 3) = -up.dot(eye);
+  m(2, 3) = forward.dot(eye);
+  return m;
+}
+
+/// Direction towards the fixed sun: azimuth 200 degrees (south-south-west,
+/// so a northbound eye sees the slopes facing it lit), 40 degrees up.
+Eigen::Vector3f sunDirection() {
+  const double az = 200.0 * kDegToRad, el = 40.0 * kDegToRad;
+  return Eigen::Vector3d(std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az))
+      .cast<float>();
+}
+
+}  // namespace
+
+struct Renderer::Impl {
+  std::unique_ptr<EglContext> egl;
+  RenderSettings settings;
+  std::string rendererName, version;
+  GLuint fbo = 0, colorRb = 0, depthRb = 0;
+  GLuint terrainProgram = 0, skyProgram = 0;
+  GLuint terrainVao = 0, skyVao = 0, vbo = 0;
+  std::vector<std::uint8_t> readback;
+
+  ~Impl() {
+    if (!egl) return;
+    glDeleteProgram(terrainProgram);
+    glDeleteProgram(skyProgram);
+    glDeleteVertexArrays(1, &terrainVao);
+    glDeleteVertexArrays(1, &skyVao);
+    glDeleteBuffers(1, &vbo);
+    glDeleteFramebuffers(1, &fbo);
+    glDeleteRenderbuffers(1, &colorRb);
+    glDeleteRenderbuffers(1, &depthRb);
+  }
+
+  std::string createTargets() {
+    const auto w = GLsizei(settings.width), h = GLsizei(settings.height);
+    glCreateRenderbuffers(1, &colorRb);
+    glNamedRenderbufferStorage(colorRb, GL_RGBA8, w, h);
+    glCreateRenderbuffers(1, &depthRb);
+    glNamedRenderbufferStorage(depthRb, GL_DEPTH_COMPONENT24, w, h);
+    glCreateFramebuffers(1, &fbo);
+    glNamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colorRb);
+    glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb);
+    const GLenum status = glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
+    if (status != GL_FRAMEBUFFER_COMPLETE) {
+      return "framebuffer " + std::to_string(w) + "x" + std::to_string(h) +
+             " is incomplete (status " + std::to_string(status) + "); try a smaller --size";
+    }
+    return {};
+  }
+
+  void createGeometry() {
+    glCreateBuffers(1, &vbo);
+    glCreateVertexArrays(1, &terrainVao);
+    glVertexArrayVertexBuffer(terrainVao, 0, vbo, 0, sizeof(TerrainVertex));
+    glEnableVertexArrayAttrib(terrainVao, 0);
+    glVertexArrayAttribFormat(terrainVao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, x));
+    glVertexArrayAttribBinding(terrainVao, 0, 0);
+    glEnableVertexArrayAttrib(terrainVao, 1);
+    glVertexArrayAttribFormat(terrainVao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, nx));
+    glVertexArrayAttribBinding(terrainVao, 1, 0);
+    glCreateVertexArrays(1, &skyVao);  // the sky needs no attributes, but core GL needs a VAO
+  }
+
+  std::string createPrograms() {
+    std::string error;
+    terrainProgram = link(kTerrainVertexShader, kTerrainFragmentShader, error);
+    if (!terrainProgram) return "terrain " + error;
+    skyProgram = link(kSkyVertexShader, kSkyFragmentShader, error);
+    if (!skyProgram) return "sky " + error;
+    // Settings that never change over a flight.
+    const Eigen::Vector3f fogColor = toVec(settings.background);
+    const float base = std::max(settings.minElevation, 0.0f);
+    const float range = std::clamp(settings.maxElevation - base, 1.0f, kTintRangeMetres);
+    const Eigen::Vector3f sun = sunDirection();
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uTintBase"), base);
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uTintRange"), range);
+    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uSun"), 1, sun.data());
+    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uFogColor"), 1,
+                        fogColor.data());
+    glProgramUniform1i(terrainProgram, glGetUniformLocation(terrainProgram, "uFog"), settings.fog);
+    // The zenith is a deeper, bluer shade of the background colour.
+    const Eigen::Vector3f zenith = fogColor.cwiseProduct(Eigen::Vector3f(0.55f, 0.72f, 0.95f));
+    glProgramUniform3fv(skyProgram, glGetUniformLocation(skyProgram, "uHorizon"), 1, fogColor.data());
+    glProgramUniform3fv(skyProgram, glGetUniformLocation(skyProgram, "uZenith"), 1, zenith.data());
+    return {};
+  }
+
+  void drawSky(const Camera& cam) {
+    const float tanH = float(std::tan(cam.hfovDeg * kDegToRad / 2.0));
+    const float tanV = float(std::tan(cam.vfovDeg() * kDegToRad / 2.0));
+    glProgramUniform2f(skyProgram, glGetUniformLocation(skyProgram, "uTanHalfFov"), tanH, tanV);
+    glProgramUniform1f(skyProgram, glGetUniformLocation(skyProgram, "uPitch"),
+                       float(cam.pitchDeg * kDegToRad));
+    glDisable(GL_DEPTH_TEST);
+    glDepthMask(GL_FALSE);
+    glUseProgram(skyProgram);
+    glBindVertexArray(skyVao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDepthMask(GL_TRUE);
+  }
+
+  void drawTerrain(const DisplayBuffer& buf) {
+    if (buf.vertices.empty()) return;
+    const Camera& cam = buf.camera;
+    const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
+    const Eigen::Matrix4f viewProjection =
+        (perspective(cam.vfovDeg(), cam.aspect, cam.nearPlane, cam.viewDistance) *
+         lookFrom(eye, cam.headingDeg, cam.pitchDeg))
+            .cast<float>();
+    const Eigen::Vector3f eyeF = eye.cast<float>();
+    const auto d = float(cam.viewDistance);
+    glProgramUniformMatrix4fv(terrainProgram, glGetUniformLocation(terrainProgram, "uViewProjection"),
+                              1, GL_FALSE, viewProjection.data());
+    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uEye"), 1, eyeF.data());
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogStart"),
+                       d * kFogStartFraction);
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogEnd"), d);
+    // Re-specifying the store each frame orphans last frame's copy, so the
+    // driver never waits for the GPU to finish with it.
+    glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(TerrainVertex)),
+                      buf.vertices.data(), GL_STREAM_DRAW);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LESS);
+    // From above a height field only front faces can be the nearest surface.
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+    glFrontFace(GL_CCW);
+    glUseProgram(terrainProgram);
+    glBindVertexArray(terrainVao);
+    glMultiDrawArrays(GL_TRIANGLE_STRIP, buf.firsts.data(), buf.counts.data(),
+                      GLsizei(buf.firsts.size()));
+    glDisable(GL_CULL_FACE);
+  }
+
+  void renderInto(const DisplayBuffer& buf) {
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glViewport(0, 0, GLsizei(settings.width), GLsizei(settings.height));
+    glClearDepth(1.0);
+    glClear(GL_DEPTH_BUFFER_BIT);  // the sky covers every pixel's colour
+    drawSky(buf.camera);
+    drawTerrain(buf);
+  }
+
+  /// llvmpipe compiles shaders for the actual state on the first draw;
+  /// doing one tiny frame here keeps that out of frame 0's timing.
+  void warmUp() {
+    DisplayBuffer b;
+    b.camera.y = 10;
+    b.camera.aspect = double(settings.width) / double(settings.height);
+    b.vertices = {{-1, 0, -20, 0, 1, 0}, {-1, 0, -19, 0, 1, 0}, {1, 0, -20, 0, 1, 0},
+                  {1, 0, -19, 0, 1, 0}};
+    b.firsts = {0};
+    b.counts = {4};
+    renderInto(b);
+    Image scratch;
+    readFrame(scratch);
+  }
+
+  void readFrame(Image& out) {
+    const std::uint32_t w = settings.width, h = settings.height;
+    const std::size_t row = std::size_t(w) * 4;
+    readback.resize(row * h);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glNamedFramebufferReadBuffer(fbo, GL_COLOR_ATTACHMENT0);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+    glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RGBA, GL_UNSIGNED_BYTE, readback.data());
+    // GL's first row is the bottom one; images store the top row first.
+    out.width = w;
+    out.height = h;
+    out.rgba.resize(row * h);
+    for (std::uint32_t y = 0; y < h; ++y) {
+      std::memcpy(out.rgba.data() + row * y, readback.data() + row * (h - 1 - y), row);
+    }
+  }
+};
+
+Renderer::Renderer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Renderer::~Renderer() = default;
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s) {
+  if (s.width == 0 || s.height == 0 || s.width > 16384 || s.height > 16384) {
+    return Problem{"renderer", 0, "frame size must be 1..16384 pixels each way"};
+  }
+  auto egl = EglContext::create();
+  if (!egl) return egl.problems();
+  auto impl = std::make_unique<Impl>();
+  impl->egl = std::move(egl.value());
+  impl->settings = s;
+  if (epoxy_gl_version() < 45) {
+    return Problem{kGlContextProblem, 0,
+                   "the EGL context offers OpenGL " + std::to_string(epoxy_gl_version()) +
+                       ", sandtable needs 4.5 core"};
+  }
+  impl->rendererName = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  impl->version = reinterpret_cast<const char*>(glGetString(GL_VERSION));
+  std::string err = impl->createTargets();
+  if (err.empty()) err = impl->createPrograms();
+  if (!err.empty()) return Problem{"renderer", 0, "renderer: " + err};
+  impl->createGeometry();
+  impl->warmUp();
+  return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
+}
+
+std::string Renderer::draw(const DisplayBuffer& buf, Image& out) {
+  Impl& m = *impl_;
+  m.renderInto(buf);
+  m.readFrame(out);
+  const GLenum e = glGetError();
+  if (e != GL_NO_ERROR) return "renderer: GL error " + std::to_string(e) + " in frame " + std::to_string(buf.frame);
+  return {};
+}
+
+const std::string& Renderer::glRenderer() const { return impl_->rendererName; }
+
+std::string Renderer::description() const {
+  return impl_->rendererName + ", OpenGL " + impl_->version + ", EGL " + impl_->egl->platform();
+}
+
+bool headlessGlAvailable(std::string& why) {
+  RenderSettings s;
+  s.width = s.height = 16;
+  auto r = Renderer::create(s);
+  if (!r) why = r.error();
+  return r.ok();
+}
+
+}  // namespace sandtable::runtime
