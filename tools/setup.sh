@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs every Debian package sandtable needs (idempotent, non-interactive)
+# and makes a Release build in ./build. Usage: tools/setup.sh [BUILD_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build_dir=${1:-build}
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libgdal-dev gdal-bin            # GDAL/OGR with PROJ: every raster, vector and transform
+  libeigen3-dev                   # vector math
+  nlohmann-json3-dev              # manifest and --json output
+  libcli11-dev                    # subcommand CLI with --help
+  zlib1g-dev                      # CRC-32 (and compression)
+  libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
+  libpng-dev                      # PNG frames
+  libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release ${SANDTABLE_CMAKE_ARGS:-}
+cmake --build "$build_dir" -j "$(nproc)"
+echo "setup: built $build_dir/tools/sandtable"
