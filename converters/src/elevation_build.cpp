@@ -66,6 +66,9 @@ Result<bool> checkOptions(const ElevationOptions& o) {
     return Problem{"--resample", 0, "build: unknown --resample \"" + o.resample +
                                         "\"; use weighted, bilinear, cubic or average"};
   }
+  if (o.fit != "triangles" && o.fit != "posts") {
+    return Problem{"--fit", 0, "build: unknown --fit \"" + o.fit + "\"; use triangles or posts"};
+  }
   if (o.output.empty()) return Problem{"-o", 0, "build: no output directory (-o DB)"};
   std::error_code ec;
   if (fs::exists(o.output, ec) && !o.force) {
@@ -164,7 +167,11 @@ std::string publish(const std::string& partial, const std::string& output) {
     if (ec) return "cannot move the old " + output + " aside: " + ec.message();
   }
   fs::rename(partial, output, ec);
-  if (ec) return "cannot rename " + partial + " to " + output + ": " + ec.message();
+  if (ec) {
+    std::error_code back;
+    if (!old.empty()) fs::rename(old, output, back);  // put the old database back
+    return "cannot rename " + partial + " to " + output + ": " + ec.message();
+  }
   if (!old.empty()) fs::remove_all(old, ec);
   fsyncDirectory(fs::absolute(output).parent_path().string());
   return {};
@@ -217,8 +224,11 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   const auto tr = std::chrono::steady_clock::now();
   const std::string err = o.resample == "weighted" ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
                                                    : detail::resampleGdal(vrt, f, o.resample, o.threads, g, progress);
-  const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   if (!err.empty()) return Problem{o.output, 0, err};
+  if (o.resample == "bilinear" && o.fit == "triangles") {
+    if (std::string e = detail::fitTriangles(vrt, f, o.threads, g, progress); !e.empty()) return Problem{o.output, 0, e};
+  }
+  const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   std::vector<std::uint8_t> filled(g.size());
   for (std::size_t k = 0; k < g.size(); ++k) filled[k] = std::isnan(g[k]) ? 1 : 0;
   auto voids = detail::fillVoids(f, g, progress);
@@ -241,11 +251,11 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
   report.manifest.build = {
-      {"crs_request", o.crs},        {"resample", o.resample},
+      {"crs_request", o.crs},        {"resample", o.resample}, {"fit", o.resample == "bilinear" ? o.fit : "posts"},
       {"spacing_request_m", o.spacing}, {"voids_filled", report.voidsFilled},
       {"posts", report.posts},       {"seconds", report.seconds},
       {"resample_seconds", resampleSeconds}, {"posts_per_second", report.postsPerSecond},
-      {"void_fill", "GDALFillNodata (inverse-distance interpolation)"},
+      {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
       {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m)"}, {"2", "filled void"}}}};
   if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
 

@@ -1,6 +1,9 @@
 // Choosing the target frame: CRS, extent and post spacing.
 #include <algorithm>
 #include <cmath>
+#include <memory>
+
+#include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
 
@@ -51,44 +54,103 @@ double scaleError(const GeoTransformer& t, double lon, double lat, bool& ok) {
 
 struct Inner {
   double west = -INFINITY, east = INFINITY, south = -INFINITY, north = INFINITY;
+  void intersect(const Inner& o) {
+    west = std::max(west, o.west), east = std::min(east, o.east);
+    south = std::max(south, o.south), north = std::min(north, o.north);
+  }
 };
 
-/// Projects the box edges and keeps the largest axis-aligned rectangle
-/// inside them, so every target post has source data around it.
-Result<Inner> projectBox(const GeoTransformer& t, const Box& b, const std::string& crsName,
-                         double maxScaleError) {
-  Inner in;
+/// Rejects a target CRS that distorts too much anywhere on the lon/lat box.
+Result<bool> checkScale(const GeoTransformer& t, const Box& b, const std::string& crsName, double maxScaleError) {
   double worst = 0, worstLon = 0, worstLat = 0;
-  constexpr int kSteps = 64;
+  constexpr int kSteps = 32;
   for (int k = 0; k <= kSteps; ++k) {
     const double f = double(k) / kSteps;
     const double lon = b[0] + f * (b[2] - b[0]), lat = b[1] + f * (b[3] - b[1]);
-    const double pts[4][2] = {{b[0], lat}, {b[2], lat}, {lon, b[1]}, {lon, b[3]}};
-    for (int e = 0; e < 4; ++e) {
-      double x, y;
-      bool ok = t.toProjected(pts[e][0], pts[e][1], x, y);
-      const double err = ok ? scaleError(t, pts[e][0], pts[e][1], ok) : INFINITY;
+    const double pts[5][2] = {{b[0], lat}, {b[2], lat}, {lon, b[1]}, {lon, b[3]}, {lon, lat}};
+    for (const auto& p : pts) {
+      bool ok = true;
+      const double err = scaleError(t, p[0], p[1], ok);
       if (!ok) {
-        return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: lon " +
-                                       std::to_string(pts[e][0]) + " lat " + std::to_string(pts[e][1]) +
-                                       " does not project; use --crs utm or cassini"};
+        return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: lon " + std::to_string(p[0]) +
+                                       " lat " + std::to_string(p[1]) + " does not project; use --crs utm or cassini"};
       }
-      if (err > worst) worst = err, worstLon = pts[e][0], worstLat = pts[e][1];
-      if (e == 0) in.west = std::max(in.west, x);
-      if (e == 1) in.east = std::min(in.east, x);
-      if (e == 2) in.south = std::max(in.south, y);
-      if (e == 3) in.north = std::min(in.north, y);
+      if (err > worst) worst = err, worstLon = p[0], worstLat = p[1];
     }
   }
   if (worst > maxScaleError) {
     return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: its scale error reaches " +
-                                   std::to_string(worst * 100) + "% at lon " + std::to_string(worstLon) +
-                                   " lat " + std::to_string(worstLat) + " (limit " +
-                                   std::to_string(maxScaleError * 100) +
+                                   std::to_string(worst * 100) + "% at lon " + std::to_string(worstLon) + " lat " +
+                                   std::to_string(worstLat) + " (limit " + std::to_string(maxScaleError * 100) +
                                    "%); use --crs utm or cassini, or a smaller extent"};
   }
-  if (!(in.west < in.east && in.south < in.north)) {
-    return Problem{"--crs", 0, "frame: the extent is empty in " + crsName};
+  return true;
+}
+
+/// Projects the edges of a box given in `from` and keeps the largest
+/// axis-aligned target rectangle inside them, so every target post has
+/// source data around it.
+Result<Inner> innerRectangle(const Box& b, const OGRSpatialReference& from, const TargetCrs& to) {
+  OGRSpatialReference src(from), dst;
+  dst.importFromWkt(to.wkt.c_str());
+  src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&src, &dst));
+  if (!ct) return Problem{"--crs", 0, "frame: PROJ cannot transform the sources into " + to.name};
+  Inner in;
+  constexpr int kSteps = 64;
+  for (int k = 0; k <= kSteps; ++k) {
+    const double f = double(k) / kSteps;
+    const double u = b[0] + f * (b[2] - b[0]), v = b[1] + f * (b[3] - b[1]);
+    double xs[4] = {b[0], b[2], u, u}, ys[4] = {v, v, b[1], b[3]};
+    if (!ct->Transform(4, xs, ys)) {
+      return Problem{"--crs", 0, "frame: " + to.name + " cannot hold the extent; use --crs utm or cassini"};
+    }
+    in.west = std::max(in.west, xs[0]);
+    in.east = std::min(in.east, xs[1]);
+    in.south = std::max(in.south, ys[2]);
+    in.north = std::min(in.north, ys[3]);
+  }
+  if (!(in.west < in.east && in.south < in.north)) return Problem{"--crs", 0, "frame: the extent is empty in " + to.name};
+  return in;
+}
+
+/// Union of the sources' post-centre boxes in their own (shared) CRS.
+Box sourceBox(const std::vector<Source>& sources) {
+  Box u = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+  for (const auto& s : sources) {
+    const auto& g = s.geo;
+    const double x0 = g[0] + 0.5 * g[1], x1 = g[0] + (s.width - 0.5) * g[1];
+    const double y0 = g[3] + 0.5 * g[5], y1 = g[3] + (s.height - 0.5) * g[5];
+    u = {std::min({u[0], x0, x1}), std::min({u[1], y0, y1}), std::max({u[2], x0, x1}), std::max({u[3], y0, y1})};
+  }
+  return u;
+}
+
+Result<Inner> targetRectangle(const ElevationOptions& o, const std::vector<Source>& sources, const TargetCrs& crs) {
+  OGRSpatialReference srcSrs;
+  if (srcSrs.importFromWkt(sources.front().srsWkt.c_str()) != OGRERR_NONE) {
+    return Problem{sources.front().path, 0, "frame: cannot parse the source CRS"};
+  }
+  for (const auto& s : sources) {
+    OGRSpatialReference other;
+    other.importFromWkt(s.srsWkt.c_str());
+    if (!other.IsSame(&srcSrs)) {
+      return Problem{s.path, 0, "frame: this source's CRS differs from " + sources.front().path +
+                                    "'s; mosaics need one CRS (reproject with gdalwarp first)"};
+    }
+  }
+  auto in = innerRectangle(sourceBox(sources), srcSrs, crs);
+  if (!in) return in.problems();
+  if (o.extent) {
+    OGRSpatialReference wgs;
+    wgs.SetWellKnownGeogCS("WGS84");
+    auto crop = innerRectangle(*o.extent, wgs, crs);
+    if (!crop) return crop.problems();
+    in->intersect(crop.value());
+    if (!(in->west < in->east && in->south < in->north)) {
+      return Problem{"--extent", 0, "frame: --extent does not overlap the sources"};
+    }
   }
   return in;
 }
@@ -104,7 +166,8 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   if (!crs) return crs.problems();
   auto t = GeoTransformer::create(crs->wkt);
   if (!t) return t.problems();
-  auto inner = projectBox(*t.value(), b, crs->name, o.maxScaleError);
+  if (auto ok = checkScale(*t.value(), b, crs->name, o.maxScaleError); !ok) return ok.problems();
+  auto inner = targetRectangle(o, sources, crs.value());
   if (!inner) return inner.problems();
 
   Frame f;

@@ -51,7 +51,8 @@ std::array<double, 2> postMetres(const std::array<double, 6>& geo, bool geograph
 /// Finest source post spacing in metres near the sources' centre.
 double nativeSpacingMetres(const std::vector<Source>& sources);
 
-/// Writes a VRT mosaic of the sources (Float32, one nodata) to `vrtPath`.
+/// Writes a VRT mosaic of the sources (GDALBuildVRT, highest resolution)
+/// to `vrtPath`. Voids are told apart by nodata or the valid range.
 std::string buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath);
 
 /// Resamples the mosaic into `out` (postsX * postsZ, row-major from the
@@ -60,6 +61,11 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
                              std::vector<float>& out, const ProgressFn& progress);
 std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel,
                          int threads, std::vector<float>& out, const ProgressFn& progress);
+
+/// Refines the posts so the terrain triangles are the least-squares fit of
+/// the source's bilinear surface (not point samples of it).
+std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
+                         const ProgressFn& progress);
 
 /// Fills NaN posts by interpolation (GDALFillNodata); returns how many.
 Result<std::uint64_t> fillVoids(const Frame& f, std::vector<float>& grid, const ProgressFn& progress);

@@ -316,6 +316,217 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
 
 namespace {
 
+// ---- least-squares fit of the terrain triangles to the source surface
+
+constexpr int kFitSamples = 3;     // samples per square side
+constexpr int kFitIterations = 10; // damped Jacobi sweeps; the start is close
+constexpr double kFitDamping = 0.8;
+
+/// Weights of a square's corners (NW, NE, SW, SE) at (fx, fz) on the
+/// triangle containing it (split along the SW-NE diagonal).
+std::array<double, 4> cornerWeights(double fx, double fz) {
+  if (fx + fz <= 1.0) return {1 - fx - fz, fx, fz, 0};
+  return {0, 1 - fz, 1 - fx, fx + fz - 1};
+}
+
+/// The quadrature shared by the right-hand side and the mass matrix, so a
+/// source surface that is already linear on a triangle is reproduced exactly.
+struct SquareRule {
+  std::array<std::array<double, 4>, kFitSamples * kFitSamples> phi{};
+  std::array<std::array<double, 4>, 4> mass{};
+  SquareRule() {
+    int s = 0;
+    for (int c = 0; c < kFitSamples; ++c) {
+      for (int a = 0; a < kFitSamples; ++a, ++s) {
+        phi[s] = cornerWeights((a + 0.5) / kFitSamples, (c + 0.5) / kFitSamples);
+        for (int p = 0; p < 4; ++p) {
+          for (int q = 0; q < 4; ++q) mass[p][q] += phi[s][p] * phi[s][q];
+        }
+      }
+    }
+  }
+};
+
+double sourceBilinear(const Window& win, double px, double py) {
+  const int x0 = static_cast<int>(std::floor(px)), y0 = static_cast<int>(std::floor(py));
+  if (x0 < win.x0 || y0 < win.y0 || x0 + 1 >= win.x0 + win.w || y0 + 1 >= win.y0 + win.h) return NAN;
+  const double fx = px - x0, fy = py - y0;
+  const double a = win.at(x0, y0), b = win.at(x0 + 1, y0), c = win.at(x0, y0 + 1), d = win.at(x0 + 1, y0 + 1);
+  const double top = a + fx * (b - a), bot = c + fx * (d - c);
+  return top + fy * (bot - top);  // NaN if any corner is a void
+}
+
+struct FitSystem {
+  std::uint32_t w = 0, h = 0;
+  std::vector<double> b;              // right-hand side per post
+  std::vector<std::uint8_t> included; // per square: all samples valid
+  std::mutex mutex;
+};
+
+/// Source post positions of every target post on row j.
+void rowPositions(const Lattice& L, const Frame& f, std::uint32_t j, std::uint32_t jBegin, std::vector<double>& px,
+                  std::vector<double>& py) {
+  const std::uint32_t r = std::min((j - jBegin) / Lattice::kStep, L.rows - 2);
+  for (std::uint32_t i = 0; i < f.postsX; ++i) {
+    const std::uint32_t c = std::min(i / Lattice::kStep, L.cols - 2);
+    PostMap m{};
+    mapPost(L, c, r, i, j, f.spacing, f.spacing, m);
+    px[i] = m.px;
+    py[i] = m.py;
+  }
+}
+
+std::string fitStrip(const Frame& f, std::uint32_t j0, std::uint32_t j1, GDALRasterBand& band,
+                     OGRCoordinateTransformation& ct, const std::array<double, 6>& g, const SquareRule& rule,
+                     FitSystem& sys) {
+  Lattice L;
+  Window win;
+  if (!L.build(f, j0, j1 + 1, ct, g)) return "fit: PROJ failed to transform target posts to the sources";
+  if (std::string e = readWindow(band, L, 2, win); !e.empty()) return e;
+  std::vector<double> local(std::size_t(j1 - j0 + 1) * f.postsX, 0.0);
+  std::vector<std::uint8_t> inc(std::size_t(j1 - j0) * (f.postsX - 1), 0);
+  std::vector<double> pxA(f.postsX), pyA(f.postsX), pxB(f.postsX), pyB(f.postsX);
+  rowPositions(L, f, j0, j0, pxA, pyA);
+  for (std::uint32_t j = j0; j < j1; ++j) {
+    rowPositions(L, f, j + 1, j0, pxB, pyB);
+    for (std::uint32_t i = 0; i + 1 < f.postsX; ++i) {
+      std::array<double, 4> acc{};
+      bool ok = true;
+      for (int s = 0; s < kFitSamples * kFitSamples && ok; ++s) {
+        const auto& w = rule.phi[s];
+        const double px = w[0] * pxA[i] + w[1] * pxA[i + 1] + w[2] * pxB[i] + w[3] * pxB[i + 1];
+        const double py = w[0] * pyA[i] + w[1] * pyA[i + 1] + w[2] * pyB[i] + w[3] * pyB[i + 1];
+        const double v = sourceBilinear(win, px, py);
+        ok = !std::isnan(v);
+        for (int k = 0; k < 4; ++k) acc[k] += v * w[k];
+      }
+      if (!ok) continue;
+      inc[std::size_t(j - j0) * (f.postsX - 1) + i] = 1;
+      double* top = &local[std::size_t(j - j0) * f.postsX + i];
+      double* bot = top + f.postsX;
+      top[0] += acc[0], top[1] += acc[1], bot[0] += acc[2], bot[1] += acc[3];
+    }
+    std::swap(pxA, pxB);
+    std::swap(pyA, pyB);
+  }
+  std::lock_guard lock(sys.mutex);
+  for (std::size_t k = 0; k < local.size(); ++k) sys.b[std::size_t(j0) * f.postsX + k] += local[k];
+  std::copy(inc.begin(), inc.end(), sys.included.begin() + std::ptrdiff_t(std::size_t(j0) * (f.postsX - 1)));
+  return {};
+}
+
+/// (M z)(i, j) and M's diagonal, gathered from the included squares around
+/// the post; corners are NW, NE, SW, SE.
+void applyMass(const FitSystem& sys, const SquareRule& rule, const std::vector<double>& z, std::uint32_t i,
+               std::uint32_t j, double& mz, double& diag) {
+  mz = 0;
+  diag = 0;
+  const std::uint32_t sw = sys.w - 1;
+  const int corner[4][2] = {{-1, -1}, {0, -1}, {-1, 0}, {0, 0}};  // square offset for the post as SE, SW, NE, NW
+  const int local[4] = {3, 2, 1, 0};
+  for (int q = 0; q < 4; ++q) {
+    const long si = long(i) + corner[q][0], sj = long(j) + corner[q][1];
+    if (si < 0 || sj < 0 || si >= long(sys.w) - 1 || sj >= long(sys.h) - 1) continue;
+    if (!sys.included[std::size_t(sj) * sw + std::size_t(si)]) continue;
+    const double* zr0 = &z[std::size_t(sj) * sys.w + std::size_t(si)];
+    const double* zr1 = zr0 + sys.w;
+    const auto& m = rule.mass[local[q]];
+    mz += m[0] * zr0[0] + m[1] * zr0[1] + m[2] * zr1[0] + m[3] * zr1[1];
+    diag += m[local[q]];
+  }
+}
+
+template <typename Fn>
+void parallelRows(std::uint32_t rows, int threads, Fn fn) {
+  std::atomic<std::uint32_t> next{0};
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) {
+    pool.emplace_back([&] {
+      for (std::uint32_t j; (j = next.fetch_add(16)) < rows;) {
+        for (std::uint32_t k = j; k < std::min(rows, j + 16); ++k) fn(k);
+      }
+    });
+  }
+  for (auto& t : pool) t.join();
+}
+
+}  // namespace
+
+std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
+                         const ProgressFn& progress) {
+  const SquareRule rule;
+  FitSystem sys;
+  sys.w = f.postsX;
+  sys.h = f.postsZ;
+  sys.b.assign(grid.size(), 0.0);
+  sys.included.assign(std::size_t(f.postsX - 1) * (f.postsZ - 1), 0);
+  constexpr std::uint32_t kStripRows = 64;
+  const std::uint32_t squareRows = f.postsZ - 1;
+  const std::uint32_t strips = (squareRows + kStripRows - 1) / kStripRows;
+  std::atomic<std::uint32_t> next{0}, done{0};
+  std::string firstError;
+  std::mutex errMutex;
+  auto worker = [&] {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
+    if (!ds) return;
+    std::array<double, 6> g{};
+    ds->GetGeoTransform(g.data());
+    OGRSpatialReference dst, src(*ds->GetSpatialRef());
+    dst.importFromWkt(f.crs.wkt.c_str());
+    dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&dst, &src));
+    for (std::uint32_t s; (s = next++) < strips && !cancelRequested();) {
+      const std::uint32_t j0 = s * kStripRows, j1 = std::min(squareRows, j0 + kStripRows);
+      const std::string e = fitStrip(f, j0, j1, *ds->GetRasterBand(1), *ct, g, rule, sys);
+      std::lock_guard lock(errMutex);
+      if (!e.empty() && firstError.empty()) firstError = e;
+      if (progress) progress(0.5 * double(++done) / strips, "fitting triangles");
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threadCount(threads); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (cancelRequested()) return "build: cancelled";
+  if (!firstError.empty()) return firstError;
+
+  // Start from the point samples; a post no included square touches keeps its sample.
+  std::vector<double> z(grid.size()), next2(grid.size());
+  parallelRows(f.postsZ, threadCount(threads), [&](std::uint32_t j) {
+    for (std::uint32_t i = 0; i < f.postsX; ++i) {
+      const std::size_t k = std::size_t(j) * f.postsX + i;
+      double mz, diag;
+      z[k] = grid[k];
+      if (std::isnan(z[k])) {
+        z[k] = 0;  // provisional; replaced below when the post is fitted
+        applyMass(sys, rule, z, i, j, mz, diag);
+        if (diag > 0) z[k] = sys.b[k] / diag;
+      }
+    }
+  });
+  for (int it = 0; it < kFitIterations; ++it) {
+    parallelRows(f.postsZ, threadCount(threads), [&](std::uint32_t j) {
+      for (std::uint32_t i = 0; i < f.postsX; ++i) {
+        const std::size_t k = std::size_t(j) * f.postsX + i;
+        double mz, diag;
+        applyMass(sys, rule, z, i, j, mz, diag);
+        next2[k] = diag > 0 ? z[k] + kFitDamping * (sys.b[k] - mz) / diag : z[k];
+      }
+    });
+    std::swap(z, next2);
+    if (progress) progress(0.5 + 0.5 * (it + 1) / kFitIterations, "fitting triangles");
+  }
+  for (std::size_t k = 0; k < grid.size(); ++k) {
+    const std::uint32_t i = static_cast<std::uint32_t>(k % f.postsX), j = static_cast<std::uint32_t>(k / f.postsX);
+    double mz, diag;
+    applyMass(sys, rule, z, i, j, mz, diag);
+    if (diag > 0) grid[k] = static_cast<float>(z[k]);
+  }
+  return {};
+}
+
+namespace {
+
 /// A MEM dataset whose single band aliases `data` (no copy).
 GDALDataset* wrapBuffer(void* data, GDALDataType type, std::uint32_t w, std::uint32_t h, const Frame& f) {
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");

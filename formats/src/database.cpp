@@ -1,5 +1,6 @@
 #include "sandtable/formats/database.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -49,6 +50,13 @@ void checkFiles(const std::string& dir, const manifest::Manifest& m, std::vector
                                   " does not match the manifest's " + crcHex(f.crc) +
                                   ": the file was modified or corrupted"});
     }
+  }
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool listed = name == manifest::kFileName ||
+                        std::any_of(m.files.begin(), m.files.end(), [&](const auto& f) { return f.path == name; });
+    if (!listed) out.push_back({e.path().string(), 0, "database: file is not listed in the manifest"});
   }
   if (!hasGrid) {
     out.push_back({dir + "/" + manifest::kFileName, 0,

@@ -124,10 +124,11 @@ Result<Header> decodeHeader(std::span<const std::byte> bytes, const std::string&
   h.tableCrc = loadLE<std::uint32_t>(p + field::tableCrc);
 
   if (h.postsX < 2 || h.postsZ < 2 || h.postsX > kMaxPostsPerAxis || h.postsZ > kMaxPostsPerAxis) {
-    return fail(field::postsX, "post counts " + std::to_string(h.postsX) + " x " +
+    return fail(h.postsX < 2 || h.postsX > kMaxPostsPerAxis ? field::postsX : field::postsZ, "post counts " + std::to_string(h.postsX) + " x " +
                                    std::to_string(h.postsZ) + " are out of range");
   }
   if (h.blockPosts != kBlockPosts) return fail(field::blockPosts, "block size must be 64 posts");
+  if (h.flags != 0) return fail(field::flags, "flags must be 0 in version 1");
   if (!(std::isfinite(h.spacing) && h.spacing > 0) || !std::isfinite(h.originEasting) ||
       !std::isfinite(h.originNorthing)) {
     return fail(field::spacing, "spacing or origin is not a finite number");
@@ -418,6 +419,10 @@ std::vector<Problem> validateGrid(const std::string& path) {
         r.add("crc", off, "grid: block (" + std::to_string(bx) + "," + std::to_string(bz) +
                               ") checksum mismatch (stored " + crcHex(e.crc) + ", computed " +
                               crcHex(c) + "): the block is corrupt");
+      }
+      if (e.reserved != 0) {
+        r.add("reserved", h.blockTableOffset + (std::uint64_t(bz) * h.blocksX + bx) * kBlockEntryBytes + 12,
+              "grid: block table reserved field is not zero");
       }
       checkBlockContents(g, bx, bz, off, r);
       mn = std::min(mn, e.minElevation);

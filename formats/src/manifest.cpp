@@ -81,11 +81,18 @@ class Reader {
   }
   std::uint32_t crc(const json& p, const char* k, const std::string& at) {
     const std::string s = str(p, k, at);
-    if (s.size() != 10 || s.rfind("0x", 0) != 0) {
-      fail(at + k + " must be \"0x\" and 8 hex digits");
+    const bool hex = s.size() == 10 && s.rfind("0x", 0) == 0 &&
+                     s.find_first_not_of("0123456789abcdef", 2) == std::string::npos;
+    if (!hex) {
+      fail(at + k + " must be \"0x\" and 8 lowercase hex digits");
       return 0;
     }
     return static_cast<std::uint32_t>(std::stoul(s.substr(2), nullptr, 16));
+  }
+  std::uint32_t u32(const json& p, const char* k, const std::string& at) {
+    const std::uint64_t v = uns(p, k, at);
+    if (v > 0xffffffffull) fail(at + k + " is out of range");
+    return static_cast<std::uint32_t>(v);
   }
   void fail(const std::string& msg) { out_.push_back({file_, 0, "manifest: " + msg}); }
 
@@ -101,16 +108,16 @@ Manifest fromJson(const json& j, Reader& r) {
   if (const json* crs = r.node(j, "crs", json::value_t::object, "")) {
     m.crsWkt = r.str(*crs, "wkt", "crs.");
     m.crsName = r.str(*crs, "name", "crs.");
-    if (const json* e = r.node(*crs, "epsg", json::value_t::number_float, "crs.")) m.epsg = e->get<int>();
+    if (const json* e = r.node(*crs, "epsg", json::value_t::number_unsigned, "crs.")) m.epsg = static_cast<int>(std::min<std::uint64_t>(e->get<std::uint64_t>(), 0x7fffffff));
     if (m.crsWkt.empty()) r.fail("crs.wkt is empty");
   }
   if (const json* g = r.node(j, "grid", json::value_t::object, "")) {
     m.originEasting = r.num(*g, "origin_easting", "grid.");
     m.originNorthing = r.num(*g, "origin_northing", "grid.");
     m.spacing = r.num(*g, "spacing_m", "grid.");
-    m.postsX = static_cast<std::uint32_t>(r.uns(*g, "posts_x", "grid."));
-    m.postsZ = static_cast<std::uint32_t>(r.uns(*g, "posts_z", "grid."));
-    m.blockPosts = static_cast<std::uint32_t>(r.uns(*g, "block_posts", "grid."));
+    m.postsX = r.u32(*g, "posts_x", "grid.");
+    m.postsZ = r.u32(*g, "posts_z", "grid.");
+    m.blockPosts = r.u32(*g, "block_posts", "grid.");
     m.minElevation = static_cast<float>(r.num(*g, "min_elevation", "grid."));
     m.maxElevation = static_cast<float>(r.num(*g, "max_elevation", "grid."));
     if (!(m.spacing > 0)) r.fail("grid.spacing_m must be positive");
@@ -128,7 +135,7 @@ Manifest fromJson(const json& j, Reader& r) {
   }
   if (const json* mod = r.node(j, "modules", json::value_t::object, "")) {
     m.moduleSize = r.num(*mod, "size_m", "modules.");
-    m.levels = static_cast<int>(r.uns(*mod, "levels", "modules."));
+    m.levels = static_cast<int>(std::min<std::uint64_t>(r.uns(*mod, "levels", "modules."), 64));
   }
   if (const json* fs = r.node(j, "files", json::value_t::array, "")) {
     for (const json& f : *fs) {
@@ -168,15 +175,15 @@ Result<Manifest> decode(std::span<const std::byte> bytes, const std::string& fil
     return Problem{file, e.byte, std::string("manifest: not valid JSON: ") + e.what()};
   }
   if (!j.is_object()) return Problem{file, 0, "manifest: the top level must be a JSON object"};
-  if (j.value("format", std::string()) != kFormat) {
+  if (!j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != kFormat) {
     return Problem{file, 0, std::string("manifest: \"format\" must be \"") + kFormat +
                                 "\"; this is not a sandtable database"};
   }
-  if (!j.contains("version") || !j["version"].is_number_integer()) {
-    return Problem{file, 0, "manifest: \"version\" is missing"};
+  if (!j.contains("version") || !j["version"].is_number_unsigned()) {
+    return Problem{file, 0, "manifest: \"version\" is missing or not a whole number"};
   }
-  if (j["version"].get<int>() != kVersion) {
-    return Problem{file, 0, "manifest: version " + std::to_string(j["version"].get<int>()) +
+  if (j["version"].get<std::uint64_t>() != kVersion) {
+    return Problem{file, 0, "manifest: version " + std::to_string(j["version"].get<std::uint64_t>()) +
                                 " is not supported (this reader knows " + std::to_string(kVersion) +
                                 "); use a matching sandtable"};
   }
@@ -193,7 +200,12 @@ Result<Manifest> decode(std::span<const std::byte> bytes, const std::string& fil
                                      "the database rather than editing it"});
   }
   Reader r(file, problems);
-  Manifest m = fromJson(j, r);
+  Manifest m;
+  try {
+    m = fromJson(j, r);
+  } catch (const json::exception& e) {
+    problems.push_back({file, 0, std::string("manifest: malformed: ") + e.what()});
+  }
   if (!problems.empty()) return problems;
   return m;
 }

@@ -72,6 +72,10 @@ void registerBuild(CLI::App& root, Commands& c) {
   sub->add_option("--spacing", a->o.spacing, "Post spacing in metres (default: finest native spacing)");
   sub->add_option("--resample", a->o.resample, "weighted (seed Fig. 13) | bilinear | cubic | average")
       ->default_val("weighted");
+  sub->add_option("--fit", a->o.fit,
+                  "With bilinear: triangles (least-squares fit of the drawn triangles to the source) | posts "
+                  "(point samples, as gdalwarp)")
+      ->default_val("triangles");
   sub->add_option("--extent", a->extent, "Crop to WEST SOUTH EAST NORTH (lon/lat degrees)")->expected(4);
   sub->add_option("--module-size", a->o.moduleSize, "Load-module edge in metres")->default_val(1000.0);
   sub->add_option("--levels", a->o.levels, "Levels of detail per module")->default_val(4);

@@ -23,6 +23,10 @@ struct ElevationOptions {
   std::string crs = "utm";           ///< utm | cassini | EPSG:n
   double spacing = 0;                ///< metres; 0 = the sources' finest native spacing
   std::string resample = "weighted"; ///< weighted | bilinear | cubic | average
+  /// With bilinear: "triangles" fits the posts so the drawn triangles best
+  /// match the source surface (least squares); "posts" keeps GDAL's point
+  /// samples at the posts, as gdalwarp would.
+  std::string fit = "triangles";
   /// Optional crop, lon/lat degrees: west, south, east, north.
   std::optional<std::array<double, 4>> extent;
   double moduleSize = 1000.0;  ///< seed: 1 km load modules

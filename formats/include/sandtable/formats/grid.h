@@ -4,8 +4,9 @@
 // Layout: a 4096-byte header page, a page-aligned block table, then square
 // blocks of kBlockPosts x kBlockPosts posts. Each block holds elevation
 // (float32), a unit normal (3 x int16 snorm) and a material index (uint8)
-// for every post, as separate planes, so one 4 KiB page of elevation is a
-// 32 x 32 post square of ground. Every block carries its own CRC-32.
+// for every post, as separate planes: a block is 11 pages covering a
+// 64 x 64 post square of ground, so paging in a block brings in a square,
+// not a strip. The block table holds every block's CRC-32.
 //
 // World frame (seed Figure 6): origin at the north-west corner post, X east,
 // Y up, Z south. Post (i, j) lies at easting originEasting + i * spacing and
