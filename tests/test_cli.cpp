@@ -12,17 +12,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string slurpFile(const std::string& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void spit(const std::string& p, const std::string& s) {
-  std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out << s;
-}
 
 /// Nothing named like the output, finished or partial, may exist.
 void expectNoOutput(const TempDir& tmp) {

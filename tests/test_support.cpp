@@ -26,12 +26,6 @@ std::string quote(const std::string& s) {
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return q + "'";
 }
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
 }  // namespace
 
 CommandResult runCli(const std::vector<std::string>& args) {
@@ -42,9 +36,21 @@ CommandResult runCli(const std::vector<std::string>& args) {
   const int rc = std::system(cmd.c_str());
   CommandResult r;
   r.exitCode = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  r.out = slurp(io / "out");
-  r.err = slurp(io / "err");
+  r.out = slurpFile(io / "out");
+  r.err = slurpFile(io / "err");
   return r;
+}
+
+std::string slurpFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void spit(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << bytes;
 }
 
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts) {

@@ -41,6 +41,11 @@ struct CommandResult {
 /// Runs the sandtable CLI with arguments (shell-quoted here).
 CommandResult runCli(const std::vector<std::string>& args);
 
+/// Whole file as bytes in a string; "" if unreadable.
+std::string slurpFile(const std::string& path);
+/// Replaces a file's contents.
+void spit(const std::string& path, const std::string& bytes);
+
 /// Every file (recursively) under `dir` matching the extensions.
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts);
 

@@ -229,6 +229,27 @@ double estimatePost(const Window& win, const PostMap& p, double radius) {
   return s.estimate();
 }
 
+/// One worker's handle on the mosaic: GDAL datasets and PROJ transforms are
+/// not thread-safe, so each thread opens its own.
+struct MosaicReader {
+  std::unique_ptr<GDALDataset> ds;
+  std::array<double, 6> geo{};
+  std::unique_ptr<OGRCoordinateTransformation> toSource;  // target CRS -> mosaic CRS
+
+  std::string open(const std::string& vrtPath, const Frame& f) {
+    ds.reset(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
+    if (!ds || !ds->GetSpatialRef()) return "resample: cannot open the mosaic: " + lastGdalError();
+    ds->GetGeoTransform(geo.data());
+    OGRSpatialReference dst, src(*ds->GetSpatialRef());
+    dst.importFromWkt(f.crs.wkt.c_str());
+    dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    toSource.reset(OGRCreateCoordinateTransformation(&dst, &src));
+    return toSource ? std::string() : "resample: PROJ cannot transform into the mosaic's CRS";
+  }
+  GDALRasterBand& band() { return *ds->GetRasterBand(1); }
+};
+
 std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, double radius,
                           GDALRasterBand& band, OGRCoordinateTransformation& ct,
                           const std::array<double, 6>& g, Lattice& L, Window& win, float* out) {
@@ -278,19 +299,12 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
   }
   const double radius = std::max(f.spacing, sourceDiagonal * 1.01);
   auto worker = [&] {
-    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
-    if (!ds) {
+    MosaicReader m;
+    if (std::string e = m.open(vrtPath, f); !e.empty()) {
       std::lock_guard lock(mutex);
-      if (firstError.empty()) firstError = "resample: cannot open the mosaic: " + lastGdalError();
+      if (firstError.empty()) firstError = e;
       return;
     }
-    std::array<double, 6> g{};
-    ds->GetGeoTransform(g.data());
-    OGRSpatialReference dst, src(*ds->GetSpatialRef());
-    dst.importFromWkt(f.crs.wkt.c_str());
-    dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&dst, &src));
     Lattice L;
     Window win;
     for (std::uint32_t s; (s = next++) < strips;) {
@@ -300,7 +314,7 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
         if (!firstError.empty()) return;
       }
       const std::uint32_t j0 = s * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
-      const std::string err = resampleStrip(f, j0, j1, radius, *ds->GetRasterBand(1), *ct, g, L, win, out.data());
+      const std::string err = resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, L, win, out.data());
       std::lock_guard lock(mutex);
       if (!err.empty() && firstError.empty()) firstError = err;
       const std::uint32_t d = ++done;
@@ -467,18 +481,15 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
   std::string firstError;
   std::mutex errMutex;
   auto worker = [&] {
-    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
-    if (!ds) return;
-    std::array<double, 6> g{};
-    ds->GetGeoTransform(g.data());
-    OGRSpatialReference dst, src(*ds->GetSpatialRef());
-    dst.importFromWkt(f.crs.wkt.c_str());
-    dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-    std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&dst, &src));
+    MosaicReader m;
+    if (std::string e = m.open(vrtPath, f); !e.empty()) {
+      std::lock_guard lock(errMutex);
+      if (firstError.empty()) firstError = e;
+      return;
+    }
     for (std::uint32_t s; (s = next++) < strips && !cancelRequested();) {
       const std::uint32_t j0 = s * kStripRows, j1 = std::min(squareRows, j0 + kStripRows);
-      const std::string e = fitStrip(f, j0, j1, *ds->GetRasterBand(1), *ct, g, rule, sys);
+      const std::string e = fitStrip(f, j0, j1, m.band(), *m.toSource, m.geo, rule, sys);
       std::lock_guard lock(errMutex);
       if (!e.empty() && firstError.empty()) firstError = e;
       if (progress) progress(0.5 * double(++done) / strips, "fitting triangles");

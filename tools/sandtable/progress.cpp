@@ -32,11 +32,11 @@ void Progress::update(double fraction, const std::string& stage) {
     lastStage_ = stage;
     return;
   }
-  const int step = static_cast<int>(fraction * 10.0);
+  const int step = static_cast<int>(fraction * 4.0);
   if (step == lastStep_ && stage == lastStage_) return;
   lastStep_ = step;
   lastStage_ = stage;
-  std::fprintf(stderr, "%s: %3d%% (%.1fs)\n", stage.c_str(), step * 10, elapsed);
+  std::fprintf(stderr, "%s: %3d%% (%.1fs)\n", stage.c_str(), step * 25, elapsed);
 }
 
 void Progress::done() {

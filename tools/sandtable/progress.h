@@ -1,6 +1,6 @@
 #pragma once
 // Progress for long work: a redrawn bar on a TTY, plain lines otherwise
-// (one per 10% step), so logs stay readable.
+// (one per 25% step), so logs stay readable.
 #include <chrono>
 #include <cstdio>
 #include <mutex>
