@@ -25,13 +25,12 @@ struct Source {
   int width = 0, height = 0;
   bool geographic = true;
   std::array<double, 4> lonLatBox{};  ///< west, south, east, north
-  std::uint64_t validPosts = 0;
   std::uint64_t bytes = 0;
   std::uint32_t crc = 0;
 };
 
-/// Opens and fully reads each source once: proves it is a readable
-/// elevation raster and counts its valid posts.
+/// Opens each source, checks its georeferencing and reads its first and
+/// last blocks (truncation), in parallel.
 Result<std::vector<Source>> openSources(const std::vector<std::string>& paths, int threads,
                                         const ProgressFn& progress);
 

@@ -70,7 +70,7 @@ double weightedPlaneEstimate(const double* dx, const double* dy, const double* z
   PlaneSums s;
   for (std::size_t k = 0; k < n; ++k) {
     const double d = std::hypot(dx[k], dy[k]);
-    if (d < radius) s.add(dx[k], dy[k], z[k], 1.0 - d / radius);
+    if (d < radius) s.add(dx[k], dy[k], z[k], 1.0 - (d * d) / (radius * radius));
   }
   return s.estimate();
 }
@@ -178,6 +178,16 @@ bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i
   return true;
 }
 
+/// Source position of target post (i, j) inside lattice cell (c, r).
+inline void positionAt(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i, std::uint32_t j,
+                       double& px, double& py) {
+  const double fx = double(i - L.ci[c]) / double(L.ci[c + 1] - L.ci[c]);
+  const double fz = L.rj[r + 1] == L.rj[r] ? 0.0 : double(j - L.rj[r]) / double(L.rj[r + 1] - L.rj[r]);
+  const std::size_t k00 = std::size_t(r) * L.cols + c, k10 = k00 + 1, k01 = k00 + L.cols, k11 = k01 + 1;
+  px = (1 - fz) * (L.px[k00] + fx * (L.px[k10] - L.px[k00])) + fz * (L.px[k01] + fx * (L.px[k11] - L.px[k01]));
+  py = (1 - fz) * (L.py[k00] + fx * (L.py[k10] - L.py[k00])) + fz * (L.py[k01] + fx * (L.py[k11] - L.py[k01]));
+}
+
 struct Window {
   int x0 = 0, y0 = 0, w = 0, h = 0;
   std::vector<float> v;
@@ -213,7 +223,7 @@ double estimatePost(const Window& win, const PostMap& p, double radius) {
   const int xb = std::min(win.x0 + win.w - 1, static_cast<int>(std::floor(p.px + p.hx)));
   const int ya = std::max(win.y0, static_cast<int>(std::ceil(p.py - p.hy)));
   const int yb = std::min(win.y0 + win.h - 1, static_cast<int>(std::floor(p.py + p.hy)));
-  const double r2 = radius * radius;
+  const double r2 = radius * radius, invR2 = 1.0 / r2;
   for (int y = ya; y <= yb; ++y) {
     const double dy = y - p.py;
     for (int x = xa; x <= xb; ++x) {
@@ -223,7 +233,7 @@ double estimatePost(const Window& win, const PostMap& p, double radius) {
       const double e = p.m[0][0] * dx + p.m[0][1] * dy;
       const double n = p.m[1][0] * dx + p.m[1][1] * dy;
       const double d2 = e * e + n * n;
-      if (d2 < r2) s.add(e, n, v, 1.0 - std::sqrt(d2) / radius);
+      if (d2 < r2) s.add(e, n, v, 1.0 - d2 * invR2);
     }
   }
   return s.estimate();
@@ -260,13 +270,17 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
   if (!err.empty()) return err;
   for (std::uint32_t r = 0; r + 1 < L.rows; ++r) {
     const std::uint32_t jLast = (r + 2 == L.rows) ? L.rj[r + 1] : L.rj[r + 1] - 1;
-    for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
-      for (std::uint32_t c = 0; c + 1 < L.cols; ++c) {
-        const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
+    for (std::uint32_t c = 0; c + 1 < L.cols; ++c) {
+      // The metric and search box are constant over a lattice cell; only
+      // the source position moves, linearly.
+      PostMap cell{};
+      if (!mapPost(L, c, r, L.ci[c], L.rj[r], f.spacing, radius, cell)) continue;
+      const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
+      for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
         for (std::uint32_t i = L.ci[c]; i <= iLast; ++i) {
-          PostMap p{};
-          const bool ok = mapPost(L, c, r, i, j, f.spacing, radius, p);
-          out[std::size_t(j) * f.postsX + i] = ok ? static_cast<float>(estimatePost(win, p, radius)) : NAN;
+          PostMap p = cell;
+          positionAt(L, c, r, i, j, p.px, p.py);
+          out[std::size_t(j) * f.postsX + i] = static_cast<float>(estimatePost(win, p, radius));
         }
       }
     }

@@ -1,0 +1,750 @@
+// sandtable bench build: grid conversion speed, ours against gdalwarp.
+//
+// Both sides convert the same DTED2 sources onto the same target grid (CRS,
+// extent, post spacing) in one run. Measurements alternate between the sides
+// and every one is repeated, reporting the median, because the machine is
+// shared and noisy: a burst of load then falls on both sides alike.
+#include "bench_build.h"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdarg>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "sandtable/converters/elevation.h"
+
+extern char** environ;
+
+namespace sandtable::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kCmd = "bench build";
+/// The issue asks for a target of at least this many posts a side.
+constexpr std::uint32_t kMinPostsPerAxis = 5000;
+/// The UTM grid is the largest rectangle inside the projected lon/lat square
+/// (meridians converge and tilt), a few per cent smaller than the square.
+/// This margin on the synthesized square keeps the grid >= 5000 posts
+/// (measured: a 161 km square at 42.3 N gives 5265 x 5246 posts at 30 m).
+constexpr double kInnerMargin = 1.04;
+
+struct Args {
+  std::string input;
+  double sizeKm = 0;  ///< 0: just enough for kMinPostsPerAxis at the spacing
+  double spacing = 30;
+  std::vector<std::string> kernels{"bilinear", "weighted"};
+  int repeat = 3;
+  int threads = 0;
+  bool json = false;
+  bool keep = false;
+};
+
+/// A benchmark step failed; the message is for the user as it stands.
+struct BenchError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// One timed run.
+struct Sample {
+  double wallS = 0;
+  double cpuS = 0;       ///< user + system over all threads
+  double resampleS = 0;  ///< ours only: ElevationReport::resampleSeconds
+  /// Ours only: seconds per build stage, in order (see StageClock).
+  std::vector<std::pair<std::string, double>> stages;
+};
+
+/// One of our kernels as --kernels names it. "bilinear" keeps GDAL's point
+/// samples (fit "posts"), the same computation as gdalwarp -r bilinear;
+/// "bilinear-triangles" adds the least-squares triangle fit that
+/// `sandtable build --resample bilinear` does by default.
+struct OurKernel {
+  std::string name, resample, fit;
+};
+
+const std::vector<std::string> kKernelNames = {"weighted", "bilinear", "bilinear-triangles", "cubic", "average"};
+
+OurKernel ourKernel(const std::string& name) {
+  if (name == "bilinear-triangles") return {name, "bilinear", "triangles"};
+  return {name, name, "posts"};
+}
+
+/// The target grid, as our build chose it; gdalwarp is given the same.
+struct TargetGrid {
+  std::uint32_t postsX = 0, postsZ = 0;
+  double spacing = 0, west = 0, north = 0, east = 0, south = 0;  ///< outer post centres
+  std::string crsName, crsWkt;
+  std::uint64_t posts() const { return std::uint64_t(postsX) * postsZ; }
+};
+
+/// Where the sources are and which lon/lat square to convert.
+struct Input {
+  fs::path sources;
+  std::optional<std::array<double, 4>> extent;  ///< west, south, east, north
+  std::string description;
+  std::size_t files = 0;
+};
+
+/// The gdalwarp side's tools and shared inputs.
+struct Gdal {
+  fs::path warp, buildVrt, vrt, wkt;
+  std::string version;
+};
+
+// ------------------------------------------------------------ small helpers
+
+/// Progress lines go to stderr, so stdout stays the report (or the JSON).
+__attribute__((format(printf, 1, 2))) void note(const char* format, ...) {
+  std::va_list args;
+  va_start(args, format);
+  std::fputs("bench: ", stderr);
+  std::vfprintf(stderr, format, args);
+  std::fputc('\n', stderr);
+  va_end(args);
+}
+
+void onSignal(int) { convert::requestCancel(); }
+
+void throwIfCancelled() {
+  if (convert::cancelRequested()) throw BenchError("cancelled");
+}
+
+double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double medianOf(const std::vector<Sample>& s, double Sample::*field) {
+  std::vector<double> v;
+  for (const auto& x : s) v.push_back(x.*field);
+  return median(v);
+}
+
+double cpuSeconds(const rusage& ru) {
+  auto tv = [](const timeval& t) { return double(t.tv_sec) + double(t.tv_usec) * 1e-6; };
+  return tv(ru.ru_utime) + tv(ru.ru_stime);
+}
+
+double processCpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return cpuSeconds(ru);
+}
+
+/// 1-minute load average: the machine is shared, so the report says how busy it was.
+double loadAverage() {
+  std::ifstream f("/proc/loadavg");
+  double l = NAN;
+  f >> l;
+  return l;
+}
+
+unsigned cpuCount() { return std::max(1u, std::thread::hardware_concurrency()); }
+
+std::string fmt(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+std::optional<fs::path> findOnPath(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::string p = path ? path : "/usr/local/bin:/usr/bin:/bin";
+  for (std::size_t a = 0; a <= p.size();) {
+    const std::size_t b = std::min(p.find(':', a), p.size());
+    const fs::path candidate = fs::path(p.substr(a, b - a).empty() ? "." : p.substr(a, b - a)) / name;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate;
+    a = b + 1;
+  }
+  return std::nullopt;
+}
+
+std::string lastLines(const fs::path& file, std::size_t count) {
+  std::ifstream f(file);
+  std::deque<std::string> lines;
+  for (std::string line; std::getline(f, line);) {
+    lines.push_back(line);
+    if (lines.size() > count) lines.pop_front();
+  }
+  std::string out;
+  for (const auto& l : lines) out += "\n  | " + l;
+  return out;
+}
+
+/// A fresh directory under $TMPDIR, removed at the end unless --keep.
+class WorkDir {
+ public:
+  explicit WorkDir(bool keep) : keep_(keep) {
+    std::string tmpl = (fs::temp_directory_path() / "sandtable-bench-XXXXXX").string();
+    if (!::mkdtemp(tmpl.data())) throw BenchError("cannot create a work directory: " + std::string(std::strerror(errno)));
+    path_ = tmpl;
+  }
+  ~WorkDir() {
+    std::error_code ec;
+    if (!keep_) fs::remove_all(path_, ec);
+  }
+  WorkDir(const WorkDir&) = delete;
+  WorkDir& operator=(const WorkDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+  bool keep_;
+};
+
+/// Splits a build's wall time into its stages from the progress callback:
+/// a stage runs from the previous stage's last report to its own last
+/// report, so gaps (opening the mosaic, say) count to the stage they lead
+/// into, and the stages add up to the whole build with "finishing" (grid
+/// fsync, checksums, manifest, publish) after the last report.
+class StageClock {
+ public:
+  StageClock() : start_(Clock::now()) {}
+  /// Called from worker threads.
+  void report(const std::string& stage) {
+    std::lock_guard lock(mutex_);
+    const auto now = Clock::now();
+    if (stages_.empty() || stages_.back().first != stage) stages_.emplace_back(stage, now);
+    stages_.back().second = now;
+  }
+  std::vector<std::pair<std::string, double>> finish() const {
+    std::vector<std::pair<std::string, double>> out;
+    auto from = start_;
+    for (const auto& [name, last] : stages_) {
+      out.emplace_back(name, std::chrono::duration<double>(last - from).count());
+      from = last;
+    }
+    out.emplace_back("finishing", seconds(from));
+    return out;
+  }
+
+ private:
+  Clock::time_point start_;
+  std::vector<std::pair<std::string, Clock::time_point>> stages_;
+  std::mutex mutex_;
+};
+
+// ------------------------------------------------------------ subprocesses
+
+/// Runs argv (argv[0] a path, no shell: no quoting issues) with stdout and
+/// stderr to `log`. Throws with the log's tail unless it exits 0.
+Sample runProcess(const std::vector<std::string>& argv, const fs::path& log) {
+  std::vector<char*> av;
+  for (const auto& s : argv) av.push_back(const_cast<char*>(s.c_str()));
+  av.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  const auto t0 = Clock::now();
+  pid_t pid = 0;
+  const int rc = ::posix_spawn(&pid, av[0], &fa, nullptr, av.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw BenchError("cannot run " + argv[0] + ": " + std::strerror(rc));
+  int status = 0;
+  rusage ru{};
+  // A signal (Ctrl-C reaches the child too) interrupts the wait; keep waiting.
+  while (::wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
+  }
+  Sample s{seconds(t0), cpuSeconds(ru), 0, {}};
+  throwIfCancelled();
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw BenchError(fs::path(argv[0]).filename().string() + " failed (log " + log.string() + "):" +
+                     lastLines(log, 15));
+  }
+  return s;
+}
+
+fs::path selfExecutable() {
+  std::error_code ec;
+  fs::path p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? fs::path("/proc/self/exe") : p;
+}
+
+// ------------------------------------------------------------ input
+
+std::array<double, 4> synthBounds(const fs::path& synthJson) {
+  std::ifstream f(synthJson);
+  try {
+    const auto j = nlohmann::json::parse(f);
+    const auto& b = j.at("bounds");
+    return {b.at("west").get<double>(), b.at("south").get<double>(), b.at("east").get<double>(),
+            b.at("north").get<double>()};
+  } catch (const nlohmann::json::exception& e) {
+    throw BenchError("cannot read the square from " + synthJson.string() + ": " + e.what());
+  }
+}
+
+double autoSizeKm(double spacing) { return std::ceil(kMinPostsPerAxis * spacing * kInnerMargin / 1000.0); }
+
+/// Uses --input (its dted2/ tree when there is one, and the square from
+/// its synth.json), or synthesizes a square with this same binary.
+Input prepareInput(const Args& a, const fs::path& work) {
+  Input in;
+  fs::path dir = a.input;
+  if (a.input.empty()) {
+    dir = work / "synth";
+    const double km = a.sizeKm > 0 ? a.sizeKm : autoSizeKm(a.spacing);
+    note("synthesizing a %.0f km square into %s (not timed)", km, dir.c_str());
+    const auto t0 = Clock::now();
+    runProcess({selfExecutable().string(), "synth", "-o", dir.string(), "--size-km", fmt(km), "--threads",
+                std::to_string(a.threads)},
+               work / "synth.log");
+    note("synthesized in %.1f s", seconds(t0));
+    in.description = "synthesized " + fmt(km) + " km square, DTED2 (1 arc-second)";
+  } else {
+    if (!fs::is_directory(dir)) throw BenchError("--input " + a.input + " is not a directory");
+    in.description = "--input " + a.input;
+  }
+  in.sources = fs::is_directory(dir / "dted2") ? dir / "dted2" : dir;
+  if (fs::exists(dir / "synth.json")) in.extent = synthBounds(dir / "synth.json");
+  auto files = convert::expandSources({in.sources.string()});
+  if (!files || files.value().empty()) throw BenchError("no elevation sources under " + in.sources.string());
+  in.files = files.value().size();
+  return in;
+}
+
+// ------------------------------------------------------------ our side
+
+/// One full in-process build (sources to published database, as
+/// `sandtable build` does it), wall-clocked. The previous output is removed
+/// before the clock starts so deleting it is not timed.
+Sample runOurs(const Args& a, const Input& in, const std::string& kernel, const fs::path& out, TargetGrid* grid) {
+  std::error_code ec;
+  fs::remove_all(out, ec);
+  const OurKernel k = ourKernel(kernel);
+  convert::ElevationOptions o;
+  o.sources = {in.sources.string()};
+  o.output = out.string();
+  o.crs = "utm";
+  o.spacing = a.spacing;
+  o.resample = k.resample;
+  o.fit = k.fit;
+  o.extent = in.extent;
+  o.threads = a.threads;
+  const double cpu0 = processCpuSeconds();
+  const auto t0 = Clock::now();
+  StageClock stages;
+  auto r = convert::buildElevation(o, [&](double, const std::string& stage) { stages.report(stage); });
+  Sample s{seconds(t0), processCpuSeconds() - cpu0, 0, stages.finish()};
+  throwIfCancelled();
+  if (!r) throw BenchError("our build (" + kernel + ") failed: " + r.error());
+  s.resampleS = r->resampleSeconds;
+  if (grid) {
+    const auto& m = r->manifest;
+    *grid = {m.postsX, m.postsZ, m.spacing, m.originEasting, m.originNorthing, m.eastEasting(),
+             m.southNorthing(), m.crsName, m.crsWkt};
+  }
+  if (!a.keep) fs::remove_all(out, ec);
+  return s;
+}
+
+// ------------------------------------------------------------ gdalwarp side
+
+Gdal findGdal() {
+  Gdal g;
+  auto warp = findOnPath("gdalwarp");
+  auto vrt = findOnPath("gdalbuildvrt");
+  if (!warp || !vrt) {
+    throw BenchError(std::string(warp ? "gdalbuildvrt" : "gdalwarp") +
+                     " is not on PATH; install GDAL's command-line tools (Debian/Ubuntu: apt install gdal-bin)");
+  }
+  g.warp = *warp;
+  g.buildVrt = *vrt;
+  return g;
+}
+
+/// A VRT mosaic of exactly the files our build reads (same expansion, same
+/// "-resolution highest" as our own mosaic), and the target CRS as a WKT
+/// file, so gdalwarp sees the same sources and frame. Not timed: it is setup.
+void prepareGdal(Gdal& g, const Input& in, const TargetGrid& grid, const fs::path& work) {
+  const auto files = convert::expandSources({in.sources.string()});
+  if (!files) throw BenchError(files.error());
+  const fs::path list = work / "sources.txt";
+  {
+    std::ofstream f(list);
+    for (const auto& p : files.value()) f << p << '\n';
+  }
+  g.vrt = work / "sources.vrt";
+  runProcess({g.buildVrt.string(), "-q", "-resolution", "highest", "-input_file_list", list.string(), g.vrt.string()},
+             work / "gdalbuildvrt.log");
+  g.wkt = work / "target.wkt";
+  std::ofstream(g.wkt) << grid.crsWkt;
+  runProcess({g.warp.string(), "--version"}, work / "gdalwarp-version.log");
+  std::ifstream v(work / "gdalwarp-version.log");
+  std::getline(v, g.version);
+}
+
+/// "samples" and "lines" from an ENVI header: gdalwarp's output size.
+std::pair<long, long> enviSize(const fs::path& hdr) {
+  std::ifstream f(hdr);
+  long samples = -1, lines = -1;
+  for (std::string line; std::getline(f, line);) {
+    long v = 0;
+    if (std::sscanf(line.c_str(), " samples = %ld", &v) == 1) samples = v;
+    if (std::sscanf(line.c_str(), " lines = %ld", &v) == 1) lines = v;
+  }
+  return {samples, lines};
+}
+
+/// gdalwarp onto our grid. -te is our grid in pixel-is-area terms: post
+/// centres are pixel centres, so the box reaches half a post past the
+/// outer posts. ENVI output is raw Float32 plus a text header, the
+/// cheapest thing gdalwarp can write, so its output format costs little.
+Sample runGdalwarp(const Gdal& g, const TargetGrid& grid, const std::string& kernel, bool multi, int threads,
+                   const fs::path& dir) {
+  std::error_code ec;
+  fs::remove_all(dir, ec);  // untimed: no -overwrite inside the clock
+  fs::create_directories(dir);
+  const double h = grid.spacing / 2;
+  std::vector<std::string> argv = {g.warp.string(), "-q", "-of", "ENVI", "-ot", "Float32", "-t_srs", g.wkt.string(),
+                                   "-te", fmt(grid.west - h), fmt(grid.south - h), fmt(grid.east + h),
+                                   fmt(grid.north + h), "-tr", fmt(grid.spacing), fmt(grid.spacing), "-r", kernel};
+  if (multi) {
+    argv.insert(argv.end(), {"-multi", "-wo", threads > 0 ? "NUM_THREADS=" + std::to_string(threads)
+                                                           : std::string("NUM_THREADS=ALL_CPUS")});
+  }
+  argv.insert(argv.end(), {g.vrt.string(), (dir / "out.img").string()});
+  const Sample s = runProcess(argv, dir / "gdalwarp.log");
+  const auto [w, hgt] = enviSize(dir / "out.hdr");
+  if (w != long(grid.postsX) || hgt != long(grid.postsZ)) {
+    throw BenchError("gdalwarp wrote " + std::to_string(w) + " x " + std::to_string(hgt) + " pixels, not our " +
+                     std::to_string(grid.postsX) + " x " + std::to_string(grid.postsZ) + " posts");
+  }
+  return s;
+}
+
+// ------------------------------------------------------------ the run
+
+/// gdalwarp kernels comparable to ours: our weighted plane has no gdalwarp
+/// twin; `average` reads a similar neighbourhood, `bilinear` is the usual choice.
+std::vector<std::string> comparableKernels(const std::string& ours) {
+  if (ours == "weighted") return {"average", "bilinear"};
+  return {ourKernel(ours).resample};
+}
+
+struct Measurements {
+  std::map<std::string, std::vector<Sample>> ours, warp1t, warpMt;
+};
+
+/// The untimed warm-up: one run of each side, so both read the sources from
+/// the page cache in the timed runs. Ours also fixes the target grid.
+TargetGrid warmUp(const Args& a, const Input& in, Gdal& g, const fs::path& work) {
+  TargetGrid grid;
+  note("warm-up (untimed): ours, %s", a.kernels.front().c_str());
+  runOurs(a, in, a.kernels.front(), work / ("ours-" + a.kernels.front()), &grid);
+  prepareGdal(g, in, grid, work);
+  const std::string k = comparableKernels(a.kernels.front()).front();
+  note("warm-up (untimed): gdalwarp -r %s -multi", k.c_str());
+  runGdalwarp(g, grid, k, true, a.threads, work / ("gdalwarp-" + k + "-mt"));
+  return grid;
+}
+
+/// Repeats alternate the sides kernel by kernel; each gdalwarp kernel runs
+/// once per repeat even when two of our kernels compare against it.
+Measurements measure(const Args& a, const Input& in, const Gdal& g, const TargetGrid& grid, const fs::path& work) {
+  Measurements m;
+  for (int r = 1; r <= a.repeat; ++r) {
+    std::vector<std::string> warped;
+    for (const auto& k : a.kernels) {
+      const Sample s = runOurs(a, in, k, work / ("ours-" + k), nullptr);
+      m.ours[k].push_back(s);
+      note("repeat %d/%d  ours      %-8s %7.2f s (resampling %.2f s)", r, a.repeat, k.c_str(), s.wallS, s.resampleS);
+      for (const auto& gk : comparableKernels(k)) {
+        if (std::find(warped.begin(), warped.end(), gk) != warped.end()) continue;
+        warped.push_back(gk);
+        const Sample s1 = runGdalwarp(g, grid, gk, false, a.threads, work / ("gdalwarp-" + gk + "-1t"));
+        m.warp1t[gk].push_back(s1);
+        note("repeat %d/%d  gdalwarp  %-8s %7.2f s (1 thread)", r, a.repeat, gk.c_str(), s1.wallS);
+        const Sample sm = runGdalwarp(g, grid, gk, true, a.threads, work / ("gdalwarp-" + gk + "-mt"));
+        m.warpMt[gk].push_back(sm);
+        note("repeat %d/%d  gdalwarp  %-8s %7.2f s (-multi)", r, a.repeat, gk.c_str(), sm.wallS);
+      }
+    }
+  }
+  return m;
+}
+
+// ------------------------------------------------------------ report
+
+struct Row {
+  std::string kernel, warpKernel;
+  double oursS, oursResampleS, oursCpuS, warp1tS, warp1tCpuS, warpMtS, warpMtCpuS;
+  std::vector<double> oursSamples, warp1tSamples, warpMtSamples;
+  std::vector<std::pair<std::string, double>> oursStages;  ///< median seconds per stage
+};
+
+/// Median of each stage over the runs, in the order the stages ran.
+std::vector<std::pair<std::string, double>> medianStages(const std::vector<Sample>& runs) {
+  std::vector<std::pair<std::string, double>> out;
+  for (const auto& [name, unused] : runs.front().stages) {
+    std::vector<double> v;
+    for (const auto& r : runs) {
+      for (const auto& [n, sec] : r.stages) {
+        if (n == name) v.push_back(sec);
+      }
+    }
+    out.emplace_back(name, median(v));
+  }
+  return out;
+}
+
+std::vector<double> walls(const std::vector<Sample>& s) {
+  std::vector<double> v;
+  for (const auto& x : s) v.push_back(x.wallS);
+  return v;
+}
+
+std::vector<Row> rows(const Args& a, const Measurements& m) {
+  std::vector<Row> out;
+  for (const auto& k : a.kernels) {
+    const auto& o = m.ours.at(k);
+    for (const auto& gk : comparableKernels(k)) {
+      const auto& w1 = m.warp1t.at(gk);
+      const auto& wm = m.warpMt.at(gk);
+      out.push_back({k, gk, medianOf(o, &Sample::wallS), medianOf(o, &Sample::resampleS), medianOf(o, &Sample::cpuS),
+                     medianOf(w1, &Sample::wallS), medianOf(w1, &Sample::cpuS), medianOf(wm, &Sample::wallS),
+                     medianOf(wm, &Sample::cpuS), walls(o), walls(w1), walls(wm), medianStages(o)});
+    }
+  }
+  return out;
+}
+
+struct Context {
+  const Args& args;
+  const Input& input;
+  const Gdal& gdal;
+  const TargetGrid& grid;
+  double loadStart, loadEnd;
+};
+
+std::string threadsText(int threads) { return threads > 0 ? std::to_string(threads) : "all (" + std::to_string(cpuCount()) + ")"; }
+
+void printJson(const Context& c, const std::vector<Row>& rs) {
+  const double posts = static_cast<double>(c.grid.posts());
+  nlohmann::json results = nlohmann::json::array();
+  for (const auto& r : rs) {
+    results.push_back({{"kernel", r.kernel},
+                       {"ours_s", r.oursS},
+                       {"ours_posts_per_s", posts / r.oursS},
+                       {"ours_resample_s", r.oursResampleS},
+                       {"ours_cpu_s", r.oursCpuS},
+                       {"gdalwarp_kernel", r.warpKernel},
+                       {"gdalwarp_1t_s", r.warp1tS},
+                       {"gdalwarp_1t_posts_per_s", posts / r.warp1tS},
+                       {"gdalwarp_1t_cpu_s", r.warp1tCpuS},
+                       {"gdalwarp_mt_s", r.warpMtS},
+                       {"gdalwarp_mt_posts_per_s", posts / r.warpMtS},
+                       {"gdalwarp_mt_cpu_s", r.warpMtCpuS},
+                       {"ratio_vs_1t", r.warp1tS / r.oursS},
+                       {"ratio_vs_mt", r.warpMtS / r.oursS},
+                       {"samples_s", {{"ours", r.oursSamples}, {"gdalwarp_1t", r.warp1tSamples},
+                                      {"gdalwarp_mt", r.warpMtSamples}}}});
+    nlohmann::json stages = nlohmann::json::object();
+    for (const auto& [name, sec] : r.oursStages) stages[name] = sec;
+    results.back()["ours_stages_s"] = stages;
+  }
+  const nlohmann::json j = {{"posts", c.grid.posts()},
+                            {"posts_x", c.grid.postsX},
+                            {"posts_z", c.grid.postsZ},
+                            {"spacing_m", c.grid.spacing},
+                            {"repeat", c.args.repeat},
+                            {"crs", c.grid.crsName},
+                            {"source", c.input.description},
+                            {"threads", c.args.threads},
+                            {"cpus", cpuCount()},
+                            {"warm_up", true},
+                            {"gdalwarp_version", c.gdal.version},
+                            {"load_average_start", c.loadStart},
+                            {"load_average_end", c.loadEnd},
+                            {"results", results}};
+  std::printf("%s\n", j.dump(2).c_str());
+}
+
+void printHeader(const Context& c) {
+  std::printf("sandtable bench build: %u x %u posts (%.1f M) at %g m, %s\n", c.grid.postsX, c.grid.postsZ,
+              static_cast<double>(c.grid.posts()) / 1e6, c.grid.spacing, c.grid.crsName.c_str());
+  std::printf("  sources   %s, %zu files\n", c.input.description.c_str(), c.input.files);
+  std::printf("  gdalwarp  %s: same sources (VRT), CRS, -te, -tr; -of ENVI -ot Float32\n", c.gdal.version.c_str());
+  std::printf("  method    one untimed warm-up of each side first, so both read the sources from the page cache;\n"
+              "            then the median of %d repeats, wall clock, sides alternating\n", c.args.repeat);
+  std::printf("  threads   ours %s; gdalwarp 1t = default (no -multi), mt = -multi -wo NUM_THREADS=%s\n",
+              threadsText(c.args.threads).c_str(),
+              c.args.threads > 0 ? std::to_string(c.args.threads).c_str() : "ALL_CPUS");
+  std::printf("  load      %.2f at start, %.2f at end (1-minute load average, %u CPUs)\n\n", c.loadStart, c.loadEnd,
+              cpuCount());
+}
+
+int kernelWidth(const std::vector<Row>& rs) {
+  std::size_t w = 6;
+  for (const auto& r : rs) w = std::max(w, r.kernel.size());
+  return static_cast<int>(w);
+}
+
+void printResults(const Context& c, const std::vector<Row>& rs) {
+  const double posts = static_cast<double>(c.grid.posts());
+  const int w = kernelWidth(rs);
+  std::printf("%-*s %8s %9s %9s | %-8s %8s %9s %8s %9s | %7s %7s\n", w, "kernel", "ours s", "Mposts/s", "resamp s",
+              "gdalwarp", "1t s", "Mposts/s", "mt s", "Mposts/s", "1t/ours", "mt/ours");
+  for (const auto& r : rs) {
+    std::printf("%-*s %8.2f %9.2f %9.2f | %-8s %8.2f %9.2f %8.2f %9.2f | %7.2f %7.2f\n", w, r.kernel.c_str(),
+                r.oursS, posts / r.oursS / 1e6, r.oursResampleS, r.warpKernel.c_str(), r.warp1tS,
+                posts / r.warp1tS / 1e6, r.warpMtS, posts / r.warpMtS / 1e6, r.warp1tS / r.oursS, r.warpMtS / r.oursS);
+  }
+  std::printf("\nratio = gdalwarp seconds / our seconds: above 1 we are faster. Ours is the whole build\n"
+              "(read + CRC of the sources, resample, void fill, normals, grid file with CRCs, fsync);\n"
+              "\"resamp s\" is its resampling stage alone. gdalwarp only resamples and writes raw floats.\n");
+}
+
+/// Where our time goes, and CPU seconds, which other users' load inflates
+/// less than wall time. Once per kernel of ours.
+void printBreakdown(const std::vector<Row>& rs) {
+  std::printf("\nours by stage (median s) and CPU seconds (user + system, median):\n");
+  std::string last;
+  for (const auto& r : rs) {
+    if (r.kernel == last) continue;
+    last = r.kernel;
+    std::printf("  %-18s", r.kernel.c_str());
+    for (const auto& [name, sec] : r.oursStages) std::printf(" %s %.2f,", name.c_str(), sec);
+    std::printf(" cpu %.1f\n", r.oursCpuS);
+  }
+  std::vector<std::string> seen;
+  for (const auto& r : rs) {
+    if (std::find(seen.begin(), seen.end(), r.warpKernel) != seen.end()) continue;
+    seen.push_back(r.warpKernel);
+    std::printf("  gdalwarp %-9s cpu %.1f (1t), %.1f (mt)\n", r.warpKernel.c_str(), r.warp1tCpuS, r.warpMtCpuS);
+  }
+}
+
+/// The issue's goal: no slower than gdalwarp, i.e. ratio >= 1 against
+/// gdalwarp's faster mode.
+void printVerdict(const std::vector<Row>& rs) {
+  std::printf("\ngoal (no slower than gdalwarp, against its faster mode):\n");
+  for (const auto& r : rs) {
+    const double ratio = std::min(r.warp1tS, r.warpMtS) / r.oursS;
+    std::printf("  %-18s vs %-8s %5.2f  %s\n", r.kernel.c_str(), r.warpKernel.c_str(), ratio,
+                ratio >= 1 ? "met" : "NOT met");
+  }
+}
+
+void printTable(const Context& c, const std::vector<Row>& rs) {
+  printHeader(c);
+  printResults(c, rs);
+  printBreakdown(rs);
+  printVerdict(rs);
+}
+
+// ------------------------------------------------------------ command
+
+std::string checkArgs(const Args& a) {
+  if (a.kernels.empty()) return "--kernels is empty";
+  for (const auto& k : a.kernels) {
+    if (std::find(kKernelNames.begin(), kKernelNames.end(), k) == kKernelNames.end()) {
+      return "unknown kernel \"" + k + "\"; use weighted, bilinear, bilinear-triangles, cubic or average";
+    }
+    if (std::count(a.kernels.begin(), a.kernels.end(), k) > 1) return "kernel \"" + k + "\" given twice";
+  }
+  if (a.input.empty() && a.sizeKm <= 0 && autoSizeKm(a.spacing) > 1000) {
+    return "--spacing " + fmt(a.spacing) + " needs a square over synth's 1000 km limit; pass --size-km or --input";
+  }
+  return {};
+}
+
+void checkGridSize(const TargetGrid& g) {
+  note("target grid: %u x %u = %.1f M posts at %g m, %s", g.postsX, g.postsZ, static_cast<double>(g.posts()) / 1e6,
+       g.spacing, g.crsName.c_str());
+  if (g.postsX < kMinPostsPerAxis || g.postsZ < kMinPostsPerAxis) {
+    note("note: below the %u x %u posts the benchmark is meant for; raise --size-km or lower --spacing",
+         kMinPostsPerAxis, kMinPostsPerAxis);
+  }
+}
+
+int runBenchBuild(const Args& a) {
+  if (std::string e = checkArgs(a); !e.empty()) return usageError(kCmd, e);
+  Gdal gdal;
+  try {
+    gdal = findGdal();
+  } catch (const BenchError& e) {
+    return usageError(kCmd, e.what());
+  }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  try {
+    WorkDir work(a.keep);
+    if (a.keep) note("work directory %s (kept)", work.path().c_str());
+    const double loadStart = loadAverage();
+    const Input in = prepareInput(a, work.path());
+    const TargetGrid grid = warmUp(a, in, gdal, work.path());
+    checkGridSize(grid);
+    const Measurements m = measure(a, in, gdal, grid, work.path());
+    const Context c{a, in, gdal, grid, loadStart, loadAverage()};
+    const auto rs = rows(a, m);
+    a.json ? printJson(c, rs) : printTable(c, rs);
+    return kOk;
+  } catch (const BenchError& e) {
+    return usageError(kCmd, e.what());
+  } catch (const fs::filesystem_error& e) {
+    return usageError(kCmd, e.what());
+  }
+}
+
+}  // namespace
+
+void registerBenchBuild(CLI::App& bench, Commands& c) {
+  auto a = std::make_shared<Args>();
+  auto* sub = bench.add_subcommand("build", "Time grid conversion against gdalwarp on the same target grid");
+  sub->footer(
+      "Example:\n  sandtable bench build --kernels bilinear,weighted --repeat 3\n"
+      "Synthesizes a square (sandtable synth) unless --input names one, converts its DTED2 tree\n"
+      "with our build and with the gdalwarp binary onto the same UTM grid, and reports the\n"
+      "median seconds, posts/s and gdalwarp/ours ratios (> 1: we are faster). Needs gdal-bin.");
+  sub->add_option("--input", a->input, "Existing synth output (uses DIR/dted2) or a directory of sources");
+  sub->add_option("--size-km", a->sizeKm, "Side of the synthesized square (default: enough for 5000 x 5000 posts)")
+      ->check(CLI::Range(1.0, 1000.0));
+  sub->add_option("--spacing", a->spacing, "Target post spacing in metres")
+      ->default_val(30.0)
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--kernels", a->kernels,
+                  "Our kernels: weighted, bilinear (point samples, as gdalwarp), bilinear-triangles (plus the "
+                  "triangle fit, as `sandtable build --resample bilinear`), cubic, average")
+      ->delimiter(',')
+      ->default_str("bilinear,weighted");
+  sub->add_option("--repeat", a->repeat, "Timed runs of each measurement (median reported)")
+      ->default_val(3)
+      ->check(CLI::Range(1, 100));
+  sub->add_option("--threads", a->threads, "Threads for ours and gdalwarp -multi (0 = all cores)")
+      ->default_val(0)
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--json", a->json, "Print the results as one JSON object");
+  sub->add_flag("--keep", a->keep, "Keep the work directory (synth data, outputs, logs)");
+  c.add(sub, [a] { return runBenchBuild(*a); });
+}
+
+}  // namespace sandtable::cli
