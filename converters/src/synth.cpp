@@ -23,6 +23,7 @@
 #include <ogr_srs_api.h>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/converters/elevation.h"  // requestCancel / cancelRequested: one Ctrl-C flag for all
 #include "synth_internal.h"
 
 namespace sandtable::convert {
@@ -160,6 +161,8 @@ std::string gdalError(const std::string& what) {
   return what + (msg && *msg ? std::string(": ") + msg : std::string());
 }
 
+Problem cancelled(const fs::path& where) { return Problem{where.string(), 0, "synth: cancelled"}; }
+
 std::string wgs84Wkt() {
   OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
   OSRSetWellKnownGeogCS(srs, "WGS84");
@@ -195,7 +198,10 @@ Result<Range> writeDtedCell(const World& w, const Cell& c, const fs::path& file,
           static_cast<std::int16_t>(h);
       range.add(h);
     }
-    if ((r & 63) == 63) rep.advance(64.0 * cols, stage);
+    if ((r & 63) == 63) {
+      rep.advance(64.0 * cols, stage);
+      if (cancelRequested()) return cancelled(file);
+    }
   }
   rep.advance(static_cast<double>(rows % 64) * cols, stage);
 
@@ -292,7 +298,14 @@ Result<Range> writeDem(const World& w, const Layout& l, const fs::path& file, in
       }
     });
     err = GDALRasterIO(band, GF_Write, 0, r0, l.demWidth, n, buf.data(), l.demWidth, n, GDT_Float32, 0, 0);
+    // Write this row of tiles out and drop it from the block cache: memory
+    // stays at one band, not GDAL_CACHEMAX, however big the DEM.
+    if (err == CE_None) err = GDALFlushRasterCache(band);
     rep.advance(static_cast<double>(n) * l.demWidth, "dem");
+    if (cancelRequested()) {
+      GDALClose(ds);
+      return cancelled(file);
+    }
   }
   const std::string why = gdalError("synth: dem: write failed");
   GDALClose(ds);  // flushes the last tiles
@@ -341,12 +354,96 @@ fs::path targetPath(const std::string& dir) {
   return p;
 }
 
+/// Expected work in terrain evaluations per stage, so the bar moves evenly.
+struct Work {
+  double world = 0, dted = 0, dem = 0, culture = 0;
+  double total() const { return world + dted + dem + culture; }
+};
+
+Work workUnits(const Layout& l, const SynthOptions& o, const std::vector<Cell>& todo) {
+  // The analysis grid's side, as synth::buildWorld sizes it (roughly).
+  const double side = std::min(1601.0, (l.sizeM + 2 * std::max(2500.0, 0.15 * l.sizeM)) / 50.0);
+  Work w;
+  w.world = side * side * (o.culture ? 3.0 : 1.5);
+  for (const Cell& c : todo) w.dted += static_cast<double>(dtedRows(c.level)) * dtedCols(c);
+  w.dem = o.dem ? static_cast<double>(l.demWidth) * l.demHeight : 0.0;
+  w.culture = o.culture ? side * side * 0.5 : 0.0;
+  return w;
+}
+
+/// DTED cells, the DEM and the culture, into dir; fills in s.
+Result<bool> writeProducts(const World& w, const Layout& l, const SynthOptions& o, const std::vector<Cell>& todo,
+                           const fs::path& dir, int threads, Reporter& rep, SynthSummary& s) {
+  Range range;
+  if (!todo.empty()) {
+    auto r = writeDted(w, todo, dir, threads, rep);
+    if (!r) return r.problems();
+    range.add(r.value());
+    for (const Cell& c : todo) {
+      (c.level == 1 ? s.dted1Cells : s.dted2Cells) += 1;
+      s.files.push_back(cellPath(c));
+    }
+  }
+  if (o.dem) {
+    auto r = writeDem(w, l, dir / "dem.tif", threads, rep);
+    if (!r) return r.problems();
+    range.add(r.value());
+    s.demWidth = l.demWidth, s.demHeight = l.demHeight, s.demArcSeconds = l.demStep;
+    s.files.push_back("dem.tif");
+  }
+  if (o.culture) {
+    rep.advance(0, "culture");
+    auto r = synth::writeCulture(w, (dir / "culture.gpkg").string());
+    if (!r) return r.problems();
+    s.roads = r->roads, s.rivers = r->rivers, s.lakes = r->lakes, s.forests = r->forests;
+    s.files.push_back("culture.gpkg");
+  }
+  if (range.lo <= range.hi) s.minElevation = range.lo, s.maxElevation = range.hi;
+  return true;
+}
+
+/// Writes a small text file in one go.
+Result<bool> writeText(const fs::path& file, const std::string& text) {
+  FILE* f = std::fopen(file.c_str(), "wb");
+  bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  if (f && std::fclose(f) != 0) ok = false;
+  if (!ok) return Problem{file.string(), 0, "synth: cannot write " + file.string()};
+  return true;
+}
+
+/// Renames the finished temp directory to target. With force an existing
+/// target is moved aside first (its name matches the temp pattern, so it is
+/// ignored by git too), so a failed rename leaves the old data, not nothing.
+Result<bool> moveIntoPlace(const fs::path& tmp, const fs::path& target, bool force) {
+  std::error_code ec;
+  if (!fs::exists(target, ec)) {
+    fs::rename(tmp, target, ec);
+    if (ec) return Problem{target.string(), 0, "synth: cannot move the output into place: " + ec.message()};
+    return true;
+  }
+  if (!force) return Problem{target.string(), 0, "synth: " + target.string() + " appeared while writing"};
+  const fs::path old = tmp.string() + ".old";
+  fs::remove_all(old, ec);
+  fs::rename(target, old, ec);
+  if (ec) return Problem{target.string(), 0, "synth: cannot replace " + target.string() + ": " + ec.message()};
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::rename(old, target, ignored);
+    return Problem{target.string(), 0, "synth: cannot move the output into place: " + ec.message()};
+  }
+  fs::remove_all(old, ec);
+  return true;
+}
+
 /// Everything but the output directory.
 std::vector<Problem> validateGeometry(const SynthOptions& o) {
   std::vector<Problem> out;
   auto bad = [&](const std::string& opt, const std::string& msg) { out.push_back(Problem{opt, 0, msg}); };
   if (!std::isfinite(o.sizeKm) || o.sizeKm < 1.0 || o.sizeKm > 1000.0) {
-    bad("--size-km", "--size-km must be between 1 and 1000 (got " + std::to_string(o.sizeKm) + ")");
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", o.sizeKm);
+    bad("--size-km", std::string("--size-km must be between 1 and 1000 (got ") + got + ")");
   }
   if (!std::isfinite(o.centerLon) || o.centerLon < -180.0 || o.centerLon > 180.0 || !std::isfinite(o.centerLat) ||
       o.centerLat < -80.0 || o.centerLat > 80.0) {
@@ -385,11 +482,11 @@ Result<SynthSummary> synthesize(const SynthOptions& o, const SynthProgress& prog
   if (fs::exists(target, ec) && !o.force) {
     return Problem{target.string(), 0, "synth: " + target.string() + " exists (use --force to replace it)"};
   }
-  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   TempDir tmp{target.string() + ".partial." + std::to_string(::getpid())};
+  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   fs::remove_all(tmp.path, ec);
   if (!fs::create_directories(tmp.path, ec)) {
-    return Problem{tmp.path.string(), 0, "synth: cannot create the output: " + ec.message()};
+    return Problem{tmp.path.string(), 0, "synth: cannot create " + tmp.path.string() + ": " + ec.message()};
   }
 
   const Layout l = layout(o);
@@ -399,79 +496,27 @@ Result<SynthSummary> synthesize(const SynthOptions& o, const SynthProgress& prog
     const auto c1 = cells(l, 1);
     todo.insert(todo.end(), c1.begin(), c1.end());
   }
-  // Work units ~ terrain evaluations, so the bar moves evenly.
-  const double gridSide = std::min(1601.0, (l.sizeM + 2 * std::max(2500.0, 0.15 * l.sizeM)) / 50.0);
-  const double worldUnits = gridSide * gridSide * (o.culture ? 3.0 : 1.5);
-  double dtedUnits = 0;
-  for (const Cell& c : todo) dtedUnits += static_cast<double>(dtedRows(c.level)) * dtedCols(c);
-  const double demUnits = o.dem ? static_cast<double>(l.demWidth) * l.demHeight : 0.0;
-  const double cultureUnits = o.culture ? gridSide * gridSide * 0.5 : 0.0;
-  Reporter rep(progress, worldUnits + dtedUnits + demUnits + cultureUnits);
+  const Work work = workUnits(l, o, todo);
+  Reporter rep(progress, work.total());
 
   rep.reach(0, "terrain model");
   const World w = synth::buildWorld(l.frame, l.sizeM, o.seed, threads, o.culture,
-                                    [&](double f) { rep.reach(f * worldUnits, "terrain model"); });
+                                    [&](double f) { rep.reach(f * work.world, "terrain model"); });
 
   SynthSummary s;
   s.outDir = target.string();
   s.west = l.west, s.south = l.south, s.east = l.east, s.north = l.north;
   s.centerLon = o.centerLon, s.centerLat = o.centerLat, s.sizeKm = o.sizeKm, s.seed = o.seed;
-  Range range;
-  if (!todo.empty()) {
-    auto r = writeDted(w, todo, tmp.path, threads, rep);
-    if (!r) return r.problems();
-    range.add(r.value());
-    for (const Cell& c : todo) {
-      (c.level == 1 ? s.dted1Cells : s.dted2Cells) += 1;
-      s.files.push_back(cellPath(c));
-    }
-  }
-  if (o.dem) {
-    auto r = writeDem(w, l, tmp.path / "dem.tif", threads, rep);
-    if (!r) return r.problems();
-    range.add(r.value());
-    s.demWidth = l.demWidth, s.demHeight = l.demHeight, s.demArcSeconds = l.demStep;
-    s.files.push_back("dem.tif");
-  }
-  if (o.culture) {
-    rep.advance(0, "culture");
-    auto r = synth::writeCulture(w, (tmp.path / "culture.gpkg").string());
-    if (!r) return r.problems();
-    s.roads = r->roads, s.rivers = r->rivers, s.lakes = r->lakes, s.forests = r->forests;
-    s.files.push_back("culture.gpkg");
-    rep.advance(cultureUnits, "culture");
-  }
+  if (cancelRequested()) return cancelled(target);
+  auto written = writeProducts(w, l, o, todo, tmp.path, threads, rep, s);
+  if (cancelRequested()) return cancelled(target);  // one line, not one per worker
+  if (!written) return written.problems();
   std::sort(s.files.begin(), s.files.end());
-  if (range.lo <= range.hi) s.minElevation = range.lo, s.maxElevation = range.hi;
   for (const auto& f : s.files) s.bytes += fs::file_size(tmp.path / f, ec);
   s.json = toJson(s);
 
-  if (FILE* f = std::fopen((tmp.path / "synth.json").c_str(), "wb")) {
-    const bool ok = std::fwrite(s.json.data(), 1, s.json.size(), f) == s.json.size();
-    if (std::fclose(f) != 0 || !ok) return Problem{(tmp.path / "synth.json").string(), 0, "synth: cannot write synth.json"};
-  } else {
-    return Problem{(tmp.path / "synth.json").string(), 0, "synth: cannot write synth.json"};
-  }
-
-  // Into place. With --force the old directory is moved aside first, so a
-  // failed rename leaves the old data, not nothing.
-  if (fs::exists(target, ec)) {
-    if (!o.force) return Problem{target.string(), 0, "synth: " + target.string() + " appeared while writing"};
-    const fs::path old = target.string() + ".old." + std::to_string(::getpid());
-    fs::remove_all(old, ec);
-    fs::rename(target, old, ec);
-    if (ec) return Problem{target.string(), 0, "synth: cannot replace: " + ec.message()};
-    fs::rename(tmp.path, target, ec);
-    if (ec) {
-      std::error_code ignored;
-      fs::rename(old, target, ignored);
-      return Problem{target.string(), 0, "synth: cannot move the output into place: " + ec.message()};
-    }
-    fs::remove_all(old, ec);
-  } else {
-    fs::rename(tmp.path, target, ec);
-    if (ec) return Problem{target.string(), 0, "synth: cannot move the output into place: " + ec.message()};
-  }
+  if (auto ok = writeText(tmp.path / "synth.json", s.json); !ok) return ok.problems();
+  if (auto ok = moveIntoPlace(tmp.path, target, o.force); !ok) return ok.problems();
   tmp.keep = true;
   rep.reach(std::numeric_limits<double>::max(), "done");
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -69,6 +69,21 @@ void resample(std::vector<Vec2>& pts, std::vector<double>* values, double spacin
   if (values) *values = std::move(vout);
 }
 
+void densify(std::vector<Vec2>& pts, double maxGap) {
+  if (pts.size() < 2) return;
+  std::vector<Vec2> out{pts.front()};
+  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
+    const Vec2 a = pts[k], b = pts[k + 1];
+    const auto steps = static_cast<int>(std::ceil(std::hypot(b.x - a.x, b.y - a.y) / maxGap));
+    for (int s = 1; s < steps; ++s) {
+      const double t = static_cast<double>(s) / steps;
+      out.push_back({lerp(a.x, b.x, t), lerp(a.y, b.y, t)});
+    }
+    out.push_back(b);
+  }
+  pts = std::move(out);
+}
+
 std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double half) {
   std::vector<std::vector<Vec2>> parts;
   std::vector<Vec2> cur;
@@ -124,9 +139,12 @@ struct CostModel {
   double bridgePenalty; ///< extra metres for entering a river cell
 };
 
-constexpr CostModel kMotorway{0.035, 0.16, 400.0};
-constexpr CostModel kMainRoad{0.07, 0.3, 150.0};
-constexpr CostModel kTrack{0.16, 0.6, 60.0};
+// Gradients are measured over one grid cell, across valley walls too, so
+// the hard limits are loose: the quadratic cost does the steering (a real
+// road would switch back where this one climbs straight).
+constexpr CostModel kMotorway{0.035, 0.6, 400.0};
+constexpr CostModel kMainRoad{0.07, 0.9, 150.0};
+constexpr CostModel kTrack{0.16, 1.2, 60.0};
 
 /// Grid layers the router reads.
 struct Terrain2d {
@@ -134,6 +152,7 @@ struct Terrain2d {
   std::vector<float> slope;          ///< gradient magnitude (rise over run)
   std::vector<std::uint8_t> blocked; ///< water, shore, outside the square
   std::vector<std::uint8_t> river;
+  std::vector<float> wiggle;         ///< cost factor ~1: roads on open flats would run dead straight
 };
 
 /// Least-cost path (8-connected Dijkstra) from `from` to the first cell
@@ -168,7 +187,7 @@ std::vector<std::size_t> route(const Terrain2d& t, std::size_t from, const std::
       if (s > m.maxSlope) continue;
       const double len = (k < 4 ? 1.0 : std::numbers::sqrt2) * g.step;
       const double ratio = s / m.slopeScale;
-      double cost = len * (1.0 + ratio * ratio);
+      double cost = len * (1.0 + ratio * ratio) * t.wiggle[nc];
       if (t.river[nc] && !t.river[c]) cost += m.bridgePenalty;
       const float nd = dist[c] + static_cast<float>(cost);
       if (nd < dist[nc]) {
@@ -193,11 +212,14 @@ Terrain2d layers(const World& w) {
   t.slope.assign(n, 0.0f);
   t.blocked.assign(n, 1);
   t.river.assign(n, 0);
+  t.wiggle.assign(n, 1.0f);
   std::vector<std::uint8_t> water(n, 0);
   for (int j = 0; j < g.ny; ++j) {
     for (int i = 0; i < g.nx; ++i) {
       const std::size_t c = g.index(i, j);
-      water[c] = (w.height[c] <= 0.5f || w.terrain->inLake(g.at(i, j))) ? 1 : 0;
+      const Vec2 p = g.at(i, j);
+      t.wiggle[c] = static_cast<float>(1.0 + 0.5 * (0.5 + 0.5 * fbm(p.x / (7.0 * g.step), p.y / (7.0 * g.step), w.spec.seed + 0x31Du, 2)));
+      water[c] = (w.height[c] <= 0.5f || w.terrain->inLake(p)) ? 1 : 0;
       t.river[c] = w.riverDist[c] < 0.75 * g.step ? 1 : 0;
       if (i == 0 || j == 0 || i == g.nx - 1 || j == g.ny - 1) continue;
       const double gx = (w.height[c + 1] - w.height[c - 1]) / (2 * g.step);
@@ -243,32 +265,39 @@ void snapEnd(std::vector<Vec2>& pts, const std::vector<Road>& roads) {
   pts.back() = best;
 }
 
-/// Towns: flat, low, dry ground, spread out. The first is the largest.
+/// Towns: flat, dry ground, lower preferred, spread over the square
+/// (farthest-point picking, so inland basins get towns, not only the
+/// coast). The first is the largest.
 std::vector<std::size_t> placeTowns(const World& w, const Terrain2d& t) {
   const Grid& g = w.grid;
-  const int wanted = std::clamp(static_cast<int>(std::lround(5.0 * w.spec.size / 20000.0)), 4, 30);
-  const double spacing = 0.55 * w.spec.size / std::sqrt(static_cast<double>(wanted));
-  std::vector<std::pair<double, std::size_t>> ranked;
+  const auto wanted = static_cast<std::size_t>(std::clamp(static_cast<int>(std::lround(5.0 * w.spec.size / 20000.0)), 4, 30));
+  struct Site {
+    std::size_t cell;
+    double quality;  ///< 0..~1.3, higher is better
+    double gap;      ///< distance to the nearest chosen town
+  };
+  std::vector<Site> sites;
   for (std::size_t c = 0; c < g.size(); ++c) {
     if (t.blocked[c] || t.river[c]) continue;
     const double h = w.height[c];
-    if (h < 3.0 || h > 450.0 || t.slope[c] > 0.08) continue;
-    // Lower, flatter ground first, with a seeded shuffle among equals.
-    const double score = h / 450.0 + t.slope[c] * 5.0 + 0.8 * unit(hash32(w.spec.seed, static_cast<std::uint32_t>(c), 0x7A1u));
-    ranked.push_back({score, c});
+    if (h < 3.0 || h > 1300.0 || t.slope[c] > 0.1) continue;
+    const double q = 1.0 - 0.5 * h / 1300.0 - 3.0 * t.slope[c] + 0.3 * unit(hash32(w.spec.seed, static_cast<std::uint32_t>(c), 0x7A1u));
+    sites.push_back({c, q, std::numeric_limits<double>::max()});
   }
-  std::sort(ranked.begin(), ranked.end());
   std::vector<std::size_t> towns;
-  for (double s = spacing; towns.size() < static_cast<std::size_t>(wanted) && s > 2 * g.step; s *= 0.7) {
-    for (const auto& [score, c] : ranked) {
-      if (towns.size() >= static_cast<std::size_t>(wanted)) break;
-      const Vec2 p = g.at(c);
-      bool clear = true;
-      for (std::size_t o : towns) {
-        const Vec2 q = g.at(o);
-        if (std::hypot(p.x - q.x, p.y - q.y) < s) clear = false;
-      }
-      if (clear) towns.push_back(c);
+  while (towns.size() < wanted && !sites.empty()) {
+    // Best quality first; then the best trade of distance and quality.
+    const auto best = std::max_element(sites.begin(), sites.end(), [&](const Site& a, const Site& b) {
+      if (towns.empty()) return a.quality < b.quality;
+      return std::min(a.gap, w.spec.size) * a.quality * a.quality < std::min(b.gap, w.spec.size) * b.quality * b.quality;
+    });
+    if (!towns.empty() && best->gap < 4.0 * g.step) break;  // no room left
+    const std::size_t pick = best->cell;
+    towns.push_back(pick);
+    const Vec2 p = g.at(pick);
+    for (Site& s : sites) {
+      const Vec2 q = g.at(s.cell);
+      s.gap = std::min(s.gap, std::hypot(p.x - q.x, p.y - q.y));
     }
   }
   return towns;
@@ -285,7 +314,8 @@ std::int64_t edgeCell(const World& w, const Terrain2d& t, Vec2 dir) {
     const Vec2 p = g.at(c);
     if (std::max(std::fabs(p.x), std::fabs(p.y)) < w.half - 2.5 * g.step) continue;
     if (p.x * dir.x + p.y * dir.y < 0.4 * w.half) continue;
-    const double score = std::fabs(w.height[c] - 60.0) + 3000.0 * t.slope[c];
+    // Near the coast: a coastal motorway, not a mountain pass.
+    const double score = std::fabs(w.height[c] - 40.0) + 3000.0 * t.slope[c] + 0.05 * w.terrain->inland(p);
     if (score < best) best = score, pick = static_cast<std::int64_t>(c);
   }
   return pick;
@@ -307,21 +337,6 @@ class RoadBuilder {
     const auto cells = route(t_, from, *target, m);
     if (cells.size() < 2) return false;
     append(cells, type, width, to < 0);
-    return true;
-  }
-
-  /// Joins two routed legs into one road (the motorway through a town).
-  bool addThrough(std::size_t a, std::size_t via, std::size_t b, const CostModel& m, const std::string& type,
-                  double width) {
-    std::vector<std::uint8_t> target(w_.grid.size(), 0);
-    target[via] = 1;
-    auto first = route(t_, a, target, m);
-    target[via] = 0;
-    target[b] = 1;
-    const auto second = route(t_, via, target, m);
-    if (first.size() < 2 || second.size() < 2) return false;
-    first.insert(first.end(), second.begin() + 1, second.end());
-    append(first, type, width, false);
     return true;
   }
 
@@ -348,26 +363,30 @@ void buildRoads(World& w, const Terrain2d& t) {
   if (towns.empty()) return;
   RoadBuilder roads(w, t);
 
-  // A motorway along the coast, through the largest town.
+  // A motorway across the square along the coast, edge to edge.
   const Vec2 along{w.spec.inland.y, -w.spec.inland.x};
   const std::int64_t entry = edgeCell(w, t, along), exit = edgeCell(w, t, {-along.x, -along.y});
-  bool motorway = false;
-  if (entry >= 0 && exit >= 0) {
-    motorway = roads.addThrough(static_cast<std::size_t>(entry), towns[0], static_cast<std::size_t>(exit), kMotorway,
-                                "motorway", 25.0);
+  if (entry < 0 || exit < 0 || !roads.add(static_cast<std::size_t>(entry), exit, kMotorway, "motorway", 25.0)) {
+    roads.seed(towns[0]);
   }
-  if (!motorway) roads.seed(towns[0]);
 
-  // Every other town joins the network by its cheapest route.
-  const std::size_t primaries = std::max<std::size_t>(1, towns.size() / 3);
-  for (std::size_t k = 1; k < towns.size(); ++k) {
+  // Towns join the network by their cheapest route; the longest third of
+  // those links carry the through traffic and become primary roads.
+  const std::size_t first = w.roads.size();
+  for (std::size_t k = 0; k < towns.size(); ++k) {
     if (roads.onNetwork(towns[k])) continue;
     const double r = unit(hash32(w.spec.seed, static_cast<std::uint32_t>(k), 0x80ADu));
-    if (k <= primaries) {
-      roads.add(towns[k], -1, kMainRoad, "primary", std::round(90.0 + 30.0 * r) / 10.0);
-    } else {
-      roads.add(towns[k], -1, kMainRoad, "secondary", std::round(70.0 + 15.0 * r) / 10.0);
-    }
+    roads.add(towns[k], -1, kMainRoad, "secondary", std::round(70.0 + 15.0 * r) / 10.0);
+  }
+  std::vector<std::size_t> links;
+  for (std::size_t k = first; k < w.roads.size(); ++k) links.push_back(k);
+  std::sort(links.begin(), links.end(), [&](std::size_t a, std::size_t b) {
+    return w.roads[a].pts.size() > w.roads[b].pts.size();  // vertices are evenly spaced
+  });
+  for (std::size_t k = 0; k < links.size() && k < std::max<std::size_t>(1, links.size() / 3); ++k) {
+    Road& road = w.roads[links[k]];
+    road.type = "primary";
+    road.width = std::round(90.0 + 30.0 * unit(hash32(w.spec.seed, static_cast<std::uint32_t>(k), 0x9A1Bu))) / 10.0;
   }
 
   // Tracks climb from the network into the hills.
@@ -403,7 +422,7 @@ void buildForest(World& w, const Terrain2d& t) {
 
 }  // namespace
 
-void buildCulture(World& w, int /*threads*/) {
+void buildCulture(World& w) {
   const Terrain2d t = layers(w);
   buildRoads(w, t);
   buildForest(w, t);

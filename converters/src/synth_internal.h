@@ -86,23 +86,26 @@ struct TerrainSpec {
 };
 
 /// The elevation function. base() is the landform before rivers and lakes;
-/// elevation() carves river valleys (a precomputed grid, interpolated) and
-/// flattens lakes. All const methods are thread-safe.
+/// landform() fills closed basins and carves river valleys (precomputed
+/// grids, interpolated); elevation() also flattens lakes. All const methods
+/// are thread-safe.
 class Terrain {
  public:
   explicit Terrain(const TerrainSpec& spec);
 
   double base(Vec2 p) const;
-  double elevation(Vec2 p) const { return withLakes(p, carved(p, base(p))); }
+  /// base with basins filled and river valleys carved (interpolated grids).
+  double landform(Vec2 p) const;
+  double elevation(Vec2 p) const { return withLakes(p, landform(p)); }
   /// Signed distance inland from the coastline (m); negative at sea.
   double inland(Vec2 p) const;
-  double carved(Vec2 p, double b) const;
   double withLakes(Vec2 p, double h) const;
   /// True inside a lake rim.
   bool inLake(Vec2 p) const;
 
-  /// Valleys: at each grid cell, elevation = bed + (base - bed) * shape.
-  void setValleys(const Grid& g, std::vector<float> bed, std::vector<float> shape);
+  /// At each grid cell: h = base + fill, then min(h, shape * h + offset)
+  /// (offset = bed * (1 - shape)) carves the valleys.
+  void setValleys(const Grid& g, std::vector<float> fill, std::vector<float> shape, std::vector<float> offset);
   void setLakes(std::vector<Lake> lakes);
   const std::vector<Lake>& lakes() const { return lakes_; }
   const TerrainSpec& spec() const { return spec_; }
@@ -111,7 +114,7 @@ class Terrain {
   TerrainSpec spec_;
   double plainWidth_, rampWidth_, rangeBlend_;
   Grid valleyGrid_;
-  std::vector<float> valleyBed_, valleyShape_;
+  std::vector<float> basinFill_, valleyShape_, valleyOffset_;
   std::vector<Lake> lakes_;
   // Lakes bucketed on a coarse grid so a post tests only nearby lakes.
   Grid lakeGrid_;
@@ -165,13 +168,15 @@ World buildWorld(const Frame& frame, double sizeM, std::uint64_t seed, int threa
                  bool withCulture, const Fraction& progress);
 
 /// Towns, roads and the forest mask, from world.height (synth_culture.cpp).
-void buildCulture(World& world, int threads);
+void buildCulture(World& world);
 
 // Polyline helpers (local metres).
 /// Corner cutting, endpoints kept; values (one per point) are carried along.
 void chaikin(std::vector<Vec2>& pts, std::vector<double>* values, int iterations);
 /// Points every `spacing` metres along the line, endpoints kept.
 void resample(std::vector<Vec2>& pts, std::vector<double>* values, double spacing);
+/// Extra points on segments longer than maxGap; the line keeps its shape.
+void densify(std::vector<Vec2>& pts, double maxGap);
 /// The parts of a polyline inside the square |x|, |y| <= half.
 std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double half);
 

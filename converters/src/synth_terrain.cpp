@@ -1,7 +1,8 @@
 // The synthetic terrain: a landform function (coast, plains, ridged
-// mountains), river valleys carved along a drainage network traced on a
-// coarse grid, and flat lakes. Everything is a deterministic function of
-// (position, seed, size), so DTED1, DTED2 and the GeoTIFF agree.
+// mountains), basins part filled and river valleys carved along a drainage
+// network traced on a coarse grid, and flat lakes. Everything is a
+// deterministic function of (position, seed, size), so DTED1, DTED2 and the
+// GeoTIFF agree.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -69,17 +70,17 @@ inline int fastFloor(double v) {
 
 inline double fade(double t) { return t * t * t * (t * (t * 6 - 15) + 10); }
 
+// One multiply-xorshift is enough to pick one of 16 gradients (the top
+// bits are the well mixed ones).
 inline const Vec2& gradient(std::uint32_t h) {
   h ^= h >> 15;
   h *= 0x2C1B3C6Du;
-  h ^= h >> 12;
-  h *= 0x297A2D39u;
-  h ^= h >> 15;
-  return kGradients.g[h & 15u];
+  return kGradients.g[h >> 28];
 }
 
 /// 2-D gradient noise, roughly in [-1, 1], zero at lattice points.
-double noise(double x, double y, std::uint32_t seed) {
+/// Always inlined: it is most of the cost of a post.
+[[gnu::always_inline]] inline double noise(double x, double y, std::uint32_t seed) {
   const int ix = fastFloor(x), iy = fastFloor(y);
   const double tx = x - ix, ty = y - iy;
   const std::uint32_t hx0 = static_cast<std::uint32_t>(ix) * 0x8DA6B343u;
@@ -106,10 +107,8 @@ inline void nextOctave(double& x, double& y) {
   x = nx;
 }
 
-}  // namespace
-
 /// Fractal sum, normalised to roughly [-1, 1].
-double fbm(double x, double y, std::uint32_t seed, int octaves) {
+[[gnu::always_inline]] inline double fbmInline(double x, double y, std::uint32_t seed, int octaves) {
   double sum = 0, amp = 1, norm = 0;
   for (int i = 0; i < octaves; ++i) {
     sum += amp * noise(x, y, seed + static_cast<std::uint32_t>(i) * 101u);
@@ -119,6 +118,10 @@ double fbm(double x, double y, std::uint32_t seed, int octaves) {
   }
   return sum / norm;
 }
+
+}  // namespace
+
+double fbm(double x, double y, std::uint32_t seed, int octaves) { return fbmInline(x, y, seed, octaves); }
 
 namespace {
 
@@ -152,6 +155,8 @@ enum Salt : std::uint32_t {
   kUplift,
   kRidges,
   kRanges,
+  kSpurs,
+  kLowland,
 };
 
 }  // namespace
@@ -159,7 +164,7 @@ enum Salt : std::uint32_t {
 // ---------------------------------------------------------------- terrain
 
 namespace {
-constexpr double kPeak = 2300.0;           // highest ridges, m
+constexpr double kPeak = 2000.0;           // highest ridges, m
 constexpr double kRidgeWavelength = 9000;  // m
 constexpr double kPlainHeight = 100.0;     // lowland rise, m
 constexpr double kHillHeight = 110.0;      // rolling relief on land, m
@@ -191,10 +196,10 @@ double Terrain::inland(Vec2 p) const {
   const double s = spec_.size;
   double d = p.x * spec_.inland.x + p.y * spec_.inland.y + spec_.coastOffset;
   const double large = 0.45 * s;
-  d += 0.07 * s * fbm(p.x / large, p.y / large, spec_.seed + kCoastLarge, 2);
+  d += 0.07 * s * fbmInline(p.x / large, p.y / large, spec_.seed + kCoastLarge, 1);
   const double mid = std::max(5000.0, 0.1 * s);
-  d += std::clamp(0.03 * s, 1200.0, 8000.0) * fbm(p.x / mid, p.y / mid, spec_.seed + kCoastMid, 2);
-  d += 350.0 * fbm(p.x / 1800.0, p.y / 1800.0, spec_.seed + kCoastSmall, 2);  // coves, points
+  d += std::clamp(0.03 * s, 1200.0, 8000.0) * fbmInline(p.x / mid, p.y / mid, spec_.seed + kCoastMid, 1);
+  d += 350.0 * fbmInline(p.x / 1800.0, p.y / 1800.0, spec_.seed + kCoastSmall, 2);  // coves, points
   return d;
 }
 
@@ -204,44 +209,58 @@ double Terrain::base(Vec2 p) const {
 
   // Domain warp bends the ridges so they do not look like stretched noise.
   const double w = kRidgeWavelength * 1.3;
-  const Vec2 q{p.x + 0.35 * kRidgeWavelength * fbm(p.x / w, p.y / w, spec_.seed + kWarpX, 2),
-               p.y + 0.35 * kRidgeWavelength * fbm(p.x / w, p.y / w, spec_.seed + kWarpY, 2)};
+  const Vec2 q{p.x + 0.35 * kRidgeWavelength * fbmInline(p.x / w, p.y / w, spec_.seed + kWarpX, 2),
+               p.y + 0.35 * kRidgeWavelength * fbmInline(p.x / w, p.y / w, spec_.seed + kWarpY, 2)};
 
   // The coastal lowland widens and narrows along the coast.
-  const double lowland = plainWidth_ * (0.3 + 1.4 * (0.5 + 0.5 * fbm(p.x / 7000.0, p.y / 7000.0, spec_.seed + kUplift + 7, 2)));
+  const double lowland = plainWidth_ * (0.3 + 1.4 * (0.5 + 0.5 * fbmInline(p.x / 7000.0, p.y / 7000.0, spec_.seed + kLowland, 1)));
   const double shore = smoothstep(0, 400, d);  // keeps the coastline where d = 0
   double h = kPlainHeight * (1.0 - std::exp(-d / lowland));
-  h += shore * kHillHeight * (0.5 + 0.5 * fbm(q.x / 3500.0, q.y / 3500.0, spec_.seed + kHills, 4));
+  h += shore * kHillHeight * (0.5 + 0.5 * fbmInline(q.x / 3500.0, q.y / 3500.0, spec_.seed + kHills, 3));
 
   const double foot = 0.4 * lowland;
   double m = smoothstep(foot, foot + rampWidth_, d);
   if (rangeBlend_ > 0 && m > 0) {
-    const double r = fbm(q.x / 160e3, q.y / 160e3, spec_.seed + kRanges, 2);
+    const double r = fbmInline(q.x / 160e3, q.y / 160e3, spec_.seed + kRanges, 2);
     m *= lerp(1.0, smoothstep(-0.2, 0.35, r), rangeBlend_);
   }
   if (m <= 0) return h;
-  const double uplift = 0.75 + 0.25 * fbm(q.x / 30e3, q.y / 30e3, spec_.seed + kUplift, 2);
+  const double uplift = 0.75 + 0.25 * fbmInline(q.x / 30e3, q.y / 30e3, spec_.seed + kUplift, 1);
   const double cutoff = 0.3 / (kPeak * m * uplift);
   const double r = ridged(q.x / kRidgeWavelength, q.y / kRidgeWavelength, spec_.seed + kRidges, 10, cutoff) / 1.5;
-  // Squaring widens valleys and sharpens crests.
-  h += m * kPeak * uplift * r * r;
+  // Squaring widens valleys and sharpens crests; the exponential keeps the
+  // rare very high crest from towering over the range.
+  h += m * kPeak * uplift * (1.0 - std::exp(-1.3 * r * r)) / (1.0 - std::exp(-1.3));
+  // Spurs and hollows on the flanks: without them long smooth slopes drain
+  // in parallel lines, which no real range does.
+  h += m * 160.0 * (0.5 + 0.5 * fbmInline(q.x / 1600.0, q.y / 1600.0, spec_.seed + kSpurs, 4));
   return h;
 }
 
-double Terrain::carved(Vec2 p, double b) const {
-  if (valleyBed_.empty()) return b;
+double Terrain::landform(Vec2 p) const {
+  const double b = base(p);
+  if (valleyShape_.empty()) return b;
   const Grid& g = valleyGrid_;
   const double gx = (p.x - g.x0) / g.step, gy = (p.y - g.y0) / g.step;
   if (!(gx >= 0 && gy >= 0 && gx < g.nx - 1 && gy < g.ny - 1)) return b;
   const int i = static_cast<int>(gx), j = static_cast<int>(gy);
   const double fx = gx - i, fy = gy - j;
   const std::size_t k = g.index(i, j), up = static_cast<std::size_t>(g.nx);
-  const double s = lerp(lerp(valleyShape_[k], valleyShape_[k + 1], fx),
-                        lerp(valleyShape_[k + up], valleyShape_[k + up + 1], fx), fy);
-  if (s >= 1.0) return b;
-  const double bed = lerp(lerp(valleyBed_[k], valleyBed_[k + 1], fx),
-                          lerp(valleyBed_[k + up], valleyBed_[k + up + 1], fx), fy);
-  return std::min(b, bed + (b - bed) * s);
+  auto at = [&](const std::vector<float>& v) {
+    return lerp(lerp(v[k], v[k + 1], fx), lerp(v[k + up], v[k + up + 1], fx), fy);
+  };
+  // Basins filled to their spill level (flat floors, no closed pits).
+  const double filled = b + at(basinFill_);
+  // Valleys. Interpolating the linear form (shape * h + offset) blends the
+  // corners' carves evaluated at this h; interpolating bed and shape
+  // separately would raise spikes where neighbouring cells follow
+  // different rivers.
+  const double s = at(valleyShape_);
+  const double carved = s >= 1.0 ? filled : std::min(filled, s * filled + at(valleyOffset_));
+  // Fade out towards the edge of the grid: no cliff where the model ends
+  // (the edge lies well outside the square).
+  const double edge = std::min({gx, gy, g.nx - 1 - gx, g.ny - 1 - gy});
+  return b + (carved - b) * smoothstep(0.0, 20.0, edge);
 }
 
 namespace {
@@ -285,10 +304,11 @@ bool Terrain::inLake(Vec2 p) const {
   return false;
 }
 
-void Terrain::setValleys(const Grid& g, std::vector<float> bed, std::vector<float> shape) {
+void Terrain::setValleys(const Grid& g, std::vector<float> fill, std::vector<float> shape, std::vector<float> offset) {
   valleyGrid_ = g;
-  valleyBed_ = std::move(bed);
+  basinFill_ = std::move(fill);
   valleyShape_ = std::move(shape);
+  valleyOffset_ = std::move(offset);
 }
 
 void Terrain::setLakes(std::vector<Lake> lakes) {
@@ -325,54 +345,158 @@ namespace {
 constexpr int kDi[8] = {1, -1, 0, 0, 1, 1, -1, -1};
 constexpr int kDj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
 
-/// Flow routing by priority flood (Barnes et al.): cells are reached from
-/// the sea and the grid border upwards in order of (filled) elevation, and
-/// each cell drains to the cell it was reached from. Pits and flats thus
-/// drain over their lowest spill point, with no special cases.
-struct Drainage {
-  std::vector<std::int32_t> parent;  ///< downstream cell, -1 at outlets
-  std::vector<std::uint32_t> order;  ///< outlets first, sources last
-  std::vector<float> area;           ///< upstream area in cells (self included)
-};
-
-Drainage drain(const Grid& g, const std::vector<float>& h) {
-  struct Item {
-    float level;
-    std::uint32_t seq, cell;
-    bool operator>(const Item& o) const { return level != o.level ? level > o.level : seq > o.seq; }
-  };
-  const std::size_t n = g.size();
-  Drainage d;
-  d.parent.assign(n, -1);
-  d.order.reserve(n);
-  std::vector<std::uint8_t> seen(n, 0);
+/// The landform with every closed depression filled to its spill level
+/// (priority flood from the sea and the grid border). buildWorld fills
+/// basins part way towards it (kBasinFill): rivers then leave a basin
+/// through a shallow gorge instead of one cut down to its floor, and the
+/// basin floor is a gentle bowl, as sediment would make it.
+std::vector<float> fillDepressions(const Grid& g, const std::vector<float>& h) {
+  using Item = std::pair<float, std::uint32_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<>> open;
-  std::uint32_t seq = 0;
+  std::vector<float> f(h.begin(), h.end());
+  std::vector<std::uint8_t> seen(g.size(), 0);
   for (int j = 0; j < g.ny; ++j) {
     for (int i = 0; i < g.nx; ++i) {
       const std::size_t c = g.index(i, j);
       if (h[c] <= 0 || i == 0 || j == 0 || i == g.nx - 1 || j == g.ny - 1) {
         seen[c] = 1;
-        open.push({h[c], seq++, static_cast<std::uint32_t>(c)});
+        open.push({h[c], static_cast<std::uint32_t>(c)});
       }
     }
   }
   while (!open.empty()) {
-    const Item it = open.top();
+    const auto [level, c] = open.top();
     open.pop();
-    d.order.push_back(it.cell);
-    const int i = static_cast<int>(it.cell % static_cast<std::uint32_t>(g.nx));
-    const int j = static_cast<int>(it.cell / static_cast<std::uint32_t>(g.nx));
+    const int i = static_cast<int>(c % static_cast<std::uint32_t>(g.nx));
+    const int j = static_cast<int>(c / static_cast<std::uint32_t>(g.nx));
     for (int k = 0; k < 8; ++k) {
       const int ni = i + kDi[k], nj = j + kDj[k];
       if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
       const std::size_t nc = g.index(ni, nj);
       if (seen[nc]) continue;
       seen[nc] = 1;
-      d.parent[nc] = static_cast<std::int32_t>(it.cell);
-      open.push({std::max(h[nc], it.level), seq++, static_cast<std::uint32_t>(nc)});
+      f[nc] = std::max(h[nc], level);
+      open.push({f[nc], static_cast<std::uint32_t>(nc)});
     }
   }
+  return f;
+}
+
+/// Flow routing. Priority flood (Barnes et al.) reaches every cell from the
+/// sea and the grid border upwards; its tree gives each pit a way out.
+/// Pits are breached along that way (cells lowered just enough to keep
+/// falling), then every cell drains to its steepest lower neighbour (D8).
+/// Plain priority-flood directions would do, but inside depressions they
+/// fan out in straight lines; steepest descent follows the ground.
+struct Drainage {
+  std::vector<std::int32_t> parent;  ///< downstream cell, -1 at outlets
+  std::vector<std::uint32_t> order;  ///< downstream before upstream
+  std::vector<float> area;           ///< upstream area in cells (self included)
+};
+
+Drainage drain(const Grid& g, const std::vector<float>& h, std::uint32_t seed) {
+  // Inside a filled depression every cell has the spill level; the lower
+  // ground goes first there, so ways out follow the floor instead of
+  // spreading breadth-first in straight lines.
+  struct Item {
+    float level, ground;
+    std::uint32_t seq, cell;
+    bool operator>(const Item& o) const {
+      if (level != o.level) return level > o.level;
+      if (ground != o.ground) return ground > o.ground;
+      return seq > o.seq;
+    }
+  };
+  const std::size_t n = g.size();
+  // Routing heights: the landform plus a little smooth noise, so flow on
+  // gentle slopes wanders instead of running in straight D8 lines.
+  std::vector<float> z(h.begin(), h.end());
+  for (std::size_t c = 0; c < n; ++c) {
+    if (h[c] <= 0) continue;
+    const Vec2 p = g.at(c);
+    const double wander = fbm(p.x / (6.0 * g.step), p.y / (6.0 * g.step), seed + 0x9A1Du, 2);
+    z[c] += static_cast<float>(g.step * (0.1 * wander + 0.01 * unit(hash32(seed, static_cast<std::uint32_t>(c)))));
+  }
+  std::vector<std::int32_t> floodParent(n, -1);
+  std::vector<std::uint32_t> floodOrder;
+  floodOrder.reserve(n);
+  std::vector<std::uint8_t> outlet(n, 0);
+  {
+    std::vector<std::uint8_t> seen(n, 0);
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> open;
+    std::uint32_t seq = 0;
+    for (int j = 0; j < g.ny; ++j) {
+      for (int i = 0; i < g.nx; ++i) {
+        const std::size_t c = g.index(i, j);
+        if (h[c] <= 0 || i == 0 || j == 0 || i == g.nx - 1 || j == g.ny - 1) {
+          seen[c] = outlet[c] = 1;
+          open.push({z[c], z[c], seq++, static_cast<std::uint32_t>(c)});
+        }
+      }
+    }
+    while (!open.empty()) {
+      const Item it = open.top();
+      open.pop();
+      floodOrder.push_back(it.cell);
+      const int i = static_cast<int>(it.cell % static_cast<std::uint32_t>(g.nx));
+      const int j = static_cast<int>(it.cell / static_cast<std::uint32_t>(g.nx));
+      for (int k = 0; k < 8; ++k) {
+        const int ni = i + kDi[k], nj = j + kDj[k];
+        if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
+        const std::size_t nc = g.index(ni, nj);
+        if (seen[nc]) continue;
+        seen[nc] = 1;
+        floodParent[nc] = static_cast<std::int32_t>(it.cell);
+        open.push({std::max(z[nc], it.level), z[nc], seq++, static_cast<std::uint32_t>(nc)});
+      }
+    }
+  }
+
+  // Breach: from each pit follow the flood tree out, lowering cells until
+  // one is already lower. Lowering never makes a new pit (each lowered cell
+  // has its lower successor), so one pass over the cells does.
+  auto lowestNeighbour = [&](std::size_t c, float& drop) {
+    const int i = static_cast<int>(c % static_cast<std::size_t>(g.nx)), j = static_cast<int>(c / static_cast<std::size_t>(g.nx));
+    std::int32_t best = -1;
+    drop = 0;
+    for (int k = 0; k < 8; ++k) {
+      const int ni = i + kDi[k], nj = j + kDj[k];
+      if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
+      const std::size_t nc = g.index(ni, nj);
+      const float d = (z[c] - z[nc]) / (k < 4 ? 1.0f : std::numbers::sqrt2_v<float>);
+      if (d > drop) drop = d, best = static_cast<std::int32_t>(nc);
+    }
+    return best;
+  };
+  for (std::uint32_t c : floodOrder) {
+    if (outlet[c]) continue;
+    float drop;
+    if (lowestNeighbour(c, drop) >= 0) continue;
+    float level = z[c];
+    for (std::int32_t q = floodParent[c]; q >= 0 && !outlet[static_cast<std::size_t>(q)]; q = floodParent[static_cast<std::size_t>(q)]) {
+      float& zq = z[static_cast<std::size_t>(q)];
+      if (zq < level) break;
+      zq = std::nextafter(std::nextafter(level, -1e30f), -1e30f);
+      level = zq;
+    }
+  }
+
+  Drainage d;
+  d.parent.assign(n, -1);
+  for (std::size_t c = 0; c < n; ++c) {
+    if (outlet[c]) continue;
+    float drop;
+    // After breaching every land cell has a lower neighbour; were one left
+    // without, it would simply be a sink (-1), never a cycle.
+    d.parent[c] = lowestNeighbour(c, drop);
+  }
+  // Downstream before upstream: by lowered height, outlets first.
+  d.order.resize(n);
+  for (std::size_t c = 0; c < n; ++c) d.order[c] = static_cast<std::uint32_t>(c);
+  std::sort(d.order.begin(), d.order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    if (outlet[a] != outlet[b]) return outlet[a] > outlet[b];
+    return z[a] != z[b] ? z[a] < z[b] : a < b;
+  });
   d.area.assign(n, 1.0f);
   for (std::size_t k = n; k-- > 0;) {
     const std::uint32_t c = d.order[k];
@@ -406,8 +530,8 @@ Network riverNetwork(const Grid& g, const std::vector<float>& h, const Drainage&
   Network net;
   // Bed: the running minimum of the landform downstream (so every river
   // runs downhill; leaving a pit it cuts a gorge through the rim), lowered
-  // by the incision, but never below half that minimum (no fjords).
-  // Both terms only fall downstream, so the bed does too.
+  // by the incision, but never below half that minimum (no fjords); then
+  // itself a running minimum, so it never rises downstream.
   net.bed.assign(n, std::numeric_limits<float>::max());
   std::vector<float> runMin(n, std::numeric_limits<float>::max());
   std::vector<std::uint8_t> hasChild(n, 0);
@@ -416,12 +540,15 @@ Network riverNetwork(const Grid& g, const std::vector<float>& h, const Drainage&
     const std::uint32_t c = d.order[k];
     if (!river[c]) continue;
     runMin[c] = std::min(h[c], runMin[c]);
-    const double cut = incision(d.area[c] * cellKm2);
-    net.bed[c] = static_cast<float>(std::max(runMin[c] - cut, 0.5 * runMin[c]));
+    // Lowland streams barely cut in (no gullied coastal plains); the bed
+    // may not rise downstream where the cut lessens, hence the min.
+    const double cut = incision(d.area[c] * cellKm2) * (0.2 + 0.8 * smoothstep(30.0, 400.0, runMin[c]));
+    net.bed[c] = std::min(net.bed[c], static_cast<float>(std::max(runMin[c] - cut, 0.5 * runMin[c])));
     const std::int32_t p = d.parent[c];
     if (p < 0) continue;
     const auto pc = static_cast<std::size_t>(p);
     runMin[pc] = std::min(runMin[pc], runMin[c]);
+    net.bed[pc] = std::min(net.bed[pc], net.bed[c]);
     hasChild[pc] = 1;
     const std::int32_t m = mainChild[pc];
     if (m < 0 || d.area[c] > d.area[static_cast<std::size_t>(m)]) mainChild[pc] = static_cast<std::int32_t>(c);
@@ -474,6 +601,42 @@ struct RiverLine {
   std::uint32_t nameId = 0;
 };
 
+/// Douglas-Peucker: fewer, longer segments to carve (the written river is
+/// this same line, densified, so it stays on the valley floor).
+void simplify(RiverLine& line, double tolerance) {
+  const std::size_t n = line.pts.size();
+  if (n < 3) return;
+  std::vector<std::uint8_t> keep(n, 0);
+  keep.front() = keep.back() = 1;
+  std::vector<std::pair<std::size_t, std::size_t>> todo{{0, n - 1}};
+  while (!todo.empty()) {
+    const auto [a, b] = todo.back();
+    todo.pop_back();
+    const Vec2 pa = line.pts[a], pb = line.pts[b];
+    const double ex = pb.x - pa.x, ey = pb.y - pa.y, len = std::max(std::hypot(ex, ey), 1e-9);
+    double worst = 0;
+    std::size_t at = a;
+    for (std::size_t k = a + 1; k < b; ++k) {
+      const double d = std::fabs((line.pts[k].x - pa.x) * ey - (line.pts[k].y - pa.y) * ex) / len;
+      if (d > worst) worst = d, at = k;
+    }
+    if (worst > tolerance) {
+      keep[at] = 1;
+      todo.push_back({a, at});
+      todo.push_back({at, b});
+    }
+  }
+  RiverLine out;
+  out.nameId = line.nameId;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!keep[k]) continue;
+    out.pts.push_back(line.pts[k]);
+    out.bed.push_back(line.bed[k]);
+    out.areaKm2.push_back(line.areaKm2[k]);
+  }
+  line = std::move(out);
+}
+
 RiverLine riverLine(const Grid& g, const Stem& s, const Network& net, const Drainage& d, std::uint32_t seed) {
   RiverLine line;
   line.nameId = s.nameId;
@@ -515,6 +678,7 @@ RiverLine riverLine(const Grid& g, const Stem& s, const Network& net, const Drai
     }
     line.pts = std::move(moved);
   }
+  simplify(line, 0.15 * g.step);
   return line;
 }
 
@@ -526,6 +690,47 @@ struct Valleys {
 };
 
 constexpr double kValleySide = 2.5;  // half-width gained per metre of depth
+// Closed basins are filled this far towards their spill level: full fill
+// leaves wide dead-flat floors, none leaves rivers to cut gorges as deep as
+// the basins; partial fill keeps bowls and makes the gorges shallow.
+constexpr float kBasinFill = 0.65f;
+
+/// How far each segment's valley can reach: the widest it gets given the
+/// highest ground near it (a max over 8x8-cell blocks), so the carving loop
+/// skips the cells it cannot touch. Written rivers reach their full width,
+/// since riverDist must be known that far.
+std::vector<double> valleyReaches(const Grid& g, const std::vector<float>& h, const std::vector<Segment>& segs) {
+  constexpr int kBlock = 8;
+  const int bx = (g.nx + kBlock - 1) / kBlock, by = (g.ny + kBlock - 1) / kBlock;
+  std::vector<float> blockMax(static_cast<std::size_t>(bx) * static_cast<std::size_t>(by), -1e30f);
+  for (int j = 0; j < g.ny; ++j) {
+    for (int i = 0; i < g.nx; ++i) {
+      float& m = blockMax[static_cast<std::size_t>(j / kBlock) * static_cast<std::size_t>(bx) + static_cast<std::size_t>(i / kBlock)];
+      m = std::max(m, h[g.index(i, j)]);
+    }
+  }
+  std::vector<double> out(segs.size());
+  const double block = kBlock * g.step;
+  for (std::size_t k = 0; k < segs.size(); ++k) {
+    const Segment& s = segs[k];
+    if (s.major) {
+      out[k] = s.maxWidth + g.step;
+      continue;
+    }
+    const double r = s.maxWidth + g.step;
+    const int i0 = std::max(0, static_cast<int>((std::min(s.a.x, s.b.x) - r - g.x0) / block));
+    const int i1 = std::min(bx - 1, static_cast<int>((std::max(s.a.x, s.b.x) + r - g.x0) / block));
+    const int j0 = std::max(0, static_cast<int>((std::min(s.a.y, s.b.y) - r - g.y0) / block));
+    const int j1 = std::min(by - 1, static_cast<int>((std::max(s.a.y, s.b.y) + r - g.y0) / block));
+    double top = -1e30;
+    for (int j = j0; j <= j1; ++j) {
+      for (int i = i0; i <= i1; ++i) top = std::max(top, static_cast<double>(blockMax[static_cast<std::size_t>(j) * static_cast<std::size_t>(bx) + static_cast<std::size_t>(i)]));
+    }
+    const double depth = std::max(0.0, top - std::min(s.bedA, s.bedB));
+    out[k] = std::clamp(s.floorWidth + g.step + kValleySide * depth, s.floorWidth + 2 * g.step, s.maxWidth) + g.step;
+  }
+  return out;
+}
 
 Valleys carveValleys(const Grid& g, const std::vector<float>& h, const std::vector<Segment>& segs, int threads) {
   const std::size_t n = g.size();
@@ -534,9 +739,11 @@ Valleys carveValleys(const Grid& g, const std::vector<float>& h, const std::vect
   v.shape.assign(n, 1.0f);
   v.dist.assign(n, static_cast<float>(1e9));
   std::vector<float> best(h.begin(), h.end());
+  const std::vector<double> reaches = valleyReaches(g, h, segs);
   parallelFor(static_cast<std::size_t>(g.ny), threads, [&](std::size_t jb, std::size_t je) {
-    for (const Segment& s : segs) {
-      const double reach = s.maxWidth + g.step;
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+      const Segment& s = segs[k];
+      const double reach = reaches[k];
       const int j0 = std::max(static_cast<int>(jb), static_cast<int>(std::floor((std::min(s.a.y, s.b.y) - reach - g.y0) / g.step)));
       const int j1 = std::min(static_cast<int>(je) - 1, static_cast<int>(std::ceil((std::max(s.a.y, s.b.y) + reach - g.y0) / g.step)));
       if (j0 > j1) continue;
@@ -586,15 +793,16 @@ void addRivers(World& w, const RiverLine& line, double minAreaKm2, double spacin
     std::vector<Vec2> piece(line.pts.begin() + static_cast<std::ptrdiff_t>(k0), line.pts.begin() + static_cast<std::ptrdiff_t>(k1) + 1);
     const double width = std::round(riverWidth(line.areaKm2[k1]) * 10.0) / 10.0;
     for (auto& part : clipToSquare(piece, w.half)) {
-      resample(part, nullptr, spacing);
+      densify(part, spacing);
       w.rivers.push_back({riverName(w.spec.seed, line.nameId), width, std::move(part)});
     }
     k0 = k1;
   }
 }
 
-/// Lakes in flat basins away from rivers: the level is the lowest point of
-/// the rim, so the water would not spill, and the inside is flattened to it.
+/// Lakes in flat basins away from rivers: the level is near the lowest point
+/// of the rim (a low shore dam closes the rest), and the inside is flattened
+/// to it.
 std::vector<Lake> placeLakes(const World& w, std::uint32_t seed) {
   const Grid& g = w.grid;
   const double s = w.spec.size;
@@ -617,11 +825,11 @@ std::vector<Lake> placeLakes(const World& w, std::uint32_t seed) {
   std::vector<Lake> lakes;
   // Strict flatness first; relax when the landscape has too few flat spots.
   for (double tolerance = 1.0; tolerance <= 8.0 && static_cast<int>(lakes.size()) < wanted; tolerance *= 2) {
-    for (std::uint32_t attempt = 0; attempt < 4000 && static_cast<int>(lakes.size()) < wanted; ++attempt) {
+    for (std::uint32_t attempt = 0; attempt < 8000 && static_cast<int>(lakes.size()) < wanted; ++attempt) {
       const std::uint32_t h = hash32(seed, attempt, static_cast<std::uint32_t>(tolerance * 16));
       Lake lake;
       lake.radius = (250.0 + 450.0 * unit(hash32(h, 1))) * scale;
-      lake.margin = 0.7 * lake.radius;
+      lake.margin = 1.2 * lake.radius;
       for (std::size_t k = 0; k < 3; ++k) {
         lake.amp[k] = (k == 0 ? 0.18 : (k == 1 ? 0.12 : 0.06)) * unit(hash32(h, 2, static_cast<std::uint32_t>(k)));
         lake.phase[k] = 2.0 * std::numbers::pi * unit(hash32(h, 3, static_cast<std::uint32_t>(k)));
@@ -629,7 +837,8 @@ std::vector<Lake> placeLakes(const World& w, std::uint32_t seed) {
       const double room = w.half - lake.maxRadius() - lake.margin;
       if (room <= 0) break;
       lake.centre = {(2.0 * unit(hash32(h, 4)) - 1.0) * room, (2.0 * unit(hash32(h, 5)) - 1.0) * room};
-      if (riverDistAt(lake.centre) < 2.0 * lake.maxRadius() + 200.0) continue;
+      // Clear of rivers, shore blend included (it would dam them).
+      if (riverDistAt(lake.centre) < lake.maxRadius() + lake.margin + 150.0) continue;
       if (w.terrain->inland(lake.centre) < 3.0 * lake.maxRadius()) continue;
       bool clear = true;
       for (const Lake& o : lakes) {
@@ -637,22 +846,83 @@ std::vector<Lake> placeLakes(const World& w, std::uint32_t seed) {
         if (gap < 2.0 * (o.maxRadius() + lake.maxRadius()) + o.margin + lake.margin) clear = false;
       }
       if (!clear) continue;
-      double lo = std::numeric_limits<double>::max(), hi = -lo;
-      for (int k = 0; k < 48; ++k) {
-        const double a = 2.0 * std::numbers::pi * k / 48.0;
+      std::array<double, 48> rim;
+      for (std::size_t k = 0; k < rim.size(); ++k) {
+        const double a = 2.0 * std::numbers::pi * static_cast<double>(k) / static_cast<double>(rim.size());
         const double r = lake.rimRadius(a);
-        const double z = heightAt({lake.centre.x + r * std::cos(a), lake.centre.y + r * std::sin(a)});
-        lo = std::min(lo, z), hi = std::max(hi, z);
+        rim[k] = heightAt({lake.centre.x + r * std::cos(a), lake.centre.y + r * std::sin(a)});
       }
-      const double centre = heightAt(lake.centre);
+      std::sort(rim.begin(), rim.end());
+      const double lo = rim.front(), hi = rim.back(), centre = heightAt(lake.centre);
       if (lo < 8.0 || lo > 1500.0) continue;
       if (hi - lo > tolerance * (15.0 + 0.03 * lake.radius)) continue;
       if (centre > lo + tolerance * 10.0) continue;  // a basin, not a hill
-      lake.level = std::floor(lo);
+      // A little above the lowest rim point: the shore blend then builds a
+      // low natural dam there rather than cutting the basin into a pit.
+      lake.level = std::floor(rim[rim.size() / 5]);
       lakes.push_back(lake);
     }
   }
   return lakes;
+}
+
+/// The analysis grid: the square plus a margin, so rivers entering the
+/// square come from somewhere. At most ~1600 cells a side keeps it a few
+/// seconds even for 1000 km.
+Grid analysisGrid(double sizeM) {
+  Grid g;
+  const double extent = sizeM + 2.0 * std::max(2500.0, 0.15 * sizeM);
+  g.step = std::max(50.0, extent / 1600.0);
+  g.nx = g.ny = static_cast<int>(std::ceil(extent / g.step)) + 1;
+  g.x0 = g.y0 = -0.5 * (g.nx - 1) * g.step;
+  return g;
+}
+
+/// Traces the drainage of `landform`, writes the big rivers into w and
+/// returns every stream's centreline segments for carving.
+std::vector<Segment> traceRivers(World& w, const std::vector<float>& landform) {
+  const Grid& g = w.grid;
+  const Drainage d = drain(g, landform, w.spec.seed);
+  // Every stream above a small area carves a valley, which is what gives
+  // the landform its dendritic, eroded look; the bigger ones are written.
+  const double cellArea = g.step * g.step;
+  const double carveArea = std::max(0.25e6, 30.0 * cellArea);
+  const double riverArea = std::max({2e6, 40.0 * cellArea, 5e-4 * w.spec.size * w.spec.size});
+  const Network net = riverNetwork(g, landform, d, static_cast<float>(carveArea / cellArea));
+  std::vector<Segment> segs;
+  const double spacing = std::clamp(g.step, 50.0, 150.0);
+  for (const Stem& s : net.stems) {
+    if (s.cells.size() < 2) continue;
+    const RiverLine line = riverLine(g, s, net, d, w.spec.seed);
+    for (std::size_t k = 0; k + 1 < line.pts.size(); ++k) {
+      const double a = line.areaKm2[k + 1];
+      const double floorWidth = std::max(g.step, 0.2 * (120.0 + 35.0 * std::sqrt(a)));
+      const double maxWidth = std::clamp(250.0 + 600.0 * std::sqrt(a), 4.0 * g.step, 4000.0);
+      segs.push_back({line.pts[k], line.pts[k + 1], line.bed[k], line.bed[k + 1], floorWidth, maxWidth,
+                      a * 1e6 >= riverArea});
+    }
+    addRivers(w, line, riverArea * 1e-6, spacing);
+  }
+  return segs;
+}
+
+/// Places the lakes and flattens them into w.height too.
+void addLakes(World& w) {
+  const Grid& g = w.grid;
+  w.terrain->setLakes(placeLakes(w, w.spec.seed));
+  for (const Lake& lake : w.terrain->lakes()) {
+    const double r = lake.maxRadius() + lake.margin;
+    const int i0 = std::max(0, static_cast<int>((lake.centre.x - r - g.x0) / g.step));
+    const int i1 = std::min(g.nx - 1, static_cast<int>((lake.centre.x + r - g.x0) / g.step) + 1);
+    const int j0 = std::max(0, static_cast<int>((lake.centre.y - r - g.y0) / g.step));
+    const int j1 = std::min(g.ny - 1, static_cast<int>((lake.centre.y + r - g.y0) / g.step) + 1);
+    for (int j = j0; j <= j1; ++j) {
+      for (int i = i0; i <= i1; ++i) {
+        const std::size_t c = g.index(i, j);
+        w.height[c] = static_cast<float>(w.terrain->withLakes(g.at(i, j), w.height[c]));
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -664,70 +934,39 @@ World buildWorld(const Frame& frame, double sizeM, std::uint64_t seed, int threa
   w.spec = makeSpec(sizeM, seed);
   w.terrain = std::make_unique<Terrain>(w.spec);
   w.half = 0.5 * sizeM;
-  const Terrain& t = *w.terrain;
+  w.grid = analysisGrid(sizeM);
+  const Grid& g = w.grid;
 
-  // Analysis grid: the square plus a margin, so rivers entering the square
-  // come from somewhere. At most ~1600 cells a side keeps it a second or so.
-  Grid& g = w.grid;
-  const double extent = sizeM + 2.0 * std::max(2500.0, 0.15 * sizeM);
-  g.step = std::max(50.0, extent / 1600.0);
-  g.nx = g.ny = static_cast<int>(std::ceil(extent / g.step)) + 1;
-  g.x0 = g.y0 = -0.5 * (g.nx - 1) * g.step;
-
-  std::vector<float> base(g.size());
+  std::vector<float> land(g.size());
   parallelFor(g.size(), threads, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) base[k] = static_cast<float>(t.base(g.at(k)));
+    for (std::size_t k = b; k < e; ++k) land[k] = static_cast<float>(w.terrain->base(g.at(k)));
   });
   if (progress) progress(0.4);
 
-  const Drainage d = drain(g, base);
-  // Every stream above a small area carves a valley, which is what gives
-  // the landform its dendritic, eroded look; the bigger ones are written.
-  const double cellArea = g.step * g.step;
-  const double carveArea = std::max(0.25e6, 30.0 * cellArea);
-  const double riverArea = std::max({2e6, 40.0 * cellArea, 2e-4 * sizeM * sizeM});
-  const Network net = riverNetwork(g, base, d, static_cast<float>(carveArea / cellArea));
+  // From here on rivers see the landform with its basins part filled.
+  const std::vector<float> filled = fillDepressions(g, land);
+  std::vector<float> fill(g.size());
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    fill[k] = kBasinFill * (filled[k] - land[k]);
+    land[k] += fill[k];
+  }
+  const std::vector<Segment> segs = traceRivers(w, land);
   if (progress) progress(0.55);
 
-  std::vector<Segment> segs;
-  const double spacing = std::clamp(g.step, 50.0, 150.0);
-  for (const Stem& s : net.stems) {
-    if (s.cells.size() < 2) continue;
-    const RiverLine line = riverLine(g, s, net, d, w.spec.seed);
-    for (std::size_t k = 0; k + 1 < line.pts.size(); ++k) {
-      const double a = line.areaKm2[k + 1];
-      const double floorWidth = std::max(g.step, 0.2 * (120.0 + 35.0 * std::sqrt(a)));
-      const double maxWidth = std::clamp(500.0 + 700.0 * std::sqrt(a), 4.0 * g.step, 4000.0);
-      segs.push_back({line.pts[k], line.pts[k + 1], line.bed[k], line.bed[k + 1], floorWidth, maxWidth,
-                      a * 1e6 >= riverArea});
-    }
-    addRivers(w, line, riverArea * 1e-6, spacing);
-  }
-  Valleys v = carveValleys(g, base, segs, threads);
+  Valleys v = carveValleys(g, land, segs, threads);
   w.height.resize(g.size());
+  std::vector<float> offset(g.size());
   for (std::size_t k = 0; k < g.size(); ++k) {
-    w.height[k] = static_cast<float>(v.bed[k] + (base[k] - v.bed[k]) * v.shape[k]);
+    offset[k] = v.bed[k] * (1.0f - v.shape[k]);
+    w.height[k] = std::min(land[k], v.shape[k] * land[k] + offset[k]);
   }
   w.riverDist = std::move(v.dist);
-  w.terrain->setValleys(g, std::move(v.bed), std::move(v.shape));
+  w.terrain->setValleys(g, std::move(fill), std::move(v.shape), std::move(offset));
   if (progress) progress(0.75);
 
-  w.terrain->setLakes(placeLakes(w, w.spec.seed));
-  for (const Lake& lake : w.terrain->lakes()) {
-    const double r = lake.maxRadius() + lake.margin;
-    const int i0 = std::max(0, static_cast<int>((lake.centre.x - r - g.x0) / g.step));
-    const int i1 = std::min(g.nx - 1, static_cast<int>((lake.centre.x + r - g.x0) / g.step) + 1);
-    const int j0 = std::max(0, static_cast<int>((lake.centre.y - r - g.y0) / g.step));
-    const int j1 = std::min(g.ny - 1, static_cast<int>((lake.centre.y + r - g.y0) / g.step) + 1);
-    for (int j = j0; j <= j1; ++j) {
-      for (int i = i0; i <= i1; ++i) {
-        const std::size_t c = g.index(i, j);
-        w.height[c] = static_cast<float>(t.withLakes(g.at(i, j), w.height[c]));
-      }
-    }
-  }
+  addLakes(w);
   if (progress) progress(0.85);
-  if (withCulture) buildCulture(w, threads);
+  if (withCulture) buildCulture(w);
   if (progress) progress(1.0);
   return w;
 }

@@ -173,6 +173,9 @@ Result<Manifest> decode(std::span<const std::byte> bytes, const std::string& fil
                     reinterpret_cast<const char*>(bytes.data()) + bytes.size());
   } catch (const json::parse_error& e) {
     return Problem{file, e.byte, std::string("manifest: not valid JSON: ") + e.what()};
+  } catch (const json::exception& e) {
+    // Syntactically valid but unrepresentable, e.g. a number beyond double range (1e400).
+    return Problem{file, 0, std::string("manifest: not valid JSON: ") + e.what()};
   }
   if (!j.is_object()) return Problem{file, 0, "manifest: the top level must be a JSON object"};
   if (!j.contains("format") || !j["format"].is_string() || j["format"].get<std::string>() != kFormat) {

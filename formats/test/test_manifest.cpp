@@ -76,6 +76,7 @@ TEST(Manifest, hostileValuesAreProblemsNotExceptions) {
       {"\"posts_x\": 3", "\"posts_x\": -3", "posts_x has the wrong type"},
       {"\"spacing_m\": 30.0", "\"spacing_m\": \"30\"", "spacing_m has the wrong type"},
       {"\"files\": [", "\"files\": [7, ", "entries must be objects"},
+      {"\"spacing_m\": 30.0", "\"spacing_m\": 1e400", "not valid JSON"},
   };
   for (const auto& c : cases) {
     std::string text = good;
