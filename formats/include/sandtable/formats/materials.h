@@ -1,0 +1,83 @@
+#pragma once
+// The material cross-reference table (seed Figure 39, redone as editable
+// text; docs/FORMAT.md, "materials"). It lists the classes of soil, ground
+// cover, roads and other features with their colours, material and texture
+// ids and draw priority, and the rules that map source attributes (OSM
+// tags, shapefile fields, GeoPackage layer names) to a class and a width.
+// The table used by a build is copied into the database as materials.txt.
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/result.h"
+
+namespace sandtable::materials {
+
+inline constexpr const char* kHeaderLine = "sandtable-materials 1";
+inline constexpr const char* kFileName = "materials.txt";
+
+enum class Kind : std::uint8_t {
+  area,  ///< skin: polygons tile the terrain triangles (soil, land cover, lakes)
+  line,  ///< decal: lines widened to a width (roads, rivers, railways)
+};
+
+struct Class {
+  std::uint16_t id = 0;
+  std::string name;
+  Kind kind = Kind::area;
+  std::uint8_t priority = 1;   ///< 1 skin, 2..10 decals (roads 10), 99 objects
+  std::uint16_t rank = 0;      ///< area classes: where two overlap, the higher rank wins
+  std::uint32_t upperRgb = 0;  ///< 0xRRGGBB, upper triangle
+  std::uint32_t lowerRgb = 0;  ///< 0xRRGGBB, lower triangle
+  std::uint16_t material = 0;
+  std::uint16_t texture = 0;
+  double width = 0;            ///< line classes: default width in metres
+};
+
+/// One mapping rule: when the feature's `key` equals `value` ("*" = any
+/// non-empty value), it gets `className`. key "layer" matches the source
+/// layer name. Rules are tried in file order; the first match wins.
+struct Rule {
+  std::string key;
+  std::string value;
+  std::string className;
+  std::string widthField;  ///< optional: attribute holding a width in metres
+};
+
+struct Table {
+  std::vector<Class> classes;
+  std::vector<Rule> rules;
+  std::uint16_t defaultArea = 0;  ///< class for skin not covered by any feature and for unknown areas
+  std::uint16_t defaultLine = 0;  ///< class for unknown line features
+
+  const Class* find(std::uint16_t id) const;
+  const Class* findByName(const std::string& name) const;
+};
+
+/// Parses the text format. Every problem names the file and the byte offset
+/// of the offending line, with what is wrong and how to fix it.
+Result<Table> parse(std::span<const std::byte> text, const std::string& file);
+/// Reads and parses a file (refuses files over 4 MiB).
+Result<Table> readFile(const std::string& path);
+/// Canonical text; parse(format(t)) == t.
+std::string format(const Table& t);
+
+/// Attribute lookup for classification: returns the value of `key` for the
+/// feature, or nullopt when it has no such attribute.
+using AttributeFn = std::optional<std::string> (*)(const void* feature, const std::string& key);
+
+/// Result of classifying one feature.
+struct Match {
+  std::uint16_t classId = 0;
+  double width = 0;      ///< from the rule's width field, else the class default
+  bool matched = false;  ///< false: fell back to a default class (a warning)
+};
+
+/// Applies the rules. `layer` is the source layer name; `attr` reads the
+/// feature's attributes. `isLine` selects the default when no rule matches.
+Match classify(const Table& t, const std::string& layer, const void* feature, AttributeFn attr,
+               bool isLine);
+
+}  // namespace sandtable::materials
