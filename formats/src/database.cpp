@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/module_check.h"
 
 namespace sandtable {
 namespace {
@@ -64,6 +65,114 @@ void checkFiles(const std::string& dir, const manifest::Manifest& m, std::vector
   }
 }
 
+bool lists(const manifest::Manifest& m, const char* name) {
+  return std::any_of(m.files.begin(), m.files.end(), [&](const auto& f) { return f.path == name; });
+}
+
+/// The pack index against the manifest and the grid: same levels and module
+/// edge, and a module layout that covers the grid (modulesX = ceil((postsX -
+/// 1) / moduleSquares)). Returns false when the layout cannot be used to
+/// locate modules in the grid.
+bool checkPackAgreement(const manifest::Manifest& m, const grid::Header* g, const pack::IndexHeader& h,
+                        const std::string& indexPath, std::vector<Problem>& out) {
+  auto differ = [&](const char* what, const std::string& index, const std::string& other, const char* source,
+                    std::uint64_t off) {
+    out.push_back({indexPath, off, std::string("database: pack index and ") + source + " disagree on " + what +
+                                       " (index " + index + ", " + source + " " + other + ")"});
+  };
+  if (std::int64_t(h.levels) != m.levels) {
+    differ("levels", std::to_string(h.levels), std::to_string(m.levels), "manifest", pack::indexField::levels);
+  }
+  if (h.moduleSize != m.moduleSize) {
+    differ("module_size_m", std::to_string(h.moduleSize), std::to_string(m.moduleSize), "manifest",
+           pack::indexField::moduleSize);
+  }
+  if (!g) return false;
+  bool usable = h.moduleSquares > 0;
+  const double edge = double(h.moduleSquares) * g->spacing;
+  if (!(std::fabs(edge - h.moduleSize) <= 1e-9 * std::max(edge, 1.0))) {
+    differ("the module edge", std::to_string(h.moduleSize) + " m",
+           std::to_string(h.moduleSquares) + " squares x " + std::to_string(g->spacing) + " m", "grid",
+           pack::indexField::moduleSize);
+  }
+  if (usable) {
+    const std::uint64_t wantX = (std::uint64_t(g->postsX) - 2) / h.moduleSquares + 1;
+    const std::uint64_t wantZ = (std::uint64_t(g->postsZ) - 2) / h.moduleSquares + 1;
+    if (h.modulesX != wantX || h.modulesZ != wantZ) {
+      differ("the module count", std::to_string(h.modulesX) + " x " + std::to_string(h.modulesZ),
+             std::to_string(wantX) + " x " + std::to_string(wantZ) + " modules of " +
+                 std::to_string(h.moduleSquares) + " squares over " + std::to_string(g->postsX) + " x " +
+                 std::to_string(g->postsZ) + " posts",
+             "grid", pack::indexField::modulesX);
+      usable = false;
+    }
+  }
+  return usable;
+}
+
+/// Load modules: the pack's own checks, the material table, then every
+/// module's geometry and its edges against its west and north neighbours,
+/// row by row (only the previous row's edges are kept).
+void checkModules(const std::string& dir, const manifest::Manifest& m, const grid::GridFile* g,
+                  std::vector<Problem>& out) {
+  const bool idx = lists(m, pack::kIndexFileName), pk = lists(m, pack::kPackFileName);
+  const std::string manifestPath = dir + "/" + manifest::kFileName;
+  if (!idx && !pk) return;
+  if (idx != pk) {
+    out.push_back({manifestPath, 0, std::string("database: the manifest lists ") +
+                                        (idx ? pack::kIndexFileName : pack::kPackFileName) + " but not " +
+                                        (idx ? pack::kPackFileName : pack::kIndexFileName)});
+    return;
+  }
+  std::vector<Problem> found = pack::validatePack(dir);
+  const bool packSound = found.empty();
+  std::optional<materials::Table> table;
+  if (lists(m, materials::kFileName)) {
+    auto t = materials::readFile(dir + "/" + materials::kFileName);
+    if (t) table = std::move(t.value());
+    else found.insert(found.end(), t.problems().begin(), t.problems().end());
+  } else {
+    found.push_back({manifestPath, 0, std::string("database: the manifest lists load modules but not ") +
+                                          materials::kFileName + ", the table their material ids refer to"});
+  }
+  auto reader = pack::PackReader::open(dir);
+  if (!reader) {
+    if (packSound) found.insert(found.end(), reader.problems().begin(), reader.problems().end());
+  } else if (checkPackAgreement(m, g ? &g->header() : nullptr, reader.value()->header(),
+                                reader.value()->indexPath(), found) && g) {
+    const pack::PackReader& r = *reader.value();
+    const pack::IndexHeader& h = r.header();
+    module::CheckOptions o;
+    o.materials = table ? &*table : nullptr;
+    const module::ModuleChecker checker(*g, h, r.packPath(), o);
+    std::vector<module::ModuleEdges> above(h.modulesX), row(h.modulesX);
+    std::vector<bool> haveAbove(h.modulesX, false), haveRow(h.modulesX, false);
+    auto append = [&](std::vector<Problem>&& ps) { found.insert(found.end(), ps.begin(), ps.end()); };
+    for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+      for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+        haveRow[kx] = false;
+        auto mod = r.read(kx, kz);
+        if (!mod) {
+          if (packSound) append(std::vector<Problem>(mod.problems()));
+          continue;
+        }
+        append(checker.check(mod.value(), r.entry(kx, kz).offset, &row[kx]));
+        haveRow[kx] = true;
+        if (kx > 0 && haveRow[kx - 1]) append(checker.neighbours(row[kx - 1], row[kx]));
+        if (kz > 0 && haveAbove[kx]) append(checker.neighbours(above[kx], row[kx]));
+      }
+      std::swap(above, row);
+      std::swap(haveAbove, haveRow);
+    }
+  }
+  // One order whatever the pack's record order: by file, then offset; the
+  // problems of one module keep the order they were found in.
+  std::stable_sort(found.begin(), found.end(), [](const Problem& a, const Problem& b) {
+    return a.file != b.file ? a.file < b.file : a.offset < b.offset;
+  });
+  out.insert(out.end(), found.begin(), found.end());
+}
+
 }  // namespace
 
 Result<Database> openDatabase(const std::string& directory) {
@@ -75,9 +184,20 @@ Result<Database> openDatabase(const std::string& directory) {
   if (!m) return m.problems();
   auto g = grid::GridFile::open(directory + "/" + manifest::kGridFileName);
   if (!g) return g.problems();
-  Database db{directory, std::move(m.value()), g.value()};
+  Database db{directory, std::move(m.value()), g.value(), nullptr, std::nullopt};
   std::vector<Problem> problems;
   checkAgreement(db.manifest, db.grid->header(), db.grid->path(), problems);
+  if (lists(db.manifest, pack::kIndexFileName) || lists(db.manifest, pack::kPackFileName)) {
+    auto r = pack::PackReader::open(directory);
+    if (!r) return r.problems();
+    checkPackAgreement(db.manifest, &db.grid->header(), r.value()->header(), r.value()->indexPath(), problems);
+    db.modules = r.value();
+  }
+  if (lists(db.manifest, materials::kFileName)) {
+    auto t = materials::readFile(directory + "/" + materials::kFileName);
+    if (!t) return t.problems();
+    db.materials = std::move(t.value());
+  }
   if (!problems.empty()) return problems;
   return db;
 }
@@ -94,9 +214,9 @@ std::vector<Problem> validateDatabase(const std::string& directory) {
   const std::string gridPath = directory + "/" + manifest::kGridFileName;
   auto gridProblems = grid::validateGrid(gridPath);
   out.insert(out.end(), gridProblems.begin(), gridProblems.end());
-  if (auto g = grid::GridFile::open(gridPath)) {
-    checkAgreement(m.value(), g.value()->header(), gridPath, out);
-  }
+  auto g = grid::GridFile::open(gridPath);
+  if (g) checkAgreement(m.value(), g.value()->header(), gridPath, out);
+  checkModules(directory, m.value(), g ? g.value().get() : nullptr, out);
   return out;
 }
 

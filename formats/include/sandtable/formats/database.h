@@ -1,28 +1,43 @@
 #pragma once
 // A database directory: manifest.json plus the files it lists.
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/manifest.h"
+#include "sandtable/formats/materials.h"
+#include "sandtable/formats/pack.h"
 
 namespace sandtable {
 
-/// An opened database: the checked manifest and the mapped grid.
+/// An opened database: the checked manifest, the mapped grid and, when the
+/// manifest lists them, the load modules and the material table.
 struct Database {
   std::string directory;
   manifest::Manifest manifest;
   std::shared_ptr<const grid::GridFile> grid;
+  /// modules.idx + modules.pack (index header, table CRC and pack header
+  /// checked; no module read); null when the manifest lists no modules.
+  std::shared_ptr<const pack::PackReader> modules;
+  /// materials.txt, parsed; empty when the manifest does not list it.
+  std::optional<materials::Table> materials;
 };
 
-/// Opens a database: reads the manifest (schema and checksum) and maps the
-/// grid (header checks only). Cheap; does not read the elevation data.
+/// Opens a database: reads the manifest (schema and checksum), maps the
+/// grid (header checks only), opens the pack index and reads the material
+/// table when listed, and checks that grid, pack index and manifest agree.
+/// Cheap; reads neither the elevation data nor any module.
 Result<Database> openDatabase(const std::string& directory);
 
 /// Checks everything: manifest schema and checksum, every listed file's
 /// size and CRC-32, files present but not listed, grid contents, and that
-/// the grid header and manifest agree. Empty when the database is sound.
+/// the grid header and manifest agree. With load modules also: the pack
+/// (validatePack), the pack index against manifest and grid, materials.txt,
+/// and every module's geometry and its edges against its neighbours
+/// (module_check.h; docs/_validate_modules.md), at most a few problems of
+/// each kind per module. Empty when the database is sound.
 std::vector<Problem> validateDatabase(const std::string& directory);
 
 }  // namespace sandtable

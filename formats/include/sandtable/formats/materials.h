@@ -1,6 +1,6 @@
 #pragma once
 // The material cross-reference table (seed Figure 39, redone as editable
-// text; docs/FORMAT.md, "materials"). It lists the classes of soil, ground
+// text; grammar in docs/_format_materials.md). It lists the classes of soil, ground
 // cover, roads and other features with their colours, material and texture
 // ids and draw priority, and the rules that map source attributes (OSM
 // tags, shapefile fields, GeoPackage layer names) to a class and a width.
@@ -17,14 +17,23 @@ namespace sandtable::materials {
 
 inline constexpr const char* kHeaderLine = "sandtable-materials 1";
 inline constexpr const char* kFileName = "materials.txt";
+/// Largest table readFile accepts.
+inline constexpr std::uint64_t kMaxFileBytes = 4u << 20;
+/// "No class": Table::defaultLine after `default-line none`, and the class
+/// of a Match from a rule whose class is `-` (the feature is ignored).
+inline constexpr std::uint16_t kNoClass = 0xFFFF;
+/// Rule class name that ignores the feature (e.g. `rule tunnel=yes -`).
+inline constexpr const char* kIgnoreClass = "-";
 
 enum class Kind : std::uint8_t {
   area,  ///< skin: polygons tile the terrain triangles (soil, land cover, lakes)
   line,  ///< decal: lines widened to a width (roads, rivers, railways)
 };
 
+/// One class. Area classes are skin (priority 1); line classes are decals
+/// (priority 2..98, drawn in priority order over the skin).
 struct Class {
-  std::uint16_t id = 0;
+  std::uint16_t id = 0;      ///< 0..65534; keep below 256 where the grid stores a u8
   std::string name;
   Kind kind = Kind::area;
   std::uint8_t priority = 1;   ///< 1 skin, 2..10 decals (roads 10), 99 objects
@@ -34,26 +43,32 @@ struct Class {
   std::uint16_t material = 0;
   std::uint16_t texture = 0;
   double width = 0;            ///< line classes: default width in metres
+  bool operator==(const Class&) const = default;
 };
 
 /// One mapping rule: when the feature's `key` equals `value` ("*" = any
-/// non-empty value), it gets `className`. key "layer" matches the source
-/// layer name. Rules are tried in file order; the first match wins.
+/// non-empty value; values compare ASCII case-insensitively), it gets
+/// `className`. key "layer" matches the source layer name. Rules are tried
+/// in file order and only rules whose class kind fits the geometry (lines:
+/// line classes, polygons: area classes) are considered; the first match
+/// wins. className "-" (kIgnoreClass) ignores the feature.
 struct Rule {
   std::string key;
   std::string value;
   std::string className;
   std::string widthField;  ///< optional: attribute holding a width in metres
+  bool operator==(const Rule&) const = default;
 };
 
 struct Table {
   std::vector<Class> classes;
   std::vector<Rule> rules;
   std::uint16_t defaultArea = 0;  ///< class for skin not covered by any feature and for unknown areas
-  std::uint16_t defaultLine = 0;  ///< class for unknown line features
+  std::uint16_t defaultLine = 0;  ///< class for unknown line features; kNoClass: they are ignored
 
   const Class* find(std::uint16_t id) const;
   const Class* findByName(const std::string& name) const;
+  bool operator==(const Table&) const = default;
 };
 
 /// Parses the text format. Every problem names the file and the byte offset
@@ -70,7 +85,7 @@ using AttributeFn = std::optional<std::string> (*)(const void* feature, const st
 
 /// Result of classifying one feature.
 struct Match {
-  std::uint16_t classId = 0;
+  std::uint16_t classId = 0;  ///< kNoClass: ignore the feature (rule "-", or default-line none)
   double width = 0;      ///< from the rule's width field, else the class default
   bool matched = false;  ///< false: fell back to a default class (a warning)
 };

@@ -22,6 +22,7 @@
 // and rows of the grid, clamped at the database's east and south edges, so
 // a module at the edge may have narrower last squares at coarse levels.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -33,6 +34,55 @@ namespace sandtable::module {
 
 inline constexpr std::array<char, 8> kMagic = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '1'};
 inline constexpr std::uint32_t kVersion = 1;
+
+// ------------------------------------------------------------------ layout
+// Shared by encode, decode, the tests and docs (docs/FORMAT.md, "module").
+// A module is a 48-byte header followed by its levels, finest first. Each
+// level is a 36-byte level header followed by its arrays, as planes:
+//
+//   x, y, z, s, t       f32[vertexCount] each
+//   maxHeight           f32[squaresX * squaresZ]
+//   indices             u16[indexCount] (u32 with kLevelFlagU32Indices), delta-coded
+//   group square        u32[groupCount], delta-coded
+//   group half          u8[groupCount]
+//   group priority      u8[groupCount]
+//   group material      u16[groupCount]
+//   group indexCount    u32[groupCount]
+//
+// Every plane of n values of w > 1 bytes is byte-shuffled: stored as w
+// byte planes of n bytes, byte 0 (least significant) of every value, then
+// byte 1, and so on. A delta-coded plane stores zigzag(v[k] - v[k-1]) with
+// v[-1] = 0, the difference taken modulo 2^(8w) as a signed w-byte value and
+// zigzag(d) = (d << 1) ^ (d >> (8w - 1)). Group firstIndex is not stored:
+// it is the running sum of indexCount. This layout makes zstd level 9
+// output about 40% smaller than plain arrays (docs/FORMAT.md, "module").
+
+inline constexpr std::uint32_t kHeaderBytes = 48;
+inline constexpr std::uint32_t kLevelHeaderBytes = 36;
+inline constexpr std::uint32_t kMaxLevels = 16;
+inline constexpr std::uint32_t kMaxSquaresPerAxis = 65536;
+/// Writers use u16 indices when a level has at most this many vertices.
+inline constexpr std::uint32_t kMaxU16Vertices = 65536;
+/// Level flag bit 0: indices are stored as u32 (else u16).
+inline constexpr std::uint32_t kLevelFlagU32Indices = 1;
+inline constexpr std::uint32_t kVertexBytes = 5 * 4;  ///< x, y, z, s, t
+inline constexpr std::uint32_t kGroupBytes = 4 + 1 + 1 + 2 + 4;
+
+/// Byte offsets of the module header fields.
+namespace field {
+inline constexpr std::size_t magic = 0, version = 8, headerBytes = 12, kx = 16, kz = 20,
+                             levelCount = 24, flags = 28, totalBytes = 32, payloadCrc = 40,
+                             headerCrc = 44;
+}
+static_assert(field::headerCrc + 4 == kHeaderBytes, "module header layout");
+
+/// Byte offsets of the level header fields, from the start of the level.
+namespace levelField {
+inline constexpr std::size_t spacing = 0, squaresX = 8, squaresZ = 12, skirtDepth = 16, flags = 20,
+                             vertexCount = 24, indexCount = 28, groupCount = 32;
+}
+static_assert(levelField::groupCount + 4 == kLevelHeaderBytes, "level header layout");
+static_assert(kVertexBytes == 20 && kGroupBytes == 12, "plane widths");
 
 /// Which part of a grid square a group of triangles belongs to.
 enum class Half : std::uint8_t {
@@ -81,12 +131,30 @@ struct Module {
   std::vector<Level> levels;  ///< [0] is the finest
 };
 
-/// Uncompressed bytes of a module (little-endian, layout in docs/FORMAT.md).
+/// What encode needs and the bytes cannot say: 1 to 16 levels, squares
+/// counts 1..65536, maxHeight sized squaresX * squaresZ, and every group's
+/// firstIndex equal to the sum of the indexCounts before it (the groups
+/// cover Level::indices contiguously, in order). Returns "" or the first
+/// violation, starting "module: ". Everything else (indices below the
+/// vertex count, group order, squares in range) is checked by decode.
+std::string checkEncodable(const Module& m);
+
+/// Exact size of encode(m) in bytes.
+std::uint64_t encodedBytes(const Module& m);
+
+/// Uncompressed bytes of a module (little-endian, layout above and in
+/// docs/FORMAT.md). Deterministic. Asserts checkEncodable(m) == "" in debug
+/// builds; in release builds it still writes a well-formed container (a
+/// short maxHeight is padded with 0, firstIndex is ignored).
 std::vector<std::byte> encode(const Module& m);
-/// Decodes and checks structure: counts within the bytes, indices within
-/// the vertices, groups within the indices. Never over-allocates: every
-/// count is checked against the bytes that remain before anything is sized.
-/// `file` and `baseOffset` name where the bytes came from in problems.
+
+/// Decodes and checks structure: both CRCs, counts within the bytes, indices
+/// within the vertices, groups within the indices and in (priority, square,
+/// half, material) order, squares within the level. Never over-allocates:
+/// every count is checked against the bytes that remain before anything is
+/// sized. Stops at the first problem. Problems name `file` and the offset
+/// `baseOffset` + the offset in `bytes`; messages start with "module: ".
+/// Group::firstIndex is recomputed as the running sum. Thread-safe.
 Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
                       std::uint64_t baseOffset = 0);
 

@@ -1,0 +1,954 @@
+#include "sandtable/formats/pack.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zstd.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <mutex>
+
+#include "sandtable/formats/bytes.h"
+
+namespace sandtable::pack {
+namespace {
+
+std::string str(std::uint64_t v) { return std::to_string(v); }
+
+std::string join(const std::string& directory, const char* name) {
+  return (std::filesystem::path(directory) / name).string();
+}
+
+std::string moduleName(std::uint32_t kx, std::uint32_t kz) {
+  return "module (" + str(kx) + "," + str(kz) + ")";
+}
+
+std::uint64_t entryOffset(const IndexHeader& h, std::uint32_t kx, std::uint32_t kz) {
+  return kIndexHeaderBytes + std::uint64_t(kEntryBytes) * (std::uint64_t(kz) * h.modulesX + kx);
+}
+
+// ---------------------------------------------------------------- file I/O
+
+/// Reads exactly n bytes at `off`. "" or an error (a short file is one).
+std::string preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off) {
+  while (n > 0) {
+    const ssize_t r = ::pread(fd, data, n, static_cast<off_t>(off));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return std::strerror(errno);
+    }
+    if (r == 0) return "the file ends at byte " + str(off);
+    data += r;
+    n -= static_cast<std::size_t>(r);
+    off += static_cast<std::uint64_t>(r);
+  }
+  return {};
+}
+
+std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(off));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return std::strerror(errno);
+    }
+    data += w;
+    n -= static_cast<std::size_t>(w);
+    off += static_cast<std::uint64_t>(w);
+  }
+  return {};
+}
+
+/// A whole file mapped read-only (nothing mapped when it is empty).
+class MappedFile {
+ public:
+  MappedFile() = default;
+  ~MappedFile() {
+    if (base_) ::munmap(const_cast<std::byte*>(base_), size_);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+
+  /// "" or an error.
+  std::string open(const std::string& path) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return std::string("cannot open: ") + std::strerror(errno);
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+      ::close(fd);
+      return "not a regular file";
+    }
+    size_ = static_cast<std::size_t>(st.st_size);
+    if (size_ > 0) {
+      void* m = ::mmap(nullptr, size_, PROT_READ, MAP_SHARED, fd, 0);
+      if (m == MAP_FAILED) {
+        const std::string e = std::strerror(errno);
+        ::close(fd);
+        size_ = 0;
+        return "mmap failed: " + e;
+      }
+      base_ = static_cast<const std::byte*>(m);
+    }
+    ::close(fd);
+    return {};
+  }
+  std::span<const std::byte> bytes() const { return {base_, size_}; }
+  std::size_t size() const { return size_; }
+
+ private:
+  const std::byte* base_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+/// Closes a descriptor on scope exit.
+struct FdGuard {
+  int fd = -1;
+  ~FdGuard() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+
+// ---------------------------------------------------------------- zstd contexts
+
+struct CCtxFree {
+  void operator()(ZSTD_CCtx* c) const { ZSTD_freeCCtx(c); }
+};
+struct DCtxFree {
+  void operator()(ZSTD_DCtx* c) const { ZSTD_freeDCtx(c); }
+};
+
+ZSTD_CCtx* threadCCtx() {
+  thread_local std::unique_ptr<ZSTD_CCtx, CCtxFree> c(ZSTD_createCCtx());
+  return c.get();
+}
+
+ZSTD_DCtx* threadDCtx() {
+  thread_local std::unique_ptr<ZSTD_DCtx, DCtxFree> c(ZSTD_createDCtx());
+  return c.get();
+}
+
+// ---------------------------------------------------------------- shared checks
+
+/// Checks an entry against the index header, with no I/O. Appends problems
+/// (in modules.idx); `placed` says whether the record lies within the pack
+/// and has sane sizes, so that it can be read.
+void checkEntry(const IndexHeader& h, const Entry& e, std::uint32_t kx, std::uint32_t kz,
+                const std::string& indexPath, std::vector<Problem>& out, bool& placed) {
+  placed = false;
+  const std::uint64_t at = entryOffset(h, kx, kz);
+  const std::string name = moduleName(kx, kz);
+  if (e.kx != kx || e.kz != kz) {
+    out.push_back({indexPath, at + entryField::kx,
+                   "pack index: the entry of " + name + " names " + moduleName(e.kx, e.kz)});
+  }
+  if (e.compressedBytes == 0) {
+    out.push_back({indexPath, at + entryField::compressedBytes,
+                   "pack index: " + name + " is missing (its entry has no record)"});
+    return;
+  }
+  if (e.compressedBytes > kMaxModuleBytes || e.rawBytes == 0 || e.rawBytes > kMaxModuleBytes) {
+    out.push_back({indexPath, at + entryField::compressedBytes,
+                   "pack index: " + name + " sizes (" + str(e.compressedBytes) + " compressed, " +
+                       str(e.rawBytes) + " raw) are out of range (1 to " + str(kMaxModuleBytes) +
+                       " bytes)"});
+    return;
+  }
+  if (e.offset < kPackHeaderBytes || e.offset > h.packBytes ||
+      e.compressedBytes > h.packBytes - e.offset) {
+    out.push_back({indexPath, at + entryField::offset,
+                   "pack index: " + name + " record at bytes " + str(e.offset) + ".." +
+                       str(e.offset + e.compressedBytes - 1) +
+                       " is not within the records of modules.pack (bytes " +
+                       str(kPackHeaderBytes) + ".." + str(h.packBytes - 1) + ")"});
+    return;
+  }
+  placed = true;
+}
+
+/// Checks a record's CRC, decompresses it and checks the raw size and (with
+/// `checkRawCrc`) the raw CRC.
+Result<std::vector<std::byte>> unpackRecord(const Entry& e, std::uint32_t kx, std::uint32_t kz,
+                                            std::span<const std::byte> record,
+                                            const std::string& packPath, bool checkRawCrc) {
+  const std::string name = moduleName(kx, kz);
+  auto fail = [&](const std::string& msg) {
+    return Result<std::vector<std::byte>>(Problem{packPath, e.offset, "pack: " + name + msg});
+  };
+  if (record.size() != e.compressedBytes) {
+    return fail(" record is " + str(record.size()) + " bytes, the index says " +
+                str(e.compressedBytes));
+  }
+  const std::uint32_t c = crc32(record);
+  if (c != e.compressedCrc) {
+    return fail(" record checksum mismatch (stored " + crcHex(e.compressedCrc) + ", computed " +
+                crcHex(c) + "): the pack is corrupt; rebuild the database");
+  }
+  std::vector<std::byte> raw;
+  std::string err;
+  if (!decompress(record, e.rawBytes, raw, err)) {
+    return fail(" record does not decompress: " + err);
+  }
+  if (!checkRawCrc) return raw;
+  const std::uint32_t rc = crc32(raw);
+  if (rc != e.rawCrc) {
+    return fail(" decompressed checksum mismatch (stored " + crcHex(e.rawCrc) + ", computed " +
+                crcHex(rc) + ")");
+  }
+  return raw;
+}
+
+/// Decodes a module's raw bytes and checks it against its entry and index.
+Result<module::Module> decodeRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
+                                    std::uint32_t kz, std::span<const std::byte> raw,
+                                    const std::string& packPath) {
+  const std::string name = moduleName(kx, kz);
+  auto m = module::decode(raw, packPath, 0);
+  if (!m) {
+    const Problem& p = m.problems().front();
+    return Problem{packPath, e.offset,
+                   "pack: " + name + ", decompressed byte " + str(p.offset) + ": " + p.message};
+  }
+  if (m->kx != kx || m->kz != kz) {
+    return Problem{packPath, e.offset,
+                   "pack: the record of " + name + " holds " + moduleName(m->kx, m->kz)};
+  }
+  if (m->levels.size() != h.levels) {
+    return Problem{packPath, e.offset,
+                   "pack: " + name + " has " + str(m->levels.size()) + " levels, the index says " +
+                       str(h.levels)};
+  }
+  return m;
+}
+
+/// Opens modules.pack and checks its header; with the index header `h`,
+/// also its size and header CRC. Returns the descriptor (or -1) and appends
+/// problems.
+int openPack(const std::string& packPath, const IndexHeader* h, std::vector<Problem>& out) {
+  const int fd = ::open(packPath.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    out.push_back({packPath, 0, std::string("pack: cannot open: ") + std::strerror(errno)});
+    return -1;
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    out.push_back({packPath, 0, "pack: not a regular file"});
+    return -1;
+  }
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  std::vector<std::byte> head(
+      static_cast<std::size_t>(std::min<std::uint64_t>(size, kPackHeaderBytes)));
+  const std::string err = preadAll(fd, head.data(), head.size(), 0);
+  if (!err.empty()) {
+    ::close(fd);
+    out.push_back({packPath, 0, "pack: cannot read the header: " + err});
+    return -1;
+  }
+  auto headerProblems = checkPackHeader(head, packPath);
+  const bool headerOk = headerProblems.empty();
+  out.insert(out.end(), headerProblems.begin(), headerProblems.end());
+  if (h) {
+    if (size != h->packBytes) {
+      out.push_back({packPath, std::min(size, h->packBytes),
+                     "pack: file is " + str(size) + " bytes but the index says " +
+                         str(h->packBytes) +
+                         (size < h->packBytes ? ": truncated" : ": trailing bytes") +
+                         "; rebuild the database"});
+    }
+    if (headerOk) {
+      const std::uint32_t c = crc32(head);
+      if (c != h->packHeaderCrc) {
+        out.push_back({packPath, packField::headerCrc,
+                       "pack: header checksum " + crcHex(c) + " differs from the index's " +
+                           crcHex(h->packHeaderCrc) +
+                           ": modules.pack and modules.idx are not from the same build"});
+      }
+    }
+  }
+  return fd;
+}
+
+std::string tableCrcProblem(const IndexHeader& h, std::span<const std::byte> index) {
+  const std::uint32_t c = crc32(
+      index.subspan(kIndexHeaderBytes, static_cast<std::size_t>(kEntryBytes * h.entryCount())));
+  if (c == h.tableCrc) return {};
+  return "pack index: entry table checksum mismatch (stored " + crcHex(h.tableCrc) + ", computed " +
+         crcHex(c) + "): the index is corrupt; rebuild the database";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- headers
+
+std::vector<std::byte> encodePackHeader() {
+  std::vector<std::byte> b(kPackHeaderBytes, std::byte{0});
+  std::byte* p = b.data();
+  std::memcpy(p + packField::magic, kPackMagic.data(), kPackMagic.size());
+  storeLE<std::uint32_t>(p + packField::version, kVersion);
+  storeLE<std::uint32_t>(p + packField::headerBytes, kPackHeaderBytes);
+  storeLE<std::uint32_t>(p + packField::flags, 0);
+  storeLE<std::uint32_t>(p + packField::codec, kCodecZstd);
+  storeLE<std::uint32_t>(p + packField::headerCrc, crc32(std::span(b).first(packField::headerCrc)));
+  return b;
+}
+
+std::vector<Problem> checkPackHeader(std::span<const std::byte> bytes, const std::string& file) {
+  auto fail = [&](std::uint64_t off, const std::string& msg) {
+    return std::vector<Problem>{Problem{file, off, "pack: " + msg}};
+  };
+  if (bytes.size() < kPackHeaderBytes) {
+    return fail(bytes.size(), "truncated: the header needs " + str(kPackHeaderBytes) +
+                                  " bytes, the file ends at byte " + str(bytes.size()) +
+                                  "; rebuild the database");
+  }
+  const std::byte* p = bytes.data();
+  if (std::memcmp(p + packField::magic, kPackMagic.data(), kPackMagic.size()) != 0) {
+    return fail(packField::magic, "bad magic: not a sandtable pack file (expected \"SANDPACK\")");
+  }
+  const auto version = loadLE<std::uint32_t>(p + packField::version);
+  if (version != kVersion) {
+    return fail(packField::version, "version " + str(version) +
+                                        " is not supported (this reader knows version " +
+                                        str(kVersion) + "); use a matching sandtable");
+  }
+  const auto stored = loadLE<std::uint32_t>(p + packField::headerCrc);
+  const auto actual = crc32(bytes.first(packField::headerCrc));
+  if (stored != actual) {
+    return fail(packField::headerCrc, "header checksum mismatch (stored " + crcHex(stored) +
+                                          ", computed " + crcHex(actual) +
+                                          "): the header is corrupt; rebuild the database");
+  }
+  if (loadLE<std::uint32_t>(p + packField::headerBytes) != kPackHeaderBytes) {
+    return fail(packField::headerBytes, "header size must be " + str(kPackHeaderBytes));
+  }
+  if (loadLE<std::uint32_t>(p + packField::flags) != 0) {
+    return fail(packField::flags, "flags must be 0 in version 1");
+  }
+  const auto codec = loadLE<std::uint32_t>(p + packField::codec);
+  if (codec != kCodecZstd) {
+    return fail(packField::codec, "codec " + str(codec) + " is not supported (1 = zstd)");
+  }
+  return {};
+}
+
+std::vector<std::byte> encodeIndexHeader(const IndexHeader& h) {
+  std::vector<std::byte> page(kIndexHeaderBytes, std::byte{0});
+  std::byte* p = page.data();
+  std::memcpy(p + indexField::magic, kIndexMagic.data(), kIndexMagic.size());
+  storeLE<std::uint32_t>(p + indexField::version, h.version);
+  storeLE<std::uint32_t>(p + indexField::headerBytes, kIndexHeaderBytes);
+  storeLE<std::uint32_t>(p + indexField::modulesX, h.modulesX);
+  storeLE<std::uint32_t>(p + indexField::modulesZ, h.modulesZ);
+  storeLE<std::uint32_t>(p + indexField::levels, h.levels);
+  storeLE<std::uint32_t>(p + indexField::moduleSquares, h.moduleSquares);
+  storeLE<double>(p + indexField::moduleSize, h.moduleSize);
+  storeLE<std::uint64_t>(p + indexField::packBytes, h.packBytes);
+  storeLE<std::uint32_t>(p + indexField::packHeaderCrc, h.packHeaderCrc);
+  storeLE<std::uint32_t>(p + indexField::entryBytes, kEntryBytes);
+  storeLE<std::uint64_t>(p + indexField::entryCount, h.entryCount());
+  storeLE<std::uint64_t>(p + indexField::tableOffset, kIndexHeaderBytes);
+  storeLE<std::uint32_t>(p + indexField::tableCrc, h.tableCrc);
+  storeLE<std::uint32_t>(p + indexField::headerCrc,
+                         crc32(std::span(page).first(indexField::headerCrc)));
+  return page;
+}
+
+Result<IndexHeader> decodeIndexHeader(std::span<const std::byte> bytes, const std::string& file,
+                                      std::uint64_t fileSize) {
+  auto fail = [&](std::uint64_t off, const std::string& msg) {
+    return Result<IndexHeader>(Problem{file, off, "pack index: " + msg});
+  };
+  if (bytes.size() < kIndexHeaderFieldBytes) {
+    return fail(bytes.size(), "truncated: the header needs " + str(kIndexHeaderFieldBytes) +
+                                  " bytes, the file ends at byte " + str(bytes.size()) +
+                                  "; rebuild the database");
+  }
+  const std::byte* p = bytes.data();
+  if (std::memcmp(p + indexField::magic, kIndexMagic.data(), kIndexMagic.size()) != 0) {
+    return fail(indexField::magic, "bad magic: not a sandtable pack index (expected \"SANDIDX1\")");
+  }
+  IndexHeader h;
+  h.version = loadLE<std::uint32_t>(p + indexField::version);
+  if (h.version != kVersion) {
+    return fail(indexField::version, "version " + str(h.version) +
+                                         " is not supported (this reader knows version " +
+                                         str(kVersion) + "); use a matching sandtable");
+  }
+  const auto stored = loadLE<std::uint32_t>(p + indexField::headerCrc);
+  const auto actual = crc32(bytes.first(indexField::headerCrc));
+  if (stored != actual) {
+    return fail(indexField::headerCrc, "header checksum mismatch (stored " + crcHex(stored) +
+                                           ", computed " + crcHex(actual) +
+                                           "): the header is corrupt; rebuild the database");
+  }
+  if (loadLE<std::uint32_t>(p + indexField::headerBytes) != kIndexHeaderBytes) {
+    return fail(indexField::headerBytes, "header size must be " + str(kIndexHeaderBytes));
+  }
+  h.modulesX = loadLE<std::uint32_t>(p + indexField::modulesX);
+  h.modulesZ = loadLE<std::uint32_t>(p + indexField::modulesZ);
+  h.levels = loadLE<std::uint32_t>(p + indexField::levels);
+  h.moduleSquares = loadLE<std::uint32_t>(p + indexField::moduleSquares);
+  h.moduleSize = loadLE<double>(p + indexField::moduleSize);
+  h.packBytes = loadLE<std::uint64_t>(p + indexField::packBytes);
+  h.packHeaderCrc = loadLE<std::uint32_t>(p + indexField::packHeaderCrc);
+  h.tableCrc = loadLE<std::uint32_t>(p + indexField::tableCrc);
+  const auto entryBytes = loadLE<std::uint32_t>(p + indexField::entryBytes);
+  const auto entryCount = loadLE<std::uint64_t>(p + indexField::entryCount);
+  const auto tableOffset = loadLE<std::uint64_t>(p + indexField::tableOffset);
+
+  for (const std::size_t f : {indexField::modulesX, indexField::modulesZ}) {
+    const auto n = loadLE<std::uint32_t>(p + f);
+    if (n < 1 || n > kMaxModulesPerAxis) {
+      return fail(f, "module counts " + str(h.modulesX) + " x " + str(h.modulesZ) +
+                         " are out of range (1 to " + str(kMaxModulesPerAxis) + " each)");
+    }
+  }
+  if (h.levels < 1 || h.levels > module::kMaxLevels) {
+    return fail(indexField::levels, "level count " + str(h.levels) + " is out of range (1 to " +
+                                        str(module::kMaxLevels) + ")");
+  }
+  if (h.moduleSquares < 1 || h.moduleSquares > module::kMaxSquaresPerAxis) {
+    return fail(indexField::moduleSquares, "module squares " + str(h.moduleSquares) +
+                                               " is out of range (1 to " +
+                                               str(module::kMaxSquaresPerAxis) + ")");
+  }
+  if (!(std::isfinite(h.moduleSize) && h.moduleSize > 0)) {
+    return fail(indexField::moduleSize, "module size is not a finite positive number");
+  }
+  if (h.packBytes < kPackHeaderBytes) {
+    return fail(indexField::packBytes, "pack size " + str(h.packBytes) +
+                                           " is smaller than the pack header (" +
+                                           str(kPackHeaderBytes) + " bytes)");
+  }
+  if (entryBytes != kEntryBytes) {
+    return fail(indexField::entryBytes, "entry size must be " + str(kEntryBytes));
+  }
+  if (entryCount != h.entryCount()) {
+    return fail(indexField::entryCount, "entry count " + str(entryCount) + " is not " +
+                                            str(h.modulesX) + " x " + str(h.modulesZ));
+  }
+  if (tableOffset != kIndexHeaderBytes) {
+    return fail(indexField::tableOffset, "table offset must be " + str(kIndexHeaderBytes));
+  }
+  if (fileSize != h.indexBytes()) {
+    return fail(std::min(fileSize, h.indexBytes()),
+                "file is " + str(fileSize) + " bytes but the header says " + str(h.indexBytes()) +
+                    (fileSize < h.indexBytes() ? ": truncated" : ": trailing bytes") +
+                    "; rebuild the database");
+  }
+  return h;
+}
+
+void encodeEntry(const Entry& e, std::span<std::byte> out) {
+  assert(out.size() >= kEntryBytes);
+  std::byte* p = out.data();
+  storeLE<std::uint64_t>(p + entryField::offset, e.offset);
+  storeLE<std::uint32_t>(p + entryField::compressedBytes, e.compressedBytes);
+  storeLE<std::uint32_t>(p + entryField::rawBytes, e.rawBytes);
+  storeLE<std::uint32_t>(p + entryField::compressedCrc, e.compressedCrc);
+  storeLE<std::uint32_t>(p + entryField::rawCrc, e.rawCrc);
+  storeLE<std::uint32_t>(p + entryField::kx, e.kx);
+  storeLE<std::uint32_t>(p + entryField::kz, e.kz);
+}
+
+Entry decodeEntry(std::span<const std::byte> in) {
+  assert(in.size() >= kEntryBytes);
+  const std::byte* p = in.data();
+  Entry e;
+  e.offset = loadLE<std::uint64_t>(p + entryField::offset);
+  e.compressedBytes = loadLE<std::uint32_t>(p + entryField::compressedBytes);
+  e.rawBytes = loadLE<std::uint32_t>(p + entryField::rawBytes);
+  e.compressedCrc = loadLE<std::uint32_t>(p + entryField::compressedCrc);
+  e.rawCrc = loadLE<std::uint32_t>(p + entryField::rawCrc);
+  e.kx = loadLE<std::uint32_t>(p + entryField::kx);
+  e.kz = loadLE<std::uint32_t>(p + entryField::kz);
+  return e;
+}
+
+// ---------------------------------------------------------------- zstd
+
+std::vector<std::byte> compress(std::span<const std::byte> raw, int level) {
+  std::vector<std::byte> out(ZSTD_compressBound(raw.size()));
+  const std::size_t n =
+      ZSTD_compressCCtx(threadCCtx(), out.data(), out.size(), raw.data(), raw.size(), level);
+  if (ZSTD_isError(n)) return {};
+  out.resize(n);
+  return out;
+}
+
+bool decompress(std::span<const std::byte> packed, std::uint32_t rawBytes,
+                std::vector<std::byte>& out, std::string& error) {
+  const unsigned long long declared = ZSTD_getFrameContentSize(packed.data(), packed.size());
+  if (declared == ZSTD_CONTENTSIZE_ERROR) {
+    error = "not a zstd frame";
+    return false;
+  }
+  if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared != rawBytes) {
+    error = "the frame holds " + str(declared) + " bytes, the index says " + str(rawBytes);
+    return false;
+  }
+  out.resize(rawBytes);
+  const std::size_t n =
+      ZSTD_decompressDCtx(threadDCtx(), out.data(), out.size(), packed.data(), packed.size());
+  if (ZSTD_isError(n)) {
+    error = std::string("zstd: ") + ZSTD_getErrorName(n);
+    return false;
+  }
+  if (n != rawBytes) {
+    error = "decompressed to " + str(n) + " bytes, the index says " + str(rawBytes);
+    return false;
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------- writer
+
+struct PackWriter::State {
+  std::string directory, packPath, indexPath, packTmp, indexTmp;
+  int fd = -1;
+  int level = kDefaultZstdLevel;
+  IndexHeader header;
+  mutable std::mutex mutex;
+  std::vector<Entry> entries;            ///< row-major; compressedBytes == 0 until added
+  std::uint64_t end = kPackHeaderBytes;  ///< bytes written to the pack so far
+  std::uint32_t crc = 0;                 ///< CRC-32 of the pack bytes so far
+  std::string failed;                    ///< first write error; poisons the writer
+  bool finished = false;
+  std::uint32_t indexCrc = 0;
+  std::uint64_t indexBytes = 0;
+
+  ~State() {
+    if (fd >= 0) ::close(fd);
+    if (!finished) {
+      ::unlink(packTmp.c_str());
+      ::unlink(indexTmp.c_str());
+    }
+  }
+};
+
+PackWriter::PackWriter(std::unique_ptr<State> s) : state_(std::move(s)) {}
+PackWriter::~PackWriter() = default;
+
+Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& directory,
+                                                       const IndexHeader& header, int zstdLevel) {
+  auto fail = [&](const std::string& msg) {
+    return Result<std::unique_ptr<PackWriter>>(Problem{directory, 0, "pack writer: " + msg});
+  };
+  if (header.modulesX < 1 || header.modulesZ < 1 || header.modulesX > kMaxModulesPerAxis ||
+      header.modulesZ > kMaxModulesPerAxis) {
+    return fail("module counts " + str(header.modulesX) + " x " + str(header.modulesZ) +
+                " are out of range (1 to " + str(kMaxModulesPerAxis) + " each)");
+  }
+  if (header.levels < 1 || header.levels > module::kMaxLevels) {
+    return fail("level count " + str(header.levels) + " is out of range (1 to " +
+                str(module::kMaxLevels) + ")");
+  }
+  if (header.moduleSquares < 1 || header.moduleSquares > module::kMaxSquaresPerAxis) {
+    return fail("module squares " + str(header.moduleSquares) + " is out of range");
+  }
+  if (!(std::isfinite(header.moduleSize) && header.moduleSize > 0)) {
+    return fail("module size is not a finite positive number");
+  }
+  if (zstdLevel < ZSTD_minCLevel() || zstdLevel > ZSTD_maxCLevel()) {
+    return fail("zstd level " + std::to_string(zstdLevel) + " is out of range (" +
+                std::to_string(ZSTD_minCLevel()) + " to " + std::to_string(ZSTD_maxCLevel()) + ")");
+  }
+  auto s = std::make_unique<State>();
+  s->directory = directory;
+  s->packPath = join(directory, kPackFileName);
+  s->indexPath = join(directory, kIndexFileName);
+  const std::string pid = std::to_string(::getpid());
+  s->packTmp = s->packPath + ".tmp." + pid;
+  s->indexTmp = s->indexPath + ".tmp." + pid;
+  s->level = zstdLevel;
+  s->header = header;
+  s->header.version = kVersion;
+  s->entries.resize(static_cast<std::size_t>(header.entryCount()));
+  s->fd = ::open(s->packTmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (s->fd < 0) return fail("cannot create " + s->packTmp + ": " + std::strerror(errno));
+  const auto head = encodePackHeader();
+  const std::string err = pwriteAll(s->fd, head.data(), head.size(), 0);
+  if (!err.empty()) return fail("cannot write " + s->packTmp + ": " + err);
+  s->crc = crc32(head);
+  s->header.packHeaderCrc = s->crc;
+  return std::unique_ptr<PackWriter>(new PackWriter(std::move(s)));
+}
+
+std::string PackWriter::add(const module::Module& m) {
+  State& s = *state_;
+  const std::string name = "pack writer: " + moduleName(m.kx, m.kz);
+  if (m.kx >= s.header.modulesX || m.kz >= s.header.modulesZ) {
+    return name + " is outside the pack's " + str(s.header.modulesX) + " x " +
+           str(s.header.modulesZ) + " modules";
+  }
+  if (m.levels.size() != s.header.levels) {
+    return name + " has " + str(m.levels.size()) + " levels, the pack holds " +
+           str(s.header.levels);
+  }
+  if (const std::string e = module::checkEncodable(m); !e.empty()) return name + ": " + e;
+  if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
+    return name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) +
+           " allowed";
+  }
+  const std::vector<std::byte> raw = module::encode(m);
+  // Decoding our own encoding checks everything checkEncodable leaves out
+  // (index ranges, group order, squares), so a pack never holds a module
+  // that its reader would refuse.
+  if (auto back = module::decode(raw, "encoded module"); !back) {
+    const Problem& p = back.problems().front();
+    return name + " is malformed: " + p.message + " (byte " + str(p.offset) + " of its encoding)";
+  }
+  const std::vector<std::byte> packed = compress(raw, s.level);
+  if (packed.empty()) return name + ": zstd compression failed (out of memory?)";
+  if (packed.size() > kMaxModuleBytes) return name + " compresses to more than the allowed size";
+  Entry e;
+  e.compressedBytes = static_cast<std::uint32_t>(packed.size());
+  e.rawBytes = static_cast<std::uint32_t>(raw.size());
+  e.compressedCrc = crc32(packed);
+  e.rawCrc = crc32(raw);
+  e.kx = m.kx;
+  e.kz = m.kz;
+
+  const std::lock_guard lock(s.mutex);
+  if (s.finished) return "pack writer: add() after finish()";
+  if (!s.failed.empty()) return s.failed;
+  Entry& slot = s.entries[std::size_t(m.kz) * s.header.modulesX + m.kx];
+  if (slot.compressedBytes != 0) return name + " was added twice";
+  e.offset = s.end;
+  const std::string err = pwriteAll(s.fd, packed.data(), packed.size(), s.end);
+  if (!err.empty()) {
+    s.failed = "pack writer: cannot write " + s.packTmp + ": " + err + " (is the disk full?)";
+    return s.failed;
+  }
+  s.end += packed.size();
+  s.crc = crc32(packed, s.crc);
+  slot = e;
+  return {};
+}
+
+std::string PackWriter::finish() {
+  State& s = *state_;
+  const std::lock_guard lock(s.mutex);
+  if (s.finished) return "pack writer: finish() was already called";
+  if (!s.failed.empty()) return s.failed;
+  std::uint64_t missing = 0;
+  std::size_t firstMissing = 0;
+  for (std::size_t k = 0; k < s.entries.size(); ++k) {
+    if (s.entries[k].compressedBytes == 0 && missing++ == 0) firstMissing = k;
+  }
+  if (missing > 0) {
+    const auto kx = static_cast<std::uint32_t>(firstMissing % s.header.modulesX);
+    const auto kz = static_cast<std::uint32_t>(firstMissing / s.header.modulesX);
+    return "pack writer: " + str(missing) + " of " + str(s.entries.size()) +
+           " modules were not added (the first is " + moduleName(kx, kz) + ")";
+  }
+  std::vector<std::byte> index(static_cast<std::size_t>(s.header.indexBytes()), std::byte{0});
+  for (std::size_t k = 0; k < s.entries.size(); ++k) {
+    encodeEntry(s.entries[k], std::span(index).subspan(kIndexHeaderBytes + kEntryBytes * k));
+  }
+  s.header.packBytes = s.end;
+  s.header.tableCrc = crc32(std::span(index).subspan(kIndexHeaderBytes));
+  const auto head = encodeIndexHeader(s.header);
+  std::copy(head.begin(), head.end(), index.begin());
+
+  auto failWith = [&](const std::string& what) {
+    s.failed = "pack writer: " + what;
+    return s.failed;
+  };
+  if (::fsync(s.fd) != 0)
+    return failWith("cannot flush " + s.packTmp + ": " + std::strerror(errno));
+  FdGuard idx{::open(s.indexTmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
+  if (idx.fd < 0) return failWith("cannot create " + s.indexTmp + ": " + std::strerror(errno));
+  std::string err = pwriteAll(idx.fd, index.data(), index.size(), 0);
+  if (err.empty() && ::fsync(idx.fd) != 0) err = std::strerror(errno);
+  if (!err.empty()) return failWith("cannot write " + s.indexTmp + ": " + err);
+  // The pack first, the index last: an index under its final name always
+  // describes the pack beside it.
+  if (::rename(s.packTmp.c_str(), s.packPath.c_str()) != 0) {
+    return failWith("cannot rename " + s.packTmp + ": " + std::strerror(errno));
+  }
+  if (::rename(s.indexTmp.c_str(), s.indexPath.c_str()) != 0) {
+    const std::string e = std::strerror(errno);
+    ::unlink(s.packPath.c_str());
+    return failWith("cannot rename " + s.indexTmp + ": " + e);
+  }
+  FdGuard dir{::open(s.directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)};
+  if (dir.fd >= 0) ::fsync(dir.fd);
+  s.finished = true;
+  s.indexCrc = crc32(index);
+  s.indexBytes = index.size();
+  return {};
+}
+
+SizeStats PackWriter::stats() const {
+  const State& s = *state_;
+  const std::lock_guard lock(s.mutex);
+  SizeStats st;
+  std::vector<std::uint32_t> sizes;
+  sizes.reserve(s.entries.size());
+  for (const Entry& e : s.entries) {
+    if (e.compressedBytes == 0) continue;
+    sizes.push_back(e.compressedBytes);
+    st.totalCompressed += e.compressedBytes;
+    st.totalRaw += e.rawBytes;
+  }
+  st.count = sizes.size();
+  if (sizes.empty()) return st;
+  std::sort(sizes.begin(), sizes.end());
+  const std::size_t n = sizes.size();
+  st.minCompressed = sizes.front();
+  st.maxCompressed = sizes.back();
+  st.medianCompressed = sizes[(n + 1) / 2 - 1];
+  st.p95Compressed = sizes[(95 * n + 99) / 100 - 1];
+  return st;
+}
+
+std::uint32_t PackWriter::packCrc() const {
+  const std::lock_guard lock(state_->mutex);
+  return state_->crc;
+}
+std::uint32_t PackWriter::indexCrc() const {
+  const std::lock_guard lock(state_->mutex);
+  return state_->indexCrc;
+}
+std::uint64_t PackWriter::packBytes() const {
+  const std::lock_guard lock(state_->mutex);
+  return state_->end;
+}
+std::uint64_t PackWriter::indexBytes() const {
+  const std::lock_guard lock(state_->mutex);
+  return state_->indexBytes;
+}
+
+// ---------------------------------------------------------------- reader
+
+struct PackReader::State {
+  std::string packPath, indexPath;
+  MappedFile index;
+  FdGuard pack;
+  IndexHeader header;
+};
+
+PackReader::PackReader(std::unique_ptr<State> s) : state_(std::move(s)) {}
+PackReader::~PackReader() = default;
+
+Result<std::shared_ptr<const PackReader>> PackReader::open(const std::string& directory) {
+  auto s = std::make_unique<State>();
+  s->packPath = join(directory, kPackFileName);
+  s->indexPath = join(directory, kIndexFileName);
+  if (const std::string err = s->index.open(s->indexPath); !err.empty()) {
+    return Problem{s->indexPath, 0, "pack index: " + err};
+  }
+  auto h = decodeIndexHeader(s->index.bytes(), s->indexPath, s->index.size());
+  if (!h) return h.problems();
+  s->header = h.value();
+  if (const std::string err = tableCrcProblem(s->header, s->index.bytes()); !err.empty()) {
+    return Problem{s->indexPath, kIndexHeaderBytes, err};
+  }
+  std::vector<Problem> problems;
+  s->pack.fd = openPack(s->packPath, &s->header, problems);
+  if (!problems.empty()) return problems;
+  return std::shared_ptr<const PackReader>(new PackReader(std::move(s)));
+}
+
+const IndexHeader& PackReader::header() const { return state_->header; }
+int PackReader::packFd() const { return state_->pack.fd; }
+std::string PackReader::packPath() const { return state_->packPath; }
+std::string PackReader::indexPath() const { return state_->indexPath; }
+
+Entry PackReader::entry(std::uint32_t kx, std::uint32_t kz) const {
+  const IndexHeader& h = state_->header;
+  assert(kx < h.modulesX && kz < h.modulesZ);
+  return decodeEntry(state_->index.bytes().subspan(entryOffset(h, kx, kz), kEntryBytes));
+}
+
+Result<std::vector<std::byte>> PackReader::unpack(std::uint32_t kx, std::uint32_t kz,
+                                                  std::span<const std::byte> record) const {
+  const Entry e = entry(kx, kz);
+  std::vector<Problem> problems;
+  bool placed = false;
+  checkEntry(state_->header, e, kx, kz, state_->indexPath, problems, placed);
+  if (!problems.empty()) return problems;
+  return unpackRecord(e, kx, kz, record, state_->packPath, true);
+}
+
+namespace {
+
+/// One pread of the record of (kx, kz), checked and decompressed.
+Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
+                                          std::uint32_t kz, int fd, const std::string& packPath,
+                                          const std::string& indexPath, bool checkRawCrc) {
+  std::vector<Problem> problems;
+  bool placed = false;
+  checkEntry(h, e, kx, kz, indexPath, problems, placed);
+  if (!problems.empty()) return problems;
+  thread_local std::vector<std::byte> record;  // reused: no allocation per read
+  record.resize(e.compressedBytes);
+  const std::string err = preadAll(fd, record.data(), record.size(), e.offset);
+  if (!err.empty()) {
+    return Problem{packPath, e.offset,
+                   "pack: cannot read the record of " + moduleName(kx, kz) + ": " + err};
+  }
+  return unpackRecord(e, kx, kz, record, packPath, checkRawCrc);
+}
+
+}  // namespace
+
+Result<std::vector<std::byte>> PackReader::readRaw(std::uint32_t kx, std::uint32_t kz) const {
+  const State& s = *state_;
+  return readRecord(s.header, entry(kx, kz), kx, kz, s.pack.fd, s.packPath, s.indexPath, true);
+}
+
+Result<module::Module> PackReader::read(std::uint32_t kx, std::uint32_t kz) const {
+  const State& s = *state_;
+  const Entry e = entry(kx, kz);
+  // The raw CRC is left to module::decode, whose header and payload CRCs
+  // cover the same bytes: the raw bytes are checksummed once, not twice.
+  auto raw = readRecord(s.header, e, kx, kz, s.pack.fd, s.packPath, s.indexPath, false);
+  if (!raw) return raw.problems();
+  return decodeRecord(s.header, e, kx, kz, raw.value(), s.packPath);
+}
+
+// ---------------------------------------------------------------- validate
+
+namespace {
+
+/// Collects problems, keeping at most `kPerKind` of each kind so a badly
+/// damaged pack gives a readable report.
+class Report {
+ public:
+  void add(const std::string& kind, Problem p) {
+    auto& [n, file] = counts_[kind];
+    if (n++ == 0) file = p.file;
+    if (n <= kPerKind) problems_.push_back(std::move(p));
+  }
+  void add(const std::string& kind, const std::vector<Problem>& ps) {
+    for (const Problem& p : ps) add(kind, p);
+  }
+  std::vector<Problem> take() {
+    for (const auto& [kind, c] : counts_) {
+      if (c.first > kPerKind) {
+        problems_.push_back({c.second, 0,
+                             "pack: " + str(std::uint64_t(c.first - kPerKind)) + " more " + kind +
+                                 " problems not listed"});
+      }
+    }
+    return std::move(problems_);
+  }
+
+ private:
+  static constexpr int kPerKind = 20;
+  std::vector<Problem> problems_;
+  std::map<std::string, std::pair<int, std::string>> counts_;
+};
+
+struct Placed {
+  Entry entry;
+  std::uint32_t kx = 0, kz = 0;
+};
+
+}  // namespace
+
+std::vector<Problem> validatePack(const std::string& directory) {
+  const std::string indexPath = join(directory, kIndexFileName);
+  const std::string packPath = join(directory, kPackFileName);
+  Report r;
+  MappedFile index;
+  IndexHeader h;
+  bool haveHeader = false;
+  if (const std::string err = index.open(indexPath); !err.empty()) {
+    r.add("index", Problem{indexPath, 0, "pack index: " + err});
+  } else if (auto dh = decodeIndexHeader(index.bytes(), indexPath, index.size()); !dh) {
+    r.add("index", dh.problems());
+  } else {
+    h = dh.value();
+    haveHeader = true;
+  }
+  std::vector<Problem> packProblems;
+  FdGuard pack{openPack(packPath, haveHeader ? &h : nullptr, packProblems)};
+  r.add("pack", packProblems);
+  if (!haveHeader) return r.take();
+
+  const auto all = index.bytes();
+  for (std::size_t k = kIndexHeaderFieldBytes; k < kIndexHeaderBytes; ++k) {
+    if (all[k] != std::byte{0}) {
+      r.add("index", Problem{indexPath, k, "pack index: header padding is not zero"});
+      break;
+    }
+  }
+  if (const std::string err = tableCrcProblem(h, all); !err.empty()) {
+    r.add("index", Problem{indexPath, kIndexHeaderBytes, err});
+  }
+
+  // Entries: each on its own, then their placement in the pack.
+  std::vector<Placed> placed;
+  for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+    for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+      const Entry e = decodeEntry(all.subspan(entryOffset(h, kx, kz), kEntryBytes));
+      std::vector<Problem> problems;
+      bool ok = false;
+      checkEntry(h, e, kx, kz, indexPath, problems, ok);
+      r.add("entry", problems);
+      if (ok) placed.push_back({e, kx, kz});
+    }
+  }
+  std::sort(placed.begin(), placed.end(),
+            [](const Placed& a, const Placed& b) { return a.entry.offset < b.entry.offset; });
+  std::uint64_t covered = kPackHeaderBytes;  // end of the furthest record so far
+  const Placed* last = nullptr;
+  for (const Placed& p : placed) {
+    const std::uint64_t begin = p.entry.offset, end = begin + p.entry.compressedBytes;
+    if (begin < covered && last) {
+      r.add("overlap",
+            Problem{indexPath, entryOffset(h, p.kx, p.kz),
+                    "pack index: the record of " + moduleName(p.kx, p.kz) + " (bytes " +
+                        str(begin) + ".." + str(end - 1) + ") overlaps the record of " +
+                        moduleName(last->kx, last->kz) + " (bytes " + str(last->entry.offset) +
+                        ".." + str(last->entry.offset + last->entry.compressedBytes - 1) + ")"});
+    } else if (begin > covered) {
+      r.add("gap", Problem{packPath, covered,
+                           "pack: bytes " + str(covered) + ".." + str(begin - 1) +
+                               " are in no module's record"});
+    }
+    if (end > covered) {
+      covered = end;
+      last = &p;
+    }
+  }
+  if (covered < h.packBytes) {
+    r.add("gap", Problem{packPath, covered,
+                         "pack: bytes " + str(covered) + ".." + str(h.packBytes - 1) +
+                             " are in no module's record"});
+  }
+
+  // Records, in pack order (sequential reads).
+  if (pack.fd < 0) return r.take();
+  std::vector<std::byte> record;
+  for (const Placed& p : placed) {
+    record.resize(p.entry.compressedBytes);
+    if (const std::string err = preadAll(pack.fd, record.data(), record.size(), p.entry.offset);
+        !err.empty()) {
+      r.add("record",
+            Problem{packPath, p.entry.offset,
+                    "pack: cannot read the record of " + moduleName(p.kx, p.kz) + ": " + err});
+      continue;
+    }
+    auto raw = unpackRecord(p.entry, p.kx, p.kz, record, packPath, true);
+    if (!raw) {
+      r.add("record", raw.problems());
+      continue;
+    }
+    auto m = decodeRecord(h, p.entry, p.kx, p.kz, raw.value(), packPath);
+    if (!m) r.add("module", m.problems());
+  }
+  return r.take();
+}
+
+}  // namespace sandtable::pack

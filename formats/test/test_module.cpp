@@ -1,0 +1,513 @@
+// Load module v1: golden bytes, round trips, index width, truncation,
+// hostile counts (with an allocation watch) and flipped bytes.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <bit>
+#include <cstdlib>
+#include <cstring>
+#include <functional>
+#include <new>
+
+#include "module_samples.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/module.h"
+
+// The largest single allocation since the last reset, for checking that
+// hostile counts are refused before anything is sized. Every form of
+// operator new and delete of this test binary is replaced (so sanitizers
+// see them pair up), out of line (so the compiler does not pair inlined
+// malloc and free with new and delete and warn).
+namespace {
+std::atomic<std::size_t> gLargestAllocation{0};
+[[gnu::noinline]] void* tracked(std::size_t n) noexcept {
+  std::size_t seen = gLargestAllocation.load(std::memory_order_relaxed);
+  while (n > seen && !gLargestAllocation.compare_exchange_weak(seen, n)) {
+  }
+  return std::malloc(n ? n : 1);
+}
+[[gnu::noinline]] void* trackedOrThrow(std::size_t n) {
+  if (void* p = tracked(n)) return p;
+  throw std::bad_alloc();
+}
+}  // namespace
+void* operator new(std::size_t n) { return trackedOrThrow(n); }
+void* operator new[](std::size_t n) { return trackedOrThrow(n); }
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept { return tracked(n); }
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept { return tracked(n); }
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { ::operator delete(p); }
+void operator delete(void* p, std::size_t) noexcept { ::operator delete(p); }
+void operator delete[](void* p, std::size_t) noexcept { ::operator delete(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { ::operator delete(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { ::operator delete(p); }
+
+namespace sandtable::module {
+namespace {
+
+std::string hex(std::span<const std::byte> b) {
+  static const char* d = "0123456789abcdef";
+  std::string s;
+  for (std::byte x : b) {
+    s += d[std::to_integer<int>(x) >> 4];
+    s += d[std::to_integer<int>(x) & 15];
+  }
+  return s;
+}
+
+/// Recomputes both CRCs so that a hand-made field change reaches the
+/// structural checks.
+void reseal(std::vector<std::byte>& b) {
+  storeLE<std::uint32_t>(b.data() + field::payloadCrc, crc32(std::span(b).subspan(kHeaderBytes)));
+  storeLE<std::uint32_t>(b.data() + field::headerCrc, crc32(std::span(b).first(field::headerCrc)));
+}
+
+bool sameBits(float a, float b) {
+  return std::bit_cast<std::uint32_t>(a) == std::bit_cast<std::uint32_t>(b);
+}
+
+void expectEqual(const Module& a, const Module& b) {
+  EXPECT_EQ(a.kx, b.kx);
+  EXPECT_EQ(a.kz, b.kz);
+  ASSERT_EQ(a.levels.size(), b.levels.size());
+  for (std::size_t li = 0; li < a.levels.size(); ++li) {
+    const Level& x = a.levels[li];
+    const Level& y = b.levels[li];
+    EXPECT_EQ(x.spacing, y.spacing);
+    EXPECT_EQ(x.squaresX, y.squaresX);
+    EXPECT_EQ(x.squaresZ, y.squaresZ);
+    EXPECT_TRUE(sameBits(x.skirtDepth, y.skirtDepth));
+    ASSERT_EQ(x.vertices.size(), y.vertices.size());
+    for (std::size_t k = 0; k < x.vertices.size(); ++k) {
+      const Vertex& u = x.vertices[k];
+      const Vertex& v = y.vertices[k];
+      ASSERT_TRUE(sameBits(u.x, v.x) && sameBits(u.y, v.y) && sameBits(u.z, v.z) &&
+                  sameBits(u.s, v.s) && sameBits(u.t, v.t))
+          << "level " << li << " vertex " << k;
+    }
+    EXPECT_EQ(x.indices, y.indices);
+    ASSERT_EQ(x.groups.size(), y.groups.size());
+    for (std::size_t g = 0; g < x.groups.size(); ++g) {
+      const Group& p = x.groups[g];
+      const Group& q = y.groups[g];
+      ASSERT_TRUE(p.square == q.square && p.half == q.half && p.priority == q.priority &&
+                  p.material == q.material && p.firstIndex == q.firstIndex &&
+                  p.indexCount == q.indexCount)
+          << "level " << li << " group " << g;
+    }
+    ASSERT_EQ(x.maxHeight.size(), y.maxHeight.size());
+    for (std::size_t k = 0; k < x.maxHeight.size(); ++k)
+      EXPECT_TRUE(sameBits(x.maxHeight[k], y.maxHeight[k]));
+  }
+}
+
+/// Offset of level 0's header and its arrays in an encoding.
+struct Level0 {
+  std::size_t header = kHeaderBytes;
+  std::size_t vertices, maxHeight, indices, groupSquare, groupHalf, groupPriority, groupMaterial,
+      groupCount, end;
+  explicit Level0(const Level& l, unsigned indexWidth = 2) {
+    const std::size_t nv = l.vertices.size(), ng = l.groups.size();
+    vertices = header + kLevelHeaderBytes;
+    maxHeight = vertices + kVertexBytes * nv;
+    indices = maxHeight + 4 * l.maxHeight.size();
+    groupSquare = indices + indexWidth * l.indices.size();
+    groupHalf = groupSquare + 4 * ng;
+    groupPriority = groupHalf + ng;
+    groupMaterial = groupPriority + ng;
+    groupCount = groupMaterial + 2 * ng;
+    end = groupCount + 4 * ng;
+  }
+};
+
+TEST(Module, layoutConstantsArePinned) {
+  EXPECT_EQ(kHeaderBytes, 48u);
+  EXPECT_EQ(kLevelHeaderBytes, 36u);
+  EXPECT_EQ(field::kx, 16u);
+  EXPECT_EQ(field::levelCount, 24u);
+  EXPECT_EQ(field::totalBytes, 32u);
+  EXPECT_EQ(field::payloadCrc, 40u);
+  EXPECT_EQ(field::headerCrc, 44u);
+  EXPECT_EQ(levelField::squaresX, 8u);
+  EXPECT_EQ(levelField::skirtDepth, 16u);
+  EXPECT_EQ(levelField::flags, 20u);
+  EXPECT_EQ(levelField::vertexCount, 24u);
+  EXPECT_EQ(levelField::groupCount, 32u);
+  EXPECT_EQ(kMaxLevels, 16u);
+  EXPECT_EQ(kMaxSquaresPerAxis, 65536u);
+}
+
+// Golden bytes of version 1. If this fails, the format changed: bump
+// kVersion, keep a reader for version 1, and add a new golden test.
+TEST(Module, version1GoldenBytes) {
+  const auto bytes = encode(samples::tiny());
+  ASSERT_EQ(bytes.size(), 48u + 36u + 80u + 4u + 12u + 24u);
+  // Header: magic "SANDMOD1", version 1, header 48, kx 1, kz 2, 1 level,
+  // flags 0, total 204, payload CRC 0x364fe54f, header CRC 0x64b78655.
+  EXPECT_EQ(hex(std::span(bytes).first(48)),
+            "53414e444d4f4431"
+            "01000000"
+            "30000000"
+            "01000000"
+            "02000000"
+            "01000000"
+            "00000000"
+            "cc00000000000000"
+            "4fe54f36"
+            "5586b764");
+  // Level 0: spacing 30.0, 1 x 1 squares, skirt 5.0, flags 0 (u16 indices),
+  // 4 vertices, 6 indices, 2 groups. Then the planes, each float plane as
+  // four byte planes: x (0, 30, 0, 30), y (10, 11, 12, 13), z (0, 0, 30, 30),
+  // s (0, 1, 0, 1), t (0, 0, 1, 1), maxHeight (13); indices (0 1 2 1 3 2)
+  // as zigzag deltas (0 2 2 1 4 1) in two byte planes; group squares (0 0)
+  // as deltas, halves (0 1), priorities (1 1), materials (3 4), counts (3 3).
+  EXPECT_EQ(hex(std::span(bytes).subspan(48)),
+            "0000000000003e40"
+            "01000000"
+            "01000000"
+            "0000a040"
+            "00000000"
+            "04000000"
+            "06000000"
+            "02000000"
+            "00000000"
+            "00000000"
+            "00f000f0"
+            "00410041"
+            "00000000"
+            "00000000"
+            "20304050"
+            "41414141"
+            "00000000"
+            "00000000"
+            "0000f0f0"
+            "00004141"
+            "00000000"
+            "00000000"
+            "00800080"
+            "003f003f"
+            "00000000"
+            "00000000"
+            "00008080"
+            "00003f3f"
+            "00005041"
+            "000202010401"
+            "000000000000"
+            "0000"
+            "0000"
+            "0000"
+            "0000"
+            "0001"
+            "0101"
+            "0304"
+            "0000"
+            "0303"
+            "0000"
+            "0000"
+            "0000");
+  // A slightly larger module (8 x 8 squares, 2 levels, skirts, a road).
+  EXPECT_EQ(crcHex(crc32(encode(samples::realistic(3, 4, 8, 2)))), "0x49959341");
+}
+
+TEST(Module, roundTripsEveryField) {
+  Module m = samples::realistic(5, 7);
+  // Values a float plane must carry bit for bit.
+  m.levels[1].vertices[3].s = -0.0f;
+  m.levels[1].vertices[4].t = std::bit_cast<float>(0x7fc01234u);  // NaN with a payload
+  m.levels[1].vertices[5].y = std::bit_cast<float>(1u);           // smallest denormal
+  m.levels[2].maxHeight[0] = -1e30f;
+  m.levels[3].skirtDepth = 0;
+  ASSERT_EQ(checkEncodable(m), "");
+  const auto bytes = encode(m);
+  EXPECT_EQ(bytes.size(), encodedBytes(m));
+  auto back = decode(bytes, "m.bin");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectEqual(m, back.value());
+  EXPECT_EQ(encode(back.value()), bytes);
+  // Realistic content: every level decodes with groups in draw order.
+  EXPECT_EQ(back->levels.size(), 4u);
+  EXPECT_EQ(back->levels[0].squaresX, 32u);
+  EXPECT_EQ(back->levels[3].squaresX, 4u);
+  EXPECT_EQ(back->levels[0].groups.back().priority, kPriorityRoad);
+}
+
+TEST(Module, decodeRecomputesFirstIndexAsTheRunningSum) {
+  const auto bytes = encode(samples::tiny());
+  auto m = decode(bytes, "tiny");
+  ASSERT_TRUE(m.ok()) << m.error();
+  const auto& g = m->levels[0].groups;
+  ASSERT_EQ(g.size(), 2u);
+  EXPECT_EQ(g[0].firstIndex, 0u);
+  EXPECT_EQ(g[1].firstIndex, 3u);
+  EXPECT_EQ(g[1].half, Half::lower);
+  EXPECT_EQ(g[1].material, 4);
+}
+
+/// One level with `vertices` vertices and a single triangle using the last one.
+Module wideModule(std::uint32_t vertices) {
+  Module m = samples::tiny();
+  Level& l = m.levels[0];
+  l.vertices.resize(vertices);
+  l.indices = {0, 1, vertices - 1};
+  l.groups = {{0, Half::upper, kPrioritySkin, 3, 0, 3}};
+  return m;
+}
+
+TEST(Module, switchesToU32IndicesAbove65536Vertices) {
+  for (const std::uint32_t n : {65536u, 65537u}) {
+    const Module m = wideModule(n);
+    const auto bytes = encode(m);
+    const auto flags = loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField::flags);
+    const unsigned width = n > kMaxU16Vertices ? 4 : 2;
+    EXPECT_EQ(flags, n > kMaxU16Vertices ? kLevelFlagU32Indices : 0u) << n;
+    EXPECT_EQ(bytes.size(), Level0(m.levels[0], width).end) << n;
+    auto back = decode(bytes, "wide");
+    ASSERT_TRUE(back.ok()) << back.error();
+    EXPECT_EQ(back->levels[0].indices.back(), n - 1);
+  }
+  // A reader accepts u32 indices for a small level too (writers never
+  // produce them, but they are well-formed).
+  Module m = wideModule(5);
+  auto bytes = encode(m);
+  const Level0 at(m.levels[0]);
+  std::vector<std::byte> wide(bytes.begin(),
+                              bytes.begin() + static_cast<std::ptrdiff_t>(at.indices));
+  storeLE<std::uint32_t>(wide.data() + kHeaderBytes + levelField::flags, kLevelFlagU32Indices);
+  // u32 delta planes of (0, 1, 4): zigzag deltas 0, 2, 6 as four byte planes.
+  for (const int b : {0, 2, 6, 0, 0, 0, 0, 0, 0, 0, 0, 0})
+    wide.push_back(static_cast<std::byte>(b));
+  wide.insert(wide.end(), bytes.begin() + static_cast<std::ptrdiff_t>(at.groupSquare), bytes.end());
+  storeLE<std::uint64_t>(wide.data() + field::totalBytes, wide.size());
+  reseal(wide);
+  auto back = decode(wide, "wide");
+  ASSERT_TRUE(back.ok()) << back.error();
+  EXPECT_EQ(back->levels[0].indices, (std::vector<std::uint32_t>{0, 1, 4}));
+}
+
+TEST(Module, everyTruncatedPrefixFailsNamingItsOffset) {
+  const auto bytes = encode(samples::realistic(1, 1, 4, 2));
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+    ASSERT_FALSE(m.ok()) << "prefix " << n;
+    const Problem& p = m.problems().front();
+    EXPECT_EQ(p.file, "cut.bin");
+    EXPECT_EQ(p.offset, 1000 + n);
+    EXPECT_EQ(p.message.rfind("module: ", 0), 0u) << p.message;
+    EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
+    EXPECT_NE(p.message.find(std::to_string(n)), std::string::npos) << p.message;
+  }
+}
+
+TEST(Module, everyFlippedByteIsDetected) {
+  auto bytes = encode(samples::realistic(2, 3, 4, 2));
+  for (std::size_t off = 0; off < bytes.size(); ++off) {
+    bytes[off] ^= std::byte{0x20};
+    EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+    bytes[off] ^= std::byte{0x20};
+  }
+}
+
+// Each malformed input with its exact message and offset. Byte-level
+// cases re-seal the CRCs so that the structural check itself is exercised;
+// the allocation watch shows no hostile count is trusted.
+struct Hostile {
+  const char* name;
+  std::function<void(std::vector<std::byte>&, const Level0&)> mutate;
+  std::size_t offset;  ///< 0: compare only the message
+  const char* message;
+};
+
+TEST(Module, hostileBytesAreRejectedWithTheirMessage) {
+  const Module good = samples::tiny();
+  const Level0 at(good.levels[0]);
+  const std::size_t lh = at.header;
+  auto u32 = [](std::size_t off, std::uint32_t v) {
+    return [=](std::vector<std::byte>& b, const Level0&) {
+      storeLE<std::uint32_t>(b.data() + off, v);
+    };
+  };
+  const Hostile cases[] = {
+      {"version", u32(field::version, 2), field::version,
+       "module: version 2 is not supported (this reader knows version 1)"},
+      {"header size", u32(field::headerBytes, 64), field::headerBytes,
+       "module: header size must be 48"},
+      {"flags", u32(field::flags, 1), field::flags, "module: flags must be 0 in version 1"},
+      {"no levels", u32(field::levelCount, 0), field::levelCount,
+       "module: level count 0 is out of range (1 to 16)"},
+      {"17 levels", u32(field::levelCount, 17), field::levelCount,
+       "module: level count 17 is out of range (1 to 16)"},
+      {"2 levels, 1 present", u32(field::levelCount, 2), at.end,
+       "module: level 1: truncated: the level header needs 36 bytes, only 0 remain"},
+      {"trailing",
+       [](auto& b, auto&) {
+         b.push_back(std::byte{0});
+         storeLE<std::uint64_t>(b.data() + field::totalBytes, b.size());
+       },
+       at.end, "module: 1 bytes follow the last level"},
+      {"spacing NaN", [&](auto& b, auto&) { storeLE<double>(b.data() + lh, std::nan("")); }, lh,
+       "module: level 0 spacing nan is not a finite positive number"},
+      {"squares 0", u32(lh + levelField::squaresX, 0), lh + levelField::squaresX,
+       "module: level 0 squares 0 x 1 are out of range (1 to 65536 each)"},
+      {"squares 65537", u32(lh + levelField::squaresZ, 65537), lh + levelField::squaresZ,
+       "module: level 0 squares 1 x 65537 are out of range (1 to 65536 each)"},
+      {"squares 65536^2",
+       [&](auto& b, auto&) {
+         storeLE<std::uint32_t>(b.data() + lh + levelField::squaresX, 65536);
+         storeLE<std::uint32_t>(b.data() + lh + levelField::squaresZ, 65536);
+       },
+       lh + levelField::vertexCount,
+       "module: level 0: 4 vertices, 6 indices, 2 groups and 4294967296 squares need 17179869300 "
+       "bytes after the level header, only 120 remain"},
+      {"skirt -1",
+       [&](auto& b, auto&) { storeLE<float>(b.data() + lh + levelField::skirtDepth, -1.0f); },
+       lh + levelField::skirtDepth,
+       "module: level 0 skirt depth -1.000000 is not a finite number >= 0"},
+      {"level flags", u32(lh + levelField::flags, 6), lh + levelField::flags,
+       "module: level 0 flags 6 has bits other than bit 0 (u32 indices) set"},
+      {"vertices 2^32-1", u32(lh + levelField::vertexCount, 0xffffffffu),
+       lh + levelField::vertexCount,
+       "module: level 0: 4294967295 vertices, 6 indices, 2 groups and 1 squares need 85899345940 "
+       "bytes after the level header, only 120 remain"},
+      {"indices 2^32-1", u32(lh + levelField::indexCount, 0xffffffffu),
+       lh + levelField::vertexCount,
+       "module: level 0: 4 vertices, 4294967295 indices, 2 groups and 1 squares need 8589934698 "
+       "bytes after the level header, only 120 remain"},
+      {"groups 2^32-1", u32(lh + levelField::groupCount, 0xffffffffu), lh + levelField::vertexCount,
+       "module: level 0: 4 vertices, 6 indices, 4294967295 groups and 1 squares need 51539607636 "
+       "bytes after the level header, only 120 remain"},
+  };
+  for (const Hostile& c : cases) {
+    auto bytes = encode(good);
+    c.mutate(bytes, at);
+    reseal(bytes);
+    gLargestAllocation = 0;
+    auto m = decode(bytes, "h.bin", 0);
+    ASSERT_FALSE(m.ok()) << c.name;
+    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.name;
+    const Problem& p = m.problems().front();
+    EXPECT_EQ(p.message, c.message) << c.name;
+    EXPECT_EQ(p.offset, c.offset) << c.name << ": " << p.message;
+    EXPECT_EQ(p.file, "h.bin");
+  }
+}
+
+TEST(Module, malformedContentIsRejectedWithItsMessage) {
+  struct Case {
+    const char* name;
+    std::function<void(Level&)> mutate;
+    std::function<std::size_t(const Level0&)> offset;
+    const char* message;
+  };
+  const Case cases[] = {
+      {"index past the vertices", [](Level& l) { l.indices[4] = 9; },
+       [](const Level0& a) { return a.indices + 4; },
+       "module: level 0 index 4 is 9, not below the vertex count 4"},
+      {"half 3", [](Level& l) { l.groups[1].half = Half(3); },
+       [](const Level0& a) { return a.groupHalf + 1; },
+       "module: level 0 group 1 half 3 is not 0 (upper), 1 (lower) or 2 (skirt)"},
+      {"square past the level", [](Level& l) { l.groups[1].square = 1; },
+       [](const Level0& a) { return a.groupSquare + 1; },
+       "module: level 0 group 1 square 1 is not below the level's 1 squares"},
+      {"skirt square past the level",
+       [](Level& l) {
+         l.groups[1].half = Half::skirt;
+         l.groups[1].square = 7;
+       },
+       [](const Level0& a) { return a.groupSquare + 1; },
+       "module: level 0 group 1 square 7 is not below the level's 1 squares"},
+      {"out of order", [](Level& l) { std::swap(l.groups[0].half, l.groups[1].half); },
+       [](const Level0& a) { return a.groupSquare + 1; },
+       "module: level 0 group 1 (priority 1, square 0, half 0, material 4) does not follow "
+       "group 0 in (priority, square, half, material) order"},
+      {"priority before square", [](Level& l) { l.groups[0].priority = kPriorityRoad; },
+       [](const Level0& a) { return a.groupSquare + 1; },
+       "module: level 0 group 1 (priority 1, square 0, half 1, material 4) does not follow "
+       "group 0 in (priority, square, half, material) order"},
+      {"count not a multiple of 3",
+       [](Level& l) {
+         l.groups[0].indexCount = 2;
+         l.groups[1].firstIndex = 2;
+         l.groups[1].indexCount = 4;
+       },
+       [](const Level0& a) { return a.groupCount; },
+       "module: level 0 group 0 index count 2 is not a positive multiple of 3"},
+  };
+  for (const Case& c : cases) {
+    Module m = samples::tiny();
+    c.mutate(m.levels[0]);
+    ASSERT_EQ(checkEncodable(m), "") << c.name;
+    auto r = decode(encode(m), "bad.bin", 7);
+    ASSERT_FALSE(r.ok()) << c.name;
+    EXPECT_EQ(r.problems().front().message, c.message) << c.name;
+    EXPECT_EQ(r.problems().front().offset, 7 + c.offset(Level0(m.levels[0]))) << c.name;
+  }
+  // Counts that the bytes hold but the groups do not add up to.
+  Module m = samples::tiny();
+  auto bytes = encode(m);
+  const Level0 at(m.levels[0]);
+  storeLE<std::uint8_t>(bytes.data() + at.groupCount + 1, 6);  // group 1 (byte plane 0): 6 indices
+  reseal(bytes);
+  EXPECT_EQ(decode(bytes, "b").problems().front().message,
+            "module: level 0 group 1 indices 3..8 run past the level's 6 indices");
+  bytes = encode(m);
+  storeLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField::indexCount, 7);
+  std::vector<std::byte> longer(bytes.begin(),
+                                bytes.begin() + static_cast<std::ptrdiff_t>(at.groupSquare));
+  longer.insert(longer.begin() + static_cast<std::ptrdiff_t>(at.indices + 12), std::byte{0});
+  longer.insert(longer.begin() + static_cast<std::ptrdiff_t>(at.indices + 6), std::byte{0});
+  longer.insert(longer.end(), bytes.begin() + static_cast<std::ptrdiff_t>(at.groupSquare),
+                bytes.end());
+  storeLE<std::uint64_t>(longer.data() + field::totalBytes, longer.size());
+  reseal(longer);
+  EXPECT_EQ(decode(longer, "b").problems().front().message,
+            "module: level 0 groups cover 6 of the level's 7 indices");
+}
+
+TEST(Module, groupsWithEqualKeysMayFollowEachOther) {
+  Module m = samples::tiny();
+  m.levels[0].groups[1].half = Half::upper;
+  m.levels[0].groups[1].material = 3;  // same key as group 0
+  auto back = decode(encode(m), "equal");
+  ASSERT_TRUE(back.ok()) << back.error();
+  EXPECT_EQ(back->levels[0].groups[1].firstIndex, 3u);
+}
+
+TEST(Module, checksumsAndMagicAreChecked) {
+  auto bytes = encode(samples::tiny());
+  bytes[0] = std::byte{'X'};
+  EXPECT_EQ(decode(bytes, "m").error(),
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\")");
+  bytes = encode(samples::tiny());
+  bytes[field::kx] ^= std::byte{1};
+  EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
+  EXPECT_NE(decode(bytes, "m").error().find("module: header checksum mismatch"), std::string::npos);
+  bytes = encode(samples::tiny());
+  bytes.back() ^= std::byte{1};
+  EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::payloadCrc);
+  EXPECT_NE(decode(bytes, "m").error().find("payload checksum mismatch"), std::string::npos);
+}
+
+TEST(Module, checkEncodableFindsWhatTheBytesCannotSay) {
+  Module m = samples::tiny();
+  EXPECT_EQ(checkEncodable(m), "");
+  m.levels[0].groups[1].firstIndex = 4;
+  EXPECT_EQ(checkEncodable(m),
+            "module: level 0 group 1 firstIndex 4 is not 3, the sum of the index counts before it "
+            "(groups must cover the indices contiguously, in order)");
+  m = samples::tiny();
+  m.levels[0].indices.push_back(0);
+  EXPECT_EQ(checkEncodable(m), "module: level 0 groups cover 6 of its 7 indices");
+  m = samples::tiny();
+  m.levels[0].maxHeight.clear();
+  EXPECT_EQ(checkEncodable(m), "module: level 0 has 0 maxHeight values for 1 squares");
+  m = samples::tiny();
+  m.levels[0].squaresX = 0;
+  EXPECT_EQ(checkEncodable(m), "module: level 0 squares 0 x 1 are out of range (1 to 65536 each)");
+  m.levels.clear();
+  EXPECT_EQ(checkEncodable(m), "module: 0 levels; a module holds 1 to 16");
+  m.levels.assign(17, samples::tiny().levels[0]);
+  EXPECT_EQ(checkEncodable(m), "module: 17 levels; a module holds 1 to 16");
+}
+
+}  // namespace
+}  // namespace sandtable::module
