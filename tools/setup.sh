@@ -9,9 +9,11 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libgdal-dev gdal-bin            # GDAL/OGR with PROJ: every raster, vector and transform
   libeigen3-dev                   # vector math
+  libcgal-dev libgmp-dev libmpfr-dev libboost-dev  # CGAL (exact arithmetic): culture cut to the terrain triangles
   nlohmann-json3-dev              # manifest and --json output
   libcli11-dev                    # subcommand CLI with --help
   zlib1g-dev                      # CRC-32 (and compression)
+  libzstd-dev                     # zstd: load modules compressed in modules.pack
   libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
   libpng-dev                      # PNG frames
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks

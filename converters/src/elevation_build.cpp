@@ -10,11 +10,16 @@
 #include <ctime>
 #include <filesystem>
 #include <mutex>
+#include <optional>
+#include <string_view>
 #include <thread>
 
 #include "elevation_internal.h"
+#include "sandtable/converters/culture.h"
+#include "sandtable/converters/modules.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/materials.h"
 
 namespace sandtable::convert {
 namespace fs = std::filesystem;
@@ -79,9 +84,13 @@ Result<bool> checkOptions(const ElevationOptions& o) {
     return Problem{o.output, 0, "build: the parent directory " + parent.string() + " does not exist"};
   }
   if (o.spacing < 0 || !std::isfinite(o.spacing)) return Problem{"--spacing", 0, "build: --spacing must be positive"};
-  if (!(o.moduleSize > 0) || o.levels < 1 || o.levels > 16) {
-    return Problem{"--module-size", 0, "build: module size must be positive and levels 1..16"};
+  if (!(o.moduleSize > 0) || o.levels < 1 || o.levels > 8) {
+    return Problem{"--module-size", 0, "build: --module-size must be positive and --levels 1..8"};
   }
+  if (!o.modules && (!o.culture.empty() || !o.materials.empty())) {
+    return Problem{"--culture", 0, "build: --culture and --materials need load modules; drop --no-modules"};
+  }
+  if (o.zstdLevel < 1 || o.zstdLevel > 22) return Problem{"--zstd-level", 0, "build: --zstd-level must be 1..22"};
   return true;
 }
 
@@ -200,6 +209,93 @@ manifest::Manifest makeManifest(const ElevationOptions& o, const Frame& f, const
   return m;
 }
 
+/// The material table and culture of a build with modules (empty without).
+struct CultureSetup {
+  materials::Table table;
+  std::shared_ptr<const Culture> culture;
+};
+
+Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f) {
+  CultureSetup c;
+  if (!o.modules) return c;
+  auto table = o.materials.empty()
+                   ? materials::parse(std::as_bytes(std::span(std::string_view(detail::defaultMaterialsText()))),
+                                      "built-in materials")
+                   : materials::readFile(o.materials);
+  if (!table) return table.problems();
+  c.table = std::move(table.value());
+  CultureOptions co;
+  co.sources = o.culture;
+  CultureFrame frame{f.crs.wkt, f.originEasting, f.originNorthing, f.spacing * (f.postsX - 1),
+                     f.spacing * (f.postsZ - 1)};
+  auto culture = Culture::load(co, c.table, frame);
+  if (!culture) return culture.problems();
+  c.culture = culture.value();
+  return c;
+}
+
+Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& gridPath, const std::string& dir,
+                                  const CultureSetup& c, ElevationReport& report, const ProgressFn& progress) {
+  auto grid = grid::GridFile::open(gridPath);
+  if (!grid) return grid.problems();
+  ModuleOptions mo;
+  mo.moduleSize = o.moduleSize;
+  mo.levels = o.levels;
+  mo.threads = o.threads;
+  mo.zstdLevel = o.zstdLevel;
+  auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, mo, progress);
+  if (!r) return r.problems();
+  const std::string text = materials::format(c.table);
+  const auto bytes = std::as_bytes(std::span(text.data(), text.size()));
+  if (std::string e = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !e.empty()) {
+    return Problem{dir, 0, "build: " + e};
+  }
+  auto& files = report.manifest.files;
+  files.push_back({pack::kPackFileName, r->packBytes, r->packCrc});
+  files.push_back({pack::kIndexFileName, r->indexBytes, r->indexCrc});
+  files.push_back({materials::kFileName, text.size(), crc32(bytes)});
+  report.manifest.moduleSize = r->moduleSize;
+  report.modules = r->modules;
+  report.moduleSeconds = r->seconds;
+  return r;
+}
+
+nlohmann::json moduleReportJson(const ModuleReport& r) {
+  nlohmann::json levels = nlohmann::json::array();
+  for (const auto& l : r.levels) {
+    levels.push_back({{"triangles", l.triangles}, {"skin_polygons", l.skinPolygons},
+                      {"decal_polygons", l.decalPolygons}, {"skirt_triangles", l.skirtTriangles}});
+  }
+  const auto& s = r.sizes;
+  return {{"count", r.modules},
+          {"modules_x", r.modulesX},
+          {"modules_z", r.modulesZ},
+          {"module_squares", r.moduleSquares},
+          {"module_size_m", r.moduleSize},
+          {"seconds", r.seconds},
+          {"modules_per_second", double(r.modules) / std::max(r.seconds, 1e-9)},
+          {"bytes", {{"compressed_total", s.totalCompressed}, {"raw_total", s.totalRaw},
+                     {"min", s.minCompressed}, {"median", s.medianCompressed},
+                     {"p95", s.p95Compressed}, {"max", s.maxCompressed},
+                     {"mean", s.count ? double(s.totalCompressed) / double(s.count) : 0.0}}},
+          {"per_level", levels}};
+}
+
+nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
+  const CultureStats& st = c.stats();
+  nlohmann::json classes = nlohmann::json::object();
+  for (const auto& [name, k] : st.perClass) {
+    classes[name] = {{"read", k.read},         {"dropped", k.dropped}, {"repaired", k.repaired},
+                     {"defaulted", k.defaulted}, {"length_km", k.lengthKm}, {"area_km2", k.areaKm2}};
+  }
+  return {{"sources", o.culture},
+          {"materials", o.materials.empty() ? std::string("built-in default") : o.materials},
+          {"features_read", st.featuresRead},
+          {"warnings", st.warnings},
+          {"messages", st.messages},
+          {"classes", classes}};
+}
+
 }  // namespace
 
 Result<ElevationReport> buildElevation(const ElevationOptions& o, const ProgressFn& progress) {
@@ -212,6 +308,8 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   auto frame = detail::planFrame(o, sources.value());
   if (!frame) return frame.problems();
   const Frame& f = frame.value();
+  auto culture = loadCulture(o, f);  // before resampling: bad culture fails fast
+  if (!culture) return culture.problems();
 
   PartialDirectory partial(o.output + ".partial." + std::to_string(::getpid()));
   std::error_code ec;
@@ -245,6 +343,12 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   manifest::FileEntry entry{manifest::kGridFileName, 0, 0};
   if (!crc32File(gridPath, entry.crc, entry.bytes)) return Problem{gridPath, 0, "build: cannot re-read the grid"};
   report.manifest.files.push_back(entry);
+  std::optional<ModuleReport> modules;
+  if (o.modules) {
+    auto built = writeModules(o, gridPath, partial.path(), culture.value(), report, progress);
+    if (!built) return built.problems();
+    modules = built.value();
+  }
   report.posts = std::uint64_t(f.postsX) * f.postsZ;
   report.voidsFilled = voids.value();
   report.resampleSeconds = resampleSeconds;
@@ -258,6 +362,10 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
       {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
       {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m)"}, {"2", "filled void"}}}};
   if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
+  if (modules) {
+    report.manifest.build["modules"] = moduleReportJson(*modules);
+    report.manifest.build["culture"] = cultureReportJson(o, *culture.value().culture);
+  }
 
   const std::string text = manifest::encode(report.manifest);
   if (std::string e = writeFileAtomic(partial.path() + "/" + manifest::kFileName,

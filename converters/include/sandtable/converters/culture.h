@@ -3,17 +3,23 @@
 // soil) read through OGR, classified by the material table, transformed
 // into the database frame, repaired, and decaled onto the terrain
 // triangles of one module level (seed chapter V, sections C, D and H;
-// Figures 14-18).
+// Figures 14-18). The pipeline and the renderer's contract for decals are
+// in docs/_culture.md.
 //
 // Area classes become the skin: inside every grid triangle the skin
-// polygons tile the triangle exactly (CGAL Boolean operations on exact
-// coordinates), the highest-rank class winning where features overlap and
-// the table's default area class filling the rest. Line classes are widened
-// to their width with mitred or bevelled joins and square ends (one CGAL
-// union per feature, so bends have neither gaps nor overlapping wedges),
-// then clipped to the triangles as decals at the class priority. Every
-// output vertex lies in its triangle's plane; vertices closer than the
-// merge tolerance (seed: 0.1 m) are merged.
+// polygons tile the triangle exactly, the highest-rank class winning where
+// features overlap and the table's default area class filling the rest.
+// Line classes are widened to their width with mitred or bevelled joins and
+// flat ends (one exact CGAL union per feature, at load, so bends have
+// neither gaps nor overlapping wedges), united per class and module, and
+// cut to the triangles as decals at the class priority. Each module's
+// partition into classes is computed once, exactly (CGAL arrangement and
+// constrained triangulation into convex pieces), and reused by all its
+// levels; the pieces are cut to each level's triangles in double precision
+// (triangles no boundary crosses are single triangles). Every output
+// vertex lies in its triangle's plane; vertices closer than the merge
+// tolerance (seed: 0.1 m) are merged without leaving the triangle's edges.
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -36,8 +42,13 @@ struct CultureFrame {
 };
 
 struct CultureOptions {
-  std::vector<std::string> sources;  ///< any OGR vector source (files; .osm/.pbf too)
+  std::vector<std::string> sources;  ///< any OGR vector source (files; .osm/.osm.gz/.pbf, .zip too)
   double mergeTolerance = 0.1;       ///< metres (seed: 0.1 m)
+  int threads = 0;                   ///< widening at load; 0 = all cores
+  /// Module partitions kept between decalLevel calls (one per module, all
+  /// levels share it); 0 = four per hardware thread. Call every level of a
+  /// module before moving on, as buildModules does, so each is built once.
+  std::size_t cacheModules = 0;
 };
 
 /// Per-class counts, for the build report and `info`.
@@ -52,9 +63,11 @@ struct ClassStats {
 
 struct CultureStats {
   std::map<std::string, ClassStats> perClass;  ///< by class name
-  std::uint64_t featuresRead = 0;
-  std::uint64_t warnings = 0;
+  std::uint64_t featuresRead = 0;  ///< line and area features (points are not culture)
+  std::uint64_t ignored = 0;       ///< matched an ignore rule ("-"), or an unmatched line with default-line none
+  std::uint64_t warnings = 0;      ///< defaulted, repaired and dropped features, unreadable layers
   std::vector<std::string> messages;  ///< first few warnings, for the report
+  double seconds = 0;              ///< wall time of load()
 };
 
 /// Counts from decaling one module level.
@@ -62,9 +75,17 @@ struct DecalStats {
   std::uint64_t skinPolygons = 0;   ///< polygons (before triangulation) in the skin
   std::uint64_t decalPolygons = 0;  ///< decal polygons
   std::uint64_t triangles = 0;
+  std::uint64_t slowTriangles = 0;  ///< grid triangles a culture boundary crosses (cut, not one triangle)
+  std::uint64_t unmerged = 0;       ///< point pairs left closer than the merge tolerance (a merge would fold a polygon)
+  /// Never expected: the module's exact partition failed (default skin, no
+  /// decals), or a triangle's cut skin did not tile it (it keeps one skin
+  /// triangle).
+  std::uint64_t failures = 0;
 };
 
 /// One module level's lattice: where its posts are and their elevations.
+/// Every level of one module has the same extent (xs.front()..xs.back(),
+/// zs.front()..zs.back()); that extent and moduleX/moduleZ key the cache.
 struct LevelLattice {
   double moduleX = 0;  ///< world X of the module's NW corner (metres east of the grid origin)
   double moduleZ = 0;  ///< world Z of the module's NW corner (metres south of the grid origin)
@@ -86,8 +107,12 @@ class Culture {
   virtual ~Culture() = default;
   virtual const CultureStats& stats() const = 0;
   /// Fills `out` (vertices, indices, groups sorted by priority, square,
-  /// half, material) with the skin and decals of one level. Leaves
-  /// maxHeight and skirts to the caller. Thread-safe.
+  /// half, material; spacing and squares counts) with the skin and decals
+  /// of one level, replacing what it held. Leaves maxHeight, skirtDepth and
+  /// skirts to the caller. The first vertices are the lattice posts, row
+  /// by row ((squaresX + 1) * (squaresZ + 1), y = the lattice height bit for
+  /// bit), shared by every skin triangle with a corner there. Triangles are
+  /// counter-clockwise seen from above (+y). Thread-safe.
   virtual DecalStats decalLevel(const LevelLattice& lattice, module::Level& out) const = 0;
 };
 

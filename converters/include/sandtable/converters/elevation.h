@@ -31,6 +31,10 @@ struct ElevationOptions {
   std::optional<std::array<double, 4>> extent;
   double moduleSize = 1000.0;  ///< seed: 1 km load modules
   int levels = 4;              ///< seed: 4 levels of detail
+  std::vector<std::string> culture;  ///< OGR vector sources decaled onto the modules
+  std::string materials;       ///< material table; "" = the built-in default (samples/materials.txt)
+  bool modules = true;         ///< false: grid only (no load modules)
+  int zstdLevel = 9;           ///< module compression level
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent
   bool force = false;          ///< replace an existing output directory
   int threads = 0;             ///< 0 = all cores
@@ -38,6 +42,8 @@ struct ElevationOptions {
 
 struct ElevationReport {
   std::uint64_t posts = 0;
+  std::uint64_t modules = 0;
+  double moduleSeconds = 0;
   std::uint64_t voidsFilled = 0;
   double seconds = 0;
   double resampleSeconds = 0;

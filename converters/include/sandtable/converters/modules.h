@@ -1,0 +1,63 @@
+#pragma once
+// Quadtree load modules (seed chapter V.H): the grid cut into square
+// modules (1 km by default), each with L levels of detail (4 by default),
+// the culture decaled onto every level's own triangles, skirts along every
+// quadtree node edge, stored in one pack file with a memory-mappable index.
+#include <cstdint>
+#include <string>
+
+#include "sandtable/converters/culture.h"
+#include "sandtable/converters/elevation.h"
+#include "sandtable/formats/grid.h"
+#include "sandtable/formats/pack.h"
+
+namespace sandtable::convert {
+
+struct ModuleOptions {
+  double moduleSize = 1000.0;  ///< metres (seed: 1 km); rounded to whole node multiples of posts
+  int levels = 4;              ///< seed: 4
+  int threads = 0;             ///< 0 = all cores
+  int zstdLevel = 9;
+};
+
+/// Grid squares along a module edge at level 0: moduleSize / spacing,
+/// rounded to a multiple of 2^(levels-1) (at least that) so every level's
+/// lattice lands on grid posts. 1000 m at 31.25 m posts gives 32.
+std::uint32_t moduleSquares(double moduleSize, double spacing, int levels);
+
+/// Squares along a quadtree node edge, the same at every level: the
+/// coarsest level is one node per module, and each finer level splits
+/// every node into four (squares >> (levels - 1); 4 at 32 squares, 4 levels).
+inline std::uint32_t nodeSquares(std::uint32_t squares, int levels) { return squares >> (levels - 1); }
+
+struct LevelTotals {
+  std::uint64_t triangles = 0;
+  std::uint64_t skinPolygons = 0;
+  std::uint64_t decalPolygons = 0;
+  std::uint64_t skirtTriangles = 0;
+};
+
+struct ModuleReport {
+  std::uint32_t modulesX = 0, modulesZ = 0, moduleSquares = 0;
+  double moduleSize = 0;  ///< actual edge in metres
+  std::uint64_t modules = 0;
+  double seconds = 0;
+  pack::SizeStats sizes;
+  std::vector<LevelTotals> levels;
+  std::uint64_t packBytes = 0, indexBytes = 0;
+  std::uint32_t packCrc = 0, indexCrc = 0;
+};
+
+/// Builds every module of `grid` into `directory` (modules.pack, modules.idx).
+/// Workers take modules in row order, so memory stays bounded by one module
+/// per worker plus the index (32 bytes per module) whatever the database size.
+Result<ModuleReport> buildModules(const std::string& directory, const grid::GridFile& grid,
+                                  const Culture& culture, std::uint16_t skirtMaterial,
+                                  const ModuleOptions& options, const ProgressFn& progress);
+
+/// Builds one module (exposed for tests and benchmarks).
+module::Module buildModule(const grid::GridFile& grid, const Culture& culture,
+                           std::uint16_t skirtMaterial, std::uint32_t squares, int levels,
+                           std::uint32_t kx, std::uint32_t kz, LevelTotals* totals = nullptr);
+
+}  // namespace sandtable::convert

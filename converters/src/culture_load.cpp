@@ -1,0 +1,664 @@
+// Culture::load: OGR sources read, classified by the material table,
+// transformed into the database frame, repaired or dropped (counted),
+// clipped to the database, line features widened (once, here), and a
+// spatial index built (docs/_culture.md, "Loading").
+#include <gdal.h>
+#include <ogr_api.h>
+#include <ogr_geometry.h>
+#include <ogr_spatialref.h>
+#include <cpl_error.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <exception>
+#include <map>
+#include <numbers>
+#include <thread>
+#include <unordered_map>
+
+#include "culture_internal.h"
+#include "sandtable/converters/crs.h"
+
+namespace sandtable::convert {
+
+using namespace culture;
+
+namespace {
+
+constexpr std::size_t kMaxMessages = 20;
+
+bool endsWithNoCase(const std::string& s, const char* suffix) {
+  const std::size_t n = std::strlen(suffix);
+  if (s.size() < n) return false;
+  for (std::size_t k = 0; k < n; ++k) {
+    char a = s[s.size() - n + k], b = suffix[k];
+    if (a >= 'A' && a <= 'Z') a = static_cast<char>(a - 'A' + 'a');
+    if (a != b) return false;
+  }
+  return true;
+}
+
+/// GDAL path for a source: .gz through /vsigzip/, .zip through /vsizip/.
+std::string gdalPath(const std::string& p) {
+  if (p.rfind("/vsi", 0) == 0) return p;
+  if (endsWithNoCase(p, ".gz")) return "/vsigzip/" + p;
+  if (endsWithNoCase(p, ".zip")) return "/vsizip/" + p;
+  return p;
+}
+
+/// Value of `key` in an OSM other_tags field: "k"=>"v","k2"=>"v2".
+std::optional<std::string> hstoreValue(const char* s, const std::string& key) {
+  auto quotedString = [&](const char*& c, std::string& out) {
+    if (*c != '"') return false;
+    ++c;
+    out.clear();
+    while (*c && *c != '"') {
+      if (*c == '\\' && c[1]) ++c;
+      out.push_back(*c++);
+    }
+    if (*c != '"') return false;
+    ++c;
+    return true;
+  };
+  std::string k, v;
+  const char* c = s;
+  while (*c) {
+    while (*c == ',' || *c == ' ') ++c;
+    if (!*c) break;
+    if (!quotedString(c, k)) return std::nullopt;
+    if (c[0] != '=' || c[1] != '>') return std::nullopt;
+    c += 2;
+    if (!quotedString(c, v)) return std::nullopt;
+    if (k == key) return v;
+  }
+  return std::nullopt;
+}
+
+/// What the attribute callback of materials::classify sees.
+struct FeatureView {
+  OGRFeatureH f = nullptr;
+  int otherTags = -1;
+};
+
+std::optional<std::string> attributeOf(const void* p, const std::string& key) {
+  const auto& v = *static_cast<const FeatureView*>(p);
+  const int i = OGR_F_GetFieldIndex(v.f, key.c_str());
+  if (i >= 0) {
+    if (!OGR_F_IsFieldSetAndNotNull(v.f, i)) return std::nullopt;
+    return std::string(OGR_F_GetFieldAsString(v.f, i));
+  }
+  if (v.otherTags >= 0 && OGR_F_IsFieldSetAndNotNull(v.f, v.otherTags)) {
+    return hstoreValue(OGR_F_GetFieldAsString(v.f, v.otherTags), key);
+  }
+  return std::nullopt;
+}
+
+/// Per-layer state: name, transform into the frame, OSM extras.
+struct LayerState {
+  std::string name;
+  OGRCoordinateTransformation* ct = nullptr;
+  bool skip = false;
+  bool failed = false;
+  int otherTags = -1;
+  std::uint64_t defaulted = 0;
+  ~LayerState() { OGRCoordinateTransformation::DestroyCT(ct); }
+};
+
+struct Loader {
+  CultureImpl& c;
+  OGRSpatialReference target;
+  Box dbProjected;  ///< database rectangle in (easting, northing)
+  Box dbWorld;      ///< and in world metres
+  /// Area features of the default class change nothing when it ranks below
+  /// every other area class: they are counted, not kept.
+  bool dropDefaultAreas = false;
+  std::uint64_t outside = 0;  ///< features of the current source wholly outside the database
+
+  explicit Loader(CultureImpl& impl) : c(impl) {}
+
+  void warn(const std::string& m) {
+    ++c.stats_.warnings;
+    if (c.stats_.messages.size() < kMaxMessages) c.stats_.messages.push_back(m);
+  }
+
+  Vec2 world(double e, double n) const { return {e - c.frame.originEasting, c.frame.originNorthing - n}; }
+
+  Result<bool> readSource(const std::string& source);
+  void addFeature(const std::string& where, OGRFeatureH f, LayerState& ls);
+  bool addLine(const std::string& where, const OGRGeometry& g, const materials::Class& cls, double width,
+               ClassStats& cs);
+  bool addArea(const std::string& where, OGRGeometry& g, const materials::Class& cls, ClassStats& cs);
+};
+
+Result<bool> Loader::readSource(const std::string& source) {
+  const std::string path = gdalPath(source);
+  CPLErrorReset();
+  GDALDatasetH ds = GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+  if (!ds) {
+    const char* e = CPLGetLastErrorMsg();
+    return Problem{source, 0, "culture: cannot open as a vector source" + std::string(e && *e ? ": " : "") +
+                                  (e ? e : "") + " (any OGR vector format: Shapefile, GeoPackage, GeoJSON, "
+                                                 "OSM .osm/.osm.gz/.pbf)"};
+  }
+  const char* drv = GDALGetDriverShortName(GDALGetDatasetDriver(ds));
+  const bool osm = drv && std::string(drv) == "OSM";
+  std::unordered_map<OGRLayerH, std::unique_ptr<LayerState>> layers;
+  auto stateOf = [&](OGRLayerH l) -> LayerState& {
+    auto& slot = layers[l];
+    if (slot) return *slot;
+    slot = std::make_unique<LayerState>();
+    LayerState& s = *slot;
+    s.name = OGR_L_GetName(l);
+    // OSM: lines and multipolygons are culture; points, route relations
+    // (multilinestrings) and other relations are not.
+    if (osm && s.name != "lines" && s.name != "multipolygons") s.skip = true;
+    OGRFeatureDefnH defn = OGR_L_GetLayerDefn(l);
+    if (osm) s.otherTags = OGR_FD_GetFieldIndex(defn, "other_tags");
+    if (s.skip) return s;
+    OGRSpatialReference src;
+    if (const OGRSpatialReference* ref = OGRSpatialReference::FromHandle(OGR_L_GetSpatialRef(l))) {
+      src = *ref;
+    } else {
+      warn("culture: " + source + " layer " + s.name + " has no CRS; assuming WGS 84 longitude/latitude");
+      src.SetWellKnownGeogCS("WGS84");
+    }
+    src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    s.ct = OGRCreateCoordinateTransformation(&src, &target);
+    if (!s.ct) {
+      warn("culture: " + source + " layer " + s.name + ": no transformation from its CRS into the database CRS; "
+           "layer skipped");
+      s.skip = true;
+      s.failed = true;
+    }
+    return s;
+  };
+  GDALDatasetResetReading(ds);
+  for (;;) {
+    OGRLayerH layer = nullptr;
+    OGRFeatureH f = GDALDatasetGetNextFeature(ds, &layer, nullptr, nullptr, nullptr);
+    if (!f) break;
+    if (layer) {
+      LayerState& ls = stateOf(layer);
+      if (!ls.skip) addFeature(source + " layer " + ls.name, f, ls);
+    }
+    OGR_F_Destroy(f);
+  }
+  if (outside > 0 && c.stats_.messages.size() < kMaxMessages) {
+    c.stats_.messages.push_back("culture: " + source + ": " + std::to_string(outside) +
+                                " features lie outside the database (dropped, not a warning)");
+  }
+  outside = 0;
+  for (const auto& [l, s] : layers) {
+    if (s->defaulted > 0 && c.stats_.messages.size() < kMaxMessages) {
+      // Counted per feature already; one message per layer.
+      c.stats_.messages.push_back("culture: " + source + " layer " + s->name + ": " + std::to_string(s->defaulted) +
+                                  " features matched no rule and took the default class");
+    }
+  }
+  GDALClose(ds);
+  return true;
+}
+
+/// Kind of a geometry for classification: 1 line, 2 area, 0 neither.
+int kindOf(const OGRGeometry* g) {
+  switch (wkbFlatten(g->getGeometryType())) {
+    case wkbLineString:
+    case wkbMultiLineString:
+    case wkbCircularString:
+    case wkbCompoundCurve:
+    case wkbMultiCurve:
+      return 1;
+    case wkbPolygon:
+    case wkbMultiPolygon:
+    case wkbCurvePolygon:
+    case wkbMultiSurface:
+    case wkbTriangle:
+    case wkbPolyhedralSurface:
+    case wkbTIN:
+      return 2;
+    case wkbGeometryCollection: {
+      const auto* gc = g->toGeometryCollection();
+      for (const OGRGeometry* part : *gc) {
+        if (const int k = kindOf(part)) return k;
+      }
+      return 0;
+    }
+    default:
+      return 0;
+  }
+}
+
+void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls) {
+  OGRGeometry* raw = OGRGeometry::FromHandle(OGR_F_GetGeometryRef(f));
+  if (!raw || raw->IsEmpty()) return;
+  const int kind = kindOf(raw);
+  if (kind == 0) return;  // points are not culture
+  ++c.stats_.featuresRead;
+  FeatureView view{f, ls.otherTags};
+  const materials::Match m = materials::classify(c.table, ls.name, &view, &attributeOf, kind == 1);
+  if (m.classId == materials::kNoClass) {
+    ++c.stats_.ignored;
+    return;
+  }
+  const materials::Class* cls = c.table.find(m.classId);
+  if (!cls) {
+    ++c.stats_.ignored;
+    return;
+  }
+  ClassStats& cs = c.stats_.perClass[cls->name];
+  ++cs.read;
+  if (!m.matched) {
+    ++cs.defaulted;
+    ++ls.defaulted;
+    ++c.stats_.warnings;
+  }
+  if (kind == 2 && dropDefaultAreas && cls->id == c.table.defaultArea) return;
+  const std::string id = where + " feature " + std::to_string(OGR_F_GetFID(f));
+  // Curves to line strings, then into the database CRS.
+  std::unique_ptr<OGRGeometry> g(raw->hasCurveGeometry() ? raw->getLinearGeometry() : raw->clone());
+  if (!g || g->transform(ls.ct) != OGRERR_NONE) {
+    ++cs.dropped;
+    warn("culture: " + id + ": cannot transform into the database CRS; dropped");
+    return;
+  }
+  g->flattenTo2D();
+  if (kind == 1) {
+    addLine(id, *g, *cls, m.width, cs);
+  } else {
+    addArea(id, *g, *cls, cs);
+  }
+}
+
+template <typename Fn>
+void forEachPart(const OGRGeometry& g, OGRwkbGeometryType want, Fn fn) {
+  const auto t = wkbFlatten(g.getGeometryType());
+  if (t == want) {
+    fn(g);
+  } else if (OGR_GT_IsSubClassOf(t, wkbGeometryCollection)) {
+    for (const OGRGeometry* part : *g.toGeometryCollection()) forEachPart(*part, want, fn);
+  } else if (t == wkbPolyhedralSurface || t == wkbTIN) {
+    for (const OGRPolygon* p : *g.toPolyhedralSurface()) fn(*p);
+  }
+}
+
+/// Liang-Barsky: the parts of segment a-b inside `r`, as parameters.
+bool clipSegment(Vec2 a, Vec2 b, const Box& r, double& t0, double& t1) {
+  t0 = 0, t1 = 1;
+  const double dx = b.x - a.x, dz = b.z - a.z;
+  const double p[4] = {-dx, dx, -dz, dz};
+  const double q[4] = {a.x - r.x0, r.x1 - a.x, a.z - r.z0, r.z1 - a.z};
+  for (int e = 0; e < 4; ++e) {
+    if (p[e] == 0) {
+      if (q[e] < 0) return false;
+    } else {
+      const double t = q[e] / p[e];
+      if (p[e] < 0) t0 = std::max(t0, t);
+      else t1 = std::min(t1, t);
+    }
+  }
+  return t0 < t1;
+}
+
+/// The parts of a polyline inside `r`.
+std::vector<Polyline> clipPolyline(const Polyline& pts, const Box& r) {
+  std::vector<Polyline> parts;
+  Polyline cur;
+  auto flush = [&] {
+    if (cur.size() >= 2) parts.push_back(std::move(cur));
+    cur.clear();
+  };
+  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
+    const Vec2 a = pts[k], b = pts[k + 1];
+    double t0 = 0, t1 = 1;
+    if (!clipSegment(a, b, r, t0, t1)) {
+      flush();
+      continue;
+    }
+    const Vec2 ca = t0 > 0 ? a + t0 * (b - a) : a, cb = t1 < 1 ? a + t1 * (b - a) : b;
+    if (cur.empty() || t0 > 0) {
+      flush();
+      cur.push_back(ca);
+    }
+    cur.push_back(cb);
+    if (t1 < 1) flush();
+  }
+  flush();
+  return parts;
+}
+
+double lengthOf(const Polyline& p) {
+  double s = 0;
+  for (std::size_t k = 0; k + 1 < p.size(); ++k) s += length(p[k + 1] - p[k]);
+  return s;
+}
+
+bool Loader::addLine(const std::string& id, const OGRGeometry& g, const materials::Class& cls, double width,
+                     ClassStats& cs) {
+  std::vector<Polyline> parts;
+  bool repaired = false, bad = false;
+  forEachPart(g, wkbLineString, [&](const OGRGeometry& part) {
+    const auto* ls = part.toLineString();
+    Polyline pts;
+    for (int k = 0; k < ls->getNumPoints(); ++k) {
+      const double e = ls->getX(k), n = ls->getY(k);
+      if (!std::isfinite(e) || !std::isfinite(n)) {
+        bad = true;
+        return;
+      }
+      const Vec2 p = world(e, n);
+      if (!pts.empty() && pts.back() == p) {
+        repaired = true;  // repeated point
+        continue;
+      }
+      pts.push_back(p);
+    }
+    if (pts.size() >= 2) parts.push_back(std::move(pts));
+  });
+  if (bad) {
+    ++cs.dropped;
+    warn("culture: " + id + ": coordinates that are not finite; dropped");
+    return false;
+  }
+  if (parts.empty()) {
+    ++cs.dropped;
+    warn("culture: " + id + ": line of zero length; dropped");
+    return false;
+  }
+  // Kept wherever the widened road can reach into the database; the
+  // length counted is the part inside it.
+  const Box reach = dbWorld.grown(width + 1.0);
+  LineFeature lf;
+  lf.classId = cls.id;
+  lf.width = width;
+  for (const Polyline& p : parts) {
+    for (const Polyline& inside : clipPolyline(p, dbWorld)) cs.lengthKm += lengthOf(inside) / 1000.0;
+    for (Polyline& q : clipPolyline(p, reach)) {
+      // A loop keeps its closing point; a part cut out of it does not.
+      lf.parts.push_back(std::move(q));
+    }
+  }
+  if (lf.parts.empty()) {
+    ++cs.dropped;
+    ++outside;  // an extract larger than the database: expected, not a warning
+    return false;
+  }
+  if (repaired) {
+    ++cs.repaired;
+    warn("culture: " + id + ": repeated points removed");
+  }
+  c.lines.push_back(std::move(lf));
+  return true;
+}
+
+bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Class& cls, ClassStats& cs) {
+  // Clean each ring (repeated points, closure) into a fresh multipolygon.
+  bool repaired = false, bad = false, unclosed = false, repeated = false;
+  OGRMultiPolygon mp;
+  forEachPart(g, wkbPolygon, [&](const OGRGeometry& part) {
+    const auto* poly = part.toPolygon();
+    OGRPolygon clean;
+    bool first = true;
+    for (const OGRLinearRing* ring : *poly) {
+      std::vector<std::pair<double, double>> pts;
+      for (int k = 0; k < ring->getNumPoints(); ++k) {
+        const double e = ring->getX(k), n = ring->getY(k);
+        if (!std::isfinite(e) || !std::isfinite(n)) {
+          bad = true;
+          return;
+        }
+        if (!pts.empty() && pts.back() == std::make_pair(e, n)) {
+          repeated = true;
+          continue;
+        }
+        pts.emplace_back(e, n);
+      }
+      if (pts.size() >= 2 && pts.front() == pts.back()) {
+        pts.pop_back();
+      } else if (pts.size() >= 3) {
+        unclosed = true;
+      }
+      if (pts.size() < 3) {
+        if (first) return;  // no exterior: no polygon
+        continue;
+      }
+      OGRLinearRing r;
+      for (const auto& [e, n] : pts) r.addPoint(e, n);
+      r.addPoint(pts.front().first, pts.front().second);
+      clean.addRing(&r);
+      first = false;
+    }
+    if (!clean.IsEmpty()) mp.addGeometry(&clean);
+  });
+  if (bad) {
+    ++cs.dropped;
+    warn("culture: " + id + ": coordinates that are not finite; dropped");
+    return false;
+  }
+  std::unique_ptr<OGRGeometry> geom(mp.clone());
+  if (unclosed) warn("culture: " + id + ": ring not closed; closed it");
+  if (repeated) warn("culture: " + id + ": repeated points removed");
+  repaired = unclosed || repeated;
+  if (!geom->IsEmpty() && !geom->IsValid()) {
+    std::unique_ptr<OGRGeometry> valid(geom->MakeValid());
+    if (!valid) {
+      ++cs.dropped;
+      warn("culture: " + id + ": invalid polygon that cannot be repaired; dropped");
+      return false;
+    }
+    geom = std::move(valid);
+    repaired = true;
+    warn("culture: " + id + ": invalid polygon (self-intersection); repaired");
+  }
+  // Clip to the database rectangle.
+  bool clipped = false;
+  OGREnvelope env;
+  geom->getEnvelope(&env);
+  const Box& r = dbProjected;
+  if (env.MinX < r.x0 || env.MaxX > r.x1 || env.MinY < r.z0 || env.MaxY > r.z1) {
+    OGRPolygon rect;
+    OGRLinearRing ring;
+    ring.addPoint(r.x0, r.z0);
+    ring.addPoint(r.x1, r.z0);
+    ring.addPoint(r.x1, r.z1);
+    ring.addPoint(r.x0, r.z1);
+    ring.addPoint(r.x0, r.z0);
+    rect.addRing(&ring);
+    std::unique_ptr<OGRGeometry> cut(env.MaxX < r.x0 || env.MinX > r.x1 || env.MaxY < r.z0 || env.MinY > r.z1
+                                         ? nullptr
+                                         : geom->Intersection(&rect));
+    if (!cut) {
+      ++cs.dropped;
+      ++outside;
+      return false;
+    }
+    geom = std::move(cut);
+    clipped = true;
+  }
+  AreaFeature af;
+  af.classId = cls.id;
+  double area = 0;
+  forEachPart(*geom, wkbPolygon, [&](const OGRGeometry& part) {
+    const auto* poly = part.toPolygon();
+    bool exterior = true;
+    for (const OGRLinearRing* ring : *poly) {
+      Ring w;
+      for (int k = 0; k + 1 < ring->getNumPoints(); ++k) {
+        const Vec2 p = world(ring->getX(k), ring->getY(k));
+        if (w.empty() || !(w.back() == p)) w.push_back(p);
+      }
+      while (w.size() > 1 && w.front() == w.back()) w.pop_back();
+      const double a = w.size() >= 3 ? signedArea(w) : 0.0;
+      if (a != 0) {
+        // Exterior rings positive, holes negative (the frame flips z).
+        if ((a > 0) != exterior) std::reverse(w.begin(), w.end());
+        area += exterior ? std::fabs(a) : -std::fabs(a);
+        af.box.add(boxOf(w));
+        af.rings.push_back(std::move(w));
+      }
+      exterior = false;
+    }
+  });
+  if (!(area > 1e-6) || af.rings.empty()) {
+    ++cs.dropped;
+    if (clipped && geom->IsEmpty()) {
+      ++outside;
+    } else {
+      warn("culture: " + id + ": polygon of no area; dropped");
+    }
+    return false;
+  }
+  if (repaired) ++cs.repaired;
+  cs.areaKm2 += area / 1e6;
+  c.areas.push_back(std::move(af));
+  return true;
+}
+
+/// Ends of line parts shared with another part's end get a join piece.
+void markJoins(std::vector<LineFeature>& lines) {
+  struct Hash {
+    std::size_t operator()(const Vec2& p) const {
+      return std::hash<double>()(p.x) * 1000003u ^ std::hash<double>()(p.z);
+    }
+  };
+  std::unordered_map<Vec2, int, Hash> ends;
+  for (const LineFeature& l : lines) {
+    for (const Polyline& p : l.parts) {
+      if (p.front() == p.back()) continue;  // a loop has no ends
+      ++ends[p.front()];
+      ++ends[p.back()];
+    }
+  }
+  for (LineFeature& l : lines) {
+    l.joinStart.assign(l.parts.size(), false);
+    l.joinEnd.assign(l.parts.size(), false);
+    for (std::size_t k = 0; k < l.parts.size(); ++k) {
+      const Polyline& p = l.parts[k];
+      if (p.front() == p.back()) continue;
+      l.joinStart[k] = ends[p.front()] > 1;
+      l.joinEnd[k] = ends[p.back()] > 1;
+    }
+  }
+}
+
+/// A join piece where line ends meet: an octagon around the end `c`
+/// whose sides lie half a width from it, one side square to the line's
+/// last segment (from `from` to `c`), so the wedge between two butt ends at
+/// an angle is covered and nothing sticks out past the road's own sides.
+Ring octagon(Vec2 c, Vec2 from, double width) {
+  const double r = 0.5 * width / std::cos(std::numbers::pi / 8);
+  const double base = std::atan2(c.z - from.z, c.x - from.x);
+  Ring o;
+  for (int k = 0; k < 8; ++k) {
+    const double a = base + (k + 0.5) * std::numbers::pi / 4;
+    o.push_back({c.x + r * std::cos(a), c.z + r * std::sin(a)});
+  }
+  return o;
+}
+
+/// Widens every line feature (CGAL union of its outline rings), in parallel.
+std::string widenAll(std::vector<LineFeature>& lines, int threads) {
+  const unsigned n = threads > 0 ? unsigned(threads) : std::max(1u, std::thread::hardware_concurrency());
+  std::atomic<std::size_t> next{0};
+  std::atomic<std::size_t> failed{0};
+  auto work = [&] {
+    for (std::size_t k = next++; k < lines.size(); k = next++) {
+      LineFeature& l = lines[k];
+      std::vector<Ring> rings;
+      for (std::size_t p = 0; p < l.parts.size(); ++p) {
+        outlineOf(l.parts[p], l.width, rings);
+        const Polyline& q = l.parts[p];
+        if (l.joinStart[p]) rings.push_back(octagon(q.front(), q[1], l.width));
+        if (l.joinEnd[p]) rings.push_back(octagon(q.back(), q[q.size() - 2], l.width));
+      }
+      try {
+        l.outline = unionRings(rings);
+      } catch (const std::exception&) {
+        l.outline.clear();
+        ++failed;
+      }
+      l.box = Box{};
+      for (const Ring& r : l.outline) l.box.add(boxOf(r));
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  return failed ? std::to_string(failed.load()) + " line features could not be widened (CGAL failure); dropped"
+                : std::string();
+}
+
+}  // namespace
+
+namespace culture {
+
+CultureImpl::CultureImpl(const materials::Table& t, const CultureFrame& f, const CultureOptions& o)
+    : table(t), frame(f), options(o) {
+  const std::size_t hw = std::max(1u, std::thread::hardware_concurrency());
+  cacheCapacity_ = o.cacheModules > 0 ? o.cacheModules : 4 * hw;
+}
+
+void CultureImpl::buildIndex() {
+  indexCols = std::uint32_t(std::max(1.0, std::ceil(frame.widthM / indexCell)));
+  indexRows = std::uint32_t(std::max(1.0, std::ceil(frame.heightM / indexCell)));
+  const std::size_t cells = std::size_t(indexCols) * indexRows;
+  areaIndex.assign(cells, {});
+  lineIndex.assign(cells, {});
+  auto add = [&](const Box& b, std::uint32_t id, std::vector<std::vector<std::uint32_t>>& index) {
+    if (b.empty()) return;
+    const auto col = [&](double x) { return std::uint32_t(std::clamp(std::floor(x / indexCell), 0.0, double(indexCols - 1))); };
+    const auto row = [&](double z) { return std::uint32_t(std::clamp(std::floor(z / indexCell), 0.0, double(indexRows - 1))); };
+    for (std::uint32_t r = row(b.z0); r <= row(b.z1); ++r) {
+      for (std::uint32_t q = col(b.x0); q <= col(b.x1); ++q) index[std::size_t(r) * indexCols + q].push_back(id);
+    }
+  };
+  for (std::uint32_t k = 0; k < areas.size(); ++k) add(areas[k].box, k, areaIndex);
+  for (std::uint32_t k = 0; k < lines.size(); ++k) add(lines[k].box, k, lineIndex);
+}
+
+}  // namespace culture
+
+Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& options, const materials::Table& table,
+                                                      const CultureFrame& frame) {
+  const auto t0 = std::chrono::steady_clock::now();
+  initGdal();
+  if (!(frame.widthM > 0) || !(frame.heightM > 0) || !std::isfinite(frame.widthM + frame.heightM) ||
+      !std::isfinite(frame.originEasting + frame.originNorthing)) {
+    return Problem{"culture", 0, "culture: the database frame has no extent"};
+  }
+  if (!(options.mergeTolerance >= 0) || options.mergeTolerance > 10) {
+    return Problem{"culture", 0, "culture: the merge tolerance must be 0..10 m"};
+  }
+  if (!table.find(table.defaultArea)) {
+    return Problem{"culture", 0, "culture: the material table's default-area class is not defined"};
+  }
+  auto impl = std::make_shared<CultureImpl>(table, frame, options);
+  Loader loader(*impl);
+  if (loader.target.importFromWkt(frame.crsWkt.c_str()) != OGRERR_NONE) {
+    return Problem{"culture", 0, "culture: the database CRS is not valid WKT"};
+  }
+  loader.target.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  loader.dbWorld = {0, 0, frame.widthM, frame.heightM};
+  {
+    const materials::Class* d = table.find(table.defaultArea);
+    loader.dropDefaultAreas = std::all_of(table.classes.begin(), table.classes.end(), [&](const materials::Class& k) {
+      return k.kind != materials::Kind::area || k.id == d->id || k.rank > d->rank;
+    });
+  }
+  loader.dbProjected = {frame.originEasting, frame.originNorthing - frame.heightM, frame.originEasting + frame.widthM,
+                        frame.originNorthing};
+  for (const std::string& s : options.sources) {
+    auto r = loader.readSource(s);
+    if (!r) return r.problems();
+  }
+  markJoins(impl->lines);
+  if (std::string e = widenAll(impl->lines, options.threads); !e.empty()) loader.warn("culture: " + e);
+  std::erase_if(impl->lines, [](const LineFeature& l) { return l.outline.empty(); });
+  impl->buildIndex();
+  impl->stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return std::shared_ptr<const Culture>(std::move(impl));
+}
+
+}  // namespace sandtable::convert
