@@ -114,7 +114,8 @@ TEST(Cli, buildInfoSampleFlyEndToEnd) {
   EXPECT_EQ(info["spacing_m"].get<double>(), 120.0);
   EXPECT_EQ(info["epsg"].get<int>(), 32632);  // UTM 32N holds 7-8 E
   EXPECT_EQ(info["levels"].get<int>(), 4);
-  EXPECT_EQ(info["module_size_m"].get<double>(), 1000.0);
+  // 1 km rounded to whole coarsest-level posts: 8 squares of 120 m.
+  EXPECT_EQ(info["module_size_m"].get<double>(), 960.0);
 
   spit(tmp / "pts.txt", "# Monaco, then the sea off Nice\n7.4200 43.7400\n7.3000 43.5500\n");
   auto s = runCli({"sample", db, "--points", tmp / "pts.txt", "--json"});

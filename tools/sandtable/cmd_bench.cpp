@@ -2,6 +2,7 @@
 // leaves register runners, so `sandtable bench` alone is a usage error
 // listing them. `bench paging` and `bench render` will join `build` here.
 #include "bench_build.h"
+#include "bench_modules.h"
 #include "commands.h"
 
 namespace sandtable::cli {
@@ -10,6 +11,7 @@ void registerBench(CLI::App& root, Commands& c) {
   auto* bench = root.add_subcommand("bench", "Benchmarks: measure speed against a reference");
   bench->require_subcommand(1);
   registerBenchBuild(*bench, c);
+  registerBenchModules(*bench, c);
 }
 
 }  // namespace sandtable::cli

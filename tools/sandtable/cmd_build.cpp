@@ -11,6 +11,25 @@
 namespace sandtable::cli {
 namespace {
 
+void printModuleSummary(const convert::ElevationReport& r) {
+  const auto& b = r.manifest.build;
+  if (!b.contains("modules")) return;
+  const auto& m = b["modules"];
+  const auto& bytes = m["bytes"];
+  std::printf("  modules    %llu (%u x %u, %.2f m, %d levels) in %.2f s, %.0f modules/s\n",
+              static_cast<unsigned long long>(r.modules), m["modules_x"].get<unsigned>(),
+              m["modules_z"].get<unsigned>(), m["module_size_m"].get<double>(), r.manifest.levels,
+              r.moduleSeconds, m["modules_per_second"].get<double>());
+  std::printf("  sizes      median %u B, p95 %u B, max %u B compressed; pack %.1f MB\n",
+              bytes["median"].get<unsigned>(), bytes["p95"].get<unsigned>(), bytes["max"].get<unsigned>(),
+              double(bytes["compressed_total"].get<std::uint64_t>()) / 1e6);
+  const auto& c = b["culture"];
+  std::printf("  culture    %llu features, %llu warnings\n",
+              static_cast<unsigned long long>(c["features_read"].get<std::uint64_t>()),
+              static_cast<unsigned long long>(c["warnings"].get<std::uint64_t>()));
+  for (const auto& msg : c["messages"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
+}
+
 struct BuildArgs {
   convert::ElevationOptions o;
   std::vector<double> extent;
@@ -42,6 +61,10 @@ int runBuild(BuildArgs& a) {
                         {"seconds", r.seconds},        {"resample_seconds", r.resampleSeconds},
                         {"posts_per_second", r.postsPerSecond}, {"crs", r.manifest.crsName},
                         {"min_elevation", r.manifest.minElevation}, {"max_elevation", r.manifest.maxElevation}};
+    if (r.manifest.build.contains("modules")) {
+      j["modules"] = r.manifest.build["modules"];
+      j["culture"] = r.manifest.build["culture"];
+    }
     std::printf("%s\n", j.dump(2).c_str());
     return kOk;
   }
@@ -53,6 +76,7 @@ int runBuild(BuildArgs& a) {
               static_cast<unsigned long long>(r.voidsFilled), 100.0 * double(r.voidsFilled) / double(r.posts));
   std::printf("  time       %.2f s (resampling %.2f s), %.2f M posts/s\n", r.seconds, r.resampleSeconds,
               r.postsPerSecond / 1e6);
+  printModuleSummary(r);
   return kOk;
 }
 
@@ -62,7 +86,8 @@ void registerBuild(CLI::App& root, Commands& c) {
   auto a = std::make_shared<BuildArgs>();
   auto* sub = root.add_subcommand("build", "Build a terrain database from elevation sources");
   sub->footer(
-      "Example:\n  sandtable build --elevation data/dted1 --crs utm --spacing 30 -o db\n"
+      "Examples:\n  sandtable build --elevation data/dted1 --crs utm --spacing 30 -o db\n"
+      "  sandtable build --elevation synth/dted2 --culture synth/culture.gpkg --spacing 31.25 -o db\n"
       "Sources: DTED (.dt0/.dt1/.dt2), SRTM (.hgt, .hgt.zip), USGS DEM (.dem), GeoTIFF, any GDAL raster;\n"
       "files, directories (searched recursively) or quoted globs. All sources must share one CRS.");
   sub->add_option("--elevation", a->o.sources, "Elevation sources: files, directories or globs")->required();
@@ -77,8 +102,18 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "(point samples, as gdalwarp)")
       ->default_val("triangles");
   sub->add_option("--extent", a->extent, "Crop to WEST SOUTH EAST NORTH (lon/lat degrees)")->expected(4);
-  sub->add_option("--module-size", a->o.moduleSize, "Load-module edge in metres")->default_val(1000.0);
-  sub->add_option("--levels", a->o.levels, "Levels of detail per module")->default_val(4);
+  sub->add_option("--culture", a->o.culture,
+                  "Culture sources decaled onto the terrain: any OGR vector (Shapefile, GeoPackage, GeoJSON, "
+                  "OSM .osm/.osm.gz/.pbf)");
+  sub->add_option("--materials", a->o.materials,
+                  "Material table (default: the built-in samples/materials.txt; format in docs/FORMAT.md)");
+  sub->add_option("--module-size", a->o.moduleSize,
+                  "Load-module edge in metres, rounded to a whole number of coarsest-level posts")
+      ->default_val(1000.0);
+  sub->add_option("--levels", a->o.levels, "Levels of detail per module (1..8)")->default_val(4);
+  sub->add_flag("--no-modules", [a](std::int64_t) { a->o.modules = false; },
+                "Build only the elevation grid (no load modules)");
+  sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--max-scale-error", a->o.maxScaleError,
                   "Reject a CRS whose scale error over the extent exceeds this fraction")
       ->default_val(0.01);

@@ -21,7 +21,7 @@ nlohmann::json infoJson(const Database& db) {
   for (const auto& f : m.files) files.push_back({{"path", f.path}, {"bytes", f.bytes}});
   nlohmann::json sources = nlohmann::json::array();
   for (const auto& s : m.sources) sources.push_back({{"path", s.path}, {"bytes", s.bytes}, {"driver", s.driver}});
-  return {{"database", db.directory},
+  nlohmann::json j = {{"database", db.directory},
           {"crs_wkt", m.crsWkt},
           {"crs_name", m.crsName},
           {"epsg", m.epsg},
@@ -48,6 +48,47 @@ nlohmann::json infoJson(const Database& db) {
           {"tool_version", m.toolVersion},
           {"created_utc", m.createdUtc},
           {"build", m.build}};
+  // Culture and module statistics are recorded by the build; null for a grid-only database.
+  j["modules"] = m.build.contains("modules") ? m.build["modules"] : nlohmann::json();
+  j["culture"] = m.build.contains("culture") ? m.build["culture"] : nlohmann::json();
+  return j;
+}
+
+void printModules(const nlohmann::json& m) {
+  const auto& b = m["bytes"];
+  std::printf("modules    %llu = %u x %u of %.2f m (%u squares), built in %.2f s (%.0f modules/s)\n",
+              static_cast<unsigned long long>(m["count"].get<std::uint64_t>()), m["modules_x"].get<unsigned>(),
+              m["modules_z"].get<unsigned>(), m["module_size_m"].get<double>(), m["module_squares"].get<unsigned>(),
+              m["seconds"].get<double>(), m["modules_per_second"].get<double>());
+  std::printf("  bytes    min %u, median %u, p95 %u, max %u, mean %.0f compressed; %.1f MB packed of %.1f MB raw\n",
+              b["min"].get<unsigned>(), b["median"].get<unsigned>(), b["p95"].get<unsigned>(),
+              b["max"].get<unsigned>(), b["mean"].get<double>(),
+              double(b["compressed_total"].get<std::uint64_t>()) / 1e6, double(b["raw_total"].get<std::uint64_t>()) / 1e6);
+  int level = 0;
+  for (const auto& l : m["per_level"]) {
+    std::printf("  level %d  %llu triangles, %llu skin polygons, %llu decal polygons, %llu skirt triangles\n", level++,
+                static_cast<unsigned long long>(l["triangles"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(l["skin_polygons"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(l["decal_polygons"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(l["skirt_triangles"].get<std::uint64_t>()));
+  }
+}
+
+void printCulture(const nlohmann::json& c) {
+  std::printf("culture    %llu features read, %llu warnings, materials: %s\n",
+              static_cast<unsigned long long>(c["features_read"].get<std::uint64_t>()),
+              static_cast<unsigned long long>(c["warnings"].get<std::uint64_t>()),
+              c["materials"].get<std::string>().c_str());
+  std::printf("  %-16s %8s %8s %8s %9s %10s %10s\n", "class", "read", "dropped", "repaired", "defaulted", "km",
+              "km2");
+  for (const auto& [name, k] : c["classes"].items()) {
+    std::printf("  %-16s %8llu %8llu %8llu %9llu %10.2f %10.3f\n", name.c_str(),
+                static_cast<unsigned long long>(k["read"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(k["dropped"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(k["repaired"].get<std::uint64_t>()),
+                static_cast<unsigned long long>(k["defaulted"].get<std::uint64_t>()), k["length_km"].get<double>(),
+                k["area_km2"].get<double>());
+  }
 }
 
 void printHuman(const nlohmann::json& j) {
@@ -65,7 +106,7 @@ void printHuman(const nlohmann::json& j) {
   std::printf("posts      %u x %u = %llu at %.3f m\n", j["posts_x"].get<unsigned>(), j["posts_z"].get<unsigned>(),
               static_cast<unsigned long long>(j["posts"].get<std::uint64_t>()), j["spacing_m"].get<double>());
   std::printf("elevation  %.2f .. %.2f m\n", j["min_elevation"].get<double>(), j["max_elevation"].get<double>());
-  std::printf("modules    %.0f m, %d levels\n", j["module_size_m"].get<double>(), j["levels"].get<int>());
+  std::printf("lod        %.0f m modules, %d levels\n", j["module_size_m"].get<double>(), j["levels"].get<int>());
   for (const auto& f : j["files"]) {
     std::printf("file       %s  %.1f MiB\n", f["path"].get<std::string>().c_str(),
                 double(f["bytes"].get<std::uint64_t>()) / 1048576.0);
@@ -78,6 +119,8 @@ void printHuman(const nlohmann::json& j) {
               j["created_utc"].get<std::string>().c_str(), j["tool_version"].get<std::string>().c_str(),
               b.value("resample", std::string("?")).c_str(),
               static_cast<unsigned long long>(b.value("voids_filled", std::uint64_t{0})), b.value("seconds", 0.0));
+  if (!j["modules"].is_null()) printModules(j["modules"]);
+  if (!j["culture"].is_null()) printCulture(j["culture"]);
 }
 
 }  // namespace

@@ -27,6 +27,7 @@ void registerValidate(CLI::App& root, Commands& c);
 void registerSample(CLI::App& root, Commands& c);
 void registerFly(CLI::App& root, Commands& c);
 void registerBench(CLI::App& root, Commands& c);
+void registerExport(CLI::App& root, Commands& c);
 
 /// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage.
 int usageError(const std::string& cmd, const std::string& msg);

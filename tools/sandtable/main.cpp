@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   registerSample(app, commands);
   registerFly(app, commands);
   registerBench(app, commands);
+  registerExport(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,0 +1,184 @@
+// sandtable export: load modules as OBJ + MTL or glTF 2.0 for other tools.
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <tuple>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "db_util.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/mesh_export.h"
+
+namespace sandtable::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ExportArgs {
+  std::string dir;
+  std::vector<std::uint32_t> from, to;
+  std::uint32_t level = 0;
+  std::string format;
+  std::string output;
+  bool noSkirts = false;
+  bool json = false;
+};
+
+std::string lower(std::string s) {
+  for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+std::string moduleName(std::uint32_t kx, std::uint32_t kz) {
+  return "(" + std::to_string(kx) + "," + std::to_string(kz) + ")";
+}
+
+std::string writeText(const std::string& path, const std::string& text) {
+  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+}
+
+int runExport(const ExportArgs& a) {
+  // Format: --format, else the output's extension; .glb selects binary glTF.
+  const std::string ext = lower(fs::path(a.output).extension().string());
+  const std::string byExt = ext == ".obj" ? "obj" : (ext == ".gltf" || ext == ".glb") ? "gltf" : "";
+  const std::string format = a.format.empty() ? byExt : a.format;
+  if (format.empty()) {
+    return usageError("export", "give --format obj|gltf (the output " + a.output +
+                                    " ends in none of .obj, .gltf, .glb)");
+  }
+  if (!byExt.empty() && byExt != format) {
+    return usageError("export", "--format " + format + " but the output " + a.output + " is a " + ext + " file");
+  }
+  const bool glb = format == "gltf" && ext == ".glb";
+
+  auto db = openOrReport("export", a.dir);
+  if (!db) return kUsage;
+  if (!db->modules) {
+    return usageError("export", a.dir + " has no load modules (built with --no-modules?); rebuild it with modules");
+  }
+  const pack::PackReader& pack = *db->modules;
+  const pack::IndexHeader& h = pack.header();
+  const std::uint32_t kx0 = a.from[0], kz0 = a.from[1];
+  const std::uint32_t kx1 = a.to.empty() ? kx0 : a.to[0], kz1 = a.to.empty() ? kz0 : a.to[1];
+  for (const auto& [kx, kz, opt] : {std::tuple{kx0, kz0, "--module"}, std::tuple{kx1, kz1, "--to"}}) {
+    if (kx >= h.modulesX || kz >= h.modulesZ) {
+      return usageError("export", std::string(opt) + " " + moduleName(kx, kz) + " is outside the database: it has " +
+                                      std::to_string(h.modulesX) + " x " + std::to_string(h.modulesZ) +
+                                      " modules, KX 0.." + std::to_string(h.modulesX - 1) + " and KZ 0.." +
+                                      std::to_string(h.modulesZ - 1));
+    }
+  }
+  if (kx1 < kx0 || kz1 < kz0) {
+    return usageError("export", "--to " + moduleName(kx1, kz1) + " lies west or north of --module " +
+                                    moduleName(kx0, kz0) + "; give the north-west module first");
+  }
+  if (a.level >= h.levels) {
+    return usageError("export", "level " + std::to_string(a.level) + " is out of range: the database has " +
+                                    std::to_string(h.levels) + " levels, 0 (finest) to " +
+                                    std::to_string(h.levels - 1));
+  }
+
+  mesh_export::Options o;
+  o.level = a.level;
+  o.skirts = !a.noSkirts;
+  o.materials = db->materials ? &*db->materials : nullptr;
+  mesh_export::MeshBuilder builder(o);
+  const double edge = double(h.moduleSquares) * db->grid->spacing();
+  for (std::uint32_t kz = kz0; kz <= kz1; ++kz) {
+    for (std::uint32_t kx = kx0; kx <= kx1; ++kx) {
+      auto m = pack.read(kx, kz);
+      if (!m) {
+        for (const auto& p : m.problems()) std::fprintf(stderr, "sandtable export: error: %s\n", p.str().c_str());
+        std::fprintf(stderr, "sandtable export: hint: run `sandtable validate %s` for a full report\n", a.dir.c_str());
+        return kUsage;
+      }
+      if (std::string e = builder.add(m.value(), double(kx - kx0) * edge, double(kz - kz0) * edge); !e.empty()) {
+        return usageError("export", e);
+      }
+    }
+  }
+  const mesh_export::Mesh mesh = builder.finish();
+  if (mesh.triangles() == 0) return usageError("export", "nothing to export: the modules have no triangles at that level");
+
+  const auto& man = db->manifest;
+  const double easting = man.originEasting + double(kx0) * edge;
+  const double northing = man.originNorthing - double(kz0) * edge;
+  const std::uint64_t modules = std::uint64_t(kx1 - kx0 + 1) * (kz1 - kz0 + 1);
+  const nlohmann::json info = {
+      {"database", a.dir},
+      {"modules", {{"from", {kx0, kz0}}, {"to", {kx1, kz1}}, {"count", modules}}},
+      {"level", a.level},
+      {"skirts", !a.noSkirts},
+      {"frame", "metres; X east, Y up (elevation above the vertical datum), Z south (north is -Z); "
+                "origin at the north-west corner of module " + moduleName(kx0, kz0)},
+      {"origin_easting", easting},
+      {"origin_northing", northing},
+      {"crs_name", man.crsName},
+      {"epsg", man.epsg}};
+
+  std::vector<std::string> written = {a.output};
+  std::string err;
+  if (format == "obj") {
+    fs::path mtl = fs::path(a.output).replace_extension(".mtl");
+    const std::vector<std::string> header = {
+        "sandtable export of " + a.dir + ": modules " + moduleName(kx0, kz0) + " to " + moduleName(kx1, kz1) +
+            ", level " + std::to_string(a.level) + (a.noSkirts ? ", no skirts" : ", skirts in group \"skirt\""),
+        info["frame"].get<std::string>(),
+        "origin: easting " + std::to_string(easting) + ", northing " + std::to_string(northing) + " in " +
+            man.crsName + (man.epsg ? " (EPSG:" + std::to_string(man.epsg) + ")" : std::string())};
+    err = writeText(mtl.string(), mesh_export::toMtl(mesh));
+    if (err.empty()) err = writeText(a.output, mesh_export::toObj(mesh, mtl.filename().string(), header));
+    written.push_back(mtl.string());
+  } else if (glb) {
+    err = writeFileAtomic(a.output, mesh_export::toGlb(mesh, {{"sandtable", info}}));
+  } else {
+    err = writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}));
+  }
+  if (!err.empty()) return usageError("export", err);
+
+  if (a.json) {
+    nlohmann::json j = info;
+    j["files"] = written;
+    j["format"] = glb ? "glb" : format;
+    j["vertices"] = mesh.positions.size();
+    j["triangles"] = mesh.triangles();
+    nlohmann::json parts = nlohmann::json::array();
+    for (const auto& p : mesh.parts) parts.push_back({{"name", p.name}, {"triangles", p.indices.size() / 3}});
+    j["materials"] = parts;
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("wrote %s%s: %llu module(s) at level %u, %zu vertices, %zu triangles, %zu materials\n",
+                a.output.c_str(), written.size() > 1 ? (" + " + written[1]).c_str() : "",
+                static_cast<unsigned long long>(modules), a.level, mesh.positions.size(), mesh.triangles(),
+                mesh.parts.size());
+  }
+  return kOk;
+}
+
+}  // namespace
+
+void registerExport(CLI::App& root, Commands& c) {
+  auto a = std::make_shared<ExportArgs>();
+  auto* sub = root.add_subcommand("export", "Write load modules as OBJ + MTL or glTF 2.0 (.gltf/.glb)");
+  sub->footer(
+      "Frame: metres, X east, Y up, Z south (north is -Z), origin at the NW corner of --module;\n"
+      "one material per class (named from materials.txt), skirts as material \"skirt\".\n"
+      "Examples:\n  sandtable export db --module 3 4 -o m34.obj\n"
+      "  sandtable export db --module 0 0 --to 2 1 --level 1 --format gltf -o area.glb");
+  sub->add_option("DB", a->dir, "Database directory")->required();
+  sub->add_option("--module", a->from, "Module column and row (north-west module of the range)")
+      ->expected(2)
+      ->required();
+  sub->add_option("--to", a->to, "South-east module of the range (default: --module)")->expected(2);
+  sub->add_option("--level", a->level, "Level of detail, 0 = finest")->default_val(0);
+  sub->add_option("--format", a->format, "obj or gltf (default: from the output's extension; .glb is binary glTF)")
+      ->check(CLI::IsMember({"obj", "gltf"}));
+  sub->add_option("-o,--output", a->output, "Output file (.obj writes a .mtl beside it)")->required();
+  sub->add_flag("--no-skirts", a->noSkirts, "Leave the skirts out");
+  sub->add_flag("--json", a->json, "Print a JSON summary");
+  c.add(sub, [a] { return runExport(*a); });
+}
+
+}  // namespace sandtable::cli
