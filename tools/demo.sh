@@ -11,9 +11,12 @@ st=./build/tools/sandtable
 mkdir -p "$out"
 echo "== synth: DTED1/DTED2 cells, dem.tif, culture.gpkg"
 $st synth -o "$out/inputs" --size-km 20 --force
-echo "== build: DTED2 -> UTM grid, seed location-weighted resampling"
-extent=$(python3 -c 'import json,sys; b=json.load(open(sys.argv[1]))["bounds"]; print(b["west"], b["south"], b["east"], b["north"])' "$out/inputs/synth.json")
-$st build --elevation "$out/inputs/dted2" --extent $extent --spacing 30 -o "$out/db" --force
+echo "== build: DTED2 -> UTM grid (seed location-weighted resampling), culture decaled, 1 km load modules x 4 levels"
+# The synthesized square's bounds, from synth.json (no JSON tool needed).
+bound() { sed -n "s/.*\"$1\": *\(-\?[0-9.]*\).*/\1/p" "$out/inputs/synth.json" | head -n 1; }
+extent="$(bound west) $(bound south) $(bound east) $(bound north)"
+$st build --elevation "$out/inputs/dted2" --culture "$out/inputs/culture.gpkg" --extent $extent \
+  --spacing 31.25 -o "$out/db" --force
 echo "== validate"
 $st validate "$out/db"
 echo "== info"

@@ -1,5 +1,5 @@
 // The exact part of the culture pipeline, and the only file that includes
-// CGAL (docs/_culture.md, "Exact partition"). Two jobs:
+// CGAL (docs/CULTURE.md, "Exact partition"). Two jobs:
 //  - unionRings: the union of oriented rings by nonzero winding (widened
 //    roads: the outline of a polyline has winding = number of segment
 //    rectangles and joins covering a point);

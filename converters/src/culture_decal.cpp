@@ -1,6 +1,6 @@
 // Culture::decalLevel: the module's exact partition (culture_cgal.cpp,
 // cached across levels) cut to one level's grid triangles in double
-// precision (docs/_culture.md, "Cutting to the triangles").
+// precision (docs/CULTURE.md, "Cutting to the triangles").
 //
 // A grid triangle that no label boundary of a layer crosses is one
 // triangle (the fast path: the skin reuses the lattice vertices). Any

@@ -1,6 +1,6 @@
 // Plain double-precision geometry of the culture pipeline: ring areas,
 // the rectangle clip that feeds the exact partition, and the outline of a
-// widened polyline (docs/_culture.md, "Roads").
+// widened polyline (docs/CULTURE.md, "Roads").
 #include <cmath>
 #include <numbers>
 

@@ -3,7 +3,7 @@
 // widening, index), culture_cgal.cpp (the only file that includes CGAL:
 // exact unions and the per-module planar partition) and culture_decal.cpp
 // (cutting the partition to the terrain triangles in double precision).
-// The pipeline is described in docs/_culture.md.
+// The pipeline is described in docs/CULTURE.md.
 //
 // Frames. Load works in world metres: X = easting - originEasting (east),
 // Z = originNorthing - northing (south). Per-module work is in

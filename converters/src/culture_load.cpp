@@ -1,7 +1,7 @@
 // Culture::load: OGR sources read, classified by the material table,
 // transformed into the database frame, repaired or dropped (counted),
 // clipped to the database, line features widened (once, here), and a
-// spatial index built (docs/_culture.md, "Loading").
+// spatial index built (docs/CULTURE.md, "Loading").
 #include <gdal.h>
 #include <ogr_api.h>
 #include <ogr_geometry.h>

@@ -1,4 +1,4 @@
-// The material table's text format (docs/_format_materials.md): a line
+// The material table's text format (docs/FORMAT.md §11): a line
 // parser that reports every problem with the file and the byte offset of
 // its line, the canonical writer, and the rule matcher.
 #include "sandtable/formats/materials.h"
@@ -420,7 +420,7 @@ Result<Table> readFile(const std::string& path) {
 }
 
 std::string format(const Table& t) {
-  std::string s = "# sandtable material table (docs/_format_materials.md)\n";
+  std::string s = "# sandtable material table (docs/FORMAT.md §11)\n";
   s += kHeaderLine;
   s += "\n";
   for (const Class& c : t.classes) {

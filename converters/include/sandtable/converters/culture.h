@@ -4,7 +4,7 @@
 // into the database frame, repaired, and decaled onto the terrain
 // triangles of one module level (seed chapter V, sections C, D and H;
 // Figures 14-18). The pipeline and the renderer's contract for decals are
-// in docs/_culture.md.
+// in docs/CULTURE.md.
 //
 // Area classes become the skin: inside every grid triangle the skin
 // polygons tile the triangle exactly, the highest-rank class winning where

@@ -1,6 +1,6 @@
 #pragma once
 // The material cross-reference table (seed Figure 39, redone as editable
-// text; grammar in docs/_format_materials.md). It lists the classes of soil, ground
+// text; grammar in docs/FORMAT.md §11). It lists the classes of soil, ground
 // cover, roads and other features with their colours, material and texture
 // ids and draw priority, and the rules that map source attributes (OSM
 // tags, shapefile fields, GeoPackage layer names) to a class and a width.
