@@ -4,14 +4,22 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
+#include <future>
+#include <mutex>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
 #include "sandtable/formats/bytes.h"
+#include "camera_math.h"
 #include "sandtable/runtime/display_buffer.h"
 #include "sandtable/runtime/hud.h"
+#include "sandtable/runtime/module_scene.h"
+#include "sandtable/runtime/pager.h"
 #include "sandtable/runtime/renderer.h"
 #include "sandtable/runtime/terrain.h"
 
@@ -78,19 +86,6 @@ std::string format(const char* fmt, double a, double b = 0, double c = 0) {
   return buf;
 }
 
-std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o, double speedKmh) {
-  std::vector<std::string> lines;
-  lines.push_back("FRAME " + std::to_string(s.frame) + format("  T %.2f S", s.timeS));
-  lines.push_back(format("E %.1f  N %.1f", s.easting, s.northing));
-  if (s.lon && s.lat) lines.push_back(format("LAT %.5f\xC2\xB0  LON %.5f\xC2\xB0", *s.lat, *s.lon));
-  lines.push_back(format("EYE %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl));
-  lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, speedKmh));
-  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", o.hfovDeg, o.viewDistance));
-  lines.push_back("TRIS " + std::to_string(s.triangles) + "  STRIPS " + std::to_string(s.strips));
-  lines.push_back(format("CPU %.1f MS  FRAME %.1f MS", s.cpuMs, s.cpuMs + s.renderMs));
-  return lines;
-}
-
 nlohmann::json frameJson(const FrameStats& s) {
   nlohmann::json j = {{"frame", s.frame},
                       {"time_s", s.timeS},
@@ -104,7 +99,19 @@ nlohmann::json frameJson(const FrameStats& s) {
                       {"northing", s.northing},
                       {"eye_elevation", s.eyeElevation},
                       {"height_agl", s.heightAgl},
-                      {"heading", s.headingDeg}};
+                      {"heading", s.headingDeg},
+                      {"fps", s.fps},
+                      {"speed_kmh", s.speedKmh}};
+  if (!s.levelCounts.empty()) {
+    j["modules"] = {{"drawn", s.modulesDrawn},     {"missing", s.modulesMissing},
+                    {"coarser", s.modulesCoarser}, {"culled", s.modulesCulled},
+                    {"per_level", s.levelCounts},  {"max_error_px", s.maxErrorPx},
+                    {"uploads", s.uploads},        {"cached_levels", s.cachedLevels},
+                    {"gpu_bytes", s.gpuBytes}};
+    j["pager"] = {{"resident_in_window", s.residentModules},
+                  {"window_modules", s.windowModules},
+                  {"queue", s.pagerQueue}};
+  }
   j["lon"] = s.lon ? nlohmann::json(*s.lon) : nlohmann::json(nullptr);
   j["lat"] = s.lat ? nlohmann::json(*s.lat) : nlohmann::json(nullptr);
   return j;
@@ -112,6 +119,8 @@ nlohmann::json frameJson(const FrameStats& s) {
 
 nlohmann::json summaryJson(const FlightSummary& s) {
   return {{"frames", s.frames},
+          {"mode", s.mode},
+          {"lod", s.lod},
           {"triangles_mean", s.trianglesMean},
           {"frame_ms_p50", s.frameMsP50},
           {"frame_ms_p99", s.frameMsP99},
@@ -128,9 +137,11 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
   j["summary"] = summaryJson(r.summary);
   j["timing"] = {
       {"simulated_frame_rate", kFramesPerSecond},
-      {"note", "time_s is simulated (frame / 30). cpu_ms: view triangle, selection and vertex "
-               "build; render_ms: upload, draw and glReadPixels (waits for the GPU); frame_ms: "
-               "cpu + render + panel; png_ms is not in frame_ms or fps"}};
+      {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
+               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload, "
+               "draw and glReadPixels (waits for the GPU); frame_ms: time between frame "
+               "completions on the render thread (the threads overlap), frame 0 cpu + render + "
+               "panel; png_ms is not in frame_ms or fps"}};
   j["options"] = {{"size", std::to_string(o.width) + "x" + std::to_string(o.height)},
                   {"height_agl", o.heightAgl},
                   {"pitch", o.pitchDeg},
@@ -138,6 +149,11 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"fov", o.hfovDeg},
                   {"view_distance", o.viewDistance},
                   {"fog", o.fog},
+                  {"mode", terrainModeName(o.mode)},
+                  {"lod", lodModeName(o.lod.mode)},
+                  {"rings", o.lod.rings},
+                  {"pixel_error", o.lod.pixelError},
+                  {"morph", o.lod.morph},
                   {"hud", o.hud},
                   {"path_waypoints", o.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -165,6 +181,10 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
   return s;
 }
 
+double effectiveViewDistance(const FlightOptions& o) {
+  return o.fogDensity > 0 ? detail::viewDistanceForFog(o.fogDensity) : o.viewDistance;
+}
+
 /// Camera for a pose; the ground under the eye comes from `ground`.
 Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, double ground) {
   Camera c;
@@ -175,66 +195,353 @@ Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, d
   c.pitchDeg = o.pitchDeg;
   c.hfovDeg = o.hfovDeg;
   c.aspect = double(o.width) / double(o.height);
-  c.viewDistance = o.viewDistance;
+  c.viewDistance = effectiveViewDistance(o);
   return c;
 }
 
+/// A display buffer with what the main thread knows about its frame.
+struct Slot {
+  DisplayBuffer buf;
+  FrameStats stats;
+};
+
+/// Seed Figure 44: two buffers go round between the main thread, which
+/// fills a free one, and the render thread, which draws a full one. Both
+/// sides sleep on the condition variable when they have nothing to do.
+class Handoff {
+ public:
+  explicit Handoff(std::array<Slot, 2>& slots) { free_ = {&slots[0], &slots[1]}; }
+
+  /// Main thread: a buffer to fill; null once the render thread failed.
+  Slot* takeFree() {
+    std::unique_lock lock(m_);
+    cv_.wait(lock, [&] { return failed_ || !free_.empty(); });
+    if (failed_) return nullptr;
+    Slot* s = free_.front();
+    free_.pop_front();
+    return s;
+  }
+  void pushFull(Slot* s) {
+    { std::lock_guard lock(m_); full_.push_back(s); }
+    cv_.notify_all();
+  }
+  /// Render thread: a buffer to draw; null when the main thread is done.
+  Slot* takeFull() {
+    std::unique_lock lock(m_);
+    cv_.wait(lock, [&] { return closed_ || !full_.empty(); });
+    if (full_.empty()) return nullptr;
+    Slot* s = full_.front();
+    full_.pop_front();
+    return s;
+  }
+  void pushFree(Slot* s) {
+    { std::lock_guard lock(m_); free_.push_back(s); }
+    cv_.notify_all();
+  }
+  void close() {
+    { std::lock_guard lock(m_); closed_ = true; }
+    cv_.notify_all();
+  }
+  void fail() {
+    { std::lock_guard lock(m_); failed_ = true; }
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<Slot*> free_, full_;
+  bool closed_ = false, failed_ = false;
+};
+
 /// Everything one flight owns while it runs.
 struct FlightRun {
+  FlightRun(const FlightOptions& options, std::shared_ptr<const grid::GridFile> g, RenderSettings rs)
+      : o(options), grid(g), terrain(std::move(g)), renderSettings(std::move(rs)) {}
+
   const FlightOptions& o;
   std::shared_ptr<const grid::GridFile> grid;
   Terrain terrain;
-  std::unique_ptr<Renderer> renderer;
-  // Seed Figure 44: selection fills one buffer while the renderer draws
-  // the other. This loop is sequential, but already alternates.
-  std::array<DisplayBuffer, 2> buffers;
-  Image image;
+  RenderSettings renderSettings;
+  Pager* pager = nullptr;                 ///< module mode
+  std::unique_ptr<ModuleScene> scene;     ///< module mode
+  std::array<Slot, 2> slots;
+  Handoff handoff{slots};
   double ground = 0;  ///< last ground elevation seen under the eye
+  // Written by the render thread only; read after it is joined.
   FlightReport report;
+  std::string renderError;
+  std::string rendererName, rendererDetail;
 
-  std::string runFrame(std::uint32_t k) {
-    FrameStats s;
-    s.frame = k;
-    s.timeS = k / kFramesPerSecond;
-    const Pose pose = poseAt(o, s.timeS);
+  /// Main thread, one frame: motion, paging, selection into a free buffer.
+  /// False when the flight ends (the controller said so, or rendering failed).
+  bool produce(std::uint32_t k, Pose& previous) {
+    const double t = k / kFramesPerSecond;
+    Pose pose;
+    if (o.controller) {
+      auto p = o.controller(k, t);
+      if (!p) return false;
+      pose = *p;
+    } else {
+      pose = poseAt(o, t);
+    }
     if (auto sample = terrain.sampleEN(pose.easting, pose.northing)) ground = sample->elevation;
     const Camera cam = cameraFor(grid->header(), o, pose, ground);
-
-    const auto t0 = Clock::now();
-    DisplayBuffer& buf = buffers[k % 2];
-    fillDisplayBuffer(*grid, cam, k, buf);
-    const auto t1 = Clock::now();
-    if (std::string err = renderer->draw(buf, image); !err.empty()) return err;
-    s.cpuMs = buf.cpuMs;
-    s.renderMs = msSince(t1);
-    s.triangles = buf.triangles;
-    s.strips = buf.firsts.size();
+    if (pager) {
+      // Velocity in the world frame (X east, Z south) for the lead strips.
+      const Pose ahead = k == 0 && !o.controller ? poseAt(o, 1 / kFramesPerSecond) : pose;
+      const Pose& from = k == 0 ? pose : previous;
+      const Pose& to = k == 0 ? ahead : pose;
+      const double vx = (to.easting - from.easting) * kFramesPerSecond;
+      const double vz = -(to.northing - from.northing) * kFramesPerSecond;
+      pager->update(cam.x, cam.z, vx, vz, t);
+      if (k == 0 || o.pagerSync) pager->waitIdle(120);
+    }
+    previous = pose;
+    Slot* slot = handoff.takeFree();
+    if (!slot) return false;
+    if (scene) {
+      scene->fill(cam, k, slot->buf);
+    } else {
+      fillDisplayBuffer(*grid, cam, k, slot->buf);
+      slot->buf.moduleMode = false;
+    }
+    FrameStats& s = slot->stats;
+    s = FrameStats{};
+    s.frame = k;
+    s.timeS = t;
+    s.cpuMs = slot->buf.cpuMs;
+    s.triangles = slot->buf.triangles;
+    s.strips = slot->buf.firsts.size();
     s.easting = pose.easting;
     s.northing = pose.northing;
     s.eyeElevation = cam.y;
     s.heightAgl = pose.heightAgl;
     s.headingDeg = pose.headingDeg;
+    s.speedKmh = pose.speedKmh;
+    if (slot->buf.moduleMode) {
+      const SceneStats& sc = slot->buf.scene;
+      s.modulesDrawn = sc.modulesDrawn;
+      s.modulesMissing = sc.modulesMissing;
+      s.modulesCoarser = sc.modulesCoarser;
+      s.modulesCulled = sc.modulesCulled;
+      s.levelCounts = sc.levelCounts;
+      s.maxErrorPx = sc.maxErrorPx;
+      s.residentModules = sc.residentInWindow;
+      s.windowModules = sc.windowModules;
+      s.pagerQueue = sc.pagerQueue;
+    }
     if (o.toLonLat) {
       if (auto ll = o.toLonLat(pose.easting, pose.northing)) {
         s.lon = ll->first;
         s.lat = ll->second;
       }
     }
-    if (o.hud) drawHudPanel(image, hudLines(s, o, pose.speedKmh));
-    s.frameMs = msSince(t0);
-    if (o.onFrame) o.onFrame(k, image);
-    if (!o.outDir.empty()) {
-      const auto t2 = Clock::now();
-      const std::string path = (std::filesystem::path(o.outDir) / frameFileName(k)).string();
-      if (std::string err = writePng(path, image); !err.empty()) return err;
-      s.pngMs = msSince(t2);
+    handoff.pushFull(slot);
+    return true;
+  }
+
+  /// Render thread: draws, reads back, composites and hands out each
+  /// frame, then returns the buffer (its pager guards released).
+  void consume(Renderer& renderer) {
+    Image image;
+    Clock::time_point lastDone{};
+    double lastPngMs = 0;
+    while (Slot* slot = handoff.takeFull()) {
+      FrameStats s = slot->stats;
+      const auto t0 = Clock::now();
+      const std::string err = renderer.draw(slot->buf, image);
+      s.renderMs = msSince(t0);
+      slot->buf.modules.clear();  // release the pager's guards within the frame
+      const RenderStats& rs = renderer.stats();
+      s.uploads = rs.uploads;
+      s.cachedLevels = rs.cachedLevels;
+      s.gpuBytes = rs.gpuBytes;
+      handoff.pushFree(slot);
+      if (!err.empty()) {
+        renderError = err;
+        handoff.fail();
+        return;
+      }
+      const auto now = Clock::now();
+      s.frameMs = report.frames.empty()
+                      ? s.cpuMs + s.renderMs
+                      : std::chrono::duration<double, std::milli>(now - lastDone).count() - lastPngMs;
+      s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
+      if (o.hud) drawHudPanel(image, hudLines(s, o));
+      if (o.composite) o.composite(image, s);
+      s.frameMs += msSince(now);  // the panel is part of the frame
+      lastDone = Clock::now();
+      if (o.onFrame) o.onFrame(s.frame, image);
+      lastPngMs = 0;
+      if (!o.outDir.empty()) {
+        const auto t2 = Clock::now();
+        const std::string path = (std::filesystem::path(o.outDir) / frameFileName(s.frame)).string();
+        if (std::string e = writePng(path, image); !e.empty()) {
+          renderError = e;
+          handoff.fail();
+          return;
+        }
+        s.pngMs = msSince(t2);
+      }
+      lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
+      report.frames.push_back(std::move(s));
     }
-    report.frames.push_back(std::move(s));
-    return {};
+  }
+
+  /// The render thread's body: the GL context is made, used and destroyed here.
+  void renderThread(std::promise<std::vector<Problem>>& ready) {
+    auto renderer = Renderer::create(renderSettings);
+    if (!renderer) {
+      ready.set_value(renderer.problems());
+      return;
+    }
+    rendererName = renderer.value()->glRenderer();
+    rendererDetail = renderer.value()->description();
+    ready.set_value({});
+    consume(*renderer.value());
+  }
+
+  Result<FlightReport> run() {
+    std::promise<std::vector<Problem>> ready;
+    auto readyFuture = ready.get_future();
+    std::thread render([&] { renderThread(ready); });
+    if (auto problems = readyFuture.get(); !problems.empty()) {
+      render.join();
+      return problems;
+    }
+    const Pose start = o.controller ? Pose{} : poseAt(o, 0);
+    if (auto sample = terrain.sampleEN(start.easting, start.northing)) ground = sample->elevation;
+    Pose previous = start;
+    for (std::uint32_t k = 0; k < o.frames; ++k) {
+      if (!produce(k, previous)) break;
+    }
+    handoff.close();
+    render.join();
+    for (auto& slot : slots) slot.buf.modules.clear();
+    if (!renderError.empty()) return Problem{"fly", 0, renderError};
+    FlightReport& r = report;
+    r.summary = summarize(r.frames);
+    r.summary.mode = scene ? "modules" : "mesh";
+    r.summary.lod = scene ? lodModeName(o.lod.mode) : "";
+    r.summary.renderer = rendererName;
+    r.summary.rendererDetail = rendererDetail;
+    r.summary.width = o.width;
+    r.summary.height = o.height;
+    if (!o.outDir.empty()) {
+      const std::string path = (std::filesystem::path(o.outDir) / "stats.json").string();
+      if (std::string err = writeStats(path, r, o); !err.empty()) return Problem{"fly", 0, err};
+      r.summary.statsPath = path;
+    }
+    return std::move(r);
   }
 };
 
+RenderSettings renderSettingsFor(const grid::GridFile& g, const FlightOptions& o) {
+  RenderSettings rs;
+  rs.width = o.width;
+  rs.height = o.height;
+  rs.background = o.background;
+  rs.fog = o.fog;
+  rs.sky = o.sky;
+  rs.clearColour = o.clearColour;
+  rs.minElevation = g.header().minElevation;
+  rs.maxElevation = g.header().maxElevation;
+  return rs;
+}
+
+std::vector<MaterialColour> paletteFor(const materials::Table& t) {
+  std::vector<MaterialColour> p;
+  for (const auto& c : t.classes) {
+    if (c.id >= p.size()) p.resize(std::size_t(c.id) + 1);
+    const auto rgb = [](std::uint32_t v) {
+      return Rgb{std::uint8_t(v >> 16), std::uint8_t(v >> 8), std::uint8_t(v)};
+    };
+    p[c.id] = {rgb(c.upperRgb), rgb(c.lowerRgb)};
+  }
+  return p;
+}
+
+Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Database* db,
+                             const FlightOptions& o) {
+  if (!g) return Problem{"fly", 0, "no grid"};
+  if (auto problems = checkFlightOptions(g, o); !problems.empty()) return problems;
+  const bool haveModules = db && db->modules;
+  if (o.mode == TerrainMode::modules && !haveModules) {
+    return Problem{kFlightOptionProblem, 0,
+                   "--mode modules needs load modules (modules.pack); build the database with "
+                   "`sandtable build ... --culture` or fly it with --mode mesh"};
+  }
+  const bool modules = haveModules && o.mode != TerrainMode::mesh;
+  if (!o.outDir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.outDir, ec);
+    if (ec) {
+      return Problem{kFlightOptionProblem, 0,
+                     "cannot create the output directory " + o.outDir + ": " + ec.message()};
+    }
+  }
+  std::unique_ptr<Pager> pager;
+  if (modules) {
+    PagerOptions po;
+    po.viewDistance = effectiveViewDistance(o);
+    po.loaderThreads = o.pagerLoaders;
+    po.memoryBudgetBytes = o.pagerBudgetBytes;
+    auto p = Pager::open(*db, po);
+    if (!p) return p.problems();
+    pager = std::move(p.value());
+  }
+  FlightRun run(o, g, renderSettingsFor(*g, o));
+  if (pager) {
+    if (db->materials) run.renderSettings.palette = paletteFor(*db->materials);
+    ModuleSceneSettings ss;
+    ss.lod = o.lod;
+    ss.imageHeight = o.height;
+    ss.gridSpacing = g->spacing();
+    ss.minElevation = g->header().minElevation;
+    run.scene = std::make_unique<ModuleScene>(*pager, ss);
+    run.pager = pager.get();
+  }
+  auto result = run.run();
+  if (pager) pager->stop();
+  return result;
+}
+
 }  // namespace
+
+const char* terrainModeName(TerrainMode m) {
+  switch (m) {
+    case TerrainMode::automatic: return "auto";
+    case TerrainMode::mesh: return "mesh";
+    case TerrainMode::modules: return "modules";
+  }
+  return "?";
+}
+
+std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
+  std::vector<std::string> lines;
+  lines.push_back("FRAME " + std::to_string(s.frame) + format("  T %.2f S", s.timeS));
+  lines.push_back(format("E %.1f  N %.1f", s.easting, s.northing));
+  if (s.lon && s.lat) lines.push_back(format("LAT %.5f\xC2\xB0  LON %.5f\xC2\xB0", *s.lat, *s.lon));
+  lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl));
+  lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
+  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", o.hfovDeg, effectiveViewDistance(o)));
+  lines.push_back(format("FPS %.1f  FRAME %.1f MS  CPU %.1f MS", s.fps, s.frameMs, s.cpuMs));
+  if (s.levelCounts.empty()) {
+    lines.push_back("TRIS " + std::to_string(s.triangles) + "  STRIPS " + std::to_string(s.strips));
+    return lines;
+  }
+  std::string levels;
+  for (std::size_t l = 0; l < s.levelCounts.size(); ++l) {
+    levels += (l ? "/" : "") + std::to_string(s.levelCounts[l]);
+  }
+  lines.push_back("TRIS " + std::to_string(s.triangles) + "  LOD " + lodModeName(o.lod.mode) +
+                  " " + levels);
+  lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  RESIDENT " +
+                  std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules) +
+                  "  QUEUE " + std::to_string(s.pagerQueue));
+  return lines;
+}
 
 Pose poseAt(const FlightOptions& o, double t) {
   return o.path.size() >= 2 ? pathPose(o.path, t) : straightPose(o, t);
@@ -255,11 +562,18 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
     bad("--size must be between 16x16 and 16384x16384");
   }
   if (!(o.hfovDeg >= 10 && o.hfovDeg <= 90)) bad("--fov must be between 10 and 90 degrees");
-  if (!(o.viewDistance >= 10 && o.viewDistance <= 1e6)) bad("--view-distance must be 10 m .. 1000 km");
+  if (!(o.fogDensity >= 0) || !std::isfinite(o.fogDensity)) bad("--fog-density must be >= 0");
+  const double vd = effectiveViewDistance(o);
+  if (!(vd >= 10 && vd <= 1e6)) {
+    bad(o.fogDensity > 0 ? "--fog-density must give a view distance of 10 m .. 1000 km"
+                         : "--view-distance must be 10 m .. 1000 km");
+  }
   if (!(o.pitchDeg >= -89 && o.pitchDeg <= 89)) bad("--pitch must be between -89 and 89 degrees");
   if (!(o.speedKmh >= 0 && o.speedKmh <= 1e5)) bad("--speed must be 0 .. 100000 km/h");
   if (!std::isfinite(o.headingDeg)) bad("--heading must be a number");
   if (!(o.heightAgl >= 0 && o.heightAgl < 1e5)) bad("--height must be 0 .. 100000 m");
+  if (std::string e = checkLodOptions(o.lod); !e.empty()) bad(e);
+  if (o.pagerLoaders < 1 || o.pagerLoaders > 4) bad("pager loaders must be 1..4");
   const Terrain terrain(std::move(g));
   if (o.path.size() == 1) bad("--path needs at least two waypoints");
   if (o.path.size() >= 2) {
@@ -270,51 +584,18 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
       if (!(w.heightAgl >= 0 && w.heightAgl < 1e5)) bad(which + ": height must be 0 .. 100000 m");
       if (k == 0 && !terrain.sampleEN(w.easting, w.northing)) bad(which + " is outside the database");
     }
-  } else if (!terrain.sampleEN(o.easting, o.northing)) {
+  } else if (!o.controller && !terrain.sampleEN(o.easting, o.northing)) {
     bad("the start point is outside the database");
   }
   return out;
 }
 
 Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o) {
-  if (!g) return Problem{"fly", 0, "no grid"};
-  if (auto problems = checkFlightOptions(g, o); !problems.empty()) return problems;
-  if (!o.outDir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(o.outDir, ec);
-    if (ec) {
-      return Problem{kFlightOptionProblem, 0,
-                     "cannot create the output directory " + o.outDir + ": " + ec.message()};
-    }
-  }
-  RenderSettings rs;
-  rs.width = o.width;
-  rs.height = o.height;
-  rs.background = o.background;
-  rs.fog = o.fog;
-  rs.minElevation = g->header().minElevation;
-  rs.maxElevation = g->header().maxElevation;
-  auto renderer = Renderer::create(rs);
-  if (!renderer) return renderer.problems();
+  return flyWith(std::move(g), nullptr, o);
+}
 
-  FlightRun run{o, g, Terrain(g), std::move(renderer.value()), {}, {}, 0, {}};
-  const Pose start = poseAt(o, 0);
-  run.ground = run.terrain.sampleEN(start.easting, start.northing)->elevation;
-  for (std::uint32_t k = 0; k < o.frames; ++k) {
-    if (std::string err = run.runFrame(k); !err.empty()) return Problem{"fly", 0, err};
-  }
-  FlightReport& r = run.report;
-  r.summary = summarize(r.frames);
-  r.summary.renderer = run.renderer->glRenderer();
-  r.summary.rendererDetail = run.renderer->description();
-  r.summary.width = o.width;
-  r.summary.height = o.height;
-  if (!o.outDir.empty()) {
-    const std::string path = (std::filesystem::path(o.outDir) / "stats.json").string();
-    if (std::string err = writeStats(path, r, o); !err.empty()) return Problem{"fly", 0, err};
-    r.summary.statsPath = path;
-  }
-  return std::move(r);
+Result<FlightReport> fly(const Database& db, const FlightOptions& o) {
+  return flyWith(db.grid, &db, o);
 }
 
 }  // namespace sandtable::runtime

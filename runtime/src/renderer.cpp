@@ -8,7 +8,9 @@
 #include <cstddef>
 #include <cstring>
 
+#include "camera_math.h"
 #include "egl_context.h"
+#include "module_draw.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -20,8 +22,6 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 // mountains turn white from about 2,000 m above their valleys (rock at
 // 0.66 of the range, snow complete at 0.84).
 constexpr float kTintRangeMetres = 2500.0f;
-// Linear fog starts at this fraction of the view distance.
-constexpr float kFogStartFraction = 0.25f;
 
 const char* kTerrainVertexShader = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;
@@ -47,8 +47,7 @@ uniform float uTintBase;
 uniform float uTintRange;
 uniform vec3 uSun;
 uniform vec3 uFogColor;
-uniform float uFogStart;
-uniform float uFogEnd;
+uniform float uFogDensity;
 uniform bool uFog;
 out vec4 fragColor;
 
@@ -77,8 +76,8 @@ void main() {
   float light = 0.38 + 0.62 * max(dot(n, uSun), 0.0);
   vec3 color = hypsometric(vElevation) * light;
   if (uFog) {
-    float f = clamp((vDistance - uFogStart) / (uFogEnd - uFogStart), 0.0, 1.0);
-    color = mix(color, uFogColor, f);
+    float k = uFogDensity * vDistance;
+    color = mix(uFogColor, color, exp(-k * k));
   }
   fragColor = vec4(color, 1.0);
 }
@@ -132,7 +131,9 @@ GLuint compile(GLenum type, const char* source, std::string& error) {
   return s;
 }
 
-GLuint link(const char* vs, const char* fs, std::string& error) {
+}  // namespace
+
+GLuint detail::linkProgram(const char* vs, const char* fs, std::string& error) {
   const GLuint v = compile(GL_VERTEX_SHADER, vs, error);
   if (!v) return 0;
   const GLuint f = compile(GL_FRAGMENT_SHADER, fs, error);
@@ -156,36 +157,13 @@ GLuint link(const char* vs, const char* fs, std::string& error) {
   return p;
 }
 
+namespace {
+
+GLuint link(const char* vs, const char* fs, std::string& error) {
+  return detail::linkProgram(vs, fs, error);
+}
+
 Eigen::Vector3f toVec(Rgb c) { return {c.r / 255.0f, c.g / 255.0f, c.b / 255.0f}; }
-
-/// OpenGL perspective projection (right-handed eye space, looking down -Z).
-Eigen::Matrix4d perspective(double vfovDeg, double aspect, double nearPlane, double farPlane) {
-  const double f = 1.0 / std::tan(vfovDeg * kDegToRad / 2.0);
-  Eigen::Matrix4d m = Eigen::Matrix4d::Zero();
-  m(0, 0) = f / aspect;
-  m(1, 1) = f;
-  m(2, 2) = (farPlane + nearPlane) / (nearPlane - farPlane);
-  m(2, 3) = 2.0 * farPlane * nearPlane / (nearPlane - farPlane);
-  m(3, 2) = -1.0;
-  return m;
-}
-
-/// World-to-eye for an eye at `eye` turned to heading (clockwise from -Z)
-/// and pitched (positive up).
-Eigen::Matrix4d lookFrom(const Eigen::Vector3d& eye, double headingDeg, double pitchDeg) {
-  const double h = headingDeg * kDegToRad, p = pitchDeg * kDegToRad;
-  const Eigen::Vector3d forward(std::cos(p) * std::sin(h), std::sin(p), -std::cos(p) * std::cos(h));
-  const Eigen::Vector3d right(std::cos(h), 0.0, std::sin(h));
-  const Eigen::Vector3d up = right.cross(forward);
-  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-  m.block<1, 3>(0, 0) = right.transpose();
-  m.block<1, 3>(1, 0) = up.transpose();
-  m.block<1, 3>(2, 0) = -forward.transpose();
-  m(0, 3) = -right.dot(eye);
-  m(1, 3) = -up.dot(eye);
-  m(2, 3) = forward.dot(eye);
-  return m;
-}
 
 /// Direction towards the fixed sun: azimuth 200 degrees (south-south-west,
 /// so a northbound eye sees the slopes facing it lit), 40 degrees up.
@@ -205,9 +183,12 @@ struct Renderer::Impl {
   GLuint terrainProgram = 0, skyProgram = 0;
   GLuint terrainVao = 0, skyVao = 0, vbo = 0;
   std::vector<std::uint8_t> readback;
+  std::unique_ptr<detail::ModuleRenderer> modules;
+  RenderStats stats;
 
   ~Impl() {
     if (!egl) return;
+    modules.reset();
     glDeleteProgram(terrainProgram);
     glDeleteProgram(skyProgram);
     glDeleteVertexArrays(1, &terrainVao);
@@ -223,7 +204,7 @@ struct Renderer::Impl {
     glCreateRenderbuffers(1, &colorRb);
     glNamedRenderbufferStorage(colorRb, GL_RGBA8, w, h);
     glCreateRenderbuffers(1, &depthRb);
-    glNamedRenderbufferStorage(depthRb, GL_DEPTH_COMPONENT24, w, h);
+    glNamedRenderbufferStorage(depthRb, GL_DEPTH_COMPONENT32F, w, h);
     glCreateFramebuffers(1, &fbo);
     glNamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colorRb);
     glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb);
@@ -254,6 +235,8 @@ struct Renderer::Impl {
     if (!terrainProgram) return "terrain " + error;
     skyProgram = link(kSkyVertexShader, kSkyFragmentShader, error);
     if (!skyProgram) return "sky " + error;
+    modules = std::make_unique<detail::ModuleRenderer>();
+    if (std::string e = modules->create(settings, sunDirection()); !e.empty()) return e;
     // Settings that never change over a flight.
     const Eigen::Vector3f fogColor = toVec(settings.background);
     const float base = std::max(settings.minElevation, 0.0f);
@@ -289,25 +272,20 @@ struct Renderer::Impl {
   void drawTerrain(const DisplayBuffer& buf) {
     if (buf.vertices.empty()) return;
     const Camera& cam = buf.camera;
-    const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
+    const Eigen::Vector3f eyeF(float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
     const Eigen::Matrix4f viewProjection =
-        (perspective(cam.vfovDeg(), cam.aspect, cam.nearPlane, cam.viewDistance) *
-         lookFrom(eye, cam.headingDeg, cam.pitchDeg))
-            .cast<float>();
-    const Eigen::Vector3f eyeF = eye.cast<float>();
-    const auto d = float(cam.viewDistance);
+        detail::viewProjection(cam, buf.originX, buf.originZ).cast<float>();
     glProgramUniformMatrix4fv(terrainProgram, glGetUniformLocation(terrainProgram, "uViewProjection"),
                               1, GL_FALSE, viewProjection.data());
     glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uEye"), 1, eyeF.data());
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogStart"),
-                       d * kFogStartFraction);
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogEnd"), d);
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogDensity"),
+                       float(detail::fogDensityFor(cam.viewDistance)));
     // Re-specifying the store each frame orphans last frame's copy, so the
     // driver never waits for the GPU to finish with it.
     glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(TerrainVertex)),
                       buf.vertices.data(), GL_STREAM_DRAW);
     glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
+    glDepthFunc(GL_GREATER);  // reversed Z
     // From above a height field only front faces can be the nearest surface.
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
@@ -322,10 +300,19 @@ struct Renderer::Impl {
   void renderInto(const DisplayBuffer& buf) {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, GLsizei(settings.width), GLsizei(settings.height));
-    glClearDepth(1.0);
-    glClear(GL_DEPTH_BUFFER_BIT);  // the sky covers every pixel's colour
-    drawSky(buf.camera);
-    drawTerrain(buf);
+    glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
+    glClearDepth(0.0);  // reversed Z: 0 is the far plane
+    const Rgb c = settings.clearColour;
+    glClearColor(c.r / 255.0f, c.g / 255.0f, c.b / 255.0f, 1.0f);
+    glClear(GL_DEPTH_BUFFER_BIT | (settings.sky ? 0 : GL_COLOR_BUFFER_BIT));
+    if (settings.sky) drawSky(buf.camera);
+    stats = RenderStats{};
+    if (buf.moduleMode) {
+      const Eigen::Matrix4f vp = detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+      modules->draw(buf, vp, stats);
+    } else {
+      drawTerrain(buf);
+    }
   }
 
   /// llvmpipe compiles shaders for the actual state on the first draw;
@@ -396,6 +383,8 @@ std::string Renderer::draw(const DisplayBuffer& buf, Image& out) {
   if (e != GL_NO_ERROR) return "renderer: GL error " + std::to_string(e) + " in frame " + std::to_string(buf.frame);
   return {};
 }
+
+const RenderStats& Renderer::stats() const { return impl_->stats; }
 
 const std::string& Renderer::glRenderer() const { return impl_->rendererName; }
 

@@ -41,6 +41,13 @@ struct FlyArgs {
   std::string background = "87CEEB";
   bool noHud = false;
   bool noFog = false;
+  std::string mode = "auto";
+  std::string lod = "rings";
+  std::string rings;
+  double pixelError = 2.0;
+  bool noMorph = false;
+  double fogDensity = 0;
+  bool pagerSync = false;
 };
 
 const char* kFooter = R"(Time: frame k shows the eye at k/30 s of simulated time, whatever the real
@@ -57,6 +64,17 @@ waypoint once it gets there. Example:
     8.10 46.60 200
     8.20 46.65 200 150
     8.30 46.70 800
+
+Terrain (docs/VIEWER.md): with load modules (modules.pack, from `sandtable build
+--culture`) the stealth viewer draws them through the predictive pager, one level
+of detail per module, with skirts over the seams, material colours and road and
+area decals over the skin; --mode mesh draws the full-resolution grid instead.
+--lod rings chooses levels by range rings (seed Figure 84; default: Table 8's four
+equal bins scaled to --view-distance, or --rings M,M,... as the outer edges of
+each level's bin, finest first); --lod sse by projected error (--pixel-error PX);
+--lod full always draws the finest level. Levels geomorph unless --no-morph.
+--fog-density D (per metre) sets the view distance to the fog's obscuration
+distance sqrt(ln 255)/D (seed IX.A.3); otherwise the density follows it.
 
 Writes OUT_DIR/frame_00000.png ... and OUT_DIR/stats.json (per-frame timing,
 position and triangle counts; summary with fps and the GL renderer).
@@ -165,6 +183,31 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.hfovDeg = a.fov;
   o.hud = !a.noHud;
   o.fog = !a.noFog;
+  if (a.mode == "auto") o.mode = runtime::TerrainMode::automatic;
+  else if (a.mode == "mesh") o.mode = runtime::TerrainMode::mesh;
+  else if (a.mode == "modules") o.mode = runtime::TerrainMode::modules;
+  else return "--mode must be auto, mesh or modules, not \"" + a.mode + "\"";
+  if (a.lod == "rings") o.lod.mode = runtime::LodMode::rings;
+  else if (a.lod == "sse") o.lod.mode = runtime::LodMode::sse;
+  else if (a.lod == "full") o.lod.mode = runtime::LodMode::full;
+  else return "--lod must be rings, sse or full, not \"" + a.lod + "\"";
+  if (!a.rings.empty()) {
+    std::stringstream in(a.rings);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+      try {
+        std::size_t used = 0;
+        o.lod.rings.push_back(std::stod(item, &used));
+        if (used != item.size()) throw std::invalid_argument(item);
+      } catch (const std::exception&) {
+        return "--rings must be metres separated by commas, e.g. 1500,3000,4500";
+      }
+    }
+  }
+  o.lod.pixelError = a.pixelError;
+  o.lod.morph = !a.noMorph;
+  o.fogDensity = a.fogDensity;
+  o.pagerSync = a.pagerSync;
   const auto& h = db.grid->header();
   o.easting = h.originEasting + h.spacing * (h.postsX - 1) / 2.0;
   o.northing = h.originNorthing - h.spacing * (h.postsZ - 1) / 2.0;
@@ -192,6 +235,7 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r) {
               runtime::frameFileName(s.frames - 1).c_str());
   std::printf("  stats:    %s\n", s.statsPath.c_str());
   std::printf("  renderer: %s\n", s.rendererDetail.c_str());
+  std::printf("  terrain:  %s%s%s\n", s.mode.c_str(), s.lod.empty() ? "" : ", lod ", s.lod.c_str());
   std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + read-back;"
               " PNG writing excluded), %.0f triangles per frame\n",
               s.fpsMean, s.frameMsP50, s.frameMsP99, s.trianglesMean);
@@ -206,7 +250,7 @@ int run(const FlyArgs& a) {
   if (std::string err = buildOptions(a, db.value(), *geo.value(), o); !err.empty()) {
     return usageError(kName, err);
   }
-  auto report = runtime::fly(db->grid, o);
+  auto report = runtime::fly(db.value(), o);
   if (!report) {
     // Bad options and a missing GL context are the caller's to fix (2);
     // anything else went wrong while flying (1).
@@ -250,6 +294,17 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--background", args->background, "Sky and fog colour RRGGBB")->capture_default_str();
   sub->add_flag("--no-hud", args->noHud, "Leave out the information panel");
   sub->add_flag("--no-fog", args->noFog, "No fog");
+  sub->add_option("--mode", args->mode, "Terrain: auto (modules when the database has them), mesh, modules")
+      ->capture_default_str();
+  sub->add_option("--lod", args->lod, "Module level of detail: rings, sse or full")->capture_default_str();
+  sub->add_option("--rings", args->rings, "Outer edge of each level's range bin, metres, finest first (M,M,...)");
+  sub->add_option("--pixel-error", args->pixelError, "--lod sse: largest projected error, pixels")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  sub->add_flag("--no-morph", args->noMorph, "Switch levels without geomorphing");
+  sub->add_option("--fog-density", args->fogDensity,
+                  "Fog density per metre; sets the view distance to the fog's obscuration distance")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--pager-sync", args->pagerSync, "Wait for the pager before every frame (reproducible frames)");
   c.add(sub, [args] { return run(*args); });
 }
 

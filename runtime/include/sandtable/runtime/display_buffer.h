@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/runtime/pager.h"
 #include "sandtable/runtime/view_triangle.h"
 
 namespace sandtable::runtime {
@@ -34,6 +35,35 @@ struct TerrainVertex {
 };
 static_assert(sizeof(TerrainVertex) == 24, "vertex layout is shared with the shader");
 
+/// One load module to draw (module mode): which level, how far it is
+/// morphed towards the next coarser level, and the pager's read guard that
+/// keeps its levels alive until the render thread has used them. The
+/// render thread keys its GPU buffers by (kx, kz, level, generation).
+struct ModuleDraw {
+  std::uint32_t kx = 0, kz = 0;
+  std::uint32_t level = 0;       ///< drawn level (>= ref.finestLevel())
+  std::uint32_t wantedLevel = 0; ///< what the LoD asked for
+  float morph = 0;               ///< 0 = this level, 1 = the next coarser one
+  double distance = 0;           ///< nearest point of the module, metres (3-D)
+  double errorPx = 0;            ///< projected error bound of what is drawn
+  std::uint64_t triangles = 0;
+  ResidentRef ref;
+};
+
+/// What scene selection saw, for the panel and stats.json.
+struct SceneStats {
+  std::uint32_t modulesSelected = 0;  ///< under the view triangle, within range
+  std::uint32_t modulesDrawn = 0;
+  std::uint32_t modulesCulled = 0;    ///< outside the view volume (vertical extent too)
+  std::uint32_t modulesMissing = 0;   ///< not resident yet: nothing drawn there
+  std::uint32_t modulesCoarser = 0;   ///< drawn coarser than wanted (finer level not in yet)
+  std::vector<std::uint32_t> levelCounts;  ///< modules drawn per level
+  double maxErrorPx = 0;              ///< largest projected error bound drawn (any mode)
+  std::uint32_t residentInWindow = 0; ///< pager: modules resident in its window
+  std::uint32_t windowModules = 0;
+  std::uint32_t pagerQueue = 0;       ///< pager: loads queued or in flight, all loaders
+};
+
 struct DisplayBuffer {
   std::uint64_t frame = 0;
   Camera camera;
@@ -46,6 +76,12 @@ struct DisplayBuffer {
   std::vector<std::int32_t> firsts, counts; ///< glMultiDrawArrays arguments
   std::uint64_t triangles = 0;
   double cpuMs = 0;  ///< selection + vertex build
+  // Module mode (empty in grid mesh mode).
+  bool moduleMode = false;
+  double moduleSize = 0;            ///< metres along a module edge
+  std::vector<ModuleDraw> modules;  ///< nearest first
+  ModuleRect pagerWindow;           ///< GPU copies outside it are released
+  SceneStats scene;
 };
 
 /// Builds the view triangle for `cam` on grid `g`, selects the grid squares

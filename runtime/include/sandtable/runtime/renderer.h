@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "sandtable/formats/result.h"
 #include "sandtable/runtime/display_buffer.h"
@@ -25,11 +26,33 @@ namespace sandtable::runtime {
 /// can tell "no GL here" from other errors.
 inline constexpr const char* kGlContextProblem = "EGL";
 
+/// Colours of one material class (materials.h): upper and lower grid
+/// triangle, as the seed shades the two halves of a square differently.
+struct MaterialColour {
+  Rgb upper{0x6E, 0x8C, 0x46}, lower{0x64, 0x82, 0x40};
+};
+
 struct RenderSettings {
   std::uint32_t width = 1280, height = 720;
   Rgb background{0x87, 0xCE, 0xEB};  ///< sky at the horizon and fog colour
   bool fog = true;
-  float minElevation = 0, maxElevation = 1000;  ///< scales the tint
+  /// Draw the sky; false leaves the clear colour wherever no terrain is
+  /// drawn (the crack tests clear to magenta).
+  bool sky = true;
+  Rgb clearColour{0xFF, 0x00, 0xFF};
+  float minElevation = 0, maxElevation = 1000;  ///< scales the tint (grid mesh mode)
+  /// Module mode: colour of each material id (index); ids beyond it get
+  /// the default MaterialColour.
+  std::vector<MaterialColour> palette;
+};
+
+/// What the render thread did for the last frame (module mode).
+struct RenderStats {
+  std::uint32_t uploads = 0;        ///< (module, level) buffers built this frame
+  std::uint32_t released = 0;       ///< buffers released this frame
+  std::uint32_t cachedLevels = 0;   ///< (module, level) buffers held on the GPU
+  std::uint64_t gpuBytes = 0;       ///< their vertex bytes
+  double uploadMs = 0;              ///< building and uploading them
 };
 
 class Renderer {
@@ -42,6 +65,9 @@ class Renderer {
   /// Draws `buf` and reads the frame into `out` (top row first). Returns ""
   /// or a GL error.
   std::string draw(const DisplayBuffer& buf, Image& out);
+
+  /// Counters of the last draw.
+  const RenderStats& stats() const;
 
   /// GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   const std::string& glRenderer() const;

@@ -1,0 +1,85 @@
+#pragma once
+// Terrain level-of-detail choice for load modules (seed chapter IX.B.2,
+// Figures 84-85, Table 8) and, beyond the seed, a screen-space-error mode
+// with geomorphing. Design: docs/VIEWER.md, "Level of detail".
+//
+// A node is one load module (the finest quadtree node that carries its own
+// skirts, so any two neighbours may differ in level without a crack).
+//
+// Rings: the level of a node is the first range bin that reaches the
+// node's nearest point on the ground (seed: circle / rectangle test).
+// Screen-space error: each level's geometric error is the largest vertical
+// distance between that level's surface and the finest level's posts; the
+// level drawn is the coarsest whose error, projected at the node's nearest
+// 3-D point, stays within the requested pixels.
+// Geomorphing: every vertex of level l moves towards the surface of level
+// l + 1 by a factor m that is constant over the node, so each morphed
+// triangle stays planar and decals stay exactly on the skin; m reaches 1
+// exactly where the node switches to l + 1, so nothing pops.
+//
+// Thread safety: pure functions and plain values.
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/module.h"
+
+namespace sandtable::runtime {
+
+enum class LodMode : std::uint8_t {
+  rings,  ///< seed range rings (Table 8 bins), per module
+  sse,    ///< screen-space error in pixels
+  full,   ///< always the finest level (the reference case)
+};
+const char* lodModeName(LodMode m);
+
+struct LodOptions {
+  LodMode mode = LodMode::rings;
+  /// Outer edge of each level's range bin, finest first, metres. Empty:
+  /// Table 8's four equal bins scaled to the view distance.
+  std::vector<double> rings;
+  double pixelError = 2.0;  ///< sse: largest projected error, pixels
+  bool morph = true;        ///< geomorph towards the next coarser level
+};
+
+/// "" or why the options are unusable (rings not ascending or not positive,
+/// pixel error not positive).
+std::string checkLodOptions(const LodOptions& o);
+
+/// Height of a level's skin at module-local (x, z) on its lattice posts
+/// (posts are the first vertices of every level, row by row; each square
+/// splits along its SW-NE diagonal). nullopt when the level has no lattice.
+std::optional<double> levelHeightAt(const module::Level& level, double x, double z);
+
+/// Geometric error of every level against level `finest` (0 for it and for
+/// finer ones), measured at `finest`'s posts: max |y_l(x, z) - y|.
+std::vector<double> levelErrors(std::span<const module::Level> levels, std::uint32_t finest);
+
+/// Pixels per metre of error at distance 1 m: height / (2 tan(vfov / 2)).
+double pixelsPerRadian(double vfovDeg, std::uint32_t imageHeight);
+
+/// Projected error of `errorMetres` seen at `distance` metres, pixels.
+double projectedError(double errorMetres, double distance, double pixelsPerRadian);
+
+/// Ring level for a node whose nearest ground point is `distance` away.
+std::uint32_t ringLevel(const LodOptions& o, double distance, double viewDistance,
+                        std::uint32_t levels);
+
+/// SSE level: the coarsest l >= finest whose error projects within the
+/// pixel budget at `distance` (finest when none does).
+std::uint32_t sseLevel(std::span<const double> errors, double distance, double pixelsPerRadian,
+                       double pixelError, std::uint32_t finest);
+
+/// Morph factor towards level + 1 in [0, 1].
+/// Rings: ramps over the outer quarter of the level's bin, 1 at its edge.
+double ringMorph(const LodOptions& o, std::uint32_t level, double distance, double viewDistance,
+                 std::uint32_t levels);
+/// SSE: the largest m with (1 - m) e_l + m e_{l+1} still within the
+/// budget, which bounds the morphed surface's error; 1 where l + 1 is
+/// itself good enough (where the node switches).
+double sseMorph(std::span<const double> errors, std::uint32_t level, double distance,
+                double pixelsPerRadian, double pixelError);
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,57 @@
+#pragma once
+// Scene selection over paged load modules (seed chapter IX: the view
+// triangle of Figure 76, its grid-square selection of Figure 78 done at
+// module granularity, the vertical extent of the view volume, and the LoD
+// of lod.h). Fills a DisplayBuffer's module list on the main thread with
+// no GL calls; the render thread uploads and draws what it lists.
+//
+// Thread safety: one ModuleScene per main thread. It reads the pager with
+// resident() (lock-free) and keeps a small cache of per-module level
+// errors and heights, keyed by the pager's generation.
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "sandtable/runtime/display_buffer.h"
+#include "sandtable/runtime/lod.h"
+#include "sandtable/runtime/pager.h"
+
+namespace sandtable::runtime {
+
+struct ModuleSceneSettings {
+  LodOptions lod;
+  std::uint32_t imageHeight = 720;  ///< for projected errors
+  double gridSpacing = 30;          ///< the view triangle's pull-back (one post)
+  float minElevation = 0;           ///< lowest ground in the database (vertical extent)
+};
+
+class ModuleScene {
+ public:
+  ModuleScene(const Pager& pager, const ModuleSceneSettings& s);
+
+  /// Selects the modules for `cam` (world frame, metres) into `out`,
+  /// nearest first, each with its level, morph factor and read guard;
+  /// fills out.scene and out.triangles. Reuses out's memory.
+  void fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& out);
+
+  const ModuleSceneSettings& settings() const { return settings_; }
+
+ private:
+  struct Info {
+    std::uint64_t generation = 0;
+    std::uint32_t finest = 0;
+    std::vector<double> errors;  ///< per level, against `finest`
+    std::vector<float> minY, maxY;  ///< per level, skirts included
+    std::vector<std::uint64_t> triangles;
+  };
+  const Info& infoFor(const ResidentRef& ref);
+
+  const Pager& pager_;
+  ModuleSceneSettings settings_;
+  double moduleSize_ = 0;
+  std::uint32_t modulesX_ = 0, modulesZ_ = 0, levels_ = 1;
+  std::unordered_map<std::uint64_t, Info> info_;
+  std::uint64_t frame_ = 0;
+};
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,67 @@
+#pragma once
+// Drawing load modules on the render thread: a cache of one vertex buffer
+// per resident (module, level), built from the pager's decoded levels the
+// first time a frame lists them and released when the pager frees or
+// replaces the module (its generation changes, or it leaves the pager's
+// window). Private to the renderer; every call on the render thread.
+//
+// Decals (docs/_culture.md, section 9): the skin (priority 1) of every
+// module is drawn first with depth writes; then each decal priority in
+// ascending order, depth writes off, depth test GEQUAL (reversed Z) and a
+// polygon offset growing with the priority, so a decal wins against its
+// own coplanar skin but not against terrain in front of it.
+#include <epoxy/gl.h>
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "sandtable/runtime/display_buffer.h"
+#include "sandtable/runtime/renderer.h"
+
+namespace sandtable::runtime::detail {
+
+/// Compiles and links a program (renderer.cpp); 0 and `error` on failure.
+GLuint linkProgram(const char* vertexSource, const char* fragmentSource, std::string& error);
+
+class ModuleRenderer {
+ public:
+  ModuleRenderer() = default;
+  ~ModuleRenderer();
+  ModuleRenderer(const ModuleRenderer&) = delete;
+  ModuleRenderer& operator=(const ModuleRenderer&) = delete;
+
+  /// Compiles the program; "" or the error.
+  std::string create(const RenderSettings& s, const Eigen::Vector3f& sun);
+  /// Uploads what is missing, draws, then releases what the pager let go.
+  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+
+ private:
+  struct Range {
+    std::uint8_t priority = 1;
+    GLint first = 0;
+    GLsizei count = 0;
+  };
+  struct Entry {
+    std::uint64_t generation = 0;
+    GLuint vbo = 0;
+    std::vector<Range> ranges;  ///< ascending priority, as the groups are sorted
+    std::uint64_t lastFrame = 0;
+    std::uint64_t bytes = 0;
+  };
+  Entry& entryFor(const ModuleDraw& d, std::uint64_t frame, RenderStats& stats);
+  void upload(const ModuleDraw& d, Entry& e);
+  void release(RenderStats& stats, const DisplayBuffer& buf);
+  void drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std::uint8_t hi,
+                    const std::vector<Entry*>& entries);
+
+  RenderSettings settings_;
+  GLuint program_ = 0, vao_ = 0;
+  GLint uViewProjection_ = -1, uOffset_ = -1, uMorph_ = -1, uEye_ = -1, uFogDensity_ = -1;
+  std::unordered_map<std::uint64_t, Entry> cache_;
+  std::uint64_t gpuBytes_ = 0;
+};
+
+}  // namespace sandtable::runtime::detail
