@@ -16,6 +16,7 @@ packages=(
   libzstd-dev                     # zstd: load modules compressed in modules.pack
   libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
   libpng-dev                      # PNG frames
+  libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test (ffmpeg, for video, stays optional)
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )
 
