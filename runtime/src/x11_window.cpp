@@ -283,7 +283,18 @@ std::string ViewerWindow::makeGl() {
   return {};
 }
 
+std::uint32_t ViewerWindow::width() const {
+  std::lock_guard lock(mutex_);
+  return width_;
+}
+
+std::uint32_t ViewerWindow::height() const {
+  std::lock_guard lock(mutex_);
+  return height_;
+}
+
 std::vector<KeyEvent> ViewerWindow::pollEvents() {
+  std::lock_guard lock(mutex_);
   std::vector<KeyEvent> out;
   Display* dpy = dpyOf(display_);
   auto emit = [&](Key k, bool pressed) {
@@ -330,6 +341,7 @@ std::string ViewerWindow::present(const Image& frame) {
   if (frame.width == 0 || frame.height == 0 || frame.rgba.size() != std::size_t(frame.width) * frame.height * 4) {
     return "window: present() needs a non-empty RGBA frame";
   }
+  std::lock_guard lock(mutex_);
   SavedEgl saved;
   if (!eglMakeCurrent(eglDisplay_, eglSurface_, eglSurface_, eglContext_)) {
     saved.restore(EGL_NO_DISPLAY);
@@ -376,6 +388,7 @@ std::string ViewerWindow::present(const Image& frame) {
 }
 
 Result<Image> ViewerWindow::capture() {
+  std::lock_guard lock(mutex_);
   Display* dpy = dpyOf(display_);
   XSync(dpy, False);
   XImage* xi = XGetImage(dpy, window_, 0, 0, width_, height_, AllPlanes, ZPixmap);
@@ -423,6 +436,7 @@ void ViewerWindow::releaseEgl() {
 }
 
 ViewerWindow::~ViewerWindow() {
+  std::lock_guard lock(mutex_);
   releaseEgl();
   if (!display_) return;
   Display* dpy = dpyOf(display_);

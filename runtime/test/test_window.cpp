@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include "../src/egl_context.h"
 #include "sandtable/runtime/hud.h"
@@ -242,6 +243,35 @@ TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
   EXPECT_EQ(differs(shown.value(), frame), "");
   opened.value().reset();
   EXPECT_EQ(eglGetCurrentContext(), renderer);
+}
+
+TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
+  // fly()'s layout: the controller polls keys on the main thread, frames
+  // are presented from the render thread.
+  auto opened = ViewerWindow::open(96, 64, "threads", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
+  XSync(keys_, False);
+  const Image last = filled(96, 64, {20, 40, 60});
+  std::string renderError;
+  std::thread render([&] {
+    auto headless = EglContext::create();  // the renderer's own context, as in fly()
+    for (int k = 0; k < 30 && renderError.empty(); ++k) {
+      renderError = win.present(filled(96, 64, {std::uint8_t(k * 8), 0, 0}));
+    }
+    if (renderError.empty()) renderError = win.present(last);
+  });
+  sendKey(keys_, XK_Right, true);
+  sendKey(keys_, XK_Right, false);
+  const auto ev = waitForEvents(win, 2);
+  render.join();
+  EXPECT_EQ(renderError, "");
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[0], (KeyEvent{Key::right, true}));
+  auto shown = win.capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  EXPECT_EQ(differs(shown.value(), last), "");
 }
 
 TEST_F(WindowTest, SmallerFrameIsLetterboxed) {

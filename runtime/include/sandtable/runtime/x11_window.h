@@ -15,10 +15,16 @@
 // held key gives one press and one release; the Controller does its own
 // repeating. Closing the window (WM_DELETE_WINDOW) reports Key::quit.
 //
-// Thread safety: use a ViewerWindow on one thread only (Xlib is not
-// initialised for threads, and EGL current state is per thread).
+// Thread safety: every method may be called from any thread and they are
+// serialised by one mutex, so pollEvents() can run on the main thread (with
+// the Controller) while present() runs on the render thread (fly()'s
+// onFrame). This works without XInitThreads() because only this object
+// touches its own X connection. present() saves and restores the EGL
+// state of the thread it runs on.
 #include <cstdint>
+#include <atomic>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -50,7 +56,7 @@ class ViewerWindow {
   /// Every key event queued since the last call, oldest first; never blocks.
   std::vector<KeyEvent> pollEvents();
   /// True once the window manager asked the window to close.
-  bool closeRequested() const { return closeRequested_; }
+  bool closeRequested() const { return closeRequested_.load(); }
 
   /// Shows the frame scaled to fit the window (letterboxed, nearest
   /// pixels at 1:1) and swaps. "" or an error.
@@ -61,8 +67,8 @@ class ViewerWindow {
   Result<Image> capture();
 
   /// Current client size (follows resizes seen by pollEvents()).
-  std::uint32_t width() const { return width_; }
-  std::uint32_t height() const { return height_; }
+  std::uint32_t width() const;
+  std::uint32_t height() const;
   /// Xlib handles (Display*, Window) for callers that need X directly,
   /// e.g. tests that send synthetic keys.
   void* xDisplay() const { return display_; }
@@ -85,7 +91,8 @@ class ViewerWindow {
   void* eglContext_ = nullptr;
   std::unique_ptr<Gl> gl_;
   std::uint32_t width_ = 0, height_ = 0;
-  bool closeRequested_ = false;
+  std::atomic<bool> closeRequested_{false};
+  mutable std::mutex mutex_;  // guards the X connection, EGL use and the fields below
   std::uint32_t downMask_ = 0;  // keys pressed and not yet released, by Key
   std::string renderer_;
 };
