@@ -179,7 +179,8 @@ Pose Controller::pose() const {
 std::vector<std::string> controllerPanelLines(const ViewerState& s) {
   char buf[4][96];
   std::snprintf(buf[0], sizeof buf[0], "SPEED %.1f M/S (%.0f KM/H)", s.speedMs, s.speedMs * kMsToKmh);
-  std::snprintf(buf[1], sizeof buf[1], "HEADING %03.0f\xC2\xB0", s.headingDeg);
+  // Rounded first so 359.7 reads 000, not 360.
+  std::snprintf(buf[1], sizeof buf[1], "HEADING %03ld\xC2\xB0", std::lround(s.headingDeg) % 360);
   if (s.groundFollowing) {
     std::snprintf(buf[2], sizeof buf[2], "GROUND-FOLLOW %.0f M ABOVE GROUND", s.heightAgl);
   } else {

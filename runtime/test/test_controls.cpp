@@ -188,6 +188,10 @@ TEST(Controls, QuitAndPanelLines) {
   const auto lines = controllerPanelLines(c.state());
   ASSERT_EQ(lines.size(), 4u);
   EXPECT_EQ(lines[0], "SPEED 15.0 M/S (54 KM/H)");
+  EXPECT_EQ(lines[1], "HEADING 090\xC2\xB0");
+  ViewerState north = c.state();
+  north.headingDeg = 359.7;
+  EXPECT_EQ(controllerPanelLines(north)[1], "HEADING 000\xC2\xB0");
   EXPECT_FALSE(c.quitRequested());
   tap(c, Key::quit);
   EXPECT_TRUE(c.quitRequested());
