@@ -360,6 +360,30 @@ TEST(Culture, straightRoadAreaIsLengthTimesWidth) {
   EXPECT_NEAR(c->stats().perClass.at("secondary").lengthKm, want / 10 / 1000, 1e-9);
 }
 
+TEST(Culture, roadAcrossModuleBoundariesKeepsItsAreaAtEveryLevel) {
+  Scratch s("across");
+  const auto t = sampleTable();
+  // Through six modules (three across, two down), crossing module edges on
+  // both axes and passing a module corner's neighbourhood.
+  const Pt a{150, 250}, b{2850, 1650};
+  auto c = loadScene(s, {line("\"highway\": \"secondary\", \"width\": \"10\"", {a, b})}, t, 3000, 2000);
+  ASSERT_TRUE(c);
+  const double want = std::hypot(b[0] - a[0], b[1] - a[1]) * 10;
+  std::array<double, 4> got{};
+  for (double mz : {0.0, 1000.0}) {
+    for (double mx : {0.0, 1000.0, 2000.0}) {
+      const Decaled d = decalModule(*c, mx, mz, 4, hills, 3000, 2000);
+      for (int l = 0; l < 4; ++l) {
+        const auto& decal = d.checks[l].decal;
+        const auto it = decal.find(classId(t, "secondary"));
+        if (it != decal.end()) got[l] += it->second;
+        EXPECT_NEAR(sumOf(d.checks[l].skin), 1e6, 1e-3) << mx << "," << mz << " level " << l;
+      }
+    }
+  }
+  for (int l = 0; l < 4; ++l) EXPECT_NEAR(got[l], want, kMergeArea * want) << "level " << l;
+}
+
 TEST(Culture, crossingRoadsOfOneClassAreUnited) {
   Scratch s("cross");
   const auto t = sampleTable();
