@@ -161,6 +161,16 @@ void recordLatency(Impl& im, const Pending& p) {
   im.latencyEstimate.store(im.srtt + 4 * im.rttvar, std::memory_order_relaxed);
 }
 
+/// Adds the time from construction to destruction to publishNs.
+struct PublishTimer {
+  Impl& im;
+  std::int64_t t0 = nowNs();
+  explicit PublishTimer(Impl& i) : im(i) {}
+  ~PublishTimer() { im.publishNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed); }
+  PublishTimer(const PublishTimer&) = delete;
+  PublishTimer& operator=(const PublishTimer&) = delete;
+};
+
 /// Reads module p.key into its slot and publishes it, coarse level first.
 void loadModule(Impl& im, Loader& ld, const Pending& p) {
   const ModuleKey k = unpackKey(p.key);
@@ -209,7 +219,9 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
       if (im.options.simulatedReadSeconds > 0) {
         std::this_thread::sleep_for(std::chrono::duration<double>(im.options.simulatedReadSeconds));
       }
+      const std::int64_t t0 = nowNs();
       read.emplace(im.pack->read(k.kx, k.kz));
+      im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
       im.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
       if (!read->ok()) {
         failure = read->error();
@@ -227,6 +239,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   }
 
   // The coarsest level first (or a placeholder).
+  const PublishTimer timer(im);
   const std::uint32_t coarse = im.levels - 1;
   ResidentModule& d = s.data;
   d.kx = k.kx;
@@ -401,27 +414,74 @@ void collectFaults(Impl& im, Loader& ld) {
   }
 }
 
+/// Work stealing: the nearest pending module of the loader with the
+/// largest backlog, taken under that loader's pending mutex.
+std::optional<Pending> steal(Impl& im, const Loader& self) {
+  Loader* victim = nullptr;
+  std::uint32_t most = 0;
+  for (const auto& l : im.loaders) {
+    const std::uint32_t b = l->backlog.load(std::memory_order_relaxed);
+    if (l.get() != &self && b > most) {
+      most = b;
+      victim = l.get();
+    }
+  }
+  if (victim == nullptr) return std::nullopt;
+  const std::lock_guard lock(victim->pendingMutex);
+  std::optional<Pending> p = takeNearest(im, *victim);
+  victim->backlog.store(std::uint32_t(victim->pending.size()), std::memory_order_relaxed);
+  return p;
+}
+
+/// Another loader has modules queued or pending.
+bool workElsewhere(const Impl& im, const Loader& self) {
+  return std::any_of(im.loaders.begin(), im.loaders.end(), [&](const auto& l) {
+    return l.get() != &self &&
+           (l->backlog.load(std::memory_order_relaxed) > 0 || l->queue->size() > 0);
+  });
+}
+
 void loaderLoop(Impl& im, Loader& ld) {
   const bool demand = im.options.mode == PagerMode::demand;
+  const bool stealing = !demand && im.options.workStealing && im.loaders.size() > 1;
   for (;;) {
     const std::uint32_t seen = ld.signal.load(std::memory_order_acquire);
     if (im.stopping.load(std::memory_order_acquire)) break;
-    if (demand) {
-      collectFaults(im, ld);
-    } else {
-      drainQueue(im, ld);
-      if (ld.resync.exchange(false)) resync(im, ld);
+    std::optional<Pending> p;
+    {
+      const std::lock_guard lock(ld.pendingMutex);
+      if (demand) {
+        collectFaults(im, ld);
+      } else {
+        drainQueue(im, ld);
+        if (ld.resync.exchange(false)) resync(im, ld);
+      }
+      noteBacklog(im, ld);
+      if (!ld.pending.empty()) {
+        p = takeNearest(im, ld);
+        ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+      }
     }
-    noteBacklog(im, ld);
-    if (ld.pending.empty()) {
-      ld.signal.wait(seen, std::memory_order_acquire);
-      continue;
+    bool stolen = false;
+    if (!p && stealing) {
+      p = steal(im, ld);
+      stolen = p.has_value();
     }
-    if (const std::optional<Pending> p = takeNearest(im, ld)) {
+    if (p) {
+      if (stolen) im.stolen.fetch_add(1, std::memory_order_relaxed);
       loadModule(im, ld, *p);
       im.outstanding.fetch_sub(1);
+      continue;
     }
+    // The owner of that work drains its queue only between loads, so poll
+    // briefly rather than sleep until this loader's own next signal.
+    if (stealing && workElsewhere(im, ld)) {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      continue;
+    }
+    ld.signal.wait(seen, std::memory_order_acquire);
   }
+  const std::lock_guard lock(ld.pendingMutex);
   im.outstanding.fetch_sub(std::int64_t(ld.pending.size()));
   ld.pending.clear();
 }
@@ -626,6 +686,10 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
     im.requested.fetch_add(job.load.size(), std::memory_order_relaxed);
     signalLoader(ld);
   }
+  // Wake the idle loaders too, so they can steal from the busy ones.
+  if (im.options.workStealing && n > 1) {
+    for (auto& l : im.loaders) signalLoader(*l);
+  }
 }
 
 ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wantLevel) const {
@@ -697,6 +761,7 @@ PagerMetrics Pager::metrics() const {
   m.residentQueries = get(im.residentQueries);
   m.residentMisses = get(im.residentMisses);
   m.demandFaults = get(im.demandFaults);
+  m.stolen = get(im.stolen);
   m.maxQueueLength = im.maxQueueLength.load(std::memory_order_relaxed);
   m.latency = im.latency.stats();
   m.stripLatency = im.stripLatency.stats();
@@ -722,6 +787,8 @@ PagerMetrics Pager::metrics() const {
   m.leadSeconds = im.leadSeconds.load(std::memory_order_relaxed);
   m.elapsedSeconds = double(nowNs() - im.openNs) / 1e9;
   m.modulesPerSecond = m.elapsedSeconds > 0 ? double(m.loaded) / m.elapsedSeconds : 0;
+  m.readSeconds = double(get(im.readNs)) / 1e9;
+  m.publishSeconds = double(get(im.publishNs)) / 1e9;
   m.prefetchPasses = get(im.prefetchPasses);
   m.prefetchBlocks = get(im.prefetchBlocks);
   m.prefetchPages = get(im.prefetchPages);
@@ -730,6 +797,11 @@ PagerMetrics Pager::metrics() const {
   m.lastPassSeconds = im.lastPassSeconds.load(std::memory_order_relaxed);
   m.lastSleepSeconds = im.lastSleepSeconds.load(std::memory_order_relaxed);
   return m;
+}
+
+void Pager::resetLatency() {
+  impl_->latency.reset();
+  impl_->stripLatency.reset();
 }
 
 bool Pager::waitIdle(double timeoutSeconds) const {

@@ -124,6 +124,7 @@ class LatencyHistogram {
   static constexpr int kBuckets = 104;  ///< up to 2^(103/4) us, about 55 s
   void add(std::int64_t ns);
   LatencyStats stats() const;
+  void reset();
 
  private:
   std::array<std::atomic<std::uint64_t>, kBuckets> counts_{};
@@ -164,7 +165,10 @@ struct Loader {
   std::atomic<bool> resync{false};
   std::atomic<std::uint32_t> backlog{0};  ///< pending (drained, not yet loaded), for metrics
   std::atomic<std::uint64_t> published{0};
-  std::vector<Pending> pending;  ///< loader thread only; capacity fixed at open
+  /// Guards `pending`: its loader, and thieves (work stealing). Loaders
+  /// only; the main thread and readers never take it.
+  std::mutex pendingMutex;
+  std::vector<Pending> pending;  ///< capacity fixed at open
   std::thread thread;
 };
 
@@ -213,7 +217,7 @@ struct Pager::Impl {
   std::atomic<std::uint64_t> updates{0}, boxCrossings{0}, refills{0}, requested{0}, loaded{0},
       freed{0}, duplicates{0}, cancelledQueued{0}, cancelledInFlight{0}, placeholders{0},
       missingModules{0}, corruptModules{0}, budgetRefusals{0}, budgetTrimmedLevels{0},
-      bytesRead{0}, readerWaits{0}, queueOverflows{0};
+      bytesRead{0}, readerWaits{0}, queueOverflows{0}, readNs{0}, publishNs{0}, stolen{0};
   mutable std::atomic<std::uint64_t> residentQueries{0}, residentMisses{0}, demandFaults{0};
   std::array<std::atomic<std::uint64_t>, kDirections> stripSignals{};
   std::array<std::atomic<std::uint32_t>, kDirections> leadStrips{};

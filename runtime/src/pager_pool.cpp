@@ -70,6 +70,13 @@ void LatencyHistogram::add(std::int64_t ns) {
   }
 }
 
+void LatencyHistogram::reset() {
+  for (auto& c : counts_) c.store(0, std::memory_order_relaxed);
+  count_.store(0, std::memory_order_relaxed);
+  sumNs_.store(0, std::memory_order_relaxed);
+  maxNs_.store(0, std::memory_order_relaxed);
+}
+
 LatencyStats LatencyHistogram::stats() const {
   LatencyStats s;
   std::array<std::uint64_t, kBuckets> c{};

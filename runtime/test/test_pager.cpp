@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -555,6 +556,7 @@ Arrivals jumpAndRecord(const TestDb& db, std::uint32_t loaders, bool holdSlot) {
   PagerOptions o = baseOptions();
   o.loaderThreads = loaders;
   o.simulatedReadSeconds = 0.002;
+  o.workStealing = false;  // the deal itself is under test
   std::mutex mu;
   Arrivals a;
   bool recording = false;
@@ -615,6 +617,71 @@ TEST(Pager, jumpRefillsNearestFirstOverall) {
     EXPECT_LE(distanceTo(a.all[i - 1], 30200, 29700), distanceTo(a.all[i], 30200, 29700)) << i;
   }
   EXPECT_EQ(a.metrics.holesInWindow, 0u);
+}
+
+/// Loads of one east strip per loader. With stealing, the east loader is
+/// held in its first publication until another loader has published, so
+/// the strip completes only if idle loaders take its pending modules.
+struct StripLoads {
+  std::array<std::uint64_t, 4> byLoader{};
+  std::uint64_t stolen = 0;
+  PagerMetrics metrics;
+};
+
+StripLoads eastStripByLoader(const TestDb& db, bool stealing) {
+  PagerOptions o = baseOptions();
+  o.workStealing = stealing;
+  std::mutex mu;
+  std::condition_variable cv;
+  StripLoads r;
+  bool recording = false, held = false;
+  const auto east = std::uint32_t(Direction::east);
+  o.onResident = [&](std::uint32_t loader, ModuleKey, bool) {
+    std::unique_lock lock(mu);
+    if (!recording) return;
+    ++r.byLoader[loader];
+    cv.notify_all();
+    if (stealing && loader == east && !held) {
+      held = true;
+      // A guard against a hang, not a timing threshold: the wait ends as
+      // soon as another loader publishes.
+      cv.wait_for(lock, std::chrono::seconds(30), [&] {
+        return r.byLoader[0] + r.byLoader[2] + r.byLoader[3] > 0;
+      });
+    }
+  };
+  auto p = openPager(db, o);
+  EXPECT_TRUE(p);
+  if (!p) return r;
+  p->update(20500, 20500, 0, 0, 0);
+  EXPECT_TRUE(p->waitIdle(30));
+  const std::uint64_t stolen0 = p->metrics().stolen;
+  {
+    const std::lock_guard lock(mu);
+    recording = true;
+  }
+  p->update(21101, 20500, 0, 0, 1);
+  EXPECT_TRUE(p->waitIdle(60));
+  r.metrics = p->metrics();
+  r.stolen = r.metrics.stolen - stolen0;
+  p->stop();
+  return r;
+}
+
+TEST(Pager, idleLoadersStealFromTheBusyDirection) {
+  const TestDb db = makeDb("steal", 40, 40);
+  const StripLoads off = eastStripByLoader(db, false);
+  EXPECT_EQ(off.byLoader[std::size_t(Direction::east)], 9u);  // the whole strip, by its own loader
+  EXPECT_EQ(off.byLoader[0] + off.byLoader[2] + off.byLoader[3], 0u);
+  EXPECT_EQ(off.stolen, 0u);
+
+  const StripLoads on = eastStripByLoader(db, true);
+  const std::uint64_t others = on.byLoader[0] + on.byLoader[2] + on.byLoader[3];
+  EXPECT_EQ(on.byLoader[1] + others, 9u);
+  EXPECT_GE(others, 1u);
+  EXPECT_EQ(on.stolen, others);
+  EXPECT_EQ(on.metrics.holesInWindow, 0u);
+  EXPECT_EQ(on.metrics.stripSignals[std::size_t(Direction::east)], 1u);
 }
 
 TEST(Pager, loadsThatLeaveTheAreaAreCancelled) {

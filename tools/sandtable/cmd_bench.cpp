@@ -3,6 +3,7 @@
 // listing them. `bench paging` and `bench render` will join `build` here.
 #include "bench_build.h"
 #include "bench_modules.h"
+#include "bench_paging.h"
 #include "commands.h"
 
 namespace sandtable::cli {
@@ -12,6 +13,8 @@ void registerBench(CLI::App& root, Commands& c) {
   bench->require_subcommand(1);
   registerBenchBuild(*bench, c);
   registerBenchModules(*bench, c);
+  registerBenchPaging(*bench, c);
+  registerBenchMakeDb(*bench, c);
 }
 
 }  // namespace sandtable::cli

@@ -228,6 +228,10 @@ struct PagerOptions {
   /// the lead strips off (predictive) or the leading edge (mmap).
   double lookAheadScale = 2.0;
   std::uint32_t maxLeadStrips = 3;
+  /// Predictive: a loader with nothing of its own to do takes the nearest
+  /// pending module of the busiest loader, so a fast viewer's leading strips
+  /// are read by every loader rather than by one (beyond the seed).
+  bool workStealing = true;
   /// Latency estimate before the first measurement, seconds.
   double initialLatencySeconds = 0.05;
   /// Reserve every slot at open for the largest module of the pack (as far
@@ -326,6 +330,7 @@ struct PagerMetrics {
   std::uint64_t residentQueries = 0;
   std::uint64_t residentMisses = 0;  ///< queries for a database module not resident
   std::uint64_t demandFaults = 0;
+  std::uint64_t stolen = 0;  ///< modules loaded by a loader other than their direction's
   std::array<std::uint32_t, 4> queueLength{};  ///< per loader, now (queued + pending)
   std::uint32_t maxQueueLength = 0;            ///< largest seen
   LatencyStats latency;       ///< every publication (mmap mode: prefetch passes)
@@ -341,6 +346,10 @@ struct PagerMetrics {
   std::array<std::uint32_t, kDirections> leadStrips{};
   double elapsedSeconds = 0;
   double modulesPerSecond = 0;
+  /// Loader time summed over loaders: in PackReader::read (pread, CRC,
+  /// zstd, decode) and in copying into the slot and publishing.
+  double readSeconds = 0;
+  double publishSeconds = 0;
   // mmap mode
   std::uint64_t prefetchPasses = 0;
   std::uint64_t prefetchBlocks = 0;
@@ -377,6 +386,10 @@ class Pager {
   /// module (a page fault that does not wait).
   ResidentRef resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wantLevel = 0) const;
   PagerMetrics metrics() const;
+  /// Empties both latency histograms (a benchmark's warm-up is left out of
+  /// its percentiles). Any thread; a publication racing with it may land
+  /// on either side.
+  void resetLatency();
   /// Waits until every queued load and fault is done; false on timeout.
   bool waitIdle(double timeoutSeconds) const;
   /// Stops and joins the threads; queued loads are dropped. Idempotent.
