@@ -52,11 +52,18 @@ inline Eigen::Matrix4d viewProjection(const Camera& cam, double originX, double 
          lookFrom(eye, cam.headingDeg, cam.pitchDeg);
 }
 
-/// Fog density tied to the view distance (seed IX.A.3): exp2 fog leaves
-/// 1/255 of the colour at the view distance, i.e. fully fogged in 8 bits.
-inline double fogDensityFor(double viewDistance) { return std::sqrt(std::log(255.0)) / viewDistance; }
+/// Fog is clear out to this fraction of the view distance, then thickens.
+inline constexpr double kFogClearFraction = 0.25;
+/// Fog density tied to the view distance (seed IX.A.3): exp2 fog beyond
+/// the clear zone leaves 1/255 of the colour at the view distance, i.e.
+/// fully fogged in 8 bits, so nothing past it need be drawn.
+inline double fogDensityFor(double viewDistance) {
+  return std::sqrt(std::log(255.0)) / ((1.0 - kFogClearFraction) * viewDistance);
+}
 /// The inverse: the obscuration distance of a fog density (per metre).
-inline double viewDistanceForFog(double density) { return std::sqrt(std::log(255.0)) / density; }
+inline double viewDistanceForFog(double density) {
+  return std::sqrt(std::log(255.0)) / ((1.0 - kFogClearFraction) * density);
+}
 
 /// The side and far planes of a reversed-Z clip matrix (a, b, c, d with
 /// a x + b y + c z + d >= 0 inside).

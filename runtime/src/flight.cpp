@@ -526,7 +526,8 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl));
   lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
   lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", o.hfovDeg, effectiveViewDistance(o)));
-  lines.push_back(format("FPS %.1f  FRAME %.1f MS  CPU %.1f MS", s.fps, s.frameMs, s.cpuMs));
+  lines.push_back(format("FPS %.1f  FRAME %.1f MS", s.fps, s.frameMs));
+  lines.push_back(format("CPU %.1f MS  DRAW %.1f MS", s.cpuMs, s.renderMs));
   if (s.levelCounts.empty()) {
     lines.push_back("TRIS " + std::to_string(s.triangles) + "  STRIPS " + std::to_string(s.strips));
     return lines;
@@ -535,11 +536,11 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   for (std::size_t l = 0; l < s.levelCounts.size(); ++l) {
     levels += (l ? "/" : "") + std::to_string(s.levelCounts[l]);
   }
-  lines.push_back("TRIS " + std::to_string(s.triangles) + "  LOD " + lodModeName(o.lod.mode) +
-                  " " + levels);
+  lines.push_back("TRIS " + std::to_string(s.triangles));
+  lines.push_back(std::string("LOD ") + lodModeName(o.lod.mode) + "  LEVELS " + levels);
   lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  RESIDENT " +
-                  std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules) +
-                  "  QUEUE " + std::to_string(s.pagerQueue));
+                  std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
+  lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
   return lines;
 }
 

@@ -11,16 +11,6 @@
 namespace sandtable::runtime::detail {
 namespace {
 
-// Colour per vertex means one vertex per triangle corner: the upper and
-// lower halves of a square share posts but not colours. 24 bytes each.
-struct GpuVertex {
-  float x, y, z;
-  float morphDelta;     ///< next coarser level's surface minus this level's, here
-  std::uint32_t rgba;   ///< GL_UNSIGNED_BYTE x 4, normalized
-  std::uint32_t normal; ///< GL_INT_2_10_10_10_REV, normalized
-};
-static_assert(sizeof(GpuVertex) == 24, "vertex layout is shared with the shader");
-
 /// Frames a GPU copy may go unused (e.g. turned away) before it is released.
 constexpr std::uint64_t kKeepUnusedFrames = 90;
 
@@ -53,13 +43,14 @@ in float vDistance;
 uniform vec3 uSun;
 uniform vec3 uFogColor;
 uniform float uFogDensity;
+uniform float uFogStart;
 uniform bool uFog;
 out vec4 fragColor;
 void main() {
   vec3 n = normalize(vNormal);
   vec3 color = vColour * (0.45 + 0.55 * max(dot(n, uSun), 0.0));
   if (uFog) {
-    float k = uFogDensity * vDistance;
+    float k = uFogDensity * max(vDistance - uFogStart, 0.0);
     color = mix(uFogColor, color, exp(-k * k));
   }
   fragColor = vec4(color, 1.0);
@@ -97,6 +88,7 @@ std::string ModuleRenderer::create(const RenderSettings& s, const Eigen::Vector3
   uMorph_ = glGetUniformLocation(program_, "uMorph");
   uEye_ = glGetUniformLocation(program_, "uEye");
   uFogDensity_ = glGetUniformLocation(program_, "uFogDensity");
+  uFogStart_ = glGetUniformLocation(program_, "uFogStart");
   const Eigen::Vector3f fog(s.background.r / 255.0f, s.background.g / 255.0f, s.background.b / 255.0f);
   glProgramUniform3fv(program_, glGetUniformLocation(program_, "uSun"), 1, sun.data());
   glProgramUniform3fv(program_, glGetUniformLocation(program_, "uFogColor"), 1, fog.data());
@@ -114,19 +106,61 @@ std::string ModuleRenderer::create(const RenderSettings& s, const Eigen::Vector3
   return {};
 }
 
+void ModuleRenderer::appendUnderlay(const module::Level& level, const std::vector<float>& delta,
+                                    std::vector<GpuVertex>& out, Entry& e) {
+  const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
+  const std::size_t squares = std::size_t(nx) * nz;
+  if (level.vertices.size() < (nx + 1) * std::size_t(nz + 1)) return;
+  // Colour of each square's two halves: its first skin groups'.
+  std::vector<std::uint32_t> colour(2 * squares, 0);
+  std::uint64_t skinTriangles = 0;
+  const MaterialColour fallback;
+  for (const module::Group& g : level.groups) {
+    if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt) continue;
+    skinTriangles += g.indexCount / 3;
+    const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
+    if (k >= colour.size() || colour[k]) continue;
+    const MaterialColour& mc =
+        g.material < settings_.palette.size() ? settings_.palette[g.material] : fallback;
+    colour[k] = packRgb(g.half == module::Half::lower ? mc.lower : mc.upper);
+  }
+  // A skin of exactly two triangles per square is the plain lattice: watertight.
+  if (skinTriangles <= 2 * squares) return;
+  const auto post = [&](std::uint32_t c, std::uint32_t r) { return std::size_t(r) * (nx + 1) + c; };
+  const std::uint32_t up = packNormal({0, 1, 0});
+  const GLint first = GLint(out.size());
+  for (std::uint32_t r = 0; r < nz; ++r) {
+    for (std::uint32_t c = 0; c < nx; ++c) {
+      const std::size_t q = std::size_t(r) * nx + c;
+      const std::size_t nw = post(c, r), ne = post(c + 1, r), sw = post(c, r + 1), se = post(c + 1, r + 1);
+      const std::size_t tris[2][3] = {{nw, sw, ne}, {ne, sw, se}};
+      for (int h = 0; h < 2; ++h) {
+        for (const std::size_t v : tris[h]) {
+          const auto& p = level.vertices[v];
+          out.push_back({p.x, p.y, p.z, delta[v], colour[2 * q + h] ? colour[2 * q + h] : packRgb(fallback.upper), up});
+        }
+      }
+    }
+  }
+  e.ranges.push_back({kUnderlayPriority, first, GLsizei(GLint(out.size()) - first)});
+}
+
 void ModuleRenderer::upload(const ModuleDraw& d, Entry& e) {
   const module::Level& level = d.ref.level(d.level);
   const ResidentModule& m = d.ref.module();
   const module::Level* coarser = d.level + 1 < m.levels.size() ? &m.levels[d.level + 1] : nullptr;
   // Per source vertex: how far the next level's surface lies above this
-  // one's at the same (x, z). Skirt feet keep their depth below the edge.
+  // one's at the same (x, z). Skirt feet do not move: they hang below the
+  // lowest surface of every level there, so a skirt from a morphed edge
+  // down to its unmoved foot still covers any neighbour's edge.
   std::vector<float> delta(level.vertices.size(), 0.0f);
   if (coarser) {
     for (std::size_t k = 0; k < level.vertices.size(); ++k) {
       const auto& v = level.vertices[k];
       const auto yc = levelHeightAt(*coarser, v.x, v.z);
       const auto yl = levelHeightAt(level, v.x, v.z);
-      if (yc && yl) delta[k] = float(*yc - *yl);
+      const bool skirtFoot = yl && v.y < *yl - 0.01;
+      if (yc && yl && !skirtFoot) delta[k] = float(*yc - *yl);
     }
   }
   std::vector<GpuVertex> out;
@@ -162,6 +196,7 @@ void ModuleRenderer::upload(const ModuleDraw& d, Entry& e) {
     }
     e.ranges.back().count = GLsizei(GLint(out.size()) - e.ranges.back().first);
   }
+  appendUnderlay(level, delta, out, e);
   if (e.vbo) glDeleteBuffers(1, &e.vbo);
   glCreateBuffers(1, &e.vbo);
   gpuBytes_ -= e.bytes;
@@ -236,12 +271,19 @@ void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   glUniformMatrix4fv(uViewProjection_, 1, GL_FALSE, viewProjection.data());
   glUniform3f(uEye_, float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
   glUniform1f(uFogDensity_, float(fogDensityFor(cam.viewDistance)));
+  glUniform1f(uFogStart_, float(kFogClearFraction * cam.viewDistance));
   // Skirts hang as vertical walls that may face either way: no culling.
   glDisable(GL_CULL_FACE);
   glEnable(GL_DEPTH_TEST);
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_GREATER);
   drawPriority(buf, module::kPrioritySkin, module::kPrioritySkin, entries);
+  // The plain lattice under culture-cut skin, pushed away from the eye, so
+  // it shows only through pinholes where cut triangles meet at T-junctions.
+  glEnable(GL_POLYGON_OFFSET_FILL);
+  glPolygonOffset(-1.0f, -4.0f);
+  drawPriority(buf, kUnderlayPriority, kUnderlayPriority, entries);
+  glDisable(GL_POLYGON_OFFSET_FILL);
 
   std::vector<std::uint8_t> priorities;
   for (const Entry* e : entries) {
@@ -264,7 +306,7 @@ void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   glDisable(GL_POLYGON_OFFSET_FILL);
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_GREATER);
-  drawPriority(buf, module::kPriorityObject, 255, entries);
+  drawPriority(buf, module::kPriorityObject, kUnderlayPriority - 1, entries);
 
   release(stats, buf);
   stats.cachedLevels = std::uint32_t(cache_.size());

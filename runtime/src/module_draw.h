@@ -26,6 +26,16 @@ namespace sandtable::runtime::detail {
 /// Compiles and links a program (renderer.cpp); 0 and `error` on failure.
 GLuint linkProgram(const char* vertexSource, const char* fragmentSource, std::string& error);
 
+// Colour per vertex means one vertex per triangle corner: the upper and
+// lower halves of a square share posts but not colours. 24 bytes each.
+struct GpuVertex {
+  float x, y, z;
+  float morphDelta;     ///< next coarser level's surface minus this level's, here
+  std::uint32_t rgba;   ///< GL_UNSIGNED_BYTE x 4, normalized
+  std::uint32_t normal; ///< GL_INT_2_10_10_10_REV, normalized
+};
+static_assert(sizeof(GpuVertex) == 24, "vertex layout is shared with the shader");
+
 class ModuleRenderer {
  public:
   ModuleRenderer() = default;
@@ -51,6 +61,10 @@ class ModuleRenderer {
     std::uint64_t lastFrame = 0;
     std::uint64_t bytes = 0;
   };
+  /// Range priority of the lattice underlay (not a module priority).
+  static constexpr std::uint8_t kUnderlayPriority = 255;
+  void appendUnderlay(const module::Level& level, const std::vector<float>& delta,
+                      std::vector<GpuVertex>& out, Entry& e);
   Entry& entryFor(const ModuleDraw& d, std::uint64_t frame, RenderStats& stats);
   void upload(const ModuleDraw& d, Entry& e);
   void release(RenderStats& stats, const DisplayBuffer& buf);
@@ -59,7 +73,7 @@ class ModuleRenderer {
 
   RenderSettings settings_;
   GLuint program_ = 0, vao_ = 0;
-  GLint uViewProjection_ = -1, uOffset_ = -1, uMorph_ = -1, uEye_ = -1, uFogDensity_ = -1;
+  GLint uViewProjection_ = -1, uOffset_ = -1, uMorph_ = -1, uEye_ = -1, uFogDensity_ = -1, uFogStart_ = -1;
   std::unordered_map<std::uint64_t, Entry> cache_;
   std::uint64_t gpuBytes_ = 0;
 };

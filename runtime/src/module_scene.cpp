@@ -53,7 +53,14 @@ const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
     if (level.vertices.empty()) lo = hi = 0;
     info.minY[l] = lo;
     info.maxY[l] = hi;
-    info.triangles[l] = level.indices.size() / 3;
+    // The renderer adds the plain lattice under culture-cut skin
+    // (module_draw.cpp, appendUnderlay): count it too.
+    std::uint64_t skin = 0;
+    for (const auto& g : level.groups) {
+      if (g.priority == module::kPrioritySkin && g.half != module::Half::skirt) skin += g.indexCount / 3;
+    }
+    const std::uint64_t lattice = 2ull * level.squaresX * level.squaresZ;
+    info.triangles[l] = level.indices.size() / 3 + (skin > lattice ? lattice : 0);
   }
   info.errors = levelErrors(std::span(m.levels), info.finest);
   return info;
@@ -63,8 +70,12 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   const auto start = std::chrono::steady_clock::now();
   out.frame = frame;
   out.camera = cam;
-  out.originX = cam.x;
-  out.originZ = cam.z;
+  // A buffer origin on a module corner makes every module's offset a whole
+  // number of module edges, exact in float, so two neighbours place their
+  // shared edge posts at bit-identical positions: no pixel cracks between
+  // them from rounding (rasterization is only watertight for equal vertices).
+  out.originX = std::floor(cam.x / moduleSize_) * moduleSize_;
+  out.originZ = std::floor(cam.z / moduleSize_) * moduleSize_;
   out.moduleMode = true;
   out.moduleSize = moduleSize_;
   out.spans.clear();

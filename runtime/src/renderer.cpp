@@ -48,6 +48,7 @@ uniform float uTintRange;
 uniform vec3 uSun;
 uniform vec3 uFogColor;
 uniform float uFogDensity;
+uniform float uFogStart;
 uniform bool uFog;
 out vec4 fragColor;
 
@@ -76,7 +77,7 @@ void main() {
   float light = 0.38 + 0.62 * max(dot(n, uSun), 0.0);
   vec3 color = hypsometric(vElevation) * light;
   if (uFog) {
-    float k = uFogDensity * vDistance;
+    float k = uFogDensity * max(vDistance - uFogStart, 0.0);
     color = mix(uFogColor, color, exp(-k * k));
   }
   fragColor = vec4(color, 1.0);
@@ -280,6 +281,8 @@ struct Renderer::Impl {
     glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uEye"), 1, eyeF.data());
     glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogDensity"),
                        float(detail::fogDensityFor(cam.viewDistance)));
+    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogStart"),
+                       float(detail::kFogClearFraction * cam.viewDistance));
     // Re-specifying the store each frame orphans last frame's copy, so the
     // driver never waits for the GPU to finish with it.
     glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(TerrainVertex)),

@@ -1,0 +1,345 @@
+// The stealth viewer on real data (SRTM N43E007 round Monaco with its OSM
+// culture): no cracks in any LoD configuration, decals with the right area
+// and no skin showing through them, triangle counts falling as Table 8
+// describes, and the screen-space mode within its pixel budget.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include "sandtable/converters/crs.h"
+#include "sandtable/converters/elevation.h"
+#include "sandtable/formats/database.h"
+#include "sandtable/runtime/flight.h"
+#include "sandtable/runtime/image.h"
+#include "sandtable/runtime/renderer.h"
+#include "sandtable/runtime/view_triangle.h"
+#include "test_support.h"
+
+namespace sandtable::test {
+namespace {
+
+using runtime::FlightOptions;
+using runtime::Image;
+using runtime::LodMode;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRoadWidth = 40;  // metres, the GeoJSON's width attribute
+constexpr double kRoadLat = 43.712, kRoadLon0 = 7.425, kRoadLon1 = 7.440;
+
+std::string buildDb(const TempDir& tmp, const std::string& name, std::vector<std::string> culture,
+                    std::array<double, 4> extent) {
+  convert::ElevationOptions o;
+  o.sources = {data("elevation/srtm/N43E007.hgt.zip")};
+  o.culture = std::move(culture);
+  o.extent = extent;
+  o.spacing = 30;
+  o.output = tmp / name;
+  auto r = convert::buildElevation(o, nullptr);
+  EXPECT_TRUE(r.ok()) << r.error();
+  return o.output;
+}
+
+class Viewer : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!haveData()) return;
+    std::string why;
+    if (!runtime::headlessGlAvailable(why)) {
+      noGl_ = why;
+      return;
+    }
+    tmp_ = new TempDir("viewer");
+    monaco_ = buildDb(*tmp_, "monaco", {data("culture/osm/monaco.osm.gz")},
+                      {7.38, 43.72, 7.46, 43.77});
+    // One straight primary road of known width over the flat sea off Monaco.
+    std::ofstream(*tmp_ / "road.geojson")
+        << R"({"type":"FeatureCollection","features":[{"type":"Feature",)"
+        << R"("properties":{"highway":"primary","width":")" << kRoadWidth << R"("},)"
+        << R"("geometry":{"type":"LineString","coordinates":[[)" << kRoadLon0 << "," << kRoadLat
+        << "],[" << kRoadLon1 << "," << kRoadLat << "]]}}]}";
+    road_ = buildDb(*tmp_, "road", {*tmp_ / "road.geojson"}, {7.41, 43.70, 7.45, 43.725});
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    tmp_ = nullptr;
+  }
+  void SetUp() override {
+    SANDTABLE_REQUIRE_DATA();
+    if (!noGl_.empty()) GTEST_SKIP() << "no headless GL: " << noGl_;
+  }
+
+  /// Renders one frame of `db` at lon/lat with the options; fog, sky and
+  /// panel off, the pager settled, so the frame shows exactly the modules.
+  static std::pair<Image, runtime::FrameStats> frame(const std::string& dir, FlightOptions o,
+                                                     double lon, double lat,
+                                                     const std::string& name = "") {
+    auto db = openDatabase(dir);
+    EXPECT_TRUE(db.ok()) << db.error();
+    auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+    EXPECT_TRUE(geo.ok());
+    EXPECT_TRUE(geo.value()->toProjected(lon, lat, o.easting, o.northing));
+    // Two frames: the second is drawn after the pager has surely published
+    // every level of every module (the first waits for its queue to drain).
+    o.frames = 2;
+    o.speedKmh = 0;
+    o.fog = false;
+    o.sky = false;
+    o.hud = false;
+    o.pagerSync = true;
+    o.mode = runtime::TerrainMode::modules;
+    Image img;
+    o.onFrame = [&](std::uint32_t, const Image& i) { img = i; };
+    auto r = runtime::fly(db.value(), o);
+    EXPECT_TRUE(r.ok()) << r.error();
+    runtime::FrameStats s;
+    if (r.ok() && !r->frames.empty()) s = r->frames.back();
+    // SANDTABLE_KEEP_TEST_OUTPUT=DIR keeps the frames for a look.
+    if (const char* keep = std::getenv("SANDTABLE_KEEP_TEST_OUTPUT"); keep && !name.empty()) {
+      runtime::writePng(std::string(keep) + "/" + name + ".png", img);
+    }
+    return {img, s};
+  }
+
+  static inline TempDir* tmp_ = nullptr;
+  static inline std::string monaco_, road_, noGl_;
+};
+
+bool isMagenta(const Image& img, std::uint32_t x, std::uint32_t y) {
+  const auto c = img.at(x, y);
+  return c.r > 240 && c.g < 16 && c.b > 240;
+}
+
+/// Magenta pixels below the terrain's silhouette: in each column, those
+/// under the first pixel from the top that is not the clear colour.
+std::uint64_t cracks(const Image& img) {
+  std::uint64_t n = 0;
+  for (std::uint32_t x = 0; x < img.width; ++x) {
+    std::uint32_t y = 0;
+    while (y < img.height && isMagenta(img, x, y)) ++y;
+    for (; y < img.height; ++y) n += isMagenta(img, x, y);
+  }
+  return n;
+}
+
+struct LodCase {
+  const char* name;
+  LodMode mode;
+  std::vector<double> rings;
+  double pixelError;
+  bool morph;
+};
+
+std::vector<LodCase> lodCases() {
+  return {{"rings Table 8", LodMode::rings, {}, 2, true},
+          {"rings no morph", LodMode::rings, {}, 2, false},
+          {"rings tight", LodMode::rings, {400, 800, 1600}, 2, true},
+          {"rings tight no morph", LodMode::rings, {400, 800, 1600}, 2, false},
+          {"sse 1 px", LodMode::sse, {}, 1, true},
+          {"sse 16 px", LodMode::sse, {}, 16, true},
+          {"sse 16 px no morph", LodMode::sse, {}, 16, false},
+          {"full", LodMode::full, {}, 2, false}};
+}
+
+TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
+  struct View {
+    const char* name;
+    double lon, lat, height, heading, pitch;
+  };
+  // Low over the harbour towards the hills, along the ridge, and steeply
+  // down from high over the town.
+  const View views[] = {{"low north", 7.425, 43.728, 40, 340, -4},
+                        {"low west", 7.445, 43.745, 60, 260, -6},
+                        {"high", 7.42, 43.735, 1500, 45, -60}};
+  for (const LodCase& c : lodCases()) {
+    for (const View& v : views) {
+      FlightOptions o;
+      o.width = 320;
+      o.height = 180;
+      o.heightAgl = v.height;
+      o.headingDeg = v.heading;
+      o.pitchDeg = v.pitch;
+      o.viewDistance = 6000;
+      o.lod = {c.mode, c.rings, c.pixelError, c.morph};
+      auto [img, s] = frame(monaco_, o, v.lon, v.lat, std::string(c.name) + " " + v.name);
+      ASSERT_EQ(img.width, 320u);
+      EXPECT_GT(s.modulesDrawn, 0u) << c.name << ", " << v.name;
+      EXPECT_EQ(s.modulesMissing, 0u) << c.name << ", " << v.name;
+      EXPECT_EQ(cracks(img), 0u) << c.name << ", " << v.name;
+    }
+  }
+}
+
+TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
+  // Table 8: 0-6000 all fine, then two, three and four bins.
+  const std::vector<std::vector<double>> bins = {
+      {6000}, {3000, 6000}, {2000, 4000, 6000}, {1500, 3000, 4500, 6000}};
+  std::vector<std::uint64_t> triangles;
+  for (const auto& b : bins) {
+    FlightOptions o;
+    o.width = 320;
+    o.height = 180;
+    o.heightAgl = 150;
+    o.headingDeg = 70;
+    o.pitchDeg = -5;
+    o.viewDistance = 6000;
+    o.lod = {LodMode::rings, b, 2, false};
+    auto [img, s] = frame(monaco_, o, 7.39, 43.73);
+    EXPECT_EQ(cracks(img), 0u);
+    triangles.push_back(s.triangles);
+  }
+  for (std::size_t k = 1; k < triangles.size(); ++k) {
+    EXPECT_LT(triangles[k], triangles[k - 1]) << "bins " << k + 1;
+  }
+  // One bin out to the view distance is what the finest level draws.
+  FlightOptions full;
+  full.width = 320;
+  full.height = 180;
+  full.heightAgl = 150;
+  full.headingDeg = 70;
+  full.pitchDeg = -5;
+  full.viewDistance = 6000;
+  full.lod.mode = LodMode::full;
+  EXPECT_EQ(frame(monaco_, full, 7.39, 43.73).second.triangles, triangles.front());
+}
+
+TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
+  std::uint64_t previous = 0;
+  for (const double px : {8.0, 4.0, 2.0, 1.0, 0.5}) {
+    for (const bool morph : {false, true}) {
+      FlightOptions o;
+      o.width = 320;
+      o.height = 180;
+      o.heightAgl = 80;
+      o.headingDeg = 20;
+      o.pitchDeg = -6;
+      o.viewDistance = 6000;
+      o.lod = {LodMode::sse, {}, px, morph};
+      auto [img, s] = frame(monaco_, o, 7.415, 43.725, "sse " + std::to_string(px) + (morph ? " morph" : ""));
+      // The morph factor is the largest the budget allows: equal up to rounding.
+      EXPECT_LE(s.maxErrorPx, px * (1 + 1e-6)) << px << " px, morph " << morph;
+      EXPECT_EQ(s.modulesCoarser, 0u) << px << " px, morph " << morph;
+      EXPECT_EQ(cracks(img), 0u) << px << " px, morph " << morph;
+      if (!morph) {
+        // A tighter budget never draws fewer triangles.
+        EXPECT_GE(s.triangles, previous) << px << " px";
+        previous = s.triangles;
+      }
+    }
+  }
+}
+
+/// Screen position of a world point (X east, Y up, Z south, metres) for the
+/// viewer's camera; the same projection as the renderer, written out here.
+std::array<double, 2> project(const FlightOptions& o, const std::array<double, 3>& eye,
+                              const std::array<double, 3>& p) {
+  const double h = o.headingDeg * kPi / 180, t = o.pitchDeg * kPi / 180;
+  const std::array<double, 3> f{std::cos(t) * std::sin(h), std::sin(t), -std::cos(t) * std::cos(h)};
+  const std::array<double, 3> r{std::cos(h), 0, std::sin(h)};
+  const std::array<double, 3> u{r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2],
+                                r[0] * f[1] - r[1] * f[0]};
+  const std::array<double, 3> d{p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]};
+  const auto dot = [](const auto& a, const auto& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  const double aspect = double(o.width) / o.height;
+  const double k = 1 / std::tan(runtime::verticalFovDeg(o.hfovDeg, aspect) * kPi / 360);
+  const double depth = dot(f, d);
+  const double nx = k / aspect * dot(r, d) / depth, ny = k * dot(u, d) / depth;
+  return {(nx + 1) / 2 * o.width, (1 - ny) / 2 * o.height};
+}
+
+TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
+  auto db = openDatabase(road_);
+  ASSERT_TRUE(db.ok()) << db.error();
+  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  ASSERT_TRUE(geo.ok());
+  const auto& gh = db->grid->header();
+  const auto world = [&](double lon, double lat) {
+    double e = 0, n = 0;
+    EXPECT_TRUE(geo.value()->toProjected(lon, lat, e, n));
+    return std::array<double, 2>{e - gh.originEasting, gh.originNorthing - n};
+  };
+  const auto a = world(kRoadLon0, kRoadLat), b = world(kRoadLon1, kRoadLat);
+  const double length = std::hypot(b[0] - a[0], b[1] - a[1]);
+  const std::array<double, 2> across{-(b[1] - a[1]) / length * kRoadWidth / 2,
+                                     (b[0] - a[0]) / length * kRoadWidth / 2};
+  const double midLon = (kRoadLon0 + kRoadLon1) / 2;
+  for (const double height : {500.0, 1500.0, 3000.0}) {
+    FlightOptions o;
+    o.width = 480;
+    o.height = 270;
+    o.heightAgl = height;
+    o.headingDeg = 0;
+    o.pitchDeg = -89;
+    o.viewDistance = 8000;
+    auto [img, s] = frame(road_, o, midLon, kRoadLat, "road " + std::to_string(int(height)));
+    ASSERT_EQ(img.width, 480u);
+    const auto mid = world(midLon, kRoadLat);
+    const std::array<double, 3> eye{mid[0], s.eyeElevation, mid[1]};
+    // The road's corners on screen (the sea under it is flat at 0 m).
+    std::array<std::array<double, 2>, 4> q;
+    const std::array<std::array<double, 2>, 4> corners = {
+        {{a[0] + across[0], a[1] + across[1]}, {b[0] + across[0], b[1] + across[1]},
+         {b[0] - across[0], b[1] - across[1]}, {a[0] - across[0], a[1] - across[1]}}};
+    for (int k = 0; k < 4; ++k) q[k] = project(o, eye, {corners[k][0], 0, corners[k][1]});
+    double area = 0;
+    for (int k = 0; k < 4; ++k) {
+      area += q[k][0] * q[(k + 1) % 4][1] - q[(k + 1) % 4][0] * q[k][1];
+    }
+    area = std::abs(area) / 2;
+    const auto centre = project(o, eye, {mid[0], 0, mid[1]});
+    const runtime::Rgb road = img.at(std::uint32_t(centre[0]), std::uint32_t(centre[1]));
+    ASSERT_GT(int(road.r) - int(road.b), 60) << "no road colour at the centre, height " << height;
+    const auto isRoad = [&](runtime::Rgb c) {
+      return std::abs(c.r - road.r) <= 12 && std::abs(c.g - road.g) <= 12 &&
+             std::abs(c.b - road.b) <= 12;
+    };
+    double winding = 0;
+    for (int k = 0; k < 4; ++k) winding += q[k][0] * q[(k + 1) % 4][1] - q[(k + 1) % 4][0] * q[k][1];
+    const double orient = winding > 0 ? 1 : -1;
+    // Distance (pixels) from a point to the quad's nearest edge, positive inside.
+    const auto inset = [&](double x, double y) {
+      double d = 1e9;
+      for (int k = 0; k < 4; ++k) {
+        const auto& p0 = q[k];
+        const auto& p1 = q[(k + 1) % 4];
+        const double ex = p1[0] - p0[0], ey = p1[1] - p0[1];
+        d = std::min(d, orient * (ex * (y - p0[1]) - ey * (x - p0[0])) / std::hypot(ex, ey));
+      }
+      return d;
+    };
+    ASSERT_GT(inset(centre[0], centre[1]), 1.5);
+    std::uint64_t roadPixels = 0, skinInside = 0;
+    for (std::uint32_t y = 0; y < img.height; ++y) {
+      for (std::uint32_t x = 0; x < img.width; ++x) {
+        const bool r = isRoad(img.at(x, y));
+        roadPixels += r;
+        if (!r && inset(x + 0.5, y + 0.5) > 1.5) ++skinInside;
+      }
+    }
+    const bool wholeRoadOnScreen = std::all_of(q.begin(), q.end(), [&](const auto& p) {
+      return p[0] >= 0 && p[0] < o.width && p[1] >= 0 && p[1] < o.height;
+    });
+    if (height >= 1500) EXPECT_TRUE(wholeRoadOnScreen) << "height " << height;
+    if (wholeRoadOnScreen) EXPECT_NEAR(double(roadPixels), area, 0.05 * area)
+        << "height " << height << " centre " << centre[0] << "," << centre[1] << " corners "
+        << q[0][0] << "," << q[0][1] << " " << q[2][0] << "," << q[2][1];
+    EXPECT_EQ(skinInside, 0u) << "height " << height;
+  }
+}
+
+TEST_F(Viewer, ClearErrorsForBadViewerOptions) {
+  const auto fly = [](std::vector<std::string> extra) {
+    std::vector<std::string> args = {"fly", monaco_, "--png", *tmp_ / "bad", "--frames", "1"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runCli(args);
+  };
+  EXPECT_EQ(fly({"--lod", "bogus"}).exitCode, 2);
+  EXPECT_EQ(fly({"--rings", "3000,1000"}).exitCode, 2);
+  EXPECT_EQ(fly({"--rings", "a,b"}).exitCode, 2);
+  EXPECT_EQ(fly({"--mode", "sideways"}).exitCode, 2);
+  EXPECT_EQ(fly({"--pixel-error", "0"}).exitCode, 2);
+}
+
+}  // namespace
+}  // namespace sandtable::test
