@@ -3,6 +3,7 @@
 // listing them. `bench paging` and `bench render` will join `build` here.
 #include "bench_build.h"
 #include "bench_modules.h"
+#include "bench_render.h"
 #include "bench_paging.h"
 #include "commands.h"
 
@@ -13,6 +14,7 @@ void registerBench(CLI::App& root, Commands& c) {
   bench->require_subcommand(1);
   registerBenchBuild(*bench, c);
   registerBenchModules(*bench, c);
+  registerBenchRender(*bench, c);
   registerBenchPaging(*bench, c);
   registerBenchMakeDb(*bench, c);
 }
