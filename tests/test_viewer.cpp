@@ -219,7 +219,7 @@ TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
       auto [img, s] = frame(monaco_, o, 7.415, 43.725, "sse " + std::to_string(px) + (morph ? " morph" : ""));
       // The morph factor is the largest the budget allows: equal up to rounding.
       EXPECT_LE(s.maxErrorPx, px * (1 + 1e-6)) << px << " px, morph " << morph;
-      EXPECT_EQ(s.modulesCoarser, 0u) << px << " px, morph " << morph;
+      EXPECT_EQ(s.nodesCoarser, 0u) << px << " px, morph " << morph;
       EXPECT_EQ(cracks(img), 0u) << px << " px, morph " << morph;
       if (!morph) {
         // A tighter budget never draws fewer triangles.

@@ -104,8 +104,9 @@ nlohmann::json frameJson(const FrameStats& s) {
                       {"speed_kmh", s.speedKmh}};
   if (!s.levelCounts.empty()) {
     j["modules"] = {{"drawn", s.modulesDrawn},     {"missing", s.modulesMissing},
-                    {"coarser", s.modulesCoarser}, {"culled", s.modulesCulled},
-                    {"per_level", s.levelCounts},  {"max_error_px", s.maxErrorPx},
+                    {"culled", s.modulesCulled},   {"nodes_drawn", s.nodesDrawn},
+                    {"nodes_coarser", s.nodesCoarser},
+                    {"nodes_per_level", s.levelCounts}, {"max_error_px", s.maxErrorPx},
                     {"uploads", s.uploads},        {"cached_levels", s.cachedLevels},
                     {"gpu_bytes", s.gpuBytes}};
     j["pager"] = {{"resident_in_window", s.residentModules},
@@ -323,7 +324,8 @@ struct FlightRun {
       const SceneStats& sc = slot->buf.scene;
       s.modulesDrawn = sc.modulesDrawn;
       s.modulesMissing = sc.modulesMissing;
-      s.modulesCoarser = sc.modulesCoarser;
+      s.nodesDrawn = sc.nodesDrawn;
+      s.nodesCoarser = sc.nodesCoarser;
       s.modulesCulled = sc.modulesCulled;
       s.levelCounts = sc.levelCounts;
       s.maxErrorPx = sc.maxErrorPx;
@@ -499,6 +501,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
     ss.imageHeight = o.height;
     ss.gridSpacing = g->spacing();
     ss.minElevation = g->header().minElevation;
+    ss.moduleSquares = db->modules->header().moduleSquares;
     run.scene = std::make_unique<ModuleScene>(*pager, ss);
     run.pager = pager.get();
   }
@@ -538,7 +541,9 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   }
   lines.push_back("TRIS " + std::to_string(s.triangles));
   lines.push_back(std::string("LOD ") + lodModeName(o.lod.mode) + "  LEVELS " + levels);
-  lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  RESIDENT " +
+  lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
+                  std::to_string(s.nodesDrawn));
+  lines.push_back("RESIDENT " +
                   std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
   lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
   return lines;

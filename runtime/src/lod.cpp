@@ -29,6 +29,53 @@ const char* lodModeName(LodMode m) {
   return "?";
 }
 
+std::uint32_t mortonIndex(std::uint32_t a, std::uint32_t b) {
+  std::uint32_t m = 0;
+  for (std::uint32_t bit = 0; bit < 16; ++bit) {
+    m |= ((a >> bit) & 1u) << (2 * bit);
+    m |= ((b >> bit) & 1u) << (2 * bit + 1);
+  }
+  return m;
+}
+
+std::uint32_t nodeOfSquare(const module::Level& level, std::uint32_t square,
+                           std::uint32_t nodeSquares, std::uint32_t nodesPerSide) {
+  const std::uint32_t nx = std::max<std::uint32_t>(level.squaresX, 1);
+  const std::uint32_t n = std::max<std::uint32_t>(nodeSquares, 1);
+  const std::uint32_t a = std::min((square % nx) / n, nodesPerSide - 1);
+  const std::uint32_t b = std::min((square / nx) / n, nodesPerSide - 1);
+  return mortonIndex(a, b);
+}
+
+bool needsUnderlay(const module::Level& level) {
+  std::uint64_t skin = 0;
+  for (const auto& g : level.groups) {
+    if (g.priority == module::kPrioritySkin && g.half != module::Half::skirt) skin += g.indexCount / 3;
+  }
+  return skin > 2ull * level.squaresX * level.squaresZ;
+}
+
+std::vector<std::uint64_t> nodeTrianglePrefix(const module::Level& level, std::uint32_t nodeSquares,
+                                              std::uint32_t nodesPerSide) {
+  const std::size_t nodes = std::size_t(nodesPerSide) * nodesPerSide;
+  std::vector<std::uint64_t> count(nodes + 1, 0);
+  for (const auto& g : level.groups) {
+    count[nodeOfSquare(level, g.square, nodeSquares, nodesPerSide)] += g.indexCount / 3;
+  }
+  if (needsUnderlay(level)) {
+    for (std::uint32_t q = 0; q < level.squaresX * level.squaresZ; ++q) {
+      count[nodeOfSquare(level, q, nodeSquares, nodesPerSide)] += 2;
+    }
+  }
+  std::uint64_t run = 0;
+  for (auto& c : count) {
+    const std::uint64_t n = c;
+    c = run;
+    run += n;
+  }
+  return count;
+}
+
 std::string checkLodOptions(const LodOptions& o) {
   for (std::size_t k = 0; k < o.rings.size(); ++k) {
     if (!(o.rings[k] > 0) || !std::isfinite(o.rings[k])) return "--rings must be positive metres";

@@ -106,49 +106,41 @@ std::string ModuleRenderer::create(const RenderSettings& s, const Eigen::Vector3
   return {};
 }
 
-void ModuleRenderer::appendUnderlay(const module::Level& level, const std::vector<float>& delta,
-                                    std::vector<GpuVertex>& out, Entry& e) {
-  const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
-  const std::size_t squares = std::size_t(nx) * nz;
-  if (level.vertices.size() < (nx + 1) * std::size_t(nz + 1)) return;
-  // Colour of each square's two halves: its first skin groups'.
-  std::vector<std::uint32_t> colour(2 * squares, 0);
-  std::uint64_t skinTriangles = 0;
-  const MaterialColour fallback;
-  for (const module::Group& g : level.groups) {
-    if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt) continue;
-    skinTriangles += g.indexCount / 3;
-    const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
-    if (k >= colour.size() || colour[k]) continue;
-    const MaterialColour& mc =
-        g.material < settings_.palette.size() ? settings_.palette[g.material] : fallback;
-    colour[k] = packRgb(g.half == module::Half::lower ? mc.lower : mc.upper);
-  }
-  // A skin of exactly two triangles per square is the plain lattice: watertight.
-  if (skinTriangles <= 2 * squares) return;
-  const auto post = [&](std::uint32_t c, std::uint32_t r) { return std::size_t(r) * (nx + 1) + c; };
-  const std::uint32_t up = packNormal({0, 1, 0});
-  const GLint first = GLint(out.size());
-  for (std::uint32_t r = 0; r < nz; ++r) {
-    for (std::uint32_t c = 0; c < nx; ++c) {
-      const std::size_t q = std::size_t(r) * nx + c;
-      const std::size_t nw = post(c, r), ne = post(c + 1, r), sw = post(c, r + 1), se = post(c + 1, r + 1);
-      const std::size_t tris[2][3] = {{nw, sw, ne}, {ne, sw, se}};
-      for (int h = 0; h < 2; ++h) {
-        for (const std::size_t v : tris[h]) {
-          const auto& p = level.vertices[v];
-          out.push_back({p.x, p.y, p.z, delta[v], colour[2 * q + h] ? colour[2 * q + h] : packRgb(fallback.upper), up});
-        }
-      }
+namespace {
+
+/// Appends the triangles of one group as de-indexed vertices.
+void appendGroup(const module::Level& level, const module::Group& g, std::uint32_t rgba,
+                 const std::vector<float>& delta, std::vector<GpuVertex>& out) {
+  for (std::uint32_t t = 0; t + 2 < g.indexCount; t += 3) {
+    const std::uint32_t* idx = level.indices.data() + g.firstIndex + t;
+    const auto& a = level.vertices[idx[0]];
+    const auto& b = level.vertices[idx[1]];
+    const auto& c = level.vertices[idx[2]];
+    Eigen::Vector3f n(0, 1, 0);
+    // Skirts are lit as if they were the ground they continue (seed
+    // Figure 86: the fill polygon takes the adjacent polygon's normal).
+    if (g.half != module::Half::skirt) {
+      const Eigen::Vector3f ab(b.x - a.x, b.y - a.y, b.z - a.z), ac(c.x - a.x, c.y - a.y, c.z - a.z);
+      Eigen::Vector3f f = ab.cross(ac);
+      if (f.y() < 0) f = -f;
+      if (f.norm() > 0) n = f.normalized();
+    }
+    const std::uint32_t pn = packNormal(n);
+    for (int k = 0; k < 3; ++k) {
+      const auto& v = level.vertices[idx[k]];
+      out.push_back({v.x, v.y, v.z, delta[idx[k]], rgba, pn});
     }
   }
-  e.ranges.push_back({kUnderlayPriority, first, GLsizei(GLint(out.size()) - first)});
 }
 
-void ModuleRenderer::upload(const ModuleDraw& d, Entry& e) {
-  const module::Level& level = d.ref.level(d.level);
+}  // namespace
+
+void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, std::uint32_t nodeSquares,
+                            Entry& e) {
+  const module::Level& level = d.ref.level(levelIndex);
   const ResidentModule& m = d.ref.module();
-  const module::Level* coarser = d.level + 1 < m.levels.size() ? &m.levels[d.level + 1] : nullptr;
+  const auto levels = std::uint32_t(m.levels.size());
+  const module::Level* coarser = levelIndex + 1 < levels ? &m.levels[levelIndex + 1] : nullptr;
   // Per source vertex: how far the next level's surface lies above this
   // one's at the same (x, z). Skirt feet do not move: they hang below the
   // lowest surface of every level there, so a skirt from a morphed edge
@@ -163,40 +155,75 @@ void ModuleRenderer::upload(const ModuleDraw& d, Entry& e) {
       if (yc && yl && !skirtFoot) delta[k] = float(*yc - *yl);
     }
   }
-  std::vector<GpuVertex> out;
-  out.reserve(level.indices.size());
-  e.ranges.clear();
+  const std::uint32_t side = nodesPerSide(levelIndex, levels);
+  const std::size_t nodes = std::size_t(side) * side;
   const MaterialColour fallback;
-  for (const module::Group& g : level.groups) {
-    const MaterialColour& mc = g.material < settings_.palette.size() ? settings_.palette[g.material]
-                                                                     : fallback;
-    const std::uint32_t rgba = packRgb(g.half == module::Half::lower ? mc.lower : mc.upper);
-    if (e.ranges.empty() || e.ranges.back().priority != g.priority) {
-      e.ranges.push_back({g.priority, GLint(out.size()), 0});
+  const auto colourOf = [&](const module::Group& g) {
+    const MaterialColour& mc =
+        g.material < settings_.palette.size() ? settings_.palette[g.material] : fallback;
+    return packRgb(g.half == module::Half::lower ? mc.lower : mc.upper);
+  };
+  std::vector<GpuVertex> out;
+  out.reserve(level.indices.size() + (needsUnderlay(level) ? 6ull * level.squaresX * level.squaresZ : 0));
+  e.blocks.clear();
+  // Groups are sorted by priority: each priority is one run of groups,
+  // emitted node by node so that any quadtree node is one vertex range.
+  std::vector<std::vector<const module::Group*>> byNode(nodes);
+  for (std::size_t g0 = 0; g0 < level.groups.size();) {
+    const std::uint8_t priority = level.groups[g0].priority;
+    std::size_t g1 = g0;
+    for (auto& v : byNode) v.clear();
+    for (; g1 < level.groups.size() && level.groups[g1].priority == priority; ++g1) {
+      const module::Group& g = level.groups[g1];
+      byNode[nodeOfSquare(level, g.square, nodeSquares, side)].push_back(&g);
     }
-    for (std::uint32_t t = 0; t + 2 < g.indexCount + 0u; t += 3) {
-      const std::uint32_t* idx = level.indices.data() + g.firstIndex + t;
-      const auto& a = level.vertices[idx[0]];
-      const auto& b = level.vertices[idx[1]];
-      const auto& c = level.vertices[idx[2]];
-      Eigen::Vector3f n(0, 1, 0);
-      // Skirts are lit as if they were the ground they continue (seed
-      // Figure 86: the fill polygon takes the adjacent polygon's normal).
-      if (g.half != module::Half::skirt) {
-        const Eigen::Vector3f ab(b.x - a.x, b.y - a.y, b.z - a.z), ac(c.x - a.x, c.y - a.y, c.z - a.z);
-        Eigen::Vector3f f = ab.cross(ac);
-        if (f.y() < 0) f = -f;
-        if (f.norm() > 0) n = f.normalized();
-      }
-      const std::uint32_t pn = packNormal(n);
-      for (int k = 0; k < 3; ++k) {
-        const auto& v = level.vertices[idx[k]];
-        out.push_back({v.x, v.y, v.z, delta[idx[k]], rgba, pn});
-      }
+    Block b{priority, std::vector<GLint>(nodes + 1, 0)};
+    for (std::size_t n = 0; n < nodes; ++n) {
+      b.start[n] = GLint(out.size());
+      for (const module::Group* g : byNode[n]) appendGroup(level, *g, colourOf(*g), delta, out);
     }
-    e.ranges.back().count = GLsizei(GLint(out.size()) - e.ranges.back().first);
+    b.start[nodes] = GLint(out.size());
+    e.blocks.push_back(std::move(b));
+    g0 = g1;
   }
-  appendUnderlay(level, delta, out, e);
+  // The plain lattice under culture-cut skin (docs/VIEWER.md, "Seams").
+  if (needsUnderlay(level) &&
+      level.vertices.size() >= std::size_t(level.squaresX + 1) * (level.squaresZ + 1)) {
+    const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
+    std::vector<std::uint32_t> colour(2 * std::size_t(nx) * nz, packRgb(fallback.upper));
+    std::vector<bool> seen(colour.size(), false);
+    for (const module::Group& g : level.groups) {
+      if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt) continue;
+      const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
+      if (k < colour.size() && !seen[k]) {
+        colour[k] = colourOf(g);
+        seen[k] = true;
+      }
+    }
+    const auto post = [&](std::uint32_t c, std::uint32_t r) { return std::size_t(r) * (nx + 1) + c; };
+    const std::uint32_t up = packNormal({0, 1, 0});
+    std::vector<std::vector<std::uint32_t>> squaresByNode(nodes);
+    for (std::uint32_t q = 0; q < nx * nz; ++q) {
+      squaresByNode[nodeOfSquare(level, q, nodeSquares, side)].push_back(q);
+    }
+    Block b{kUnderlayPriority, std::vector<GLint>(nodes + 1, 0)};
+    for (std::size_t n = 0; n < nodes; ++n) {
+      b.start[n] = GLint(out.size());
+      for (const std::uint32_t q : squaresByNode[n]) {
+        const std::uint32_t c = q % nx, r = q / nx;
+        const std::size_t tris[2][3] = {{post(c, r), post(c, r + 1), post(c + 1, r)},
+                                        {post(c + 1, r), post(c, r + 1), post(c + 1, r + 1)}};
+        for (int h = 0; h < 2; ++h) {
+          for (const std::size_t v : tris[h]) {
+            const auto& p = level.vertices[v];
+            out.push_back({p.x, p.y, p.z, delta[v], colour[2 * std::size_t(q) + h], up});
+          }
+        }
+      }
+    }
+    b.start[nodes] = GLint(out.size());
+    e.blocks.push_back(std::move(b));
+  }
   if (e.vbo) glDeleteBuffers(1, &e.vbo);
   glCreateBuffers(1, &e.vbo);
   gpuBytes_ -= e.bytes;
@@ -207,13 +234,13 @@ void ModuleRenderer::upload(const ModuleDraw& d, Entry& e) {
   e.generation = d.ref.generation();
 }
 
-ModuleRenderer::Entry& ModuleRenderer::entryFor(const ModuleDraw& d, std::uint64_t frame,
-                                                RenderStats& stats) {
-  Entry& e = cache_[cacheKey(d.kx, d.kz, d.level)];
+ModuleRenderer::Entry& ModuleRenderer::entryFor(const ModuleDraw& d, std::uint32_t level,
+                                                std::uint64_t frame, RenderStats& stats) {
+  Entry& e = cache_[cacheKey(d.kx, d.kz, level)];
   // A new generation is a different module in the pager's slot (or the
   // same one read again): the old copy is stale.
   if (!e.vbo || e.generation != d.ref.generation()) {
-    upload(d, e);
+    upload(d, level, nodeSquares_, e);
     ++stats.uploads;
   }
   e.lastFrame = frame;
@@ -238,21 +265,26 @@ void ModuleRenderer::release(RenderStats& stats, const DisplayBuffer& buf) {
 
 void ModuleRenderer::drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std::uint8_t hi,
                                   const std::vector<Entry*>& entries) {
-  for (std::size_t k = 0; k < entries.size(); ++k) {
-    const ModuleDraw& d = buf.modules[k];
+  std::uint32_t bound = UINT32_MAX;
+  for (std::size_t k = 0; k < buf.nodes.size(); ++k) {
+    const NodeDraw& nd = buf.nodes[k];
     const Entry& e = *entries[k];
-    bool bound = false;
-    for (const Range& r : e.ranges) {
-      if (r.priority < lo || r.priority > hi || r.count == 0) continue;
-      if (!bound) {
+    for (const Block& b : e.blocks) {
+      if (b.priority < lo || b.priority > hi) continue;
+      const std::size_t n = b.start.size() - 1;
+      const GLint first = b.start[std::min<std::size_t>(nd.first, n)];
+      const GLint last = b.start[std::min<std::size_t>(nd.last, n)];
+      if (last <= first) continue;
+      if (bound != k) {
+        const ModuleDraw& d = buf.modules[nd.module];
         glVertexArrayVertexBuffer(vao_, 0, e.vbo, 0, sizeof(GpuVertex));
         const float ox = float(d.kx * buf.moduleSize - buf.originX);
         const float oz = float(d.kz * buf.moduleSize - buf.originZ);
         glUniform3f(uOffset_, ox, 0.0f, oz);
-        glUniform1f(uMorph_, d.morph);
-        bound = true;
+        glUniform1f(uMorph_, nd.morph);
+        bound = std::uint32_t(k);
       }
-      glDrawArrays(GL_TRIANGLES, r.first, r.count);
+      glDrawArrays(GL_TRIANGLES, first, last - first);
     }
   }
 }
@@ -260,9 +292,12 @@ void ModuleRenderer::drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std
 void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                           RenderStats& stats) {
   const auto t0 = std::chrono::steady_clock::now();
+  nodeSquares_ = buf.nodeSquares;
   std::vector<Entry*> entries;
-  entries.reserve(buf.modules.size());
-  for (const ModuleDraw& d : buf.modules) entries.push_back(&entryFor(d, buf.frame, stats));
+  entries.reserve(buf.nodes.size());
+  for (const NodeDraw& nd : buf.nodes) {
+    entries.push_back(&entryFor(buf.modules[nd.module], nd.level, buf.frame, stats));
+  }
   stats.uploadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
   const Camera& cam = buf.camera;
@@ -283,13 +318,12 @@ void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   glEnable(GL_POLYGON_OFFSET_FILL);
   glPolygonOffset(-1.0f, -4.0f);
   drawPriority(buf, kUnderlayPriority, kUnderlayPriority, entries);
-  glDisable(GL_POLYGON_OFFSET_FILL);
 
   std::vector<std::uint8_t> priorities;
   for (const Entry* e : entries) {
-    for (const Range& r : e->ranges) {
-      if (r.priority > module::kPrioritySkin && r.priority < module::kPriorityObject) {
-        priorities.push_back(r.priority);
+    for (const Block& b : e->blocks) {
+      if (b.priority > module::kPrioritySkin && b.priority < module::kPriorityObject) {
+        priorities.push_back(b.priority);
       }
     }
   }
@@ -297,7 +331,6 @@ void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   priorities.erase(std::unique(priorities.begin(), priorities.end()), priorities.end());
   glDepthMask(GL_FALSE);
   glDepthFunc(GL_GEQUAL);
-  glEnable(GL_POLYGON_OFFSET_FILL);
   for (const std::uint8_t p : priorities) {
     // Reversed Z: a positive offset moves towards the eye.
     glPolygonOffset(1.0f, float(p));

@@ -49,24 +49,23 @@ class ModuleRenderer {
   void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
 
  private:
-  struct Range {
+  /// The triangles of one priority, bucketed by quadtree node: node m's
+  /// vertices are [start[m], start[m + 1]) (Morton order, lod.h).
+  struct Block {
     std::uint8_t priority = 1;
-    GLint first = 0;
-    GLsizei count = 0;
+    std::vector<GLint> start;
   };
   struct Entry {
     std::uint64_t generation = 0;
     GLuint vbo = 0;
-    std::vector<Range> ranges;  ///< ascending priority, as the groups are sorted
+    std::vector<Block> blocks;  ///< ascending priority; the underlay last
     std::uint64_t lastFrame = 0;
     std::uint64_t bytes = 0;
   };
   /// Range priority of the lattice underlay (not a module priority).
   static constexpr std::uint8_t kUnderlayPriority = 255;
-  void appendUnderlay(const module::Level& level, const std::vector<float>& delta,
-                      std::vector<GpuVertex>& out, Entry& e);
-  Entry& entryFor(const ModuleDraw& d, std::uint64_t frame, RenderStats& stats);
-  void upload(const ModuleDraw& d, Entry& e);
+  Entry& entryFor(const ModuleDraw& d, std::uint32_t level, std::uint64_t frame, RenderStats& stats);
+  void upload(const ModuleDraw& d, std::uint32_t level, std::uint32_t nodeSquares, Entry& e);
   void release(RenderStats& stats, const DisplayBuffer& buf);
   void drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std::uint8_t hi,
                     const std::vector<Entry*>& entries);
@@ -76,6 +75,7 @@ class ModuleRenderer {
   GLint uViewProjection_ = -1, uOffset_ = -1, uMorph_ = -1, uEye_ = -1, uFogDensity_ = -1, uFogStart_ = -1;
   std::unordered_map<std::uint64_t, Entry> cache_;
   std::uint64_t gpuBytes_ = 0;
+  std::uint32_t nodeSquares_ = 4;
 };
 
 }  // namespace sandtable::runtime::detail

@@ -21,6 +21,16 @@ double rectDistance(double x, double z, double x0, double z0, double x1, double 
 
 }  // namespace
 
+struct ModuleScene::Walk {
+  const Camera* cam = nullptr;
+  const Info* info = nullptr;
+  const std::array<Eigen::Vector4d, 5>* planes = nullptr;
+  std::uint32_t moduleIndex = 0, levels = 1, finest = 0;
+  double x0 = 0, z0 = 0;  ///< the module's north-west corner, world metres
+  double ppr = 0;
+  DisplayBuffer* out = nullptr;
+};
+
 ModuleScene::ModuleScene(const Pager& pager, const ModuleSceneSettings& s)
     : pager_(pager), settings_(s) {
   const PagingGeometry& g = pager.geometry();
@@ -28,6 +38,7 @@ ModuleScene::ModuleScene(const Pager& pager, const ModuleSceneSettings& s)
   modulesX_ = g.modulesX;
   modulesZ_ = g.modulesZ;
   levels_ = std::max<std::uint32_t>(pager.levels(), 1);
+  nodeSquares_ = std::max<std::uint32_t>(s.moduleSquares >> (levels_ - 1), 1);
 }
 
 const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
@@ -42,7 +53,7 @@ const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
   const std::size_t n = m.levels.size();
   info.minY.assign(n, 0);
   info.maxY.assign(n, 0);
-  info.triangles.assign(n, 0);
+  info.nodeTriangles.assign(n, {});
   for (std::size_t l = info.finest; l < n; ++l) {
     const module::Level& level = m.levels[l];
     float lo = std::numeric_limits<float>::max(), hi = std::numeric_limits<float>::lowest();
@@ -53,17 +64,74 @@ const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
     if (level.vertices.empty()) lo = hi = 0;
     info.minY[l] = lo;
     info.maxY[l] = hi;
-    // The renderer adds the plain lattice under culture-cut skin
-    // (module_draw.cpp, appendUnderlay): count it too.
-    std::uint64_t skin = 0;
-    for (const auto& g : level.groups) {
-      if (g.priority == module::kPrioritySkin && g.half != module::Half::skirt) skin += g.indexCount / 3;
-    }
-    const std::uint64_t lattice = 2ull * level.squaresX * level.squaresZ;
-    info.triangles[l] = level.indices.size() / 3 + (skin > lattice ? lattice : 0);
+    info.nodeTriangles[l] =
+        nodeTrianglePrefix(level, nodeSquares_, nodesPerSide(std::uint32_t(l), std::uint32_t(n)));
   }
   info.errors = levelErrors(std::span(m.levels), info.finest);
   return info;
+}
+
+void ModuleScene::emit(const Walk& w, std::uint32_t level, std::uint32_t depth, std::uint32_t a,
+                       std::uint32_t b, float morph) {
+  DisplayBuffer& out = *w.out;
+  // The depth-d node is a block of 4^s Morton indices at `level`.
+  const std::uint32_t s = (w.levels - 1 - level) - depth;
+  const std::uint32_t first = mortonIndex(a, b) << (2 * s);
+  const std::uint32_t last = (mortonIndex(a, b) + 1) << (2 * s);
+  const auto& prefix = w.info->nodeTriangles[level];
+  const std::uint64_t tris = prefix[std::min<std::size_t>(last, prefix.size() - 1)] -
+                             prefix[std::min<std::size_t>(first, prefix.size() - 1)];
+  out.triangles += tris;
+  out.modules[w.moduleIndex].triangles += tris;
+  ++out.scene.nodesDrawn;
+  ++out.scene.levelCounts[std::min(level, levels_ - 1)];
+  // Runs of nodes at one level and morph merge into one draw.
+  if (!out.nodes.empty()) {
+    NodeDraw& p = out.nodes.back();
+    if (p.module == w.moduleIndex && p.level == level && p.morph == morph && p.last == first) {
+      p.last = last;
+      return;
+    }
+  }
+  out.nodes.push_back({w.moduleIndex, level, first, last, morph});
+}
+
+void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std::uint32_t b) {
+  const Camera& cam = *w.cam;
+  const double size = moduleSize_ / double(1u << depth);
+  const double x0 = w.x0 + a * size, z0 = w.z0 + b * size, x1 = x0 + size, z1 = z0 + size;
+  const double ground = rectDistance(cam.x, cam.z, x0, z0, x1, z1);
+  if (ground > cam.viewDistance) return;  // beyond the fog
+  const float lo = w.info->minY[w.finest], hi = w.info->maxY[w.finest];
+  if (!detail::boxInFrustum(*w.planes, {x0, lo, z0}, {x1, hi, z1})) {
+    ++w.out->scene.nodesCulled;
+    return;
+  }
+  const double dy = std::max({double(lo) - cam.y, 0.0, cam.y - double(hi)});
+  const double distance = std::hypot(ground, dy);
+  const LodOptions& lod = settings_.lod;
+  std::uint32_t want = 0;
+  if (lod.mode == LodMode::rings) want = ringLevel(lod, ground, cam.viewDistance, w.levels);
+  if (lod.mode == LodMode::sse) want = sseLevel(w.info->errors, distance, w.ppr, lod.pixelError, 0);
+  const std::uint32_t coarsest = w.levels - 1 - depth;  // the coarsest level with skirts round it
+  const bool finestDepth = coarsest <= w.finest;        // no finer level resident below this
+  if (want < coarsest && !finestDepth) {
+    for (std::uint32_t c = 0; c < 4; ++c) visit(w, depth + 1, 2 * a + (c & 1), 2 * b + (c >> 1));
+    return;
+  }
+  const std::uint32_t level = std::max(std::min(want, coarsest), w.finest);
+  if (level > want) ++w.out->scene.nodesCoarser;
+  float morph = 0;
+  if (lod.morph && lod.mode == LodMode::rings) {
+    morph = float(ringMorph(lod, level, ground, cam.viewDistance, w.levels));
+  } else if (lod.morph && lod.mode == LodMode::sse) {
+    morph = float(sseMorph(w.info->errors, level, distance, w.ppr, lod.pixelError));
+  }
+  const double e0 = w.info->errors[level];
+  const double e1 = level + 1 < w.levels ? w.info->errors[level + 1] : e0;
+  const double errorPx = projectedError((1.0 - morph) * e0 + morph * e1, distance, w.ppr);
+  w.out->scene.maxErrorPx = std::max(w.out->scene.maxErrorPx, errorPx);
+  emit(w, level, depth, a, b, morph);
 }
 
 void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& out) {
@@ -78,11 +146,13 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   out.originZ = std::floor(cam.z / moduleSize_) * moduleSize_;
   out.moduleMode = true;
   out.moduleSize = moduleSize_;
+  out.nodeSquares = nodeSquares_;
   out.spans.clear();
   out.vertices.clear();
   out.firsts.clear();
   out.counts.clear();
   out.modules.clear();
+  out.nodes.clear();
   out.triangles = 0;
   out.scene = SceneStats{};
   out.scene.levelCounts.assign(levels_, 0);
@@ -93,64 +163,55 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   out.triangle = viewTriangleFor(cam, settings_.gridSpacing);
   const auto spans = selectSquares(out.triangle, moduleSize_, modulesX_, modulesZ_, 1);
   const auto planes = detail::frustumPlanes(detail::viewProjection(cam, 0, 0));
-  const double ppr = pixelsPerRadian(cam.vfovDeg(), settings_.imageHeight);
-  const LodOptions& lod = settings_.lod;
+  struct Candidate {
+    std::uint32_t kx, kz;
+    double distance;
+  };
+  std::vector<Candidate> candidates;
   for (const RowSpan& span : spans) {
     for (std::uint32_t kx = span.firstI; kx <= span.lastI; ++kx) {
-      const std::uint32_t kz = span.j;
-      const double x0 = kx * moduleSize_, z0 = kz * moduleSize_;
-      const double x1 = x0 + moduleSize_, z1 = z0 + moduleSize_;
-      const double ground = rectDistance(cam.x, cam.z, x0, z0, x1, z1);
-      if (ground > cam.viewDistance) continue;  // beyond the fog
-      ++out.scene.modulesSelected;
-      std::uint32_t want = 0;
-      if (lod.mode == LodMode::rings) want = ringLevel(lod, ground, cam.viewDistance, levels_);
-      ResidentRef ref = pager_.resident(kx, kz, want);
-      if (!ref) {
-        ++out.scene.modulesMissing;
-        continue;
-      }
-      const Info& info = infoFor(ref);
-      const std::uint32_t finest = ref.finestLevel();
-      const auto nLevels = std::uint32_t(ref.module().levels.size());
-      // The vertical extent of the view volume: the module's box, skirts
-      // included, against the frustum's side and far planes.
-      const Eigen::Vector3d lo(x0, info.minY[finest], z0), hi(x1, info.maxY[finest], z1);
-      if (!detail::boxInFrustum(planes, lo, hi)) {
-        ++out.scene.modulesCulled;
-        continue;
-      }
-      const double dy = std::max({lo.y() - cam.y, 0.0, cam.y - hi.y()});
-      const double distance = std::hypot(ground, dy);
-      ModuleDraw d;
-      d.kx = kx;
-      d.kz = kz;
-      if (lod.mode == LodMode::sse) {
-        want = sseLevel(info.errors, distance, ppr, lod.pixelError, 0);
-      }
-      d.wantedLevel = std::min(want, nLevels - 1);
-      d.level = std::max(d.wantedLevel, finest);
-      if (lod.morph && lod.mode == LodMode::rings) {
-        d.morph = float(ringMorph(lod, d.level, ground, cam.viewDistance, nLevels));
-      } else if (lod.morph && lod.mode == LodMode::sse) {
-        d.morph = float(sseMorph(info.errors, d.level, distance, ppr, lod.pixelError));
-      }
-      const double e0 = info.errors[d.level];
-      const double e1 = d.level + 1 < nLevels ? info.errors[d.level + 1] : e0;
-      d.errorPx = projectedError((1.0 - d.morph) * e0 + d.morph * e1, distance, ppr);
-      d.distance = distance;
-      d.triangles = info.triangles[d.level];
-      if (d.level > d.wantedLevel) ++out.scene.modulesCoarser;
-      out.scene.maxErrorPx = std::max(out.scene.maxErrorPx, d.errorPx);
-      ++out.scene.levelCounts[std::min(d.level, levels_ - 1)];
-      out.triangles += d.triangles;
-      d.ref = std::move(ref);
-      out.modules.push_back(std::move(d));
+      const double x0 = kx * moduleSize_, z0 = span.j * moduleSize_;
+      const double d = rectDistance(cam.x, cam.z, x0, z0, x0 + moduleSize_, z0 + moduleSize_);
+      if (d <= cam.viewDistance) candidates.push_back({kx, span.j, d});
     }
   }
   // Nearest first: the depth test then rejects most hidden fragments early.
-  std::sort(out.modules.begin(), out.modules.end(),
-            [](const ModuleDraw& a, const ModuleDraw& b) { return a.distance < b.distance; });
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
+  Walk w;
+  w.cam = &cam;
+  w.planes = &planes;
+  w.ppr = pixelsPerRadian(cam.vfovDeg(), settings_.imageHeight);
+  w.out = &out;
+  for (const Candidate& c : candidates) {
+    ++out.scene.modulesSelected;
+    ResidentRef ref = pager_.resident(c.kx, c.kz, 0);
+    if (!ref) {
+      ++out.scene.modulesMissing;
+      continue;
+    }
+    const Info& info = infoFor(ref);
+    w.info = &info;
+    w.levels = std::uint32_t(ref.module().levels.size());
+    w.finest = ref.finestLevel();
+    w.x0 = c.kx * moduleSize_;
+    w.z0 = c.kz * moduleSize_;
+    w.moduleIndex = std::uint32_t(out.modules.size());
+    ModuleDraw d;
+    d.kx = c.kx;
+    d.kz = c.kz;
+    d.distance = c.distance;
+    d.ref = std::move(ref);
+    out.modules.push_back(std::move(d));
+    const std::size_t before = out.nodes.size();
+    const std::uint32_t culled = out.scene.nodesCulled;
+    visit(w, 0, 0, 0);
+    if (out.nodes.size() == before) {
+      // Nothing of it in view: give the guard back now.
+      out.modules.pop_back();
+      if (out.scene.nodesCulled > culled) ++out.scene.modulesCulled;
+    }
+  }
   out.scene.modulesDrawn = std::uint32_t(out.modules.size());
   const PagerMetrics pm = pager_.metrics();
   out.scene.residentInWindow = pm.residentInWindow;
@@ -159,9 +220,9 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
 
   // Forget modules the pager has let go of, now and then.
   if (++frame_ % 64 == 0) {
-    const ModuleRect w = out.pagerWindow;
+    const ModuleRect win = out.pagerWindow;
     std::erase_if(info_, [&](const auto& kv) {
-      return !w.contains(std::int64_t(kv.first & 0xFFFFFFFFu), std::int64_t(kv.first >> 32));
+      return !win.contains(std::int64_t(kv.first & 0xFFFFFFFFu), std::int64_t(kv.first >> 32));
     });
   }
   out.cpuMs =

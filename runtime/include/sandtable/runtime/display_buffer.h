@@ -35,17 +35,22 @@ struct TerrainVertex {
 };
 static_assert(sizeof(TerrainVertex) == 24, "vertex layout is shared with the shader");
 
-/// One load module to draw (module mode): which level, how far it is
-/// morphed towards the next coarser level, and the pager's read guard that
+/// One run of quadtree nodes of one module drawn at one level: Morton
+/// indices [first, last) of that level's node grid (lod.h), morphed by
+/// `morph` towards the next coarser level (0 = this level, 1 = the next).
+struct NodeDraw {
+  std::uint32_t module = 0;  ///< index into DisplayBuffer::modules
+  std::uint32_t level = 0;
+  std::uint32_t first = 0, last = 0;
+  float morph = 0;
+};
+
+/// One load module to draw (module mode) and the pager's read guard that
 /// keeps its levels alive until the render thread has used them. The
 /// render thread keys its GPU buffers by (kx, kz, level, generation).
 struct ModuleDraw {
   std::uint32_t kx = 0, kz = 0;
-  std::uint32_t level = 0;       ///< drawn level (>= ref.finestLevel())
-  std::uint32_t wantedLevel = 0; ///< what the LoD asked for
-  float morph = 0;               ///< 0 = this level, 1 = the next coarser one
-  double distance = 0;           ///< nearest point of the module, metres (3-D)
-  double errorPx = 0;            ///< projected error bound of what is drawn
+  double distance = 0;  ///< nearest point of the module, metres (3-D)
   std::uint64_t triangles = 0;
   ResidentRef ref;
 };
@@ -54,10 +59,12 @@ struct ModuleDraw {
 struct SceneStats {
   std::uint32_t modulesSelected = 0;  ///< under the view triangle, within range
   std::uint32_t modulesDrawn = 0;
-  std::uint32_t modulesCulled = 0;    ///< outside the view volume (vertical extent too)
+  std::uint32_t modulesCulled = 0;    ///< wholly outside the view volume (vertical extent too)
+  std::uint32_t nodesCulled = 0;      ///< quadtree nodes outside the view volume
   std::uint32_t modulesMissing = 0;   ///< not resident yet: nothing drawn there
-  std::uint32_t modulesCoarser = 0;   ///< drawn coarser than wanted (finer level not in yet)
-  std::vector<std::uint32_t> levelCounts;  ///< modules drawn per level
+  std::uint32_t nodesDrawn = 0;       ///< quadtree nodes drawn
+  std::uint32_t nodesCoarser = 0;     ///< nodes drawn coarser than wanted (finer level not in yet)
+  std::vector<std::uint32_t> levelCounts;  ///< quadtree nodes drawn per level
   double maxErrorPx = 0;              ///< largest projected error bound drawn (any mode)
   std::uint32_t residentInWindow = 0; ///< pager: modules resident in its window
   std::uint32_t windowModules = 0;
@@ -79,7 +86,9 @@ struct DisplayBuffer {
   // Module mode (empty in grid mesh mode).
   bool moduleMode = false;
   double moduleSize = 0;            ///< metres along a module edge
+  std::uint32_t nodeSquares = 4;    ///< squares along a quadtree node at every level (lod.h)
   std::vector<ModuleDraw> modules;  ///< nearest first
+  std::vector<NodeDraw> nodes;      ///< grouped by module, in module order
   ModuleRect pagerWindow;           ///< GPU copies outside it are released
   SceneStats scene;
 };

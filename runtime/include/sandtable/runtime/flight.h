@@ -135,8 +135,10 @@ struct FrameStats {
   std::uint64_t strips = 0;
   double speedKmh = 0;
   // module mode
-  std::uint32_t modulesDrawn = 0, modulesMissing = 0, modulesCoarser = 0, modulesCulled = 0;
-  std::vector<std::uint32_t> levelCounts;  ///< modules drawn per level
+  std::uint32_t modulesDrawn = 0, modulesMissing = 0, modulesCulled = 0;
+  std::uint32_t nodesDrawn = 0;    ///< quadtree nodes drawn (lod.h)
+  std::uint32_t nodesCoarser = 0;  ///< drawn coarser than wanted (finer level not resident yet)
+  std::vector<std::uint32_t> levelCounts;  ///< quadtree nodes drawn per level
   double maxErrorPx = 0;                   ///< largest projected error bound drawn
   std::uint32_t residentModules = 0, windowModules = 0, pagerQueue = 0;
   std::uint32_t uploads = 0, cachedLevels = 0;

@@ -3,8 +3,15 @@
 // Figures 84-85, Table 8) and, beyond the seed, a screen-space-error mode
 // with geomorphing. Design: docs/VIEWER.md, "Level of detail".
 //
-// A node is one load module (the finest quadtree node that carries its own
-// skirts, so any two neighbours may differ in level without a crack).
+// Nodes (seed Figure 85). Every level l of a module with L levels carries
+// skirts on the lines of a grid of 2^(L-1-l) x 2^(L-1-l) nodes of
+// `nodeSquares` level-l squares each: the module's quadtree, with the
+// whole module as the root at the coarsest level. A node at depth d (size
+// edge / 2^d) has skirts on its edges at every level l <= L-1-d, so it may
+// be drawn at any of them next to neighbours at other levels without a
+// crack. Selection walks the tree from the root: a node whose wanted level
+// is at least the coarsest it allows is drawn whole; otherwise its four
+// children are visited.
 //
 // Rings: the level of a node is the first range bin that reaches the
 // node's nearest point on the ground (seed: circle / rectangle test).
@@ -43,6 +50,25 @@ struct LodOptions {
   double pixelError = 2.0;  ///< sse: largest projected error, pixels
   bool morph = true;        ///< geomorph towards the next coarser level
 };
+
+/// Quadtree nodes per side at `level` of a module with `levels` levels.
+inline std::uint32_t nodesPerSide(std::uint32_t level, std::uint32_t levels) {
+  return 1u << (levels - 1 - level);
+}
+/// Morton index of node (a, b): a in the even bits, b in the odd ones, so
+/// child c (a bit 0 = c & 1, b bit 0 = c >> 1) of node n is 4 n + c and
+/// every coarser node is a contiguous range of finer indices.
+std::uint32_t mortonIndex(std::uint32_t a, std::uint32_t b);
+/// Morton index of the node holding row-major `square` of `level`.
+std::uint32_t nodeOfSquare(const module::Level& level, std::uint32_t square,
+                           std::uint32_t nodeSquares, std::uint32_t nodesPerSide);
+/// Whether culture cut the level's skin (more than two triangles a square):
+/// then the renderer draws the plain lattice under it (docs/VIEWER.md, "Seams").
+bool needsUnderlay(const module::Level& level);
+/// Triangles drawn per node in Morton order as prefix sums (size nodes + 1):
+/// skin, skirts, decals and the underlay where needsUnderlay.
+std::vector<std::uint64_t> nodeTrianglePrefix(const module::Level& level, std::uint32_t nodeSquares,
+                                              std::uint32_t nodesPerSide);
 
 /// "" or why the options are unusable (rings not ascending or not positive,
 /// pixel error not positive).

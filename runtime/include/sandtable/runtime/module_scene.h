@@ -23,6 +23,9 @@ struct ModuleSceneSettings {
   std::uint32_t imageHeight = 720;  ///< for projected errors
   double gridSpacing = 30;          ///< the view triangle's pull-back (one post)
   float minElevation = 0;           ///< lowest ground in the database (vertical extent)
+  /// Level-0 squares along a module edge (pack::IndexHeader::moduleSquares);
+  /// quadtree nodes hold moduleSquares >> (levels - 1) squares at every level.
+  std::uint32_t moduleSquares = 0;
 };
 
 class ModuleScene {
@@ -42,14 +45,18 @@ class ModuleScene {
     std::uint32_t finest = 0;
     std::vector<double> errors;  ///< per level, against `finest`
     std::vector<float> minY, maxY;  ///< per level, skirts included
-    std::vector<std::uint64_t> triangles;
+    std::vector<std::vector<std::uint64_t>> nodeTriangles;  ///< per level, prefix sums in Morton order
   };
+  struct Walk;  ///< one module being walked (module_scene.cpp)
   const Info& infoFor(const ResidentRef& ref);
+  void visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std::uint32_t b);
+  void emit(const Walk& w, std::uint32_t level, std::uint32_t depth, std::uint32_t a,
+            std::uint32_t b, float morph);
 
   const Pager& pager_;
   ModuleSceneSettings settings_;
   double moduleSize_ = 0;
-  std::uint32_t modulesX_ = 0, modulesZ_ = 0, levels_ = 1;
+  std::uint32_t modulesX_ = 0, modulesZ_ = 0, levels_ = 1, nodeSquares_ = 1;
   std::unordered_map<std::uint64_t, Info> info_;
   std::uint64_t frame_ = 0;
 };
