@@ -328,6 +328,38 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
   }
 }
 
+TEST_F(Viewer, GpuCopiesFollowThePager) {
+  // Across the database fast with a short view: modules enter and leave
+  // the pager's window, and the render thread's copies with them.
+  auto db = openDatabase(monaco_);
+  ASSERT_TRUE(db.ok()) << db.error();
+  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  ASSERT_TRUE(geo.ok());
+  FlightOptions o;
+  ASSERT_TRUE(geo.value()->toProjected(7.385, 43.745, o.easting, o.northing));
+  o.width = 160;
+  o.height = 90;
+  o.frames = 45;
+  o.headingDeg = 90;
+  o.heightAgl = 300;
+  o.speedKmh = 12000;  // 111 m a frame: 5 km in 45 frames
+  o.viewDistance = 1200;
+  o.hud = false;
+  o.pagerSync = true;
+  auto r = runtime::fly(db.value(), o);
+  ASSERT_TRUE(r.ok()) << r.error();
+  std::uint64_t uploads = 0, released = 0;
+  for (const auto& f : r->frames) {
+    uploads += f.uploads;
+    released += f.released;
+    EXPECT_GT(f.modulesDrawn, 0u);
+    // Only modules of the pager's window keep GPU copies, one per level at most.
+    EXPECT_LE(f.cachedLevels, f.windowModules * 4) << "frame " << f.frame;
+  }
+  EXPECT_GT(uploads, r->frames.front().uploads);  // new modules came in on the way
+  EXPECT_GT(released, 0u);                         // and old ones went
+}
+
 TEST_F(Viewer, ClearErrorsForBadViewerOptions) {
   const auto fly = [](std::vector<std::string> extra) {
     std::vector<std::string> args = {"fly", monaco_, "--png", *tmp_ / "bad", "--frames", "1"};

@@ -107,7 +107,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                     {"culled", s.modulesCulled},   {"nodes_drawn", s.nodesDrawn},
                     {"nodes_coarser", s.nodesCoarser},
                     {"nodes_per_level", s.levelCounts}, {"max_error_px", s.maxErrorPx},
-                    {"uploads", s.uploads},        {"cached_levels", s.cachedLevels},
+                    {"uploads", s.uploads},        {"released", s.released},
+                    {"cached_levels", s.cachedLevels},
                     {"gpu_bytes", s.gpuBytes}};
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
@@ -357,6 +358,7 @@ struct FlightRun {
       slot->buf.modules.clear();  // release the pager's guards within the frame
       const RenderStats& rs = renderer.stats();
       s.uploads = rs.uploads;
+      s.released = rs.released;
       s.cachedLevels = rs.cachedLevels;
       s.gpuBytes = rs.gpuBytes;
       handoff.pushFree(slot);

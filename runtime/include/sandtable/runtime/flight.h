@@ -141,7 +141,7 @@ struct FrameStats {
   std::vector<std::uint32_t> levelCounts;  ///< quadtree nodes drawn per level
   double maxErrorPx = 0;                   ///< largest projected error bound drawn
   std::uint32_t residentModules = 0, windowModules = 0, pagerQueue = 0;
-  std::uint32_t uploads = 0, cachedLevels = 0;
+  std::uint32_t uploads = 0, released = 0, cachedLevels = 0;  ///< GPU (module, level) buffers
   std::uint64_t gpuBytes = 0;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
