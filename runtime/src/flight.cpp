@@ -156,6 +156,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"rings", o.lod.rings},
                   {"pixel_error", o.lod.pixelError},
                   {"morph", o.lod.morph},
+                  {"msaa", o.msaa},
                   {"hud", o.hud},
                   {"path_waypoints", o.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -449,6 +450,7 @@ RenderSettings renderSettingsFor(const grid::GridFile& g, const FlightOptions& o
   rs.fog = o.fog;
   rs.sky = o.sky;
   rs.clearColour = o.clearColour;
+  rs.samples = o.msaa;
   rs.minElevation = g.header().minElevation;
   rs.maxElevation = g.header().maxElevation;
   return rs;
@@ -582,6 +584,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (!(o.heightAgl >= 0 && o.heightAgl < 1e5)) bad("--height must be 0 .. 100000 m");
   if (std::string e = checkLodOptions(o.lod); !e.empty()) bad(e);
   if (o.pagerLoaders < 1 || o.pagerLoaders > 4) bad("pager loaders must be 1..4");
+  if (o.msaa > 16) bad("--msaa must be 0..16 samples");
   const Terrain terrain(std::move(g));
   if (o.path.size() == 1) bad("--path needs at least two waypoints");
   if (o.path.size() >= 2) {

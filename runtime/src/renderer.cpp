@@ -181,6 +181,7 @@ struct Renderer::Impl {
   RenderSettings settings;
   std::string rendererName, version;
   GLuint fbo = 0, colorRb = 0, depthRb = 0;
+  GLuint resolveFbo = 0, resolveRb = 0;  ///< single-sample copy of a multisampled frame
   GLuint terrainProgram = 0, skyProgram = 0;
   GLuint terrainVao = 0, skyVao = 0, vbo = 0;
   std::vector<std::uint8_t> readback;
@@ -198,14 +199,24 @@ struct Renderer::Impl {
     glDeleteFramebuffers(1, &fbo);
     glDeleteRenderbuffers(1, &colorRb);
     glDeleteRenderbuffers(1, &depthRb);
+    glDeleteFramebuffers(1, &resolveFbo);
+    glDeleteRenderbuffers(1, &resolveRb);
   }
 
   std::string createTargets() {
     const auto w = GLsizei(settings.width), h = GLsizei(settings.height);
+    const auto samples = GLsizei(settings.samples);
     glCreateRenderbuffers(1, &colorRb);
-    glNamedRenderbufferStorage(colorRb, GL_RGBA8, w, h);
+    glNamedRenderbufferStorageMultisample(colorRb, samples, GL_RGBA8, w, h);
     glCreateRenderbuffers(1, &depthRb);
-    glNamedRenderbufferStorage(depthRb, GL_DEPTH_COMPONENT32F, w, h);
+    glNamedRenderbufferStorageMultisample(depthRb, samples, GL_DEPTH_COMPONENT32F, w, h);
+    if (samples > 0) {
+      // Read-back needs single samples: resolve into a plain colour buffer.
+      glCreateRenderbuffers(1, &resolveRb);
+      glNamedRenderbufferStorage(resolveRb, GL_RGBA8, w, h);
+      glCreateFramebuffers(1, &resolveFbo);
+      glNamedFramebufferRenderbuffer(resolveFbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, resolveRb);
+    }
     glCreateFramebuffers(1, &fbo);
     glNamedFramebufferRenderbuffer(fbo, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colorRb);
     glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb);
@@ -338,8 +349,14 @@ struct Renderer::Impl {
     const std::size_t row = std::size_t(w) * 4;
     readback.resize(row * h);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glNamedFramebufferReadBuffer(fbo, GL_COLOR_ATTACHMENT0);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+    GLuint source = fbo;
+    if (resolveFbo) {
+      glBlitNamedFramebuffer(fbo, resolveFbo, 0, 0, GLint(w), GLint(h), 0, 0, GLint(w), GLint(h),
+                             GL_COLOR_BUFFER_BIT, GL_NEAREST);
+      source = resolveFbo;
+    }
+    glNamedFramebufferReadBuffer(source, GL_COLOR_ATTACHMENT0);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, source);
     glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RGBA, GL_UNSIGNED_BYTE, readback.data());
     // GL's first row is the bottom one; images store the top row first.
     out.width = w;
@@ -358,6 +375,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s) {
   if (s.width == 0 || s.height == 0 || s.width > 16384 || s.height > 16384) {
     return Problem{"renderer", 0, "frame size must be 1..16384 pixels each way"};
   }
+  if (s.samples > 16) return Problem{"renderer", 0, "multisampling must be 0..16 samples"};
   auto egl = EglContext::create();
   if (!egl) return egl.problems();
   auto impl = std::make_unique<Impl>();

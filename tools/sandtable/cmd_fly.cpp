@@ -49,6 +49,7 @@ struct FlyArgs {
   double fogDensity = 0;
   bool pagerSync = false;
   bool noSky = false;
+  std::uint32_t msaa = 0;
 };
 
 const char* kFooter = R"(Time: frame k shows the eye at k/30 s of simulated time, whatever the real
@@ -210,6 +211,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.fogDensity = a.fogDensity;
   o.pagerSync = a.pagerSync;
   o.sky = !a.noSky;
+  o.msaa = a.msaa;
   const auto& h = db.grid->header();
   o.easting = h.originEasting + h.spacing * (h.postsX - 1) / 2.0;
   o.northing = h.originNorthing - h.spacing * (h.postsZ - 1) / 2.0;
@@ -306,6 +308,8 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--fog-density", args->fogDensity,
                   "Fog density per metre; sets the view distance to the fog's obscuration distance")
       ->check(CLI::NonNegativeNumber);
+  sub->add_option("--msaa", args->msaa, "Samples per pixel (0 off; 4 steadies thin far decals)")
+      ->capture_default_str()->check(CLI::Range(0u, 16u));
   sub->add_flag("--no-sky", args->noSky, "Clear to magenta instead of drawing the sky (shows cracks)");
   sub->add_flag("--pager-sync", args->pagerSync, "Wait for the pager before every frame (reproducible frames)");
   c.add(sub, [args] { return run(*args); });

@@ -101,6 +101,7 @@ struct FlightOptions {
   /// Sky behind the terrain; false shows `clearColour` (crack tests).
   bool sky = true;
   Rgb clearColour{0xFF, 0x00, 0xFF};
+  std::uint32_t msaa = 0;  ///< samples per pixel, 0 (off) .. 16
   /// Wait for the pager to finish every queued load before each frame
   /// (reproducible frames: tests, benchmarks). Otherwise only before frame 0.
   bool pagerSync = false;

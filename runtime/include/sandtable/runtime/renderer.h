@@ -40,6 +40,9 @@ struct RenderSettings {
   /// drawn (the crack tests clear to magenta).
   bool sky = true;
   Rgb clearColour{0xFF, 0x00, 0xFF};
+  /// Multisampling (0 = off): resolves thin, far decals to their coverage
+  /// instead of letting them shimmer from frame to frame.
+  std::uint32_t samples = 0;
   float minElevation = 0, maxElevation = 1000;  ///< scales the tint (grid mesh mode)
   /// Module mode: colour of each material id (index); ids beyond it get
   /// the default MaterialColour.
