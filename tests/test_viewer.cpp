@@ -419,6 +419,28 @@ TEST_F(Viewer, ClearErrorsForBadViewerOptions) {
   EXPECT_EQ(fly({"--rings", "a,b"}).exitCode, 2);
   EXPECT_EQ(fly({"--mode", "sideways"}).exitCode, 2);
   EXPECT_EQ(fly({"--pixel-error", "0"}).exitCode, 2);
+  EXPECT_EQ(fly({"--msaa", "64"}).exitCode, 2);
+  // A grid without load modules flies as a mesh, and refuses --mode modules.
+  convert::ElevationOptions o;
+  o.sources = {data("elevation/srtm/N43E007.hgt.zip")};
+  o.extent = std::array<double, 4>{7.40, 43.72, 7.42, 43.735};
+  o.spacing = 30;
+  o.modules = false;
+  o.output = *tmp_ / "nomodules";
+  ASSERT_TRUE(convert::buildElevation(o, nullptr).ok());
+  const auto bare = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {"fly", o.output, "--png", *tmp_ / "bare", "--frames", "1",
+                                     "--size", "64x36"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runCli(args);
+  };
+  const auto modules = bare({"--mode", "modules"});
+  EXPECT_EQ(modules.exitCode, 2);
+  EXPECT_NE(modules.err.find("--mode mesh"), std::string::npos) << modules.err;
+  const auto mesh = bare({});
+  EXPECT_EQ(mesh.exitCode, 0) << mesh.err;
+  EXPECT_NE(mesh.out.find("terrain:  mesh"), std::string::npos) << mesh.out;
+  EXPECT_EQ(runCli({"bench", "render", o.output, "--frames", "1"}).exitCode, 2);
 }
 
 }  // namespace

@@ -475,8 +475,8 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
   const bool haveModules = db && db->modules;
   if (o.mode == TerrainMode::modules && !haveModules) {
     return Problem{kFlightOptionProblem, 0,
-                   "--mode modules needs load modules (modules.pack); build the database with "
-                   "`sandtable build ... --culture` or fly it with --mode mesh"};
+                   "--mode modules needs load modules (modules.pack), and this database was "
+                   "built with --no-modules; rebuild it without, or fly it with --mode mesh"};
   }
   const bool modules = haveModules && o.mode != TerrainMode::mesh;
   if (!o.outDir.empty()) {

@@ -102,8 +102,8 @@ int run(const Args& a) {
   auto db = openDatabase(a.database);
   if (!db) return usageError(kName, db.error());
   if (!db->modules) {
-    return usageError(kName, a.database + " has no load modules; build it with `sandtable build "
-                                           "... --culture` (or without --no-modules)");
+    return usageError(kName, a.database + " has no load modules (built with --no-modules); rebuild "
+                                           "it without --no-modules");
   }
   runtime::FlightOptions base;
   unsigned w = 0, h = 0;
