@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 namespace sandtable::runtime {
 namespace {
@@ -124,6 +126,74 @@ std::vector<double> levelErrors(std::span<const module::Level> levels, std::uint
     errors[l] = std::max(worst, errors[l - 1]);
   }
   return errors;
+}
+
+namespace {
+
+/// Cells [lo, hi] (inclusive) an interval [x0, x1] of metres touches.
+std::pair<std::uint32_t, std::uint32_t> cellSpan(double x0, double x1, double cell,
+                                                 std::uint32_t side) {
+  const double eps = 1e-3;
+  const auto clampCell = [&](double v) {
+    return std::uint32_t(std::clamp(std::floor(v / cell), 0.0, double(side - 1)));
+  };
+  return {clampCell(x0 - eps), clampCell(x1 + eps)};
+}
+
+}  // namespace
+
+std::vector<std::vector<double>> cellErrors(std::span<const module::Level> levels,
+                                            std::uint32_t finest, double cellSize,
+                                            std::uint32_t cellsPerSide) {
+  const std::size_t cells = std::size_t(cellsPerSide) * cellsPerSide;
+  std::vector<std::vector<double>> errors(levels.size(), std::vector<double>(cells, 0.0));
+  if (finest >= levels.size() || !(cellSize > 0)) return errors;
+  const module::Level& base = levels[finest];
+  const std::size_t posts = std::size_t(base.squaresX + 1) * (base.squaresZ + 1);
+  const std::size_t n = std::min(posts, base.vertices.size());
+  for (std::size_t l = finest + 1; l < levels.size(); ++l) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const module::Vertex& v = base.vertices[k];
+      const auto y = levelHeightAt(levels[l], v.x, v.z);
+      if (!y) continue;
+      const double e = std::abs(*y - v.y);
+      const auto [a0, a1] = cellSpan(v.x, v.x, cellSize, cellsPerSide);
+      const auto [b0, b1] = cellSpan(v.z, v.z, cellSize, cellsPerSide);
+      for (std::uint32_t b = b0; b <= b1; ++b) {
+        for (std::uint32_t a = a0; a <= a1; ++a) {
+          double& c = errors[l][mortonIndex(a, b)];
+          c = std::max(c, e);
+        }
+      }
+    }
+    for (std::size_t c = 0; c < cells; ++c) errors[l][c] = std::max(errors[l][c], errors[l - 1][c]);
+  }
+  return errors;
+}
+
+std::vector<float> cellMaxHeights(std::span<const module::Level> levels, std::uint32_t finest,
+                                  double cellSize, std::uint32_t cellsPerSide) {
+  std::vector<float> top(std::size_t(cellsPerSide) * cellsPerSide,
+                         -std::numeric_limits<float>::infinity());
+  for (std::size_t l = finest; l < levels.size(); ++l) {
+    const module::Level& level = levels[l];
+    if (level.maxHeight.size() < std::size_t(level.squaresX) * level.squaresZ) continue;
+    for (std::uint32_t sz = 0; sz < level.squaresZ; ++sz) {
+      const auto [b0, b1] = cellSpan(sz * level.spacing, (sz + 1) * level.spacing, cellSize, cellsPerSide);
+      for (std::uint32_t sx = 0; sx < level.squaresX; ++sx) {
+        const float h = level.maxHeight[std::size_t(sz) * level.squaresX + sx];
+        const auto [a0, a1] =
+            cellSpan(sx * level.spacing, (sx + 1) * level.spacing, cellSize, cellsPerSide);
+        for (std::uint32_t b = b0; b <= b1; ++b) {
+          for (std::uint32_t a = a0; a <= a1; ++a) {
+            float& t = top[mortonIndex(a, b)];
+            t = std::max(t, h);
+          }
+        }
+      }
+    }
+  }
+  return top;
 }
 
 double pixelsPerRadian(double vfovDeg, std::uint32_t imageHeight) {

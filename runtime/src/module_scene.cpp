@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <array>
 #include <limits>
 
 #include "camera_math.h"
@@ -68,6 +69,10 @@ const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
         nodeTrianglePrefix(level, nodeSquares_, nodesPerSide(std::uint32_t(l), std::uint32_t(n)));
   }
   info.errors = levelErrors(std::span(m.levels), info.finest);
+  info.cellsPerSide = nodesPerSide(0, std::uint32_t(std::max<std::size_t>(n, 1)));
+  const double cell = moduleSize_ / info.cellsPerSide;
+  info.cellErrors = cellErrors(std::span(m.levels), info.finest, cell, info.cellsPerSide);
+  info.cellTop = cellMaxHeights(std::span(m.levels), info.finest, cell, info.cellsPerSide);
   return info;
 }
 
@@ -102,7 +107,19 @@ void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std
   const double x0 = w.x0 + a * size, z0 = w.z0 + b * size, x1 = x0 + size, z1 = z0 + size;
   const double ground = rectDistance(cam.x, cam.z, x0, z0, x1, z1);
   if (ground > cam.viewDistance) return;  // beyond the fog
-  const float lo = w.info->minY[w.finest], hi = w.info->maxY[w.finest];
+  // The node's cells of the finest node grid: its errors and its top.
+  const Info& info = *w.info;
+  const std::uint32_t s = (w.levels - 1) - depth;
+  const std::uint32_t c0 = mortonIndex(a, b) << (2 * s), c1 = (mortonIndex(a, b) + 1) << (2 * s);
+  std::array<double, module::kMaxLevels> errors{};
+  float top = -std::numeric_limits<float>::infinity();
+  for (std::uint32_t c = c0; c < c1 && c < info.cellTop.size(); ++c) {
+    top = std::max(top, info.cellTop[c]);
+    for (std::uint32_t l = 0; l < w.levels; ++l) errors[l] = std::max(errors[l], info.cellErrors[l][c]);
+  }
+  const std::span<const double> nodeErrors(errors.data(), w.levels);
+  const float lo = info.minY[w.finest];
+  const float hi = std::isfinite(top) ? top : info.maxY[w.finest];
   if (!detail::boxInFrustum(*w.planes, {x0, lo, z0}, {x1, hi, z1})) {
     ++w.out->scene.nodesCulled;
     return;
@@ -112,7 +129,7 @@ void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std
   const LodOptions& lod = settings_.lod;
   std::uint32_t want = 0;
   if (lod.mode == LodMode::rings) want = ringLevel(lod, ground, cam.viewDistance, w.levels);
-  if (lod.mode == LodMode::sse) want = sseLevel(w.info->errors, distance, w.ppr, lod.pixelError, 0);
+  if (lod.mode == LodMode::sse) want = sseLevel(nodeErrors, distance, w.ppr, lod.pixelError, 0);
   const std::uint32_t coarsest = w.levels - 1 - depth;  // the coarsest level with skirts round it
   const bool finestDepth = coarsest <= w.finest;        // no finer level resident below this
   if (want < coarsest && !finestDepth) {
@@ -125,10 +142,10 @@ void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std
   if (lod.morph && lod.mode == LodMode::rings) {
     morph = float(ringMorph(lod, level, ground, cam.viewDistance, w.levels));
   } else if (lod.morph && lod.mode == LodMode::sse) {
-    morph = float(sseMorph(w.info->errors, level, distance, w.ppr, lod.pixelError));
+    morph = float(sseMorph(nodeErrors, level, distance, w.ppr, lod.pixelError));
   }
-  const double e0 = w.info->errors[level];
-  const double e1 = level + 1 < w.levels ? w.info->errors[level + 1] : e0;
+  const double e0 = nodeErrors[level];
+  const double e1 = level + 1 < w.levels ? nodeErrors[level + 1] : e0;
   const double errorPx = projectedError((1.0 - morph) * e0 + morph * e1, distance, w.ppr);
   w.out->scene.maxErrorPx = std::max(w.out->scene.maxErrorPx, errorPx);
   emit(w, level, depth, a, b, morph);

@@ -83,6 +83,18 @@ std::optional<double> levelHeightAt(const module::Level& level, double x, double
 /// finer ones), measured at `finest`'s posts: max |y_l(x, z) - y|.
 std::vector<double> levelErrors(std::span<const module::Level> levels, std::uint32_t finest);
 
+/// The same, per cell of the finest node grid (cellsPerSide = 2^(L-1)
+/// cells of `cellSize` metres, Morton order): [level][cell]. A post on a
+/// cell edge counts for every cell it touches; each cell's errors are made
+/// monotonic over the levels. A node's error is the largest of its cells'.
+std::vector<std::vector<double>> cellErrors(std::span<const module::Level> levels,
+                                            std::uint32_t finest, double cellSize,
+                                            std::uint32_t cellsPerSide);
+/// Highest vertex of any level over each cell (Morton order), from the
+/// levels' per-square maxHeight.
+std::vector<float> cellMaxHeights(std::span<const module::Level> levels, std::uint32_t finest,
+                                  double cellSize, std::uint32_t cellsPerSide);
+
 /// Pixels per metre of error at distance 1 m: height / (2 tan(vfov / 2)).
 double pixelsPerRadian(double vfovDeg, std::uint32_t imageHeight);
 

@@ -43,7 +43,10 @@ class ModuleScene {
   struct Info {
     std::uint64_t generation = 0;
     std::uint32_t finest = 0;
-    std::vector<double> errors;  ///< per level, against `finest`
+    std::vector<double> errors;  ///< per level, against `finest` (whole module)
+    std::uint32_t cellsPerSide = 1;  ///< the finest node grid
+    std::vector<std::vector<double>> cellErrors;  ///< [level][cell], Morton order
+    std::vector<float> cellTop;                   ///< highest vertex over each cell
     std::vector<float> minY, maxY;  ///< per level, skirts included
     std::vector<std::vector<std::uint64_t>> nodeTriangles;  ///< per level, prefix sums in Morton order
   };
