@@ -3,7 +3,7 @@
 # directory and runs the pager tests (strip logic, the threaded pager and
 # the fast random-walk stress test with two lock-free readers).
 #
-#   tools/tsan_pager.sh [BUILD_DIR]      (default /tmp/tsan)
+#   tools/tsan_pager.sh [BUILD_DIR]      (default /tmp/tsan; JOBS=N for N compile jobs)
 #
 # Exit status: 0 when every test passed and ThreadSanitizer reported
 # nothing, 1 otherwise, 2 when the build failed.
@@ -17,7 +17,8 @@ cmake -S "$src" -B "$build" -G Ninja \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS=-fsanitize=thread \
   -DSANDTABLE_BENCH=OFF >/dev/null
-cmake --build "$build" --target sandtable_runtime_test || exit 2
+# JOBS: parallel compile jobs (default 2: the machines here are shared).
+cmake --build "$build" --target sandtable_runtime_test -j "${JOBS:-2}" || exit 2
 
 # halt_on_error=0: run every test and count every report.
 status=0

@@ -1,5 +1,5 @@
 // The pager: residency slots, loader threads and the lock-free read path
-// (docs/_pager.md). The strip logic is in pager_plan.cpp, storage helpers
+// (docs/PAGER.md). The strip logic is in pager_plan.cpp, storage helpers
 // in pager_pool.cpp, mmap mode in pager_prefetch.cpp.
 #include <sys/stat.h>
 
@@ -183,7 +183,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
 
   // Claim the slot. The seq_cst CAS stops new readers from being admitted
   // to the old occupant; the seq_cst load of `readers` after it then sees
-  // every reader that was admitted (docs/_pager.md, section 4).
+  // every reader that was admitted (docs/PAGER.md, section 4).
   std::uint64_t w = s.word.load(std::memory_order_seq_cst);
   std::uint64_t gen = 0;
   for (;;) {

@@ -2,7 +2,7 @@
 // Pager internals shared by pager.cpp (slots, loaders, readers),
 // pager_pool.cpp (slot storage, placeholders, histogram) and
 // pager_prefetch.cpp (mmap mode). The memory-ordering contract is written
-// out in docs/_pager.md, section 4.
+// out in docs/PAGER.md, section 4.
 #include <array>
 #include <atomic>
 #include <chrono>

@@ -45,10 +45,15 @@ void runPrefetcher(Pager::Impl& im) {
     if (im.updates.load(std::memory_order_relaxed) > 0 && h.blocksX > 0 && h.blocksZ > 0) {
       const std::int64_t t0 = nowNs();
       const double speed = std::hypot(ws.vx, ws.vz);
+      // Slower viewer, longer sleep: the time to cover a fraction of a block.
+      sleep = speed > 0 ? im.options.prefetchSleepBlocks * blockMetres / speed
+                        : im.options.maxSleepSeconds;
+      sleep = std::clamp(sleep, im.options.minSleepSeconds, im.options.maxSleepSeconds);
       // The active area (side 2 vd + 2 modules) and the leading edge: as far
-      // ahead as the viewer goes in lookAheadScale passes.
+      // as the viewer goes, times lookAheadScale, before the next pass is
+      // done (this sleep plus one pass).
       const double half = im.options.viewDistance + edge;
-      const double lead = im.options.lookAheadScale * passEstimate;
+      const double lead = im.options.lookAheadScale * (passEstimate + sleep);
       im.leadSeconds.store(lead, std::memory_order_relaxed);
       const double bx0m = ws.eyeX - half, bx1m = ws.eyeX + half;
       const double bz0m = ws.eyeZ - half, bz1m = ws.eyeZ + half;
@@ -107,10 +112,6 @@ void runPrefetcher(Pager::Impl& im) {
       im.prefetchMajorFaults.fetch_add(std::uint64_t(std::max(0L, maj1 - maj0)),
                                        std::memory_order_relaxed);
       im.lastPassSeconds.store(pass, std::memory_order_relaxed);
-      // Slower viewer, longer sleep: the time to cover a fraction of a block.
-      sleep = speed > 0 ? im.options.prefetchSleepBlocks * blockMetres / speed
-                        : im.options.maxSleepSeconds;
-      sleep = std::clamp(sleep, im.options.minSleepSeconds, im.options.maxSleepSeconds);
     }
     im.touchSink.store(sink, std::memory_order_relaxed);
     im.lastSleepSeconds.store(sleep, std::memory_order_relaxed);

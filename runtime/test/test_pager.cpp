@@ -1,4 +1,4 @@
-// The pager (docs/_pager.md): the pure strip logic in every direction,
+// The pager (docs/PAGER.md): the pure strip logic in every direction,
 // diagonals, hysteresis, lead strips and jumps; the needed set; and the
 // threaded pager on small hand-made databases (a GridWriter grid plus a
 // PackWriter pack of tiny modules, no converter): strips loaded and freed,

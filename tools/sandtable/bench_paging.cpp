@@ -45,7 +45,7 @@ struct Args {
   bool ramp = false;
   std::string path = "straight";
   bool json = false;
-  std::string plot;
+  std::vector<std::string> plots;
   double seconds = 8;
   int repeat = 3;
   std::vector<std::string> modes = {"predictive", "seed", "demand", "mmap"};
@@ -312,7 +312,7 @@ struct FlightResult {
 };
 
 /// A mode flown: a pager mode, and for "seed" the seed's scheme without
-/// prediction (predictive with no lead strips).
+/// what goes beyond it (predictive with no lead strips, no work stealing).
 struct ModeSpec {
   std::string name;
   PagerMode mode = PagerMode::predictive;
@@ -332,6 +332,7 @@ runtime::PagerOptions pagerOptions(const Args& a, const ModeSpec& mode) {
   o.loaderThreads = a.loaders;
   o.maxLeadStrips = a.maxLeadStrips;
   o.lookAheadScale = mode.lead ? a.lookAhead : 0;
+  o.workStealing = mode.lead;  // "seed": the seed's four independent loaders
   o.memoryBudgetBytes = std::uint64_t(a.budgetMb * 1024 * 1024);
   o.log = [](const std::string& m) { std::fprintf(stderr, "bench paging: pager: %s\n", m.c_str()); };
   return o;
@@ -564,7 +565,8 @@ json binJson(const Bin& b, const FlightResult& r, double share) {
           {"latency_estimate_max_ms", r.maxEstimateMs},
           {"loader_read_s", m1.readSeconds - m0.readSeconds},
           {"loader_publish_s", m1.publishSeconds - m0.publishSeconds},
-          {"placeholders", m1.placeholders - m0.placeholders}};
+          {"placeholders", m1.placeholders - m0.placeholders},
+          {"stolen", m1.stolen - m0.stolen}};
 }
 
 /// The median over repeats of every numeric field, the runs kept.
@@ -875,9 +877,9 @@ std::string checkArgs(Args& a, const Database& db) {
   for (const std::string& m : a.modes) {
     if (!modeOf(m)) return "--modes: unknown mode '" + m + "' (predictive, seed, demand, mmap)";
   }
-  if (!a.plot.empty()) {
-    const std::string ext = fs::path(a.plot).extension().string();
-    if (ext != ".png" && ext != ".svg") return "--plot " + a.plot + ": the file must end in .png or .svg";
+  for (const std::string& plot : a.plots) {
+    const std::string ext = fs::path(plot).extension().string();
+    if (ext != ".png" && ext != ".svg") return "--plot " + plot + ": the file must end in .png or .svg";
   }
   return "";
 }
@@ -957,11 +959,11 @@ int runBench(Args& a) {
             {"modes", modes}};
   j["ratios"] = ratios(modes);
   j["stages"] = stages;
-  if (!a.plot.empty()) {
+  for (const std::string& plot : a.plots) {
     char title[160];
     std::snprintf(title, sizeof title, "bench paging: %s path, vd %.0f km, %s", a.path.c_str(), a.viewDistance / 1000,
                   a.warm ? "warm" : "cold cache");
-    if (const std::string err = writePlot(a.plot, modes, title); !err.empty()) {
+    if (const std::string err = writePlot(plot, modes, title); !err.empty()) {
       return usageError("bench paging", "--plot: " + err);
     }
   }
@@ -1010,7 +1012,9 @@ void registerBenchPaging(CLI::App& bench, Commands& c) {
   sub->add_option("--budget-mb", a->budgetMb, "Pager memory budget, MiB")->default_val(2048)->check(CLI::PositiveNumber);
   sub->add_flag("--warm", a->warm, "Keep the page cache (skip the cold-cache drop)");
   sub->add_flag("--json", a->json, "Print one JSON object");
-  sub->add_option("--plot", a->plot, "Write holes and degraded frames against speed, FILE.png or FILE.svg");
+  sub->add_option("--plot", a->plots, "Write holes and degraded frames against speed, FILE.png or FILE.svg (repeatable)")
+      ->take_all()
+      ->allow_extra_args(false);
   c.add(sub, [a] { return runBench(*a); });
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // Predictive paging of load modules (seed chapter V.H, Figures 28-31), with
 // a demand-paging baseline and the NPSStealth memory-mapped mode. Design,
-// threads, memory-ordering contract and formulas: docs/_pager.md.
+// threads, memory-ordering contract and formulas: docs/PAGER.md.
 //
 // Terms. A load module (kx, kz) covers world X in [kx, kx + 1) * edge and Z
 // in [kz, kz + 1) * edge (edge = pack::IndexHeader::moduleSize; X east, Z
