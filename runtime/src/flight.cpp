@@ -101,6 +101,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                       {"height_agl", s.heightAgl},
                       {"heading", s.headingDeg},
                       {"fps", s.fps},
+                      {"fov", s.hfovDeg},
+                      {"view_distance", s.viewDistance},
                       {"speed_kmh", s.speedKmh}};
   if (!s.levelCounts.empty()) {
     j["modules"] = {{"drawn", s.modulesDrawn},     {"missing", s.modulesMissing},
@@ -193,12 +195,12 @@ Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, d
   Camera c;
   c.x = p.easting - h.originEasting;
   c.z = h.originNorthing - p.northing;
-  c.y = ground + p.heightAgl;
+  c.y = p.altitude ? *p.altitude : ground + p.heightAgl;
   c.headingDeg = p.headingDeg;
-  c.pitchDeg = o.pitchDeg;
-  c.hfovDeg = o.hfovDeg;
+  c.pitchDeg = std::clamp(p.pitchDeg.value_or(o.pitchDeg), -89.0, 89.0);
+  c.hfovDeg = std::clamp(p.hfovDeg.value_or(o.hfovDeg), 10.0, 90.0);
   c.aspect = double(o.width) / double(o.height);
-  c.viewDistance = effectiveViewDistance(o);
+  c.viewDistance = std::clamp(p.viewDistance.value_or(effectiveViewDistance(o)), 10.0, 1e6);
   return c;
 }
 
@@ -319,9 +321,11 @@ struct FlightRun {
     s.easting = pose.easting;
     s.northing = pose.northing;
     s.eyeElevation = cam.y;
-    s.heightAgl = pose.heightAgl;
+    s.heightAgl = cam.y - ground;
     s.headingDeg = pose.headingDeg;
     s.speedKmh = pose.speedKmh;
+    s.hfovDeg = cam.hfovDeg;
+    s.viewDistance = cam.viewDistance;
     if (slot->buf.moduleMode) {
       const SceneStats& sc = slot->buf.scene;
       s.modulesDrawn = sc.modulesDrawn;
@@ -532,7 +536,8 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   if (s.lon && s.lat) lines.push_back(format("LAT %.5f\xC2\xB0  LON %.5f\xC2\xB0", *s.lat, *s.lon));
   lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl));
   lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
-  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", o.hfovDeg, effectiveViewDistance(o)));
+  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", s.hfovDeg > 0 ? s.hfovDeg : o.hfovDeg,
+                         s.viewDistance > 0 ? s.viewDistance : effectiveViewDistance(o)));
   lines.push_back(format("FPS %.1f  FRAME %.1f MS", s.fps, s.frameMs));
   lines.push_back(format("CPU %.1f MS  DRAW %.1f MS", s.cpuMs, s.renderMs));
   if (s.levelCounts.empty()) {

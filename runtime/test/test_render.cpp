@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -273,6 +274,43 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
   EXPECT_GT(hi - lo, 30);
   // The panel darkens the top-left corner.
   EXPECT_LT(distance(img.at(1, 1), Rgb{0, 0, 0}), distance(img.at(300, 1), Rgb{0, 0, 0}));
+}
+
+TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
+  std::string why;
+  if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  FlightOptions o = southLookingNorth();
+  o.frames = 10;
+  const Pose start = poseAt(o, 0);
+  // The controller steers three frames, then ends the flight.
+  o.controller = [&](std::uint32_t frame, double) -> std::optional<Pose> {
+    if (frame == 3) return std::nullopt;
+    Pose p = start;
+    p.headingDeg = 10.0 * frame;
+    p.hfovDeg = 30;
+    p.viewDistance = 5000;
+    return p;
+  };
+  std::vector<std::uint32_t> composited;
+  o.composite = [&](Image& img, const FrameStats& s) {
+    composited.push_back(s.frame);
+    img.rgba[0] = 255, img.rgba[1] = 0, img.rgba[2] = 0;  // a map would go here
+  };
+  std::vector<Rgb> corners;
+  o.onFrame = [&](std::uint32_t, const Image& img) { corners.push_back(img.at(0, 0)); };
+  auto r = fly(grid_, o);
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r->frames.size(), 3u);
+  EXPECT_EQ(composited, (std::vector<std::uint32_t>{0, 1, 2}));
+  for (const Rgb& c : corners) EXPECT_EQ(c.r, 255);
+  for (const auto& f : r->frames) {
+    EXPECT_EQ(f.hfovDeg, 30);
+    EXPECT_EQ(f.viewDistance, 5000);
+    EXPECT_EQ(f.headingDeg, 10.0 * f.frame);
+  }
+  // The panel reports what was drawn, not the options.
+  const auto lines = hudLines(r->frames[1], o);
+  EXPECT_NE(std::find(lines.begin(), lines.end(), "FOV 30\xC2\xB0  VIEW 5000 M"), lines.end());
 }
 
 TEST_F(RenderTest, FailsCleanlyOutsideTheGrid) {

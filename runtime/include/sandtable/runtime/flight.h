@@ -69,6 +69,13 @@ struct Pose {
   double headingDeg = 0;
   double heightAgl = 0;
   double speedKmh = 0;
+  // A controller may also steer these; unset, FlightOptions' values hold.
+  std::optional<double> altitude;      ///< eye above the datum (free flight); else ground + heightAgl
+  std::optional<double> pitchDeg;
+  std::optional<double> hfovDeg;       ///< 10..90
+  /// Fog and far plane follow it at once; the pager keeps the window it was
+  /// opened with (FlightOptions::viewDistance), so beyond that nothing is resident.
+  std::optional<double> viewDistance;
 };
 struct FrameStats;
 
@@ -135,6 +142,7 @@ struct FrameStats {
   std::uint64_t triangles = 0;
   std::uint64_t strips = 0;
   double speedKmh = 0;
+  double hfovDeg = 0, viewDistance = 0;  ///< what the frame was drawn with
   // module mode
   std::uint32_t modulesDrawn = 0, modulesMissing = 0, modulesCulled = 0;
   std::uint32_t nodesDrawn = 0;    ///< quadtree nodes drawn (lod.h)
