@@ -22,7 +22,7 @@ const char* keyName(Key k) {
       "Up",     "Down",   "Left",   "Right",  "Digit0",     "Digit1",    "Digit2",
       "Digit3", "Digit4", "Digit5", "Digit6", "Digit7",     "Digit8",    "Digit9",
       "Plus",   "Minus",  "Map",    "MapZoomOut", "MapZoomIn", "PageUp", "PageDown",
-      "GroundFollow", "Quit"};
+      "GroundFollow", "Screenshot", "Quit"};
   return names[std::size_t(k)];
 }
 
@@ -101,7 +101,7 @@ void Controller::handle(const KeyEvent& e) {
 
 void Controller::press(Key k) {
   if (auto fov = fovForKey(k)) {
-    state_.hfovDeg = *fov;
+    state_.hfovDeg = std::clamp(*fov, settings_.minFovDeg, settings_.maxFovDeg);
     return;
   }
   switch (k) {
@@ -128,6 +128,7 @@ void Controller::press(Key k) {
       state_.heightAgl = state_.eyeElevation - state_.groundElevation;
       followGround();
       break;
+    case Key::screenshot: ++screenshots_; break;
     case Key::quit: quit_ = true; break;
     default: break;
   }

@@ -89,6 +89,7 @@ std::optional<Key> keyForSym(KeySym s) {
     case XK_Page_Up: case XK_KP_Page_Up: return Key::pageUp;
     case XK_Page_Down: case XK_KP_Page_Down: return Key::pageDown;
     case XK_f: case XK_F: return Key::groundFollow;
+    case XK_p: case XK_P: case XK_F12: return Key::screenshot;
     case XK_Escape: case XK_q: case XK_Q: return Key::quit;
     default: return std::nullopt;
   }

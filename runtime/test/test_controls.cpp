@@ -104,6 +104,28 @@ TEST(Controls, DigitsSetTheFieldOfView) {
   tap(c, Key::digit6);
   EXPECT_EQ(c.state().hfovDeg, 60);
   EXPECT_FALSE(fovForKey(Key::plus).has_value());
+  // A viewer whose view triangle stops at 90 degrees clamps the 0 key.
+  ControllerSettings narrow;
+  narrow.maxFovDeg = 90;
+  Controller d(start(), {}, narrow);
+  tap(d, Key::digit0);
+  EXPECT_EQ(d.state().hfovDeg, 90);
+}
+
+TEST(Controls, ScreenshotKeyIsTakenOncePerPress) {
+  Controller c(start(), {});
+  EXPECT_FALSE(c.takeScreenshotRequest());
+  tap(c, Key::screenshot);
+  c.advance(1.0);  // held keys repeat, a screenshot does not
+  EXPECT_TRUE(c.takeScreenshotRequest());
+  EXPECT_FALSE(c.takeScreenshotRequest());
+  tap(c, Key::screenshot);
+  tap(c, Key::screenshot);
+  EXPECT_TRUE(c.takeScreenshotRequest());
+  EXPECT_TRUE(c.takeScreenshotRequest());
+  EXPECT_FALSE(c.takeScreenshotRequest());
+  EXPECT_STREQ(keyName(Key::screenshot), "Screenshot");
+  EXPECT_STREQ(keyName(Key::quit), "Quit");
 }
 
 TEST(Controls, PlusAndMinusStepTheViewDistanceWithinItsClamps) {

@@ -214,7 +214,8 @@ TEST_F(WindowTest, KeysTranslate) {
   const std::vector<std::pair<KeySym, Key>> keys = {
       {XK_Down, Key::down}, {XK_Left, Key::left}, {XK_Right, Key::right}, {XK_7, Key::digit7},
       {XK_0, Key::digit0},  {XK_minus, Key::minus}, {XK_equal, Key::plus}, {XK_m, Key::map},
-      {XK_Page_Up, Key::pageUp}, {XK_f, Key::groundFollow}, {XK_Escape, Key::quit}};
+      {XK_Page_Up, Key::pageUp}, {XK_f, Key::groundFollow}, {XK_p, Key::screenshot},
+      {XK_F12, Key::screenshot}, {XK_Escape, Key::quit}};
   for (const auto& [sym, key] : keys) {
     sendKey(keys_, sym, true);
     sendKey(keys_, sym, false);

@@ -25,6 +25,7 @@
 //   [ / ]            map scale out / in (full, half, ..., sixteenth).
 //   F                ground-following <-> free flight; the eye does not
 //                    jump: it keeps its current altitude.
+//   P / F12          screenshot (takeScreenshotRequest(); the caller saves it).
 //   Escape / Q       quit (quitRequested()).
 //
 // A press of a key that is already held is ignored: X11 key auto-repeat
@@ -54,6 +55,7 @@ enum class Key : std::uint8_t {
   mapZoomIn,   ///< ]
   pageUp, pageDown,
   groundFollow,  ///< F
+  screenshot,    ///< P or F12
   quit,          ///< Escape or Q
 };
 inline constexpr std::size_t kKeyCount = std::size_t(Key::quit) + 1;
@@ -76,6 +78,8 @@ struct ControllerSettings {
   double maxSpeedMs = 1000;
   double repeatDelayS = 0.4;
   double repeatIntervalS = 0.1;
+  double minFovDeg = 10;  ///< digit keys are clamped into [minFovDeg, maxFovDeg]
+  double maxFovDeg = 100;
   double turnStepDeg = 2;
   double turnRateDegS = 45;
   double climbStepM = 10;
@@ -122,6 +126,12 @@ class Controller {
   const ControllerSettings& settings() const { return settings_; }
   bool held(Key k) const { return held_[std::size_t(k)].down; }
   bool quitRequested() const { return quit_; }
+  /// True once per press of the screenshot key since the last call.
+  bool takeScreenshotRequest() {
+    const bool r = screenshots_ > 0;
+    if (r) --screenshots_;
+    return r;
+  }
   /// The state as a flight.h Pose (speed in km/h).
   Pose pose() const;
 
@@ -144,6 +154,7 @@ class Controller {
   ControllerSettings settings_;
   std::array<Hold, kKeyCount> held_{};
   bool quit_ = false;
+  int screenshots_ = 0;
 };
 
 /// Field of view for a digit key (1 -> 10 deg ... 9 -> 90, 0 -> 100);
