@@ -103,7 +103,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                       {"fps", s.fps},
                       {"fov", s.hfovDeg},
                       {"view_distance", s.viewDistance},
-                      {"speed_kmh", s.speedKmh}};
+                      {"speed_kmh", s.speedKmh},
+                      {"free_flight", s.freeFlight}};
   if (!s.levelCounts.empty()) {
     j["modules"] = {{"drawn", s.modulesDrawn},     {"missing", s.modulesMissing},
                     {"culled", s.modulesCulled},   {"nodes_drawn", s.nodesDrawn},
@@ -269,6 +270,7 @@ struct FlightRun {
   Terrain terrain;
   RenderSettings renderSettings;
   Pager* pager = nullptr;                 ///< module mode
+  double pagedViewDistance = 0;           ///< the view distance the pager was opened with
   std::unique_ptr<ModuleScene> scene;     ///< module mode
   std::array<Slot, 2> slots;
   Handoff handoff{slots};
@@ -278,31 +280,43 @@ struct FlightRun {
   std::string renderError;
   std::string rendererName, rendererDetail;
 
+  /// Velocity in the world frame (X east, Z south) for the pager's lead
+  /// strips: the motion since the previous frame over the time it took, or
+  /// on frame 0 (no previous) the pose's own speed along its heading.
+  static std::pair<double, double> velocity(const Pose& pose, double t, const Pose& previous,
+                                            double previousT, bool first) {
+    if (first || !(t > previousT)) {
+      const double v = pose.speedKmh / 3.6, h = pose.headingDeg * kDegToRad;
+      return {std::sin(h) * v, -std::cos(h) * v};
+    }
+    const double dt = t - previousT;
+    return {(pose.easting - previous.easting) / dt, -(pose.northing - previous.northing) / dt};
+  }
+
   /// Main thread, one frame: motion, paging, selection into a free buffer.
   /// False when the flight ends (the controller said so, or rendering failed).
-  bool produce(std::uint32_t k, Pose& previous) {
-    const double t = k / kFramesPerSecond;
+  bool produce(std::uint32_t k, Pose& previous, double& previousT) {
     Pose pose;
     if (o.controller) {
-      auto p = o.controller(k, t);
+      auto p = o.controller(k, k / kFramesPerSecond);
       if (!p) return false;
       pose = *p;
     } else {
-      pose = poseAt(o, t);
+      pose = poseAt(o, k / kFramesPerSecond);
     }
+    const double t = pose.clockS.value_or(k / kFramesPerSecond);
     if (auto sample = terrain.sampleEN(pose.easting, pose.northing)) ground = sample->elevation;
-    const Camera cam = cameraFor(grid->header(), o, pose, ground);
+    Camera cam = cameraFor(grid->header(), o, pose, ground);
     if (pager) {
-      // Velocity in the world frame (X east, Z south) for the lead strips.
-      const Pose ahead = k == 0 && !o.controller ? poseAt(o, 1 / kFramesPerSecond) : pose;
-      const Pose& from = k == 0 ? pose : previous;
-      const Pose& to = k == 0 ? ahead : pose;
-      const double vx = (to.easting - from.easting) * kFramesPerSecond;
-      const double vz = -(to.northing - from.northing) * kFramesPerSecond;
+      // Nothing beyond the pager's window is resident, so drawing further
+      // would only show holes (the pager cannot change its window).
+      cam.viewDistance = std::min(cam.viewDistance, pagedViewDistance);
+      const auto [vx, vz] = velocity(pose, t, previous, previousT, k == 0);
       pager->update(cam.x, cam.z, vx, vz, t);
       if (k == 0 || o.pagerSync) pager->waitIdle(120);
     }
     previous = pose;
+    previousT = t;
     Slot* slot = handoff.takeFree();
     if (!slot) return false;
     if (scene) {
@@ -326,6 +340,7 @@ struct FlightRun {
     s.speedKmh = pose.speedKmh;
     s.hfovDeg = cam.hfovDeg;
     s.viewDistance = cam.viewDistance;
+    s.freeFlight = pose.altitude.has_value();
     if (slot->buf.moduleMode) {
       const SceneStats& sc = slot->buf.scene;
       s.modulesDrawn = sc.modulesDrawn;
@@ -422,8 +437,9 @@ struct FlightRun {
     const Pose start = o.controller ? Pose{} : poseAt(o, 0);
     if (auto sample = terrain.sampleEN(start.easting, start.northing)) ground = sample->elevation;
     Pose previous = start;
+    double previousT = 0;
     for (std::uint32_t k = 0; k < o.frames; ++k) {
-      if (!produce(k, previous)) break;
+      if (!produce(k, previous, previousT)) break;
     }
     handoff.close();
     render.join();
@@ -512,6 +528,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
     ss.moduleSquares = db->modules->header().moduleSquares;
     run.scene = std::make_unique<ModuleScene>(*pager, ss);
     run.pager = pager.get();
+    run.pagedViewDistance = effectiveViewDistance(o);
   }
   auto result = run.run();
   if (pager) pager->stop();
@@ -534,7 +551,8 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back("FRAME " + std::to_string(s.frame) + format("  T %.2f S", s.timeS));
   lines.push_back(format("E %.1f  N %.1f", s.easting, s.northing));
   if (s.lon && s.lat) lines.push_back(format("LAT %.5f\xC2\xB0  LON %.5f\xC2\xB0", *s.lat, *s.lon));
-  lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl));
+  lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl) +
+                  (s.freeFlight ? "  FREE" : ""));
   lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
   lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", s.hfovDeg > 0 ? s.hfovDeg : o.hfovDeg,
                          s.viewDistance > 0 ? s.viewDistance : effectiveViewDistance(o)));

@@ -73,9 +73,14 @@ struct Pose {
   std::optional<double> altitude;      ///< eye above the datum (free flight); else ground + heightAgl
   std::optional<double> pitchDeg;
   std::optional<double> hfovDeg;       ///< 10..90
-  /// Fog and far plane follow it at once; the pager keeps the window it was
-  /// opened with (FlightOptions::viewDistance), so beyond that nothing is resident.
+  /// Fog and far plane follow it at once. The pager keeps the window it was
+  /// opened with (FlightOptions::viewDistance) and has no way to grow it, so
+  /// in module mode the drawn view distance is clamped to that one.
   std::optional<double> viewDistance;
+  /// The time this pose is for, seconds, when the controller keeps its own
+  /// clock (a window flies on the wall clock); stats, panel and the pager's
+  /// prediction use it. Unset: the frame clock frame / kFramesPerSecond.
+  std::optional<double> clockS;
 };
 struct FrameStats;
 
@@ -155,6 +160,7 @@ struct FrameStats {
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;
+  bool freeFlight = false;  ///< the pose set an altitude (else ground following)
 };
 
 struct FlightSummary {
