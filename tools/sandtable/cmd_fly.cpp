@@ -1,27 +1,34 @@
-// `sandtable fly`: a headless flight over a database, written as PNG frames
-// and stats.json. Converts lon/lat to the database's projected frame here,
-// because the runtime links no PROJ.
+// `sandtable fly`: a flight over a database, headless to PNG frames and
+// stats.json, or in a window driven by the keyboard when there is an X
+// display (docs/VIEWER.md). Converts lon/lat to the database's projected
+// frame here, because the runtime links no PROJ. The hooks it plugs into
+// the flight loop (keys, path, map, window, screenshots, video) live in
+// fly_session.cpp.
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
 
 #include "commands.h"
+#include "fly_session.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/runtime/flight.h"
+#include "sandtable/runtime/path.h"
 #include "sandtable/runtime/renderer.h"
 #include "sandtable/runtime/terrain.h"
+#include "sandtable/runtime/video.h"
+#include "sandtable/runtime/x11_window.h"
 
 namespace sandtable::cli {
 namespace {
 
 using runtime::FlightOptions;
-using runtime::Waypoint;
 
 constexpr const char* kName = "fly";
 
@@ -50,22 +57,46 @@ struct FlyArgs {
   bool pagerSync = false;
   bool noSky = false;
   std::uint32_t msaa = 0;
+  // the stealth viewer: window, map, free flight, outputs
+  bool window = false, headless = false;
+  bool map = false;
+  std::string mapScale = "full";
+  bool freeFlight = false;
+  std::optional<double> altitude;
+  std::string videoFile;
+  std::string screenshotDir;
+  CLI::Option* framesOption = nullptr;  ///< to tell an explicit --frames from the default
 };
 
-const char* kFooter = R"(Time: frame k shows the eye at k/30 s of simulated time, whatever the real
-frame rate, so --speed 300 moves the eye 2.78 m per frame. The eye keeps
---height metres above the ground under it (ground following).
+const char* kFooter = R"(Window or headless: with DISPLAY set the flight opens a window and is flown
+from the keyboard until q, Escape or closing the window (or --frames N frames
+if given); without a display it runs headless and writes --png frames.
+--window insists on a window (exit 2 without a display), --headless on none.
+Keys (docs/PATH.md): Up/Down speed +/-5 m/s (the speed holds), Left/Right
+turn, PageUp/PageDown height, 1..9 FOV x10 deg, +/- view distance, m map,
+[ ] map scale, f ground-following/free flight, p or F12 screenshot
+(--screenshot-dir, default the --png directory or .), q/Escape quit.
 
---path FILE flies a polyline instead of a straight line. One waypoint per line:
-    lon lat height_m [speed_kmh]
-lon/lat in degrees (WGS 84), height_m above the ground, speed_kmh for the leg
-that starts at this waypoint (default --speed). '#' starts a comment; blank
-lines are ignored. The eye heads along each leg and hovers at the last
-waypoint once it gets there. Example:
+Time: headless, frame k shows the eye at k/30 s of simulated time, whatever the
+real frame rate, so --speed 300 moves the eye 2.78 m per frame. In a window the
+flight follows the wall clock (slowing down below 10 fps rather than jumping).
+The eye keeps --height metres above the ground under it (ground following);
+--free-flight keeps --altitude metres above the datum instead (default: the
+ground at the start plus --height), never less than 1 m above the ground.
+
+--path FILE flies scripted waypoints (format: docs/PATH.md). One per line:
+    lon lat height_m [speed_kmh] [speed=KMH] [time=S or H:MM:SS]
+or easting northing after a "frame projected" line. Missing times and speeds
+are computed as in the seed's Table 7; a leg with neither takes --speed.
+Without --frames the flight lasts until the last waypoint. Example:
     # up the valley, then climb over the ridge
-    8.10 46.60 200
+    8.10 46.60 200 time=0
     8.20 46.65 200 150
-    8.30 46.70 800
+    8.30 46.70 800 time=0:03:00
+
+--map shows the 2-D map (seed Figures 40, 41) in the top-right corner, at
+--map-scale full, half, quarter, eighth or sixteenth of the database.
+--video FILE.mp4 encodes the frames with ffmpeg (when it is installed).
 
 Terrain (docs/VIEWER.md): with load modules (modules.pack, from `sandtable build
 --culture`) the stealth viewer draws them through the predictive pager, one level
@@ -77,11 +108,15 @@ each level's bin, finest first); --lod sse by projected error (--pixel-error PX)
 --lod full always draws the finest level. Levels geomorph unless --no-morph.
 --fog-density D (per metre) sets the view distance to the fog's obscuration
 distance sqrt(ln 255)/D (seed IX.A.3); otherwise the density follows it.
+The pager keeps the window of the starting view distance, so in a window the
++ key cannot see further than --view-distance over load modules.
 
 Writes OUT_DIR/frame_00000.png ... and OUT_DIR/stats.json (per-frame timing,
-position and triangle counts; summary with fps and the GL renderer).
-Needs headless OpenGL 4.5 core through EGL (Mesa llvmpipe works without a GPU).
-Exit status: 0 done, 1 failed while flying, 2 bad input or no GL context.)";
+position, speed, heading, FOV, view distance and triangle counts; summary with
+fps and the GL renderer). Needs OpenGL 4.5 core through EGL (Mesa llvmpipe
+works without a GPU).
+Exit status: 0 done, 1 failed while flying, 2 bad input, no GL context or no
+window/ffmpeg where one was asked for.)";
 
 bool parseSize(const std::string& s, std::uint32_t& w, std::uint32_t& h) {
   unsigned a = 0, b = 0;
@@ -102,6 +137,14 @@ bool parseColor(std::string s, runtime::Rgb& c) {
   return true;
 }
 
+std::optional<int> parseMapScale(const std::string& s) {
+  static constexpr const char* names[] = {"full", "half", "quarter", "eighth", "sixteenth"};
+  for (int k = 0; k < 5; ++k) {
+    if (s == names[k]) return k;
+  }
+  return std::nullopt;
+}
+
 std::string boundsText(const manifest::Manifest& m) {
   double lonMin = 1e9, lonMax = -1e9, latMin = 1e9, latMax = -1e9;
   for (const auto& c : m.cornersLonLat) {
@@ -112,6 +155,13 @@ std::string boundsText(const manifest::Manifest& m) {
   }
   char buf[160];
   std::snprintf(buf, sizeof buf, "lon %.5f .. %.5f, lat %.5f .. %.5f", lonMin, lonMax, latMin, latMax);
+  return buf;
+}
+
+std::string projectedBoundsText(const manifest::Manifest& m) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "easting %.1f .. %.1f, northing %.1f .. %.1f", m.originEasting,
+                m.eastEasting(), m.southNorthing(), m.originNorthing);
   return buf;
 }
 
@@ -128,44 +178,27 @@ std::string project(const convert::GeoTransformer& geo, const runtime::Terrain& 
   return {};
 }
 
-/// Reads a --path file; "" or an error naming the line.
-std::string readPath(const std::string& file, double defaultSpeed, const convert::GeoTransformer& geo,
-                     const runtime::Terrain& terrain, const manifest::Manifest& m,
-                     std::vector<Waypoint>& out) {
-  std::ifstream in(file);
-  if (!in) return "--path " + file + ": cannot open";
-  std::string line;
-  for (int lineNo = 1; std::getline(in, line); ++lineNo) {
-    if (const auto hash = line.find('#'); hash != std::string::npos) line.erase(hash);
-    std::istringstream fields(line);
-    double lon = 0, lat = 0;
-    Waypoint w;
-    w.speedKmh = defaultSpeed;
-    std::string rest;
-    if (!(fields >> rest)) continue;  // blank or comment-only line
-    fields.clear();
-    fields.str(line);
-    if (!(fields >> lon >> lat >> w.heightAgl)) {
-      return "--path " + file + ":" + std::to_string(lineNo) + ": expected \"lon lat height_m [speed_kmh]\"";
-    }
-    if (fields >> rest) {
-      try {
-        std::size_t used = 0;
-        w.speedKmh = std::stod(rest, &used);
-        if (used != rest.size()) throw std::invalid_argument(rest);
-      } catch (const std::exception&) {
-        return "--path " + file + ":" + std::to_string(lineNo) + ": speed \"" + rest + "\" is not a number";
-      }
-      if (fields >> rest) return "--path " + file + ":" + std::to_string(lineNo) + ": too many fields";
-    }
-    if (!(w.speedKmh > 0)) return "--path " + file + ":" + std::to_string(lineNo) + ": speed must be positive";
-    if (std::string err = project(geo, terrain, m, lon, lat, w.easting, w.northing); !err.empty()) {
-      return "--path " + file + ":" + std::to_string(lineNo) + ": " + err;
-    }
-    out.push_back(w);
+/// Reads a --path file through path.h (lon/lat via the GeoTransformer,
+/// checked against the grid); every error names the file and line.
+Result<runtime::Path> readPath(const FlyArgs& a, const convert::GeoTransformer& geo,
+                               const runtime::Terrain& terrain, const manifest::Manifest& m) {
+  runtime::PathOptions po;
+  po.defaultSpeedKmh = a.speed;
+  po.toProjected = [&](double lon, double lat, double& e, double& n) {
+    return project(geo, terrain, m, lon, lat, e, n);
+  };
+  auto path = runtime::readPathFile(a.pathFile, po);
+  if (!path) return path;
+  // Projected waypoints bypass toProjected, so check them here.
+  for (const auto& w : path->waypoints) {
+    if (terrain.sampleEN(w.easting, w.northing)) continue;
+    char where[96];
+    std::snprintf(where, sizeof where, "%.1f %.1f", w.easting, w.northing);
+    return Problem{a.pathFile, 0,
+                   "line " + std::to_string(w.line) + ": " + where + " is outside the database, which covers " +
+                       projectedBoundsText(m) + " in " + m.crsName};
   }
-  if (out.size() < 2) return "--path " + file + ": needs at least two waypoints";
-  return {};
+  return path;
 }
 
 /// Fills the runtime options from the command line; "" or a usage error.
@@ -220,9 +253,6 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
       return "--at " + err;
     }
   }
-  if (!a.pathFile.empty()) {
-    if (std::string err = readPath(a.pathFile, a.speed, geo, terrain, m, o.path); !err.empty()) return err;
-  }
   o.toLonLat = [&geo](double e, double n) -> std::optional<std::pair<double, double>> {
     double lon = 0, lat = 0;
     if (!geo.toLonLat(e, n, lon, lat)) return std::nullopt;
@@ -231,13 +261,87 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   return {};
 }
 
-void printSummary(const FlightOptions& o, const runtime::FlightReport& r) {
+/// Frames of a headless path flight without --frames: until the eye is at
+/// the last waypoint (frame k is at k / 30 s).
+std::uint32_t framesForPath(const runtime::Path& p) {
+  const double end = p.waypoints.back().timeS;
+  const double frames = std::ceil(end * runtime::kFramesPerSecond - 1e-9) + 1;
+  return std::uint32_t(std::clamp(frames, 1.0, 1e6));
+}
+
+/// The session's settings from the arguments and the built options.
+std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOptions& o,
+                            FlySessionSettings& s) {
+  s.freeFlight = a.freeFlight;
+  if (auto g = runtime::Terrain(db.grid).sampleEN(o.easting, o.northing)) {
+    s.altitude = a.altitude.value_or(g->elevation + a.height);
+  } else {
+    s.altitude = a.altitude.value_or(a.height);
+  }
+  s.map = a.map;
+  const auto scale = parseMapScale(a.mapScale);
+  if (!scale) return "--map-scale must be full, half, quarter, eighth or sixteenth, not \"" + a.mapScale + "\"";
+  s.mapScale = *scale;
+  s.waterMaterials = waterMaterials(db);
+  s.screenshotDir = !a.screenshotDir.empty() ? a.screenshotDir : !a.pngDir.empty() ? a.pngDir : ".";
+  const bool modules = db.modules && o.mode != runtime::TerrainMode::mesh;
+  // The pager cannot grow its window (no Pager::setViewDistance), so over
+  // load modules the keys may only shorten the view distance.
+  s.maxViewDistance = modules ? o.viewDistance : std::max(s.maxViewDistance, o.viewDistance);
+  s.liveViewDistance = !(o.fogDensity > 0);
+  return {};
+}
+
+/// Decides window or headless; opens the window. "" or a usage error; a
+/// null window with "" means headless.
+std::string openWindow(const FlyArgs& a, const Database& db, const FlightOptions& o,
+                       std::unique_ptr<runtime::ViewerWindow>& window) {
+  if (a.headless) return {};
+  if (a.window && !runtime::ViewerWindow::displayConfigured()) {
+    return "--window needs an X display, and DISPLAY is not set; run it in a desktop session or "
+           "under Xvfb (xvfb-run sandtable fly ...), or fly headless with --png DIR";
+  }
+  if (!runtime::ViewerWindow::displayConfigured()) return {};
+  const std::string title = "sandtable fly " + std::filesystem::path(db.directory).filename().string();
+  auto w = runtime::ViewerWindow::open(o.width, o.height, title);
+  if (w) {
+    window = std::move(w.value());
+    return {};
+  }
+  // DISPLAY is set but no window opens: --window fails; otherwise fall
+  // back to the headless flight if it has somewhere to write.
+  const std::string why = w.problems().front().message;  // "window: ..."
+  if (a.window || (a.pngDir.empty() && a.videoFile.empty())) {
+    return why + (a.window ? "" : "; or fly headless with --headless --png DIR");
+  }
+  std::fprintf(stderr, "sandtable fly: warning: no %s; flying headless\n", why.c_str());
+  return {};
+}
+
+std::string openVideo(const FlyArgs& a, const FlightOptions& o, std::unique_ptr<runtime::VideoWriter>& video) {
+  if (a.videoFile.empty()) return {};
+  if (!runtime::VideoWriter::available()) return "--video: " + runtime::VideoWriter::notInstalledMessage();
+  runtime::VideoOptions vo;
+  vo.fps = runtime::kFramesPerSecond;
+  auto v = runtime::VideoWriter::open(a.videoFile, o.width, o.height, vo);
+  if (!v) return "--video " + a.videoFile + ": " + v.problems().front().message;
+  video = std::move(v.value());
+  return {};
+}
+
+void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const FlySession& session,
+                  const FlyArgs& a) {
   const auto& s = r.summary;
-  std::printf("sandtable fly: %u frame%s at %ux%u in %s/ (%s .. %s)\n", s.frames,
-              s.frames == 1 ? "" : "s", s.width, s.height, o.outDir.c_str(),
-              runtime::frameFileName(0).c_str(),
-              runtime::frameFileName(s.frames - 1).c_str());
-  std::printf("  stats:    %s\n", s.statsPath.c_str());
+  std::printf("sandtable fly: %u frame%s at %ux%u%s", s.frames, s.frames == 1 ? "" : "s", s.width, s.height,
+              session.windowed() ? " in a window" : "");
+  if (!o.outDir.empty() && s.frames > 0) {
+    std::printf(" in %s/ (%s .. %s)", o.outDir.c_str(), runtime::frameFileName(0).c_str(),
+                runtime::frameFileName(s.frames - 1).c_str());
+  }
+  std::printf("\n");
+  if (!s.statsPath.empty()) std::printf("  stats:    %s\n", s.statsPath.c_str());
+  if (!a.videoFile.empty()) std::printf("  video:    %s\n", a.videoFile.c_str());
+  if (session.screenshotsTaken() > 0) std::printf("  screenshots: %u\n", session.screenshotsTaken());
   std::printf("  renderer: %s\n", s.rendererDetail.c_str());
   std::printf("  terrain:  %s%s%s\n", s.mode.c_str(), s.lod.empty() ? "" : ", lod ", s.lod.c_str());
   std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + read-back;"
@@ -245,7 +349,29 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r) {
               s.fpsMean, s.frameMsP50, s.frameMsP99, s.trianglesMean);
 }
 
-int run(const FlyArgs& a) {
+/// Checks the combinations CLI11 cannot; "" or a usage error.
+std::string checkArgs(const FlyArgs& a) {
+  if (a.window && a.headless) return "--window and --headless exclude each other";
+  if (a.altitude && !a.freeFlight) return "--altitude needs --free-flight (ground following keeps --height)";
+  if (a.freeFlight && !a.pathFile.empty()) {
+    return "--free-flight with --path: a path's heights are above the ground; leave out --free-flight";
+  }
+  return {};
+}
+
+int reportFailure(const Result<runtime::FlightReport>& report) {
+  // Bad options and a missing GL context are the caller's to fix (2);
+  // anything else went wrong while flying (1).
+  const auto& first = report.problems().front();
+  const bool usage = first.file == runtime::kFlightOptionProblem || first.file == runtime::kGlContextProblem;
+  for (const auto& q : report.problems()) {
+    std::fprintf(stderr, "sandtable fly: error: %s\n", q.message.c_str());
+  }
+  return usage ? kUsage : kProblems;
+}
+
+int run(FlyArgs& a) {
+  if (std::string err = checkArgs(a); !err.empty()) return usageError(kName, err);
   auto db = openDatabase(a.database);
   if (!db) return usageError(kName, db.error());
   auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
@@ -254,19 +380,46 @@ int run(const FlyArgs& a) {
   if (std::string err = buildOptions(a, db.value(), *geo.value(), o); !err.empty()) {
     return usageError(kName, err);
   }
-  auto report = runtime::fly(db.value(), o);
-  if (!report) {
-    // Bad options and a missing GL context are the caller's to fix (2);
-    // anything else went wrong while flying (1).
-    const auto& first = report.problems().front();
-    const bool usage = first.file == runtime::kFlightOptionProblem ||
-                       first.file == runtime::kGlContextProblem;
-    for (const auto& q : report.problems()) {
-      std::fprintf(stderr, "sandtable fly: error: %s\n", q.message.c_str());
+  FlySessionSettings ss;
+  if (std::string err = sessionSettings(a, db.value(), o, ss); !err.empty()) return usageError(kName, err);
+  if (!a.pathFile.empty()) {
+    auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
+    if (!path) {
+      // "--path FILE: line N: what, how to fix" (the Problem's offset is always 0 here).
+      const Problem& q = path.problems().front();
+      return usageError(kName, "--path " + q.file + ": " + q.message);
     }
-    return usage ? kUsage : kProblems;
+    const auto& first = path->waypoints.front();
+    o.easting = first.easting;
+    o.northing = first.northing;
+    o.heightAgl = first.heightAgl;
+    ss.path = std::move(path.value());
   }
-  printSummary(o, report.value());
+  std::unique_ptr<runtime::VideoWriter> video;
+  if (std::string err = openVideo(a, o, video); !err.empty()) return usageError(kName, err);
+  std::unique_ptr<runtime::ViewerWindow> window;
+  if (std::string err = openWindow(a, db.value(), o, window); !err.empty()) return usageError(kName, err);
+  const bool framesGiven = a.framesOption && a.framesOption->count() > 0;
+  if (window) {
+    // In a window the flight runs until q, Escape or the window closes.
+    if (!framesGiven) o.frames = std::numeric_limits<std::uint32_t>::max();
+  } else {
+    if (a.pngDir.empty() && a.videoFile.empty()) {
+      return usageError(kName, "a headless flight needs --png DIR (or --video FILE) for its frames; "
+                               "for a window, set DISPLAY (or use --window)");
+    }
+    if (ss.path && !framesGiven) o.frames = framesForPath(*ss.path);
+  }
+  FlySession session(db.value(), std::move(ss), o, std::move(window), std::move(video));
+  session.install(o);
+  auto report = runtime::fly(db.value(), o);
+  const std::string sessionError = session.finish();
+  if (!report) return reportFailure(report);
+  if (!sessionError.empty()) {
+    std::fprintf(stderr, "sandtable fly: error: %s\n", sessionError.c_str());
+    return kProblems;
+  }
+  printSummary(o, report.value(), session, a);
   return kOk;
 }
 
@@ -274,14 +427,16 @@ int run(const FlyArgs& a) {
 
 void registerFly(CLI::App& root, Commands& c) {
   auto args = std::make_shared<FlyArgs>();
-  auto* sub = root.add_subcommand(kName, "Fly over a database headlessly and write PNG frames");
+  auto* sub = root.add_subcommand(kName, "Fly over a database: in a window with a display, else headless to PNG frames");
   sub->footer(kFooter);
   sub->add_option("DB", args->database, "Database directory (from `sandtable build`)")->required();
-  sub->add_option("--png", args->pngDir, "Output directory for frames and stats.json (created)")
-      ->required();
-  sub->add_option("--frames", args->frames, "Number of frames (1/30 s of flight each)")
-      ->capture_default_str()->check(CLI::Range(1u, 1000000u));
-  sub->add_option("--size", args->size, "Frame size WxH")->capture_default_str();
+  sub->add_option("--png", args->pngDir,
+                  "Output directory for frames and stats.json (created); needed headless, optional in a window");
+  args->framesOption =
+      sub->add_option("--frames", args->frames,
+                      "Number of frames (headless: 1/30 s of flight each; window: stop after N, default until q)")
+          ->capture_default_str()->check(CLI::Range(1u, 1000000u));
+  sub->add_option("--size", args->size, "Frame (and window) size WxH")->capture_default_str();
   auto* at = sub->add_option("--at", args->at, "Start over LON LAT, degrees (default: database centre)")
                  ->expected(2);
   sub->add_option("--height", args->height, "Eye height above the ground, metres")->capture_default_str();
@@ -289,7 +444,7 @@ void registerFly(CLI::App& root, Commands& c) {
                       ->capture_default_str();
   sub->add_option("--pitch", args->pitch, "Degrees, negative looks down (-89..89)")->capture_default_str();
   sub->add_option("--speed", args->speed, "Ground speed, km/h (also the --path default)")->capture_default_str();
-  sub->add_option("--path", args->pathFile, "Waypoint file to fly (format below)")
+  sub->add_option("--path", args->pathFile, "Waypoint file to fly (docs/PATH.md; format below)")
       ->excludes(at)->excludes(heading);
   sub->add_option("--view-distance", args->viewDistance, "Far plane and full fog, metres")
       ->capture_default_str();
@@ -312,6 +467,17 @@ void registerFly(CLI::App& root, Commands& c) {
       ->capture_default_str()->check(CLI::Range(0u, 16u));
   sub->add_flag("--no-sky", args->noSky, "Clear to magenta instead of drawing the sky (shows cracks)");
   sub->add_flag("--pager-sync", args->pagerSync, "Wait for the pager before every frame (reproducible frames)");
+  sub->add_flag("--window", args->window, "Fly in a window from the keyboard (needs DISPLAY; default when set)");
+  sub->add_flag("--headless", args->headless, "Fly without a window even when DISPLAY is set");
+  sub->add_flag("--map", args->map, "Show the 2-D map in the top-right corner (m toggles it in a window)");
+  sub->add_option("--map-scale", args->mapScale, "Map scale: full, half, quarter, eighth, sixteenth")
+      ->capture_default_str();
+  sub->add_flag("--free-flight", args->freeFlight, "Keep an altitude instead of a height above the ground");
+  sub->add_option("--altitude", args->altitude,
+                  "--free-flight: eye above the datum, metres (default: ground at the start + --height)");
+  sub->add_option("--video", args->videoFile, "Also encode the frames into FILE (e.g. flight.mp4) with ffmpeg");
+  sub->add_option("--screenshot-dir", args->screenshotDir,
+                  "Where p / F12 write screenshot_NNNN.png (default: the --png directory, else .)");
   c.add(sub, [args] { return run(*args); });
 }
 
