@@ -22,7 +22,7 @@ $st validate "$out/db"
 echo "== info"
 $st info "$out/db"
 echo "== fly (headless EGL)"
-$st fly "$out/db" --png "$out/frames" --frames 60 --size 1280x720 --height 250 --heading 45
+$st fly "$out/db" --headless --png "$out/frames" --frames 60 --size 1280x720 --height 250 --heading 45 --map
 echo
 echo "demo: database  $out/db"
 echo "demo: images    $out/frames/frame_*.png"
