@@ -94,10 +94,15 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   return true;
 }
 
-float postAt(const std::vector<float>& g, const Frame& f, long i, long j) {
-  i = std::clamp(i, 0L, long(f.postsX) - 1);
-  j = std::clamp(j, 0L, long(f.postsZ) - 1);
-  return g[std::size_t(j) * f.postsX + std::size_t(i)];
+/// grid::toSnorm, inlined: clamp to [-1, 1], scale, round half away from
+/// zero (as lroundf; y - trunc(y) is exact in float). Normals here are
+/// finite: the grid has no voids left when it is written.
+inline std::int16_t snorm(float v) {
+  const float y = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
+  int t = static_cast<int>(y);  // toward zero; |y| <= 32767
+  const float frac = y - static_cast<float>(t);
+  t += int(frac >= 0.5f) - int(frac <= -0.5f);  // no branch: frac is noise
+  return static_cast<std::int16_t>(t);
 }
 
 /// One block of the grid file. Posts beyond the grid's edge repeat the
@@ -105,30 +110,41 @@ float postAt(const std::vector<float>& g, const Frame& f, long i, long j) {
 void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& filled, const Frame& f,
                std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
   const double inv2s = 1.0 / (2.0 * f.spacing);
+  const long W = long(f.postsX), H = long(f.postsZ);
   for (std::uint32_t lz = 0; lz < grid::kBlockPosts; ++lz) {
+    const long j = std::min<long>(bz * grid::kBlockPosts + lz, H - 1);
+    // Rows j - 1, j, j + 1, clamped to the grid.
+    const float* up = g.data() + std::size_t(std::max(j - 1, 0L)) * W;
+    const float* mid = g.data() + std::size_t(j) * W;
+    const float* down = g.data() + std::size_t(std::min(j + 1, H - 1)) * W;
+    const std::uint8_t* wasVoid = filled.data() + std::size_t(j) * W;
+    const double zEdge = (j == 0 || j == H - 1 ? 2.0 : 1.0);
     for (std::uint32_t lx = 0; lx < grid::kBlockPosts; ++lx) {
-      const long i = std::min<long>(bx * grid::kBlockPosts + lx, long(f.postsX) - 1);
-      const long j = std::min<long>(bz * grid::kBlockPosts + lz, long(f.postsZ) - 1);
+      const long i = std::min<long>(bx * grid::kBlockPosts + lx, W - 1);
+      const long il = std::max(i - 1, 0L), ir = std::min(i + 1, W - 1);
       const std::size_t k = lz * grid::kBlockPosts + lx;
-      const float h = postAt(g, f, i, j);
+      const float h = mid[i];
       b.elevation[k] = h;
       // Central differences; one-sided on the grid edge (clamped index).
-      const double dx = (postAt(g, f, i + 1, j) - postAt(g, f, i - 1, j)) * inv2s *
-                        (i == 0 || i == long(f.postsX) - 1 ? 2.0 : 1.0);
-      const double dz = (postAt(g, f, i, j + 1) - postAt(g, f, i, j - 1)) * inv2s *
-                        (j == 0 || j == long(f.postsZ) - 1 ? 2.0 : 1.0);
+      const double dx = (mid[ir] - mid[il]) * inv2s * (i == 0 || i == W - 1 ? 2.0 : 1.0);
+      const double dz = (down[i] - up[i]) * inv2s * zEdge;
       const double len = std::sqrt(dx * dx + 1.0 + dz * dz);
-      b.normalX[k] = grid::toSnorm(static_cast<float>(-dx / len));
-      b.normalY[k] = grid::toSnorm(static_cast<float>(1.0 / len));
-      b.normalZ[k] = grid::toSnorm(static_cast<float>(-dz / len));
-      const bool wasVoid = filled[std::size_t(j) * f.postsX + std::size_t(i)] != 0;
-      b.material[k] = wasVoid ? kFilledVoid : (h <= 0.0f ? kWater : kGround);
+      b.normalX[k] = snorm(static_cast<float>(-dx / len));
+      b.normalY[k] = snorm(static_cast<float>(1.0 / len));
+      b.normalZ[k] = snorm(static_cast<float>(-dz / len));
+      b.material[k] = wasVoid[i] ? kFilledVoid : (h <= 0.0f ? kWater : kGround);
     }
   }
 }
 
-Result<grid::Header> writeGrid(const std::string& path, const Frame& f, const std::vector<float>& g,
-                               const std::vector<std::uint8_t>& filled, int threads, const ProgressFn& progress) {
+/// The written grid's header and the CRC-32 of the whole file.
+struct WrittenGrid {
+  grid::Header header;
+  std::uint32_t crc = 0;
+};
+
+Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std::vector<float>& g,
+                              const std::vector<std::uint8_t>& filled, int threads, const ProgressFn& progress) {
   const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
   auto writer = grid::GridWriter::create(path, h);
   if (!writer) return writer.problems();
@@ -153,7 +169,7 @@ Result<grid::Header> writeGrid(const std::string& path, const Frame& f, const st
   if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
   if (!firstError.empty()) return Problem{path, 0, firstError};
   if (std::string err = writer.value()->finish(); !err.empty()) return Problem{path, 0, err};
-  return writer.value()->header();
+  return WrittenGrid{writer.value()->header(), writer.value()->fileCrc()};
 }
 
 std::string fsyncDirectory(const std::string& dir) {
@@ -336,13 +352,13 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   const std::string gridPath = partial.path() + "/" + manifest::kGridFileName;
   auto header = writeGrid(gridPath, f, g, filled, o.threads, progress);
   if (!header) return header.problems();
-  g = {};  // release before checksumming
+  g = {};
 
   ElevationReport report;
-  report.manifest = makeManifest(o, f, header.value(), sources.value());
-  manifest::FileEntry entry{manifest::kGridFileName, 0, 0};
-  if (!crc32File(gridPath, entry.crc, entry.bytes)) return Problem{gridPath, 0, "build: cannot re-read the grid"};
-  report.manifest.files.push_back(entry);
+  report.manifest = makeManifest(o, f, header.value().header, sources.value());
+  // The CRC of what was written, from the writer's block CRCs: re-reading
+  // the file would only check the page cache.
+  report.manifest.files.push_back({manifest::kGridFileName, header.value().header.fileBytes, header.value().crc});
   std::optional<ModuleReport> modules;
   if (o.modules) {
     auto built = writeModules(o, gridPath, partial.path(), culture.value(), report, progress);

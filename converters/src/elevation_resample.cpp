@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <mutex>
 #include <thread>
@@ -142,6 +143,8 @@ struct PostMap {
   double px, py;
   double m[2][2];  // metres east/south per source post step in x / y
   double hx, hy;   // search half-widths in source posts
+  // |m d|^2 = qa dx^2 + 2 qb dx dy + (..) dy^2; qdet2 = det(m)^2, qinvA = 1 / qa
+  double qa, qb, qdet2, qinvA;
 };
 
 bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i, std::uint32_t j,
@@ -175,6 +178,11 @@ bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i
   const double rPosts = radius / spacing;
   out.hx = rPosts * (std::fabs(aXi) + std::fabs(aXj)) + 1;
   out.hy = rPosts * (std::fabs(aYi) + std::fabs(aYj)) + 1;
+  out.qa = out.m[0][0] * out.m[0][0] + out.m[1][0] * out.m[1][0];
+  out.qb = out.m[0][0] * out.m[0][1] + out.m[1][0] * out.m[1][1];
+  const double dm = out.m[0][0] * out.m[1][1] - out.m[0][1] * out.m[1][0];
+  out.qdet2 = dm * dm;
+  out.qinvA = 1.0 / out.qa;
   return true;
 }
 
@@ -188,13 +196,34 @@ inline void positionAt(const Lattice& L, std::uint32_t c, std::uint32_t r, std::
   py = (1 - fz) * (L.py[k00] + fx * (L.py[k10] - L.py[k00])) + fz * (L.py[k01] + fx * (L.py[k11] - L.py[k01]));
 }
 
+/// Source posts of one strip (or a view into a SourceImage): post (x, y)
+/// for x0 <= x < x0 + w, y0 <= y < y0 + h, NaN for a void.
 struct Window {
   int x0 = 0, y0 = 0, w = 0, h = 0;
+  const float* base = nullptr;  ///< post (bx0, by0)
+  std::size_t stride = 0;
+  int bx0 = 0, by0 = 0;
   std::vector<float> v;
-  float at(int x, int y) const { return v[std::size_t(y - y0) * w + (x - x0)]; }
+  float at(int x, int y) const { return base[std::size_t(y - by0) * stride + std::size_t(x - bx0)]; }
+  const float* row(int y) const { return base + std::size_t(y - by0) * stride - bx0; }
 };
 
-std::string readWindow(GDALRasterBand& band, const Lattice& L, double pad, Window& win) {
+/// The posts of the mosaic that the target covers, read once for all
+/// strips (NaN = void). Reading through the VRT strip by strip costs
+/// more than resampling: DTED is stored in one-column blocks, and GDAL
+/// copies such a window pixel by pixel. Here each source is read block by
+/// block, in parallel, and composited in the VRT's order with its nodata
+/// rule, so the posts are those the VRT gives.
+struct SourceImage {
+  int x0 = 0, y0 = 0, w = 0, h = 0;
+  std::vector<float> v;
+  bool covers(int ax, int ay, int bx, int by) const {
+    return !v.empty() && ax >= x0 && ay >= y0 && bx < x0 + w && by < y0 + h;
+  }
+};
+
+/// The window of lattice L padded by `pad` posts, clamped to the band.
+void windowBounds(GDALRasterBand& band, const Lattice& L, double pad, Window& win) {
   const auto [pxMin, pxMax] = std::minmax_element(L.px.begin(), L.px.end());
   const auto [pyMin, pyMax] = std::minmax_element(L.py.begin(), L.py.end());
   const int W = band.GetXSize(), H = band.GetYSize();
@@ -204,16 +233,35 @@ std::string readWindow(GDALRasterBand& band, const Lattice& L, double pad, Windo
   const int y1 = std::clamp(static_cast<int>(std::ceil(*pyMax + pad)), 0, H - 1);
   win.w = x1 - win.x0 + 1;
   win.h = y1 - win.y0 + 1;
+}
+
+/// A source post that is not elevation becomes NaN (a void).
+inline float validOrNan(float x, bool hasNoData, float nd) {
+  return (!std::isfinite(x) || (hasNoData && x == nd) || x < kMinValid || x > kMaxValid) ? NAN : x;
+}
+
+std::string readWindow(GDALRasterBand& band, const Lattice& L, double pad, Window& win,
+                       const SourceImage* image = nullptr) {
+  windowBounds(band, L, pad, win);
+  if (image && image->covers(win.x0, win.y0, win.x0 + win.w - 1, win.y0 + win.h - 1)) {
+    win.base = image->v.data();
+    win.stride = std::size_t(image->w);
+    win.bx0 = image->x0;
+    win.by0 = image->y0;
+    return {};
+  }
   win.v.resize(std::size_t(win.w) * win.h);
+  win.base = win.v.data();
+  win.stride = std::size_t(win.w);
+  win.bx0 = win.x0;
+  win.by0 = win.y0;
   if (band.RasterIO(GF_Read, win.x0, win.y0, win.w, win.h, win.v.data(), win.w, win.h, GDT_Float32, 0, 0) !=
       CE_None) {
     return "resample: cannot read the sources: " + lastGdalError();
   }
   int hasNoData = 0;
-  const double nd = band.GetNoDataValue(&hasNoData);
-  for (float& x : win.v) {
-    if (!std::isfinite(x) || (hasNoData && x == static_cast<float>(nd)) || x < kMinValid || x > kMaxValid) x = NAN;
-  }
+  const float nd = static_cast<float>(band.GetNoDataValue(&hasNoData));
+  for (float& x : win.v) x = validOrNan(x, hasNoData != 0, nd);
   return {};
 }
 
@@ -224,10 +272,22 @@ double estimatePost(const Window& win, const PostMap& p, double radius) {
   const int ya = std::max(win.y0, static_cast<int>(std::ceil(p.py - p.hy)));
   const int yb = std::min(win.y0 + win.h - 1, static_cast<int>(std::floor(p.py + p.hy)));
   const double r2 = radius * radius, invR2 = 1.0 / r2;
+  // Row y holds the posts inside the radius ellipse only between
+  // cx -+ half (see mapPost); the bounds are widened a little so rounding
+  // never drops a post that the exact test below would take, which keeps
+  // the result identical to testing the whole box.
+  const double disc0 = p.qa * r2 * (1 + 1e-9);
   for (int y = ya; y <= yb; ++y) {
     const double dy = y - p.py;
-    for (int x = xa; x <= xb; ++x) {
-      const float v = win.at(x, y);
+    const double disc = disc0 - p.qdet2 * dy * dy;
+    if (disc < 0) continue;
+    const double half = std::sqrt(disc) * p.qinvA + 1e-6;
+    const double cx = p.px - p.qb * dy * p.qinvA;
+    const int x0 = std::max(xa, static_cast<int>(std::ceil(cx - half)));
+    const int x1 = std::min(xb, static_cast<int>(std::floor(cx + half)));
+    const float* row = win.row(y);
+    for (int x = x0; x <= x1; ++x) {
+      const float v = row[x];
       if (std::isnan(v)) continue;
       const double dx = x - p.px;
       const double e = p.m[0][0] * dx + p.m[0][1] * dy;
@@ -260,13 +320,198 @@ struct MosaicReader {
   GDALRasterBand& band() { return *ds->GetRasterBand(1); }
 };
 
+/// One source of the VRT mosaic, as GDALBuildVRT writes it.
+struct VrtSource {
+  std::string path;
+  int band = 1;
+  int sx = 0, sy = 0, dx = 0, dy = 0, w = 0, h = 0;  // SrcRect origin, DstRect origin, size
+  bool hasNoData = false;
+  double noData = 0;
+};
+
+bool integerAttr(const CPLXMLNode* n, const char* name, int& out) {
+  const char* v = CPLGetXMLValue(n, name, nullptr);
+  if (!v) return false;
+  const double d = CPLAtof(v);
+  out = static_cast<int>(std::lround(d));
+  return std::fabs(d - out) < 1e-9;
+}
+
+/// The sources of band 1 of the VRT in its order, or false when the VRT
+/// holds anything but plain unscaled sources (then the VRT itself is read).
+bool vrtSources(const std::string& vrtPath, std::vector<VrtSource>& out) {
+  CPLXMLNode* root = CPLParseXMLFile(vrtPath.c_str());
+  if (!root) return false;
+  bool ok = true;
+  const CPLXMLNode* ds = CPLGetXMLNode(root, "=VRTDataset");
+  const CPLXMLNode* band = nullptr;
+  for (const CPLXMLNode* c = ds ? ds->psChild : nullptr; c; c = c->psNext) {
+    if (c->eType == CXT_Element && std::string(c->pszValue) == "VRTRasterBand" &&
+        std::string(CPLGetXMLValue(c, "band", "1")) == "1") {
+      band = c;
+    }
+  }
+  if (!band || CPLGetXMLValue(band, "subClass", nullptr)) ok = false;
+  for (const CPLXMLNode* c = band ? band->psChild : nullptr; ok && c; c = c->psNext) {
+    if (c->eType != CXT_Element) continue;
+    const std::string kind = c->pszValue;
+    if (kind != "SimpleSource" && kind != "ComplexSource") {
+      if (kind != "NoDataValue" && kind != "ColorInterp" && kind != "Metadata" && kind != "Description") ok = false;
+      continue;
+    }
+    VrtSource v;
+    for (const CPLXMLNode* e = c->psChild; e; e = e->psNext) {
+      if (e->eType != CXT_Element) continue;
+      const std::string n = e->pszValue;
+      if (n == "NODATA") {
+        v.hasNoData = true;
+        v.noData = CPLAtof(CPLGetXMLValue(e, nullptr, "0"));
+      } else if (n != "SourceFilename" && n != "SourceBand" && n != "SourceProperties" && n != "SrcRect" &&
+                 n != "DstRect") {
+        ok = false;  // scaling, LUT, masks, resampling...: leave it to GDAL
+      }
+    }
+    const char* name = CPLGetXMLValue(c, "SourceFilename", nullptr);
+    int sw = 0, sh = 0;
+    if (!name || !integerAttr(c, "SrcRect.xOff", v.sx) || !integerAttr(c, "SrcRect.yOff", v.sy) ||
+        !integerAttr(c, "SrcRect.xSize", sw) || !integerAttr(c, "SrcRect.ySize", sh) ||
+        !integerAttr(c, "DstRect.xOff", v.dx) || !integerAttr(c, "DstRect.yOff", v.dy) ||
+        !integerAttr(c, "DstRect.xSize", v.w) || !integerAttr(c, "DstRect.ySize", v.h) || sw != v.w || sh != v.h) {
+      ok = false;
+      break;
+    }
+    v.band = std::atoi(CPLGetXMLValue(c, "SourceBand", "1"));
+    const bool relative = std::atoi(CPLGetXMLValue(c, "SourceFilename.relativeToVRT", "0")) != 0;
+    v.path = relative ? CPLProjectRelativeFilename(CPLGetPath(vrtPath.c_str()), name) : name;
+    out.push_back(std::move(v));
+  }
+  CPLDestroyXMLNode(root);
+  return ok && !out.empty();
+}
+
+/// Reads rect (x, y, w, h) of a source band as floats, row-major. Bands in
+/// one-column blocks (DTED) are read block by block: RasterIO would copy
+/// them pixel by pixel.
+bool readSourceRect(GDALRasterBand& b, int x, int y, int w, int h, std::vector<float>& out) {
+  out.resize(std::size_t(w) * h);
+  int bw = 0, bh = 0;
+  b.GetBlockSize(&bw, &bh);
+  if (bw != 1 || bh < 2) {
+    return b.RasterIO(GF_Read, x, y, w, h, out.data(), w, h, GDT_Float32, 0, 0) == CE_None;
+  }
+  const GDALDataType type = b.GetRasterDataType();
+  const int bytes = GDALGetDataTypeSizeBytes(type);
+  std::vector<std::byte> block(std::size_t(bh) * bytes);
+  for (int by = y / bh; by * bh < y + h; ++by) {
+    const int r0 = std::max(y, by * bh), r1 = std::min(y + h, (by + 1) * bh);
+    for (int c = x; c < x + w; ++c) {
+      if (b.ReadBlock(c, by, block.data()) != CE_None) return false;
+      GDALCopyWords64(block.data() + std::size_t(r0 - by * bh) * bytes, type, bytes,
+                      out.data() + std::size_t(r0 - y) * w + (c - x), GDT_Float32, w * int(sizeof(float)), r1 - r0);
+    }
+  }
+  return true;
+}
+
+/// Fills `image` with the mosaic's posts over the source positions of the
+/// frame's posts, padded by `pad` posts; leaves it empty (the strips then
+/// read the VRT) when the VRT is not plain or the image would be too big.
+void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, int threads, SourceImage& image) {
+  image = {};
+  MosaicReader m;
+  if (!m.open(vrtPath, f).empty()) return;
+  std::vector<VrtSource> sources;
+  if (!vrtSources(vrtPath, sources)) return;
+  // Source positions along the frame's edge, every 8 posts.
+  std::vector<double> x, y;
+  auto add = [&](std::uint32_t i, std::uint32_t j) {
+    x.push_back(f.originEasting + i * f.spacing);
+    y.push_back(f.originNorthing - j * f.spacing);
+  };
+  for (std::uint32_t i = 0; i < f.postsX; i += 8) add(i, 0), add(i, f.postsZ - 1);
+  for (std::uint32_t j = 0; j < f.postsZ; j += 8) add(0, j), add(f.postsX - 1, j);
+  add(f.postsX - 1, 0);
+  add(f.postsX - 1, f.postsZ - 1);
+  if (!m.toSource->Transform(static_cast<int>(x.size()), x.data(), y.data())) return;
+  double xMin = INFINITY, xMax = -INFINITY, yMin = INFINITY, yMax = -INFINITY;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    const double px = (x[k] - m.geo[0]) / m.geo[1] - 0.5, py = (y[k] - m.geo[3]) / m.geo[5] - 0.5;
+    xMin = std::min(xMin, px), xMax = std::max(xMax, px), yMin = std::min(yMin, py), yMax = std::max(yMax, py);
+  }
+  if (!std::isfinite(xMin + xMax + yMin + yMax)) return;
+  GDALRasterBand& band = m.band();
+  const int W = band.GetXSize(), H = band.GetYSize();
+  const int x0 = std::clamp(static_cast<int>(std::floor(xMin - pad)), 0, W - 1);
+  const int y0 = std::clamp(static_cast<int>(std::floor(yMin - pad)), 0, H - 1);
+  const int x1 = std::clamp(static_cast<int>(std::ceil(xMax + pad)), 0, W - 1);
+  const int y1 = std::clamp(static_cast<int>(std::ceil(yMax + pad)), 0, H - 1);
+  const std::size_t n = std::size_t(x1 - x0 + 1) * std::size_t(y1 - y0 + 1);
+  // No more than 4 bytes per post of 1 G posts; bigger mosaics go strip by strip.
+  if (n > (std::size_t(1) << 30)) return;
+  int hasNoData = 0;
+  const double nd = band.GetNoDataValue(&hasNoData);
+  SourceImage img;
+  img.x0 = x0, img.y0 = y0, img.w = x1 - x0 + 1, img.h = y1 - y0 + 1;
+  // As VRTSourcedRasterBand: posts no source covers hold the nodata value, or 0.
+  img.v.assign(n, hasNoData ? static_cast<float>(nd) : 0.0f);
+  // Sources are read in parallel and composited in the VRT's order (a
+  // later source's valid posts replace an earlier one's, as in the VRT).
+  std::atomic<std::size_t> next{0};
+  std::size_t composited = 0;
+  bool failed = false;
+  std::mutex mutex;
+  std::condition_variable turn;
+  auto worker = [&] {
+    std::vector<float> buf;
+    for (std::size_t k; (k = next++) < sources.size();) {
+      const VrtSource& s = sources[k];
+      const int ax = std::max(x0, s.dx), ay = std::max(y0, s.dy);
+      const int bx = std::min(x1 + 1, s.dx + s.w), by = std::min(y1 + 1, s.dy + s.h);
+      bool ok = true, empty = ax >= bx || ay >= by;
+      if (!empty) {
+        std::unique_ptr<GDALDataset> ds(GDALDataset::Open(s.path.c_str(), GDAL_OF_RASTER | GDAL_OF_VERBOSE_ERROR));
+        GDALRasterBand* b = ds && s.band >= 1 && s.band <= ds->GetRasterCount() ? ds->GetRasterBand(s.band) : nullptr;
+        ok = b && readSourceRect(*b, s.sx + ax - s.dx, s.sy + ay - s.dy, bx - ax, by - ay, buf);
+      }
+      std::unique_lock lock(mutex);
+      turn.wait(lock, [&] { return composited == k; });
+      if (!ok) failed = true;
+      if (ok && !empty && !failed) {
+        const int w = bx - ax;
+        const float snd = static_cast<float>(s.noData);
+        for (int r = ay; r < by; ++r) {
+          float* dst = img.v.data() + std::size_t(r - y0) * img.w + (ax - x0);
+          const float* src = buf.data() + std::size_t(r - ay) * w;
+          if (!s.hasNoData) {
+            std::copy(src, src + w, dst);
+          } else {
+            for (int c = 0; c < w; ++c) {
+              if (!(src[c] == snd || (std::isnan(snd) && std::isnan(src[c])))) dst[c] = src[c];
+            }
+          }
+        }
+      }
+      ++composited;
+      turn.notify_all();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::min<int>(threadCount(threads), int(sources.size())); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (failed) return;  // the strips read the VRT and report its error
+  const float fnd = static_cast<float>(nd);
+  for (float& v : img.v) v = validOrNan(v, hasNoData != 0, fnd);
+  image = std::move(img);
+}
+
 std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, double radius,
                           GDALRasterBand& band, OGRCoordinateTransformation& ct,
-                          const std::array<double, 6>& g, Lattice& L, Window& win, float* out) {
+                          const std::array<double, 6>& g, Lattice& L, Window& win, const SourceImage& image,
+                          float* out) {
   if (!L.build(f, jBegin, jEnd, ct, g)) return "resample: PROJ failed to transform target posts to the sources";
   PostMap probe{};
   if (!mapPost(L, 0, 0, 0, jBegin, f.spacing, radius, probe)) return "resample: degenerate transform";
-  const std::string err = readWindow(band, L, std::max(probe.hx, probe.hy) + 2, win);
+  const std::string err = readWindow(band, L, std::max(probe.hx, probe.hy) + 2, win, &image);
   if (!err.empty()) return err;
   for (std::uint32_t r = 0; r + 1 < L.rows; ++r) {
     const std::uint32_t jLast = (r + 2 == L.rows) ? L.rj[r + 1] : L.rj[r + 1] - 1;
@@ -300,7 +545,7 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
   std::string firstError;
   // Seed Figure 13 uses one grid size; never less than a source cell's
   // diagonal, so every target post sees the source posts around it.
-  double sourceDiagonal = 0;
+  double sourceDiagonal = 0, minPostMetres = 0;
   {
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
     if (!ds) return "resample: cannot open the mosaic: " + lastGdalError();
@@ -310,8 +555,11 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
     const double lat = 0.5 * (f.cornersLonLat[0][1] + f.cornersLonLat[2][1]);
     const auto m = postMetres(g, geographic, lat);
     sourceDiagonal = std::hypot(m[0], m[1]);
+    minPostMetres = std::min(m[0], m[1]);
   }
   const double radius = std::max(f.spacing, sourceDiagonal * 1.01);
+  SourceImage image;
+  if (minPostMetres > 0) buildSourceImage(vrtPath, f, 2 * radius / minPostMetres + 16, threads, image);
   auto worker = [&] {
     MosaicReader m;
     if (std::string e = m.open(vrtPath, f); !e.empty()) {
@@ -328,7 +576,7 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
         if (!firstError.empty()) return;
       }
       const std::uint32_t j0 = s * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
-      const std::string err = resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, L, win, out.data());
+      const std::string err = resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, L, win, image, out.data());
       std::lock_guard lock(mutex);
       if (!err.empty() && firstError.empty()) firstError = err;
       const std::uint32_t d = ++done;

@@ -4,6 +4,7 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cassert>
@@ -237,6 +238,14 @@ std::string GridWriter::finish() {
   header_.maxElevation = mx;
   header_.tableCrc = crc32(std::span(table.data(), entries_.size() * kBlockEntryBytes));
   const auto head = encodeHeader(header_);
+  // The file's CRC: header page, table (with its zero padding), blocks in order.
+  {
+    uLong c = crc32(std::span<const std::byte>(head));
+    c = crc32_combine(c, crc32(std::span<const std::byte>(table)), static_cast<z_off_t>(table.size()));
+    const uLong op = crc32_combine_gen(static_cast<z_off_t>(kBlockBytes));
+    for (const BlockEntry& e : entries_) c = crc32_combine_op(c, e.crc, op);
+    fileCrc_ = static_cast<std::uint32_t>(c);
+  }
   std::string err = pwriteAll(fd_, table.data(), table.size(), header_.blockTableOffset);
   if (err.empty()) err = pwriteAll(fd_, head.data(), head.size(), 0);
   if (err.empty() && ::fsync(fd_) != 0) err = std::strerror(errno);

@@ -124,6 +124,9 @@ class GridWriter {
   /// Writes table and header, fsyncs, and renames into place. "" or error.
   std::string finish();
   const Header& header() const { return header_; }
+  /// CRC-32 and size of the whole file as finish() wrote it, combined from
+  /// the header's, the table's and the blocks' CRCs (no re-read).
+  std::uint32_t fileCrc() const { return fileCrc_; }
 
  private:
   GridWriter(std::string path, std::string tmp, int fd, Header h);
@@ -132,6 +135,7 @@ class GridWriter {
   Header header_;
   std::vector<BlockEntry> entries_;
   bool finished_ = false;
+  std::uint32_t fileCrc_ = 0;
 };
 
 /// A read-only, memory-mapped grid. open() checks only the header and the
