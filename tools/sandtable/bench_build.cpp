@@ -76,8 +76,9 @@ struct Sample {
   std::vector<std::pair<std::string, double>> stages;
 };
 
-/// One of our kernels as --kernels names it. "bilinear" keeps GDAL's point
-/// samples (fit "posts"), the same computation as gdalwarp -r bilinear;
+/// One of our kernels as --kernels names it. "bilinear" keeps the kernel's
+/// samples (fit "posts"): GDAL's bilinear kernel, as gdalwarp -r bilinear
+/// (widened along an axis where the target is coarser than the source);
 /// "bilinear-triangles" adds the least-squares triangle fit that
 /// `sandtable build --resample bilinear` does by default.
 struct OurKernel {
