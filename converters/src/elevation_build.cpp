@@ -344,7 +344,16 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
   const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   std::vector<std::uint8_t> filled(g.size());
-  for (std::size_t k = 0; k < g.size(); ++k) filled[k] = std::isnan(g[k]) ? 1 : 0;
+  {
+    const int nt = detail::threadCount(o.threads);
+    std::vector<std::thread> pool;
+    for (int t = 0; t < nt; ++t) {
+      pool.emplace_back([&, t] {
+        for (std::size_t k = g.size() * t / nt, e = g.size() * (t + 1) / nt; k < e; ++k) filled[k] = std::isnan(g[k]) ? 1 : 0;
+      });
+    }
+    for (auto& t : pool) t.join();
+  }
   auto voids = detail::fillVoids(f, g, progress);
   if (!voids) return voids.problems();
   fs::remove(vrt, ec);
