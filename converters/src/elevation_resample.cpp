@@ -4,7 +4,9 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
 #include <memory>
 #include <mutex>
 #include <new>
@@ -309,6 +311,7 @@ double estimatePost(const Window& win, const PostMap& p, double radius) {
   return s.estimate();
 }
 
+#if defined(__SSE2__)
 /// estimatePost for two posts of one lattice cell (same metric) at once,
 /// one per SSE2 lane. Each lane takes exactly the posts estimatePost takes
 /// (its box and d2 < r2), in the same order, with the same operations, so
@@ -414,6 +417,8 @@ void estimatePair(const Window& win, const PostMap& p, const PostMap& q, double 
   outP = res[0];
   outQ = res[1];
 }
+
+#endif  // __SSE2__
 
 /// One worker's handle on the mosaic: GDAL datasets and PROJ transforms are
 /// not thread-safe, so each thread opens its own.
@@ -650,6 +655,7 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
       const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
       for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
         std::uint32_t i = L.ci[c];
+#if defined(__SSE2__)
         for (; i + 1 <= iLast; i += 2) {
           PostMap p = cell, q = cell;
           positionAt(L, c, r, i, j, p.px, p.py);
@@ -659,7 +665,8 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
           out[std::size_t(j) * f.postsX + i] = static_cast<float>(a);
           out[std::size_t(j) * f.postsX + i + 1] = static_cast<float>(b);
         }
-        if (i <= iLast) {
+#endif
+        for (; i <= iLast; ++i) {
           PostMap p = cell;
           positionAt(L, c, r, i, j, p.px, p.py);
           out[std::size_t(j) * f.postsX + i] = static_cast<float>(estimatePost(win, p, radius));
