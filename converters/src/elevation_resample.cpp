@@ -979,167 +979,61 @@ int fillProgress(double fraction, const char*, void* data) {
 
 namespace {
 
-/// GDAL's bilinear kernel at post coordinates (px, py) of the mosaic (post
-/// k at k, W x H posts), read from `img`, which covers every post it
-/// touches. As GDALWarpKernel: a target pixel whose nearest source post is
-/// a void stays void; when the target is coarser than the source along an
-/// axis (scale s < 0.95) the triangle kernel widens to radius 1 / s there
-/// (GWKResample), else the 4-sample formula (GWKBilinearResample4Sample);
-/// voids and posts beyond the edge are left out and the weights renormalised.
-struct GdalBilinear {
-  double sx = 1, sy = 1;  ///< target posts per source post, at most 1
-  int rx = 1, ry = 1;     ///< kernel radius in source posts
+/// True when GDAL's kernels stay within the source image's 16-post pad:
+/// the target is at most 8 times coarser than the source along each axis
+/// (GDAL widens its kernels by the scale), as GDALWarpOperation computes it.
+bool imageCoversKernel(const std::string& vrtPath, const Frame& f) {
+  MosaicReader m;
+  if (!m.open(vrtPath, f).empty()) return false;
+  double x[4] = {f.originEasting, f.originEasting + (f.postsX - 1) * f.spacing, f.originEasting,
+                 f.originEasting + (f.postsX - 1) * f.spacing};
+  double y[4] = {f.originNorthing, f.originNorthing, f.originNorthing - (f.postsZ - 1) * f.spacing,
+                 f.originNorthing - (f.postsZ - 1) * f.spacing};
+  if (!m.toSource->Transform(4, x, y)) return false;
+  const double spanX = (std::max({x[0], x[1], x[2], x[3]}) - std::min({x[0], x[1], x[2], x[3]})) / std::fabs(m.geo[1]);
+  const double spanY = (std::max({y[0], y[1], y[2], y[3]}) - std::min({y[0], y[1], y[2], y[3]})) / std::fabs(m.geo[5]);
+  return f.postsX / (spanX + 1) >= 0.125 && f.postsZ / (spanY + 1) >= 0.125;
+}
 
-  float operator()(const SourceImage& img, int W, int H, double px, double py) const {
-    const double X = px + 0.5, Y = py + 0.5;  // GDAL's pixel coordinates
-    if (!(X >= 0 && Y >= 0)) return NAN;
-    const int cx = static_cast<int>(X + 1e-10), cy = static_cast<int>(Y + 1e-10);
-    if (cx >= W || cy >= H) return NAN;
-    auto at = [&](int x, int y) { return img.v[std::size_t(y - img.y0) * std::size_t(img.w) + std::size_t(x - img.x0)]; };
-    if (std::isnan(at(cx, cy))) return NAN;
-    int ix = static_cast<int>(std::floor(X - 0.5)), iy = static_cast<int>(std::floor(Y - 0.5));
-    double acc = 0, div = 0;
-    if (sx >= 0.95 && sy >= 0.95) {
-      double fx = 1.5 - (X - ix), fy = 1.5 - (Y - iy);
-      if (ix == -1) ix = 0, fx = 1;
-      if (iy == -1) iy = 0, fy = 1;
-      auto take = [&](int x, int y, double w) {
-        if (x < W && y < H) {
-          const float v = at(x, y);
-          if (!std::isnan(v)) div += w, acc += v * w;
-        }
-      };
-      take(ix, iy, fx * fy);
-      take(ix + 1, iy, (1 - fx) * fy);
-      take(ix + 1, iy + 1, (1 - fx) * (1 - fy));
-      take(ix, iy + 1, fx * (1 - fy));
-      if (div == 1.0) return static_cast<float>(acc);
-    } else {
-      const double dx = X - 0.5 - ix, dy = Y - 0.5 - iy;
-      double wx[16];
-      for (int k = 1 - rx; k <= rx; ++k) wx[k - 1 + rx] = std::max(0.0, 1 - std::fabs(k - dx) * sx);
-      for (int l = 1 - ry; l <= ry; ++l) {
-        const int y = iy + l;
-        if (y < 0 || y >= H) continue;
-        const double wy = std::max(0.0, 1 - std::fabs(l - dy) * sy);
-        if (wy == 0) continue;
-        for (int k = 1 - rx; k <= rx; ++k) {
-          const int x = ix + k;
-          if (x < 0 || x >= W) continue;
-          const float v = at(x, y);
-          const double w = wx[k - 1 + rx] * wy;
-          if (!std::isnan(v) && w > 0) div += w, acc += v * w;
-        }
-      }
-    }
-    if (div < 0.00001) return NAN;
-    return static_cast<float>(acc / div);
-  }
-};
-
-/// The bilinear kernel on our own lattice of exact transforms, from a
-/// SourceImage: GDALWarp spends most of its time reading the one-column
-/// DTED blocks pixel by pixel and transforming. False when the mosaic
-/// cannot be read that way; GDALWarp then does it.
-bool resampleBilinearImage(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
-                           const ProgressFn& progress, std::string& error) {
-  SourceImage image;
+/// GDALWarp's source: the shared source image (read block by block, in
+/// parallel) as a MEM dataset in the mosaic's frame, so GDAL's own kernels
+/// warp from memory instead of copying DTED's one-column blocks through the
+/// VRT pixel by pixel (a quarter of the build's CPU). Null: use the VRT.
+GDALDataset* imageDataset(const std::string& vrtPath, const Frame& f, int threads, SourceImage& image) {
+  if (!imageCoversKernel(vrtPath, f)) return nullptr;
   buildSourceImage(vrtPath, f, 16, threads, image);
-  if (!image.v) return false;
-  // GDAL's scale: target posts over the source posts they span, per axis
-  // (GDALWarpOperation: destination size / source window size).
-  GdalBilinear kernel;
-  {
-    MosaicReader m;
-    if (std::string e = m.open(vrtPath, f); !e.empty()) {
-      error = e;
-      return true;
-    }
-    double x[4] = {f.originEasting, f.originEasting + (f.postsX - 1) * f.spacing, f.originEasting,
-                   f.originEasting + (f.postsX - 1) * f.spacing};
-    double y[4] = {f.originNorthing, f.originNorthing, f.originNorthing - (f.postsZ - 1) * f.spacing,
-                   f.originNorthing - (f.postsZ - 1) * f.spacing};
-    if (!m.toSource->Transform(4, x, y)) return false;
-    const double spanX = (std::max({x[0], x[1], x[2], x[3]}) - std::min({x[0], x[1], x[2], x[3]})) / std::fabs(m.geo[1]);
-    const double spanY = (std::max({y[0], y[1], y[2], y[3]}) - std::min({y[0], y[1], y[2], y[3]})) / std::fabs(m.geo[5]);
-    kernel.sx = std::min(1.0, f.postsX / (spanX + 1));
-    kernel.sy = std::min(1.0, f.postsZ / (spanY + 1));
-    if (!(kernel.sx >= 0.125 && kernel.sy >= 0.125)) return false;  // radius > 8: leave it to GDAL
-    kernel.rx = kernel.sx < 1 ? static_cast<int>(std::ceil(1 / kernel.sx)) : 1;
-    kernel.ry = kernel.sy < 1 ? static_cast<int>(std::ceil(1 / kernel.sy)) : 1;
+  MosaicReader m;
+  if (!image.v || !m.open(vrtPath, f).empty()) return nullptr;
+  GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+  GDALDataset* ds = mem->Create("", image.w, image.h, 0, GDT_Float32, nullptr);
+  if (!ds) return nullptr;
+  char ptr[64];
+  std::snprintf(ptr, sizeof ptr, "DATAPOINTER=%p", static_cast<void*>(image.v.get()));
+  char* opts[] = {ptr, nullptr};
+  if (ds->AddBand(GDT_Float32, opts) != CE_None) {
+    GDALClose(ds);
+    return nullptr;
   }
-  const int kernelPad = std::max(kernel.rx, kernel.ry) + 2;
-  out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
-  constexpr std::uint32_t kStripRows = 64;
-  const std::uint32_t strips = (f.postsZ + kStripRows - 1) / kStripRows;
-  std::atomic<std::uint32_t> next{0}, done{0};
-  std::atomic<bool> uncovered{false};
-  std::mutex mutex;
-  auto worker = [&] {
-    MosaicReader m;
-    if (std::string e = m.open(vrtPath, f); !e.empty()) {
-      std::lock_guard lock(mutex);
-      if (error.empty()) error = e;
-      return;
-    }
-    const int W = m.band().GetXSize(), H = m.band().GetYSize();
-    Lattice L;
-    Window win;
-    for (std::uint32_t s; (s = next++) < strips;) {
-      if (cancelRequested() || uncovered) return;
-      const std::uint32_t jBegin = s * kStripRows, jEnd = std::min(f.postsZ, jBegin + kStripRows);
-      if (!L.build(f, jBegin, jEnd, *m.toSource, m.geo)) {
-        std::lock_guard lock(mutex);
-        if (error.empty()) error = "resample: PROJ failed to transform target posts to the sources";
-        return;
-      }
-      windowBounds(m.band(), L, kernelPad, win);
-      if (!image.covers(win.x0, win.y0, win.x0 + win.w - 1, win.y0 + win.h - 1)) {
-        uncovered = true;
-        return;
-      }
-      for (std::uint32_t r = 0; r + 1 < L.rows; ++r) {
-        const std::uint32_t jLast = (r + 2 == L.rows) ? L.rj[r + 1] : L.rj[r + 1] - 1;
-        for (std::uint32_t c = 0; c + 1 < L.cols; ++c) {
-          const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
-          for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
-            float* row = out.data() + std::size_t(j) * f.postsX;
-            for (std::uint32_t i = L.ci[c]; i <= iLast; ++i) {
-              double px, py;
-              positionAt(L, c, r, i, j, px, py);
-              const float v = kernel(image, W, H, px, py);
-              row[i] = (v >= kMinValid && v <= kMaxValid) ? v : NAN;
-            }
-          }
-        }
-      }
-      std::lock_guard lock(mutex);
-      if (progress) progress(double(++done) / strips, "resampling");
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threadCount(threads); ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
-  if (cancelRequested()) {
-    error = "build: cancelled";
-    return true;
-  }
-  return error.empty() ? !uncovered : true;
+  const auto& g = m.geo;
+  double sub[6] = {g[0] + image.x0 * g[1] + image.y0 * g[2], g[1], g[2],
+                   g[3] + image.x0 * g[4] + image.y0 * g[5], g[4], g[5]};
+  ds->SetGeoTransform(sub);
+  ds->SetSpatialRef(m.ds->GetSpatialRef());
+  ds->GetRasterBand(1)->SetNoDataValue(NAN);  // the image holds voids as NaN
+  return ds;
 }
 
 }  // namespace
 
 std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
                          std::vector<float>& out, const ProgressFn& progress) {
-  if (kernel == "bilinear") {
-    std::string error;
-    if (resampleBilinearImage(vrtPath, f, threads, out, progress, error)) return error;
-  }
   out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
   GDALDataset* dst = wrapBuffer(out.data(), GDT_Float32, f.postsX, f.postsZ, f);
   if (!dst) return "resample: cannot create the in-memory target: " + lastGdalError();
   dst->GetRasterBand(1)->SetNoDataValue(NAN);
-  GDALDatasetH src = GDALOpen(vrtPath.c_str(), GA_ReadOnly);
+  SourceImage image;  // must outlive the MEM dataset that aliases it
+  GDALDatasetH src = imageDataset(vrtPath, f, threads, image);
+  if (!src) src = GDALOpen(vrtPath.c_str(), GA_ReadOnly);
   if (!src) {
     GDALClose(dst);
     return "resample: cannot open the mosaic: " + lastGdalError();

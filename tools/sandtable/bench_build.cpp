@@ -76,9 +76,9 @@ struct Sample {
   std::vector<std::pair<std::string, double>> stages;
 };
 
-/// One of our kernels as --kernels names it. "bilinear" keeps the kernel's
-/// samples (fit "posts"): GDAL's bilinear kernel, as gdalwarp -r bilinear
-/// (widened along an axis where the target is coarser than the source);
+/// One of our kernels as --kernels names it. "bilinear" keeps GDAL's
+/// samples (fit "posts"): GDALWarp's bilinear kernel, as gdalwarp -r
+/// bilinear, reading our in-memory source image instead of the VRT;
 /// "bilinear-triangles" adds the least-squares triangle fit that
 /// `sandtable build --resample bilinear` does by default.
 struct OurKernel {
