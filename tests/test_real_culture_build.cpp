@@ -3,6 +3,8 @@
 // validate, and info must report the culture it decaled. Bayreuth also
 // crosses the N49E011/N50E011 tile edge, so its roads cross a mosaic seam,
 // module boundaries and, at coarse levels, level boundaries.
+#include <ostream>
+
 #include <nlohmann/json.hpp>
 
 #include "test_support.h"
@@ -17,6 +19,9 @@ struct RealCase {
   const char* extent[4];
   double minRoadKm;
 };
+
+// gtest prints a parameter's bytes unless told how to name it.
+void PrintTo(const RealCase& c, std::ostream* os) { *os << c.name; }
 
 class RealCultureBuild : public ::testing::TestWithParam<RealCase> {};
 
