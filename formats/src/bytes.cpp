@@ -115,4 +115,18 @@ bool readSmallFile(const std::string& path, std::vector<std::byte>& out,
   return true;
 }
 
+std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(off));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return std::strerror(errno);
+    }
+    data += w;
+    n -= static_cast<std::size_t>(w);
+    off += static_cast<std::uint64_t>(w);
+  }
+  return {};
+}
+
 }  // namespace sandtable

@@ -168,21 +168,6 @@ void encodeBlock(const BlockData& b, std::span<std::byte> out) {
 
 // ---------------------------------------------------------------- writer
 
-namespace {
-std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
-  while (n > 0) {
-    const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(off));
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      return std::strerror(errno);
-    }
-    data += w;
-    n -= static_cast<std::size_t>(w);
-    off += static_cast<std::uint64_t>(w);
-  }
-  return {};
-}
-}  // namespace
 
 GridWriter::GridWriter(std::string path, std::string tmp, int fd, Header h)
     : path_(std::move(path)), tmp_(std::move(tmp)), fd_(fd), header_(h),

@@ -52,20 +52,6 @@ std::string preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off) 
   return {};
 }
 
-std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
-  while (n > 0) {
-    const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(off));
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      return std::strerror(errno);
-    }
-    data += w;
-    n -= static_cast<std::size_t>(w);
-    off += static_cast<std::uint64_t>(w);
-  }
-  return {};
-}
-
 /// A whole file mapped read-only (nothing mapped when it is empty).
 class MappedFile {
  public:

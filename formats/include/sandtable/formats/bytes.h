@@ -37,6 +37,9 @@ std::string crcHex(std::uint32_t crc);
 /// fsync, then rename. Returns "" or an error message.
 std::string writeFileAtomic(const std::string& path, std::span<const std::byte> data);
 
+/// Writes all n bytes at `off`, retrying short writes and EINTR. "" or strerror.
+std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off);
+
 /// Reads a whole (small) file; refuses files larger than `maxBytes`.
 bool readSmallFile(const std::string& path, std::vector<std::byte>& out,
                    std::uint64_t maxBytes, std::string& error);
