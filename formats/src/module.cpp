@@ -381,10 +381,11 @@ class LevelDecoder {
 
 }  // namespace
 
-Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
-                      std::uint64_t baseOffset) {
+bool decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
+                Module& m, Problem& problem) {
   auto fail = [&](std::uint64_t off, const std::string& msg) {
-    return Result<Module>(Problem{file, baseOffset + off, "module: " + msg});
+    problem = Problem{file, baseOffset + off, "module: " + msg};
+    return false;
   };
   if (bytes.size() < kHeaderBytes) {
     return fail(bytes.size(), "truncated: the header needs " + str(kHeaderBytes) +
@@ -431,19 +432,25 @@ Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
                                        "): the module is corrupt");
   }
 
-  Module m;
   m.kx = loadLE<std::uint32_t>(h + field::kx);
   m.kz = loadLE<std::uint32_t>(h + field::kz);
   m.levels.resize(levelCount);
   const LevelDecoder levels(bytes, file, baseOffset);
   std::size_t pos = kHeaderBytes;
   for (std::uint32_t li = 0; li < levelCount; ++li) {
-    Problem problem;
-    if (!levels.decode(li, pos, m.levels[li], problem)) return problem;
+    if (!levels.decode(li, pos, m.levels[li], problem)) return false;
   }
   if (pos != bytes.size()) {
     return fail(pos, str(bytes.size() - pos) + " bytes follow the last level");
   }
+  return true;
+}
+
+Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
+                      std::uint64_t baseOffset) {
+  Module m;
+  Problem problem;
+  if (!decodeInto(bytes, file, baseOffset, m, problem)) return problem;
   return m;
 }
 

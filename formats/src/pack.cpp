@@ -802,6 +802,42 @@ Result<module::Module> PackReader::read(std::uint32_t kx, std::uint32_t kz) cons
   return decodeRecord(s.header, e, kx, kz, raw.value(), s.packPath);
 }
 
+bool PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out, Problem& problem) const {
+  const State& s = *state_;
+  const Entry e = entry(kx, kz);
+  const std::string name = moduleName(kx, kz);
+  std::vector<Problem> problems;
+  bool placed = false;
+  checkEntry(s.header, e, kx, kz, s.indexPath, problems, placed);
+  if (!problems.empty()) {
+    problem = problems.front();
+    return false;
+  }
+  thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
+  record.resize(e.compressedBytes);
+  auto fail = [&](const std::string& msg) {
+    problem = Problem{s.packPath, e.offset, "pack: " + name + msg};
+    return false;
+  };
+  if (const std::string err = preadAll(s.pack.fd, record.data(), record.size(), e.offset); !err.empty()) {
+    return fail(": cannot read the record: " + err);
+  }
+  if (const std::uint32_t c = crc32(record); c != e.compressedCrc) {
+    return fail(" record checksum mismatch (stored " + crcHex(e.compressedCrc) + ", computed " + crcHex(c) +
+                "): the pack is corrupt; rebuild the database");
+  }
+  if (std::string err; !decompress(record, e.rawBytes, raw, err)) return fail(" record does not decompress: " + err);
+  Problem p;
+  if (!module::decodeInto(raw, s.packPath, 0, out, p)) {
+    return fail(", decompressed byte " + str(p.offset) + ": " + p.message);
+  }
+  if (out.kx != kx || out.kz != kz) return fail(": the record holds " + moduleName(out.kx, out.kz));
+  if (out.levels.size() != s.header.levels) {
+    return fail(" has " + str(out.levels.size()) + " levels, the index says " + str(s.header.levels));
+  }
+  return true;
+}
+
 // ---------------------------------------------------------------- validate
 
 namespace {

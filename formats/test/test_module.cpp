@@ -231,6 +231,24 @@ TEST(Module, roundTripsEveryField) {
   EXPECT_EQ(back->levels[0].groups.back().priority, kPriorityRoad);
 }
 
+TEST(Module, decodeIntoReusesAModuleAndMatchesDecode) {
+  const Module big = samples::realistic(5, 7), small = samples::realistic(2, 3);  // two different modules
+  Module reused;
+  Problem problem;
+  ASSERT_TRUE(decodeInto(encode(big), "big.bin", 0, reused, problem)) << problem.str();
+  expectEqual(big, reused);
+  const std::size_t capacity = reused.levels[0].vertices.capacity();
+  // Another module into the same storage: every field replaced.
+  ASSERT_TRUE(decodeInto(encode(small), "small.bin", 0, reused, problem)) << problem.str();
+  expectEqual(small, reused);
+  EXPECT_GE(reused.levels[0].vertices.capacity(), capacity);  // never shrinks: no reallocation for smaller
+  // Failures set the problem as decode's do.
+  auto bytes = encode(small);
+  bytes[bytes.size() / 2] ^= std::byte{1};
+  EXPECT_FALSE(decodeInto(bytes, "bad.bin", 100, reused, problem));
+  EXPECT_EQ(problem.str(), decode(bytes, "bad.bin", 100).error());
+}
+
 TEST(Module, decodeRecomputesFirstIndexAsTheRunningSum) {
   const auto bytes = encode(samples::tiny());
   auto m = decode(bytes, "tiny");

@@ -204,9 +204,11 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
     while (s.readers.load(std::memory_order_seq_cst) != 0) std::this_thread::yield();
   }
 
-  // Read: one pread, CRC, zstd, decode (PackReader::read).
+  // Read: one pread, CRC, zstd, decode (PackReader::readInto), into this
+  // loader's own module and buffers, whose capacity is reused from read to
+  // read: in steady state a load allocates nothing.
   const bool bad = knownBad(im, p.key);
-  std::optional<Result<module::Module>> read;
+  thread_local module::Module loaded;
   std::string failure;
   bool missing = false;
   if (!bad) {
@@ -220,11 +222,12 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
         std::this_thread::sleep_for(std::chrono::duration<double>(im.options.simulatedReadSeconds));
       }
       const std::int64_t t0 = nowNs();
-      read.emplace(im.pack->read(k.kx, k.kz));
+      Problem problem;
+      const bool ok = im.pack->readInto(k.kx, k.kz, loaded, problem);
       im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
       im.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
-      if (!read->ok()) {
-        failure = read->error();
+      if (!ok) {
+        failure = problem.str();
         missing = recordBeyondEof(im, e);
       }
     }
@@ -245,7 +248,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   d.kx = k.kx;
   d.kz = k.kz;
   bool placeholder = bad || !failure.empty();
-  if (!placeholder && !copyWithinBudget(im, s, read->value().levels[coarse], coarse)) {
+  if (!placeholder && !copyWithinBudget(im, s, loaded.levels[coarse], coarse)) {
     placeholder = true;
     im.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
     if (!im.loggedBudget.exchange(true)) {
@@ -289,7 +292,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   // Then the finer levels, each published by a release store of `finest`:
   // readers admitted meanwhile use only levels >= the finest they loaded,
   // which this loop no longer writes.
-  const module::Module& m = read->value();
+  const module::Module& m = loaded;
   for (std::uint32_t l = coarse; l-- > 0;) {
     if (!copyWithinBudget(im, s, m.levels[l], l)) {
       im.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);

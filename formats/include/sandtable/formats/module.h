@@ -158,4 +158,11 @@ std::vector<std::byte> encode(const Module& m);
 Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
                       std::uint64_t baseOffset = 0);
 
+/// decode into `out`, reusing the capacity of its vectors: a reader that
+/// decodes module after module into one Module allocates nothing once its
+/// vectors have grown to the largest module. On failure returns false, sets
+/// `problem`, and leaves `out` in an unspecified but valid state.
+bool decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
+                Module& out, Problem& problem);
+
 }  // namespace sandtable::module

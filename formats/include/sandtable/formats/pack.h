@@ -191,6 +191,11 @@ class PackReader {
   /// match the entry and the index. (The raw CRC is not computed here:
   /// decode's header and payload CRCs cover the same bytes.)
   Result<module::Module> read(std::uint32_t kx, std::uint32_t kz) const;
+  /// read into `out`, reusing its vectors' capacity and per-thread record
+  /// and decompression buffers: a loader thread that reads module after
+  /// module allocates nothing once its buffers have grown to the largest
+  /// module. On failure returns false and sets `problem` (as read's).
+  bool readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out, Problem& problem) const;
   int packFd() const;
   std::string packPath() const;
   std::string indexPath() const;
