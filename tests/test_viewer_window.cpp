@@ -34,13 +34,13 @@
 #include "sandtable/runtime/hud.h"
 #include "sandtable/runtime/image.h"
 #include "sandtable/runtime/renderer.h"
+#include "../runtime/test/xvfb.h"
 
 #include <X11/Xlib.h>
 #include <X11/Xutil.h>
 #include <X11/extensions/XTest.h>
 #include <X11/keysym.h>
 
-extern char** environ;
 
 namespace sandtable::test {
 namespace {
@@ -68,51 +68,7 @@ void pause(long ms) {
   nanosleep(&t, nullptr);
 }
 
-/// An Xvfb on a display number it picks itself (-displayfd), as in
-/// runtime/test/test_window.cpp; stopped by the destructor.
-class Xvfb {
- public:
-  static std::unique_ptr<Xvfb> start() {
-    int fds[2];
-    if (::pipe(fds) != 0) return nullptr;
-    std::vector<std::string> args = {"Xvfb", "-displayfd", std::to_string(fds[1]), "-screen", "0",
-                                     "640x480x24", "-nolisten", "tcp", "-noreset"};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addclose(&fa, fds[0]);
-    posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-    posix_spawn_file_actions_addopen(&fa, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-    pid_t pid = -1;
-    const int rc = posix_spawnp(&pid, "Xvfb", &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    ::close(fds[1]);
-    if (rc != 0) {
-      ::close(fds[0]);
-      return nullptr;
-    }
-    auto x = std::unique_ptr<Xvfb>(new Xvfb(pid));
-    std::string number;  // written once Xvfb accepts connections; EOF: it gave up
-    char c = 0;
-    while (::read(fds[0], &c, 1) == 1 && c != '\n') number += c;
-    ::close(fds[0]);
-    if (number.empty()) return nullptr;
-    x->display = ":" + number;
-    return x;
-  }
-  ~Xvfb() {
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-  }
-  std::string display;
-
- private:
-  explicit Xvfb(pid_t pid) : pid_(pid) {}
-  pid_t pid_;
-};
+using sandtable::testsupport::Xvfb;
 
 /// Sets (or with nullptr unsets) an environment variable for a scope, so
 /// the CLI run from the test sees it and later tests do not.
