@@ -113,9 +113,14 @@ nlohmann::json frameJson(const FrameStats& s) {
                     {"uploads", s.uploads},        {"released", s.released},
                     {"cached_levels", s.cachedLevels},
                     {"gpu_bytes", s.gpuBytes}};
+    j["modules"]["nodes_placeholder"] = s.nodesPlaceholder;
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
-                  {"queue", s.pagerQueue}};
+                  {"queue", s.pagerQueue},
+                  {"placeholders", s.pagerPlaceholders},
+                  {"budget_refusals", s.pagerBudgetRefusals},
+                  {"budget_trimmed_levels", s.pagerTrimmedLevels},
+                  {"pool_bytes", s.pagerPoolBytes}};
   }
   j["lon"] = s.lon ? nlohmann::json(*s.lon) : nlohmann::json(nullptr);
   j["lat"] = s.lat ? nlohmann::json(*s.lat) : nlohmann::json(nullptr);
@@ -353,6 +358,11 @@ struct FlightRun {
       s.residentModules = sc.residentInWindow;
       s.windowModules = sc.windowModules;
       s.pagerQueue = sc.pagerQueue;
+      s.nodesPlaceholder = sc.nodesPlaceholder;
+      s.pagerPlaceholders = sc.pagerPlaceholders;
+      s.pagerBudgetRefusals = sc.pagerBudgetRefusals;
+      s.pagerTrimmedLevels = sc.pagerTrimmedLevels;
+      s.pagerPoolBytes = sc.pagerPoolBytes;
     }
     if (o.toLonLat) {
       if (auto ll = o.toLonLat(pose.easting, pose.northing)) {

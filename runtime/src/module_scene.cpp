@@ -27,6 +27,7 @@ struct ModuleScene::Walk {
   const Info* info = nullptr;
   const std::array<Eigen::Vector4d, 5>* planes = nullptr;
   std::uint32_t moduleIndex = 0, levels = 1, finest = 0;
+  bool placeholder = false;
   double x0 = 0, z0 = 0;  ///< the module's north-west corner, world metres
   double ppr = 0;
   DisplayBuffer* out = nullptr;
@@ -138,6 +139,7 @@ void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std
   }
   const std::uint32_t level = std::max(std::min(want, coarsest), w.finest);
   if (level > want) ++w.out->scene.nodesCoarser;
+  if (w.placeholder) ++w.out->scene.nodesPlaceholder;
   float morph = 0;
   if (lod.morph && lod.mode == LodMode::rings) {
     morph = float(ringMorph(lod, level, ground, cam.viewDistance, w.levels));
@@ -211,6 +213,7 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
     w.info = &info;
     w.levels = std::uint32_t(ref.module().levels.size());
     w.finest = ref.finestLevel();
+    w.placeholder = ref.placeholder();
     w.x0 = c.kx * moduleSize_;
     w.z0 = c.kz * moduleSize_;
     w.moduleIndex = std::uint32_t(out.modules.size());
@@ -234,6 +237,10 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   out.scene.residentInWindow = pm.residentInWindow;
   out.scene.windowModules = pm.windowModules;
   for (auto q : pm.queueLength) out.scene.pagerQueue += q;
+  out.scene.pagerPlaceholders = pm.placeholders;
+  out.scene.pagerBudgetRefusals = pm.budgetRefusals;
+  out.scene.pagerTrimmedLevels = pm.budgetTrimmedLevels;
+  out.scene.pagerPoolBytes = pm.poolBytes;
 
   // Forget modules the pager has let go of, now and then.
   if (++frame_ % 64 == 0) {

@@ -119,10 +119,46 @@ void settleCapacity(Impl& im, Slot& s, std::uint64_t taken) {
   s.capacityBytes = now;
 }
 
+/// Gives back the storage of empty slots (beyond each one's placeholder
+/// reserve) until `need` bytes fit in the budget. Slots keep their capacity
+/// when their module leaves, so without this a pool that once held large
+/// modules in some slots could refuse a module the window really needs.
+/// Only slots that are empty, with no reader, whose write lock is free are
+/// touched: no reader can be admitted to an empty slot, and no loader can
+/// fill it while the lock is held. Runs only under budget pressure.
+void reclaimEmptySlots(Impl& im, const Slot& self, std::uint64_t need) {
+  auto fits = [&] { return im.poolBytes.load(std::memory_order_relaxed) + need <= im.options.memoryBudgetBytes; };
+  for (std::uint32_t i = 0; i < im.slotCount && !fits(); ++i) {
+    Slot& s = im.slots[i];
+    if (&s == &self) continue;
+    const std::unique_lock lock(s.write, std::try_to_lock);
+    if (!lock.owns_lock()) continue;
+    if (wordState(s.word.load(std::memory_order_seq_cst)) != SlotState::empty ||
+        s.readers.load(std::memory_order_seq_cst) != 0) {
+      continue;
+    }
+    const std::uint64_t before = s.capacityBytes;
+    for (std::size_t l = 0; l < s.data.levels.size(); ++l) {
+      module::Level fresh;
+      if (l + 1 == s.data.levels.size()) reserveLike(im.placeholderProto, fresh);
+      if (levelCapacityBytes(fresh) < levelCapacityBytes(s.data.levels[l])) {
+        s.data.levels[l] = std::move(fresh);
+      }
+    }
+    settleCapacity(im, s, 0);
+    if (before > s.capacityBytes) {
+      im.reclaimedBytes.fetch_add(before - s.capacityBytes, std::memory_order_relaxed);
+    }
+  }
+}
+
 /// Copies one decoded level into the slot if the budget allows.
 bool copyWithinBudget(Impl& im, Slot& s, const module::Level& src, std::uint32_t l) {
   const std::uint64_t growth = levelGrowthBytes(src, s.data.levels[l]);
-  if (growth > 0 && !takeBudget(im, growth)) return false;
+  if (growth > 0 && !takeBudget(im, growth)) {
+    reclaimEmptySlots(im, s, growth);
+    if (!takeBudget(im, growth)) return false;
+  }
   copyLevel(src, s.data.levels[l]);
   settleCapacity(im, s, growth);
   return true;
@@ -255,7 +291,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
       im.log("the memory budget of " + std::to_string(im.options.memoryBudgetBytes) +
              " bytes is spent (pool " +
              std::to_string(im.poolBytes.load(std::memory_order_relaxed)) +
-             " bytes): modules that do not fit show as flat placeholders; raise "
+             " bytes): modules that do not fit show as coarse placeholders; raise "
              "memoryBudgetBytes or lower viewDistance (logged once)");
     }
   }
@@ -268,7 +304,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
       }
       if (first) {
         (missing ? im.missingModules : im.corruptModules).fetch_add(1, std::memory_order_relaxed);
-        im.log(failure + " (a flat placeholder stands in; logged once per module)");
+        im.log(failure + " (a coarse placeholder stands in; logged once per module)");
       }
     }
     buildPlaceholder(*im.grid, im.header, k.kx, k.kz, im.placeholderMaterial, d.levels[coarse]);
@@ -491,29 +527,37 @@ void loaderLoop(Impl& im, Loader& ld) {
 
 /// Reserves every slot for the largest module of the pack, slot by slot,
 /// while the budget allows.
+/// Reserves every slot for a typical module: the one at the 90th percentile
+/// of encoded size. Not the largest: with culture a few town modules are 40×
+/// the median, and reserving every slot for one of those spent the whole
+/// budget before anything loaded, so the window filled with placeholders
+/// (issue 9). At most half the budget goes to reserves; the rest grows on
+/// demand, and reclaimEmptySlots gives back what empty slots hold.
 void preallocate(Impl& im) {
   const pack::IndexHeader& h = im.header;
-  std::uint32_t bx = 0, bz = 0, most = 0;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> sizes;  // (raw bytes, index)
+  sizes.reserve(std::size_t(h.modulesX) * h.modulesZ);
   for (std::uint32_t z = 0; z < h.modulesZ; ++z) {
     for (std::uint32_t x = 0; x < h.modulesX; ++x) {
       const std::uint32_t raw = im.pack->entry(x, z).rawBytes;
-      if (raw > most) {
-        most = raw;
-        bx = x;
-        bz = z;
-      }
+      if (raw > 0) sizes.emplace_back(raw, z * h.modulesX + x);
     }
   }
-  if (most == 0) return;
-  const Result<module::Module> m = im.pack->read(bx, bz);
+  if (sizes.empty()) return;
+  const auto nth = sizes.begin() + std::ptrdiff_t((sizes.size() - 1) * 9 / 10);
+  std::nth_element(sizes.begin(), nth, sizes.end());
+  const Result<module::Module> m = im.pack->read(nth->second % h.modulesX, nth->second / h.modulesX);
   if (!m.ok() || m->levels.size() != im.levels) return;
+  const std::uint64_t cap = im.options.memoryBudgetBytes / 2;
   for (std::uint32_t i = 0; i < im.slotCount; ++i) {
     Slot& s = im.slots[i];
     std::uint64_t growth = 0;
     for (std::uint32_t l = 0; l < im.levels; ++l) {
       growth += levelGrowthBytes(m->levels[l], s.data.levels[l]);
     }
-    if (!takeBudget(im, growth)) return;
+    if (im.poolBytes.load(std::memory_order_relaxed) + growth > cap || !takeBudget(im, growth)) {
+      return;
+    }
     for (std::uint32_t l = 0; l < im.levels; ++l) reserveLike(m->levels[l], s.data.levels[l]);
     settleCapacity(im, s, growth);
   }
@@ -590,7 +634,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
     im->slots = std::make_unique<Slot[]>(im->slotCount);
     // Every slot can always hold a placeholder: its coarse level is
     // reserved to the placeholder lattice of a full-size module.
-    module::Level proto;
+    module::Level& proto = im->placeholderProto;
     buildPlaceholder(*im->grid, im->header, 0, 0, material, proto);
     for (std::uint32_t i = 0; i < im->slotCount; ++i) {
       Slot& s = im->slots[i];
@@ -758,6 +802,7 @@ PagerMetrics Pager::metrics() const {
   m.corruptModules = get(im.corruptModules);
   m.budgetRefusals = get(im.budgetRefusals);
   m.budgetTrimmedLevels = get(im.budgetTrimmedLevels);
+  m.reclaimedBytes = get(im.reclaimedBytes);
   m.bytesRead = get(im.bytesRead);
   m.readerWaits = get(im.readerWaits);
   m.queueOverflows = get(im.queueOverflows);

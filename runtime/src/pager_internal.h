@@ -191,6 +191,7 @@ struct Pager::Impl {
   std::uint32_t slotCount = 0;
   std::vector<std::unique_ptr<Loader>> loaders;
   std::uint16_t placeholderMaterial = 0;
+  module::Level placeholderProto;  ///< a full-size placeholder: every slot's coarse reserve
 
   // Main thread only.
   StripPlanner planner;
@@ -216,7 +217,7 @@ struct Pager::Impl {
   // Counters (relaxed).
   std::atomic<std::uint64_t> updates{0}, boxCrossings{0}, refills{0}, requested{0}, loaded{0},
       freed{0}, duplicates{0}, cancelledQueued{0}, cancelledInFlight{0}, placeholders{0},
-      missingModules{0}, corruptModules{0}, budgetRefusals{0}, budgetTrimmedLevels{0},
+      missingModules{0}, corruptModules{0}, budgetRefusals{0}, budgetTrimmedLevels{0}, reclaimedBytes{0},
       bytesRead{0}, readerWaits{0}, queueOverflows{0}, readNs{0}, publishNs{0}, stolen{0};
   mutable std::atomic<std::uint64_t> residentQueries{0}, residentMisses{0}, demandFaults{0};
   std::array<std::atomic<std::uint64_t>, kDirections> stripSignals{};

@@ -1,5 +1,5 @@
 // Pager storage helpers: the window seqlock, the latency histogram, slot
-// level copies that reuse capacity, and the flat placeholder module.
+// level copies that reuse capacity, and the coarse placeholder module.
 #include <algorithm>
 #include <cmath>
 
@@ -164,9 +164,14 @@ void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, st
   const std::uint32_t i1 = std::max(i0 + 1, std::min(i0 + S, lastI));
   const std::uint32_t j1 = std::max(j0 + 1, std::min(j0 + S, lastJ));
 
-  // Elevation at the centre post, skirts as deep as the blocks' range.
-  const float y0 = grid.elevation(std::min(lastI, i0 + S / 2), std::min(lastJ, j0 + S / 2));
-  const float y = std::isfinite(y0) ? y0 : 0.0f;
+  // The coarsest level's lattice with the grid's own heights, so a stand-in
+  // has the right shape (coarse, not a flat plain with walls round it);
+  // skirts as deep as the blocks' range.
+  auto heightAt = [&](std::uint32_t i, std::uint32_t j) {
+    const float e = grid.elevation(std::min(i, lastI), std::min(j, lastJ));
+    return std::isfinite(e) ? e : 0.0f;
+  };
+  const float y = heightAt(i0 + S / 2, j0 + S / 2);
   const grid::Header& gh = grid.header();
   float lo = y, hi = y;
   for (std::uint32_t bz = std::min(j0, lastJ) / grid::kBlockPosts;
@@ -195,8 +200,17 @@ void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, st
   out.maxHeight.assign(std::size_t(nx) * nz, y);
   for (std::uint32_t b = 0; b <= nz; ++b) {
     for (std::uint32_t a = 0; a <= nx; ++a) {
-      out.vertices.push_back({float(double(col(a) - i0) * sp), y, float(double(row(b) - j0) * sp),
-                              0.0f, 0.0f});
+      out.vertices.push_back({float(double(col(a) - i0) * sp), heightAt(col(a), row(b)),
+                              float(double(row(b) - j0) * sp), 0.0f, 0.0f});
+    }
+  }
+  for (std::uint32_t sz = 0; sz < nz; ++sz) {
+    for (std::uint32_t sx = 0; sx < nx; ++sx) {
+      float top = lo;
+      for (std::uint32_t c : {0u, 1u, 2u, 3u}) {
+        top = std::max(top, out.vertices[(sz + (c >> 1)) * (nx + 1) + sx + (c & 1)].y);
+      }
+      out.maxHeight[std::size_t(sz) * nx + sx] = top;
     }
   }
   auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (nx + 1) + a; };

@@ -792,7 +792,7 @@ TEST(Pager, nothingIsAllocatedInSteadyState) {
 }
 #endif
 
-TEST(Pager, corruptAndMissingModulesBecomeFlatPlaceholders) {
+TEST(Pager, corruptAndMissingModulesBecomeCoarsePlaceholdersThatFollowTheGrid) {
   TestDb db = makeDb("damage", 40, 40);
   corruptRecord(db, 20, 20);
   dropEntry(db, 21, 20);
@@ -821,9 +821,21 @@ TEST(Pager, corruptAndMissingModulesBecomeFlatPlaceholders) {
     EXPECT_TRUE(r.coarser());
     const module::Level& l = r.level();
     EXPECT_EQ(l.squaresX, 2u);  // the coarse lattice: 8 squares / 4
-    const float y = gridElevation(20 * 8 + 4, 20 * 8 + 4);
-    for (const module::Vertex& v : l.vertices) EXPECT_TRUE(v.y == y || v.y < y);
-    EXPECT_EQ(l.maxHeight, std::vector<float>(4, y));
+    // The coarse lattice carries the grid's own heights (a flat stand-in
+    // drew as a plain with walls round it); skirt vertices hang below.
+    const double sp = l.spacing / 4;  // grid posts every 4 at the coarsest of 3 levels
+    std::uint32_t onLattice = 0;
+    for (const module::Vertex& v : l.vertices) {
+      const auto i = std::uint32_t(20 * 8 + std::lround(v.x / sp));
+      const auto j = std::uint32_t(20 * 8 + std::lround(v.z / sp));
+      const float y = gridElevation(i, j);
+      EXPECT_TRUE(v.y == y || v.y < y - 0.5f) << v.x << " " << v.z << " " << v.y << " vs " << y;
+      onLattice += v.y == y;
+    }
+    EXPECT_GE(onLattice, 9u);  // the 3 x 3 posts of 2 x 2 squares
+    // The square's highest post: its south-east corner on this sloping grid.
+    EXPECT_EQ(l.maxHeight, (std::vector<float>{gridElevation(164, 164), gridElevation(168, 164),
+                                               gridElevation(164, 168), gridElevation(168, 168)}));
     EXPECT_GT(l.groups.size(), 8u);  // upper, lower and skirts
   }
   {

@@ -69,6 +69,11 @@ struct SceneStats {
   std::uint32_t residentInWindow = 0; ///< pager: modules resident in its window
   std::uint32_t windowModules = 0;
   std::uint32_t pagerQueue = 0;       ///< pager: loads queued or in flight, all loaders
+  std::uint32_t nodesPlaceholder = 0; ///< nodes drawn from placeholder modules (also coarser)
+  /// Pager counters since open: placeholders published, modules refused and
+  /// fine levels left out for the memory budget; the pool's bytes now.
+  std::uint64_t pagerPlaceholders = 0, pagerBudgetRefusals = 0, pagerTrimmedLevels = 0;
+  std::uint64_t pagerPoolBytes = 0;
 };
 
 struct DisplayBuffer {

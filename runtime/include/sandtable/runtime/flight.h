@@ -155,6 +155,9 @@ struct FrameStats {
   std::vector<std::uint32_t> levelCounts;  ///< quadtree nodes drawn per level
   double maxErrorPx = 0;                   ///< largest projected error bound drawn
   std::uint32_t residentModules = 0, windowModules = 0, pagerQueue = 0;
+  std::uint32_t nodesPlaceholder = 0;  ///< drawn from placeholder modules
+  std::uint64_t pagerPlaceholders = 0, pagerBudgetRefusals = 0, pagerTrimmedLevels = 0;
+  std::uint64_t pagerPoolBytes = 0;
   std::uint32_t uploads = 0, released = 0, cachedLevels = 0;  ///< GPU (module, level) buffers
   std::uint64_t gpuBytes = 0;
   double easting = 0, northing = 0;

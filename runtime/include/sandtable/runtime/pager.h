@@ -257,7 +257,7 @@ struct PagerOptions {
 /// levels from ResidentRef::finestLevel() on are valid for a reference.
 struct ResidentModule {
   std::uint32_t kx = 0, kz = 0;
-  bool placeholder = false;  ///< a flat stand-in for a missing or corrupt module
+  bool placeholder = false;  ///< a coarse stand-in from the grid (missing, corrupt, or no budget)
   std::vector<module::Level> levels;
 };
 
@@ -324,6 +324,7 @@ struct PagerMetrics {
   std::uint64_t corruptModules = 0;     ///< distinct modules that failed to read or decode
   std::uint64_t budgetRefusals = 0;     ///< modules not resident (placeholder) for the budget
   std::uint64_t budgetTrimmedLevels = 0;///< fine levels left out for the budget
+  std::uint64_t reclaimedBytes = 0;     ///< storage given back by empty slots under budget pressure
   std::uint64_t bytesRead = 0;     ///< compressed bytes read from the pack
   std::uint64_t readerWaits = 0;   ///< loader waited for readers to leave a slot
   std::uint64_t queueOverflows = 0;

@@ -1,0 +1,167 @@
+// Node selection on databases a few cells large with culture (issue 9,
+// item 1): SRTM N49E011 + N50E011 with the north-Bayreuth OSM extract at
+// 62.5 m. Its town modules are some 40x the median module, which once made
+// the pager reserve its whole memory budget before loading anything, so
+// most of a 20 km view was drawn as flat placeholders at the coarsest level
+// with walls round them, even with --lod full.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "sandtable/converters/crs.h"
+#include "sandtable/converters/elevation.h"
+#include "sandtable/formats/database.h"
+#include "sandtable/runtime/flight.h"
+#include "sandtable/runtime/image.h"
+#include "sandtable/runtime/renderer.h"
+#include "test_support.h"
+
+namespace sandtable::test {
+namespace {
+
+using runtime::FlightOptions;
+using runtime::FrameStats;
+using runtime::LodMode;
+
+class ViewerLod : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!haveData()) return;
+    std::string why;
+    if (!runtime::headlessGlAvailable(why)) {
+      noGl_ = why;
+      return;
+    }
+    tmp_ = new TempDir("viewer-lod");
+    convert::ElevationOptions o;
+    o.sources = {data("elevation/srtm/N49E011.hgt.zip"), data("elevation/srtm/N50E011.hgt.zip")};
+    o.culture = {data("culture/osm/north-bayreuth.osm.gz")};
+    o.spacing = 62.5;
+    o.output = *tmp_ / "bayreuth";
+    auto r = convert::buildElevation(o, nullptr);
+    ASSERT_TRUE(r.ok()) << r.error();
+    db_ = o.output;
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    tmp_ = nullptr;
+  }
+  void SetUp() override {
+    SANDTABLE_REQUIRE_DATA();
+    if (!noGl_.empty()) GTEST_SKIP() << "no headless GL: " << noGl_;
+    ASSERT_FALSE(db_.empty());
+  }
+
+  /// The issue's pose by default: 11.60 E 50.05 N, 5000 m up, heading
+  /// south, pitch -10, 20 km, no fog. The second frame is drawn with every
+  /// queued load done.
+  static FrameStats frame(FlightOptions o, double lon = 11.60, double lat = 50.05,
+                          runtime::Image* image = nullptr) {
+    auto db = openDatabase(db_);
+    EXPECT_TRUE(db.ok()) << db.error();
+    auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+    EXPECT_TRUE(geo.ok());
+    EXPECT_TRUE(geo.value()->toProjected(lon, lat, o.easting, o.northing));
+    o.frames = 2;
+    o.width = 640;
+    o.height = 360;
+    o.speedKmh = 0;
+    o.fog = false;
+    o.sky = false;
+    o.hud = false;
+    o.pagerSync = true;
+    o.mode = runtime::TerrainMode::modules;
+    o.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+      if (image) *image = i;
+    };
+    auto r = runtime::fly(db.value(), o);
+    EXPECT_TRUE(r.ok()) << r.error();
+    return r.ok() && !r->frames.empty() ? r->frames.back() : FrameStats{};
+  }
+
+  static FlightOptions issuePose(LodMode mode) {
+    FlightOptions o;
+    o.heightAgl = 5000;
+    o.headingDeg = 180;
+    o.pitchDeg = -10;
+    o.viewDistance = 20000;
+    o.lod.mode = mode;
+    return o;
+  }
+
+  static inline TempDir* tmp_ = nullptr;
+  static inline std::string db_, noGl_;
+};
+
+std::uint32_t sum(const std::vector<std::uint32_t>& v) {
+  return std::accumulate(v.begin(), v.end(), 0u);
+}
+
+TEST_F(ViewerLod, FullDrawsEveryNodeAtLevelZeroOnTheIssuesReproducer) {
+  const FrameStats s = frame(issuePose(LodMode::full));
+  ASSERT_EQ(s.levelCounts.size(), 4u);
+  EXPECT_GT(s.levelCounts[0], 1000u);
+  EXPECT_EQ(s.levelCounts[0], s.nodesDrawn) << "levels " << s.levelCounts[0] << "/"
+                                            << s.levelCounts[1] << "/" << s.levelCounts[2] << "/"
+                                            << s.levelCounts[3];
+  EXPECT_EQ(s.nodesCoarser, 0u);
+  EXPECT_EQ(s.nodesPlaceholder, 0u);
+  EXPECT_EQ(s.pagerBudgetRefusals, 0u);
+  EXPECT_EQ(s.pagerTrimmedLevels, 0u);
+  EXPECT_EQ(s.modulesMissing, 0u);
+}
+
+TEST_F(ViewerLod, FullDrawsLevelZeroNearTheEyeOverTheMountains) {
+  // Low over the Fichtelgebirge, looking across the ridges.
+  FlightOptions o = issuePose(LodMode::full);
+  o.heightAgl = 300;
+  o.headingDeg = 60;
+  o.pitchDeg = -5;
+  const FrameStats s = frame(o, 11.85, 50.05);
+  ASSERT_EQ(s.levelCounts.size(), 4u);
+  EXPECT_GT(s.nodesDrawn, 0u);
+  EXPECT_EQ(s.levelCounts[0], s.nodesDrawn);
+  EXPECT_EQ(s.nodesCoarser, 0u);
+}
+
+TEST_F(ViewerLod, OtherModesDrawNothingCoarserThanTheirRuleOnceEverythingIsIn) {
+  for (LodMode m : {LodMode::rings, LodMode::sse}) {
+    const FrameStats s = frame(issuePose(m));
+    EXPECT_GT(s.nodesDrawn, 0u);
+    EXPECT_EQ(s.nodesCoarser, 0u) << runtime::lodModeName(m);
+    EXPECT_EQ(s.nodesPlaceholder, 0u) << runtime::lodModeName(m);
+    EXPECT_EQ(sum(s.levelCounts), s.nodesDrawn);
+  }
+}
+
+TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
+  // A budget too small for the 20 km window: some modules stand in as
+  // placeholders or lose fine levels. Every node drawn coarser than full
+  // asks is counted, and the frame still has no holes: placeholders follow
+  // the grid and have skirts.
+  FlightOptions o = issuePose(LodMode::full);
+  o.pagerBudgetBytes = 48ull << 20;
+  o.clearColour = {0xFF, 0x00, 0xFF};
+  runtime::Image img;
+  const FrameStats s = frame(o, 11.60, 50.05, &img);
+  ASSERT_EQ(s.levelCounts.size(), 4u);
+  EXPECT_GT(s.pagerBudgetRefusals + s.pagerTrimmedLevels, 0u);
+  EXPECT_GT(s.nodesCoarser, 0u);
+  EXPECT_EQ(s.nodesCoarser, s.nodesDrawn - s.levelCounts[0]);
+  EXPECT_LE(s.nodesPlaceholder, s.nodesCoarser);
+  // Magenta below the first terrain pixel of each column is a hole.
+  std::uint64_t holes = 0;
+  for (std::uint32_t x = 0; x < img.width; ++x) {
+    auto magenta = [&](std::uint32_t y) {
+      const auto c = img.at(x, y);
+      return c.r > 240 && c.g < 16 && c.b > 240;
+    };
+    std::uint32_t y = 0;
+    while (y < img.height && magenta(y)) ++y;
+    for (; y < img.height; ++y) holes += magenta(y);
+  }
+  EXPECT_LT(double(holes), 1e-4 * img.width * img.height);
+}
+
+}  // namespace
+}  // namespace sandtable::test
