@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <thread>
 
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
@@ -134,6 +135,71 @@ TEST_F(ViewerLod, OtherModesDrawNothingCoarserThanTheirRuleOnceEverythingIsIn) {
   }
 }
 
+/// Magenta below the first terrain pixel of each column: a hole.
+std::uint64_t holesBelowTheSilhouette(const runtime::Image& img) {
+  std::uint64_t holes = 0;
+  for (std::uint32_t x = 0; x < img.width; ++x) {
+    auto magenta = [&](std::uint32_t y) {
+      const auto c = img.at(x, y);
+      return c.r > 240 && c.g < 16 && c.b > 240;
+    };
+    std::uint32_t y = 0;
+    while (y < img.height && magenta(y)) ++y;
+    for (; y < img.height; ++y) holes += magenta(y);
+  }
+  return holes;
+}
+
+TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
+  // Item 4: the + key (here a controller) asks for 4 x the view distance the
+  // pager opened with. The pager's window follows; the drawn distance
+  // follows what is resident, so no frame shows a hole, and it gets there.
+  auto db = openDatabase(db_);
+  ASSERT_TRUE(db.ok()) << db.error();
+  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  ASSERT_TRUE(geo.ok());
+  FlightOptions o;
+  ASSERT_TRUE(geo.value()->toProjected(11.60, 50.05, o.easting, o.northing));
+  o.width = 320;
+  o.height = 180;
+  o.frames = 150;
+  o.viewDistance = 3000;
+  o.maxViewDistance = 12000;
+  o.heightAgl = 1500;
+  o.pitchDeg = -12;
+  o.fog = false;
+  o.sky = false;
+  o.hud = false;
+  o.mode = runtime::TerrainMode::modules;
+  o.controller = [&](std::uint32_t k, double) -> std::optional<runtime::Pose> {
+    runtime::Pose p;
+    p.easting = o.easting;
+    p.northing = o.northing;
+    p.heightAgl = o.heightAgl;
+    p.headingDeg = 180;
+    p.viewDistance = k < 2 ? 3000.0 : 12000.0;
+    // Give the loaders wall-clock time between frames.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    return p;
+  };
+  std::uint64_t worst = 0;
+  o.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+    worst = std::max(worst, holesBelowTheSilhouette(i));
+  };
+  auto r = runtime::fly(db.value(), o);
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r->frames.size(), 150u);
+  EXPECT_DOUBLE_EQ(r->frames[0].viewDistance, 3000);
+  double last = 0;
+  for (const FrameStats& f : r->frames) {
+    EXPECT_GE(f.viewDistance, last) << "frame " << f.frame;
+    last = f.viewDistance;
+  }
+  EXPECT_DOUBLE_EQ(r->frames.back().viewDistance, 12000);
+  EXPECT_GT(r->frames.back().windowModules, 4 * r->frames[0].windowModules);
+  EXPECT_LT(double(worst), 1e-4 * o.width * o.height);
+}
+
 TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
   // A budget too small for the 20 km window: some modules stand in as
   // placeholders or lose fine levels. Every node drawn coarser than full
@@ -149,18 +215,7 @@ TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
   EXPECT_GT(s.nodesCoarser, 0u);
   EXPECT_EQ(s.nodesCoarser, s.nodesDrawn - s.levelCounts[0]);
   EXPECT_LE(s.nodesPlaceholder, s.nodesCoarser);
-  // Magenta below the first terrain pixel of each column is a hole.
-  std::uint64_t holes = 0;
-  for (std::uint32_t x = 0; x < img.width; ++x) {
-    auto magenta = [&](std::uint32_t y) {
-      const auto c = img.at(x, y);
-      return c.r > 240 && c.g < 16 && c.b > 240;
-    };
-    std::uint32_t y = 0;
-    while (y < img.height && magenta(y)) ++y;
-    for (; y < img.height; ++y) holes += magenta(y);
-  }
-  EXPECT_LT(double(holes), 1e-4 * img.width * img.height);
+  EXPECT_LT(double(holesBelowTheSilhouette(img)), 1e-4 * img.width * img.height);
 }
 
 }  // namespace

@@ -275,7 +275,9 @@ struct FlightRun {
   Terrain terrain;
   RenderSettings renderSettings;
   Pager* pager = nullptr;                 ///< module mode
-  double pagedViewDistance = 0;           ///< the view distance the pager was opened with
+  /// The view distance the pager's window has been filled to: the drawn
+  /// distance grows past it only as far as the pager has modules resident.
+  double readyViewDistance = 0;
   std::unique_ptr<ModuleScene> scene;     ///< module mode
   std::array<Slot, 2> slots;
   Handoff handoff{slots};
@@ -298,6 +300,17 @@ struct FlightRun {
     return {(pose.easting - previous.easting) / dt, -(pose.northing - previous.northing) / dt};
   }
 
+  /// The distance to draw to when `asked` is the pager's view distance now.
+  double drawnViewDistance(double asked, double x, double z) {
+    if (asked <= readyViewDistance) {
+      readyViewDistance = asked;
+      return asked;
+    }
+    const double covered = pager->residentDistance(x, z);
+    if (covered >= asked) readyViewDistance = asked;
+    return std::max(readyViewDistance, std::min(asked, covered));
+  }
+
   /// Main thread, one frame: motion, paging, selection into a free buffer.
   /// False when the flight ends (the controller said so, or rendering failed).
   bool produce(std::uint32_t k, Pose& previous, double& previousT) {
@@ -313,12 +326,14 @@ struct FlightRun {
     if (auto sample = terrain.sampleEN(pose.easting, pose.northing)) ground = sample->elevation;
     Camera cam = cameraFor(grid->header(), o, pose, ground);
     if (pager) {
-      // Nothing beyond the pager's window is resident, so drawing further
-      // would only show holes (the pager cannot change its window).
-      cam.viewDistance = std::min(cam.viewDistance, pagedViewDistance);
+      // The window follows the view distance asked for (the + and - keys,
+      // a path). Growing, the new ring is drawn only as it comes in, so the
+      // far edge moves out without a hole; shrinking takes effect at once.
+      const double asked = pager->setViewDistance(cam.viewDistance);
       const auto [vx, vz] = velocity(pose, t, previous, previousT, k == 0);
       pager->update(cam.x, cam.z, vx, vz, t);
       if (k == 0 || o.pagerSync) pager->waitIdle(120);
+      cam.viewDistance = drawnViewDistance(asked, cam.x, cam.z);
     }
     previous = pose;
     previousT = t;
@@ -521,6 +536,8 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
   if (modules) {
     PagerOptions po;
     po.viewDistance = effectiveViewDistance(o);
+    po.maxViewDistance = std::max(po.viewDistance, o.maxViewDistance > 0 ? o.maxViewDistance
+                                                                        : 3 * po.viewDistance);
     po.loaderThreads = o.pagerLoaders;
     po.memoryBudgetBytes = o.pagerBudgetBytes;
     auto p = Pager::open(*db, po);
@@ -538,7 +555,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
     ss.moduleSquares = db->modules->header().moduleSquares;
     run.scene = std::make_unique<ModuleScene>(*pager, ss);
     run.pager = pager.get();
-    run.pagedViewDistance = effectiveViewDistance(o);
+    run.readyViewDistance = effectiveViewDistance(o);
   }
   auto result = run.run();
   if (pager) pager->stop();
@@ -610,6 +627,9 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (!(vd >= 10 && vd <= 1e6)) {
     bad(o.fogDensity > 0 ? "--fog-density must give a view distance of 10 m .. 1000 km"
                          : "--view-distance must be 10 m .. 1000 km");
+  }
+  if (!(o.maxViewDistance == 0 || (o.maxViewDistance >= vd && o.maxViewDistance <= 1e6))) {
+    bad("--max-view-distance must be 0 (3 x --view-distance) or --view-distance .. 1000 km");
   }
   if (!(o.pitchDeg >= -89 && o.pitchDeg <= 89)) bad("--pitch must be between -89 and 89 degrees");
   if (!(o.speedKmh >= 0 && o.speedKmh <= 1e5)) bad("--speed must be 0 .. 100000 km/h");

@@ -73,6 +73,9 @@ void signalLoader(Loader& l) {
 std::string checkOptions(const PagerOptions& o, double edge) {
   auto finite = [](double v) { return std::isfinite(v); };
   if (!finite(o.viewDistance) || o.viewDistance <= 0) return "viewDistance must be > 0";
+  if (!finite(o.maxViewDistance) || (o.maxViewDistance != 0 && o.maxViewDistance < o.viewDistance)) {
+    return "maxViewDistance must be 0 (fixed) or at least viewDistance";
+  }
   if (!finite(o.hysteresis) || o.hysteresis < 0 || o.hysteresis >= edge / 2) {
     char half[32];
     std::snprintf(half, sizeof half, "%g", edge / 2);
@@ -614,6 +617,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
     g.modulesZ = std::max<std::uint32_t>(1, std::uint32_t(std::ceil(d / g.moduleSize)));
   }
   g.viewDistance = options.viewDistance;
+  g.maxViewDistance = std::max(options.viewDistance, options.maxViewDistance);
   g.hysteresis = options.hysteresis;
   g.maxLeadStrips = options.mode == PagerMode::predictive ? options.maxLeadStrips : 0;
 
@@ -627,6 +631,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
   im->ringZ = std::max<std::uint32_t>(1, g.ringZ());
   im->placeholderMaterial = material;
   im->latencyEstimate.store(options.initialLatencySeconds);
+  im->liveViewDistance.store(options.viewDistance);
   im->openNs = nowNs();
 
   if (options.mode != PagerMode::mmap) {
@@ -892,6 +897,37 @@ void Pager::stop() {
 
 const PagerOptions& Pager::options() const { return impl_->options; }
 const PagingGeometry& Pager::geometry() const { return impl_->geometry; }
+
+double Pager::setViewDistance(double metres) {
+  impl_->planner.setViewDistance(metres);
+  const double vd = impl_->planner.geometry().viewDistance;
+  impl_->liveViewDistance.store(vd, std::memory_order_relaxed);
+  return vd;
+}
+
+double Pager::viewDistance() const { return impl_->planner.geometry().viewDistance; }
+
+double Pager::residentDistance(double eyeX, double eyeZ) const {
+  const Impl& im = *impl_;
+  const double vd = im.planner.geometry().viewDistance;
+  if (!im.slots) return vd;  // mmap mode: the grid is always there
+  const double e = im.geometry.moduleSize;
+  const ModuleRect win = im.window.load().window;
+  double nearest = vd;
+  for (std::int64_t z = win.z0; z < win.z1; ++z) {
+    const double dz = std::max({double(z) * e - eyeZ, 0.0, eyeZ - double(z + 1) * e});
+    if (dz >= nearest) continue;
+    for (std::int64_t x = win.x0; x < win.x1; ++x) {
+      const double dx = std::max({double(x) * e - eyeX, 0.0, eyeX - double(x + 1) * e});
+      const double d = std::hypot(dx, dz);
+      if (d >= nearest) continue;
+      const auto kx = std::uint32_t(x), kz = std::uint32_t(z);
+      const std::uint64_t w = im.slotFor(kx, kz).word.load(std::memory_order_acquire);
+      if (wordKey(w) != packKey(kx, kz) || wordState(w) != SlotState::resident) nearest = d;
+    }
+  }
+  return nearest;
+}
 std::uint32_t Pager::levels() const { return impl_->levels; }
 ModuleRect Pager::window() const { return impl_->window.load().window; }
 

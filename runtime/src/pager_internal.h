@@ -212,6 +212,7 @@ struct Pager::Impl {
   bool haveRtt = false;
   std::atomic<double> latencyEstimate{0};
   std::atomic<double> leadSeconds{0};
+  std::atomic<double> liveViewDistance{0};  ///< the planner's, for the prefetch thread
   std::atomic<bool> loggedBudget{false};
 
   // Counters (relaxed).

@@ -46,12 +46,18 @@ std::int64_t PagingGeometry::radius() const {
       0, std::int64_t(std::ceil((viewDistance + hysteresis) / moduleSize - 1e-9)));
 }
 
+std::int64_t PagingGeometry::maxRadius() const {
+  PagingGeometry g = *this;
+  g.viewDistance = std::max(viewDistance, maxViewDistance);
+  return g.radius();
+}
+
 std::uint32_t PagingGeometry::ringX() const {
-  return std::uint32_t(std::min<std::int64_t>(modulesX, side() + maxLeadStrips));
+  return std::uint32_t(std::min<std::int64_t>(modulesX, maxSide() + maxLeadStrips));
 }
 
 std::uint32_t PagingGeometry::ringZ() const {
-  return std::uint32_t(std::min<std::int64_t>(modulesZ, side() + maxLeadStrips));
+  return std::uint32_t(std::min<std::int64_t>(modulesZ, maxSide() + maxLeadStrips));
 }
 
 // ---------------------------------------------------------------- planner
@@ -80,8 +86,14 @@ void sortNearestFirst(std::vector<ModuleKey>& keys, double eyeX, double eyeZ, do
 
 }  // namespace
 
+void StripPlanner::setViewDistance(double metres) {
+  const double most = std::max(geometry_.viewDistance, geometry_.maxViewDistance);
+  if (geometry_.maxViewDistance < most) geometry_.maxViewDistance = most;
+  if (std::isfinite(metres) && metres > 0) geometry_.viewDistance = std::min(metres, most);
+}
+
 StripPlanner::StripPlanner(const PagingGeometry& g) : geometry_(g) {
-  const std::size_t side = std::size_t(std::max<std::int64_t>(1, g.side() + g.maxLeadStrips));
+  const std::size_t side = std::size_t(std::max<std::int64_t>(1, g.maxSide() + g.maxLeadStrips));
   for (StripJob& j : step_.jobs) {
     j.load.reserve(side * (g.maxLeadStrips + 1));
     j.free.reserve(side * (g.maxLeadStrips + 1));

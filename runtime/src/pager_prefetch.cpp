@@ -52,7 +52,7 @@ void runPrefetcher(Pager::Impl& im) {
       // The active area (side 2 vd + 2 modules) and the leading edge: as far
       // as the viewer goes, times lookAheadScale, before the next pass is
       // done (this sleep plus one pass).
-      const double half = im.options.viewDistance + edge;
+      const double half = im.liveViewDistance.load(std::memory_order_relaxed) + edge;
       const double lead = im.options.lookAheadScale * (passEstimate + sleep);
       im.leadSeconds.store(lead, std::memory_order_relaxed);
       const double bx0m = ws.eyeX - half, bx1m = ws.eyeX + half;

@@ -792,6 +792,54 @@ TEST(Pager, nothingIsAllocatedInSteadyState) {
 }
 #endif
 
+TEST(Pager, windowFollowsTheViewDistanceBothWays) {
+  TestDb db = makeDb("grow", 40, 40);
+  PagerOptions o = baseOptions();
+  o.viewDistance = 3000;
+  o.maxViewDistance = 6000;
+  o.simulatedReadSeconds = 0.002;  // so the new ring is still coming in right after the update
+  auto p = openPager(db, o);
+  ASSERT_TRUE(p);
+  const double x = 20500, z = 20500;
+  p->update(x, z, 0, 0, 0);
+  ASSERT_TRUE(p->waitIdle(30));
+  // R = ceil((vd + 100 m) / 1 km): 4 at 3 km, 7 at 6 km.
+  EXPECT_EQ(p->window().count(), 9 * 9);
+  EXPECT_DOUBLE_EQ(p->residentDistance(x, z), 3000);
+
+  EXPECT_DOUBLE_EQ(p->setViewDistance(9000), 6000);  // clamped to the most
+  p->update(x, z, 0, 0, 0.1);
+  EXPECT_EQ(p->window().count(), 15 * 15);
+  // The new ring starts 3.5 km out (module edges at 20 +- 3.5 km): nothing
+  // nearer is missing, and something of the ring is, for now.
+  const double covered = p->residentDistance(x, z);
+  EXPECT_GE(covered, 3500);
+  EXPECT_LT(covered, 6000);
+  ASSERT_TRUE(p->waitIdle(30));
+  EXPECT_DOUBLE_EQ(p->residentDistance(x, z), 6000);
+  PagerMetrics m = p->metrics();
+  EXPECT_EQ(m.holesInWindow, 0u);
+  EXPECT_EQ(m.loaded, 15u * 15u);
+
+  EXPECT_DOUBLE_EQ(p->setViewDistance(2000), 2000);
+  p->update(x, z, 0, 0, 0.2);
+  ASSERT_TRUE(p->waitIdle(30));
+  EXPECT_EQ(p->window().count(), 7 * 7);
+  m = p->metrics();
+  EXPECT_EQ(m.freed, 15u * 15u - 7u * 7u);
+  EXPECT_FALSE(p->resident(13, 13, 0));  // the old outer ring is gone
+  EXPECT_TRUE(p->resident(17, 17, 0));
+}
+
+TEST(Pager, maxViewDistanceBelowTheViewDistanceIsRefused) {
+  TestDb db = makeDb("maxvd", 10, 10);
+  PagerOptions o = baseOptions();
+  o.maxViewDistance = 1000;
+  auto p = Pager::open(db.grid, db.pack, o);
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.error().find("maxViewDistance"), std::string::npos) << p.error();
+}
+
 TEST(Pager, corruptAndMissingModulesBecomeCoarsePlaceholdersThatFollowTheGrid) {
   TestDb db = makeDb("damage", 40, 40);
   corruptRecord(db, 20, 20);

@@ -43,7 +43,8 @@ struct FlyArgs {
   double pitch = -10;
   double speed = 300;
   std::string pathFile;
-  double viewDistance = 10000;
+  double viewDistance = 20000;
+  double maxViewDistance = 0;
   double fov = 60;
   std::string background = "87CEEB";
   bool noHud = false;
@@ -215,6 +216,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.pitchDeg = a.pitch;
   o.speedKmh = a.speed;
   o.viewDistance = a.viewDistance;
+  o.maxViewDistance = a.maxViewDistance;
   o.hfovDeg = a.fov;
   o.hud = !a.noHud;
   o.fog = !a.noFog;
@@ -285,9 +287,11 @@ std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOp
   s.waterMaterials = waterMaterials(db);
   s.screenshotDir = !a.screenshotDir.empty() ? a.screenshotDir : !a.pngDir.empty() ? a.pngDir : ".";
   const bool modules = db.modules && o.mode != runtime::TerrainMode::mesh;
-  // The pager cannot grow its window (no Pager::setViewDistance), so over
-  // load modules the keys may only shorten the view distance.
-  s.maxViewDistance = modules ? o.viewDistance : std::max(s.maxViewDistance, o.viewDistance);
+  // Over load modules the pager's ring is sized for the most the keys may
+  // ask for; the grid mesh has no such limit.
+  s.maxViewDistance = modules ? std::max(o.viewDistance, o.maxViewDistance > 0 ? o.maxViewDistance
+                                                                             : 3 * o.viewDistance)
+                              : std::max(s.maxViewDistance, o.viewDistance);
   s.liveViewDistance = !(o.fogDensity > 0);
   return {};
 }
@@ -448,6 +452,9 @@ void registerFly(CLI::App& root, Commands& c) {
       ->excludes(at)->excludes(heading);
   sub->add_option("--view-distance", args->viewDistance, "Far plane and full fog, metres")
       ->capture_default_str();
+  sub->add_option("--max-view-distance", args->maxViewDistance,
+                  "Most the + key may grow the view to, metres (default 3 x --view-distance; "
+                  "the pager's window follows the view distance up to it)");
   sub->add_option("--fov", args->fov, "Horizontal field of view, degrees (10..90)")
       ->capture_default_str()->check(CLI::Range(10.0, 90.0));
   sub->add_option("--background", args->background, "Sky and fog colour RRGGBB")->capture_default_str();

@@ -73,9 +73,9 @@ struct Pose {
   std::optional<double> altitude;      ///< eye above the datum (free flight); else ground + heightAgl
   std::optional<double> pitchDeg;
   std::optional<double> hfovDeg;       ///< 10..90
-  /// Fog and far plane follow it at once. The pager keeps the window it was
-  /// opened with (FlightOptions::viewDistance) and has no way to grow it, so
-  /// in module mode the drawn view distance is clamped to that one.
+  /// Fog and far plane follow it. In module mode the pager's window follows
+  /// it too, up to FlightOptions::maxViewDistance; while a larger window
+  /// fills, the drawn distance grows only as far as modules are resident.
   std::optional<double> viewDistance;
   /// The time this pose is for, seconds, when the controller keeps its own
   /// clock (a window flies on the wall clock); stats, panel and the pager's
@@ -95,6 +95,9 @@ struct FlightOptions {
   double speedKmh = 300;
   std::vector<Waypoint> path;  ///< two or more: fly this polyline instead
   double viewDistance = 10000;
+  /// How far the view distance may grow at run time (module mode: the
+  /// pager's ring of slots is sized for it); 0: 3 x viewDistance.
+  double maxViewDistance = 0;
   double hfovDeg = 60;
   Rgb background{0x87, 0xCE, 0xEB};
   bool hud = true;

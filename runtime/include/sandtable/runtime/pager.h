@@ -91,7 +91,10 @@ struct PagingGeometry {
   double moduleSize = 1000;         ///< edge of a load module, metres
   std::uint32_t modulesX = 0;       ///< modules across the database
   std::uint32_t modulesZ = 0;
-  double viewDistance = 6000;       ///< metres
+  double viewDistance = 6000;       ///< metres, now (StripPlanner::setViewDistance)
+  /// The most viewDistance may grow to; the residency ring is sized for it.
+  /// 0: viewDistance.
+  double maxViewDistance = 0;
   double hysteresis = 100;          ///< bounding-box margin, metres (seed: 100 m)
   std::uint32_t maxLeadStrips = 3;  ///< most strips loaded ahead on one axis
 
@@ -99,6 +102,9 @@ struct PagingGeometry {
   std::int64_t radius() const;
   /// Side of the active area in modules, 2R + 1.
   std::int64_t side() const { return 2 * radius() + 1; }
+  /// R and the side at maxViewDistance.
+  std::int64_t maxRadius() const;
+  std::int64_t maxSide() const { return 2 * maxRadius() + 1; }
   /// Slots of the residency ring along X and Z: the widest window
   /// (side + maxLeadStrips), but no more than the database.
   std::uint32_t ringX() const;
@@ -145,6 +151,11 @@ class StripPlanner {
   /// loaders' lead time. The first call (and any jump that keeps less than
   /// half of the window) is a refill.
   const PlanStep& update(double eyeX, double eyeZ, double vx, double vz, double leadSeconds);
+
+  /// Grows or shrinks the active area from the next update on; clamped to
+  /// (0, maxViewDistance]. The next update() loads the new ring nearest
+  /// first (or frees the outer one) like any other window change.
+  void setViewDistance(double metres);
 
   const PagingGeometry& geometry() const { return geometry_; }
   bool started() const { return started_; }
@@ -217,7 +228,10 @@ const char* modeName(PagerMode m);
 
 struct PagerOptions {
   PagerMode mode = PagerMode::predictive;
-  double viewDistance = 6000;  ///< metres
+  double viewDistance = 6000;  ///< metres, at open (Pager::setViewDistance changes it)
+  /// The most Pager::setViewDistance may grow to (the ring of slots is sized
+  /// for it); 0: viewDistance, fixed.
+  double maxViewDistance = 0;
   double hysteresis = 100;     ///< bounding-box margin, metres (0 <= h < edge / 2)
   /// Pool of decoded modules; reads that would exceed it are refused.
   std::uint64_t memoryBudgetBytes = 1ull << 30;
@@ -402,6 +416,17 @@ class Pager {
   std::uint32_t levels() const;
   /// The window as the loaders see it now (clipped).
   ModuleRect window() const;
+  /// Main thread (as update()): the view distance the window follows from
+  /// the next update() on, clamped to (0, PagerOptions::maxViewDistance].
+  /// Returns the distance taken.
+  double setViewDistance(double metres);
+  double viewDistance() const;
+  /// Distance from (eyeX, eyeZ) to the nearest module of the current
+  /// window, within viewDistance(), that is not resident; viewDistance()
+  /// when every one is. Drawing no further than this shows no hole, so a
+  /// viewer that grows its view distance grows the drawn one with it.
+  /// Any thread; reads the slot words only.
+  double residentDistance(double eyeX, double eyeZ) const;
 
   struct Impl;
 
