@@ -170,7 +170,8 @@ void MapView::renderBase(int w, int h) {
   }
 }
 
-void MapView::drawMarker(Image& frame, int cx, int cy, double headingDeg, int size) const {
+void MapView::drawMarker(Image& frame, int cx, int cy, double headingDeg, int size,
+                         std::array<int, 4> clip) const {
   const double h = headingDeg * std::numbers::pi / 180.0;
   const double dx = std::sin(h), dy = -std::cos(h);  // north is up the image
   const Pt c{cx + 0.5, cy + 0.5};
@@ -179,10 +180,11 @@ void MapView::drawMarker(Image& frame, int cx, int cy, double headingDeg, int si
                              Pt{c.x - dx * s * 0.6 - dy * s * 0.6, c.y - dy * s * 0.6 + dx * s * 0.6},
                              Pt{c.x - dx * s * 0.6 + dy * s * 0.6, c.y - dy * s * 0.6 - dx * s * 0.6}};
   };
-  const int w = int(frame.width), ht = int(frame.height);
+  const int x0 = std::max(0, clip[0]), y0 = std::max(0, clip[1]);
+  const int x1 = std::min(int(frame.width), clip[2]), y1 = std::min(int(frame.height), clip[3]);
   const auto outer = tri(size + 1.5), inner = tri(size);
-  fillTriangle(frame, outer[0], outer[1], outer[2], kMarkerEdge, 0, 0, w, ht);
-  fillTriangle(frame, inner[0], inner[1], inner[2], kMarkerFill, 0, 0, w, ht);
+  fillTriangle(frame, outer[0], outer[1], outer[2], kMarkerEdge, x0, y0, x1, y1);
+  fillTriangle(frame, inner[0], inner[1], inner[2], kMarkerFill, x0, y0, x1, y1);
 }
 
 MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headingDeg) {
@@ -235,14 +237,34 @@ MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headin
   out.markerVisible = u >= 0 && u < 1 && v >= 0 && v < 1;
   out.markerX = out.x + int(std::floor(u * pw));
   out.markerY = out.y + int(std::floor(v * ph));
-  if (out.markerVisible) drawMarker(frame, out.markerX, out.markerY, headingDeg, std::max(4, pw / 24));
-
-  char label[64];
-  std::snprintf(label, sizeof label, "1/%d %s %.1f KM", 1 << scale_, scaleName(scale_),
-                window_.width() / 1000.0);
-  const int ts = frame.width >= 800 ? 2 : 1;
-  drawText(frame, out.x + 3 * ts, out.y + ph - (kGlyphHeight + 2) * ts, label, ts, kLabel);
+  if (out.markerVisible) {
+    // Drawn wholly inside the map: at the database's edge the arrow moves
+    // in by its own size rather than hanging over the frame.
+    const int size = std::max(4, pw / 24), reach = size + 3;
+    const int cx = std::clamp(out.markerX, out.x + reach, std::max(out.x + reach, out.x + pw - 1 - reach));
+    const int cy = std::clamp(out.markerY, out.y + reach, std::max(out.y + reach, out.y + ph - 1 - reach));
+    drawMarker(frame, cx, cy, headingDeg, size, {out.x, out.y, out.x + pw, out.y + ph});
+  }
+  drawLabel(frame, out);
   return out;
+}
+
+void MapView::drawLabel(Image& frame, const MapLayout& box) const {
+  // The longest form that fits the map's width: the scale's name goes
+  // first, then the text shrinks, then only the fraction is left.
+  char full[64], shorter[32], fraction[16];
+  std::snprintf(full, sizeof full, "1/%d %s %.1f KM", 1 << scale_, scaleName(scale_),
+                window_.width() / 1000.0);
+  std::snprintf(shorter, sizeof shorter, "1/%d %.1f KM", 1 << scale_, window_.width() / 1000.0);
+  std::snprintf(fraction, sizeof fraction, "1/%d", 1 << scale_);
+  const int big = frame.width >= 800 ? 2 : 1;
+  for (int ts : {big, 1}) {
+    for (const char* text : {full, shorter, fraction}) {
+      if (textWidth(text, ts) + 6 * ts > box.width) continue;
+      drawText(frame, box.x + 3 * ts, box.y + box.height - (kGlyphHeight + 2) * ts, text, ts, kLabel);
+      return;
+    }
+  }
 }
 
 }  // namespace sandtable::runtime

@@ -325,6 +325,33 @@ Result<Path> readPathFile(const std::string& file, const PathOptions& options) {
   return parsePath(text.str(), file, options);
 }
 
+namespace {
+
+/// Heading difference b - a, wrapped to (-180, 180].
+double headingDelta(double a, double b) {
+  double d = std::fmod(b - a, 360.0);
+  if (d > 180) d -= 360;
+  if (d <= -180) d += 360;
+  return d;
+}
+
+/// The heading while turning round waypoint j (between legs j - 1 and j),
+/// or nullopt when t is outside that turn.
+std::optional<double> turning(const Path& path, std::size_t j, double t) {
+  const auto& w = path.waypoints;
+  if (j == 0 || j + 1 >= w.size() || !(path.turnRateDegS > 0)) return std::nullopt;
+  const double in = legHeading(w, j - 1), out = legHeading(w, j);
+  const double delta = headingDelta(in, out);
+  const double half = std::min({std::abs(delta) / path.turnRateDegS / 2,
+                                (w[j].timeS - w[j - 1].timeS) / 2, (w[j + 1].timeS - w[j].timeS) / 2});
+  if (!(half > 0) || std::abs(t - w[j].timeS) >= half) return std::nullopt;
+  const double f = (t - (w[j].timeS - half)) / (2 * half);
+  double h = std::fmod(in + f * delta, 360.0);
+  return h < 0 ? h + 360 : h;
+}
+
+}  // namespace
+
 Pose samplePath(const Path& path, double t) {
   const auto& w = path.waypoints;
   Pose p;
@@ -338,7 +365,13 @@ Pose samplePath(const Path& path, double t) {
     return p;
   };
   if (w.size() == 1) return at(w[0], 0);
-  if (!(t > w.front().timeS)) return at(w.front(), legHeading(w, 0));
+  if (!(t > w.front().timeS)) {
+    // On the first waypoint the eye is already moving at the first leg's
+    // speed (frame 0's panel read 0); before it, it waits there.
+    at(w.front(), legHeading(w, 0));
+    if (t == w.front().timeS) p.speedKmh = w.front().legSpeedMs * 3.6;
+    return p;
+  }
   if (t >= w.back().timeS) return at(w.back(), legHeading(w, w.size() - 2));
   // First waypoint later than t; the leg before it holds t.
   const auto next = std::upper_bound(w.begin(), w.end(), t,
@@ -350,7 +383,7 @@ Pose samplePath(const Path& path, double t) {
   p.easting = a.easting + f * (b.easting - a.easting);
   p.northing = a.northing + f * (b.northing - a.northing);
   p.heightAgl = a.heightAgl + f * (b.heightAgl - a.heightAgl);
-  p.headingDeg = legHeading(w, k);
+  p.headingDeg = turning(path, k, t).value_or(turning(path, k + 1, t).value_or(legHeading(w, k)));
   p.speedKmh = a.legSpeedMs * 3.6;
   return p;
 }

@@ -196,6 +196,45 @@ TEST_F(MapViewTest, ComposeDrawsTheMapInTheCornerWithTheViewerAtHisPixel) {
   EXPECT_TRUE(land.r == land.g && land.g == land.b);
 }
 
+TEST_F(MapViewTest, LabelAndMarkerStayInsideTheMapAtEveryScaleAndSize) {
+  // The label was clipped ("1/8 EIGHT", "1/1 FUL") and the arrow could hang
+  // over the map's edge. Nothing the map draws may fall outside its box.
+  const Rgb bg{10, 200, 10};
+  for (auto [w, h] : {std::pair{320u, 180u}, {640u, 360u}, {1280u, 720u}, {1920u, 1080u}}) {
+    for (int scale = 0; scale < 5; ++scale) {
+      // At the database's corners and centre, heading every way.
+      for (auto [x, z] : {std::pair{0.0, 0.0}, {1290.0, 990.0}, {645.0, 495.0}, {1290.0, 0.0}}) {
+        for (double heading : {0.0, 45.0, 135.0, 270.0}) {
+          MapView map(grid_, pureRamp());
+          map.setVisible(true);
+          map.setScale(scale);
+          Image frame = filled(w, h, bg);
+          const MapLayout l = map.compose(frame, x, z, heading);
+          ASSERT_TRUE(l.drawn);
+          for (std::uint32_t py = 0; py < h; ++py) {
+            for (std::uint32_t px = 0; px < w; ++px) {
+              const bool inBox = int(px) >= l.x - 1 && int(px) <= l.x + l.width &&
+                                 int(py) >= l.y - 1 && int(py) <= l.y + l.height;
+              if (!inBox) {
+                ASSERT_TRUE(same(frame.at(px, py), bg))
+                    << w << "x" << h << " scale " << scale << " at " << px << "," << py;
+              }
+            }
+          }
+          // The label is whole: its last glyph column ends inside the box.
+          const int labelRow = l.y + l.height - 4;
+          int rightmost = -1;
+          for (int px = l.x; px < l.x + l.width; ++px) {
+            const Rgb c = frame.at(std::uint32_t(px), std::uint32_t(labelRow));
+            if (c.r == 255 && c.g == 255 && c.b == 0) rightmost = px;  // the label colour
+          }
+          EXPECT_LT(rightmost, l.x + l.width - 1) << w << "x" << h << " scale " << scale;
+        }
+      }
+    }
+  }
+}
+
 TEST_F(MapViewTest, ZoomedMapFollowsTheViewerOnlyOutOfTheInnerBox) {
   MapView map(grid_, pureRamp());
   map.setVisible(true);

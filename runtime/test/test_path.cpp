@@ -180,6 +180,35 @@ TEST(Path, SamplePathAlongBeforeAndAfter) {
   EXPECT_NEAR(after.headingDeg, 180, 1e-9);
 }
 
+TEST(Path, FrameZeroHasTheFirstLegsSpeed) {
+  const Path p = parseOk("frame projected\n0 0 100 speed=36\n100 0 300\n");
+  EXPECT_NEAR(samplePath(p, 0).speedKmh, 36, 1e-9);
+}
+
+TEST(Path, TheHeadingTurnsSmoothlyAtTheTurnRateRoundEachWaypoint) {
+  // East at 10 m/s for 100 s, then south: a 90 degree right turn at 45
+  // degrees/s takes 2 s, centred on the waypoint at t = 100.
+  const Path p = parseOk("frame projected\n0 0 100 speed=36\n1000 0 100\n1000 -1000 100\n");
+  ASSERT_DOUBLE_EQ(p.turnRateDegS, 45);
+  EXPECT_NEAR(samplePath(p, 98.9).headingDeg, 90, 1e-9);   // before the turn
+  EXPECT_NEAR(samplePath(p, 99.5).headingDeg, 112.5, 1e-9);
+  EXPECT_NEAR(samplePath(p, 100).headingDeg, 135, 1e-9);   // half way, on the waypoint
+  EXPECT_NEAR(samplePath(p, 100).easting, 1000, 1e-9);     // which the eye still passes
+  EXPECT_NEAR(samplePath(p, 101.1).headingDeg, 180, 1e-9);  // after it
+  // Frame by frame (30 Hz) the heading never steps more than the rate allows.
+  double last = samplePath(p, 0).headingDeg, worst = 0;
+  for (int k = 1; k <= 30 * 200; ++k) {
+    const double h = samplePath(p, k / 30.0).headingDeg;
+    worst = std::max(worst, std::abs(h - last));
+    last = h;
+  }
+  EXPECT_LE(worst, 45.0 / 30 + 1e-9);
+  // Left through north: 350 -> 10 degrees turns 20 degrees, not 340.
+  const Path q = parseOk("frame projected\n0 0 100 speed=36\n-100 567.1 100\n0 1134.2 100\n");
+  const double mid = samplePath(q, q.waypoints[1].timeS).headingDeg;
+  EXPECT_TRUE(mid < 1 || mid > 359) << mid;
+}
+
 TEST(Path, ResolvePathOnPointsBuiltInCode) {
   std::vector<PathPoint> pts(3);
   pts[1].easting = 30;

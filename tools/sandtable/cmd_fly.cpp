@@ -346,7 +346,12 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const 
   if (!s.statsPath.empty()) std::printf("  stats:    %s\n", s.statsPath.c_str());
   if (!a.videoFile.empty()) std::printf("  video:    %s\n", a.videoFile.c_str());
   if (session.screenshotsTaken() > 0) std::printf("  screenshots: %u\n", session.screenshotsTaken());
-  std::printf("  renderer: %s\n", s.rendererDetail.c_str());
+  // In a window the frames are still drawn offscreen (the renderer's EGL
+  // context) and then shown through the window's own EGL window surface on
+  // X11, so say both rather than "surfaceless" alone.
+  std::printf("  renderer: %s%s\n", s.rendererDetail.c_str(),
+              session.windowed() ? " (offscreen); shown in an X11 window through an EGL window surface"
+                                 : "");
   std::printf("  terrain:  %s%s%s\n", s.mode.c_str(), s.lod.empty() ? "" : ", lod ", s.lod.c_str());
   std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + read-back;"
               " PNG writing excluded), %.0f triangles per frame\n",

@@ -21,6 +21,7 @@
 //
 // Thread safety: one MapView per thread (compose() caches its base image).
 // The GridFile is shared and only read.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -106,7 +107,10 @@ class MapView {
   bool isWater(float elevation, std::uint8_t material) const;
   void buildOverview();
   void renderBase(int w, int h);
-  void drawMarker(Image& frame, int cx, int cy, double headingDeg, int size) const;
+  /// The arrow, clipped to clip = {x0, y0, x1, y1} (the map's box).
+  void drawMarker(Image& frame, int cx, int cy, double headingDeg, int size,
+                  std::array<int, 4> clip) const;
+  void drawLabel(Image& frame, const MapLayout& box) const;
 
   std::shared_ptr<const grid::GridFile> grid_;
   MapOptions options_;

@@ -60,6 +60,10 @@ struct PathWaypoint {
 struct Path {
   PathFrame frame = PathFrame::lonLat;
   std::vector<PathWaypoint> waypoints;  ///< two or more, times non-decreasing
+  /// The heading turns from one leg's to the next at this rate, the turn
+  /// centred on the waypoint (the eye still passes through it). A turn
+  /// that would take longer than half of either leg is made faster to fit.
+  double turnRateDegS = 45;
   double durationS() const { return waypoints.empty() ? 0 : waypoints.back().timeS - waypoints.front().timeS; }
 };
 
@@ -96,8 +100,10 @@ Result<Path> resolvePath(const std::vector<PathPoint>& points, const PathOptions
                          const std::string& file = kPathProblem, PathFrame frame = PathFrame::projected);
 
 /// Where the eye is at time t: along the legs at each leg's speed, height
-/// interpolated; before the first time at the first waypoint, after the
-/// last at the last (speed 0, heading of the last moving leg).
+/// interpolated, the heading turning at Path::turnRateDegS round each
+/// waypoint; at or before the first time at the first waypoint with the
+/// first leg's speed, after the last at the last (speed 0, heading of the
+/// last moving leg).
 Pose samplePath(const Path& path, double t);
 
 }  // namespace sandtable::runtime
