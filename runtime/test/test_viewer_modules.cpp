@@ -179,20 +179,21 @@ TEST_F(ViewerModules, FliesThroughThePagerOnTwoThreads) {
   }
 }
 
-TEST_F(ViewerModules, ControllerViewDistanceIsClampedToThePagersAndItsClockIsReported) {
+TEST_F(ViewerModules, ControllerViewDistanceGrowsThePagersWindowUpToItsMostAndItsClockIsReported) {
   FlightOptions o;
   o.width = 160;
   o.height = 90;
   o.frames = 3;
   o.easting = kOriginE + 300;
   o.northing = kOriginN - 1400;
-  o.viewDistance = 1500;  // the pager's window
+  o.viewDistance = 1500;  // the pager's window at open; it may grow to 3 x, 4500 m
+  o.pagerSync = true;     // every load done before each frame
   o.controller = [&](std::uint32_t frame, double) -> std::optional<Pose> {
     Pose p;
     p.easting = o.easting;
     p.northing = o.northing;
     p.heightAgl = 120;
-    p.viewDistance = frame == 0 ? 1000.0 : 5000.0;  // a "+" key beyond the pager's window
+    p.viewDistance = frame == 0 ? 1000.0 : 5000.0;  // a "+" key beyond the most
     p.clockS = 10.0 + frame;                        // e.g. a window's wall clock
     return p;
   };
@@ -200,7 +201,7 @@ TEST_F(ViewerModules, ControllerViewDistanceIsClampedToThePagersAndItsClockIsRep
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 3u);
   EXPECT_EQ(r->frames[0].viewDistance, 1000.0);
-  EXPECT_EQ(r->frames[1].viewDistance, 1500.0) << "nothing beyond the pager's window is resident";
+  EXPECT_EQ(r->frames[1].viewDistance, 4500.0) << "the window grew to maxViewDistance";
   EXPECT_EQ(r->frames[2].timeS, 12.0);
   EXPECT_FALSE(r->frames[2].freeFlight);
 }
