@@ -167,6 +167,14 @@ TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
       EXPECT_GT(s.modulesDrawn, 0u) << c.name << ", " << v.name;
       EXPECT_EQ(s.modulesMissing, 0u) << c.name << ", " << v.name;
       EXPECT_EQ(cracks(img), 0u) << c.name << ", " << v.name;
+      // Everything is resident (pagerSync): nothing is drawn coarser than
+      // the mode asks, and full draws every node at level 0 (issue 9).
+      EXPECT_EQ(s.nodesCoarser, 0u) << c.name << ", " << v.name;
+      EXPECT_EQ(s.nodesPlaceholder, 0u) << c.name << ", " << v.name;
+      if (c.mode == LodMode::full) {
+        ASSERT_FALSE(s.levelCounts.empty());
+        EXPECT_EQ(s.levelCounts[0], s.nodesDrawn) << v.name;
+      }
     }
   }
 }
