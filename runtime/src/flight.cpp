@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/module.h"
 #include "camera_math.h"
 #include "sandtable/runtime/display_buffer.h"
 #include "sandtable/runtime/hud.h"
@@ -28,6 +29,8 @@ namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+/// Road classes at least this wide (metres) get the texture's markings.
+constexpr double kMarkedRoadWidth = 5.0;
 
 using Clock = std::chrono::steady_clock;
 
@@ -342,7 +345,7 @@ struct FlightRun {
     if (scene) {
       scene->fill(cam, k, slot->buf);
     } else {
-      fillDisplayBuffer(*grid, cam, k, slot->buf);
+      fillDisplayBuffer(*grid, cam, k, slot->buf, o.waterMaterials);
       slot->buf.moduleMode = false;
     }
     FrameStats& s = slot->stats;
@@ -417,8 +420,10 @@ struct FlightRun {
                       ? s.cpuMs + s.renderMs
                       : std::chrono::duration<double, std::milli>(now - lastDone).count() - lastPngMs;
       s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
-      if (o.hud) drawHudPanel(image, hudLines(s, o));
-      if (o.composite) o.composite(image, s);
+      // A height frame holds data in its pixels: nothing is drawn over it.
+      const bool data = o.colour == ColourMode::height;
+      if (o.hud && !data) drawHudPanel(image, hudLines(s, o));
+      if (o.composite && !data) o.composite(image, s);
       s.frameMs += msSince(now);  // the panel is part of the frame
       lastDone = Clock::now();
       if (o.onFrame) o.onFrame(s.frame, image);
@@ -487,7 +492,7 @@ struct FlightRun {
   }
 };
 
-RenderSettings renderSettingsFor(const grid::GridFile& g, const FlightOptions& o) {
+RenderSettings renderSettingsFor(const FlightOptions& o) {
   RenderSettings rs;
   rs.width = o.width;
   rs.height = o.height;
@@ -496,8 +501,9 @@ RenderSettings renderSettingsFor(const grid::GridFile& g, const FlightOptions& o
   rs.sky = o.sky;
   rs.clearColour = o.clearColour;
   rs.samples = o.msaa;
-  rs.minElevation = g.header().minElevation;
-  rs.maxElevation = g.header().maxElevation;
+  rs.shading = o.shading;
+  rs.colour = o.colour;
+  rs.waterMaterials = o.waterMaterials;
   return rs;
 }
 
@@ -508,7 +514,9 @@ std::vector<MaterialColour> paletteFor(const materials::Table& t) {
     const auto rgb = [](std::uint32_t v) {
       return Rgb{std::uint8_t(v >> 16), std::uint8_t(v >> 8), std::uint8_t(v)};
     };
-    p[c.id] = {rgb(c.upperRgb), rgb(c.lowerRgb)};
+    // Roads: the line classes at the road priority; wide ones are marked.
+    const bool road = c.kind == materials::Kind::line && c.priority == module::kPriorityRoad;
+    p[c.id] = {rgb(c.upperRgb), rgb(c.lowerRgb), road, road && c.width >= kMarkedRoadWidth};
   }
   return p;
 }
@@ -544,9 +552,13 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
     if (!p) return p.problems();
     pager = std::move(p.value());
   }
-  FlightRun run(o, g, renderSettingsFor(*g, o));
+  FlightRun run(o, g, renderSettingsFor(o));
+  run.renderSettings.grid = g;
   if (pager) {
-    if (db->materials) run.renderSettings.palette = paletteFor(*db->materials);
+    if (db->materials) {
+      run.renderSettings.palette = paletteFor(*db->materials);
+      run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
+    }
     ModuleSceneSettings ss;
     ss.lod = o.lod;
     ss.imageHeight = o.height;

@@ -11,76 +11,48 @@
 #include "camera_math.h"
 #include "egl_context.h"
 #include "module_draw.h"
+#include "terrain_shading.h"
 
 namespace sandtable::runtime {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-// The tint's stops are spread over at most this many metres above the
-// lowest land, so a 300 m hill database still shows the whole palette and
-// mountains turn white from about 2,000 m above their valleys (rock at
-// 0.66 of the range, snow complete at 0.84).
-constexpr float kTintRangeMetres = 2500.0f;
-
 const char* kTerrainVertexShader = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
+layout(location = 2) in float aWater;
 uniform mat4 uViewProjection;
 uniform vec3 uEye;
 out vec3 vNormal;
-out float vElevation;
-out float vDistance;
+out vec3 vPosition;
+out float vWater;
 void main() {
   gl_Position = uViewProjection * vec4(aPosition, 1.0);
   vNormal = aNormal;
-  vElevation = aPosition.y;
-  vDistance = distance(aPosition, uEye);
+  vPosition = aPosition;
+  vWater = aWater;
 }
 )";
 
-const char* kTerrainFragmentShader = R"(#version 450 core
+// Appended to detail::shadingGlsl(): the grid has no culture, so every
+// point is water or tinted. Flat shading takes the triangle's own normal
+// from the screen-space derivatives of the position.
+const char* kTerrainFragmentMain = R"(
 in vec3 vNormal;
-in float vElevation;
-in float vDistance;
-uniform float uTintBase;
-uniform float uTintRange;
-uniform vec3 uSun;
-uniform vec3 uFogColor;
-uniform float uFogDensity;
-uniform float uFogStart;
-uniform bool uFog;
+in vec3 vPosition;
+in float vWater;
+uniform vec3 uEye;
+uniform bool uFlat;
 out vec4 fragColor;
-
-const int kStops = 6;
-const float kAt[kStops] = float[](0.0, 0.15, 0.32, 0.50, 0.66, 0.84);
-const vec3 kTint[kStops] = vec3[](
-  vec3(0.30, 0.52, 0.24),   // lowland green
-  vec3(0.55, 0.65, 0.33),   // upland olive
-  vec3(0.76, 0.68, 0.48),   // tan
-  vec3(0.56, 0.43, 0.30),   // brown
-  vec3(0.52, 0.51, 0.50),   // grey rock
-  vec3(0.96, 0.96, 0.98));  // snow
-
-vec3 hypsometric(float elevation) {
-  if (elevation <= 0.0) return vec3(0.16, 0.34, 0.60);  // sea level and below
-  float t = clamp((elevation - uTintBase) / uTintRange, 0.0, 1.0);
-  vec3 c = kTint[0];
-  for (int k = 1; k < kStops; ++k) {
-    c = mix(c, kTint[k], smoothstep(kAt[k - 1], kAt[k], t));
-  }
-  return c;
-}
-
 void main() {
-  vec3 n = normalize(vNormal);
-  float light = 0.38 + 0.62 * max(dot(n, uSun), 0.0);
-  vec3 color = hypsometric(vElevation) * light;
-  if (uFog) {
-    float k = uFogDensity * max(vDistance - uFogStart, 0.0);
-    color = mix(uFogColor, color, exp(-k * k));
+  vec3 n = vNormal;
+  if (uFlat) {
+    n = cross(dFdx(vPosition), dFdy(vPosition));
+    if (n.y < 0.0) n = -n;
   }
-  fragColor = vec4(color, 1.0);
+  fragColor = shadeSurface(0, vec3(vWater, 0.0, 0.0), vec2(0.0), vPosition.y, n,
+                           distance(vPosition, uEye));
 }
 )";
 
@@ -156,6 +128,15 @@ GLuint detail::linkProgram(const char* vs, const char* fs, std::string& error) {
     return 0;
   }
   return p;
+}
+
+void detail::setShadingUniforms(GLuint program, const RenderSettings& s, const Eigen::Vector3f& sun) {
+  const Eigen::Vector3f fog(s.background.r / 255.0f, s.background.g / 255.0f, s.background.b / 255.0f);
+  glProgramUniform3fv(program, glGetUniformLocation(program, "uSun"), 1, sun.data());
+  glProgramUniform3fv(program, glGetUniformLocation(program, "uFogColor"), 1, fog.data());
+  glProgramUniform1i(program, glGetUniformLocation(program, "uFog"), s.fog);
+  glProgramUniform1i(program, glGetUniformLocation(program, "uHeightMode"), s.colour == ColourMode::height);
+  glProgramUniform1i(program, glGetUniformLocation(program, "uRoad"), 0);
 }
 
 namespace {
@@ -238,12 +219,16 @@ struct Renderer::Impl {
     glEnableVertexArrayAttrib(terrainVao, 1);
     glVertexArrayAttribFormat(terrainVao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, nx));
     glVertexArrayAttribBinding(terrainVao, 1, 0);
+    glEnableVertexArrayAttrib(terrainVao, 2);
+    glVertexArrayAttribFormat(terrainVao, 2, 1, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, water));
+    glVertexArrayAttribBinding(terrainVao, 2, 0);
     glCreateVertexArrays(1, &skyVao);  // the sky needs no attributes, but core GL needs a VAO
   }
 
   std::string createPrograms() {
     std::string error;
-    terrainProgram = link(kTerrainVertexShader, kTerrainFragmentShader, error);
+    const std::string terrainFragment = detail::shadingGlsl() + kTerrainFragmentMain;
+    terrainProgram = link(kTerrainVertexShader, terrainFragment.c_str(), error);
     if (!terrainProgram) return "terrain " + error;
     skyProgram = link(kSkyVertexShader, kSkyFragmentShader, error);
     if (!skyProgram) return "sky " + error;
@@ -251,15 +236,9 @@ struct Renderer::Impl {
     if (std::string e = modules->create(settings, sunDirection()); !e.empty()) return e;
     // Settings that never change over a flight.
     const Eigen::Vector3f fogColor = toVec(settings.background);
-    const float base = std::max(settings.minElevation, 0.0f);
-    const float range = std::clamp(settings.maxElevation - base, 1.0f, kTintRangeMetres);
-    const Eigen::Vector3f sun = sunDirection();
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uTintBase"), base);
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uTintRange"), range);
-    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uSun"), 1, sun.data());
-    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uFogColor"), 1,
-                        fogColor.data());
-    glProgramUniform1i(terrainProgram, glGetUniformLocation(terrainProgram, "uFog"), settings.fog);
+    detail::setShadingUniforms(terrainProgram, settings, sunDirection());
+    glProgramUniform1i(terrainProgram, glGetUniformLocation(terrainProgram, "uFlat"),
+                       settings.shading == Shading::flat);
     // The zenith is a deeper, bluer shade of the background colour.
     const Eigen::Vector3f zenith = fogColor.cwiseProduct(Eigen::Vector3f(0.55f, 0.72f, 0.95f));
     glProgramUniform3fv(skyProgram, glGetUniformLocation(skyProgram, "uHorizon"), 1, fogColor.data());
@@ -335,8 +314,8 @@ struct Renderer::Impl {
     DisplayBuffer b;
     b.camera.y = 10;
     b.camera.aspect = double(settings.width) / double(settings.height);
-    b.vertices = {{-1, 0, -20, 0, 1, 0}, {-1, 0, -19, 0, 1, 0}, {1, 0, -20, 0, 1, 0},
-                  {1, 0, -19, 0, 1, 0}};
+    b.vertices = {{-1, 0, -20, 0, 1, 0, 0}, {-1, 0, -19, 0, 1, 0, 0}, {1, 0, -20, 0, 1, 0, 0},
+                  {1, 0, -19, 0, 1, 0, 0}};
     b.firsts = {0};
     b.counts = {4};
     renderInto(b);
@@ -381,6 +360,13 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s) {
   auto impl = std::make_unique<Impl>();
   impl->egl = std::move(egl.value());
   impl->settings = s;
+  if (s.colour == ColourMode::height) {
+    // Pixels hold data: nothing may blend into them.
+    impl->settings.sky = false;
+    impl->settings.fog = false;
+    impl->settings.samples = 0;
+    impl->settings.clearColour = Rgb{0, 0, 0};
+  }
   if (epoxy_gl_version() < 45) {
     return Problem{kGlContextProblem, 0,
                    "the EGL context offers OpenGL " + std::to_string(epoxy_gl_version()) +
@@ -411,6 +397,13 @@ const std::string& Renderer::glRenderer() const { return impl_->rendererName; }
 
 std::string Renderer::description() const {
   return impl_->rendererName + ", OpenGL " + impl_->version + ", EGL " + impl_->egl->platform();
+}
+
+std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t y) {
+  const Rgb c = img.at(x, y);
+  const std::uint32_t code = (std::uint32_t(c.r) << 16) | (std::uint32_t(c.g) << 8) | c.b;
+  if (code == 0) return std::nullopt;
+  return code / kHeightCodeScale - kHeightCodeOffset;
 }
 
 bool headlessGlAvailable(std::string& why) {

@@ -58,6 +58,8 @@ struct FlyArgs {
   bool pagerSync = false;
   bool noSky = false;
   std::uint32_t msaa = 0;
+  std::string shading = "smooth";
+  std::string colour = "natural";
   // the stealth viewer: window, map, free flight, outputs
   bool window = false, headless = false;
   bool map = false;
@@ -107,6 +109,10 @@ area decals over the skin; --mode mesh draws the full-resolution grid instead.
 equal bins scaled to --view-distance, or --rings M,M,... as the outer edges of
 each level's bin, finest first); --lod sse by projected error (--pixel-error PX);
 --lod full always draws the finest level. Levels geomorph unless --no-morph.
+Colours (docs/VIEWER.md): culture class colours, water where the grid says
+water, else an elevation tint, in both modes; --shading flat shows the seed's
+per-triangle look. --colour height writes heights instead: metres =
+(R*65536 + G*256 + B) / 256 - 1000, black where there is no terrain.
 --fog-density D (per metre) sets the view distance to the fog's obscuration
 distance sqrt(ln 255)/D (seed IX.A.3); otherwise the density follows it.
 The pager keeps the window of the starting view distance, so in a window the
@@ -247,6 +253,13 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.pagerSync = a.pagerSync;
   o.sky = !a.noSky;
   o.msaa = a.msaa;
+  if (a.shading == "smooth") o.shading = runtime::Shading::smooth;
+  else if (a.shading == "flat") o.shading = runtime::Shading::flat;
+  else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
+  if (a.colour == "natural") o.colour = runtime::ColourMode::natural;
+  else if (a.colour == "height") o.colour = runtime::ColourMode::height;
+  else return "--colour must be natural or height, not \"" + a.colour + "\"";
+  o.waterMaterials = waterMaterials(db);
   const auto& h = db.grid->header();
   o.easting = h.originEasting + h.spacing * (h.postsX - 1) / 2.0;
   o.northing = h.originNorthing - h.spacing * (h.postsZ - 1) / 2.0;
@@ -477,6 +490,12 @@ void registerFly(CLI::App& root, Commands& c) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--msaa", args->msaa, "Samples per pixel (0 off; 4 steadies thin far decals)")
       ->capture_default_str()->check(CLI::Range(0u, 16u));
+  sub->add_option("--shading", args->shading,
+                  "smooth (per-post normals, elevation tint) or flat (the seed's per-triangle look)")
+      ->capture_default_str();
+  sub->add_option("--colour", args->colour,
+                  "natural, or height: each pixel's world height as 24-bit RGB (docs/VIEWER.md)")
+      ->capture_default_str();
   sub->add_flag("--no-sky", args->noSky, "Clear to magenta instead of drawing the sky (shows cracks)");
   sub->add_flag("--pager-sync", args->pagerSync, "Wait for the pager before every frame (reproducible frames)");
   sub->add_flag("--window", args->window, "Fly in a window from the keyboard (needs DISPLAY; default when set)");

@@ -28,12 +28,14 @@ struct Camera {
   double vfovDeg() const;
 };
 
-/// One terrain vertex: position relative to the buffer origin, unit normal.
+/// One terrain vertex: position relative to the buffer origin, unit normal,
+/// and 1 where the post's grid material is water (else 0).
 struct TerrainVertex {
   float x, y, z;
   float nx, ny, nz;
+  float water;
 };
-static_assert(sizeof(TerrainVertex) == 24, "vertex layout is shared with the shader");
+static_assert(sizeof(TerrainVertex) == 28, "vertex layout is shared with the shader");
 
 /// One run of quadtree nodes of one module drawn at one level: Morton
 /// indices [first, last) of that level's node grid (lod.h), morphed by
@@ -99,11 +101,12 @@ struct DisplayBuffer {
 };
 
 /// Builds the view triangle for `cam` on grid `g`, selects the grid squares
-/// and writes one strip per row span: v(i,j), v(i,j+1), v(i+1,j), ... so
+/// and writes one strip per row span (TerrainVertex::water from the grid
+/// material: water when listed in `waterMaterials`, default {1}): v(i,j), v(i,j+1), v(i+1,j), ... so
 /// each square splits along its south-west to north-east diagonal exactly
 /// as Terrain::sampleXZ assumes. Reuses `out`'s memory.
 void fillDisplayBuffer(const grid::GridFile& g, const Camera& cam, std::uint64_t frame,
-                       DisplayBuffer& out);
+                       DisplayBuffer& out, const std::vector<std::uint8_t>& waterMaterials = {1});
 
 /// The view triangle `fillDisplayBuffer` uses for a camera.
 ViewTriangle viewTriangleFor(const Camera& cam, double spacing);

@@ -38,6 +38,7 @@
 #include "sandtable/formats/result.h"
 #include "sandtable/runtime/image.h"
 #include "sandtable/runtime/lod.h"
+#include "sandtable/runtime/renderer.h"
 
 namespace sandtable::runtime {
 
@@ -117,6 +118,13 @@ struct FlightOptions {
   bool sky = true;
   Rgb clearColour{0xFF, 0x00, 0xFF};
   std::uint32_t msaa = 0;  ///< samples per pixel, 0 (off) .. 16
+  /// Smooth (default) or the seed's flat look (docs/VIEWER.md, "Colours").
+  Shading shading = Shading::smooth;
+  /// ColourMode::height writes each pixel's world height (renderer.h,
+  /// kHeightCode*) with no sky, fog, multisampling, panel or composite.
+  ColourMode colour = ColourMode::natural;
+  /// Grid material indices drawn as water (docs/FORMAT.md 4.7).
+  std::vector<std::uint8_t> waterMaterials{1};
   /// Wait for the pager to finish every queued load before each frame
   /// (reproducible frames: tests, benchmarks). Otherwise only before frame 0.
   bool pagerSync = false;

@@ -3,19 +3,25 @@
 // 4.5 core through headless EGL and reads it back.
 //
 // Each frame: the sky (a full-screen triangle shaded from the background
-// colour at the horizon to a deeper tone at the zenith), then the selected
-// terrain strips from a streamed vertex buffer with one glMultiDrawArrays,
-// tinted by elevation, lit by a fixed sun from the stored normals and fogged
-// towards the background colour, full fog at the view distance.
+// colour at the horizon to a deeper tone at the zenith), then the terrain:
+// the grid mesh's strips from a streamed vertex buffer with one
+// glMultiDrawArrays, or the load modules' indexed triangles. Both modes
+// colour the ground by the same rules (docs/VIEWER.md, "Colours"): culture
+// class colours where culture covers it (modules), water where the grid's
+// material is water, else a fixed elevation tint; lit by a fixed sun from
+// smooth per-post normals and fogged towards the background colour, full
+// fog at the view distance. Shading::flat gives the seed's look instead.
 //
 // Thread safety: a Renderer owns a GL context that is current on the thread
 // that created it. Create, use and destroy it on that one thread (the render
 // thread); it reads DisplayBuffers that other threads filled.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "sandtable/formats/grid.h"
 #include "sandtable/formats/result.h"
 #include "sandtable/runtime/display_buffer.h"
 #include "sandtable/runtime/image.h"
@@ -27,10 +33,36 @@ namespace sandtable::runtime {
 inline constexpr const char* kGlContextProblem = "EGL";
 
 /// Colours of one material class (materials.h): upper and lower grid
-/// triangle, as the seed shades the two halves of a square differently.
+/// triangle, as the seed shades the two halves of a square differently
+/// (Shading::flat; smooth shading uses their mean for both).
 struct MaterialColour {
   Rgb upper{0x6E, 0x8C, 0x46}, lower{0x64, 0x82, 0x40};
+  /// A road: drawn with the road texture (edges, grain) over its colour.
+  bool road = false;
+  /// With the texture's white markings (edge lines, dashed centre line).
+  bool markings = false;
 };
+
+/// How the terrain is lit and coloured.
+enum class Shading : std::uint8_t {
+  smooth,  ///< per-post normals, one colour per material, elevation tint where no culture
+  flat,    ///< the seed's look: a flat normal and the upper/lower colour per triangle
+};
+
+/// What a pixel's colour holds.
+enum class ColourMode : std::uint8_t {
+  natural,  ///< the shaded terrain
+  height,   ///< the world height of the terrain under the pixel, as kHeightCode* says
+};
+
+/// ColourMode::height: a terrain pixel's R, G, B bytes are the code
+/// c = R * 65536 + G * 256 + B, its height h = c / kHeightCodeScale -
+/// kHeightCodeOffset metres (quantisation 1/256 m, range -1000 .. 64535 m);
+/// c = 0 is no terrain (the clear colour). No sky, fog, panel or map.
+inline constexpr double kHeightCodeScale = 256.0;
+inline constexpr double kHeightCodeOffset = 1000.0;
+/// The height a ColourMode::height frame holds at (x, y); nullopt: no terrain.
+std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t y);
 
 struct RenderSettings {
   std::uint32_t width = 1280, height = 720;
@@ -43,10 +75,19 @@ struct RenderSettings {
   /// Multisampling (0 = off): resolves thin, far decals to their coverage
   /// instead of letting them shimmer from frame to frame.
   std::uint32_t samples = 0;
-  float minElevation = 0, maxElevation = 1000;  ///< scales the tint (grid mesh mode)
+  Shading shading = Shading::smooth;
+  ColourMode colour = ColourMode::natural;  ///< height: no sky, fog or multisampling
   /// Module mode: colour of each material id (index); ids beyond it get
   /// the default MaterialColour.
   std::vector<MaterialColour> palette;
+  /// Module mode: the class of skin no culture covers (the table's
+  /// default-area). Smooth shading colours it by the grid: water or tint.
+  std::uint16_t uncoveredMaterial = 0;
+  /// Grid material indices that are water (docs/FORMAT.md 4.7).
+  std::vector<std::uint8_t> waterMaterials{1};
+  /// Module mode, smooth shading: normals and water come from the grid at
+  /// each module vertex (computed once per upload). Null: up and no water.
+  std::shared_ptr<const grid::GridFile> grid;
 };
 
 /// What the render thread did for the last frame (module mode).

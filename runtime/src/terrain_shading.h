@@ -1,0 +1,122 @@
+#pragma once
+// The colour rules both terrain programs share (grid mesh and load
+// modules), as one GLSL block, so the two modes draw the same ground the
+// same way (docs/VIEWER.md, "Colours"). Private to the renderer.
+//
+// A surface point gets, in this order:
+//   - its material class colour where culture covers it (modules only);
+//   - water colour where the grid's per-post material is water (the water
+//     weight, interpolated between posts, is at least one half);
+//   - else the elevation tint: a fixed ramp in metres above the datum.
+// Then it is lit by the fixed sun (ambient 0.40 + 0.60 diffuse) and fogged.
+//
+// `--colour height` replaces all of it: the fragment writes its world
+// height as a 24-bit code in RGB (renderer.h, kHeightCode*).
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+namespace sandtable::runtime::detail {
+
+/// What a module vertex's colour means: its alpha byte (GpuVertex::rgba).
+/// Every vertex of a triangle has the same kind.
+enum class SurfaceKind : std::uint8_t {
+  tint = 0,      ///< no culture: red byte = water weight (0 or 255), else elevation tint
+  road = 85,     ///< class colour times the road texture, no markings
+  marked = 170,  ///< class colour times the road texture, with its white markings
+  colour = 255,  ///< the class colour as it is
+};
+
+/// The elevation tint's stops: metres above the datum and 0xRRGGBB.
+struct TintStop {
+  float metres;
+  std::uint32_t rgb;
+};
+inline constexpr std::array<TintStop, 7> kTintRamp = {{
+    {0, 0x5A8C3A},     // lowland green (the default table's grass)
+    {500, 0x66933F},   // green
+    {1000, 0x8C9A50},  // yellow-green
+    {1600, 0xA08A5E},  // tan
+    {2200, 0x8A7864},  // brown
+    {2700, 0x8A8782},  // grey rock
+    {3300, 0xF0F0F2},  // snow, from here up
+}};
+inline constexpr std::uint32_t kWaterRgb = 0x3A6EA5;  ///< the default table's water class
+
+/// The shared GLSL after the ramp's constants (shadingGlsl()).
+inline constexpr const char* kShadingGlsl = R"(
+uniform vec3 uSun;
+uniform vec3 uFogColor;
+uniform float uFogDensity;
+uniform float uFogStart;
+uniform bool uFog;
+uniform bool uHeightMode;
+uniform sampler2D uRoad;
+
+const vec3 kMarking = vec3(0.92, 0.92, 0.90);
+
+vec3 elevationTint(float h) {
+  vec3 c = kTint[0];
+  for (int k = 1; k < kStops; ++k) {
+    c = mix(c, kTint[k], clamp((h - kAt[k - 1]) / (kAt[k] - kAt[k - 1]), 0.0, 1.0));
+  }
+  return c;
+}
+
+// 24-bit fixed point: code = round((h + 1000) * 256), RGB = code's bytes,
+// high first; code 0 (the clear colour) is no terrain.
+vec4 heightCode(float h) {
+  float code = clamp(floor((h + 1000.0) * 256.0 + 0.5), 1.0, 16777215.0);
+  float hi = floor(code / 65536.0);
+  float mid = floor((code - hi * 65536.0) / 256.0);
+  float lo = code - hi * 65536.0 - mid * 256.0;
+  return vec4(hi, mid, lo, 255.0) / 255.0;
+}
+
+// kind: 0 tint (rgb.r = water weight), 1 road, 2 marked road, 3 colour.
+vec4 shadeSurface(int kind, vec3 rgb, vec2 st, float h, vec3 normal, float dist) {
+  if (uHeightMode) return heightCode(h);
+  vec3 base;
+  if (kind == 0) {
+    base = rgb.r >= 0.5 ? kWater : elevationTint(h);
+  } else if (kind == 3) {
+    base = rgb;
+  } else {
+    vec4 t = texture(uRoad, vec2(st.y, st.x));
+    base = rgb * t.rgb;
+    if (kind == 2) base = mix(base, kMarking, t.a);
+  }
+  vec3 n = normalize(normal);
+  vec3 color = base * (0.40 + 0.60 * max(dot(n, uSun), 0.0));
+  if (uFog) {
+    float k = uFogDensity * max(dist - uFogStart, 0.0);
+    color = mix(uFogColor, color, exp(-k * k));
+  }
+  return vec4(color, 1.0);
+}
+)";
+
+/// "#version 450 core", the ramp as GLSL constants (from kTintRamp, so the
+/// table above is the one definition) and kShadingGlsl. The programs add
+/// their inputs and a main() that calls shadeSurface(). Uniforms: uSun,
+/// uFogColor, uFogDensity, uFogStart, uFog, uHeightMode, uRoad (unit 0).
+inline std::string shadingGlsl() {
+  std::string at, tint;
+  char buf[96];
+  for (const TintStop& s : kTintRamp) {
+    std::snprintf(buf, sizeof buf, "%s%.1f", at.empty() ? "" : ", ", double(s.metres));
+    at += buf;
+    std::snprintf(buf, sizeof buf, "%svec3(%u, %u, %u) / 255.0", tint.empty() ? "" : ", ",
+                  (s.rgb >> 16) & 0xFFu, (s.rgb >> 8) & 0xFFu, s.rgb & 0xFFu);
+    tint += buf;
+  }
+  std::snprintf(buf, sizeof buf, "const vec3 kWater = vec3(%u, %u, %u) / 255.0;\n", (kWaterRgb >> 16) & 0xFFu,
+                (kWaterRgb >> 8) & 0xFFu, kWaterRgb & 0xFFu);
+  const std::string water = buf;
+  const std::string n = std::to_string(kTintRamp.size());
+  return "#version 450 core\nconst int kStops = " + n + ";\nconst float kAt[kStops] = float[](" + at +
+         ");\nconst vec3 kTint[kStops] = vec3[](" + tint + ");\n" + water + kShadingGlsl;
+}
+
+}  // namespace sandtable::runtime::detail
