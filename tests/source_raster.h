@@ -30,6 +30,18 @@ class SourceRaster {
   }
   bool ok() const { return ok_; }
   const std::array<double, 6>& geo() const { return geo_; }
+  int width() const { return w_; }
+  int height() const { return h_; }
+  /// Post (column c, row r); nullopt for a void.
+  std::optional<double> post(int c, int r) const {
+    const double v = v_[std::size_t(r) * w_ + c];
+    if ((hasNoData_ && v == nodata_) || v < -12000 || v > 9000) return std::nullopt;
+    return v;
+  }
+  /// Source-CRS coordinates of post (c, r) (post centres).
+  std::array<double, 2> postXY(int c, int r) const {
+    return {geo_[0] + (c + 0.5) * geo_[1], geo_[3] + (r + 0.5) * geo_[5]};
+  }
 
   /// Bilinear value at geographic (or source-CRS) coordinates; nullopt if
   /// outside or if any of the four posts is a void. `minValue` excludes

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <mutex>
@@ -30,6 +31,33 @@ std::atomic<bool> gCancel{false};
 
 void requestCancel() { gCancel.store(true); }
 bool cancelRequested() { return gCancel.load(); }
+
+KernelChoice chooseKernel(const std::string& request, const std::string& fit, double targetSpacing,
+                          double nativeSpacing) {
+  KernelChoice k;
+  k.spacingRatio = nativeSpacing > 0 ? targetSpacing / nativeSpacing : 1.0;
+  char ratio[160];
+  std::snprintf(ratio, sizeof ratio, "target spacing %.2f m is %.2fx the sources' finest native spacing %.2f m",
+                targetSpacing, k.spacingRatio, nativeSpacing);
+  char limit[16];
+  std::snprintf(limit, sizeof limit, "%gx", kAutoWeightedRatio);
+  if (request != "auto") {
+    k.resample = request;
+    k.reason = "--resample " + request + " as requested (" + ratio + ")";
+  } else if (k.spacingRatio >= kAutoWeightedRatio) {
+    // The seed's average filters the source posts a coarser post stands for.
+    k.resample = "weighted";
+    k.reason = std::string("auto: ") + ratio + " (>= " + limit + ", clearly coarser): the seed's weighted average";
+  } else {
+    // Near native spacing an average flattens summits and fills valleys;
+    // interpolation keeps them (issue 9: -52 m on summits with weighted).
+    k.resample = "bilinear";
+    k.reason = std::string("auto: ") + ratio + " (< " + limit + ", near native): bilinear, an interpolating kernel" +
+               (fit == "triangles" ? ", with the triangle fit" : "");
+  }
+  k.fit = k.resample == "bilinear" ? fit : "posts";
+  return k;
+}
 
 namespace {
 
@@ -66,10 +94,10 @@ std::string utcNow() {
 }
 
 Result<bool> checkOptions(const ElevationOptions& o) {
-  static const char* kKernels[] = {"weighted", "bilinear", "cubic", "average"};
+  static const char* kKernels[] = {"auto", "weighted", "bilinear", "cubic", "average"};
   if (std::find(std::begin(kKernels), std::end(kKernels), o.resample) == std::end(kKernels)) {
     return Problem{"--resample", 0, "build: unknown --resample \"" + o.resample +
-                                        "\"; use weighted, bilinear, cubic or average"};
+                                        "\"; use auto, weighted, bilinear, cubic or average"};
   }
   if (o.fit != "triangles" && o.fit != "posts") {
     return Problem{"--fit", 0, "build: unknown --fit \"" + o.fit + "\"; use triangles or posts"};
@@ -107,7 +135,7 @@ inline std::int16_t snorm(float v) {
 
 /// One block of the grid file. Posts beyond the grid's edge repeat the
 /// edge posts, so every block is complete and plausible.
-void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& filled, const Frame& f,
+void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& cls, const Frame& f,
                std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
   const double inv2s = 1.0 / (2.0 * f.spacing);
   const long W = long(f.postsX), H = long(f.postsZ);
@@ -117,7 +145,7 @@ void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& fil
     const float* up = g.data() + std::size_t(std::max(j - 1, 0L)) * W;
     const float* mid = g.data() + std::size_t(j) * W;
     const float* down = g.data() + std::size_t(std::min(j + 1, H - 1)) * W;
-    const std::uint8_t* wasVoid = filled.data() + std::size_t(j) * W;
+    const std::uint8_t* was = cls.data() + std::size_t(j) * W;
     const double zEdge = (j == 0 || j == H - 1 ? 2.0 : 1.0);
     for (std::uint32_t lx = 0; lx < grid::kBlockPosts; ++lx) {
       const long i = std::min<long>(bx * grid::kBlockPosts + lx, W - 1);
@@ -132,7 +160,9 @@ void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& fil
       b.normalX[k] = snorm(static_cast<float>(-dx / len));
       b.normalY[k] = snorm(static_cast<float>(1.0 / len));
       b.normalZ[k] = snorm(static_cast<float>(-dz / len));
-      b.material[k] = wasVoid[i] ? kFilledVoid : (h <= 0.0f ? kWater : kGround);
+      b.material[k] = was[i] == detail::kSeaPost    ? kWater
+                      : was[i] == detail::kVoidPost ? kFilledVoid
+                                                    : (h <= 0.0f ? kWater : kGround);
     }
   }
 }
@@ -144,7 +174,7 @@ struct WrittenGrid {
 };
 
 Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std::vector<float>& g,
-                              const std::vector<std::uint8_t>& filled, int threads, const ProgressFn& progress) {
+                              const std::vector<std::uint8_t>& cls, int threads, const ProgressFn& progress) {
   const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
   auto writer = grid::GridWriter::create(path, h);
   if (!writer) return writer.problems();
@@ -155,7 +185,7 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
     auto block = std::make_unique<grid::BlockData>();
     for (std::uint64_t k; (k = next++) < h.blockCount() && !cancelRequested();) {
       const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
-      fillBlock(g, filled, f, bx, bz, *block);
+      fillBlock(g, cls, f, bx, bz, *block);
       const std::string err = writer.value()->writeBlock(bx, bz, *block);
       std::lock_guard lock(mutex);
       if (!err.empty() && firstError.empty()) firstError = err;
@@ -297,6 +327,13 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
           {"per_level", levels}};
 }
 
+nlohmann::json accuracyJson(const SourceAccuracy& a) {
+  return {{"source_posts", a.samples}, {"rmse_m", a.rmse}, {"max_abs_m", a.maxAbs}, {"mean_m", a.mean},
+          {"worst_lonlat", a.worstLonLat}, {"worst_source_m", a.worstSource}, {"worst_error_m", a.worstError},
+          {"sample", "every k-th source post along rows and columns (about 8192 over the grid), valid and inside it, "
+                     "against the drawn triangles"}};
+}
+
 nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
   const CultureStats& st = c.stats();
   nlohmann::json classes = nlohmann::json::object();
@@ -335,31 +372,38 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   const std::string vrt = partial.path() + "/mosaic.vrt";
   if (std::string e = detail::buildMosaic(sources.value(), vrt); !e.empty()) return Problem{o.output, 0, e};
   std::vector<float> g;
+  const KernelChoice kernel = chooseKernel(o.resample, o.fit, f.spacing, detail::nativeSpacingMetres(sources.value()));
   const auto tr = std::chrono::steady_clock::now();
-  const std::string err = o.resample == "weighted" ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
-                                                   : detail::resampleGdal(vrt, f, o.resample, o.threads, g, progress);
+  const std::string err = kernel.resample == "weighted"
+                              ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
+                              : detail::resampleGdal(vrt, f, kernel.resample, o.threads, g, progress);
   if (!err.empty()) return Problem{o.output, 0, err};
-  if (o.resample == "bilinear" && o.fit == "triangles") {
+  if (kernel.fit == "triangles") {
     if (std::string e = detail::fitTriangles(vrt, f, o.threads, g, progress); !e.empty()) return Problem{o.output, 0, e};
   }
   const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
-  std::vector<std::uint8_t> filled(g.size());
+  std::vector<std::uint8_t> cls(g.size());  // detail::PostClass per post
   {
     const int nt = detail::threadCount(o.threads);
     std::vector<std::thread> pool;
     for (int t = 0; t < nt; ++t) {
       pool.emplace_back([&, t] {
-        for (std::size_t k = g.size() * t / nt, e = g.size() * (t + 1) / nt; k < e; ++k) filled[k] = std::isnan(g[k]) ? 1 : 0;
+        for (std::size_t k = g.size() * t / nt, e = g.size() * (t + 1) / nt; k < e; ++k) {
+          cls[k] = std::isnan(g[k]) ? detail::kVoidPost : detail::kValidPost;
+        }
       });
     }
     for (auto& t : pool) t.join();
   }
+  const std::uint64_t seaPosts = o.seaFromVoids ? detail::markSea(f, g, cls) : 0;
   auto voids = detail::fillVoids(f, g, progress);
   if (!voids) return voids.problems();
+  SourceAccuracy accuracy;
+  if (std::string e = detail::measureAccuracy(vrt, f, g, accuracy); !e.empty()) return Problem{o.output, 0, e};
   fs::remove(vrt, ec);
 
   const std::string gridPath = partial.path() + "/" + manifest::kGridFileName;
-  auto header = writeGrid(gridPath, f, g, filled, o.threads, progress);
+  auto header = writeGrid(gridPath, f, g, cls, o.threads, progress);
   if (!header) return header.problems();
   g = {};
 
@@ -376,16 +420,31 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
   report.posts = std::uint64_t(f.postsX) * f.postsZ;
   report.voidsFilled = voids.value();
+  report.seaPosts = seaPosts;
+  report.kernel = kernel;
+  report.accuracy = accuracy;
   report.resampleSeconds = resampleSeconds;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
   report.manifest.build = {
-      {"crs_request", o.crs},        {"resample", o.resample}, {"fit", o.resample == "bilinear" ? o.fit : "posts"},
+      {"crs_request", o.crs},        {"resample", kernel.resample}, {"fit", kernel.fit},
+      {"resample_request", o.resample}, {"resample_reason", kernel.reason},
+      {"spacing_ratio", kernel.spacingRatio},
       {"spacing_request_m", o.spacing}, {"voids_filled", report.voidsFilled},
+      {"sea_posts", report.seaPosts}, {"sea_from_voids", o.seaFromVoids},
       {"posts", report.posts},       {"seconds", report.seconds},
       {"resample_seconds", resampleSeconds}, {"posts_per_second", report.postsPerSecond},
       {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
-      {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m)"}, {"2", "filled void"}}}};
+      {"accuracy", accuracyJson(accuracy)},
+      {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m, or sea from voids)"}, {"2", "filled void"}}}};
+  if (o.seaFromVoids) {
+    char rule[200];
+    std::snprintf(rule, sizeof rule,
+                  "void components reached from the grid's edge through voids and posts <= 0 m, whose shore posts "
+                  "have a median elevation within %g m of 0, are sea: 0 m, material 1",
+                  kSeaShoreMedianM);
+    report.manifest.build["sea_rule"] = rule;
+  }
   if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
   if (modules) {
     report.manifest.build["modules"] = moduleReportJson(*modules);

@@ -1,6 +1,7 @@
 #pragma once
 // Internal pieces of the elevation build, shared between its source files.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -15,6 +16,11 @@ namespace sandtable::convert::detail {
 /// (e.g. -32767 fill in files that declare no nodata).
 inline constexpr double kMinValid = -12000.0;
 inline constexpr double kMaxValid = 9000.0;
+
+/// A source post that is not elevation becomes NaN (a void).
+inline float validOrNan(float x, bool hasNoData, float nd) {
+  return (!std::isfinite(x) || (hasNoData && x == nd) || x < kMinValid || x > kMaxValid) ? NAN : x;
+}
 
 /// One opened and checked source raster.
 struct Source {
@@ -65,6 +71,25 @@ std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::
 /// the source's bilinear surface (not point samples of it).
 std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
                          const ProgressFn& progress);
+
+/// What a post was after resampling: the void map behind materials 1 and 2.
+enum PostClass : std::uint8_t { kValidPost = 0, kVoidPost = 1, kSeaPost = 2 };
+
+/// The sea rule (ElevationOptions::seaFromVoids). A 4-connected void
+/// component of `grid` (NaN posts; kVoidPost in `cls`) is sea when (1) the
+/// grid's edge reaches it through voids and valid posts at or below 0 m
+/// (a sea stored as 0 can enclose void patches), and (2) the median
+/// elevation of its shore (the valid posts 4-adjacent to it) is within
+/// kSeaShoreMedianM of 0. Its posts become 0 m and kSeaPost. Returns the
+/// number of sea posts.
+std::uint64_t markSea(const Frame& f, std::vector<float>& grid, std::vector<std::uint8_t>& cls);
+
+/// The grid's drawn triangles (FORMAT.md §2) against the mosaic's valid
+/// posts: every k-th source post along rows and columns, k chosen for about
+/// kAccuracyPosts posts over the grid, those inside the grid kept.
+inline constexpr double kAccuracyPosts = 8192;
+std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid,
+                            SourceAccuracy& out);
 
 /// Fills NaN posts by interpolation (GDALFillNodata); returns how many.
 Result<std::uint64_t> fillVoids(const Frame& f, std::vector<float>& grid, const ProgressFn& progress);

@@ -247,11 +247,6 @@ void windowBounds(GDALRasterBand& band, const Lattice& L, double pad, Window& wi
   win.h = y1 - win.y0 + 1;
 }
 
-/// A source post that is not elevation becomes NaN (a void).
-inline float validOrNan(float x, bool hasNoData, float nd) {
-  return (!std::isfinite(x) || (hasNoData && x == nd) || x < kMinValid || x > kMaxValid) ? NAN : x;
-}
-
 std::string readWindow(GDALRasterBand& band, const Lattice& L, double pad, Window& win,
                        const SourceImage* image = nullptr) {
   windowBounds(band, L, pad, win);

@@ -61,6 +61,10 @@ int runBuild(BuildArgs& a) {
                         {"seconds", r.seconds},        {"resample_seconds", r.resampleSeconds},
                         {"posts_per_second", r.postsPerSecond}, {"crs", r.manifest.crsName},
                         {"min_elevation", r.manifest.minElevation}, {"max_elevation", r.manifest.maxElevation}};
+    j["sea_posts"] = r.seaPosts;
+    j["resample"] = {{"request", a.o.resample}, {"kernel", r.kernel.resample}, {"fit", r.kernel.fit},
+                     {"spacing_ratio", r.kernel.spacingRatio}, {"reason", r.kernel.reason}};
+    j["accuracy"] = r.manifest.build["accuracy"];
     if (r.manifest.build.contains("modules")) {
       j["modules"] = r.manifest.build["modules"];
       j["culture"] = r.manifest.build["culture"];
@@ -72,8 +76,17 @@ int runBuild(BuildArgs& a) {
   std::printf("  frame      %s, %.2f m posts, %u x %u posts\n", r.manifest.crsName.c_str(), r.manifest.spacing,
               r.manifest.postsX, r.manifest.postsZ);
   std::printf("  elevation  %.1f .. %.1f m\n", r.manifest.minElevation, r.manifest.maxElevation);
-  std::printf("  posts      %llu (%llu voids filled, %.3f%%)\n", static_cast<unsigned long long>(r.posts),
-              static_cast<unsigned long long>(r.voidsFilled), 100.0 * double(r.voidsFilled) / double(r.posts));
+  std::printf("  posts      %llu (%llu voids filled, %.3f%%; %llu sea posts from voids, %.3f%%)\n",
+              static_cast<unsigned long long>(r.posts), static_cast<unsigned long long>(r.voidsFilled),
+              100.0 * double(r.voidsFilled) / double(r.posts), static_cast<unsigned long long>(r.seaPosts),
+              100.0 * double(r.seaPosts) / double(r.posts));
+  std::printf("  resample   %s%s: %s\n", r.kernel.resample.c_str(), r.kernel.fit == "triangles" ? " + triangle fit" : "",
+              r.kernel.reason.c_str());
+  const auto& acc = r.accuracy;
+  std::printf("  accuracy   RMSE %.2f m, max |error| %.2f m (%.1f m source post at lon %.5f lat %.5f), "
+              "mean %+.2f m, against %llu source posts\n",
+              acc.rmse, acc.maxAbs, acc.worstSource, acc.worstLonLat[0], acc.worstLonLat[1], acc.mean,
+              static_cast<unsigned long long>(acc.samples));
   std::printf("  time       %.2f s (resampling %.2f s), %.2f M posts/s\n", r.seconds, r.resampleSeconds,
               r.postsPerSecond / 1e6);
   printModuleSummary(r);
@@ -95,8 +108,10 @@ void registerBuild(CLI::App& root, Commands& c) {
   sub->add_option("--crs", a->o.crs, "Target frame: utm (zone of the centre), cassini, or EPSG:n")
       ->default_val("utm");
   sub->add_option("--spacing", a->o.spacing, "Post spacing in metres (default: finest native spacing)");
-  sub->add_option("--resample", a->o.resample, "weighted (seed Fig. 13) | bilinear | cubic | average")
-      ->default_val("weighted");
+  sub->add_option("--resample", a->o.resample,
+                  "auto (weighted when the spacing is >= 4x the source's, else bilinear) | weighted (seed Fig. 13) "
+                  "| bilinear | cubic | average")
+      ->default_val("auto");
   sub->add_option("--fit", a->o.fit,
                   "With bilinear: triangles (least-squares fit of the drawn triangles to the source) | posts "
                   "(point samples, as gdalwarp)")
@@ -111,6 +126,9 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "Load-module edge in metres, rounded to a whole number of coarsest-level posts")
       ->default_val(1000.0);
   sub->add_option("--levels", a->o.levels, "Levels of detail per module (1..8)")->default_val(4);
+  sub->add_flag("--no-sea-from-voids", [a](std::int64_t) { a->o.seaFromVoids = false; },
+                "Fill every void by interpolation; by default voids reaching the grid's edge with a shore at sea "
+                "level (median within 5 m of 0) become sea (0 m, water)");
   sub->add_flag("--no-modules", [a](std::int64_t) { a->o.modules = false; },
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);

@@ -48,6 +48,11 @@ nlohmann::json infoJson(const Database& db) {
           {"tool_version", m.toolVersion},
           {"created_utc", m.createdUtc},
           {"build", m.build}};
+  // Void counts as the build recorded them; null when it did not.
+  for (const char* key : {"voids_filled", "sea_posts"}) {
+    const auto v = m.build.is_object() ? m.build.find(key) : m.build.end();
+    j[key] = v != m.build.end() && v->is_number_unsigned() ? *v : nlohmann::json();
+  }
   // Culture and module statistics are recorded by the build; null for a grid-only database.
   j["modules"] = m.build.contains("modules") ? m.build["modules"] : nlohmann::json();
   j["culture"] = m.build.contains("culture") ? m.build["culture"] : nlohmann::json();
@@ -115,10 +120,15 @@ void printHuman(const nlohmann::json& j) {
     std::printf("source     %s (%s)\n", s["path"].get<std::string>().c_str(), s["driver"].get<std::string>().c_str());
   }
   const auto& b = j["build"];
-  std::printf("built      %s by sandtable %s, resample %s, %llu voids filled, %.2f s\n",
+  std::printf("built      %s by sandtable %s, resample %s, %llu voids filled, %llu sea posts from voids, %.2f s\n",
               j["created_utc"].get<std::string>().c_str(), j["tool_version"].get<std::string>().c_str(),
               b.value("resample", std::string("?")).c_str(),
-              static_cast<unsigned long long>(b.value("voids_filled", std::uint64_t{0})), b.value("seconds", 0.0));
+              static_cast<unsigned long long>(b.value("voids_filled", std::uint64_t{0})),
+              static_cast<unsigned long long>(b.value("sea_posts", std::uint64_t{0})), b.value("seconds", 0.0));
+  if (const auto a = b.find("accuracy"); a != b.end() && a->is_object()) {
+    std::printf("accuracy   RMSE %.2f m, max |error| %.2f m against %llu source posts\n", a->value("rmse_m", 0.0),
+                a->value("max_abs_m", 0.0), static_cast<unsigned long long>(a->value("source_posts", std::uint64_t{0})));
+  }
   if (!j["modules"].is_null()) printModules(j["modules"]);
   if (!j["culture"].is_null()) printCulture(j["culture"]);
 }

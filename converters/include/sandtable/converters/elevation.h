@@ -4,6 +4,7 @@
 // memory-mapped grid file at constant post spacing in a projected frame.
 #include <array>
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -22,7 +23,11 @@ struct ElevationOptions {
   std::string output;                ///< database directory to create
   std::string crs = "utm";           ///< utm | cassini | EPSG:n
   double spacing = 0;                ///< metres; 0 = the sources' finest native spacing
-  std::string resample = "weighted"; ///< weighted | bilinear | cubic | average
+  /// auto | weighted | bilinear | cubic | average. auto picks by the ratio
+  /// of the target spacing to the sources' finest native spacing:
+  /// weighted (the seed's average) at ratio >= kAutoWeightedRatio, else
+  /// bilinear (with the triangle fit unless fit = "posts"); see chooseKernel.
+  std::string resample = "auto";
   /// With bilinear: "triangles" fits the posts so the drawn triangles best
   /// match the source surface (least squares); "posts" keeps GDAL's point
   /// samples at the posts, as gdalwarp would.
@@ -37,14 +42,59 @@ struct ElevationOptions {
   int zstdLevel = 9;           ///< module compression level
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent
   bool force = false;          ///< replace an existing output directory
+  /// Voids connected to the grid's edge (through voids and posts at or
+  /// below 0 m) whose shore (the valid posts next to them) has a median
+  /// elevation within kSeaShoreMedianM of 0 become sea: elevation 0,
+  /// material water. Other voids are filled by interpolation.
+  bool seaFromVoids = true;
   int threads = 0;             ///< 0 = all cores
+};
+
+/// auto picks the seed's weighted average when the target spacing is at
+/// least this many times the sources' finest native spacing. Below it the
+/// triangle fit has the lower RMSE and the lower worst error against the
+/// source posts on rugged cells (measured: docs/ARCHITECTURE.md, stage 6);
+/// from about 4x its 3 x 3 samples per square alias (fewer than one per
+/// source post) and its worst errors pass the average's.
+inline constexpr double kAutoWeightedRatio = 4.0;
+
+/// An edge-connected void becomes sea when the median elevation of its
+/// shore is within this many metres of 0.
+inline constexpr double kSeaShoreMedianM = 5.0;
+
+/// The kernel a build uses, and why.
+struct KernelChoice {
+  std::string resample;  ///< weighted | bilinear | cubic | average
+  std::string fit;       ///< triangles | posts (always posts unless bilinear)
+  double spacingRatio = 0;  ///< target spacing / finest native source spacing
+  std::string reason;
+};
+
+/// The kernel for `request` (an ElevationOptions::resample value) at this
+/// target and native spacing; explicit kernels are kept as given.
+KernelChoice chooseKernel(const std::string& request, const std::string& fit, double targetSpacing,
+                          double nativeSpacing);
+
+/// The built grid's drawn triangles against the source posts, at a
+/// deterministic sample of valid source posts inside the grid.
+struct SourceAccuracy {
+  std::uint64_t samples = 0;
+  double rmse = 0;     ///< metres
+  double maxAbs = 0;   ///< metres
+  double mean = 0;     ///< grid minus source, metres
+  std::array<double, 2> worstLonLat{};  ///< where |error| = maxAbs
+  double worstSource = 0;  ///< the source post there, metres
+  double worstError = 0;   ///< grid minus source there (signed), metres
 };
 
 struct ElevationReport {
   std::uint64_t posts = 0;
   std::uint64_t modules = 0;
   double moduleSeconds = 0;
-  std::uint64_t voidsFilled = 0;
+  std::uint64_t voidsFilled = 0;  ///< inland voids filled by interpolation (material 2)
+  std::uint64_t seaPosts = 0;     ///< voids that became sea (elevation 0, material 1)
+  KernelChoice kernel;
+  SourceAccuracy accuracy;
   double seconds = 0;
   double resampleSeconds = 0;
   double postsPerSecond = 0;
