@@ -208,11 +208,11 @@ Result<bool> Loader::readSource(const std::string& source) {
       if (!ls.skip) addFeature(source + " layer " + ls.name, f, ls);
     }
     OGR_F_Destroy(f);
-    if (n % 256 == 0) {
-      if (cancelRequested()) {
-        GDALClose(ds);
-        return Problem{source, 0, "build: cancelled"};
-      }
+    if (cancelRequested()) {
+      GDALClose(ds);
+      return Problem{source, 0, "build: cancelled"};
+    }
+    if (n % 64 == 0) {
       // Reading is the first half of loading; widening the second.
       progress(0.5 * (double(sourceIndex) + std::clamp(pct, 0.0, 1.0)) / double(sourceCount), "reading culture");
     }
@@ -718,11 +718,11 @@ std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeT
       }
       l.box = Box{};
       for (const Ring& r : l.outline) l.box.add(boxOf(r));
-      const std::size_t d = ++done;
-      if (d % 64 == 0 || d == lines.size()) loader.progress(0.5 + 0.5 * double(d) / double(lines.size()), "widening lines");
+      loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
       if (cancelRequested()) stop = true;
     }
   };
+  if (!lines.empty()) loader.progress(0.5, "widening lines");
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
   work();
