@@ -14,15 +14,19 @@
 namespace sandtable::convert {
 namespace {
 
-// Per worker thread.
-constexpr double kPostsPerSecond = 2.0e6;         ///< resampling, void fill and grid writing together
-constexpr double kModulesPerSecond = 250.0;       ///< load modules without culture
-constexpr double kCultureModulesPerSecond = 25.0; ///< with dense culture (OSM towns); sparse culture is faster
+// Per worker thread, measured on the 2-core VM shared with other builds
+// (N49E011 at 30 m, 8.3 M posts, 8,208 modules: 5.5 s before the modules,
+// 22.8 s of modules, 196 MB peak RSS; the north-Bayreuth OSM build of
+// docs/CULTURE.md for dense culture).
+constexpr double kPostsPerSecond = 0.75e6;        ///< sources, resampling, void fill and grid writing together
+constexpr double kModulesPerSecond = 180.0;       ///< load modules without culture
+constexpr double kCultureModulesPerSecond = 25.0; ///< with dense culture everywhere (OSM towns): an upper bound
 // Memory: the resampled grid (float), its void mask and the void filler's
-// working copies per post, plus the process and GDAL's cache.
-constexpr double kBytesPerPost = 14.0;
-constexpr double kBaseBytes = 120e6;
-constexpr double kBytesPerModuleThread = 40e6;  ///< one module's partition and levels per worker
+// working copies per post, plus the process and GDAL's cache, plus one
+// module's partition and levels per worker.
+constexpr double kBytesPerPost = 15.0;
+constexpr double kBaseBytes = 70e6;
+constexpr double kBytesPerModuleThread = 20e6;
 
 std::uint64_t physicalMemory() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
