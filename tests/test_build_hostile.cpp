@@ -92,8 +92,12 @@ TEST(BuildHostile, zigzagAndTenThousandVertexRoadsBuildAndValidate) {
     EXPECT_EQ(j["culture"]["lines_coarsened"], c.coarsened ? 1 : 0);
     EXPECT_LT(j["culture"]["line_vertices_kept"].get<int>(), 1000);
     EXPECT_GT(j["culture"]["classes"]["primary"]["length_km"].get<double>(), c.coarsened ? 0.1 : 2.9);
-    EXPECT_TRUE(j.contains("estimate"));
+    // The estimate's sizes are exact: what was built.
+    ASSERT_TRUE(j.contains("estimate"));
     EXPECT_EQ(j["estimate"]["posts"], j["posts"]);
+    EXPECT_EQ(j["estimate"]["modules"], j["modules"]["count"]);
+    EXPECT_EQ(j["estimate"]["grid_bytes"].get<std::uintmax_t>(), fs::file_size(db + "/grid.stg"));
+    EXPECT_GT(j["estimate"]["peak_bytes"].get<double>(), 0.0);
     expectValid(db);
   }
 }
@@ -241,7 +245,8 @@ INSTANTIATE_TEST_SUITE_P(
     Stages, BuildSignal,
     ::testing::Values(SignalCase{"sigtermWhileWideningCulture", SIGTERM, true, "widening lines"},
                       SignalCase{"sigintWhileReadingCulture", SIGINT, true, "reading culture"},
-                      SignalCase{"sigtermWhileResampling", SIGTERM, false, "resampling"}),
+                      SignalCase{"sigtermWhileResampling", SIGTERM, false, "resampling"},
+                      SignalCase{"sigintWhileBuildingModules", SIGINT, false, "modules:"}),
     [](const auto& p) { return std::string(p.param.name); });
 
 // ------------------------------------------------------------ culture off the terrain
@@ -285,6 +290,9 @@ TEST(BuildHostile, cultureLandingInPartCountsWhatLanded) {
             std::string::npos)
       << t.out;
   EXPECT_NE(t.err.find("estimate: "), std::string::npos) << t.err;
+  // Culture loading shows progress (plain lines: stderr is not a TTY).
+  EXPECT_NE(t.err.find("reading culture:"), std::string::npos) << t.err;
+  EXPECT_NE(t.err.find("widening lines:"), std::string::npos) << t.err;
 }
 
 }  // namespace

@@ -704,6 +704,7 @@ std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeT
   std::atomic<std::size_t> next{0}, done{0};
   std::atomic<std::size_t> failed{0};
   std::atomic<bool> stop{false};
+  std::mutex progressMutex;
   auto work = [&] {
     for (std::size_t k = next++; k < lines.size() && !stop; k = next++) {
       LineFeature& l = lines[k];
@@ -718,7 +719,10 @@ std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeT
       }
       l.box = Box{};
       for (const Ring& r : l.outline) l.box.add(boxOf(r));
-      loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
+      {
+        std::lock_guard lock(progressMutex);  // callbacks are called one at a time
+        loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
+      }
       if (cancelRequested()) stop = true;
     }
   };
@@ -804,6 +808,7 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
   if (cancelled) return Problem{"culture", 0, "build: cancelled"};
   std::erase_if(impl->lines, [](const LineFeature& l) { return l.outline.empty(); });
   impl->buildIndex();
+  impl->options.progress = nullptr;  // it may refer to the caller's state; load is over
   impl->stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return std::shared_ptr<const Culture>(std::move(impl));
 }

@@ -56,7 +56,7 @@ struct CultureOptions {
   /// tolerance is doubled until it fits (counted in CultureStats::coarsened).
   std::size_t maxLineVertices = 20000;
   /// fraction in [0, 1] of loading, and the stage ("reading culture",
-  /// "widening lines"); called from any thread. May be empty.
+  /// "widening lines"), from load's threads, one call at a time. May be empty.
   std::function<void(double, const std::string&)> progress;
 };
 
