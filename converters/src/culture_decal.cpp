@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "culture_internal.h"
+#include "sandtable/converters/elevation.h"  // cancelRequested
 
 namespace sandtable::convert {
 namespace culture {
@@ -1009,7 +1010,12 @@ std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz,
     }
     return r;
   };
+  // A cancelled build discards the module: stop early, leave it default skin.
+  bool cancelled = cancelRequested();
+  std::uint32_t seen = 0;
+  auto stop = [&] { return cancelled || (++seen % 256 == 0 && (cancelled = cancelRequested())); };
   for (std::uint32_t id : gather(areaIndex)) {
+    if (stop()) break;
     const AreaFeature& f = areas[id];
     if (!f.box.overlaps(world)) continue;
     for (const Ring& r : f.rings) {
@@ -1019,6 +1025,7 @@ std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz,
   }
   const std::vector<std::uint32_t> lineIds = gather(lineIndex);
   for (std::uint32_t id : lineIds) {
+    if (stop()) break;
     const LineFeature& f = lines[id];
     if (!f.box.overlaps(world)) continue;
     for (const Ring& r : f.outline) {
@@ -1027,7 +1034,7 @@ std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz,
     }
   }
   std::vector<LayerGeometry> geo;
-  if (!in.rings.empty()) {
+  if (!in.rings.empty() && !cancelled && !cancelRequested()) {
     try {
       geo = buildCell(in);
     } catch (const std::exception&) {

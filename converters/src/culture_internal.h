@@ -13,6 +13,7 @@
 // Seen on a north-up map (z pointing down the page) positive rings run
 // clockwise; output triangles are flipped to the renderer's winding only
 // when they are emitted.
+#include <algorithm>
 #include <cmath>
 #include <condition_variable>
 #include <cstdint>
@@ -77,6 +78,43 @@ Ring clipRingToRect(const Ring& ring, const Box& rect);
 /// vertex. Closed polylines (first == last) give two rings, the road's two
 /// sides. Appends to `out`.
 void outlineOf(const Polyline& line, double width, std::vector<Ring>& out);
+
+/// Segments per chunk of a widened line (see widenLine).
+inline constexpr std::size_t kWidenChunk = 32;
+
+/// Thrown by long culture work when the build is cancelled
+/// (convert::requestCancel); callers turn it into "cancelled".
+struct Cancelled {};
+
+/// The widened polygon of one line feature: outlineOf for every part, and
+/// an octagon at each end marked in joinStart/joinEnd, united by nonzero
+/// winding. The outline is cut into chunks of kWidenChunk segments that
+/// overlap by one segment (so every join lies inside a chunk); each chunk
+/// is united on its own and the results are united pairwise. An
+/// arrangement of one chunk is small whatever the line does, and each
+/// pairwise union sees only two union boundaries, so a line that folds
+/// back on itself within its width costs about n log n, not n^2
+/// (docs/CULTURE.md, "Bounded work"). Checks the cancel flag between
+/// unions and throws Cancelled. Throws std::exception on CGAL failure.
+/// Each union's rings are simplified (simplifiedLine) before the next, at
+/// tolerance / 2 for the chunks, / 4 for their unions, and so on: union
+/// moves no boundary further than its inputs moved, so the result lies
+/// within `tolerance` of the exact union.
+std::vector<Ring> widenLine(const std::vector<Polyline>& parts, const std::vector<bool>& joinStart,
+                            const std::vector<bool>& joinEnd, double width, double tolerance);
+
+/// The size rule's base tolerance for a line of `width` (docs/CULTURE.md,
+/// "Bounded work"): max(merge tolerance, width / 100).
+inline double simplifyTolerance(double width, double mergeTolerance) { return std::max(mergeTolerance, width / 100.0); }
+
+/// Douglas-Peucker (GEOS, through OGR's Simplify) of a polyline at `tol`:
+/// a subset of its vertices, ends kept, no vertex more than `tol` from the
+/// result. The line itself when simplifying would collapse it (a loop to
+/// fewer than four points).
+Polyline simplifiedLine(const Polyline& p, double tol);
+
+/// The join piece where line ends meet (see culture_geometry.cpp).
+Ring octagon(Vec2 c, Vec2 from, double width);
 
 // ------------------------------------------------------------ CGAL side
 

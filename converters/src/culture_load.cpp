@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <map>
@@ -20,6 +21,7 @@
 
 #include "culture_internal.h"
 #include "sandtable/converters/crs.h"
+#include "sandtable/converters/elevation.h"  // cancelRequested
 
 namespace sandtable::convert {
 
@@ -28,6 +30,10 @@ using namespace culture;
 namespace {
 
 constexpr std::size_t kMaxMessages = 20;
+/// Size rule: vertices within about a width of each vertex, on average
+/// (crowding); 3 x width / spacing for a line that runs on, so this allows
+/// vertex spacings down to about width / 80.
+constexpr std::uint64_t kMaxCrowding = 256;
 
 bool endsWithNoCase(const std::string& s, const char* suffix) {
   const std::size_t n = std::strlen(suffix);
@@ -115,8 +121,22 @@ struct Loader {
   /// every other area class: they are counted, not kept.
   bool dropDefaultAreas = false;
   std::uint64_t outside = 0;  ///< features of the current source wholly outside the database
+  /// Per source: its features' extent in the database CRS, and how many landed.
+  struct SourceTally {
+    std::string path;
+    Box extent;
+    std::uint64_t read = 0, landed = 0, outside = 0;
+  };
+  std::vector<SourceTally> tallies;
+  std::size_t sourceIndex = 0, sourceCount = 1;
 
   explicit Loader(CultureImpl& impl) : c(impl) {}
+
+  void progress(double fraction, const char* stage) const {
+    if (c.options.progress) c.options.progress(fraction, stage);
+  }
+  std::string lonLatExtent(const Box& projected);
+  std::vector<Problem> nothingLanded(const CultureFrame& frame);
 
   void warn(const std::string& m) {
     ++c.stats_.warnings;
@@ -130,6 +150,7 @@ struct Loader {
   bool addLine(const std::string& where, const OGRGeometry& g, const materials::Class& cls, double width,
                ClassStats& cs);
   bool addArea(const std::string& where, OGRGeometry& g, const materials::Class& cls, ClassStats& cs);
+  void simplifyLine(const std::string& id, LineFeature& lf);
 };
 
 Result<bool> Loader::readSource(const std::string& source) {
@@ -174,17 +195,33 @@ Result<bool> Loader::readSource(const std::string& source) {
     }
     return s;
   };
+  tallies.push_back({source, {}, 0, 0, 0});
+  const std::uint64_t read0 = c.stats_.featuresRead, landed0 = c.stats_.featuresLanded;
   GDALDatasetResetReading(ds);
-  for (;;) {
+  for (std::uint64_t n = 0;; ++n) {
     OGRLayerH layer = nullptr;
-    OGRFeatureH f = GDALDatasetGetNextFeature(ds, &layer, nullptr, nullptr, nullptr);
+    double pct = 0;
+    OGRFeatureH f = GDALDatasetGetNextFeature(ds, &layer, &pct, nullptr, nullptr);
     if (!f) break;
     if (layer) {
       LayerState& ls = stateOf(layer);
       if (!ls.skip) addFeature(source + " layer " + ls.name, f, ls);
     }
     OGR_F_Destroy(f);
+    if (cancelRequested()) {
+      GDALClose(ds);
+      return Problem{source, 0, "build: cancelled"};
+    }
+    if (n % 64 == 0) {
+      // Reading is the first half of loading; widening the second.
+      progress(0.5 * (double(sourceIndex) + std::clamp(pct, 0.0, 1.0)) / double(sourceCount), "reading culture");
+    }
   }
+  SourceTally& tally = tallies.back();
+  tally.read = c.stats_.featuresRead - read0;
+  tally.landed = c.stats_.featuresLanded - landed0;
+  tally.outside = outside;
+  c.stats_.featuresOutside += outside;
   if (outside > 0 && c.stats_.messages.size() < kMaxMessages) {
     c.stats_.messages.push_back("culture: " + source + ": " + std::to_string(outside) +
                                 " features lie outside the database (dropped, not a warning)");
@@ -199,6 +236,47 @@ Result<bool> Loader::readSource(const std::string& source) {
   }
   GDALClose(ds);
   return true;
+}
+
+std::string Loader::lonLatExtent(const Box& b) {
+  OGRSpatialReference wgs84;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&target, &wgs84));
+  Box ll;
+  for (int i = 0; i <= 4 && ct; ++i) {  // the edges, not only the corners: projections bend them
+    for (int j = 0; j <= 4; ++j) {
+      double x = b.x0 + (b.x1 - b.x0) * i / 4, y = b.z0 + (b.z1 - b.z0) * j / 4;
+      if (ct->Transform(1, &x, &y) && std::isfinite(x + y)) ll.add(Vec2{x, y});
+    }
+  }
+  if (ll.empty()) return "(not expressible in longitude/latitude)";
+  char text[128];
+  std::snprintf(text, sizeof text, "lon %.4f .. %.4f, lat %.4f .. %.4f", ll.x0, ll.x1, ll.z0, ll.z1);
+  return text;
+}
+
+/// The error when culture was given but none of it lies on the terrain.
+std::vector<Problem> Loader::nothingLanded(const CultureFrame& frame) {
+  const Box db{frame.originEasting, frame.originNorthing - frame.heightM, frame.originEasting + frame.widthM,
+               frame.originNorthing};
+  std::vector<Problem> out;
+  for (const SourceTally& t : tallies) {
+    std::string m;
+    if (t.read == 0) {
+      m = "culture: no line or area features (points are not culture); nothing to decal";
+    } else if (t.outside == 0) {
+      m = "culture: none of its " + std::to_string(t.read) +
+          " line and area features was used (ignored by the material table, or dropped as unusable)";
+    } else {
+      m = "culture: none of its " + std::to_string(t.read) + " line and area features lies on the terrain (" +
+          std::to_string(t.outside) + " wholly outside): the culture covers " + lonLatExtent(t.extent) +
+          ", the database " + lonLatExtent(db);
+    }
+    out.push_back({t.path, 0, m + "; give culture that overlaps the elevation (or a larger --elevation or "
+                                  "--extent), or leave out --culture"});
+  }
+  return out;
 }
 
 /// Kind of a geometry for classification: 1 line, 2 area, 0 neither.
@@ -254,7 +332,6 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
     ++ls.defaulted;
     ++c.stats_.warnings;
   }
-  if (kind == 2 && dropDefaultAreas && cls->id == c.table.defaultArea) return;
   const std::string id = where + " feature " + std::to_string(OGR_F_GetFID(f));
   // Curves to line strings, then into the database CRS.
   std::unique_ptr<OGRGeometry> g(raw->hasCurveGeometry() ? raw->getLinearGeometry() : raw->clone());
@@ -264,11 +341,18 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
     return;
   }
   g->flattenTo2D();
-  if (kind == 1) {
-    addLine(id, *g, *cls, m.width, cs);
-  } else {
-    addArea(id, *g, *cls, cs);
+  OGREnvelope env;
+  g->getEnvelope(&env);
+  const Box box{env.MinX, env.MinY, env.MaxX, env.MaxY};
+  tallies.back().extent.add(box);
+  if (kind == 2 && dropDefaultAreas && cls->id == c.table.defaultArea) {
+    // Changes nothing on the skin, but lands if it overlaps.
+    if (box.overlaps(dbProjected)) ++c.stats_.featuresLanded;
+    else ++outside;
+    return;
   }
+  const bool kept = kind == 1 ? addLine(id, *g, *cls, m.width, cs) : addArea(id, *g, *cls, cs);
+  if (kept) ++c.stats_.featuresLanded;
 }
 
 template <typename Fn>
@@ -334,6 +418,75 @@ double lengthOf(const Polyline& p) {
   return s;
 }
 
+std::size_t verticesOf(const std::vector<Polyline>& parts) {
+  std::size_t n = 0;
+  for (const Polyline& p : parts) n += p.size();
+  return n;
+}
+
+/// How crowded a line's vertices are, relative to its width: the sum over
+/// vertices of the vertices within the 3 x 3 cells (one width a side)
+/// around them. A line that runs on is about 3 x width / spacing per
+/// vertex; one that folds back on itself within its width, far more. The
+/// widened union's arrangement grows with it.
+std::uint64_t crowding(const std::vector<Polyline>& parts, double width) {
+  struct Hash {
+    std::size_t operator()(std::pair<std::int64_t, std::int64_t> k) const {
+      return std::hash<std::int64_t>()(k.first * 1000003 + k.second);
+    }
+  };
+  std::unordered_map<std::pair<std::int64_t, std::int64_t>, std::uint32_t, Hash> cells;
+  auto cellOf = [&](Vec2 p) { return std::pair{std::int64_t(std::floor(p.x / width)), std::int64_t(std::floor(p.z / width))}; };
+  for (const Polyline& p : parts) {
+    for (const Vec2& v : p) ++cells[cellOf(v)];
+  }
+  std::uint64_t sum = 0;
+  for (const auto& [k, n] : cells) {
+    std::uint64_t around = 0;
+    for (std::int64_t dz = -1; dz <= 1; ++dz) {
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const auto it = cells.find({k.first + dx, k.second + dz});
+        if (it != cells.end()) around += it->second;
+      }
+    }
+    sum += std::uint64_t(n) * around;
+  }
+  return sum;
+}
+
+/// The size rule (docs/CULTURE.md, "Bounded work"): simplify at
+/// max(merge tolerance, width / 100), then at doubled tolerances while the
+/// feature has more than maxLineVertices vertices or they crowd more than
+/// kMaxCrowding per vertex.
+void Loader::simplifyLine(const std::string& id, LineFeature& lf) {
+  const std::size_t before = verticesOf(lf.parts);
+  c.stats_.lineVerticesRead += before;
+  double tol = simplifyTolerance(lf.width, c.options.mergeTolerance);
+  std::vector<Polyline> out;
+  for (int round = 0;; ++round) {
+    out.clear();
+    for (const Polyline& p : lf.parts) out.push_back(simplifiedLine(p, tol));
+    const std::size_t n = verticesOf(out);
+    const bool fits = n <= c.options.maxLineVertices && crowding(out, lf.width) <= kMaxCrowding * n;
+    if (fits || round >= 60) {
+      if (round > 0) {
+        ++c.stats_.coarsened;
+        char t[32];
+        std::snprintf(t, sizeof t, "%.3g", tol);
+        const std::string why = before > c.options.maxLineVertices
+                                    ? "more than the limit of " + std::to_string(c.options.maxLineVertices)
+                                    : "folding back on itself within its width";
+        warn("culture: " + id + ": " + std::to_string(before) + " vertices, " + why + "; simplified at " + t +
+             " m to " + std::to_string(n) + " vertices (docs/CULTURE.md, \"Bounded work\")");
+      }
+      break;
+    }
+    tol *= 2;
+  }
+  lf.parts = std::move(out);
+  c.stats_.lineVerticesKept += verticesOf(lf.parts);
+}
+
 bool Loader::addLine(const std::string& id, const OGRGeometry& g, const materials::Class& cls, double width,
                      ClassStats& cs) {
   std::vector<Polyline> parts;
@@ -384,6 +537,7 @@ bool Loader::addLine(const std::string& id, const OGRGeometry& g, const material
     ++outside;  // an extract larger than the database: expected, not a warning
     return false;
   }
+  simplifyLine(id, lf);
   if (repaired) {
     ++cs.repaired;
     warn("culture: " + id + ": repeated points removed");
@@ -542,50 +696,42 @@ void markJoins(std::vector<LineFeature>& lines) {
   }
 }
 
-/// A join piece where line ends meet: an octagon around the end `c`
-/// whose sides lie half a width from it, one side square to the line's
-/// last segment (from `from` to `c`), so the wedge between two butt ends at
-/// an angle is covered and nothing sticks out past the road's own sides.
-Ring octagon(Vec2 c, Vec2 from, double width) {
-  const double r = 0.5 * width / std::cos(std::numbers::pi / 8);
-  const double base = std::atan2(c.z - from.z, c.x - from.x);
-  Ring o;
-  for (int k = 0; k < 8; ++k) {
-    const double a = base + (k + 0.5) * std::numbers::pi / 4;
-    o.push_back({c.x + r * std::cos(a), c.z + r * std::sin(a)});
-  }
-  return o;
-}
-
-/// Widens every line feature (CGAL union of its outline rings), in parallel.
-std::string widenAll(std::vector<LineFeature>& lines, int threads) {
+/// Widens every line feature (widenLine), in parallel. Returns a warning
+/// ("" if none); `cancelled` is set when the build was cancelled.
+std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeTolerance, const Loader& loader,
+                     bool& cancelled) {
   const unsigned n = threads > 0 ? unsigned(threads) : std::max(1u, std::thread::hardware_concurrency());
-  std::atomic<std::size_t> next{0};
+  std::atomic<std::size_t> next{0}, done{0};
   std::atomic<std::size_t> failed{0};
+  std::atomic<bool> stop{false};
+  std::mutex progressMutex;
   auto work = [&] {
-    for (std::size_t k = next++; k < lines.size(); k = next++) {
+    for (std::size_t k = next++; k < lines.size() && !stop; k = next++) {
       LineFeature& l = lines[k];
-      std::vector<Ring> rings;
-      for (std::size_t p = 0; p < l.parts.size(); ++p) {
-        outlineOf(l.parts[p], l.width, rings);
-        const Polyline& q = l.parts[p];
-        if (l.joinStart[p]) rings.push_back(octagon(q.front(), q[1], l.width));
-        if (l.joinEnd[p]) rings.push_back(octagon(q.back(), q[q.size() - 2], l.width));
-      }
       try {
-        l.outline = unionRings(rings);
+        l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
+      } catch (const Cancelled&) {
+        stop = true;
+        break;
       } catch (const std::exception&) {
         l.outline.clear();
         ++failed;
       }
       l.box = Box{};
       for (const Ring& r : l.outline) l.box.add(boxOf(r));
+      {
+        std::lock_guard lock(progressMutex);  // callbacks are called one at a time
+        loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
+      }
+      if (cancelRequested()) stop = true;
     }
   };
+  if (!lines.empty()) loader.progress(0.5, "widening lines");
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
   work();
   for (auto& t : pool) t.join();
+  cancelled = stop;
   return failed ? std::to_string(failed.load()) + " line features could not be widened (CGAL failure); dropped"
                 : std::string();
 }
@@ -649,14 +795,20 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
   }
   loader.dbProjected = {frame.originEasting, frame.originNorthing - frame.heightM, frame.originEasting + frame.widthM,
                         frame.originNorthing};
+  loader.sourceCount = std::max<std::size_t>(1, options.sources.size());
   for (const std::string& s : options.sources) {
     auto r = loader.readSource(s);
     if (!r) return r.problems();
+    ++loader.sourceIndex;
   }
+  if (!options.sources.empty() && impl->stats_.featuresLanded == 0) return loader.nothingLanded(frame);
   markJoins(impl->lines);
-  if (std::string e = widenAll(impl->lines, options.threads); !e.empty()) loader.warn("culture: " + e);
+  bool cancelled = false;
+  if (std::string e = widenAll(impl->lines, options.threads, options.mergeTolerance, loader, cancelled); !e.empty()) loader.warn("culture: " + e);
+  if (cancelled) return Problem{"culture", 0, "build: cancelled"};
   std::erase_if(impl->lines, [](const LineFeature& l) { return l.outline.empty(); });
   impl->buildIndex();
+  impl->options.progress = nullptr;  // it may refer to the caller's state; load is over
   impl->stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return std::shared_ptr<const Culture>(std::move(impl));
 }

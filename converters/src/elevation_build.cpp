@@ -261,7 +261,7 @@ struct CultureSetup {
   std::shared_ptr<const Culture> culture;
 };
 
-Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f) {
+Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, const ProgressFn& progress) {
   CultureSetup c;
   if (!o.modules) return c;
   auto table = o.materials.empty()
@@ -272,6 +272,7 @@ Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f) {
   c.table = std::move(table.value());
   CultureOptions co;
   co.sources = o.culture;
+  co.progress = progress;
   CultureFrame frame{f.crs.wkt, f.originEasting, f.originNorthing, f.spacing * (f.postsX - 1),
                      f.spacing * (f.postsZ - 1)};
   auto culture = Culture::load(co, c.table, frame);
@@ -344,6 +345,12 @@ nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
   return {{"sources", o.culture},
           {"materials", o.materials.empty() ? std::string("built-in default") : o.materials},
           {"features_read", st.featuresRead},
+          {"features_landed", st.featuresLanded},
+          {"features_outside", st.featuresOutside},
+          {"line_vertices_read", st.lineVerticesRead},
+          {"line_vertices_kept", st.lineVerticesKept},
+          {"lines_coarsened", st.coarsened},
+          {"max_line_vertices", CultureOptions{}.maxLineVertices},
           {"warnings", st.warnings},
           {"messages", st.messages},
           {"classes", classes}};
@@ -361,7 +368,8 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   auto frame = detail::planFrame(o, sources.value());
   if (!frame) return frame.problems();
   const Frame& f = frame.value();
-  auto culture = loadCulture(o, f);  // before resampling: bad culture fails fast
+  if (o.onEstimate) o.onEstimate(estimateBuild(o, f.postsX, f.postsZ, f.spacing));
+  auto culture = loadCulture(o, f, progress);  // before resampling: bad culture fails fast
   if (!culture) return culture.problems();
 
   PartialDirectory partial(o.output + ".partial." + std::to_string(::getpid()));

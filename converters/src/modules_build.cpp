@@ -250,6 +250,7 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
   out.kz = kz;
   out.levels.resize(std::size_t(levels));
   for (int l = 0; l < levels; ++l) {
+    if (cancelRequested()) break;  // the caller discards a cancelled module
     const LevelLattice& lat = lats[std::size_t(l)];
     Level& level = out.levels[std::size_t(l)];
     const DecalStats ds = culture.decalLevel(lat, level);
@@ -307,6 +308,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
       }
       const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
       const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, local.data());
+      if (cancelRequested()) break;  // not compressed nor written: the build is being abandoned
       if (std::string e = writer.value()->add(m); !e.empty()) {
         std::lock_guard lock(mu);
         if (error.empty()) error = e;

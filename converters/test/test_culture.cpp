@@ -477,6 +477,128 @@ TEST(Culture, loopRoadIsAPolygonWithAHole) {
   for (int l = 0; l < 4; ++l) EXPECT_NEAR(d.checks[l].decal.at(classId(t, "street")), per * 6, kMergeArea * (per * 6)) << l;
 }
 
+// ------------------------------------------------------------ bounded work
+
+/// Decal area of `cls` at level `l`, summed over the modules of a frame
+/// of `w` x `h` metres.
+double decalAreaOver(const Culture& c, std::uint16_t cls, int l, double w, double h) {
+  double sum = 0;
+  for (double mz = 0; mz < h; mz += 1000) {
+    for (double mx = 0; mx < w; mx += 1000) {
+      const Decaled d = decalModule(c, mx, mz, l + 1, hills, w, h);
+      const auto it = d.checks[std::size_t(l)].decal.find(cls);
+      if (it != d.checks[std::size_t(l)].decal.end()) sum += it->second;
+    }
+  }
+  return sum;
+}
+
+TEST(Culture, smoothTenThousandVertexRoadIsLengthTimesWidth) {
+  // The hostile test's smooth road: 10,000 vertices 0.25 m apart on a
+  // gentle curve (radius >= 1.1 km). Before the size rule its widening took
+  // 16 s; now the centreline is simplified first.
+  Scratch s("smooth10k");
+  const auto t = sampleTable();
+  Path p;
+  for (int k = 0; k < 10000; ++k) {
+    const double x = 250 + 0.25 * k;
+    p.push_back({x, 1000 + 150 * std::sin(x / 350.0)});
+  }
+  double length = 0;
+  for (std::size_t k = 0; k + 1 < p.size(); ++k) length += std::hypot(p[k + 1][0] - p[k][0], p[k + 1][1] - p[k][1]);
+  auto c = loadScene(s, {line("\"highway\": \"secondary\", \"width\": \"10\"", p)}, t, 3000, 2000);
+  ASSERT_TRUE(c);
+  const CultureStats& st = c->stats();
+  EXPECT_EQ(st.lineVerticesRead, 10000u);
+  EXPECT_LT(st.lineVerticesKept, 1000u);
+  EXPECT_EQ(st.coarsened, 0u);
+  EXPECT_NEAR(st.perClass.at("secondary").lengthKm, length / 1000, 1e-9);  // of the line as read
+  // Simplified at 0.1 m: the area is L x W to well within 1 %.
+  const double want = length * 10;
+  EXPECT_NEAR(decalAreaOver(*c, classId(t, "secondary"), 0, 3000, 2000), want, 0.01 * want);
+}
+
+TEST(Culture, zigzagFoldingWithinItsWidthIsSimplifiedAndBounded) {
+  // The hostile test's line: 2,000 vertices 0.33 m apart along x, +-55 m
+  // across, 900 m wide: each segment's rectangle overlaps every other one.
+  // Its exact union took over 5 minutes. The size rule simplifies it until
+  // its vertices no longer crowd within its width.
+  Scratch s("zigzag");
+  const auto t = sampleTable();
+  Path p;
+  for (int k = 0; k < 2000; ++k) p.push_back({1170 + 0.33 * k, 1000 + (k % 2 ? 55.0 : -55.0)});
+  auto c = loadScene(s, {line("\"highway\": \"primary\", \"width\": \"900\"", p)}, t, 3000, 2000);
+  ASSERT_TRUE(c);
+  const CultureStats& st = c->stats();
+  EXPECT_EQ(st.coarsened, 1u);
+  EXPECT_LT(st.lineVerticesKept, 50u);
+  bool warned = false;
+  for (const auto& m : st.messages) warned |= m.find("folding back on itself within its width") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // Plausible: at least the band the zigzag sweeps (660 x 110 m), at most
+  // its box grown by half the width each side.
+  const double got = decalAreaOver(*c, classId(t, "primary"), 0, 3000, 2000);
+  EXPECT_GT(got, 660 * 110);
+  EXPECT_LT(got, (660 + 900) * (110 + 900));
+}
+
+TEST(Culture, lineVertexLimitCoarsensTheLine) {
+  Scratch s("limit");
+  const auto t = sampleTable();
+  Path p;
+  for (int k = 0; k < 2000; ++k) p.push_back({100 + 0.4 * k, 500 + 20 * std::sin(0.4 * k / 15.0)});
+  CultureOptions o;
+  o.sources = {writeGeoJson(s.dir / "scene.geojson", {line("\"highway\": \"secondary\", \"width\": \"10\"", p)})};
+  o.maxLineVertices = 40;
+  auto c = Culture::load(o, t, {wktOf(32632), kE0, kN0, 1000, 1000});
+  ASSERT_TRUE(c) << c.error();
+  EXPECT_EQ(c.value()->stats().coarsened, 1u);
+  EXPECT_LE(c.value()->stats().lineVerticesKept, 40u);
+  EXPECT_GE(c.value()->stats().lineVerticesKept, 2u);
+}
+
+TEST(Culture, noFeatureOnTheTerrainIsAnError) {
+  const auto t = sampleTable();
+  const std::string road = "\"highway\": \"secondary\", \"width\": \"10\"";
+  {
+    // Wholly outside: an error naming the file and both extents.
+    Scratch s("miss");
+    CultureOptions o;
+    o.sources = {writeGeoJson(s.dir / "far.geojson", {line(road, {{5000, 5000}, {6000, 5200}}),
+                                                     area("\"natural\": \"water\"", {circle(7000, 7000, 100, 12)})})};
+    auto c = Culture::load(o, t, {wktOf(32632), kE0, kN0, 1000, 1000});
+    ASSERT_FALSE(c);
+    const Problem& p = c.problems().front();
+    EXPECT_EQ(p.file, o.sources[0]);
+    EXPECT_NE(p.message.find("none of its 2 line and area features lies on the terrain"), std::string::npos) << p.message;
+    EXPECT_NE(p.message.find("the culture covers lon"), std::string::npos) << p.message;
+    EXPECT_NE(p.message.find("the database lon"), std::string::npos) << p.message;
+    EXPECT_NE(p.message.find("--extent"), std::string::npos) << p.message;
+  }
+  {
+    // An empty source: an error too.
+    Scratch s("none");
+    CultureOptions o;
+    o.sources = {writeGeoJson(s.dir / "empty.geojson", {})};
+    auto c = Culture::load(o, t, {wktOf(32632), kE0, kN0, 1000, 1000});
+    ASSERT_FALSE(c);
+    EXPECT_NE(c.problems().front().message.find("no line or area features"), std::string::npos);
+  }
+  {
+    // Some inside: counted as landed, the rest as outside.
+    Scratch s("some");
+    CultureOptions o;
+    o.sources = {writeGeoJson(s.dir / "some.geojson", {line(road, {{100, 100}, {900, 200}}),
+                                                      line(road, {{5000, 5000}, {6000, 5200}}),
+                                                      line(road, {{-3000, 100}, {-2000, 100}})})};
+    auto c = Culture::load(o, t, {wktOf(32632), kE0, kN0, 1000, 1000});
+    ASSERT_TRUE(c) << c.error();
+    EXPECT_EQ(c.value()->stats().featuresRead, 3u);
+    EXPECT_EQ(c.value()->stats().featuresLanded, 1u);
+    EXPECT_EQ(c.value()->stats().featuresOutside, 2u);
+  }
+}
+
 TEST(Culture, roadTextureCoordinatesRunAlongAndAcross) {
   Scratch s("st");
   const auto t = sampleTable();
@@ -595,10 +717,12 @@ TEST(Culture, invalidGeometryIsRepairedOrDroppedNeverAHole) {
 }
 
 TEST(Culture, moduleWithoutCultureIsOneTrianglePerHalf) {
-  Scratch s("empty");
   const auto t = sampleTable();
-  auto c = loadScene(s, {}, t);
-  ASSERT_TRUE(c);
+  // No sources (a build without --culture); an empty source is an error
+  // (noFeatureOnTheTerrainIsAnError).
+  auto loaded = Culture::load({}, t, {wktOf(32632), kE0, kN0, 3000, 1000});
+  ASSERT_TRUE(loaded) << loaded.error();
+  const auto c = loaded.value();
   const Decaled d = decalModule(*c, 1000, 0, 4, hills, 3000, 1000);
   EXPECT_EQ(d.levels[0].vertices.size(), 33u * 33u);
   EXPECT_EQ(d.levels[0].indices.size(), 32u * 32u * 6u);

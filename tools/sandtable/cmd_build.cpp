@@ -1,4 +1,5 @@
 // sandtable build: source elevation into a database directory.
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 
@@ -24,9 +25,9 @@ void printModuleSummary(const convert::ElevationReport& r) {
               bytes["median"].get<unsigned>(), bytes["p95"].get<unsigned>(), bytes["max"].get<unsigned>(),
               double(bytes["compressed_total"].get<std::uint64_t>()) / 1e6);
   const auto& c = b["culture"];
-  std::printf("  culture    %llu features, %llu warnings\n",
-              static_cast<unsigned long long>(c["features_read"].get<std::uint64_t>()),
-              static_cast<unsigned long long>(c["warnings"].get<std::uint64_t>()));
+  const auto count = [&](const char* key) { return static_cast<unsigned long long>(c.value(key, std::uint64_t(0))); };
+  std::printf("  culture    %llu features on the terrain (%llu read, %llu outside), %llu warnings\n",
+              count("features_landed"), count("features_read"), count("features_outside"), count("warnings"));
   for (const auto& msg : c["messages"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
 }
 
@@ -36,7 +37,44 @@ struct BuildArgs {
   bool json = false;
 };
 
-void onSignal(int) { convert::requestCancel(); }
+volatile std::sig_atomic_t gSignal = 0;
+
+/// Asks the build to stop; a second signal ends the process at once.
+void onSignal(int sig) {
+  gSignal = sig;
+  convert::requestCancel();
+  std::signal(sig, SIG_DFL);
+}
+
+std::string megabytes(std::uint64_t bytes) {
+  char s[32];
+  std::snprintf(s, sizeof s, bytes >= 10'000'000'000ull ? "%.0f GB" : bytes >= 1'000'000 ? "%.0f MB" : "%.1f MB",
+                double(bytes) / (bytes >= 10'000'000'000ull ? 1e9 : 1e6));
+  return s;
+}
+
+/// The one line printed before the build starts (README, "Build estimate").
+void printEstimate(const convert::BuildEstimate& e) {
+  std::fprintf(stderr,
+               "estimate: %llu posts (%u x %u), grid %s, %llu modules, about %.0f s on %d threads, peak memory "
+               "about %s\n",
+               static_cast<unsigned long long>(e.posts), e.postsX, e.postsZ, megabytes(e.gridBytes).c_str(),
+               static_cast<unsigned long long>(e.modules), std::max(1.0, e.seconds), e.threads,
+               megabytes(e.peakBytes).c_str());
+  if (e.tooBig) {
+    std::fprintf(stderr, "warning: that is more memory than this machine has (%s); a coarser --spacing or a "
+                 "smaller --extent needs less\n", megabytes(e.memoryBytes).c_str());
+  } else if (e.slow) {
+    std::fprintf(stderr, "note: a long build; Ctrl-C stops it and leaves nothing behind\n");
+  }
+}
+
+nlohmann::json estimateJson(const convert::BuildEstimate& e) {
+  return {{"posts", e.posts},         {"posts_x", e.postsX},     {"posts_z", e.postsZ},
+          {"grid_bytes", e.gridBytes}, {"modules", e.modules},    {"threads", e.threads},
+          {"seconds", e.seconds},     {"peak_bytes", e.peakBytes}, {"memory_bytes", e.memoryBytes},
+          {"slow", e.slow},           {"too_big", e.tooBig}};
+}
 
 int runBuild(BuildArgs& a) {
   if (!a.extent.empty()) {
@@ -46,8 +84,18 @@ int runBuild(BuildArgs& a) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   Progress progress(a.json);
+  convert::BuildEstimate estimate;
+  a.o.onEstimate = [&](const convert::BuildEstimate& e) {
+    estimate = e;
+    if (!a.json) printEstimate(e);
+  };
   auto report = convert::buildElevation(a.o, [&](double f, const std::string& s) { progress.update(f, s); });
   progress.done();
+  if (!report && gSignal != 0) {
+    std::fprintf(stderr, "sandtable build: cancelled by signal %d; nothing was written to %s\n", int(gSignal),
+                 a.o.output.c_str());
+    return 128 + gSignal;  // the shell's convention for a process ended by a signal
+  }
   if (!report) {
     for (const auto& p : report.problems()) std::fprintf(stderr, "sandtable build: error: %s\n", p.str().c_str());
     std::fprintf(stderr, "sandtable build: nothing was written to %s\n", a.o.output.c_str());
@@ -60,7 +108,8 @@ int runBuild(BuildArgs& a) {
                         {"spacing_m", r.manifest.spacing}, {"voids_filled", r.voidsFilled},
                         {"seconds", r.seconds},        {"resample_seconds", r.resampleSeconds},
                         {"posts_per_second", r.postsPerSecond}, {"crs", r.manifest.crsName},
-                        {"min_elevation", r.manifest.minElevation}, {"max_elevation", r.manifest.maxElevation}};
+                        {"min_elevation", r.manifest.minElevation}, {"max_elevation", r.manifest.maxElevation},
+                        {"estimate", estimateJson(estimate)}};
     j["sea_posts"] = r.seaPosts;
     j["resample"] = {{"request", a.o.resample}, {"kernel", r.kernel.resample}, {"fit", r.kernel.fit},
                      {"spacing_ratio", r.kernel.spacingRatio}, {"reason", r.kernel.reason}};

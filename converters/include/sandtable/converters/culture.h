@@ -21,6 +21,7 @@
 // tolerance (seed: 0.1 m) are merged without leaving the triangle's edges.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -49,6 +50,14 @@ struct CultureOptions {
   /// levels share it); 0 = four per hardware thread. Call every level of a
   /// module before moving on, as buildModules does, so each is built once.
   std::size_t cacheModules = 0;
+  /// Size rule for line features (docs/CULTURE.md, "Bounded work"): the
+  /// centreline is simplified (Douglas-Peucker) at max(mergeTolerance,
+  /// width / 100); if a feature still has more vertices than this, the
+  /// tolerance is doubled until it fits (counted in CultureStats::coarsened).
+  std::size_t maxLineVertices = 20000;
+  /// fraction in [0, 1] of loading, and the stage ("reading culture",
+  /// "widening lines"), from load's threads, one call at a time. May be empty.
+  std::function<void(double, const std::string&)> progress;
 };
 
 /// Per-class counts, for the build report and `info`.
@@ -64,6 +73,11 @@ struct ClassStats {
 struct CultureStats {
   std::map<std::string, ClassStats> perClass;  ///< by class name
   std::uint64_t featuresRead = 0;  ///< line and area features (points are not culture)
+  std::uint64_t featuresLanded = 0;   ///< of those, on the database (kept, or default-class areas inside it)
+  std::uint64_t featuresOutside = 0;  ///< of those, wholly outside the database (dropped, not a warning)
+  std::uint64_t lineVerticesRead = 0;  ///< centreline vertices of the kept line features, as read (clipped)
+  std::uint64_t lineVerticesKept = 0;  ///< and after simplification (what is widened)
+  std::uint64_t coarsened = 0;  ///< line features simplified beyond the base tolerance to fit maxLineVertices
   std::uint64_t ignored = 0;       ///< matched an ignore rule ("-"), or an unmatched line with default-line none
   std::uint64_t warnings = 0;      ///< defaulted, repaired and dropped features, unreadable layers
   std::vector<std::string> messages;  ///< first few warnings, for the report

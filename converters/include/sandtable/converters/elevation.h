@@ -18,6 +18,24 @@ namespace sandtable::convert {
 /// fraction in [0, 1] and the stage that is running.
 using ProgressFn = std::function<void(double, const std::string&)>;
 
+/// What a build will cost, estimated once its frame is known and before
+/// any heavy work, from the documented rates in build_estimate.cpp (README,
+/// "Build estimate"). Rough: within a factor of about two on the VM the
+/// rates were measured on; slower with dense culture.
+struct BuildEstimate {
+  std::uint32_t postsX = 0, postsZ = 0;
+  std::uint64_t posts = 0;
+  std::uint64_t gridBytes = 0;  ///< the grid file
+  std::uint64_t modules = 0;    ///< load modules (0 without)
+  int threads = 1;              ///< worker threads the estimate assumes
+  double seconds = 0;           ///< wall time
+  std::uint64_t peakBytes = 0;  ///< peak resident memory
+  std::uint64_t memoryBytes = 0;  ///< physical memory of this machine (0 if unknown)
+  bool slow = false;    ///< seconds above kSlowBuildSeconds
+  bool tooBig = false;  ///< peakBytes above memoryBytes
+};
+inline constexpr double kSlowBuildSeconds = 60.0;
+
 struct ElevationOptions {
   std::vector<std::string> sources;  ///< files, directories or globs
   std::string output;                ///< database directory to create
@@ -48,6 +66,8 @@ struct ElevationOptions {
   /// material water. Other voids are filled by interpolation.
   bool seaFromVoids = true;
   int threads = 0;             ///< 0 = all cores
+  /// Called once with the estimate, before resampling starts. May be empty.
+  std::function<void(const BuildEstimate&)> onEstimate;
 };
 
 /// auto picks the seed's weighted average when the target spacing is at
@@ -107,6 +127,10 @@ Result<std::vector<std::string>> expandSources(const std::vector<std::string>& a
 /// Runs the whole build and publishes `options.output` atomically: on any
 /// failure or cancellation no output directory is left behind.
 Result<ElevationReport> buildElevation(const ElevationOptions& options, const ProgressFn& progress);
+
+/// The estimate for a frame of postsX x postsZ posts at `spacing`.
+BuildEstimate estimateBuild(const ElevationOptions& options, std::uint32_t postsX, std::uint32_t postsZ,
+                            double spacing);
 
 /// Asks a running build to stop (safe from a signal handler).
 void requestCancel();

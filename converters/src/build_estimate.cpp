@@ -1,0 +1,59 @@
+// The estimate a build prints before it starts (README, "Build estimate"):
+// sizes are exact (the grid file's layout, the module count), time and
+// memory come from the rates below, measured on the 2-core VM of
+// docs/CULTURE.md and README (Release builds, N49E011 SRTM at 30 m).
+#include <unistd.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "sandtable/converters/elevation.h"
+#include "sandtable/converters/modules.h"
+#include "sandtable/formats/grid.h"
+
+namespace sandtable::convert {
+namespace {
+
+// Per worker thread, measured on the 2-core VM shared with other builds
+// (N49E011 at 30 m, 8.3 M posts, 8,208 modules: 5.5 s before the modules,
+// 22.8 s of modules, 196 MB peak RSS; the north-Bayreuth OSM build of
+// docs/CULTURE.md for dense culture).
+constexpr double kPostsPerSecond = 0.75e6;        ///< sources, resampling, void fill and grid writing together
+constexpr double kModulesPerSecond = 180.0;       ///< load modules without culture
+constexpr double kCultureModulesPerSecond = 25.0; ///< with dense culture everywhere (OSM towns): an upper bound
+// Memory: the resampled grid (float), its void mask and the void filler's
+// working copies per post, plus the process and GDAL's cache, plus one
+// module's partition and levels per worker.
+constexpr double kBytesPerPost = 15.0;
+constexpr double kBaseBytes = 70e6;
+constexpr double kBytesPerModuleThread = 20e6;
+
+std::uint64_t physicalMemory() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), size = ::sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && size > 0 ? std::uint64_t(pages) * std::uint64_t(size) : 0;
+}
+
+}  // namespace
+
+BuildEstimate estimateBuild(const ElevationOptions& o, std::uint32_t postsX, std::uint32_t postsZ, double spacing) {
+  BuildEstimate e;
+  e.postsX = postsX, e.postsZ = postsZ;
+  e.posts = std::uint64_t(postsX) * postsZ;
+  e.gridBytes = grid::makeHeader(postsX, postsZ, spacing, 0, 0).fileBytes;
+  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+  e.threads = int(o.threads > 0 ? std::min<unsigned>(unsigned(o.threads), hw) : hw);
+  if (o.modules && postsX >= 2 && postsZ >= 2) {
+    const std::uint32_t squares = moduleSquares(o.moduleSize, spacing, std::clamp(o.levels, 1, 8));
+    e.modules = std::uint64_t((postsX - 2) / squares + 1) * ((postsZ - 2) / squares + 1);
+  }
+  const double rate = o.culture.empty() ? kModulesPerSecond : kCultureModulesPerSecond;
+  e.seconds = (double(e.posts) / kPostsPerSecond + double(e.modules) / rate) / e.threads;
+  e.peakBytes = std::uint64_t(kBaseBytes + kBytesPerPost * double(e.posts) +
+                              (e.modules ? kBytesPerModuleThread * e.threads : 0.0));
+  e.memoryBytes = physicalMemory();
+  e.slow = e.seconds > kSlowBuildSeconds;
+  e.tooBig = e.memoryBytes > 0 && e.peakBytes > e.memoryBytes;
+  return e;
+}
+
+}  // namespace sandtable::convert
