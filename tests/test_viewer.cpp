@@ -16,6 +16,7 @@
 #include "sandtable/runtime/renderer.h"
 #include "sandtable/runtime/view_triangle.h"
 #include "test_support.h"
+#include "viewer_support.h"
 
 namespace sandtable::test {
 namespace {
@@ -106,22 +107,7 @@ class Viewer : public ::testing::Test {
   static inline std::string monaco_, road_, noGl_;
 };
 
-bool isMagenta(const Image& img, std::uint32_t x, std::uint32_t y) {
-  const auto c = img.at(x, y);
-  return c.r > 240 && c.g < 16 && c.b > 240;
-}
-
-/// Magenta pixels below the terrain's silhouette: in each column, those
-/// under the first pixel from the top that is not the clear colour.
-std::uint64_t cracks(const Image& img) {
-  std::uint64_t n = 0;
-  for (std::uint32_t x = 0; x < img.width; ++x) {
-    std::uint32_t y = 0;
-    while (y < img.height && isMagenta(img, x, y)) ++y;
-    for (; y < img.height; ++y) n += isMagenta(img, x, y);
-  }
-  return n;
-}
+std::uint64_t cracks(const Image& img) { return holesBelowTheSilhouette(img); }
 
 struct LodCase {
   const char* name;

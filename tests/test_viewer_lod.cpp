@@ -16,6 +16,7 @@
 #include "sandtable/runtime/image.h"
 #include "sandtable/runtime/renderer.h"
 #include "test_support.h"
+#include "viewer_support.h"
 
 namespace sandtable::test {
 namespace {
@@ -133,21 +134,6 @@ TEST_F(ViewerLod, OtherModesDrawNothingCoarserThanTheirRuleOnceEverythingIsIn) {
     EXPECT_EQ(s.nodesPlaceholder, 0u) << runtime::lodModeName(m);
     EXPECT_EQ(sum(s.levelCounts), s.nodesDrawn);
   }
-}
-
-/// Magenta below the first terrain pixel of each column: a hole.
-std::uint64_t holesBelowTheSilhouette(const runtime::Image& img) {
-  std::uint64_t holes = 0;
-  for (std::uint32_t x = 0; x < img.width; ++x) {
-    auto magenta = [&](std::uint32_t y) {
-      const auto c = img.at(x, y);
-      return c.r > 240 && c.g < 16 && c.b > 240;
-    };
-    std::uint32_t y = 0;
-    while (y < img.height && magenta(y)) ++y;
-    for (; y < img.height; ++y) holes += magenta(y);
-  }
-  return holes;
 }
 
 TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
