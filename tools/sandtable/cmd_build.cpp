@@ -49,7 +49,7 @@ int runBuild(BuildArgs& a) {
   auto report = convert::buildElevation(a.o, [&](double f, const std::string& s) { progress.update(f, s); });
   progress.done();
   if (!report) {
-    for (const auto& p : report.problems()) std::fprintf(stderr, "sandtable build: error: %s\n", p.str().c_str());
+    reportProblems("build", report.problems());
     std::fprintf(stderr, "sandtable build: nothing was written to %s\n", a.o.output.c_str());
     return kUsage;
   }
