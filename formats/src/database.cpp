@@ -182,7 +182,7 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
       std::swap(above, row);
       std::swap(haveAbove, haveRow);
     }
-    work.report(1.0, "checking modules");
+    if (!work.cancelled()) work.report(1.0, "checking modules");
   }
   // One order whatever the pack's record order: by file, then offset; the
   // problems of one module keep the order they were found in. A cancelled
