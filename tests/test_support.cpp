@@ -6,6 +6,8 @@
 #include <random>
 #include <sstream>
 
+#include "sandtable/formats/bytes.h"
+
 namespace sandtable::test {
 namespace fs = std::filesystem;
 
@@ -51,6 +53,17 @@ std::string slurpFile(const std::string& path) {
 void spit(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out << bytes;
+}
+
+void resealManifest(const std::string& db, const std::function<void(nlohmann::json&)>& edit) {
+  const std::string path = db + "/manifest.json";
+  nlohmann::json j = nlohmann::json::parse(slurpFile(path));
+  j.erase("checksum");
+  edit(j);
+  j.erase("checksum");
+  const std::string compact = j.dump();
+  j["checksum"] = crcHex(crc32(std::as_bytes(std::span(compact.data(), compact.size()))));
+  spit(path, j.dump(2) + "\n");
 }
 
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts) {

@@ -5,8 +5,11 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 namespace sandtable::test {
 
@@ -45,6 +48,10 @@ CommandResult runCli(const std::vector<std::string>& args);
 std::string slurpFile(const std::string& path);
 /// Replaces a file's contents.
 void spit(const std::string& path, const std::string& bytes);
+
+/// Rewrites DB/manifest.json after `edit` changes its JSON, with the
+/// checksum resealed (FORMAT.md §5.2), so only the edit itself is wrong.
+void resealManifest(const std::string& db, const std::function<void(nlohmann::json&)>& edit);
 
 /// Every file (recursively) under `dir` matching the extensions.
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts);

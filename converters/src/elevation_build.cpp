@@ -119,6 +119,15 @@ Result<bool> checkOptions(const ElevationOptions& o) {
     return Problem{"--culture", 0, "build: --culture and --materials need load modules; drop --no-modules"};
   }
   if (o.zstdLevel < 1 || o.zstdLevel > 22) return Problem{"--zstd-level", 0, "build: --zstd-level must be 1..22"};
+  // OGR would say only that it cannot open a missing file; GDAL's virtual
+  // paths (/vsizip/...) and connection strings (PG:...) are OGR's to judge.
+  for (const auto& c : o.culture) {
+    const bool plainPath = c.rfind("/vsi", 0) != 0 && c.find(':') == std::string::npos;
+    if (plainPath && !fs::exists(c, ec)) return Problem{c, 0, "culture: file not found; check the --culture path"};
+  }
+  if (!o.materials.empty() && !fs::exists(o.materials, ec)) {
+    return Problem{o.materials, 0, "materials: file not found; check the --materials path"};
+  }
   return true;
 }
 

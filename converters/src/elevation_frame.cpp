@@ -1,6 +1,7 @@
 // Choosing the target frame: CRS, extent and post spacing.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include <ogr_spatialref.h>
@@ -155,6 +156,38 @@ Result<Inner> targetRectangle(const ElevationOptions& o, const std::vector<Sourc
   return in;
 }
 
+/// The grid's posts at spacing s over the rectangle, snapped to whole
+/// multiples of s as planFrame snaps them (so databases of one area align).
+struct Posts {
+  double west = 0, north = 0, east = 0, south = 0, nx = 0, nz = 0;
+};
+Posts postsAt(const Inner& in, double s) {
+  Posts p;
+  p.west = std::ceil(in.west / s - 1e-9) * s;
+  p.north = std::floor(in.north / s + 1e-9) * s;
+  p.east = std::floor(in.east / s + 1e-9) * s;
+  p.south = std::ceil(in.south / s - 1e-9) * s;
+  p.nx = std::round((p.east - p.west) / s) + 1;
+  p.nz = std::round((p.north - p.south) / s) + 1;
+  return p;
+}
+
+constexpr double kMaxPosts = 4.0e9;  ///< posts in all (16 GB of elevations alone)
+
+bool fits(const Posts& p) {
+  return p.nx <= grid::kMaxPostsPerAxis && p.nz <= grid::kMaxPostsPerAxis && p.nx * p.nz <= kMaxPosts;
+}
+
+/// The smallest spacing in whole centimetres at which the posts fit.
+double smallestFittingSpacing(const Inner& in) {
+  const double w = in.east - in.west, h = in.north - in.south;
+  const double bound = std::max({w / (grid::kMaxPostsPerAxis - 1.0), h / (grid::kMaxPostsPerAxis - 1.0),
+                                 std::sqrt(w * h / kMaxPosts), 0.01});
+  double s = std::ceil(bound * 100.0) / 100.0;
+  for (int k = 0; k < 1000 && !fits(postsAt(in, s)); ++k) s += 0.01;
+  return s;
+}
+
 }  // namespace
 
 Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& sources) {
@@ -175,20 +208,23 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   f.spacing = o.spacing > 0 ? o.spacing : std::max(0.01, std::round(nativeSpacingMetres(sources) * 100) / 100);
   if (!(f.spacing > 0) || !std::isfinite(f.spacing)) return Problem{"--spacing", 0, "frame: spacing must be positive"};
   const double s = f.spacing;
-  // Snap to whole multiples of the spacing so databases of one area align.
-  f.originEasting = std::ceil(inner->west / s - 1e-9) * s;
-  f.originNorthing = std::floor(inner->north / s + 1e-9) * s;
-  const double east = std::floor(inner->east / s + 1e-9) * s;
-  const double south = std::ceil(inner->south / s - 1e-9) * s;
-  const double nx = std::round((east - f.originEasting) / s) + 1;
-  const double nz = std::round((f.originNorthing - south) / s) + 1;
+  const Posts posts = postsAt(inner.value(), s);
+  f.originEasting = posts.west;
+  f.originNorthing = posts.north;
+  const double east = posts.east, south = posts.south, nx = posts.nx, nz = posts.nz;
   if (nx < 2 || nz < 2) {
     return Problem{"--spacing", 0, "frame: the extent holds fewer than 2 x 2 posts at " + std::to_string(s) +
                                        " m spacing; use a smaller --spacing"};
   }
-  if (nx > grid::kMaxPostsPerAxis || nz > grid::kMaxPostsPerAxis || nx * nz > 4.0e9) {
-    return Problem{"--spacing", 0, "frame: " + std::to_string(nx) + " x " + std::to_string(nz) +
-                                       " posts is too many; use a larger --spacing or --extent"};
+  if (!fits(posts)) {
+    const double fitting = smallestFittingSpacing(inner.value());
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "frame: %.0f x %.0f posts at %g m spacing is too many: the limit is %u posts along each "
+                  "axis and %.0f in all; the smallest spacing that fits this extent is %.2f m (use --spacing "
+                  "%.2f or more, or a smaller --extent)",
+                  nx, nz, s, grid::kMaxPostsPerAxis, kMaxPosts, fitting, fitting);
+    return Problem{"--spacing", 0, buf};
   }
   f.postsX = static_cast<std::uint32_t>(nx);
   f.postsZ = static_cast<std::uint32_t>(nz);

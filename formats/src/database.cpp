@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "sandtable/formats/bytes.h"
@@ -16,9 +17,11 @@ void checkAgreement(const manifest::Manifest& m, const grid::Header& h, const st
                     std::vector<Problem>& out) {
   auto differ = [&](const char* what, double a, double b, std::uint64_t off) {
     if (a != b) {
-      out.push_back({file, off, std::string("database: grid header and manifest disagree on ") +
-                                    what + " (header " + std::to_string(b) + ", manifest " +
-                                    std::to_string(a) + ")"});
+      // Every digit: values that must agree exactly may differ in the last bit.
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "database: grid header and manifest disagree on %s (header %.17g, manifest %.17g)",
+                    what, b, a);
+      out.push_back({file, off, buf});
     }
   };
   differ("posts_x", m.postsX, h.postsX, grid::field::postsX);
@@ -31,9 +34,14 @@ void checkAgreement(const manifest::Manifest& m, const grid::Header& h, const st
   differ("max_elevation", m.maxElevation, h.maxElevation, grid::field::maxElevation);
 }
 
-void checkFiles(const std::string& dir, const manifest::Manifest& m, std::vector<Problem>& out) {
+void checkFiles(const std::string& dir, const manifest::Manifest& m, const Work& work, std::vector<Problem>& out) {
   bool hasGrid = false;
+  std::uint64_t total = 0, done = 0;
+  for (const auto& f : m.files) total += f.bytes;
   for (const auto& f : m.files) {
+    work.report(total ? double(done) / double(total) : 0.0, "checking files");
+    if (work.cancelled()) return;
+    done += f.bytes;
     const std::string path = dir + "/" + f.path;
     hasGrid = hasGrid || f.path == manifest::kGridFileName;
     std::uint32_t crc = 0;
@@ -52,6 +60,7 @@ void checkFiles(const std::string& dir, const manifest::Manifest& m, std::vector
                                   ": the file was modified or corrupted"});
     }
   }
+  work.report(1.0, "checking files");
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
@@ -113,7 +122,7 @@ bool checkPackAgreement(const manifest::Manifest& m, const grid::Header* g, cons
 /// Load modules: the pack's own checks, the material table, then every
 /// module's geometry and its edges against its west and north neighbours,
 /// row by row (only the previous row's edges are kept).
-void checkModules(const std::string& dir, const manifest::Manifest& m, const grid::GridFile* g,
+void checkModules(const std::string& dir, const manifest::Manifest& m, const grid::GridFile* g, const Work& work,
                   std::vector<Problem>& out) {
   const bool idx = lists(m, pack::kIndexFileName), pk = lists(m, pack::kPackFileName);
   const std::string manifestPath = dir + "/" + manifest::kFileName;
@@ -124,7 +133,11 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
                                         (idx ? pack::kPackFileName : pack::kIndexFileName)});
     return;
   }
-  std::vector<Problem> found = pack::validatePack(dir);
+  std::vector<Problem> found = pack::validatePack(dir, work);
+  if (work.cancelled()) {
+    out.insert(out.end(), found.begin(), found.end());
+    return;
+  }
   const bool packSound = found.empty();
   std::optional<materials::Table> table;
   if (lists(m, materials::kFileName)) {
@@ -149,6 +162,11 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
     std::vector<bool> haveAbove(h.modulesX, false), haveRow(h.modulesX, false);
     auto append = [&](std::vector<Problem>&& ps) { found.insert(found.end(), ps.begin(), ps.end()); };
     for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+      work.report(double(kz) / h.modulesZ, "checking modules");
+      if (work.cancelled()) {
+        found.push_back({r.packPath(), 0, kCancelledMessage});
+        break;
+      }
       for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
         haveRow[kx] = false;
         auto mod = r.read(kx, kz);
@@ -164,13 +182,18 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
       std::swap(above, row);
       std::swap(haveAbove, haveRow);
     }
+    if (!work.cancelled()) work.report(1.0, "checking modules");
   }
   // One order whatever the pack's record order: by file, then offset; the
-  // problems of one module keep the order they were found in.
+  // problems of one module keep the order they were found in. A cancelled
+  // check keeps its last word last.
+  const bool cancelled = !found.empty() && found.back().message == kCancelledMessage;
+  if (cancelled) found.pop_back();
   std::stable_sort(found.begin(), found.end(), [](const Problem& a, const Problem& b) {
     return a.file != b.file ? a.file < b.file : a.offset < b.offset;
   });
   out.insert(out.end(), found.begin(), found.end());
+  if (cancelled) out.push_back({dir + "/" + pack::kPackFileName, 0, kCancelledMessage});
 }
 
 }  // namespace
@@ -202,7 +225,7 @@ Result<Database> openDatabase(const std::string& directory) {
   return db;
 }
 
-std::vector<Problem> validateDatabase(const std::string& directory) {
+std::vector<Problem> validateDatabase(const std::string& directory, const Work& work) {
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) {
     return {{directory, 0, "database: not a directory"}};
@@ -210,13 +233,22 @@ std::vector<Problem> validateDatabase(const std::string& directory) {
   auto m = manifest::readFromDirectory(directory);
   if (!m) return m.problems();
   std::vector<Problem> out;
-  checkFiles(directory, m.value(), out);
+  // Once cancelled, the report ends with one kCancelledMessage.
+  auto stopped = [&](const std::string& file) {
+    if (!work.cancelled()) return false;
+    if (out.empty() || out.back().message != kCancelledMessage) out.push_back({file, 0, kCancelledMessage});
+    return true;
+  };
+  checkFiles(directory, m.value(), work, out);
+  if (stopped(directory + "/" + manifest::kFileName)) return out;
   const std::string gridPath = directory + "/" + manifest::kGridFileName;
-  auto gridProblems = grid::validateGrid(gridPath);
+  auto gridProblems = grid::validateGrid(gridPath, work);
   out.insert(out.end(), gridProblems.begin(), gridProblems.end());
+  if (stopped(gridPath)) return out;
   auto g = grid::GridFile::open(gridPath);
   if (g) checkAgreement(m.value(), g.value()->header(), gridPath, out);
-  checkModules(directory, m.value(), g ? g.value().get() : nullptr, out);
+  checkModules(directory, m.value(), g ? g.value().get() : nullptr, work, out);
+  stopped(directory + "/" + pack::kPackFileName);
   return out;
 }
 

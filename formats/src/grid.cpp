@@ -382,9 +382,46 @@ void checkBlockContents(const GridFile& g, std::uint32_t bx, std::uint32_t bz,
   }
 }
 
+/// Edge padding (FORMAT.md §4.6): a post of an edge block beyond the grid
+/// repeats, byte for byte, the nearest edge post, which lies in the same
+/// block. Any difference is reported at the differing plane's bytes.
+void checkEdgePadding(const GridFile& g, std::uint32_t bx, std::uint32_t bz, std::uint64_t blockOff, Report& r) {
+  const Header& h = g.header();
+  const std::uint32_t i0 = bx * kBlockPosts, j0 = bz * kBlockPosts;
+  if (i0 + kBlockPosts <= h.postsX && j0 + kBlockPosts <= h.postsZ) return;
+  const auto bytes = g.blockBytes(bx, bz);
+  struct Plane {
+    std::uint64_t offset;
+    std::uint32_t width;
+    const char* name;
+  };
+  static constexpr Plane kPlanes[] = {{kElevationPlane, 4, "elevation"}, {kNormalXPlane, 2, "normal x"},
+                                      {kNormalYPlane, 2, "normal y"},    {kNormalZPlane, 2, "normal z"},
+                                      {kMaterialPlane, 1, "material"}};
+  for (std::uint32_t lz = 0; lz < kBlockPosts; ++lz) {
+    for (std::uint32_t lx = 0; lx < kBlockPosts; ++lx) {
+      const std::uint32_t i = i0 + lx, j = j0 + lz;
+      if (i < h.postsX && j < h.postsZ) continue;
+      const std::uint32_t si = std::min(i, h.postsX - 1), sj = std::min(j, h.postsZ - 1);
+      const std::uint32_t k = lz * kBlockPosts + lx, sk = (sj - j0) * kBlockPosts + (si - i0);
+      for (const Plane& p : kPlanes) {
+        if (std::memcmp(bytes.data() + p.offset + std::uint64_t(p.width) * k,
+                        bytes.data() + p.offset + std::uint64_t(p.width) * sk, p.width) == 0) {
+          continue;
+        }
+        r.add("edge", blockOff + p.offset + std::uint64_t(p.width) * k,
+              "grid: block (" + std::to_string(bx) + "," + std::to_string(bz) + ") post " + std::to_string(k) +
+                  " lies beyond the grid at (" + std::to_string(i) + "," + std::to_string(j) + "), but its " +
+                  p.name + " differs from edge post (" + std::to_string(si) + "," + std::to_string(sj) +
+                  "), which edge padding must repeat");
+      }
+    }
+  }
+}
+
 }  // namespace
 
-std::vector<Problem> validateGrid(const std::string& path) {
+std::vector<Problem> validateGrid(const std::string& path, const Work& work) {
   auto opened = GridFile::open(path);
   if (!opened) return opened.problems();
   const GridFile& g = *opened.value();
@@ -394,6 +431,9 @@ std::vector<Problem> validateGrid(const std::string& path) {
   std::uint64_t nz = 0;
   if (!allZero(all.subspan(kHeaderFieldBytes, kPageBytes - kHeaderFieldBytes), nz)) {
     r.add("padding", kHeaderFieldBytes + nz, "grid: header padding is not zero");
+  }
+  if (!allZero(all.subspan(field::reserved, field::headerCrc - field::reserved), nz)) {
+    r.add("reserved", field::reserved + nz, "grid: header reserved bytes 108..123 are not zero");
   }
   const std::uint64_t tableBytes = h.blockCount() * kBlockEntryBytes;
   const auto table = all.subspan(h.blockTableOffset, tableBytes);
@@ -409,6 +449,12 @@ std::vector<Problem> validateGrid(const std::string& path) {
   }
   float mn = INFINITY, mx = -INFINITY;
   for (std::uint32_t bz = 0; bz < h.blocksZ; ++bz) {
+    work.report(double(bz) / h.blocksZ, "checking grid");
+    if (work.cancelled()) {
+      auto out = r.take();
+      out.push_back({path, 0, kCancelledMessage});
+      return out;
+    }
     for (std::uint32_t bx = 0; bx < h.blocksX; ++bx) {
       const std::uint64_t off = h.dataOffset + (std::uint64_t(bz) * h.blocksX + bx) * kBlockBytes;
       const BlockEntry e = g.blockEntry(bx, bz);
@@ -423,6 +469,7 @@ std::vector<Problem> validateGrid(const std::string& path) {
               "grid: block table reserved field is not zero");
       }
       checkBlockContents(g, bx, bz, off, r);
+      checkEdgePadding(g, bx, bz, off, r);
       mn = std::min(mn, e.minElevation);
       mx = std::max(mx, e.maxElevation);
     }
@@ -430,6 +477,7 @@ std::vector<Problem> validateGrid(const std::string& path) {
   if (mn != h.minElevation || mx != h.maxElevation) {
     r.add("minmax", field::minElevation, "grid: header min/max elevation disagree with the block table");
   }
+  work.report(1.0, "checking grid");
   return r.take();
 }
 

@@ -1,6 +1,7 @@
 #include "sandtable/formats/manifest.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "sandtable/formats/bytes.h"
 
@@ -71,6 +72,20 @@ class Reader {
     if (!std::isfinite(v)) fail(at + k + " is not finite");
     return v;
   }
+  /// A number that must be an f32 value written as the equal double
+  /// (§5.3), so that comparing it with the grid header's f32 is exact:
+  /// rounding it to f32 would hide a difference.
+  float f32(const json& p, const char* k, const std::string& at) {
+    const double v = num(p, k, at);
+    const auto f = static_cast<float>(v);
+    if (std::isfinite(v) && static_cast<double>(f) != v) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "%s%s %.17g is not an f32 value (the nearest is %.9g); it must be the grid "
+                    "header's f32 written as the equal double", at.c_str(), k, v, double(f));
+      fail(buf);
+    }
+    return f;
+  }
   std::uint64_t uns(const json& p, const char* k, const std::string& at) {
     const json* n = node(p, k, json::value_t::number_unsigned, at);
     return n ? n->get<std::uint64_t>() : 0;
@@ -118,8 +133,8 @@ Manifest fromJson(const json& j, Reader& r) {
     m.postsX = r.u32(*g, "posts_x", "grid.");
     m.postsZ = r.u32(*g, "posts_z", "grid.");
     m.blockPosts = r.u32(*g, "block_posts", "grid.");
-    m.minElevation = static_cast<float>(r.num(*g, "min_elevation", "grid."));
-    m.maxElevation = static_cast<float>(r.num(*g, "max_elevation", "grid."));
+    m.minElevation = r.f32(*g, "min_elevation", "grid.");
+    m.maxElevation = r.f32(*g, "max_elevation", "grid.");
     if (!(m.spacing > 0)) r.fail("grid.spacing_m must be positive");
   }
   if (const json* c = r.node(j, "corners_lonlat", json::value_t::array, "")) {

@@ -29,12 +29,13 @@ enum Kind : std::size_t {
   kSkirtCoverage,
   kSkirtDepth,
   kNeighbour,
+  kTexture,
   kKindCount
 };
 constexpr const char* kKindNames[kKindCount] = {
     "structure", "non-finite",      "material",    "outside-triangle", "off-plane",
     "orientation", "skin-coverage", "lattice-post", "max-height",      "skirt",
-    "skirt-coverage", "skirt-depth", "neighbour-edge"};
+    "skirt-coverage", "skirt-depth", "neighbour-edge", "texture"};
 
 class Report {
  public:
@@ -136,6 +137,8 @@ struct Frame {
   std::uint32_t i0 = 0, i1 = 0, j0 = 0, j1 = 0;  ///< level-0 post range, inclusive
   double width = 0, height = 0;                   ///< metres east and south
   double tolXZ = 0;                               ///< 1 mm + float ulp of the extent
+  double s0 = 0, t0 = 0;                          ///< skin texture offsets, metres (module.h)
+  double tolST = 0;                               ///< tolerance of s, t times the repeat, metres
 };
 
 /// The required skirt depth of one level and where it is attained.
@@ -282,6 +285,10 @@ class ModuleRun {
     f_.width = double(f_.i1 - f_.i0) * g_.spacing();
     f_.height = double(f_.j1 - f_.j0) * g_.spacing();
     f_.tolXZ = kCheckTolerance + ulpOf(std::max(f_.width, f_.height));
+    f_.s0 = skinTextureOffset(double(f_.i0) * g_.spacing());
+    f_.t0 = skinTextureOffset(double(f_.j0) * g_.spacing());
+    // s * repeat carries the rounding of s (half an ulp of S0 + x) and of x.
+    f_.tolST = f_.tolXZ + ulpOf(kSkinTextureWrap + std::max(f_.width, f_.height));
     return true;
   }
 
@@ -551,7 +558,10 @@ class ModuleRun {
         const double dy = std::fabs(double(v[q]->y) - gt.planeY(v[q]->x, v[q]->z));
         if (dy > tolY_ && dy > worstPlane) worstPlane = dy, planeV = q;
         top = std::max(top, v[q]->y);
-        used_[lv.indices[at + std::uint32_t(q)]] |= std::uint8_t(skin ? 1 : 2);
+        const std::uint32_t vi = lv.indices[at + std::uint32_t(q)];
+        const auto role = std::uint8_t(skin ? 1 : 2);
+        if (!(used_[vi] & role)) texture(g, vi, *v[q], skin);
+        used_[vi] |= role;
       }
       if (outV >= 0 && r_.want(kOutside)) {
         const Vertex& p = *v[outV];
@@ -586,6 +596,27 @@ class ModuleRun {
       area += s;
     }
     if (skin) skinArea_[2 * std::size_t(g.square) + std::uint8_t(g.half)] += area;
+  }
+
+  /// Texture coordinates of a skin or decal vertex (module.h), once per
+  /// vertex and role.
+  void texture(const Group& g, std::uint32_t vi, const Vertex& v, bool skin) {
+    if (skin) {
+      const double ds = double(v.s) * kSkinTextureRepeat - (f_.s0 + v.x);
+      const double dt = double(v.t) * kSkinTextureRepeat - (f_.t0 + v.z);
+      if ((std::fabs(ds) > f_.tolST || std::fabs(dt) > f_.tolST) && r_.want(kTexture)) {
+        r_.add(offset_, squareName(g) + ": skin vertex " + str(vi) + " at x " + m3(v.x) + ", z " + m3(v.z) +
+                            " has texture s " + g9(v.s) + ", t " + g9(v.t) + "; its position gives s " +
+                            g9((f_.s0 + v.x) / kSkinTextureRepeat) + ", t " + g9((f_.t0 + v.z) / kSkinTextureRepeat) +
+                            " (skin repeats every " + m3(kSkinTextureRepeat) + " m from offsets " + m3(f_.s0) +
+                            ", " + m3(f_.t0) + " m)");
+      }
+      return;
+    }
+    if (!(v.s >= 0.0f && v.t >= 0.0f && v.t <= 1.0f) && r_.want(kTexture)) {
+      r_.add(offset_, squareName(g) + ": decal vertex " + str(vi) + " has texture s " + g9(v.s) + ", t " +
+                          g9(v.t) + "; a line's s (along, in widths) must be >= 0 and its t (across) in [0, 1]");
+    }
   }
 
   /// Skirt triangles: vertical, on one lattice line, within one lattice

@@ -878,7 +878,7 @@ struct Placed {
 
 }  // namespace
 
-std::vector<Problem> validatePack(const std::string& directory) {
+std::vector<Problem> validatePack(const std::string& directory, const Work& work) {
   const std::string indexPath = join(directory, kIndexFileName);
   const std::string packPath = join(directory, kPackFileName);
   Report r;
@@ -907,6 +907,25 @@ std::vector<Problem> validatePack(const std::string& directory) {
   }
   if (const std::string err = tableCrcProblem(h, all); !err.empty()) {
     r.add("index", Problem{indexPath, kIndexHeaderBytes, err});
+  }
+  // Reserved header bytes: the CRCs cover them, so only a writer that
+  // resealed the CRC can put anything there; v1 writes zeros.
+  for (std::size_t k = indexField::reserved; k < indexField::headerCrc; ++k) {
+    if (all[k] != std::byte{0}) {
+      r.add("index", Problem{indexPath, k, "pack index: header reserved bytes 76..123 are not zero"});
+      break;
+    }
+  }
+  if (pack.fd >= 0) {
+    std::array<std::byte, kPackHeaderBytes> head{};
+    if (preadAll(pack.fd, head.data(), head.size(), 0).empty()) {
+      for (std::size_t k = packField::reserved; k < packField::headerCrc; ++k) {
+        if (head[k] != std::byte{0}) {
+          r.add("pack", Problem{packPath, k, "pack: header reserved bytes 24..59 are not zero"});
+          break;
+        }
+      }
+    }
   }
 
   // Entries: each on its own, then their placement in the pack.
@@ -953,7 +972,16 @@ std::vector<Problem> validatePack(const std::string& directory) {
   // Records, in pack order (sequential reads).
   if (pack.fd < 0) return r.take();
   std::vector<std::byte> record;
+  std::size_t done = 0;
   for (const Placed& p : placed) {
+    if (done++ % 64 == 0) {
+      work.report(double(done - 1) / double(placed.size()), "checking pack");
+      if (work.cancelled()) {
+        auto out = r.take();
+        out.push_back({packPath, 0, kCancelledMessage});
+        return out;
+      }
+    }
     record.resize(p.entry.compressedBytes);
     if (const std::string err = preadAll(pack.fd, record.data(), record.size(), p.entry.offset);
         !err.empty()) {
@@ -970,6 +998,7 @@ std::vector<Problem> validatePack(const std::string& directory) {
     auto m = decodeRecord(h, p.entry, p.kx, p.kz, raw.value(), packPath);
     if (!m) r.add("module", m.problems());
   }
+  work.report(1.0, "checking pack");
   return r.take();
 }
 

@@ -56,6 +56,13 @@ inline std::shared_ptr<const grid::GridFile> writeGrid(const std::string& dir, s
   return g.value();
 }
 
+/// A skin vertex at module-local (x, z) of the module whose NW corner is
+/// grid post (i0, j0), with the texture coordinates module.h prescribes.
+inline Vertex skinTextured(std::uint32_t i0, std::uint32_t j0, double x, double y, double z) {
+  const double s0 = skinTextureOffset(i0 * kSpacing), t0 = skinTextureOffset(j0 * kSpacing);
+  return {float(x), float(y), float(z), float((s0 + x) / kSkinTextureRepeat), float((t0 + z) / kSkinTextureRepeat)};
+}
+
 struct BuildOptions {
   float skirtDepth = 20.0f;
   bool decal = true;
@@ -89,15 +96,16 @@ inline Module buildModule(const grid::GridFile& g, const pack::IndexHeader& h, s
     lv.squaresZ = std::uint32_t(rows.size() - 1);
     lv.skirtDepth = o.skirtDepth;
     const std::uint32_t nx = lv.squaresX, nz = lv.squaresZ;
+    auto skinVertex = [&](double x, double z, double y) { return skinTextured(i0, j0, x, y, z); };
     for (std::uint32_t b = 0; b <= nz; ++b) {
       for (std::uint32_t a = 0; a <= nx; ++a) {
-        lv.vertices.push_back({float((cols[a] - i0) * kSpacing), g.elevation(cols[a], rows[b]),
-                               float((rows[b] - j0) * kSpacing), 0, 0});
+        lv.vertices.push_back(skinVertex((cols[a] - i0) * kSpacing, (rows[b] - j0) * kSpacing,
+                                         g.elevation(cols[a], rows[b])));
       }
     }
     auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (nx + 1) + a; };
     auto vertex = [&](double x, double z, double y) {
-      lv.vertices.push_back({float(x), float(y), float(z), 0, 0});
+      lv.vertices.push_back(skinVertex(x, z, y));
       return std::uint32_t(lv.vertices.size() - 1);
     };
     auto mid = [&](std::uint32_t p, std::uint32_t q) {
@@ -132,7 +140,10 @@ inline Module buildModule(const grid::GridFile& g, const pack::IndexHeader& h, s
       auto inPlane = [&](double dx, double dz) {
         const double y = nw.y + dx / (double(ne.x) - nw.x) * (double(ne.y) - nw.y) +
                          dz / (double(sw.z) - nw.z) * (double(sw.y) - nw.y);
-        return vertex(nw.x + dx, nw.z + dz, y);
+        const std::uint32_t v = vertex(nw.x + dx, nw.z + dz, y);
+        lv.vertices[v].s = float(dx / 4.0);  // a road 4 m wide running east: s along, t across
+        lv.vertices[v].t = float(dz / 6.0);
+        return v;
       };
       add(0, Half::upper, kPriorityRoad, 2, {inPlane(1, 1), inPlane(1, 5), inPlane(5, 1)});
     }

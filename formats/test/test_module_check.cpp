@@ -263,6 +263,22 @@ TEST_F(ModuleCheck, eachCorruptionHasItsOwnMessage) {
       {"no levels at all",
        [&](Module& m) { m.levels.clear(); },
        {"module (0,0) has 0 levels; the pack index says 3"}},
+      {"skin texture shifted",
+       [&](Module& m) { m.levels[0].vertices[6].s += 0.01f; },  // lattice post (1,1): 0.64 m off
+       {"skin vertex 6 at x 30.000, z 30.000 has texture s 0.47874999, t 0.46875; its position gives s 0.46875, t "
+        "0.46875 (skin repeats every 64.000 m from offsets 0.000, 0.000 m)"}},
+      {"decal texture across the line past 1",
+       [&](Module& m) {
+         Level& lv = m.levels[0];
+         vertexOf(lv, findGroup(lv, kPriorityRoad, 0, Half::upper), 1).t = 1.5f;
+       },
+       {"level 0 square 0 upper: decal vertex", "t 1.5; a line's s (along, in widths) must be >= 0 and its t (across) in [0, 1]"}},
+      {"decal texture along the line negative",
+       [&](Module& m) {
+         Level& lv = m.levels[0];
+         vertexOf(lv, findGroup(lv, kPriorityRoad, 0, Half::upper), 0).s = -0.25f;
+       },
+       {"decal vertex", "has texture s -0.25, t"}},
       {"maxHeight short",
        [&](Module& m) { m.levels[0].maxHeight.pop_back(); },
        {"level 0 maxHeight has 15 entries for 16 squares"}},
@@ -305,7 +321,7 @@ TEST_F(ModuleCheck, slivers) {
   // A flipped sliver 2 mm thick, with its mirror image so the area still sums.
   const std::uint32_t base = std::uint32_t(lv.vertices.size());
   Vertex a = lv.vertices[sw], b = lv.vertices[md];
-  Vertex c{(a.x + b.x) / 2 - 0.002f, 0, (a.z + b.z) / 2 - 0.002f, 0, 0};
+  Vertex c = skinTextured(0, 0, (a.x + b.x) / 2 - 0.002f, 0, (a.z + b.z) / 2 - 0.002f);
   const double slope = (double(lv.vertices[ne].y) - lv.vertices[nw].y) / 30.0,
                slopeZ = (double(lv.vertices[sw].y) - lv.vertices[nw].y) / 30.0;
   c.y = float(lv.vertices[nw].y + slope * (c.x - lv.vertices[nw].x) + slopeZ * (c.z - lv.vertices[nw].z));

@@ -13,6 +13,9 @@ namespace {
 
 constexpr double kKmhToMs = 1.0 / 3.6;
 constexpr std::size_t kMaxProblems = 20;
+/// validateFlightOptions' bound on --height; checked here so that the error
+/// names the file and line rather than --height.
+constexpr double kMaxHeightAgl = 1e5;
 constexpr const char* kLineForm =
     "expected \"lon lat height_m [speed=KMH] [time=S]\" (or \"easting northing height_m ...\" "
     "after \"frame projected\")";
@@ -91,6 +94,10 @@ struct Parser {
     const auto a = number(tokens[0]), b = number(tokens[1]), h = number(tokens[2]);
     if (!a || !b || !h) return fail(lineNo, std::string(kLineForm) + "; a coordinate or the height is not a number");
     if (*h < 0) return fail(lineNo, "height_m " + tokens[2] + " is metres above the ground and must be >= 0");
+    if (!(*h < kMaxHeightAgl)) {
+      return fail(lineNo, "height_m " + tokens[2] + " is metres above the ground and must be below " +
+                              fmt(kMaxHeightAgl) + " (the limit of --height)");
+    }
     PathPoint p;
     p.heightAgl = *h;
     p.line = lineNo;
@@ -314,6 +321,20 @@ Result<Path> parsePath(std::string_view text, const std::string& name, const Pat
   for (int lineNo = 1; std::getline(in, line); ++lineNo) parser.parseLine(lineNo, line);
   if (!parser.problems.empty()) return parser.problems;
   return resolvePath(parser.points, options, name, parser.frame);
+}
+
+std::string pathProblemText(const Problem& p) {
+  // "line N: rest" is how Parser::fail and the resolver name a line.
+  const std::string_view m = p.message;
+  constexpr std::string_view kLine = "line ";
+  if (m.substr(0, kLine.size()) == kLine) {
+    const std::size_t digits = m.find_first_not_of("0123456789", kLine.size());
+    if (digits != std::string_view::npos && digits > kLine.size() && m.substr(digits, 2) == ": ") {
+      return p.file + ":" + std::string(m.substr(kLine.size(), digits - kLine.size())) + ": " +
+             std::string(m.substr(digits + 2));
+    }
+  }
+  return p.file + ": " + p.message;
 }
 
 Result<Path> readPathFile(const std::string& file, const PathOptions& options) {

@@ -152,6 +152,27 @@ TEST(Path, Errors) {
   has(parseError("1 2 10 speed=36\n3 4 10\n", PathOptions{}), "need a converter");
 }
 
+TEST(Path, AnOutOfRangeHeightNamesTheFileAndLine) {
+  // The flight's own --height bound (0 .. 100000 m) is checked while parsing,
+  // so the error points at the line, not at --height.
+  auto r = parsePath("frame projected\n0 0 10 speed=36\n100 0 100000\n200 0 10\n", "valley.path", lonLatOptions());
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(pathProblemText(r.problems().front()),
+            "valley.path:3: height_m 100000 is metres above the ground and must be below 100000 (the limit of --height)");
+  EXPECT_TRUE(parsePath("frame projected\n0 0 99999.9 speed=36\n100 0 0\n", "ok.path", lonLatOptions()).ok());
+  auto huge = parsePath("frame projected\n0 0 1e300 speed=36\n100 0 0\n", "x.path", lonLatOptions());
+  ASSERT_FALSE(huge.ok());
+  EXPECT_EQ(pathProblemText(huge.problems().front()).rfind("x.path:2: height_m 1e300", 0), 0u)
+      << huge.error();
+}
+
+TEST(Path, ProblemTextIsFileColonLine) {
+  EXPECT_EQ(pathProblemText({"a.path", 0, "line 12: what"}), "a.path:12: what");
+  EXPECT_EQ(pathProblemText({"a.path", 0, "legs line 3 to line 5: what"}), "a.path: legs line 3 to line 5: what");
+  EXPECT_EQ(pathProblemText({"a.path", 0, "line x: what"}), "a.path: line x: what");
+  EXPECT_EQ(pathProblemText({"a.path", 0, "line 7"}), "a.path: line 7");
+}
+
 TEST(Path, TimesReadAsSecondsOrClock) {
   const Path p = parseOk("frame projected\n0 0 10 time=1:02:03.5\n100 0 10 time=3724\n");
   EXPECT_DOUBLE_EQ(p.waypoints[0].timeS, 3723.5);

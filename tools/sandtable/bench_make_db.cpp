@@ -41,7 +41,7 @@ void note(bool quiet, const std::string& s) {
 
 int fail(const std::vector<Problem>& problems, const char* what) {
   for (const Problem& p : problems) {
-    std::fprintf(stderr, "sandtable bench make-db: error: %s: %s\n", what, p.str().c_str());
+    usageError("bench make-db", std::string(what) + ": " + p.str());
   }
   return kUsage;
 }

@@ -142,7 +142,7 @@ int runBench(const Args& a) {
     so.threads = a.threads;
     auto s = convert::synthesize(so, nullptr);
     if (!s) {
-      std::fprintf(stderr, "sandtable bench modules: error: %s\n", s.error().c_str());
+      reportProblems("bench modules", s.problems());
       return kUsage;
     }
   }
@@ -151,7 +151,7 @@ int runBench(const Args& a) {
     for (bool isFull : {false, true}) {
       auto r = build(a, in, isFull, work / (isFull ? "full" : "elevation"));
       if (!r) {
-        std::fprintf(stderr, "sandtable bench modules: error: %s\n", r.error().c_str());
+        reportProblems("bench modules", r.problems());
         if (!a.keep) fs::remove_all(work, ec);
         return kUsage;
       }

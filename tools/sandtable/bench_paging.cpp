@@ -921,7 +921,7 @@ int runBench(Args& a) {
       const Flight& f = flights[i];
       auto r = fly(a, f, path.value());
       if (!r) {
-        for (const Problem& p : r.problems()) std::fprintf(stderr, "sandtable bench paging: error: %s\n", p.str().c_str());
+        reportProblems("bench paging", r.problems());
         return kUsage;
       }
       ++done;

@@ -139,7 +139,7 @@ int run(const Args& a) {
     if (!r) {
       const bool usage = r.problems().front().file == runtime::kFlightOptionProblem ||
                          r.problems().front().file == runtime::kGlContextProblem;
-      std::fprintf(stderr, "sandtable %s: error: %s\n", kName, r.error().c_str());
+      reportProblems(kName, r.problems());
       return usage ? kUsage : kProblems;
     }
     renderer = r->summary.rendererDetail;

@@ -97,7 +97,7 @@ int runBuild(BuildArgs& a) {
     return 128 + gSignal;  // the shell's convention for a process ended by a signal
   }
   if (!report) {
-    for (const auto& p : report.problems()) std::fprintf(stderr, "sandtable build: error: %s\n", p.str().c_str());
+    reportProblems("build", report.problems());
     std::fprintf(stderr, "sandtable build: nothing was written to %s\n", a.o.output.c_str());
     return kUsage;
   }

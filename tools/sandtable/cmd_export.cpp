@@ -1,13 +1,16 @@
 // sandtable export: load modules as OBJ + MTL or glTF 2.0 for other tools.
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
 #include "db_util.h"
+#include "sandtable/converters/crs.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/mesh_export.h"
 
@@ -19,6 +22,7 @@ namespace fs = std::filesystem;
 struct ExportArgs {
   std::string dir;
   std::vector<std::uint32_t> from, to;
+  std::vector<double> lonlat, xy;  ///< a point whose module is the north-west one
   std::uint32_t level = 0;
   std::string format;
   std::string output;
@@ -39,7 +43,49 @@ std::string writeText(const std::string& path, const std::string& text) {
   return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
 }
 
-int runExport(const ExportArgs& a) {
+/// A point given by --lonlat or --xy, and the module that holds it.
+struct Point {
+  double lon = 0, lat = 0, easting = 0, northing = 0;
+  std::uint32_t kx = 0, kz = 0;
+};
+
+/// The module under --lonlat / --xy: module (kx, kz) covers eastings
+/// origin + [kx, kx + 1) * edge and northings origin - [kz, kz + 1) * edge;
+/// a point on the grid's east or south edge belongs to the last module.
+std::string locate(const ExportArgs& a, const Database& db, Point& p) {
+  const auto& m = db.manifest;
+  auto geo = convert::GeoTransformer::create(m.crsWkt);
+  if (!geo) return geo.error();
+  const char* opt = a.lonlat.empty() ? "--xy" : "--lonlat";
+  if (!a.lonlat.empty()) {
+    p.lon = a.lonlat[0], p.lat = a.lonlat[1];
+    if (!geo.value()->toProjected(p.lon, p.lat, p.easting, p.northing)) {
+      return "--lonlat " + std::to_string(p.lon) + " " + std::to_string(p.lat) + " cannot be projected into " +
+             m.crsName;
+    }
+  } else {
+    p.easting = a.xy[0], p.northing = a.xy[1];
+    if (!geo.value()->toLonLat(p.easting, p.northing, p.lon, p.lat)) p.lon = p.lat = NAN;
+  }
+  const pack::IndexHeader& h = db.modules->header();
+  const double edge = double(h.moduleSquares) * db.grid->spacing();
+  const double dx = p.easting - m.originEasting, dz = m.originNorthing - p.northing;
+  if (!(dx >= 0 && p.easting <= m.eastEasting() && dz >= 0 && p.northing >= m.southNorthing())) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, " (E %.2f N %.2f in %s) is outside the database: it covers E %.2f .. %.2f, "
+                  "N %.2f .. %.2f", p.easting, p.northing, m.crsName.c_str(), m.originEasting, m.eastEasting(),
+                  m.southNorthing(), m.originNorthing);
+    return std::string(opt) + buf;
+  }
+  p.kx = std::min(std::uint32_t(dx / edge), h.modulesX - 1);
+  p.kz = std::min(std::uint32_t(dz / edge), h.modulesZ - 1);
+  return {};
+}
+
+int runExport(ExportArgs& a) {
+  if (int(!a.from.empty()) + int(!a.lonlat.empty()) + int(!a.xy.empty()) != 1) {
+    return usageError("export", "give exactly one of --module KX KZ, --lonlat LON LAT or --xy E N");
+  }
   // Format: --format, else the output's extension; .glb selects binary glTF.
   const std::string ext = lower(fs::path(a.output).extension().string());
   const std::string byExt = ext == ".obj" ? "obj" : (ext == ".gltf" || ext == ".glb") ? "gltf" : "";
@@ -60,6 +106,12 @@ int runExport(const ExportArgs& a) {
   }
   const pack::PackReader& pack = *db->modules;
   const pack::IndexHeader& h = pack.header();
+  std::optional<Point> point;
+  if (a.from.empty()) {
+    point.emplace();
+    if (std::string e = locate(a, *db, *point); !e.empty()) return usageError("export", e);
+    a.from = {point->kx, point->kz};
+  }
   const std::uint32_t kx0 = a.from[0], kz0 = a.from[1];
   const std::uint32_t kx1 = a.to.empty() ? kx0 : a.to[0], kz1 = a.to.empty() ? kz0 : a.to[1];
   for (const auto& [kx, kz, opt] : {std::tuple{kx0, kz0, "--module"}, std::tuple{kx1, kz1, "--to"}}) {
@@ -90,7 +142,7 @@ int runExport(const ExportArgs& a) {
     for (std::uint32_t kx = kx0; kx <= kx1; ++kx) {
       auto m = pack.read(kx, kz);
       if (!m) {
-        for (const auto& p : m.problems()) std::fprintf(stderr, "sandtable export: error: %s\n", p.str().c_str());
+        reportProblems("export", m.problems());
         std::fprintf(stderr, "sandtable export: hint: run `sandtable validate %s` for a full report\n", a.dir.c_str());
         return kUsage;
       }
@@ -106,7 +158,7 @@ int runExport(const ExportArgs& a) {
   const double easting = man.originEasting + double(kx0) * edge;
   const double northing = man.originNorthing - double(kz0) * edge;
   const std::uint64_t modules = std::uint64_t(kx1 - kx0 + 1) * (kz1 - kz0 + 1);
-  const nlohmann::json info = {
+  nlohmann::json info = {
       {"database", a.dir},
       {"modules", {{"from", {kx0, kz0}}, {"to", {kx1, kz1}}, {"count", modules}}},
       {"level", a.level},
@@ -117,6 +169,10 @@ int runExport(const ExportArgs& a) {
       {"origin_northing", northing},
       {"crs_name", man.crsName},
       {"epsg", man.epsg}};
+  if (point) {
+    info["point"] = {{"lon", point->lon}, {"lat", point->lat}, {"easting", point->easting},
+                     {"northing", point->northing}};
+  }
 
   std::vector<std::string> written = {a.output};
   std::string err;
@@ -165,12 +221,17 @@ void registerExport(CLI::App& root, Commands& c) {
   sub->footer(
       "Frame: metres, X east, Y up, Z south (north is -Z), origin at the NW corner of --module;\n"
       "one material per class (named from materials.txt), skirts as material \"skirt\".\n"
+      "The module may be named by a point in it: --lonlat LON LAT (WGS 84) or --xy E N (database CRS).\n"
       "Examples:\n  sandtable export db --module 3 4 -o m34.obj\n"
+      "  sandtable export db --lonlat 7.42 43.74 -o monaco.glb\n"
       "  sandtable export db --module 0 0 --to 2 1 --level 1 --format gltf -o area.glb");
   sub->add_option("DB", a->dir, "Database directory")->required();
-  sub->add_option("--module", a->from, "Module column and row (north-west module of the range)")
-      ->expected(2)
-      ->required();
+  auto* module = sub->add_option("--module", a->from, "Module column and row (north-west module of the range)")
+                     ->expected(2);
+  auto* lonlat = sub->add_option("--lonlat", a->lonlat, "The module holding LON LAT (WGS 84 degrees)")
+                     ->expected(2)->excludes(module);
+  sub->add_option("--xy", a->xy, "The module holding EASTING NORTHING (database CRS)")
+      ->expected(2)->excludes(module)->excludes(lonlat);
   sub->add_option("--to", a->to, "South-east module of the range (default: --module)")->expected(2);
   sub->add_option("--level", a->level, "Level of detail, 0 = finest")->default_val(0);
   sub->add_option("--format", a->format, "obj or gltf (default: from the output's extension; .glb is binary glTF)")
@@ -178,7 +239,10 @@ void registerExport(CLI::App& root, Commands& c) {
   sub->add_option("-o,--output", a->output, "Output file (.obj writes a .mtl beside it)")->required();
   sub->add_flag("--no-skirts", a->noSkirts, "Leave the skirts out");
   sub->add_flag("--json", a->json, "Print a JSON summary");
-  c.add(sub, [a] { return runExport(*a); });
+  c.add(sub, [a] {
+    ExportArgs args = *a;  // runExport fills in --module from a point
+    return runExport(args);
+  });
 }
 
 }  // namespace sandtable::cli

@@ -407,9 +407,8 @@ int run(FlyArgs& a) {
   if (!a.pathFile.empty()) {
     auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
     if (!path) {
-      // "--path FILE: line N: what, how to fix" (the Problem's offset is always 0 here).
-      const Problem& q = path.problems().front();
-      return usageError(kName, "--path " + q.file + ": " + q.message);
+      // "--path FILE:N: what, how to fix" (the Problem's offset is always 0 here).
+      return usageError(kName, "--path " + runtime::pathProblemText(path.problems().front()));
     }
     const auto& first = path->waypoints.front();
     o.easting = first.easting;

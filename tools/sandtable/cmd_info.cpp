@@ -1,4 +1,5 @@
 // sandtable info: what a database holds and where it lies.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -9,6 +10,42 @@
 
 namespace sandtable::cli {
 namespace {
+
+// The manifest's `build` object is informational (FORMAT.md §5.5): another
+// build, an older or newer sandtable, or a hand edit may leave out any key or
+// give it another type. Every read of it below is checked; what cannot be
+// read prints as "?".
+const nlohmann::json& field(const nlohmann::json& j, const char* key) {
+  static const nlohmann::json kAbsent;
+  if (!j.is_object()) return kAbsent;
+  const auto it = j.find(key);
+  return it == j.end() ? kAbsent : *it;
+}
+
+std::string count(const nlohmann::json& j, const char* key) {
+  const auto& v = field(j, key);
+  if (v.is_number_unsigned()) return std::to_string(v.get<std::uint64_t>());
+  if (v.is_number_integer()) return std::to_string(v.get<std::int64_t>());
+  char buf[64];
+  if (v.is_number_float() && std::isfinite(v.get<double>())) {
+    std::snprintf(buf, sizeof buf, "%.0f", v.get<double>());
+    return buf;
+  }
+  return "?";
+}
+
+std::string real(const nlohmann::json& j, const char* key, int decimals, double scale = 1.0) {
+  const auto& v = field(j, key);
+  if (!v.is_number()) return "?";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v.get<double>() * scale);
+  return buf;
+}
+
+std::string text(const nlohmann::json& j, const char* key) {
+  const auto& v = field(j, key);
+  return v.is_string() ? v.get<std::string>() : "?";
+}
 
 nlohmann::json infoJson(const Database& db) {
   const auto& m = db.manifest;
@@ -54,45 +91,42 @@ nlohmann::json infoJson(const Database& db) {
     j[key] = v != m.build.end() && v->is_number_unsigned() ? *v : nlohmann::json();
   }
   // Culture and module statistics are recorded by the build; null for a grid-only database.
-  j["modules"] = m.build.contains("modules") ? m.build["modules"] : nlohmann::json();
-  j["culture"] = m.build.contains("culture") ? m.build["culture"] : nlohmann::json();
+  j["modules"] = field(m.build, "modules");
+  j["culture"] = field(m.build, "culture");
   return j;
 }
 
 void printModules(const nlohmann::json& m) {
-  const auto& b = m["bytes"];
-  std::printf("modules    %llu = %u x %u of %.2f m (%u squares), built in %.2f s (%.0f modules/s)\n",
-              static_cast<unsigned long long>(m["count"].get<std::uint64_t>()), m["modules_x"].get<unsigned>(),
-              m["modules_z"].get<unsigned>(), m["module_size_m"].get<double>(), m["module_squares"].get<unsigned>(),
-              m["seconds"].get<double>(), m["modules_per_second"].get<double>());
-  std::printf("  bytes    min %u, median %u, p95 %u, max %u, mean %.0f compressed; %.1f MB packed of %.1f MB raw\n",
-              b["min"].get<unsigned>(), b["median"].get<unsigned>(), b["p95"].get<unsigned>(),
-              b["max"].get<unsigned>(), b["mean"].get<double>(),
-              double(b["compressed_total"].get<std::uint64_t>()) / 1e6, double(b["raw_total"].get<std::uint64_t>()) / 1e6);
+  const auto& b = field(m, "bytes");
+  std::printf("modules    %s = %s x %s of %s m (%s squares), built in %s s (%s modules/s)\n", count(m, "count").c_str(),
+              count(m, "modules_x").c_str(), count(m, "modules_z").c_str(), real(m, "module_size_m", 2).c_str(),
+              count(m, "module_squares").c_str(), real(m, "seconds", 2).c_str(),
+              real(m, "modules_per_second", 0).c_str());
+  std::printf("  bytes    min %s, median %s, p95 %s, max %s, mean %s compressed; %s MB packed of %s MB raw\n",
+              count(b, "min").c_str(), count(b, "median").c_str(), count(b, "p95").c_str(), count(b, "max").c_str(),
+              real(b, "mean", 0).c_str(), real(b, "compressed_total", 1, 1e-6).c_str(),
+              real(b, "raw_total", 1, 1e-6).c_str());
+  const auto& levels = field(m, "per_level");
+  if (!levels.is_array()) return;
   int level = 0;
-  for (const auto& l : m["per_level"]) {
-    std::printf("  level %d  %llu triangles, %llu skin polygons, %llu decal polygons, %llu skirt triangles\n", level++,
-                static_cast<unsigned long long>(l["triangles"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(l["skin_polygons"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(l["decal_polygons"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(l["skirt_triangles"].get<std::uint64_t>()));
+  for (const auto& l : levels) {
+    std::printf("  level %d  %s triangles, %s skin polygons, %s decal polygons, %s skirt triangles\n", level++,
+                count(l, "triangles").c_str(), count(l, "skin_polygons").c_str(), count(l, "decal_polygons").c_str(),
+                count(l, "skirt_triangles").c_str());
   }
 }
 
 void printCulture(const nlohmann::json& c) {
-  std::printf("culture    %llu features read, %llu warnings, materials: %s\n",
-              static_cast<unsigned long long>(c["features_read"].get<std::uint64_t>()),
-              static_cast<unsigned long long>(c["warnings"].get<std::uint64_t>()),
-              c["materials"].get<std::string>().c_str());
+  std::printf("culture    %s features read, %s warnings, materials: %s\n", count(c, "features_read").c_str(),
+              count(c, "warnings").c_str(), text(c, "materials").c_str());
+  const auto& classes = field(c, "classes");
+  if (!classes.is_object()) return;
   std::printf("  %-16s %8s %8s %8s %9s %10s %10s\n", "class", "read", "dropped", "repaired", "defaulted", "km",
               "km2");
-  for (const auto& [name, k] : c["classes"].items()) {
-    std::printf("  %-16s %8llu %8llu %8llu %9llu %10.2f %10.3f\n", name.c_str(),
-                static_cast<unsigned long long>(k["read"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(k["dropped"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(k["repaired"].get<std::uint64_t>()),
-                static_cast<unsigned long long>(k["defaulted"].get<std::uint64_t>()), k["length_km"].get<double>(),
-                k["area_km2"].get<double>());
+  for (const auto& [name, k] : classes.items()) {
+    std::printf("  %-16s %8s %8s %8s %9s %10s %10s\n", name.c_str(), count(k, "read").c_str(),
+                count(k, "dropped").c_str(), count(k, "repaired").c_str(), count(k, "defaulted").c_str(),
+                real(k, "length_km", 2).c_str(), real(k, "area_km2", 3).c_str());
   }
 }
 
@@ -120,14 +154,13 @@ void printHuman(const nlohmann::json& j) {
     std::printf("source     %s (%s)\n", s["path"].get<std::string>().c_str(), s["driver"].get<std::string>().c_str());
   }
   const auto& b = j["build"];
-  std::printf("built      %s by sandtable %s, resample %s, %llu voids filled, %llu sea posts from voids, %.2f s\n",
+  std::printf("built      %s by sandtable %s, resample %s, %s voids filled, %s sea posts from voids, %s s\n",
               j["created_utc"].get<std::string>().c_str(), j["tool_version"].get<std::string>().c_str(),
-              b.value("resample", std::string("?")).c_str(),
-              static_cast<unsigned long long>(b.value("voids_filled", std::uint64_t{0})),
-              static_cast<unsigned long long>(b.value("sea_posts", std::uint64_t{0})), b.value("seconds", 0.0));
-  if (const auto a = b.find("accuracy"); a != b.end() && a->is_object()) {
-    std::printf("accuracy   RMSE %.2f m, max |error| %.2f m against %llu source posts\n", a->value("rmse_m", 0.0),
-                a->value("max_abs_m", 0.0), static_cast<unsigned long long>(a->value("source_posts", std::uint64_t{0})));
+              text(b, "resample").c_str(), count(b, "voids_filled").c_str(), count(b, "sea_posts").c_str(),
+              real(b, "seconds", 2).c_str());
+  if (const auto& a = field(b, "accuracy"); a.is_object()) {
+    std::printf("accuracy   RMSE %s m, max |error| %s m against %s source posts\n", real(a, "rmse_m", 2).c_str(),
+                real(a, "max_abs_m", 2).c_str(), count(a, "source_posts").c_str());
   }
   if (!j["modules"].is_null()) printModules(j["modules"]);
   if (!j["culture"].is_null()) printCulture(j["culture"]);

@@ -62,7 +62,7 @@ int runSynth(SynthArgs& a) {
     for (const auto& p : result.problems()) {
       const bool named = p.file.empty() || p.message.find(p.file) != std::string::npos;
       const std::string line = named ? p.message : p.file + ": " + p.message;
-      std::fprintf(stderr, "sandtable synth: error: %s\n", line.c_str());
+      usageError("synth", line);
     }
     std::fprintf(stderr, "sandtable synth: nothing was written\n");
     return kUsage;

@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "sandtable/formats/result.h"
+
 namespace sandtable::cli {
 
 /// Exit codes shared by every subcommand.
@@ -29,7 +31,13 @@ void registerFly(CLI::App& root, Commands& c);
 void registerBench(CLI::App& root, Commands& c);
 void registerExport(CLI::App& root, Commands& c);
 
-/// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage.
+/// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage. When the
+/// command was given --json, main also prints every error of the run as one
+/// JSON object on stdout: {"command", "ok": false, "exit_code", "error" (the
+/// first message), "errors": [{"message"[, "file", "offset"]}]}.
 int usageError(const std::string& cmd, const std::string& msg);
+/// The same for problems: one stderr line each ("file @offset: message"),
+/// with file, offset and message kept apart in the JSON. Returns kUsage.
+int reportProblems(const std::string& cmd, const std::vector<Problem>& problems);
 
 }  // namespace sandtable::cli

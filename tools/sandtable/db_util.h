@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 
+#include "commands.h"
 #include "sandtable/formats/database.h"
 
 namespace sandtable::cli {
@@ -12,7 +13,7 @@ namespace sandtable::cli {
 inline std::optional<Database> openOrReport(const std::string& cmd, const std::string& dir) {
   auto db = openDatabase(dir);
   if (!db) {
-    for (const auto& p : db.problems()) std::fprintf(stderr, "sandtable %s: error: %s\n", cmd.c_str(), p.str().c_str());
+    reportProblems(cmd, db.problems());
     std::fprintf(stderr, "sandtable %s: hint: run `sandtable validate %s` for a full report\n", cmd.c_str(), dir.c_str());
     return std::nullopt;
   }

@@ -38,6 +38,9 @@ Result<Database> openDatabase(const std::string& directory);
 /// and every module's geometry and its edges against its neighbours
 /// (module_check.h; docs/_validate_modules.md), at most a few problems of
 /// each kind per module. Empty when the database is sound.
-std::vector<Problem> validateDatabase(const std::string& directory);
+/// `work` reports progress by stage ("checking files", "checking grid",
+/// "checking pack", "checking modules") and may cancel: the problems found
+/// so far are returned, the last one kCancelledMessage.
+std::vector<Problem> validateDatabase(const std::string& directory, const Work& work = {});
 
 }  // namespace sandtable

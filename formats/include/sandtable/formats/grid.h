@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "sandtable/formats/result.h"
+#include "sandtable/formats/work.h"
 
 namespace sandtable::grid {
 
@@ -75,7 +76,7 @@ inline constexpr std::size_t magic = 0, version = 8, headerBytes = 12, postsX = 
                              flags = 36, spacing = 40, originEasting = 48,
                              originNorthing = 56, minElevation = 64, maxElevation = 68,
                              blockTableOffset = 72, dataOffset = 80, blockBytes = 88,
-                             fileBytes = 96, tableCrc = 104, headerCrc = 124;
+                             fileBytes = 96, tableCrc = 104, reserved = 108, headerCrc = 124;
 }
 
 /// One block-table entry.
@@ -173,9 +174,10 @@ class GridFile {
                                std::uint32_t width) const;
 };
 
-/// Every check on a grid file: header, sizes, table, block CRCs, zero
-/// padding, NaN/inf, unit normals, plausible elevations, header min/max.
-/// Each problem names the file and byte offset.
-std::vector<Problem> validateGrid(const std::string& path);
+/// Every check on a grid file: header, sizes, reserved header bytes, table,
+/// block CRCs, zero padding, NaN/inf, unit normals, plausible elevations,
+/// edge padding repeating the edge posts, header min/max. Each problem
+/// names the file and byte offset. Progress: "checking grid", per block row.
+std::vector<Problem> validateGrid(const std::string& path, const Work& work = {});
 
 }  // namespace sandtable::grid

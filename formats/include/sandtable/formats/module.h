@@ -23,6 +23,7 @@
 // a module at the edge may have narrower last squares at coarse levels.
 #include <array>
 #include <cstddef>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -98,8 +99,26 @@ inline constexpr std::uint8_t kPriorityObject = 99;
 
 struct Vertex {
   float x = 0, y = 0, z = 0;  ///< module-local metres (x east, y up, z south)
-  float s = 0, t = 0;         ///< texture coordinates (roads: S along, T across, seed Figure 17)
+  float s = 0, t = 0;         ///< texture coordinates (roads: S along, T across, seed Figure 17); rules below
 };
+
+// Texture coordinates (docs/FORMAT.md §9.6; checked by validate):
+//  - skin (priority 1): the texture repeats every kSkinTextureRepeat metres
+//    of the database, s = (S0 + x) / repeat and t = (T0 + z) / repeat, where
+//    S0, T0 are skinTextureOffset() of the module's north-west corner (grid
+//    post i0 = kx * moduleSquares, j0 likewise) in metres from the grid's
+//    origin: the same world point has the same s, t in every module and
+//    level, and the float32 values stay small;
+//  - decals (priority 2..98, line classes): s = metres along the nearest
+//    centreline / the line's width, >= 0; t across it, 0 at the left edge
+//    (as the line runs, seen from above) to 1 at the right, in [0, 1];
+//  - skirts and objects: any finite values.
+inline constexpr double kSkinTextureRepeat = 64.0;
+inline constexpr double kSkinTextureWrap = 4096.0;  ///< a multiple of the repeat
+/// (metres from the grid origin to the module's NW corner) mod kSkinTextureWrap.
+inline double skinTextureOffset(double metres) {
+  return metres - kSkinTextureWrap * std::floor(metres / kSkinTextureWrap);
+}
 
 /// One run of triangles with one material, priority and grid triangle.
 struct Group {

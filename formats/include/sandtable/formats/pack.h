@@ -27,6 +27,7 @@
 
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/result.h"
+#include "sandtable/formats/work.h"
 
 namespace sandtable::pack {
 
@@ -53,7 +54,7 @@ inline constexpr std::uint32_t kMaxModulesPerAxis = 65536;
 /// Byte offsets of the pack header fields (bytes 24..59 are reserved, zero).
 namespace packField {
 inline constexpr std::size_t magic = 0, version = 8, headerBytes = 12, flags = 16, codec = 20,
-                             headerCrc = 60;
+                             reserved = 24, headerCrc = 60;
 }
 static_assert(packField::headerCrc + 4 == kPackHeaderBytes, "pack header layout");
 
@@ -62,7 +63,7 @@ namespace indexField {
 inline constexpr std::size_t magic = 0, version = 8, headerBytes = 12, modulesX = 16, modulesZ = 20,
                              levels = 24, moduleSquares = 28, moduleSize = 32, packBytes = 40,
                              packHeaderCrc = 48, entryBytes = 52, entryCount = 56, tableOffset = 64,
-                             tableCrc = 72, headerCrc = 124;
+                             tableCrc = 72, reserved = 76, headerCrc = 124;
 }
 static_assert(indexField::headerCrc + 4 == kIndexHeaderFieldBytes, "index header layout");
 
@@ -206,13 +207,14 @@ class PackReader {
   std::unique_ptr<State> state_;
 };
 
-/// Every structural check: index header, padding and table CRC, pack header
-/// and its CRC against the index, pack size, every entry's kx/kz, sizes and
+/// Every structural check: index header, padding, reserved bytes and table
+/// CRC, pack header, its reserved bytes and its CRC against the index, pack size, every entry's kx/kz, sizes and
 /// placement within the pack (after the header, no overlaps, no bytes
 /// outside every record), every record's CRCs, every module's decode and
 /// its kx, kz and level count. Each problem names the file and offset; at
 /// most 20 problems of each kind are listed. Empty when the pack is sound.
-std::vector<Problem> validatePack(const std::string& directory);
+/// Progress: "checking pack", per record.
+std::vector<Problem> validatePack(const std::string& directory, const Work& work = {});
 
 /// Zstd helpers (exposed for tests and benchmarks). compress returns one
 /// frame with the content size recorded, or an empty vector if zstd fails

@@ -84,6 +84,10 @@ Result<Path> readPathFile(const std::string& file, const PathOptions& options);
 /// The same on text already in memory; `name` stands for the file.
 Result<Path> parsePath(std::string_view text, const std::string& name, const PathOptions& options);
 
+/// A path problem as "FILE:LINE: what, how to fix" (compiler style), or
+/// "FILE: what" for a problem of several lines (e.g. a run of legs).
+std::string pathProblemText(const Problem& p);
+
 /// Fills in missing times and leg speeds (seed Table 7):
 ///  - the first waypoint's time defaults to 0;
 ///  - a leg with a speed and no end time ends at start + length / speed;
