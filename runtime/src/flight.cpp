@@ -51,8 +51,13 @@ double legHeading(const Waypoint& a, const Waypoint& b) {
 Pose straightPose(const FlightOptions& o, double t) {
   const double d = o.speedKmh / 3.6 * t;
   const double h = o.headingDeg * kDegToRad;
-  return {o.easting + std::sin(h) * d, o.northing + std::cos(h) * d, normalizeHeading(o.headingDeg),
-          o.heightAgl, o.speedKmh};
+  Pose p;
+  p.easting = o.easting + std::sin(h) * d;
+  p.northing = o.northing + std::cos(h) * d;
+  p.headingDeg = normalizeHeading(o.headingDeg);
+  p.heightAgl = o.heightAgl;
+  p.speedKmh = o.speedKmh;
+  return p;
 }
 
 Pose pathPose(const std::vector<Waypoint>& path, double t) {
@@ -66,14 +71,24 @@ Pose pathPose(const std::vector<Waypoint>& path, double t) {
     const double duration = length / (a.speedKmh / 3.6);
     if (t <= duration) {
       const double f = t / duration;
-      return {a.easting + f * (b.easting - a.easting), a.northing + f * (b.northing - a.northing),
-              heading, a.heightAgl + f * (b.heightAgl - a.heightAgl), a.speedKmh};
+      Pose p;
+      p.easting = a.easting + f * (b.easting - a.easting);
+      p.northing = a.northing + f * (b.northing - a.northing);
+      p.headingDeg = heading;
+      p.heightAgl = a.heightAgl + f * (b.heightAgl - a.heightAgl);
+      p.speedKmh = a.speedKmh;
+      return p;
     }
     t -= duration;
   }
   // Past the last waypoint the eye hovers there, still facing along the last leg.
   const Waypoint& end = path.back();
-  return {end.easting, end.northing, heading, end.heightAgl, 0.0};
+  Pose p;
+  p.easting = end.easting;
+  p.northing = end.northing;
+  p.headingDeg = heading;
+  p.heightAgl = end.heightAgl;
+  return p;
 }
 
 double percentile(std::vector<double> v, double p) {

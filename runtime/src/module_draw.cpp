@@ -474,13 +474,13 @@ void ModuleRenderer::drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std
         glUniform1f(uMorph_, nd.morph);
         bound = std::uint32_t(k);
       }
-      std::uint32_t lo = UINT32_MAX, hi = 0;
+      std::uint32_t lowest = UINT32_MAX, highest = 0;  // vertex range of the draw
       for (std::size_t m = std::min<std::size_t>(nd.first, n); m < std::min<std::size_t>(nd.last, n); ++m) {
-        lo = std::min(lo, b.range[m].first);
-        hi = std::max(hi, b.range[m].second);
+        lowest = std::min(lowest, b.range[m].first);
+        highest = std::max(highest, b.range[m].second);
       }
       const std::uint64_t offset = e.indexOffset + std::uint64_t(first) * sizeof(std::uint32_t);
-      glDrawRangeElements(GL_TRIANGLES, lo, hi, last - first, GL_UNSIGNED_INT,
+      glDrawRangeElements(GL_TRIANGLES, lowest, highest, last - first, GL_UNSIGNED_INT,
                           reinterpret_cast<const void*>(offset));
     }
   }
