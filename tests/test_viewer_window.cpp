@@ -413,6 +413,21 @@ TEST_F(ViewerCli, FreeFlightKeepsTheAltitude) {
   EXPECT_NE(bad.err.find("--altitude needs --free-flight"), std::string::npos) << bad.err;
 }
 
+TEST_F(ViewerCli, MemoryBudgetBoundsThePagersPool) {
+  // Item 7: the pager's pool is most of a flight's memory; the flag bounds it.
+  TempDir out("flybudget");
+  for (const char* mb : {"1024", "2"}) {
+    const auto r = runCli(flyArgs({"--headless", "--frames", "2", "--png", out / mb, "--memory-budget-mb", mb}));
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto stats = readStats(out / mb);
+    const auto& pager = stats["frames"].back()["pager"];
+    EXPECT_LE(pager["pool_bytes"].get<double>(), std::stod(mb) * 1024 * 1024) << mb;
+    if (std::string(mb) == "2") EXPECT_GT(pager["budget_refusals"].get<double>() + pager["budget_trimmed_levels"].get<double>(), 0);
+  }
+  const auto bad = runCli(flyArgs({"--headless", "--frames", "1", "--memory-budget-mb", "0"}));
+  EXPECT_EQ(bad.exitCode, 2);
+}
+
 TEST_F(ViewerCli, VideoThroughFfmpegOrAClearMessage) {
   TempDir out("flyvideo");
   const auto r = runCli(flyArgs({"--headless", "--frames", "6", "--video", out / "flight.mp4"}));

@@ -56,6 +56,7 @@ struct FlyArgs {
   bool noMorph = false;
   double fogDensity = 0;
   bool pagerSync = false;
+  double memoryBudgetMb = 1024;
   bool noSky = false;
   std::uint32_t msaa = 0;
   std::string shading = "smooth";
@@ -251,6 +252,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.lod.morph = !a.noMorph;
   o.fogDensity = a.fogDensity;
   o.pagerSync = a.pagerSync;
+  o.pagerBudgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
   o.sky = !a.noSky;
   o.msaa = a.msaa;
   if (a.shading == "smooth") o.shading = runtime::Shading::smooth;
@@ -497,6 +499,10 @@ void registerFly(CLI::App& root, Commands& c) {
       ->capture_default_str();
   sub->add_flag("--no-sky", args->noSky, "Clear to magenta instead of drawing the sky (shows cracks)");
   sub->add_flag("--pager-sync", args->pagerSync, "Wait for the pager before every frame (reproducible frames)");
+  sub->add_option("--memory-budget-mb", args->memoryBudgetMb,
+                  "Most memory for paged modules, MiB (the pager's pool; modules beyond it stand in coarse)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 1048576.0));
   sub->add_flag("--window", args->window, "Fly in a window from the keyboard (needs DISPLAY; default when set)");
   sub->add_flag("--headless", args->headless, "Fly without a window even when DISPLAY is set");
   sub->add_flag("--map", args->map, "Show the 2-D map in the top-right corner (m toggles it in a window)");
