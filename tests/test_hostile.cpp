@@ -143,6 +143,13 @@ void damageGrid(const std::string& db, const std::function<void(std::string&, co
 
 std::vector<Problem> validateAll(const std::string& db) { return convert::validateDatabaseWithCrs(db); }
 
+/// A number as the validator prints it: 17 significant digits, shortest form.
+std::string fmt17(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
 /// The one problem `validate` must find, with its file and offset.
 void expectOnly(const std::vector<Problem>& ps, const std::string& file, std::uint64_t offset,
                 const std::string& needle) {
@@ -207,14 +214,15 @@ TEST_F(HostileCli, validateComparesMinElevationExactly) {
     // Between two floats: rounding it to f32 would have hidden it.
     const std::string db = copy("minelev");
     resealManifest(db, [&](json& j) { j["grid"]["min_elevation"] = double(m->minElevation) + 1e-6; });
-    expectOnly(validateAll(db), db + "/manifest.json", 0, "grid.min_elevation 75.000000999999997 is not an f32 value");
+    expectOnly(validateAll(db), db + "/manifest.json", 0, "grid.min_elevation " + fmt17(double(m->minElevation) + 1e-6) + " is not an f32 value");
   }
   {
     const std::string db = copy("minelev2");
     const float next = std::nextafter(m->minElevation, 1e9f);
     resealManifest(db, [&](json& j) { j["grid"]["min_elevation"] = double(next); });
     expectOnly(validateAll(db), db + "/grid.stg", grid::field::minElevation,
-               "disagree on min_elevation (header 75, manifest 75.000007629394531)");
+               "disagree on min_elevation (header " + fmt17(m->minElevation) + ", manifest " +
+                   fmt17(double(next)) + ")");
   }
 }
 

@@ -389,12 +389,12 @@ TEST_F(ViewerCli, PathErrorsNameTheFileAndLine) {
   const auto r = runCli(pathArgs(db_, out / "outside.path", out / "f"));
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_NE(r.err.find("outside.path"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("line 4"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("outside.path:4:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("outside the database"), std::string::npos) << r.err;
   spit(out / "proj.path", "frame projected\n0 0 100 time=0\n10 10 100 time=5\n");
   const auto p = runCli(pathArgs(db_, out / "proj.path", out / "p"));
   EXPECT_EQ(p.exitCode, 2);
-  EXPECT_NE(p.err.find("line 2"), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find("proj.path:2:"), std::string::npos) << p.err;
   EXPECT_NE(p.err.find("outside the database"), std::string::npos) << p.err;
 }
 
