@@ -21,6 +21,7 @@
 #include "sandtable/runtime/hud.h"
 #include "sandtable/runtime/module_scene.h"
 #include "sandtable/runtime/pager.h"
+#include "sandtable/runtime/path.h"
 #include "sandtable/runtime/renderer.h"
 #include "sandtable/runtime/terrain.h"
 
@@ -28,7 +29,6 @@ namespace sandtable::runtime {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 /// Road classes at least this wide (metres) get the texture's markings.
 constexpr double kMarkedRoadWidth = 5.0;
 
@@ -43,11 +43,6 @@ double normalizeHeading(double deg) {
   return h < 0 ? h + 360.0 : h;
 }
 
-/// Heading of the leg a -> b, clockwise from grid north.
-double legHeading(const Waypoint& a, const Waypoint& b) {
-  return normalizeHeading(std::atan2(b.easting - a.easting, b.northing - a.northing) * kRadToDeg);
-}
-
 Pose straightPose(const FlightOptions& o, double t) {
   const double d = o.speedKmh / 3.6 * t;
   const double h = o.headingDeg * kDegToRad;
@@ -60,35 +55,25 @@ Pose straightPose(const FlightOptions& o, double t) {
   return p;
 }
 
+/// FlightOptions::path flown as a path file would be (path.h): the legs at
+/// their speeds, the heading turning at Path::turnRateDegS round each
+/// waypoint rather than snapping.
 Pose pathPose(const std::vector<Waypoint>& path, double t) {
-  double heading = 0;
-  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
-    const Waypoint& a = path[k];
-    const Waypoint& b = path[k + 1];
-    const double length = std::hypot(b.easting - a.easting, b.northing - a.northing);
-    if (length <= 0) continue;  // a repeated waypoint has no direction
-    heading = legHeading(a, b);
-    const double duration = length / (a.speedKmh / 3.6);
-    if (t <= duration) {
-      const double f = t / duration;
-      Pose p;
-      p.easting = a.easting + f * (b.easting - a.easting);
-      p.northing = a.northing + f * (b.northing - a.northing);
-      p.headingDeg = heading;
-      p.heightAgl = a.heightAgl + f * (b.heightAgl - a.heightAgl);
-      p.speedKmh = a.speedKmh;
-      return p;
-    }
-    t -= duration;
+  std::vector<PathPoint> points;
+  points.reserve(path.size());
+  for (const Waypoint& w : path) {
+    PathPoint q;
+    q.easting = w.easting;
+    q.northing = w.northing;
+    q.heightAgl = w.heightAgl;
+    q.speedKmh = w.speedKmh;
+    points.push_back(q);
   }
-  // Past the last waypoint the eye hovers there, still facing along the last leg.
-  const Waypoint& end = path.back();
-  Pose p;
-  p.easting = end.easting;
-  p.northing = end.northing;
-  p.headingDeg = heading;
-  p.heightAgl = end.heightAgl;
-  return p;
+  points.back().speedKmh.reset();  // no leg starts at the last waypoint
+  points.front().timeS = 0;
+  auto resolved = resolvePath(points, {}, "FlightOptions::path");
+  if (!resolved.ok()) return {};  // checkFlightOptions refuses such a path before flight
+  return samplePath(resolved.value(), t);
 }
 
 double percentile(std::vector<double> v, double p) {

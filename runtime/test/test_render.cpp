@@ -195,6 +195,12 @@ TEST(FlightPath, FollowsWaypointLegsAndStops) {
   EXPECT_NEAR(p.easting, 100, 1e-9);
   EXPECT_NEAR(p.northing, 100, 1e-9);
   EXPECT_EQ(p.speedKmh, 0);
+  // The left turn at the corner (t = 10 s) is spread over 2 s at 45 deg/s,
+  // centred on it, not a snap from 90 to 0.
+  EXPECT_NEAR(poseAt(o, 10).headingDeg, 45, 1e-9);
+  EXPECT_NEAR(poseAt(o, 10).easting, 100, 1e-9);
+  EXPECT_NEAR(poseAt(o, 9.5).headingDeg, 67.5, 1e-9);
+  EXPECT_NEAR(poseAt(o, 0).speedKmh, 36, 1e-9);  // frame 0 is already moving
 }
 
 TEST_F(RenderTest, RejectsBadOptions) {
