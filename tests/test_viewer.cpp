@@ -76,11 +76,8 @@ class Viewer : public ::testing::Test {
   static std::pair<Image, runtime::FrameStats> frame(const std::string& dir, FlightOptions o,
                                                      double lon, double lat,
                                                      const std::string& name = "") {
-    auto db = openDatabase(dir);
-    EXPECT_TRUE(db.ok()) << db.error();
-    auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-    EXPECT_TRUE(geo.ok());
-    EXPECT_TRUE(geo.value()->toProjected(lon, lat, o.easting, o.northing));
+    auto db = openAt(dir, lon, lat, o);
+    if (!db) return {};
     // Two frames: the second is drawn after the pager has surely published
     // every level of every module (the first waits for its queue to drain).
     o.frames = 2;
@@ -322,11 +319,15 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
     const bool wholeRoadOnScreen = std::all_of(q.begin(), q.end(), [&](const auto& p) {
       return p[0] >= 0 && p[0] < o.width && p[1] >= 0 && p[1] < o.height;
     });
-    if (height >= 1500) EXPECT_TRUE(wholeRoadOnScreen) << "height " << height;
+    if (height >= 1500) {
+      EXPECT_TRUE(wholeRoadOnScreen) << "height " << height;
+    }
     // Multisampled edges blend road and skin: only the interior is checked then.
-    if (wholeRoadOnScreen && msaa == 0) EXPECT_NEAR(double(roadPixels), area, 0.05 * area)
-        << "height " << height << " centre " << centre[0] << "," << centre[1] << " corners "
-        << q[0][0] << "," << q[0][1] << " " << q[2][0] << "," << q[2][1];
+    if (wholeRoadOnScreen && msaa == 0) {
+      EXPECT_NEAR(double(roadPixels), area, 0.05 * area)
+          << "height " << height << " centre " << centre[0] << "," << centre[1] << " corners "
+          << q[0][0] << "," << q[0][1] << " " << q[2][0] << "," << q[2][1];
+    }
     EXPECT_EQ(skinInside, 0u) << "height " << height << ", msaa " << msaa;
   }
 }
@@ -376,12 +377,9 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
 TEST_F(Viewer, GpuCopiesFollowThePager) {
   // Across the database fast with a short view: modules enter and leave
   // the pager's window, and the render thread's copies with them.
-  auto db = openDatabase(monaco_);
-  ASSERT_TRUE(db.ok()) << db.error();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-  ASSERT_TRUE(geo.ok());
   FlightOptions o;
-  ASSERT_TRUE(geo.value()->toProjected(7.385, 43.745, o.easting, o.northing));
+  auto db = openAt(monaco_, 7.385, 43.745, o);
+  ASSERT_TRUE(db);
   o.width = 160;
   o.height = 90;
   o.frames = 45;

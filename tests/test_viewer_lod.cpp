@@ -59,11 +59,8 @@ class ViewerLod : public ::testing::Test {
   /// queued load done.
   static FrameStats frame(FlightOptions o, double lon = 11.60, double lat = 50.05,
                           runtime::Image* image = nullptr) {
-    auto db = openDatabase(db_);
-    EXPECT_TRUE(db.ok()) << db.error();
-    auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-    EXPECT_TRUE(geo.ok());
-    EXPECT_TRUE(geo.value()->toProjected(lon, lat, o.easting, o.northing));
+    auto db = openAt(db_, lon, lat, o);
+    if (!db) return {};
     o.frames = 2;
     o.width = 640;
     o.height = 360;
@@ -140,12 +137,9 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
   // Item 4: the + key (here a controller) asks for 4 x the view distance the
   // pager opened with. The pager's window follows; the drawn distance
   // follows what is resident, so no frame shows a hole, and it gets there.
-  auto db = openDatabase(db_);
-  ASSERT_TRUE(db.ok()) << db.error();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-  ASSERT_TRUE(geo.ok());
   FlightOptions o;
-  ASSERT_TRUE(geo.value()->toProjected(11.60, 50.05, o.easting, o.northing));
+  auto db = openAt(db_, 11.60, 50.05, o);
+  ASSERT_TRUE(db);
   o.width = 320;
   o.height = 180;
   o.frames = 150;

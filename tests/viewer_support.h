@@ -1,8 +1,14 @@
 #pragma once
 // Helpers shared by the viewer's integration tests.
 #include <cstdint>
+#include <optional>
+#include <string>
 
+#include "sandtable/converters/crs.h"
+#include "sandtable/formats/database.h"
+#include "sandtable/runtime/flight.h"
 #include "sandtable/runtime/image.h"
+#include "test_support.h"
 
 namespace sandtable::test {
 
@@ -23,6 +29,23 @@ inline std::uint64_t holesBelowTheSilhouette(const runtime::Image& img) {
     for (; y < img.height; ++y) n += isMagenta(img, x, y);
   }
   return n;
+}
+
+/// Opens the database in `dir` and starts `o` over (lon, lat), through the
+/// database's own CRS. Empty (with a test failure) when either fails.
+inline std::optional<Database> openAt(const std::string& dir, double lon, double lat,
+                                      runtime::FlightOptions& o) {
+  auto db = openDatabase(dir);
+  if (!db.ok()) {
+    ADD_FAILURE() << db.error();
+    return std::nullopt;
+  }
+  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  if (!geo.ok() || !geo.value()->toProjected(lon, lat, o.easting, o.northing)) {
+    ADD_FAILURE() << dir << ": cannot place " << lon << " " << lat;
+    return std::nullopt;
+  }
+  return std::move(db.value());
 }
 
 }  // namespace sandtable::test

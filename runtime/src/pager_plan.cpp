@@ -87,9 +87,9 @@ void sortNearestFirst(std::vector<ModuleKey>& keys, double eyeX, double eyeZ, do
 }  // namespace
 
 void StripPlanner::setViewDistance(double metres) {
-  const double most = std::max(geometry_.viewDistance, geometry_.maxViewDistance);
-  if (geometry_.maxViewDistance < most) geometry_.maxViewDistance = most;
-  if (std::isfinite(metres) && metres > 0) geometry_.viewDistance = std::min(metres, most);
+  // maxViewDistance 0 (fixed) leaves the distance the planner opened with as the most.
+  if (geometry_.maxViewDistance < geometry_.viewDistance) geometry_.maxViewDistance = geometry_.viewDistance;
+  if (std::isfinite(metres) && metres > 0) geometry_.viewDistance = std::min(metres, geometry_.maxViewDistance);
 }
 
 StripPlanner::StripPlanner(const PagingGeometry& g) : geometry_(g) {
