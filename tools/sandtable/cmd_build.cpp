@@ -1,5 +1,6 @@
 // sandtable build: source elevation into a database directory.
 #include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 
@@ -56,10 +57,13 @@ std::string megabytes(std::uint64_t bytes) {
 /// The one line printed before the build starts (README, "Build estimate").
 void printEstimate(const convert::BuildEstimate& e) {
   std::fprintf(stderr,
-               "estimate: %llu posts (%u x %u), grid %s, %llu modules, about %.0f s on %d threads, peak memory "
+               "estimate: %llu posts (%u x %u), grid %s, %llu modules, about %.0f s on %d threads%s, peak memory "
                "about %s\n",
                static_cast<unsigned long long>(e.posts), e.postsX, e.postsZ, megabytes(e.gridBytes).c_str(),
                static_cast<unsigned long long>(e.modules), std::max(1.0, e.seconds), e.threads,
+               std::lround(e.secondsMax) > std::lround(std::max(1.0, e.seconds))
+                   ? (" (up to " + std::to_string(long(e.secondsMax)) + " s if the culture is town-dense everywhere)").c_str()
+                   : "",
                megabytes(e.peakBytes).c_str());
   if (e.tooBig) {
     std::fprintf(stderr, "warning: that is more memory than this machine has (%s); a coarser --spacing or a "
@@ -72,7 +76,7 @@ void printEstimate(const convert::BuildEstimate& e) {
 nlohmann::json estimateJson(const convert::BuildEstimate& e) {
   return {{"posts", e.posts},         {"posts_x", e.postsX},     {"posts_z", e.postsZ},
           {"grid_bytes", e.gridBytes}, {"modules", e.modules},    {"threads", e.threads},
-          {"seconds", e.seconds},     {"peak_bytes", e.peakBytes}, {"memory_bytes", e.memoryBytes},
+          {"seconds", e.seconds},     {"seconds_max", e.secondsMax}, {"peak_bytes", e.peakBytes}, {"memory_bytes", e.memoryBytes},
           {"slow", e.slow},           {"too_big", e.tooBig}};
 }
 

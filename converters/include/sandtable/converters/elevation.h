@@ -28,7 +28,8 @@ struct BuildEstimate {
   std::uint64_t gridBytes = 0;  ///< the grid file
   std::uint64_t modules = 0;    ///< load modules (0 without)
   int threads = 1;              ///< worker threads the estimate assumes
-  double seconds = 0;           ///< wall time
+  double seconds = 0;           ///< wall time, culture as sparse as rural OSM (or none)
+  double secondsMax = 0;        ///< wall time if the culture were town-dense everywhere
   std::uint64_t peakBytes = 0;  ///< peak resident memory
   std::uint64_t memoryBytes = 0;  ///< physical memory of this machine (0 if unknown)
   bool slow = false;    ///< seconds above kSlowBuildSeconds
