@@ -9,6 +9,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libgdal-dev gdal-bin            # GDAL/OGR with PROJ: every raster, vector and transform
   libeigen3-dev                   # vector math
+  libtbb-dev                      # oneTBB: the job system of every parallel build stage
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev  # CGAL (exact arithmetic): culture cut to the terrain triangles
   nlohmann-json3-dev              # manifest and --json output
   libcli11-dev                    # subcommand CLI with --help

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::convert::synth {
 

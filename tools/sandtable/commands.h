@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::cli {
 

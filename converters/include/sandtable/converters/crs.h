@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 class OGRCoordinateTransformation;
 

@@ -29,7 +29,7 @@
 
 #include "sandtable/formats/materials.h"
 #include "sandtable/formats/module.h"
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::convert {
 

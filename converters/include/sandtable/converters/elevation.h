@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "sandtable/formats/manifest.h"
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::convert {
 

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "sandtable/formats/manifest.h"
-#include "sandtable/formats/result.h"
-#include "sandtable/formats/work.h"
+#include "sandtable/base/result.h"
+#include "sandtable/base/work.h"
 
 namespace sandtable::convert {
 

@@ -23,8 +23,8 @@
 #include <string>
 #include <vector>
 
-#include "sandtable/formats/result.h"
-#include "sandtable/formats/work.h"
+#include "sandtable/base/result.h"
+#include "sandtable/base/work.h"
 
 namespace sandtable::grid {
 

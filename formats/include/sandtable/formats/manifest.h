@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::manifest {
 

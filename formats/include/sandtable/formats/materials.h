@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::materials {
 

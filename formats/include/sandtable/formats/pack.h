@@ -26,8 +26,8 @@
 #include <vector>
 
 #include "sandtable/formats/module.h"
-#include "sandtable/formats/result.h"
-#include "sandtable/formats/work.h"
+#include "sandtable/base/result.h"
+#include "sandtable/base/work.h"
 
 namespace sandtable::pack {
 

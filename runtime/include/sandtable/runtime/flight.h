@@ -35,7 +35,7 @@
 
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/grid.h"
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 #include "sandtable/runtime/image.h"
 #include "sandtable/runtime/lod.h"
 #include "sandtable/runtime/renderer.h"

@@ -45,7 +45,7 @@
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 
 namespace sandtable::runtime {
 

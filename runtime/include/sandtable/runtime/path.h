@@ -21,7 +21,7 @@
 #include <string_view>
 #include <vector>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 #include "sandtable/runtime/flight.h"
 
 namespace sandtable::runtime {

@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 #include "sandtable/runtime/display_buffer.h"
 #include "sandtable/runtime/image.h"
 

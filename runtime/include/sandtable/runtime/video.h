@@ -12,7 +12,7 @@
 #include <memory>
 #include <string>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 #include "sandtable/runtime/image.h"
 
 namespace sandtable::runtime {

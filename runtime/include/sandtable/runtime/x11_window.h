@@ -28,7 +28,7 @@
 #include <string>
 #include <vector>
 
-#include "sandtable/formats/result.h"
+#include "sandtable/base/result.h"
 #include "sandtable/runtime/controls.h"
 #include "sandtable/runtime/image.h"
 
