@@ -11,7 +11,7 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/terrain.h"
+#include "sandtable/world/terrain.h"
 #include "source_raster.h"
 #include "test_support.h"
 

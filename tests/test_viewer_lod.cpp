@@ -12,9 +12,9 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/image.h"
-#include "sandtable/runtime/renderer.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/image.h"
+#include "sandtable/render/renderer.h"
 #include "test_support.h"
 #include "viewer_support.h"
 

@@ -16,11 +16,11 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/image.h"
-#include "sandtable/runtime/renderer.h"
-#include "sandtable/runtime/terrain.h"
-#include "sandtable/runtime/view_triangle.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/image.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/world/terrain.h"
+#include "sandtable/paging/view_triangle.h"
 #include "test_support.h"
 
 namespace sandtable::test {

@@ -30,16 +30,18 @@
 #include <thread>
 
 #include "sandtable/converters/elevation.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/hud.h"
-#include "sandtable/runtime/image.h"
-#include "sandtable/runtime/renderer.h"
-#include "../runtime/test/xvfb.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/hud.h"
+#include "sandtable/render/image.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/testing/xvfb.h"
 
 #include <X11/Xlib.h>
 #include <X11/Xutil.h>
 #include <X11/extensions/XTest.h>
 #include <X11/keysym.h>
+// Xlib defines Status as a macro; ours is sandtable::Status (base/result.h).
+#undef Status
 
 
 namespace sandtable::test {

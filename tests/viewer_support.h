@@ -6,8 +6,8 @@
 
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/image.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/image.h"
 #include "test_support.h"
 
 namespace sandtable::test {

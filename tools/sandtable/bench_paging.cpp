@@ -24,9 +24,9 @@
 #include <nlohmann/json.hpp>
 
 #include "db_util.h"
-#include "sandtable/runtime/hud.h"
-#include "sandtable/runtime/image.h"
-#include "sandtable/runtime/pager.h"
+#include "sandtable/render/hud.h"
+#include "sandtable/render/image.h"
+#include "sandtable/paging/pager.h"
 
 namespace sandtable::cli {
 namespace {

@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/renderer.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/renderer.h"
 
 namespace sandtable::cli {
 namespace {

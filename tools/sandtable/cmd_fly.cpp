@@ -15,20 +15,23 @@
 #include <stdexcept>
 
 #include "commands.h"
-#include "fly_session.h"
+#include "sandtable/viewer/fly_session.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
-#include "sandtable/runtime/flight.h"
-#include "sandtable/runtime/path.h"
-#include "sandtable/runtime/renderer.h"
-#include "sandtable/runtime/terrain.h"
-#include "sandtable/runtime/video.h"
-#include "sandtable/runtime/x11_window.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/world/path.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/world/terrain.h"
+#include "sandtable/viewer/video.h"
+#include "sandtable/viewer/x11_window.h"
 
 namespace sandtable::cli {
 namespace {
 
 using runtime::FlightOptions;
+using runtime::FlySession;
+using runtime::FlySessionSettings;
+using runtime::waterMaterials;
 
 constexpr const char* kName = "fly";
 

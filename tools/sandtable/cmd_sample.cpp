@@ -9,7 +9,7 @@
 #include "commands.h"
 #include "db_util.h"
 #include "sandtable/converters/crs.h"
-#include "sandtable/runtime/terrain.h"
+#include "sandtable/world/terrain.h"
 
 namespace sandtable::cli {
 namespace {

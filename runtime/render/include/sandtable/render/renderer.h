@@ -1,0 +1,131 @@
+#pragma once
+// The renderer: draws a DisplayBuffer into an offscreen frame with OpenGL
+// 4.5 core through headless EGL and reads it back.
+//
+// Each frame: the sky (a full-screen triangle shaded from the background
+// colour at the horizon to a deeper tone at the zenith), then the terrain:
+// the grid mesh's strips from a streamed vertex buffer with one
+// glMultiDrawArrays, or the load modules' indexed triangles. Both modes
+// colour the ground by the same rules (docs/VIEWER.md, "Colours"): culture
+// class colours where culture covers it (modules), water where the grid's
+// material is water, else a fixed elevation tint; lit by a fixed sun from
+// smooth per-post normals and fogged towards the background colour, full
+// fog at the view distance. Shading::flat gives the seed's look instead.
+//
+// Thread safety: a Renderer owns a GL context that is current on the thread
+// that created it. Create, use and destroy it on that one thread (the render
+// thread); it reads DisplayBuffers that other threads filled.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/grid.h"
+#include "sandtable/base/result.h"
+#include "sandtable/scene/display_buffer.h"
+#include "sandtable/render/image.h"
+
+namespace sandtable::runtime {
+
+/// Problem::file of every failure to open the headless context, so callers
+/// can tell "no GL here" from other errors.
+inline constexpr const char* kGlContextProblem = "EGL";
+
+/// Colours of one material class (materials.h): upper and lower grid
+/// triangle, as the seed shades the two halves of a square differently
+/// (Shading::flat; smooth shading uses their mean for both).
+struct MaterialColour {
+  Rgb upper{0x6E, 0x8C, 0x46}, lower{0x64, 0x82, 0x40};
+  /// A road: drawn with the road texture (edges, grain) over its colour.
+  bool road = false;
+  /// With the texture's white markings (edge lines, dashed centre line).
+  bool markings = false;
+};
+
+/// How the terrain is lit and coloured.
+enum class Shading : std::uint8_t {
+  smooth,  ///< per-post normals, one colour per material, elevation tint where no culture
+  flat,    ///< the seed's look: a flat normal and the upper/lower colour per triangle
+};
+
+/// What a pixel's colour holds.
+enum class ColourMode : std::uint8_t {
+  natural,  ///< the shaded terrain
+  height,   ///< the world height of the terrain under the pixel, as kHeightCode* says
+};
+
+/// ColourMode::height: a terrain pixel's R, G, B bytes are the code
+/// c = R * 65536 + G * 256 + B, its height h = c / kHeightCodeScale -
+/// kHeightCodeOffset metres (quantisation 1/256 m, range -1000 .. 64535 m);
+/// c = 0 is no terrain (the clear colour). No sky, fog, panel or map.
+inline constexpr double kHeightCodeScale = 256.0;
+inline constexpr double kHeightCodeOffset = 1000.0;
+/// The height a ColourMode::height frame holds at (x, y); nullopt: no terrain.
+std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t y);
+
+struct RenderSettings {
+  std::uint32_t width = 1280, height = 720;
+  Rgb background{0x87, 0xCE, 0xEB};  ///< sky at the horizon and fog colour
+  bool fog = true;
+  /// Draw the sky; false leaves the clear colour wherever no terrain is
+  /// drawn (the crack tests clear to magenta).
+  bool sky = true;
+  Rgb clearColour{0xFF, 0x00, 0xFF};
+  /// Multisampling (0 = off): resolves thin, far decals to their coverage
+  /// instead of letting them shimmer from frame to frame.
+  std::uint32_t samples = 0;
+  Shading shading = Shading::smooth;
+  ColourMode colour = ColourMode::natural;  ///< height: no sky, fog or multisampling
+  /// Module mode: colour of each material id (index); ids beyond it get
+  /// the default MaterialColour.
+  std::vector<MaterialColour> palette;
+  /// Module mode: the class of skin no culture covers (the table's
+  /// default-area). Smooth shading colours it by the grid: water or tint.
+  std::uint16_t uncoveredMaterial = 0;
+  /// Grid material indices that are water (docs/FORMAT.md 4.7).
+  std::vector<std::uint8_t> waterMaterials{1};
+  /// Module mode, smooth shading: normals and water come from the grid at
+  /// each module vertex (computed once per upload). Null: up and no water.
+  std::shared_ptr<const grid::GridFile> grid;
+};
+
+/// What the render thread did for the last frame (module mode).
+struct RenderStats {
+  std::uint32_t uploads = 0;        ///< (module, level) buffers built this frame
+  std::uint32_t released = 0;       ///< buffers released this frame
+  std::uint32_t cachedLevels = 0;   ///< (module, level) buffers held on the GPU
+  std::uint64_t gpuBytes = 0;       ///< their vertex bytes
+  double uploadMs = 0;              ///< building and uploading them
+};
+
+class Renderer {
+ public:
+  static Result<std::unique_ptr<Renderer>> create(const RenderSettings& s);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  /// Draws `buf` and reads the frame into `out` (top row first). Returns ""
+  /// or a GL error.
+  std::string draw(const DisplayBuffer& buf, Image& out);
+
+  /// Counters of the last draw.
+  const RenderStats& stats() const;
+
+  /// GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
+  const std::string& glRenderer() const;
+  /// GL_VERSION and the EGL platform used.
+  std::string description() const;
+
+ private:
+  struct Impl;
+  explicit Renderer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Whether a headless GL 4.5 core context can be opened here; `why` gets
+/// the reason when not. Opens and closes one context.
+bool headlessGlAvailable(std::string& why);
+
+}  // namespace sandtable::runtime

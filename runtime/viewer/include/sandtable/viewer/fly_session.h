@@ -1,0 +1,123 @@
+#pragma once
+// What `sandtable fly` plugs into the flight loop's hooks (flight.h): the
+// pose source (a path file, the keyboard Controller in a window, or the
+// straight line), the 2-D map, the window, screenshots and the video.
+//
+// Threads: nextPose() runs on fly()'s main thread (it polls the window's
+// keys there); composite() and frameDone() run on its render thread. The
+// main thread produces a frame or two ahead of the one being drawn, so
+// what the render thread needs of the controller's state (map on/off and
+// scale, a screenshot request) travels with the frame number through a
+// mutex-guarded queue, and each frame is composited with its own state.
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sandtable/formats/database.h"
+#include "sandtable/world/controls.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/map_view.h"
+#include "sandtable/world/path.h"
+#include "sandtable/world/terrain.h"
+#include "sandtable/viewer/video.h"
+#include "sandtable/viewer/x11_window.h"
+
+namespace sandtable::runtime {
+
+struct FlySessionSettings {
+  std::optional<runtime::Path> path;  ///< fly this instead of a straight line / the keys
+  bool freeFlight = false;
+  double altitude = 0;                ///< free flight: eye above the datum, metres
+  bool map = false;                   ///< map shown at the start
+  int mapScale = 0;                   ///< 0 full .. 4 sixteenth
+  std::vector<std::uint8_t> waterMaterials{1};
+  std::string screenshotDir;          ///< where the screenshot key writes
+  /// The largest view distance the keys may ask for (module mode: the one
+  /// the pager was opened with, which it cannot grow).
+  double maxViewDistance = 200000;
+  bool liveViewDistance = true;       ///< false with --fog-density (fog fixes it)
+};
+
+/// Per frame, what the render thread needs of the controller's state.
+struct FrameControl {
+  std::uint32_t frame = 0;
+  bool map = false;
+  int mapScale = 0;
+  bool screenshot = false;
+};
+
+/// Frames go from the main thread to the render thread in order; the
+/// render thread takes each frame's entry (and drops older ones).
+class FrameControlQueue {
+ public:
+  void push(const FrameControl& c);
+  FrameControl take(std::uint32_t frame);
+
+ private:
+  std::mutex m_;
+  std::deque<FrameControl> q_;
+  FrameControl last_;
+};
+
+class FlySession {
+ public:
+  /// `window` and `video` may be null (headless, no video). `o` must be
+  /// the flight's options (start, heading, speed, height, FOV...).
+  FlySession(const Database& db, FlySessionSettings settings, const runtime::FlightOptions& o,
+             std::unique_ptr<runtime::ViewerWindow> window,
+             std::unique_ptr<runtime::VideoWriter> video);
+
+  /// Sets o.controller, o.composite and o.onFrame to this session's.
+  void install(runtime::FlightOptions& o);
+  /// After fly(): finishes the video; "" or the first error of the flight's
+  /// window, screenshots or video.
+  std::string finish();
+  std::uint32_t screenshotsTaken() const { return screenshots_.load(); }
+  bool windowed() const { return window_ != nullptr; }
+
+ private:
+  std::optional<runtime::Pose> nextPose(std::uint32_t frame, double t);
+  double pollKeys();  ///< window: handles the keys, returns the clamped wall-clock step
+  runtime::Pose headlessPose(double t);
+  runtime::Pose windowPose(double clock) const;
+  void composite(runtime::Image& img, const runtime::FrameStats& s);
+  void frameDone(std::uint32_t frame, const runtime::Image& img);
+  void saveScreenshot(const runtime::Image& img);
+  void fail(const std::string& e);
+  runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
+
+  const Database& db_;
+  FlySessionSettings settings_;
+  const runtime::FlightOptions& options_;
+  runtime::Terrain terrain_;
+  std::unique_ptr<runtime::ViewerWindow> window_;
+  std::unique_ptr<runtime::VideoWriter> video_;
+  // main thread
+  std::optional<runtime::Controller> controller_;
+  bool quitAfterThisFrame_ = false, quitting_ = false;
+  double clock_ = 0;  ///< window: flight time, the sum of clamped wall-clock steps
+  std::optional<double> lastWall_;
+  double lastGround_ = 0;
+  // render thread
+  std::unique_ptr<runtime::MapView> map_;
+  FrameControl current_;
+  std::uint32_t nextShot_ = 0;
+  // shared
+  FrameControlQueue controls_;
+  std::atomic<bool> failed_{false};
+  std::atomic<std::uint32_t> screenshots_{0};
+  std::mutex errorMutex_;
+  std::string error_;
+};
+
+/// Water material indices from the database's material table (manifest
+/// build.materials names containing "water"); {1} (docs/FORMAT.md 4.7)
+/// when it lists none.
+std::vector<std::uint8_t> waterMaterials(const Database& db);
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,677 @@
+#include "sandtable/viewer/flight.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <future>
+#include <mutex>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/module.h"
+#include "sandtable/scene/camera_math.h"
+#include "sandtable/scene/display_buffer.h"
+#include "sandtable/render/hud.h"
+#include "sandtable/scene/module_scene.h"
+#include "sandtable/paging/pager.h"
+#include "sandtable/world/path.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/world/terrain.h"
+
+namespace sandtable::runtime {
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+/// Road classes at least this wide (metres) get the texture's markings.
+constexpr double kMarkedRoadWidth = 5.0;
+
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+double normalizeHeading(double deg) {
+  const double h = std::fmod(deg, 360.0);
+  return h < 0 ? h + 360.0 : h;
+}
+
+Pose straightPose(const FlightOptions& o, double t) {
+  const double d = o.speedKmh / 3.6 * t;
+  const double h = o.headingDeg * kDegToRad;
+  Pose p;
+  p.easting = o.easting + std::sin(h) * d;
+  p.northing = o.northing + std::cos(h) * d;
+  p.headingDeg = normalizeHeading(o.headingDeg);
+  p.heightAgl = o.heightAgl;
+  p.speedKmh = o.speedKmh;
+  return p;
+}
+
+/// FlightOptions::path flown as a path file would be (path.h): the legs at
+/// their speeds, the heading turning at Path::turnRateDegS round each
+/// waypoint rather than snapping.
+Pose pathPose(const std::vector<Waypoint>& path, double t) {
+  std::vector<PathPoint> points;
+  points.reserve(path.size());
+  for (const Waypoint& w : path) {
+    PathPoint q;
+    q.easting = w.easting;
+    q.northing = w.northing;
+    q.heightAgl = w.heightAgl;
+    q.speedKmh = w.speedKmh;
+    points.push_back(q);
+  }
+  points.back().speedKmh.reset();  // no leg starts at the last waypoint
+  points.front().timeS = 0;
+  auto resolved = resolvePath(points, {}, "FlightOptions::path");
+  if (!resolved.ok()) return {};  // checkFlightOptions refuses such a path before flight
+  return samplePath(resolved.value(), t);
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const auto rank = static_cast<std::size_t>(std::ceil(p * double(v.size())));
+  return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
+}
+
+std::string format(const char* fmt, double a, double b = 0, double c = 0) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c);
+  return buf;
+}
+
+nlohmann::json frameJson(const FrameStats& s) {
+  nlohmann::json j = {{"frame", s.frame},
+                      {"time_s", s.timeS},
+                      {"cpu_ms", s.cpuMs},
+                      {"render_ms", s.renderMs},
+                      {"frame_ms", s.frameMs},
+                      {"png_ms", s.pngMs},
+                      {"triangles", s.triangles},
+                      {"strips", s.strips},
+                      {"easting", s.easting},
+                      {"northing", s.northing},
+                      {"eye_elevation", s.eyeElevation},
+                      {"height_agl", s.heightAgl},
+                      {"heading", s.headingDeg},
+                      {"fps", s.fps},
+                      {"fov", s.hfovDeg},
+                      {"view_distance", s.viewDistance},
+                      {"speed_kmh", s.speedKmh},
+                      {"free_flight", s.freeFlight}};
+  if (!s.levelCounts.empty()) {
+    j["modules"] = {{"drawn", s.modulesDrawn},     {"missing", s.modulesMissing},
+                    {"culled", s.modulesCulled},   {"nodes_drawn", s.nodesDrawn},
+                    {"nodes_coarser", s.nodesCoarser},
+                    {"nodes_per_level", s.levelCounts}, {"max_error_px", s.maxErrorPx},
+                    {"uploads", s.uploads},        {"released", s.released},
+                    {"cached_levels", s.cachedLevels},
+                    {"gpu_bytes", s.gpuBytes}};
+    j["modules"]["nodes_placeholder"] = s.nodesPlaceholder;
+    j["pager"] = {{"resident_in_window", s.residentModules},
+                  {"window_modules", s.windowModules},
+                  {"queue", s.pagerQueue},
+                  {"placeholders", s.pagerPlaceholders},
+                  {"budget_refusals", s.pagerBudgetRefusals},
+                  {"budget_trimmed_levels", s.pagerTrimmedLevels},
+                  {"pool_bytes", s.pagerPoolBytes}};
+  }
+  j["lon"] = s.lon ? nlohmann::json(*s.lon) : nlohmann::json(nullptr);
+  j["lat"] = s.lat ? nlohmann::json(*s.lat) : nlohmann::json(nullptr);
+  return j;
+}
+
+nlohmann::json summaryJson(const FlightSummary& s) {
+  return {{"frames", s.frames},
+          {"mode", s.mode},
+          {"lod", s.lod},
+          {"triangles_mean", s.trianglesMean},
+          {"frame_ms_p50", s.frameMsP50},
+          {"frame_ms_p99", s.frameMsP99},
+          {"fps_mean", s.fpsMean},
+          {"renderer", s.renderer},
+          {"renderer_detail", s.rendererDetail},
+          {"size", std::to_string(s.width) + "x" + std::to_string(s.height)},
+          {"width", s.width},
+          {"height", s.height}};
+}
+
+std::string writeStats(const std::string& path, const FlightReport& r, const FlightOptions& o) {
+  nlohmann::json j;
+  j["summary"] = summaryJson(r.summary);
+  j["timing"] = {
+      {"simulated_frame_rate", kFramesPerSecond},
+      {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
+               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload, "
+               "draw and glReadPixels (waits for the GPU); frame_ms: time between frame "
+               "completions on the render thread (the threads overlap), frame 0 cpu + render + "
+               "panel; png_ms is not in frame_ms or fps"}};
+  j["options"] = {{"size", std::to_string(o.width) + "x" + std::to_string(o.height)},
+                  {"height_agl", o.heightAgl},
+                  {"pitch", o.pitchDeg},
+                  {"speed_kmh", o.speedKmh},
+                  {"fov", o.hfovDeg},
+                  {"view_distance", o.viewDistance},
+                  {"fog", o.fog},
+                  {"mode", terrainModeName(o.mode)},
+                  {"lod", lodModeName(o.lod.mode)},
+                  {"rings", o.lod.rings},
+                  {"pixel_error", o.lod.pixelError},
+                  {"morph", o.lod.morph},
+                  {"msaa", o.msaa},
+                  {"hud", o.hud},
+                  {"path_waypoints", o.path.size()}};
+  nlohmann::json frames = nlohmann::json::array();
+  for (const auto& f : r.frames) frames.push_back(frameJson(f));
+  j["frames"] = frames;
+  const std::string text = j.dump(2) + "\n";
+  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+}
+
+FlightSummary summarize(const std::vector<FrameStats>& frames) {
+  FlightSummary s;
+  s.frames = static_cast<std::uint32_t>(frames.size());
+  std::vector<double> ms;
+  double triangles = 0, totalMs = 0;
+  for (const auto& f : frames) {
+    ms.push_back(f.frameMs);
+    triangles += double(f.triangles);
+    totalMs += f.frameMs;
+  }
+  if (frames.empty()) return s;
+  s.trianglesMean = triangles / double(frames.size());
+  s.frameMsP50 = percentile(ms, 0.50);
+  s.frameMsP99 = percentile(ms, 0.99);
+  s.fpsMean = totalMs > 0 ? 1000.0 * double(frames.size()) / totalMs : 0;
+  return s;
+}
+
+double effectiveViewDistance(const FlightOptions& o) {
+  return o.fogDensity > 0 ? detail::viewDistanceForFog(o.fogDensity) : o.viewDistance;
+}
+
+/// Camera for a pose; the ground under the eye comes from `ground`.
+Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, double ground) {
+  Camera c;
+  c.x = p.easting - h.originEasting;
+  c.z = h.originNorthing - p.northing;
+  c.y = p.altitude ? *p.altitude : ground + p.heightAgl;
+  c.headingDeg = p.headingDeg;
+  c.pitchDeg = std::clamp(p.pitchDeg.value_or(o.pitchDeg), -89.0, 89.0);
+  c.hfovDeg = std::clamp(p.hfovDeg.value_or(o.hfovDeg), 10.0, 90.0);
+  c.aspect = double(o.width) / double(o.height);
+  c.viewDistance = std::clamp(p.viewDistance.value_or(effectiveViewDistance(o)), 10.0, 1e6);
+  return c;
+}
+
+/// A display buffer with what the main thread knows about its frame.
+struct Slot {
+  DisplayBuffer buf;
+  FrameStats stats;
+};
+
+/// Seed Figure 44: two buffers go round between the main thread, which
+/// fills a free one, and the render thread, which draws a full one. Both
+/// sides sleep on the condition variable when they have nothing to do.
+class Handoff {
+ public:
+  explicit Handoff(std::array<Slot, 2>& slots) { free_ = {&slots[0], &slots[1]}; }
+
+  /// Main thread: a buffer to fill; null once the render thread failed.
+  Slot* takeFree() {
+    std::unique_lock lock(m_);
+    cv_.wait(lock, [&] { return failed_ || !free_.empty(); });
+    if (failed_) return nullptr;
+    Slot* s = free_.front();
+    free_.pop_front();
+    return s;
+  }
+  void pushFull(Slot* s) {
+    { std::lock_guard lock(m_); full_.push_back(s); }
+    cv_.notify_all();
+  }
+  /// Render thread: a buffer to draw; null when the main thread is done.
+  Slot* takeFull() {
+    std::unique_lock lock(m_);
+    cv_.wait(lock, [&] { return closed_ || !full_.empty(); });
+    if (full_.empty()) return nullptr;
+    Slot* s = full_.front();
+    full_.pop_front();
+    return s;
+  }
+  void pushFree(Slot* s) {
+    { std::lock_guard lock(m_); free_.push_back(s); }
+    cv_.notify_all();
+  }
+  void close() {
+    { std::lock_guard lock(m_); closed_ = true; }
+    cv_.notify_all();
+  }
+  void fail() {
+    { std::lock_guard lock(m_); failed_ = true; }
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<Slot*> free_, full_;
+  bool closed_ = false, failed_ = false;
+};
+
+/// Everything one flight owns while it runs.
+struct FlightRun {
+  FlightRun(const FlightOptions& options, std::shared_ptr<const grid::GridFile> g, RenderSettings rs)
+      : o(options), grid(g), terrain(std::move(g)), renderSettings(std::move(rs)) {}
+
+  const FlightOptions& o;
+  std::shared_ptr<const grid::GridFile> grid;
+  Terrain terrain;
+  RenderSettings renderSettings;
+  Pager* pager = nullptr;                 ///< module mode
+  /// The view distance the pager's window has been filled to: the drawn
+  /// distance grows past it only as far as the pager has modules resident.
+  double readyViewDistance = 0;
+  std::unique_ptr<ModuleScene> scene;     ///< module mode
+  std::array<Slot, 2> slots;
+  Handoff handoff{slots};
+  double ground = 0;  ///< last ground elevation seen under the eye
+  // Written by the render thread only; read after it is joined.
+  FlightReport report;
+  std::string renderError;
+  std::string rendererName, rendererDetail;
+
+  /// Velocity in the world frame (X east, Z south) for the pager's lead
+  /// strips: the motion since the previous frame over the time it took, or
+  /// on frame 0 (no previous) the pose's own speed along its heading.
+  static std::pair<double, double> velocity(const Pose& pose, double t, const Pose& previous,
+                                            double previousT, bool first) {
+    if (first || !(t > previousT)) {
+      const double v = pose.speedKmh / 3.6, h = pose.headingDeg * kDegToRad;
+      return {std::sin(h) * v, -std::cos(h) * v};
+    }
+    const double dt = t - previousT;
+    return {(pose.easting - previous.easting) / dt, -(pose.northing - previous.northing) / dt};
+  }
+
+  /// The distance to draw to when `asked` is the pager's view distance now.
+  double drawnViewDistance(double asked, double x, double z) {
+    if (asked <= readyViewDistance) {
+      readyViewDistance = asked;
+      return asked;
+    }
+    const double covered = pager->residentDistance(x, z);
+    if (covered >= asked) readyViewDistance = asked;
+    return std::max(readyViewDistance, std::min(asked, covered));
+  }
+
+  /// Main thread, one frame: motion, paging, selection into a free buffer.
+  /// False when the flight ends (the controller said so, or rendering failed).
+  bool produce(std::uint32_t k, Pose& previous, double& previousT) {
+    Pose pose;
+    if (o.controller) {
+      auto p = o.controller(k, k / kFramesPerSecond);
+      if (!p) return false;
+      pose = *p;
+    } else {
+      pose = poseAt(o, k / kFramesPerSecond);
+    }
+    const double t = pose.clockS.value_or(k / kFramesPerSecond);
+    if (auto sample = terrain.sampleEN(pose.easting, pose.northing)) ground = sample->elevation;
+    Camera cam = cameraFor(grid->header(), o, pose, ground);
+    if (pager) {
+      // The window follows the view distance asked for (the + and - keys,
+      // a path). Growing, the new ring is drawn only as it comes in, so the
+      // far edge moves out without a hole; shrinking takes effect at once.
+      const double asked = pager->setViewDistance(cam.viewDistance);
+      const auto [vx, vz] = velocity(pose, t, previous, previousT, k == 0);
+      pager->update(cam.x, cam.z, vx, vz, t);
+      if (k == 0 || o.pagerSync) pager->waitIdle(120);
+      cam.viewDistance = drawnViewDistance(asked, cam.x, cam.z);
+    }
+    previous = pose;
+    previousT = t;
+    Slot* slot = handoff.takeFree();
+    if (!slot) return false;
+    if (scene) {
+      scene->fill(cam, k, slot->buf);
+    } else {
+      fillDisplayBuffer(*grid, cam, k, slot->buf, o.waterMaterials);
+      slot->buf.moduleMode = false;
+    }
+    FrameStats& s = slot->stats;
+    s = FrameStats{};
+    s.frame = k;
+    s.timeS = t;
+    s.cpuMs = slot->buf.cpuMs;
+    s.triangles = slot->buf.triangles;
+    s.strips = slot->buf.firsts.size();
+    s.easting = pose.easting;
+    s.northing = pose.northing;
+    s.eyeElevation = cam.y;
+    s.heightAgl = cam.y - ground;
+    s.headingDeg = pose.headingDeg;
+    s.speedKmh = pose.speedKmh;
+    s.hfovDeg = cam.hfovDeg;
+    s.viewDistance = cam.viewDistance;
+    s.freeFlight = pose.altitude.has_value();
+    if (slot->buf.moduleMode) {
+      const SceneStats& sc = slot->buf.scene;
+      s.modulesDrawn = sc.modulesDrawn;
+      s.modulesMissing = sc.modulesMissing;
+      s.nodesDrawn = sc.nodesDrawn;
+      s.nodesCoarser = sc.nodesCoarser;
+      s.modulesCulled = sc.modulesCulled;
+      s.levelCounts = sc.levelCounts;
+      s.maxErrorPx = sc.maxErrorPx;
+      s.residentModules = sc.residentInWindow;
+      s.windowModules = sc.windowModules;
+      s.pagerQueue = sc.pagerQueue;
+      s.nodesPlaceholder = sc.nodesPlaceholder;
+      s.pagerPlaceholders = sc.pagerPlaceholders;
+      s.pagerBudgetRefusals = sc.pagerBudgetRefusals;
+      s.pagerTrimmedLevels = sc.pagerTrimmedLevels;
+      s.pagerPoolBytes = sc.pagerPoolBytes;
+    }
+    if (o.toLonLat) {
+      if (auto ll = o.toLonLat(pose.easting, pose.northing)) {
+        s.lon = ll->first;
+        s.lat = ll->second;
+      }
+    }
+    handoff.pushFull(slot);
+    return true;
+  }
+
+  /// Render thread: draws, reads back, composites and hands out each
+  /// frame, then returns the buffer (its pager guards released).
+  void consume(Renderer& renderer) {
+    Image image;
+    Clock::time_point lastDone{};
+    double lastPngMs = 0;
+    while (Slot* slot = handoff.takeFull()) {
+      FrameStats s = slot->stats;
+      const auto t0 = Clock::now();
+      const std::string err = renderer.draw(slot->buf, image);
+      s.renderMs = msSince(t0);
+      slot->buf.modules.clear();  // release the pager's guards within the frame
+      const RenderStats& rs = renderer.stats();
+      s.uploads = rs.uploads;
+      s.released = rs.released;
+      s.cachedLevels = rs.cachedLevels;
+      s.gpuBytes = rs.gpuBytes;
+      handoff.pushFree(slot);
+      if (!err.empty()) {
+        renderError = err;
+        handoff.fail();
+        return;
+      }
+      const auto now = Clock::now();
+      s.frameMs = report.frames.empty()
+                      ? s.cpuMs + s.renderMs
+                      : std::chrono::duration<double, std::milli>(now - lastDone).count() - lastPngMs;
+      s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
+      // A height frame holds data in its pixels: nothing is drawn over it.
+      const bool data = o.colour == ColourMode::height;
+      if (o.hud && !data) drawHudPanel(image, hudLines(s, o));
+      if (o.composite && !data) o.composite(image, s);
+      s.frameMs += msSince(now);  // the panel is part of the frame
+      lastDone = Clock::now();
+      if (o.onFrame) o.onFrame(s.frame, image);
+      lastPngMs = 0;
+      if (!o.outDir.empty()) {
+        const auto t2 = Clock::now();
+        const std::string path = (std::filesystem::path(o.outDir) / frameFileName(s.frame)).string();
+        if (std::string e = writePng(path, image); !e.empty()) {
+          renderError = e;
+          handoff.fail();
+          return;
+        }
+        s.pngMs = msSince(t2);
+      }
+      lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
+      report.frames.push_back(std::move(s));
+    }
+  }
+
+  /// The render thread's body: the GL context is made, used and destroyed here.
+  void renderThread(std::promise<std::vector<Problem>>& ready) {
+    auto renderer = Renderer::create(renderSettings);
+    if (!renderer) {
+      ready.set_value(renderer.problems());
+      return;
+    }
+    rendererName = renderer.value()->glRenderer();
+    rendererDetail = renderer.value()->description();
+    ready.set_value({});
+    consume(*renderer.value());
+  }
+
+  Result<FlightReport> run() {
+    std::promise<std::vector<Problem>> ready;
+    auto readyFuture = ready.get_future();
+    std::thread render([&] { renderThread(ready); });
+    if (auto problems = readyFuture.get(); !problems.empty()) {
+      render.join();
+      return problems;
+    }
+    const Pose start = o.controller ? Pose{} : poseAt(o, 0);
+    if (auto sample = terrain.sampleEN(start.easting, start.northing)) ground = sample->elevation;
+    Pose previous = start;
+    double previousT = 0;
+    for (std::uint32_t k = 0; k < o.frames; ++k) {
+      if (!produce(k, previous, previousT)) break;
+    }
+    handoff.close();
+    render.join();
+    for (auto& slot : slots) slot.buf.modules.clear();
+    if (!renderError.empty()) return Problem{"fly", 0, renderError};
+    FlightReport& r = report;
+    r.summary = summarize(r.frames);
+    r.summary.mode = scene ? "modules" : "mesh";
+    r.summary.lod = scene ? lodModeName(o.lod.mode) : "";
+    r.summary.renderer = rendererName;
+    r.summary.rendererDetail = rendererDetail;
+    r.summary.width = o.width;
+    r.summary.height = o.height;
+    if (!o.outDir.empty()) {
+      const std::string path = (std::filesystem::path(o.outDir) / "stats.json").string();
+      if (std::string err = writeStats(path, r, o); !err.empty()) return Problem{"fly", 0, err};
+      r.summary.statsPath = path;
+    }
+    return std::move(r);
+  }
+};
+
+RenderSettings renderSettingsFor(const FlightOptions& o) {
+  RenderSettings rs;
+  rs.width = o.width;
+  rs.height = o.height;
+  rs.background = o.background;
+  rs.fog = o.fog;
+  rs.sky = o.sky;
+  rs.clearColour = o.clearColour;
+  rs.samples = o.msaa;
+  rs.shading = o.shading;
+  rs.colour = o.colour;
+  rs.waterMaterials = o.waterMaterials;
+  return rs;
+}
+
+std::vector<MaterialColour> paletteFor(const materials::Table& t) {
+  std::vector<MaterialColour> p;
+  for (const auto& c : t.classes) {
+    if (c.id >= p.size()) p.resize(std::size_t(c.id) + 1);
+    const auto rgb = [](std::uint32_t v) {
+      return Rgb{std::uint8_t(v >> 16), std::uint8_t(v >> 8), std::uint8_t(v)};
+    };
+    // Roads: the line classes at the road priority; wide ones are marked.
+    const bool road = c.kind == materials::Kind::line && c.priority == module::kPriorityRoad;
+    p[c.id] = {rgb(c.upperRgb), rgb(c.lowerRgb), road, road && c.width >= kMarkedRoadWidth};
+  }
+  return p;
+}
+
+Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Database* db,
+                             const FlightOptions& o) {
+  if (!g) return Problem{"fly", 0, "no grid"};
+  if (auto problems = checkFlightOptions(g, o); !problems.empty()) return problems;
+  const bool haveModules = db && db->modules;
+  if (o.mode == TerrainMode::modules && !haveModules) {
+    return Problem{kFlightOptionProblem, 0,
+                   "--mode modules needs load modules (modules.pack), and this database was "
+                   "built with --no-modules; rebuild it without, or fly it with --mode mesh"};
+  }
+  const bool modules = haveModules && o.mode != TerrainMode::mesh;
+  if (!o.outDir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.outDir, ec);
+    if (ec) {
+      return Problem{kFlightOptionProblem, 0,
+                     "cannot create the output directory " + o.outDir + ": " + ec.message()};
+    }
+  }
+  std::unique_ptr<Pager> pager;
+  if (modules) {
+    PagerOptions po;
+    po.viewDistance = effectiveViewDistance(o);
+    po.maxViewDistance = std::max(po.viewDistance, o.maxViewDistance > 0 ? o.maxViewDistance
+                                                                        : 3 * po.viewDistance);
+    po.loaderThreads = o.pagerLoaders;
+    po.memoryBudgetBytes = o.pagerBudgetBytes;
+    auto p = Pager::open(*db, po);
+    if (!p) return p.problems();
+    pager = std::move(p.value());
+  }
+  FlightRun run(o, g, renderSettingsFor(o));
+  run.renderSettings.grid = g;
+  if (pager) {
+    if (db->materials) {
+      run.renderSettings.palette = paletteFor(*db->materials);
+      run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
+    }
+    ModuleSceneSettings ss;
+    ss.lod = o.lod;
+    ss.imageHeight = o.height;
+    ss.gridSpacing = g->spacing();
+    ss.minElevation = g->header().minElevation;
+    ss.moduleSquares = db->modules->header().moduleSquares;
+    run.scene = std::make_unique<ModuleScene>(*pager, ss);
+    run.pager = pager.get();
+    run.readyViewDistance = effectiveViewDistance(o);
+  }
+  auto result = run.run();
+  if (pager) pager->stop();
+  return result;
+}
+
+}  // namespace
+
+const char* terrainModeName(TerrainMode m) {
+  switch (m) {
+    case TerrainMode::automatic: return "auto";
+    case TerrainMode::mesh: return "mesh";
+    case TerrainMode::modules: return "modules";
+  }
+  return "?";
+}
+
+std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
+  std::vector<std::string> lines;
+  lines.push_back("FRAME " + std::to_string(s.frame) + format("  T %.2f S", s.timeS));
+  lines.push_back(format("E %.1f  N %.1f", s.easting, s.northing));
+  if (s.lon && s.lat) lines.push_back(format("LAT %.5f\xC2\xB0  LON %.5f\xC2\xB0", *s.lat, *s.lon));
+  lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl) +
+                  (s.freeFlight ? "  FREE" : ""));
+  lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
+  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", s.hfovDeg > 0 ? s.hfovDeg : o.hfovDeg,
+                         s.viewDistance > 0 ? s.viewDistance : effectiveViewDistance(o)));
+  lines.push_back(format("FPS %.1f  FRAME %.1f MS", s.fps, s.frameMs));
+  lines.push_back(format("CPU %.1f MS  DRAW %.1f MS", s.cpuMs, s.renderMs));
+  if (s.levelCounts.empty()) {
+    lines.push_back("TRIS " + std::to_string(s.triangles) + "  STRIPS " + std::to_string(s.strips));
+    return lines;
+  }
+  std::string levels;
+  for (std::size_t l = 0; l < s.levelCounts.size(); ++l) {
+    levels += (l ? "/" : "") + std::to_string(s.levelCounts[l]);
+  }
+  lines.push_back("TRIS " + std::to_string(s.triangles));
+  lines.push_back(std::string("LOD ") + lodModeName(o.lod.mode) + "  LEVELS " + levels);
+  lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
+                  std::to_string(s.nodesDrawn));
+  lines.push_back("RESIDENT " +
+                  std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
+  lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
+  return lines;
+}
+
+Pose poseAt(const FlightOptions& o, double t) {
+  return o.path.size() >= 2 ? pathPose(o.path, t) : straightPose(o, t);
+}
+
+std::string frameFileName(std::uint32_t frame) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "frame_%05u.png", frame);
+  return buf;
+}
+
+std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
+                                        const FlightOptions& o) {
+  std::vector<Problem> out;
+  auto bad = [&](const std::string& msg) { out.push_back({kFlightOptionProblem, 0, msg}); };
+  if (o.frames == 0) bad("--frames must be at least 1");
+  if (o.width < 16 || o.height < 16 || o.width > 16384 || o.height > 16384) {
+    bad("--size must be between 16x16 and 16384x16384");
+  }
+  if (!(o.hfovDeg >= 10 && o.hfovDeg <= 90)) bad("--fov must be between 10 and 90 degrees");
+  if (!(o.fogDensity >= 0) || !std::isfinite(o.fogDensity)) bad("--fog-density must be >= 0");
+  const double vd = effectiveViewDistance(o);
+  if (!(vd >= 10 && vd <= 1e6)) {
+    bad(o.fogDensity > 0 ? "--fog-density must give a view distance of 10 m .. 1000 km"
+                         : "--view-distance must be 10 m .. 1000 km");
+  }
+  if (!(o.maxViewDistance == 0 || (o.maxViewDistance >= vd && o.maxViewDistance <= 1e6))) {
+    bad("--max-view-distance must be 0 (3 x --view-distance) or --view-distance .. 1000 km");
+  }
+  if (!(o.pitchDeg >= -89 && o.pitchDeg <= 89)) bad("--pitch must be between -89 and 89 degrees");
+  if (!(o.speedKmh >= 0 && o.speedKmh <= 1e5)) bad("--speed must be 0 .. 100000 km/h");
+  if (!std::isfinite(o.headingDeg)) bad("--heading must be a number");
+  if (!(o.heightAgl >= 0 && o.heightAgl < 1e5)) bad("--height must be 0 .. 100000 m");
+  if (std::string e = checkLodOptions(o.lod); !e.empty()) bad(e);
+  if (o.pagerLoaders < 1 || o.pagerLoaders > 4) bad("pager loaders must be 1..4");
+  if (o.msaa > 16) bad("--msaa must be 0..16 samples");
+  const Terrain terrain(std::move(g));
+  if (o.path.size() == 1) bad("--path needs at least two waypoints");
+  if (o.path.size() >= 2) {
+    for (std::size_t k = 0; k < o.path.size(); ++k) {
+      const Waypoint& w = o.path[k];
+      const std::string which = "--path waypoint " + std::to_string(k + 1);
+      if (k + 1 < o.path.size() && !(w.speedKmh > 0)) bad(which + ": speed must be positive");
+      if (!(w.heightAgl >= 0 && w.heightAgl < 1e5)) bad(which + ": height must be 0 .. 100000 m");
+      if (k == 0 && !terrain.sampleEN(w.easting, w.northing)) bad(which + " is outside the database");
+    }
+  } else if (!o.controller && !terrain.sampleEN(o.easting, o.northing)) {
+    bad("the start point is outside the database");
+  }
+  return out;
+}
+
+Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o) {
+  return flyWith(std::move(g), nullptr, o);
+}
+
+Result<FlightReport> fly(const Database& db, const FlightOptions& o) {
+  return flyWith(db.grid, &db, o);
+}
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,235 @@
+#include "sandtable/viewer/fly_session.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+namespace sandtable::runtime {
+namespace {
+
+using runtime::Pose;
+
+/// A window flies on the wall clock, but one long frame (a stall, a
+/// screenshot written) must not make the eye jump: below 10 fps the
+/// flight slows down instead.
+constexpr double kMaxStepS = 0.1;
+
+double wallSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string screenshotName(std::uint32_t n) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "screenshot_%04u.png", n);
+  return buf;
+}
+
+}  // namespace
+
+void FrameControlQueue::push(const FrameControl& c) {
+  std::lock_guard lock(m_);
+  q_.push_back(c);
+}
+
+FrameControl FrameControlQueue::take(std::uint32_t frame) {
+  std::lock_guard lock(m_);
+  while (!q_.empty() && q_.front().frame <= frame) {
+    last_ = q_.front();
+    q_.pop_front();
+    if (last_.frame == frame) return last_;
+  }
+  // Not queued (cannot happen while frames stay in order): keep the last
+  // state, but never repeat its screenshot.
+  FrameControl c = last_;
+  c.frame = frame;
+  c.screenshot = false;
+  return c;
+}
+
+std::vector<std::uint8_t> waterMaterials(const Database& db) {
+  std::vector<std::uint8_t> out;
+  const auto& build = db.manifest.build;
+  if (build.is_object() && build.contains("materials") && build["materials"].is_object()) {
+    for (const auto& [key, name] : build["materials"].items()) {
+      if (!name.is_string() || name.get<std::string>().find("water") == std::string::npos) continue;
+      try {
+        const int id = std::stoi(key);
+        if (id >= 0 && id < 256) out.push_back(std::uint8_t(id));
+      } catch (const std::exception&) {
+        // A non-numeric key is not a grid material index; ignore it.
+      }
+    }
+  }
+  if (out.empty()) out.push_back(1);
+  return out;
+}
+
+FlySession::FlySession(const Database& db, FlySessionSettings settings, const runtime::FlightOptions& o,
+                       std::unique_ptr<runtime::ViewerWindow> window,
+                       std::unique_ptr<runtime::VideoWriter> video)
+    : db_(db),
+      settings_(std::move(settings)),
+      options_(o),
+      terrain_(db.grid),
+      window_(std::move(window)),
+      video_(std::move(video)) {
+  if (auto g = terrain_.sampleEN(o.easting, o.northing)) lastGround_ = g->elevation;
+  if (window_) {
+    runtime::ControllerSettings cs;
+    cs.maxFovDeg = 90;  // the view triangle's limit (flight.h): 0 would ask 100
+    cs.maxViewDistance = settings_.maxViewDistance;
+    cs.minViewDistance = std::min(cs.minViewDistance, o.viewDistance);
+    auto ground = [this](double e, double n) -> std::optional<double> {
+      if (auto g = terrain_.sampleEN(e, n)) return g->elevation;
+      return std::nullopt;
+    };
+    controller_.emplace(initialState(o), ground, cs);
+  }
+}
+
+runtime::ViewerState FlySession::initialState(const runtime::FlightOptions& o) const {
+  runtime::ViewerState s;
+  s.easting = o.easting;
+  s.northing = o.northing;
+  s.headingDeg = o.headingDeg;
+  s.pitchDeg = o.pitchDeg;
+  s.speedMs = o.speedKmh / 3.6;
+  s.heightAgl = o.heightAgl;
+  s.groundFollowing = !settings_.freeFlight;
+  s.eyeElevation = settings_.altitude;
+  s.hfovDeg = o.hfovDeg;
+  s.viewDistance = std::min(o.viewDistance, settings_.maxViewDistance);
+  s.mapVisible = settings_.map;
+  s.mapScale = settings_.mapScale;
+  return s;
+}
+
+void FlySession::install(runtime::FlightOptions& o) {
+  o.controller = [this](std::uint32_t frame, double t) { return nextPose(frame, t); };
+  o.composite = [this](runtime::Image& img, const runtime::FrameStats& s) { composite(img, s); };
+  o.onFrame = [this](std::uint32_t frame, const runtime::Image& img) { frameDone(frame, img); };
+}
+
+double FlySession::pollKeys() {
+  for (const auto& e : window_->pollEvents()) controller_->handle(e);
+  if (controller_->quitRequested() || window_->closeRequested()) quitAfterThisFrame_ = true;
+  const double now = wallSeconds();
+  const double dt = lastWall_ ? std::clamp(now - *lastWall_, 0.0, kMaxStepS) : 0.0;
+  lastWall_ = now;
+  return dt;
+}
+
+Pose FlySession::headlessPose(double t) {
+  Pose p = settings_.path ? runtime::samplePath(*settings_.path, t) : runtime::poseAt(options_, t);
+  if (settings_.freeFlight) {
+    // As the Controller does: free flight keeps its altitude but never goes
+    // below 1 m above the ground (past the edge: the last ground seen).
+    if (auto g = terrain_.sampleEN(p.easting, p.northing)) lastGround_ = g->elevation;
+    p.altitude = std::max(settings_.altitude, lastGround_ + 1.0);
+  }
+  return p;
+}
+
+Pose FlySession::windowPose(double clock) const {
+  const runtime::ViewerState& s = controller_->state();
+  Pose p;
+  if (settings_.path) {
+    // The path drives the eye; the keys still set FOV, view distance and map.
+    p = runtime::samplePath(*settings_.path, clock);
+  } else {
+    p = controller_->pose();
+    if (!s.groundFollowing) p.altitude = s.eyeElevation;
+  }
+  p.hfovDeg = s.hfovDeg;
+  if (settings_.liveViewDistance) p.viewDistance = s.viewDistance;
+  return p;
+}
+
+std::optional<Pose> FlySession::nextPose(std::uint32_t frame, double t) {
+  // q, Escape or closing the window: the frame with the keys pressed before
+  // it is still drawn (so a last change shows), then the flight ends.
+  if (failed_.load() || quitting_) return std::nullopt;
+  FrameControl fc{frame, settings_.map, settings_.mapScale, false};
+  Pose p;
+  if (window_) {
+    const double dt = pollKeys();
+    controller_->advance(dt);
+    clock_ += dt;
+    p = windowPose(clock_);
+    p.clockS = clock_;
+    fc.map = controller_->state().mapVisible;
+    fc.mapScale = controller_->state().mapScale;
+    fc.screenshot = controller_->takeScreenshotRequest();
+    quitting_ = quitAfterThisFrame_;
+  } else {
+    p = headlessPose(t);
+  }
+  controls_.push(fc);
+  return p;
+}
+
+void FlySession::composite(runtime::Image& img, const runtime::FrameStats& s) {
+  current_ = controls_.take(s.frame);
+  if (!current_.map) return;
+  if (!map_) {
+    // Built here, on the render thread that uses it (MapView caches per thread).
+    runtime::MapOptions mo;
+    mo.waterMaterials = settings_.waterMaterials;
+    map_ = std::make_unique<runtime::MapView>(db_.grid, mo);
+    map_->setVisible(true);
+  }
+  map_->setScale(current_.mapScale);
+  double x = 0, z = 0;
+  runtime::MapView::toWorld(db_.grid->header(), s.easting, s.northing, x, z);
+  map_->compose(img, x, z, s.headingDeg);
+}
+
+void FlySession::frameDone(std::uint32_t, const runtime::Image& img) {
+  if (window_) {
+    if (std::string e = window_->present(img); !e.empty()) fail(e);
+  }
+  if (current_.screenshot) saveScreenshot(img);
+  if (video_) {
+    if (std::string e = video_->write(img); !e.empty()) fail(e);
+  }
+}
+
+void FlySession::saveScreenshot(const runtime::Image& img) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(settings_.screenshotDir, ec);
+  if (ec) {
+    fail("screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
+         " (give a writable --screenshot-dir)");
+    return;
+  }
+  // Never overwrite the screenshots of an earlier flight.
+  fs::path file;
+  do {
+    file = fs::path(settings_.screenshotDir) / screenshotName(nextShot_++);
+  } while (fs::exists(file, ec));
+  if (std::string e = runtime::writePng(file.string(), img); !e.empty()) {
+    fail("screenshot: " + e);
+    return;
+  }
+  ++screenshots_;
+  std::printf("sandtable fly: screenshot %s\n", file.string().c_str());
+  std::fflush(stdout);
+}
+
+void FlySession::fail(const std::string& e) {
+  std::lock_guard lock(errorMutex_);
+  if (error_.empty()) error_ = e;
+  failed_ = true;
+}
+
+std::string FlySession::finish() {
+  if (video_) {
+    if (std::string e = video_->finish(); !e.empty()) fail(e);
+  }
+  std::lock_guard lock(errorMutex_);
+  return error_;
+}
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,451 @@
+#include "sandtable/viewer/x11_window.h"
+
+#include <epoxy/gl.h>
+
+#include <EGL/egl.h>
+#include <EGL/eglext.h>
+#include <X11/XKBlib.h>
+#include <X11/Xlib.h>
+#include <X11/Xutil.h>
+#include <X11/keysym.h>
+// Xlib defines Status as a macro; ours is sandtable::Status (base/result.h).
+#undef Status
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <optional>
+
+namespace sandtable::runtime {
+
+struct ViewerWindow::Gl {
+  GLuint program = 0, vao = 0, texture = 0;
+  std::uint32_t texW = 0, texH = 0;
+};
+
+namespace {
+
+Display* dpyOf(void* p) { return static_cast<Display*>(p); }
+
+std::string eglError(const char* step) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s failed (eglGetError 0x%04X)", step, unsigned(eglGetError()));
+  return buf;
+}
+
+bool hasExtension(const char* list, const char* name) {
+  if (!list) return false;
+  const std::size_t n = std::strlen(name);
+  for (const char* p = list; (p = std::strstr(p, name)) != nullptr; p += n) {
+    if ((p == list || p[-1] == ' ') && (p[n] == ' ' || p[n] == '\0')) return true;
+  }
+  return false;
+}
+
+/// Whatever EGL had current on this thread; restore() puts it back, so the
+/// renderer's headless context is untouched by the window.
+class SavedEgl {
+ public:
+  SavedEgl()
+      : api_(eglQueryAPI()),
+        display_((eglBindAPI(EGL_OPENGL_API), eglGetCurrentDisplay())),
+        draw_(eglGetCurrentSurface(EGL_DRAW)),
+        read_(eglGetCurrentSurface(EGL_READ)),
+        context_(eglGetCurrentContext()) {}
+  SavedEgl(const SavedEgl&) = delete;
+  SavedEgl& operator=(const SavedEgl&) = delete;
+  /// `ours`: the window's display, to release its context when nothing
+  /// was current before.
+  void restore(EGLDisplay ours) {
+    if (context_ != EGL_NO_CONTEXT) {
+      eglMakeCurrent(display_, draw_, read_, context_);
+    } else if (ours != EGL_NO_DISPLAY) {
+      eglMakeCurrent(ours, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    }
+    eglBindAPI(api_);
+  }
+
+ private:
+  EGLenum api_;
+  EGLDisplay display_;
+  EGLSurface draw_, read_;
+  EGLContext context_;
+};
+
+std::optional<Key> keyForSym(KeySym s) {
+  if (s >= XK_0 && s <= XK_9) return Key(int(Key::digit0) + int(s - XK_0));
+  if (s >= XK_KP_0 && s <= XK_KP_9) return Key(int(Key::digit0) + int(s - XK_KP_0));
+  switch (s) {
+    case XK_Up: case XK_KP_Up: return Key::up;
+    case XK_Down: case XK_KP_Down: return Key::down;
+    case XK_Left: case XK_KP_Left: return Key::left;
+    case XK_Right: case XK_KP_Right: return Key::right;
+    case XK_plus: case XK_equal: case XK_KP_Add: return Key::plus;  // '=' is unshifted '+' on US keyboards
+    case XK_minus: case XK_KP_Subtract: return Key::minus;
+    case XK_m: case XK_M: return Key::map;
+    case XK_bracketleft: return Key::mapZoomOut;
+    case XK_bracketright: return Key::mapZoomIn;
+    case XK_Page_Up: case XK_KP_Page_Up: return Key::pageUp;
+    case XK_Page_Down: case XK_KP_Page_Down: return Key::pageDown;
+    case XK_f: case XK_F: return Key::groundFollow;
+    case XK_p: case XK_P: case XK_F12: return Key::screenshot;
+    case XK_Escape: case XK_q: case XK_Q: return Key::quit;
+    default: return std::nullopt;
+  }
+}
+
+GLuint compile(GLenum type, const char* src, std::string& err) {
+  const GLuint s = glCreateShader(type);
+  glShaderSource(s, 1, &src, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[512] = {};
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    err = std::string("window shader: ") + log;
+  }
+  return s;
+}
+
+constexpr const char* kVertex = R"(#version 450 core
+out vec2 uv;
+void main() {
+  // One triangle covering the viewport; image row 0 is the top.
+  vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+  uv = vec2(p.x, 1.0 - p.y);
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+})";
+constexpr const char* kFragment = R"(#version 450 core
+in vec2 uv;
+layout(binding = 0) uniform sampler2D frame;
+out vec4 color;
+void main() { color = vec4(texture(frame, uv).rgb, 1.0); })";
+
+/// Shift and width of a visual's colour mask, for converting XGetImage pixels.
+void maskShape(unsigned long mask, int& shift, int& bits) {
+  shift = 0;
+  bits = 0;
+  if (!mask) return;
+  while (!(mask & 1)) {
+    mask >>= 1;
+    ++shift;
+  }
+  while (mask & 1) {
+    mask >>= 1;
+    ++bits;
+  }
+}
+
+std::uint8_t channel(unsigned long pixel, int shift, int bits) {
+  if (bits == 0) return 0;
+  const unsigned long v = (pixel >> shift) & ((1ul << bits) - 1);
+  return std::uint8_t(bits >= 8 ? v >> (bits - 8) : v * 255 / ((1ul << bits) - 1));
+}
+
+}  // namespace
+
+bool ViewerWindow::displayConfigured() {
+  const char* d = std::getenv("DISPLAY");
+  return d && *d;
+}
+
+Result<std::unique_ptr<ViewerWindow>> ViewerWindow::open(std::uint32_t width, std::uint32_t height,
+                                                         const std::string& title,
+                                                         const std::string& display) {
+  auto fail = [](const std::string& m) { return Problem{kWindowProblem, 0, "window: " + m}; };
+  if (width == 0 || height == 0) return fail("size must not be zero");
+  if (display.empty() && !displayConfigured()) {
+    return fail("DISPLAY is not set, so there is no X server to open a window on; run in a desktop "
+                "session, under Xvfb (xvfb-run), or fly headless to PNG frames");
+  }
+  const std::string name = display.empty() ? std::getenv("DISPLAY") : display;
+  std::unique_ptr<ViewerWindow> w(new ViewerWindow());
+  w->display_ = XOpenDisplay(name.c_str());
+  if (!w->display_) {
+    return fail("cannot open X display \"" + name + "\" (is the X server running, and may this user "
+                "connect to it? check DISPLAY and XAUTHORITY)");
+  }
+  Display* dpy = dpyOf(w->display_);
+  const int screen = DefaultScreen(dpy);
+
+  const char* ext = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+  EGLDisplay ed = EGL_NO_DISPLAY;
+  if (hasExtension(ext, "EGL_KHR_platform_x11")) {
+    const EGLAttrib attrs[] = {EGL_PLATFORM_X11_SCREEN_KHR, screen, EGL_NONE};
+    ed = eglGetPlatformDisplay(EGL_PLATFORM_X11_KHR, dpy, attrs);
+  } else if (hasExtension(ext, "EGL_EXT_platform_x11")) {
+    auto getDisplay = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
+    const EGLint attrs[] = {EGL_PLATFORM_X11_SCREEN_EXT, screen, EGL_NONE};
+    if (getDisplay) ed = getDisplay(EGL_PLATFORM_X11_EXT, dpy, attrs);
+  } else {
+    return fail("EGL offers no X11 platform (neither EGL_KHR_platform_x11 nor EGL_EXT_platform_x11); "
+                "install Mesa's EGL driver: apt-get install libegl-mesa0");
+  }
+  if (ed == EGL_NO_DISPLAY) return fail(eglError("eglGetPlatformDisplay(X11)"));
+  if (!eglInitialize(ed, nullptr, nullptr)) return fail(eglError("eglInitialize(X11 display)"));
+  w->eglDisplay_ = ed;
+  if (!eglBindAPI(EGL_OPENGL_API)) return fail(eglError("eglBindAPI(EGL_OPENGL_API)"));
+
+  const EGLint configAttrs[] = {EGL_SURFACE_TYPE, EGL_WINDOW_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT,
+                                EGL_RED_SIZE, 8, EGL_GREEN_SIZE, 8, EGL_BLUE_SIZE, 8, EGL_NONE};
+  EGLConfig configs[64];
+  EGLint count = 0;
+  if (!eglChooseConfig(ed, configAttrs, configs, 64, &count) || count < 1) {
+    return fail(eglError("eglChooseConfig (an OpenGL-renderable window config)"));
+  }
+  // The first config whose X visual exists on this screen.
+  EGLConfig config = nullptr;
+  XVisualInfo* vi = nullptr;
+  for (EGLint k = 0; k < count && !vi; ++k) {
+    EGLint visualId = 0;
+    if (!eglGetConfigAttrib(ed, configs[k], EGL_NATIVE_VISUAL_ID, &visualId) || visualId == 0) continue;
+    XVisualInfo tmpl{};
+    tmpl.visualid = VisualID(visualId);
+    tmpl.screen = screen;
+    int n = 0;
+    vi = XGetVisualInfo(dpy, VisualIDMask | VisualScreenMask, &tmpl, &n);
+    if (vi) config = configs[k];
+  }
+  if (!vi) return fail("no EGL window config has an X visual on screen " + std::to_string(screen));
+
+  const Window root = RootWindow(dpy, screen);
+  w->colormap_ = XCreateColormap(dpy, root, vi->visual, AllocNone);
+  XSetWindowAttributes swa{};
+  swa.colormap = w->colormap_;
+  swa.background_pixel = BlackPixel(dpy, screen);
+  swa.border_pixel = 0;
+  swa.event_mask = KeyPressMask | KeyReleaseMask | StructureNotifyMask | ExposureMask | FocusChangeMask;
+  w->window_ = XCreateWindow(dpy, root, 0, 0, width, height, 0, vi->depth, InputOutput, vi->visual,
+                             CWColormap | CWBackPixel | CWBorderPixel | CWEventMask, &swa);
+  XFree(vi);
+  w->width_ = width;
+  w->height_ = height;
+  XStoreName(dpy, w->window_, title.c_str());
+  Atom wmDelete = XInternAtom(dpy, "WM_DELETE_WINDOW", False);
+  w->wmDelete_ = wmDelete;
+  XSetWMProtocols(dpy, w->window_, &wmDelete, 1);
+  // One press and one release per held key, not a stream of both.
+  XkbSetDetectableAutoRepeat(dpy, True, nullptr);
+  XMapWindow(dpy, w->window_);
+  // Wait for the map (a window manager may take a moment), taking only
+  // MapNotify so the other events stay queued for pollEvents().
+  XEvent ev;
+  bool mapped = false;
+  for (int tries = 0; tries < 2500 && !mapped; ++tries) {
+    if (XCheckTypedWindowEvent(dpy, w->window_, MapNotify, &ev)) {
+      mapped = true;
+    } else {
+      const timespec pause{0, 2'000'000};
+      nanosleep(&pause, nullptr);
+    }
+  }
+  if (!mapped) return fail("the X server did not map the window within 5 s");
+
+  w->eglSurface_ = eglCreateWindowSurface(ed, config, EGLNativeWindowType(w->window_), nullptr);
+  if (w->eglSurface_ == EGL_NO_SURFACE) return fail(eglError("eglCreateWindowSurface"));
+  const EGLint ctxAttrs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
+                             EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  SavedEgl saved;
+  w->eglContext_ = eglCreateContext(ed, config, EGL_NO_CONTEXT, ctxAttrs);
+  if (w->eglContext_ == EGL_NO_CONTEXT) {
+    saved.restore(EGL_NO_DISPLAY);
+    return fail(eglError("eglCreateContext (OpenGL 4.5 core) for the window"));
+  }
+  if (!eglMakeCurrent(ed, w->eglSurface_, w->eglSurface_, w->eglContext_)) {
+    saved.restore(EGL_NO_DISPLAY);
+    return fail(eglError("eglMakeCurrent (window)"));
+  }
+  const std::string glErr = w->makeGl();
+  saved.restore(ed);
+  if (!glErr.empty()) return fail(glErr);
+  return w;
+}
+
+std::string ViewerWindow::makeGl() {
+  if (epoxy_gl_version() < 45) return "the window's context offers OpenGL " + std::to_string(epoxy_gl_version()) + ", 4.5 is needed";
+  if (const auto* r = glGetString(GL_RENDERER)) renderer_ = reinterpret_cast<const char*>(r);
+  gl_ = std::make_unique<Gl>();
+  std::string err;
+  const GLuint vs = compile(GL_VERTEX_SHADER, kVertex, err);
+  const GLuint fs = compile(GL_FRAGMENT_SHADER, kFragment, err);
+  gl_->program = glCreateProgram();
+  glAttachShader(gl_->program, vs);
+  glAttachShader(gl_->program, fs);
+  glLinkProgram(gl_->program);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint linked = 0;
+  glGetProgramiv(gl_->program, GL_LINK_STATUS, &linked);
+  if (!err.empty()) return err;
+  if (!linked) return "window shader program did not link";
+  glCreateVertexArrays(1, &gl_->vao);
+  return {};
+}
+
+std::uint32_t ViewerWindow::width() const {
+  std::lock_guard lock(mutex_);
+  return width_;
+}
+
+std::uint32_t ViewerWindow::height() const {
+  std::lock_guard lock(mutex_);
+  return height_;
+}
+
+std::vector<KeyEvent> ViewerWindow::pollEvents() {
+  std::lock_guard lock(mutex_);
+  std::vector<KeyEvent> out;
+  Display* dpy = dpyOf(display_);
+  auto emit = [&](Key k, bool pressed) {
+    const std::uint32_t bit = 1u << unsigned(k);
+    if (pressed) downMask_ |= bit;
+    else downMask_ &= ~bit;
+    out.push_back({k, pressed});
+  };
+  while (XPending(dpy) > 0) {
+    XEvent ev;
+    XNextEvent(dpy, &ev);
+    switch (ev.type) {
+      case KeyPress:
+      case KeyRelease: {
+        std::optional<Key> k = keyForSym(XLookupKeysym(&ev.xkey, 0));
+        if (!k) k = keyForSym(XLookupKeysym(&ev.xkey, 1));  // shifted: '+' and keypad digits
+        if (k) emit(*k, ev.type == KeyPress);
+        break;
+      }
+      case FocusOut:
+        // A key released in another window never reaches us; release
+        // everything so no key stays "held" (and repeating) for ever.
+        for (std::size_t k = 0; k < kKeyCount; ++k) {
+          if (downMask_ & (1u << k)) emit(Key(k), false);
+        }
+        break;
+      case ConfigureNotify:
+        width_ = std::uint32_t(std::max(1, ev.xconfigure.width));
+        height_ = std::uint32_t(std::max(1, ev.xconfigure.height));
+        break;
+      case ClientMessage:
+        if (Atom(ev.xclient.data.l[0]) == Atom(wmDelete_)) {
+          closeRequested_ = true;
+          out.push_back({Key::quit, true});
+        }
+        break;
+      default: break;
+    }
+  }
+  return out;
+}
+
+std::string ViewerWindow::present(const Image& frame) {
+  if (frame.width == 0 || frame.height == 0 || frame.rgba.size() != std::size_t(frame.width) * frame.height * 4) {
+    return "window: present() needs a non-empty RGBA frame";
+  }
+  std::lock_guard lock(mutex_);
+  SavedEgl saved;
+  if (!eglMakeCurrent(eglDisplay_, eglSurface_, eglSurface_, eglContext_)) {
+    saved.restore(EGL_NO_DISPLAY);
+    return "window: " + eglError("eglMakeCurrent (window)");
+  }
+  if (gl_->texW != frame.width || gl_->texH != frame.height) {
+    if (gl_->texture) glDeleteTextures(1, &gl_->texture);
+    glCreateTextures(GL_TEXTURE_2D, 1, &gl_->texture);
+    glTextureStorage2D(gl_->texture, 1, GL_RGBA8, GLsizei(frame.width), GLsizei(frame.height));
+    glTextureParameteri(gl_->texture, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTextureParameteri(gl_->texture, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTextureParameteri(gl_->texture, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(gl_->texture, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    gl_->texW = frame.width;
+    gl_->texH = frame.height;
+  }
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTextureSubImage2D(gl_->texture, 0, 0, 0, GLsizei(frame.width), GLsizei(frame.height), GL_RGBA,
+                      GL_UNSIGNED_BYTE, frame.rgba.data());
+  // Fit the frame inside the window, keeping its aspect.
+  const double s = std::min(double(width_) / frame.width, double(height_) / frame.height);
+  const auto vw = GLsizei(std::lround(frame.width * s)), vh = GLsizei(std::lround(frame.height * s));
+  glViewport(0, 0, GLsizei(width_), GLsizei(height_));
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_BLEND);
+  glClearColor(0, 0, 0, 1);
+  glClear(GL_COLOR_BUFFER_BIT);
+  glViewport((GLint(width_) - vw) / 2, (GLint(height_) - vh) / 2, vw, vh);
+  glUseProgram(gl_->program);
+  glBindTextureUnit(0, gl_->texture);
+  glBindVertexArray(gl_->vao);
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glBindVertexArray(0);
+  const GLenum glErr = glGetError();
+  std::string err;
+  if (glErr != GL_NO_ERROR) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "window: GL error 0x%04X drawing the frame", unsigned(glErr));
+    err = buf;
+  }
+  if (!eglSwapBuffers(eglDisplay_, eglSurface_) && err.empty()) err = "window: " + eglError("eglSwapBuffers");
+  saved.restore(eglDisplay_);
+  return err;
+}
+
+Result<Image> ViewerWindow::capture() {
+  std::lock_guard lock(mutex_);
+  Display* dpy = dpyOf(display_);
+  XSync(dpy, False);
+  XImage* xi = XGetImage(dpy, window_, 0, 0, width_, height_, AllPlanes, ZPixmap);
+  if (!xi) return Problem{kWindowProblem, 0, "window: XGetImage failed (is the window mapped and on screen?)"};
+  int rs, rb, gs, gb, bs, bb;
+  maskShape(xi->red_mask, rs, rb);
+  maskShape(xi->green_mask, gs, gb);
+  maskShape(xi->blue_mask, bs, bb);
+  Image img;
+  img.width = width_;
+  img.height = height_;
+  img.rgba.resize(std::size_t(width_) * height_ * 4);
+  for (std::uint32_t y = 0; y < height_; ++y) {
+    for (std::uint32_t x = 0; x < width_; ++x) {
+      const unsigned long p = XGetPixel(xi, int(x), int(y));
+      std::uint8_t* d = &img.rgba[(std::size_t(y) * width_ + x) * 4];
+      d[0] = channel(p, rs, rb);
+      d[1] = channel(p, gs, gb);
+      d[2] = channel(p, bs, bb);
+      d[3] = 255;
+    }
+  }
+  XDestroyImage(xi);
+  return img;
+}
+
+void ViewerWindow::releaseEgl() {
+  if (!eglDisplay_) return;
+  if (gl_ && eglContext_ && eglSurface_) {
+    SavedEgl saved;
+    if (eglMakeCurrent(eglDisplay_, eglSurface_, eglSurface_, eglContext_)) {
+      if (gl_->texture) glDeleteTextures(1, &gl_->texture);
+      if (gl_->vao) glDeleteVertexArrays(1, &gl_->vao);
+      if (gl_->program) glDeleteProgram(gl_->program);
+    }
+    saved.restore(eglDisplay_);
+  }
+  if (eglContext_) eglDestroyContext(eglDisplay_, eglContext_);
+  if (eglSurface_) eglDestroySurface(eglDisplay_, eglSurface_);
+  // Terminating only this X11 display: the renderer's display is another.
+  eglTerminate(eglDisplay_);
+  eglDisplay_ = nullptr;
+  eglContext_ = nullptr;
+  eglSurface_ = nullptr;
+}
+
+ViewerWindow::~ViewerWindow() {
+  std::lock_guard lock(mutex_);
+  releaseEgl();
+  if (!display_) return;
+  Display* dpy = dpyOf(display_);
+  if (window_) XDestroyWindow(dpy, window_);
+  if (colormap_) XFreeColormap(dpy, colormap_);
+  XCloseDisplay(dpy);
+}
+
+}  // namespace sandtable::runtime

@@ -1,0 +1,245 @@
+// The viewer window under Xvfb: a key sent through XTest comes back from
+// pollEvents(), a Controller fed with it changes the speed, and the panel
+// that shows the speed reaches the screen (read back with XGetImage). The
+// renderer's headless context stays current across present().
+//
+// Skips when Xvfb is not installed (tools/setup.sh installs it).
+#include <gtest/gtest.h>
+
+#include <EGL/egl.h>
+#include <X11/Xlib.h>
+#include <X11/extensions/XTest.h>
+#include <X11/keysym.h>
+// Xlib defines Status as a macro; ours is sandtable::Status (base/result.h).
+#undef Status
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <optional>
+#include <sstream>
+#include <thread>
+
+#include "../../render/src/egl_context.h"
+#include "sandtable/render/hud.h"
+#include "sandtable/viewer/x11_window.h"
+#include "sandtable/testing/xvfb.h"
+
+
+namespace sandtable::runtime {
+namespace {
+
+bool onPath(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  std::istringstream dirs(path ? path : "/usr/bin:/bin");
+  for (std::string dir; std::getline(dirs, dir, ':');) {
+    const std::string p = dir + "/" + program;
+    if (::access(p.c_str(), X_OK) == 0) return true;
+  }
+  return false;
+}
+
+using sandtable::testsupport::Xvfb;
+
+Image filled(std::uint32_t w, std::uint32_t h, Rgb c) {
+  Image img;
+  img.width = w;
+  img.height = h;
+  img.rgba.resize(std::size_t(w) * h * 4);
+  for (std::size_t k = 0; k < img.rgba.size(); k += 4) {
+    img.rgba[k] = c.r;
+    img.rgba[k + 1] = c.g;
+    img.rgba[k + 2] = c.b;
+    img.rgba[k + 3] = 255;
+  }
+  return img;
+}
+
+/// "" when the window shows exactly `want`, else the first difference.
+std::string differs(const Image& got, const Image& want) {
+  if (got.width != want.width || got.height != want.height) return "size differs";
+  for (std::uint32_t y = 0; y < want.height; ++y) {
+    for (std::uint32_t x = 0; x < want.width; ++x) {
+      const Rgb a = got.at(x, y), b = want.at(x, y);
+      if (a.r != b.r || a.g != b.g || a.b != b.b) {
+        return "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(a.r) + "," +
+               std::to_string(a.g) + "," + std::to_string(a.b) + ", wanted " + std::to_string(b.r) + "," +
+               std::to_string(b.g) + "," + std::to_string(b.b);
+      }
+    }
+  }
+  return {};
+}
+
+/// The panel as a flight loop would draw it over a frame.
+Image panelFrame(const ViewerState& s) {
+  Image f = filled(320, 240, {0x87, 0xCE, 0xEB});
+  drawHudPanel(f, controllerPanelLines(s));
+  return f;
+}
+
+/// Reads events until `want` have arrived; the X server delivers them
+/// asynchronously, so this polls (up to 5 s) rather than assume a delay.
+std::vector<KeyEvent> waitForEvents(ViewerWindow& w, std::size_t want) {
+  std::vector<KeyEvent> got;
+  for (int tries = 0; tries < 1000 && got.size() < want; ++tries) {
+    for (const auto& e : w.pollEvents()) got.push_back(e);
+    if (got.size() < want) {
+      const timespec pause{0, 5'000'000};
+      nanosleep(&pause, nullptr);
+    }
+  }
+  return got;
+}
+
+void sendKey(Display* dpy, KeySym sym, bool press) {
+  XTestFakeKeyEvent(dpy, XKeysymToKeycode(dpy, sym), press ? True : False, CurrentTime);
+  XSync(dpy, False);
+}
+
+class WindowTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!onPath("Xvfb")) GTEST_SKIP() << "Xvfb is not installed (apt-get install xvfb)";
+    xvfb_ = Xvfb::start();
+    ASSERT_TRUE(xvfb_) << "Xvfb is installed but did not start";
+    keys_ = XOpenDisplay(xvfb_->display.c_str());
+    ASSERT_NE(keys_, nullptr);
+    int ev = 0, err = 0, major = 0, minor = 0;
+    ASSERT_TRUE(XTestQueryExtension(keys_, &ev, &err, &major, &minor)) << "Xvfb lacks XTEST";
+  }
+  void TearDown() override {
+    if (keys_) XCloseDisplay(keys_);
+    xvfb_.reset();
+  }
+  std::unique_ptr<Xvfb> xvfb_;
+  Display* keys_ = nullptr;  // a second client, like the user's keyboard
+};
+
+TEST_F(WindowTest, OpenFailsClearlyWithoutAServer) {
+  auto w = ViewerWindow::open(64, 64, "nowhere", ":4093");
+  ASSERT_FALSE(w.ok());
+  EXPECT_NE(w.error().find("cannot open X display \":4093\""), std::string::npos) << w.error();
+}
+
+TEST_F(WindowTest, KeypressChangesTheSpeedShownInThePanel) {
+  auto opened = ViewerWindow::open(320, 240, "sandtable stealth viewer test", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  EXPECT_EQ(win.width(), 320u);
+  EXPECT_EQ(win.height(), 240u);
+  XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
+  XSync(keys_, False);
+
+  Controller c(ViewerState{}, {});
+  const Image before = panelFrame(c.state());
+  ASSERT_EQ(win.present(before), "");
+  auto shown = win.capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  EXPECT_EQ(differs(shown.value(), before), "");
+
+  sendKey(keys_, XK_Up, true);
+  sendKey(keys_, XK_Up, false);
+  const auto events = waitForEvents(win, 2);
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0], (KeyEvent{Key::up, true}));
+  EXPECT_EQ(events[1], (KeyEvent{Key::up, false}));
+  c.handle(events);
+  EXPECT_DOUBLE_EQ(c.state().speedMs, 5);
+
+  const Image after = panelFrame(c.state());
+  ASSERT_NE(differs(after, before), "") << "the panel must show the new speed";
+  ASSERT_EQ(win.present(after), "");
+  shown = win.capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  EXPECT_EQ(differs(shown.value(), after), "");
+}
+
+TEST_F(WindowTest, KeysTranslate) {
+  auto opened = ViewerWindow::open(64, 64, "keys", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
+  XSync(keys_, False);
+  const std::vector<std::pair<KeySym, Key>> keys = {
+      {XK_Down, Key::down}, {XK_Left, Key::left}, {XK_Right, Key::right}, {XK_7, Key::digit7},
+      {XK_0, Key::digit0},  {XK_minus, Key::minus}, {XK_equal, Key::plus}, {XK_m, Key::map},
+      {XK_Page_Up, Key::pageUp}, {XK_f, Key::groundFollow}, {XK_p, Key::screenshot},
+      {XK_F12, Key::screenshot}, {XK_Escape, Key::quit}};
+  for (const auto& [sym, key] : keys) {
+    sendKey(keys_, sym, true);
+    sendKey(keys_, sym, false);
+    const auto ev = waitForEvents(win, 2);
+    ASSERT_EQ(ev.size(), 2u) << keyName(key);
+    EXPECT_EQ(ev[0], (KeyEvent{key, true})) << keyName(key);
+    EXPECT_EQ(ev[1], (KeyEvent{key, false})) << keyName(key);
+  }
+}
+
+TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
+  auto headless = EglContext::create();
+  if (!headless.ok()) GTEST_SKIP() << headless.error();
+  const EGLContext renderer = eglGetCurrentContext();
+  const EGLSurface draw = eglGetCurrentSurface(EGL_DRAW);
+  ASSERT_NE(renderer, EGL_NO_CONTEXT);
+  auto opened = ViewerWindow::open(64, 48, "contexts", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  EXPECT_EQ(eglGetCurrentContext(), renderer);
+  const Image frame = filled(64, 48, {200, 30, 90});
+  ASSERT_EQ(opened.value()->present(frame), "");
+  EXPECT_EQ(eglGetCurrentContext(), renderer);
+  EXPECT_EQ(eglGetCurrentSurface(EGL_DRAW), draw);
+  auto shown = opened.value()->capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  EXPECT_EQ(differs(shown.value(), frame), "");
+  opened.value().reset();
+  EXPECT_EQ(eglGetCurrentContext(), renderer);
+}
+
+TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
+  // fly()'s layout: the controller polls keys on the main thread, frames
+  // are presented from the render thread.
+  auto opened = ViewerWindow::open(96, 64, "threads", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
+  XSync(keys_, False);
+  const Image last = filled(96, 64, {20, 40, 60});
+  std::string renderError;
+  std::thread render([&] {
+    auto headless = EglContext::create();  // the renderer's own context, as in fly()
+    for (int k = 0; k < 30 && renderError.empty(); ++k) {
+      renderError = win.present(filled(96, 64, {std::uint8_t(k * 8), 0, 0}));
+    }
+    if (renderError.empty()) renderError = win.present(last);
+  });
+  sendKey(keys_, XK_Right, true);
+  sendKey(keys_, XK_Right, false);
+  const auto ev = waitForEvents(win, 2);
+  render.join();
+  EXPECT_EQ(renderError, "");
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[0], (KeyEvent{Key::right, true}));
+  auto shown = win.capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  EXPECT_EQ(differs(shown.value(), last), "");
+}
+
+TEST_F(WindowTest, SmallerFrameIsLetterboxed) {
+  auto opened = ViewerWindow::open(200, 100, "letterbox", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ASSERT_EQ(opened.value()->present(filled(100, 100, {255, 255, 255})), "");
+  auto shown = opened.value()->capture();
+  ASSERT_TRUE(shown.ok()) << shown.error();
+  const Rgb side = shown->at(10, 50), middle = shown->at(100, 50);
+  EXPECT_EQ(side.r + side.g + side.b, 0);
+  EXPECT_EQ(middle.r + middle.g + middle.b, 3 * 255);
+}
+
+}  // namespace
+}  // namespace sandtable::runtime
