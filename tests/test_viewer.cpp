@@ -80,16 +80,17 @@ class Viewer : public ::testing::Test {
     if (!db) return {};
     // Two frames: the second is drawn after the pager has surely published
     // every level of every module (the first waits for its queue to drain).
-    o.frames = 2;
-    o.speedKmh = 0;
-    o.fog = false;
-    o.sky = false;
-    o.hud = false;
-    o.pagerSync = true;
-    o.mode = runtime::TerrainMode::modules;
+    o.output.frames = 2;
+    o.motion.speedKmh = 0;
+    o.view.fog = false;
+    o.view.sky = false;
+    o.view.hud = false;
+    o.pager.sync = true;
+    o.render.mode = runtime::TerrainMode::modules;
     Image img;
-    o.onFrame = [&](std::uint32_t, const Image& i) { img = i; };
-    auto r = runtime::fly(db.value(), o);
+    runtime::FlightHooks hooks(o);
+    hooks.onFrame = [&](std::uint32_t, const Image& i) { img = i; };
+    auto r = runtime::fly(db.value(), o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     runtime::FrameStats s;
     if (r.ok() && !r->frames.empty()) s = r->frames.back();
@@ -138,13 +139,13 @@ TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
   for (const LodCase& c : lodCases()) {
     for (const View& v : views) {
       FlightOptions o;
-      o.width = 320;
-      o.height = 180;
-      o.heightAgl = v.height;
-      o.headingDeg = v.heading;
-      o.pitchDeg = v.pitch;
-      o.viewDistance = 6000;
-      o.lod = {c.mode, c.rings, c.pixelError, c.morph};
+      o.view.width = 320;
+      o.view.height = 180;
+      o.motion.heightAgl = v.height;
+      o.motion.headingDeg = v.heading;
+      o.motion.pitchDeg = v.pitch;
+      o.view.viewDistance = 6000;
+      o.render.lod = {c.mode, c.rings, c.pixelError, c.morph};
       auto [img, s] = frame(monaco_, o, v.lon, v.lat, std::string(c.name) + " " + v.name);
       ASSERT_EQ(img.width, 320u);
       EXPECT_GT(s.modulesDrawn, 0u) << c.name << ", " << v.name;
@@ -169,13 +170,13 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
   std::vector<std::uint64_t> triangles;
   for (const auto& b : bins) {
     FlightOptions o;
-    o.width = 320;
-    o.height = 180;
-    o.heightAgl = 150;
-    o.headingDeg = 70;
-    o.pitchDeg = -5;
-    o.viewDistance = 6000;
-    o.lod = {LodMode::rings, b, 2, false};
+    o.view.width = 320;
+    o.view.height = 180;
+    o.motion.heightAgl = 150;
+    o.motion.headingDeg = 70;
+    o.motion.pitchDeg = -5;
+    o.view.viewDistance = 6000;
+    o.render.lod = {LodMode::rings, b, 2, false};
     auto [img, s] = frame(monaco_, o, 7.39, 43.73);
     EXPECT_EQ(cracks(img), 0u);
     triangles.push_back(s.triangles);
@@ -185,13 +186,13 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
   }
   // One bin out to the view distance is what the finest level draws.
   FlightOptions full;
-  full.width = 320;
-  full.height = 180;
-  full.heightAgl = 150;
-  full.headingDeg = 70;
-  full.pitchDeg = -5;
-  full.viewDistance = 6000;
-  full.lod.mode = LodMode::full;
+  full.view.width = 320;
+  full.view.height = 180;
+  full.motion.heightAgl = 150;
+  full.motion.headingDeg = 70;
+  full.motion.pitchDeg = -5;
+  full.view.viewDistance = 6000;
+  full.render.lod.mode = LodMode::full;
   EXPECT_EQ(frame(monaco_, full, 7.39, 43.73).second.triangles, triangles.front());
 }
 
@@ -200,13 +201,13 @@ TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
   for (const double px : {8.0, 4.0, 2.0, 1.0, 0.5}) {
     for (const bool morph : {false, true}) {
       FlightOptions o;
-      o.width = 320;
-      o.height = 180;
-      o.heightAgl = 80;
-      o.headingDeg = 20;
-      o.pitchDeg = -6;
-      o.viewDistance = 6000;
-      o.lod = {LodMode::sse, {}, px, morph};
+      o.view.width = 320;
+      o.view.height = 180;
+      o.motion.heightAgl = 80;
+      o.motion.headingDeg = 20;
+      o.motion.pitchDeg = -6;
+      o.view.viewDistance = 6000;
+      o.render.lod = {LodMode::sse, {}, px, morph};
       auto [img, s] = frame(monaco_, o, 7.415, 43.725, "sse " + std::to_string(px) + (morph ? " morph" : ""));
       // The morph factor is the largest the budget allows: equal up to rounding.
       EXPECT_LE(s.maxErrorPx, px * (1 + 1e-6)) << px << " px, morph " << morph;
@@ -225,18 +226,18 @@ TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
 /// viewer's camera; the same projection as the renderer, written out here.
 std::array<double, 2> project(const FlightOptions& o, const std::array<double, 3>& eye,
                               const std::array<double, 3>& p) {
-  const double h = o.headingDeg * kPi / 180, t = o.pitchDeg * kPi / 180;
+  const double h = o.motion.headingDeg * kPi / 180, t = o.motion.pitchDeg * kPi / 180;
   const std::array<double, 3> f{std::cos(t) * std::sin(h), std::sin(t), -std::cos(t) * std::cos(h)};
   const std::array<double, 3> r{std::cos(h), 0, std::sin(h)};
   const std::array<double, 3> u{r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2],
                                 r[0] * f[1] - r[1] * f[0]};
   const std::array<double, 3> d{p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]};
   const auto dot = [](const auto& a, const auto& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
-  const double aspect = double(o.width) / o.height;
-  const double k = 1 / std::tan(runtime::verticalFovDeg(o.hfovDeg, aspect) * kPi / 360);
+  const double aspect = double(o.view.width) / o.view.height;
+  const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
   const double depth = dot(f, d);
   const double nx = k / aspect * dot(r, d) / depth, ny = k * dot(u, d) / depth;
-  return {(nx + 1) / 2 * o.width, (1 - ny) / 2 * o.height};
+  return {(nx + 1) / 2 * o.view.width, (1 - ny) / 2 * o.view.height};
 }
 
 TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
@@ -261,13 +262,13 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
   };
   for (const auto [height, msaa] : {Shot{500, 0}, Shot{1500, 0}, Shot{3000, 0}, Shot{1500, 4}}) {
     FlightOptions o;
-    o.msaa = msaa;
-    o.width = 480;
-    o.height = 270;
-    o.heightAgl = height;
-    o.headingDeg = 0;
-    o.pitchDeg = -89;
-    o.viewDistance = 8000;
+    o.render.msaa = msaa;
+    o.view.width = 480;
+    o.view.height = 270;
+    o.motion.heightAgl = height;
+    o.motion.headingDeg = 0;
+    o.motion.pitchDeg = -89;
+    o.view.viewDistance = 8000;
     auto [img, s] = frame(road_, o, midLon, kRoadLat, "road " + std::to_string(int(height)));
     ASSERT_EQ(img.width, 480u);
     const auto mid = world(midLon, kRoadLat);
@@ -317,7 +318,7 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
       }
     }
     const bool wholeRoadOnScreen = std::all_of(q.begin(), q.end(), [&](const auto& p) {
-      return p[0] >= 0 && p[0] < o.width && p[1] >= 0 && p[1] < o.height;
+      return p[0] >= 0 && p[0] < o.view.width && p[1] >= 0 && p[1] < o.view.height;
     });
     if (height >= 1500) {
       EXPECT_TRUE(wholeRoadOnScreen) << "height " << height;
@@ -347,12 +348,12 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
   const double ue = (eb - ea) / length, un = (nb - na) / length;
   for (const double back : {300.0, 900.0}) {
     FlightOptions o;
-    o.width = 320;
-    o.height = 180;
-    o.heightAgl = 60;
-    o.headingDeg = std::atan2(ue, un) * 180 / kPi;
-    o.pitchDeg = -3;
-    o.viewDistance = 8000;
+    o.view.width = 320;
+    o.view.height = 180;
+    o.motion.heightAgl = 60;
+    o.motion.headingDeg = std::atan2(ue, un) * 180 / kPi;
+    o.motion.pitchDeg = -3;
+    o.view.viewDistance = 8000;
     double lon = 0, lat = 0;
     ASSERT_TRUE(geo.value()->toLonLat(ea - back * ue, na - back * un, lon, lat));
     auto [img, s] = frame(road_, o, lon, lat, "road along " + std::to_string(int(back)));
@@ -364,7 +365,7 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
     for (double f = 0.1; f <= 0.9; f += 0.02) {
       const double e = ea + f * length * ue, n = na + f * length * un;
       const auto p = project(o, eye, {e - gh.originEasting, 0, gh.originNorthing - n});
-      ASSERT_TRUE(p[0] >= 0 && p[0] < o.width && p[1] >= 0 && p[1] < o.height) << f;
+      ASSERT_TRUE(p[0] >= 0 && p[0] < o.view.width && p[1] >= 0 && p[1] < o.view.height) << f;
       const runtime::Rgb c = img.at(std::uint32_t(p[0]), std::uint32_t(p[1]));
       if (checked++ == 0) road = c;
       EXPECT_GT(int(c.r) - int(c.b), 60) << "back " << back << " at " << f;  // road, not grass
@@ -380,15 +381,15 @@ TEST_F(Viewer, GpuCopiesFollowThePager) {
   FlightOptions o;
   auto db = openAt(monaco_, 7.385, 43.745, o);
   ASSERT_TRUE(db);
-  o.width = 160;
-  o.height = 90;
-  o.frames = 45;
-  o.headingDeg = 90;
-  o.heightAgl = 300;
-  o.speedKmh = 12000;  // 111 m a frame: 5 km in 45 frames
-  o.viewDistance = 1200;
-  o.hud = false;
-  o.pagerSync = true;
+  o.view.width = 160;
+  o.view.height = 90;
+  o.output.frames = 45;
+  o.motion.headingDeg = 90;
+  o.motion.heightAgl = 300;
+  o.motion.speedKmh = 12000;  // 111 m a frame: 5 km in 45 frames
+  o.view.viewDistance = 1200;
+  o.view.hud = false;
+  o.pager.sync = true;
   auto r = runtime::fly(db.value(), o);
   ASSERT_TRUE(r.ok()) << r.error();
   std::uint64_t uploads = 0, released = 0;

@@ -61,30 +61,31 @@ class ViewerLod : public ::testing::Test {
                           runtime::Image* image = nullptr) {
     auto db = openAt(db_, lon, lat, o);
     if (!db) return {};
-    o.frames = 2;
-    o.width = 640;
-    o.height = 360;
-    o.speedKmh = 0;
-    o.fog = false;
-    o.sky = false;
-    o.hud = false;
-    o.pagerSync = true;
-    o.mode = runtime::TerrainMode::modules;
-    o.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+    o.output.frames = 2;
+    o.view.width = 640;
+    o.view.height = 360;
+    o.motion.speedKmh = 0;
+    o.view.fog = false;
+    o.view.sky = false;
+    o.view.hud = false;
+    o.pager.sync = true;
+    o.render.mode = runtime::TerrainMode::modules;
+    runtime::FlightHooks hooks(o);
+    hooks.onFrame = [&](std::uint32_t, const runtime::Image& i) {
       if (image) *image = i;
     };
-    auto r = runtime::fly(db.value(), o);
+    auto r = runtime::fly(db.value(), o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     return r.ok() && !r->frames.empty() ? r->frames.back() : FrameStats{};
   }
 
   static FlightOptions issuePose(LodMode mode) {
     FlightOptions o;
-    o.heightAgl = 5000;
-    o.headingDeg = 180;
-    o.pitchDeg = -10;
-    o.viewDistance = 20000;
-    o.lod.mode = mode;
+    o.motion.heightAgl = 5000;
+    o.motion.headingDeg = 180;
+    o.motion.pitchDeg = -10;
+    o.view.viewDistance = 20000;
+    o.render.lod.mode = mode;
     return o;
   }
 
@@ -113,9 +114,9 @@ TEST_F(ViewerLod, FullDrawsEveryNodeAtLevelZeroOnTheIssuesReproducer) {
 TEST_F(ViewerLod, FullDrawsLevelZeroNearTheEyeOverTheMountains) {
   // Low over the Fichtelgebirge, looking across the ridges.
   FlightOptions o = issuePose(LodMode::full);
-  o.heightAgl = 300;
-  o.headingDeg = 60;
-  o.pitchDeg = -5;
+  o.motion.heightAgl = 300;
+  o.motion.headingDeg = 60;
+  o.motion.pitchDeg = -5;
   const FrameStats s = frame(o, 11.85, 50.05);
   ASSERT_EQ(s.levelCounts.size(), 4u);
   EXPECT_GT(s.nodesDrawn, 0u);
@@ -140,22 +141,23 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
   FlightOptions o;
   auto db = openAt(db_, 11.60, 50.05, o);
   ASSERT_TRUE(db);
-  o.width = 320;
-  o.height = 180;
-  o.frames = 150;
-  o.viewDistance = 3000;
-  o.maxViewDistance = 12000;
-  o.heightAgl = 1500;
-  o.pitchDeg = -12;
-  o.fog = false;
-  o.sky = false;
-  o.hud = false;
-  o.mode = runtime::TerrainMode::modules;
-  o.controller = [&](std::uint32_t k, double) -> std::optional<runtime::Pose> {
+  o.view.width = 320;
+  o.view.height = 180;
+  o.output.frames = 150;
+  o.view.viewDistance = 3000;
+  o.view.maxViewDistance = 12000;
+  o.motion.heightAgl = 1500;
+  o.motion.pitchDeg = -12;
+  o.view.fog = false;
+  o.view.sky = false;
+  o.view.hud = false;
+  o.render.mode = runtime::TerrainMode::modules;
+  runtime::FlightHooks hooks(o);
+  hooks.onPose = [&](std::uint32_t k, double, runtime::GroundClamp&) -> std::optional<runtime::Pose> {
     runtime::Pose p;
-    p.easting = o.easting;
-    p.northing = o.northing;
-    p.heightAgl = o.heightAgl;
+    p.easting = o.motion.easting;
+    p.northing = o.motion.northing;
+    p.heightAgl = o.motion.heightAgl;
     p.headingDeg = 180;
     p.viewDistance = k < 2 ? 3000.0 : 12000.0;
     // Give the loaders wall-clock time between frames.
@@ -163,10 +165,10 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
     return p;
   };
   std::uint64_t worst = 0;
-  o.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+  hooks.onFrame = [&](std::uint32_t, const runtime::Image& i) {
     worst = std::max(worst, holesBelowTheSilhouette(i));
   };
-  auto r = runtime::fly(db.value(), o);
+  auto r = runtime::fly(db.value(), o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 150u);
   EXPECT_DOUBLE_EQ(r->frames[0].viewDistance, 3000);
@@ -177,7 +179,7 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
   }
   EXPECT_DOUBLE_EQ(r->frames.back().viewDistance, 12000);
   EXPECT_GT(r->frames.back().windowModules, 4 * r->frames[0].windowModules);
-  EXPECT_LT(double(worst), 1e-4 * o.width * o.height);
+  EXPECT_LT(double(worst), 1e-4 * o.view.width * o.view.height);
 }
 
 TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
@@ -186,8 +188,8 @@ TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
   // asks is counted, and the frame still has no holes: placeholders follow
   // the grid and have skirts.
   FlightOptions o = issuePose(LodMode::full);
-  o.pagerBudgetBytes = 48ull << 20;
-  o.clearColour = {0xFF, 0x00, 0xFF};
+  o.pager.budgetBytes = 48ull << 20;
+  o.view.clearColour = {0xFF, 0x00, 0xFF};
   runtime::Image img;
   const FrameStats s = frame(o, 11.60, 50.05, &img);
   ASSERT_EQ(s.levelCounts.size(), 4u);

@@ -99,32 +99,33 @@ class ViewerLook : public ::testing::Test {
     FlightOptions& o = s.o;
     auto geo = convert::GeoTransformer::create(db.manifest.crsWkt);
     EXPECT_TRUE(geo.ok());
-    EXPECT_TRUE(geo.value()->toProjected(v.lon, v.lat, o.easting, o.northing));
-    o.width = 320;
-    o.height = 180;
-    o.frames = 2;
-    o.speedKmh = 0;
-    o.heightAgl = v.height;
-    o.headingDeg = v.heading;
-    o.pitchDeg = v.pitch;
-    o.viewDistance = v.viewDistance;
-    o.fog = false;
-    o.sky = false;
-    o.hud = false;
-    o.pagerSync = true;
-    o.mode = mode;
-    o.colour = colour;
-    o.shading = shading;
-    o.lod.mode = runtime::LodMode::full;
-    o.onFrame = [&](std::uint32_t, const Image& i) { s.img = i; };
-    auto r = runtime::fly(db, o);
+    EXPECT_TRUE(geo.value()->toProjected(v.lon, v.lat, o.motion.easting, o.motion.northing));
+    o.view.width = 320;
+    o.view.height = 180;
+    o.output.frames = 2;
+    o.motion.speedKmh = 0;
+    o.motion.heightAgl = v.height;
+    o.motion.headingDeg = v.heading;
+    o.motion.pitchDeg = v.pitch;
+    o.view.viewDistance = v.viewDistance;
+    o.view.fog = false;
+    o.view.sky = false;
+    o.view.hud = false;
+    o.pager.sync = true;
+    o.render.mode = mode;
+    o.render.colour = colour;
+    o.render.shading = shading;
+    o.render.lod.mode = runtime::LodMode::full;
+    runtime::FlightHooks hooks(o);
+    hooks.onFrame = [&](std::uint32_t, const Image& i) { s.img = i; };
+    auto r = runtime::fly(db, o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     if (r.ok() && !r->frames.empty()) {
       const auto& f = r->frames.back();
       const auto& h = db.grid->header();
-      s.eye = {o.easting - h.originEasting, f.eyeElevation, h.originNorthing - o.northing};
+      s.eye = {o.motion.easting - h.originEasting, f.eyeElevation, h.originNorthing - o.motion.northing};
     }
-    o.onFrame = nullptr;
+    hooks.onFrame = nullptr;
     // SANDTABLE_KEEP_TEST_OUTPUT=DIR keeps the frames for a look.
     if (const char* keep = std::getenv("SANDTABLE_KEEP_TEST_OUTPUT")) {
       const std::string name = std::string(v.name) + (mode == TerrainMode::mesh ? " mesh" : " modules") +
@@ -142,13 +143,13 @@ class ViewerLook : public ::testing::Test {
 /// The view ray through the centre of pixel (px, py): unit direction in
 /// the grid frame, the renderer's projection written out (camera_math.h).
 Vec3 rayThrough(const FlightOptions& o, double px, double py) {
-  const double h = o.headingDeg * kPi / 180, t = o.pitchDeg * kPi / 180;
+  const double h = o.motion.headingDeg * kPi / 180, t = o.motion.pitchDeg * kPi / 180;
   const Vec3 f{std::cos(t) * std::sin(h), std::sin(t), -std::cos(t) * std::cos(h)};
   const Vec3 r{std::cos(h), 0, std::sin(h)};
   const Vec3 u{r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]};
-  const double aspect = double(o.width) / o.height;
-  const double k = 1 / std::tan(runtime::verticalFovDeg(o.hfovDeg, aspect) * kPi / 360);
-  const double nx = (px + 0.5) / o.width * 2 - 1, ny = 1 - (py + 0.5) / o.height * 2;
+  const double aspect = double(o.view.width) / o.view.height;
+  const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
+  const double nx = (px + 0.5) / o.view.width * 2 - 1, ny = 1 - (py + 0.5) / o.view.height * 2;
   Vec3 d{};
   for (int c = 0; c < 3; ++c) d[c] = f[c] + nx * aspect / k * r[c] + ny / k * u[c];
   const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -415,17 +416,17 @@ TEST_F(ViewerLook, RoadsShowTheirMarkingsFromLowAltitude) {
     const double e = ea + s * ue + (0.5 - t) * kWidth * le, n = na + s * un + (0.5 - t) * kWidth * ln;
     const Vec3 p{e - gh.originEasting, 0, gh.originNorthing - n};
     const FlightOptions& o = shot.o;
-    const double h = o.headingDeg * kPi / 180, tp = o.pitchDeg * kPi / 180;
+    const double h = o.motion.headingDeg * kPi / 180, tp = o.motion.pitchDeg * kPi / 180;
     const Vec3 f{std::cos(tp) * std::sin(h), std::sin(tp), -std::cos(tp) * std::cos(h)};
     const Vec3 r{std::cos(h), 0, std::sin(h)};
     const Vec3 u{r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]};
     const Vec3 d{p[0] - shot.eye[0], p[1] - shot.eye[1], p[2] - shot.eye[2]};
     const auto dot = [](const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
-    const double aspect = double(o.width) / o.height;
-    const double k = 1 / std::tan(runtime::verticalFovDeg(o.hfovDeg, aspect) * kPi / 360);
-    const double x = (k / aspect * dot(r, d) / dot(f, d) + 1) / 2 * o.width;
-    const double y = (1 - k * dot(u, d) / dot(f, d)) / 2 * o.height;
-    if (x < 1 || y < 1 || x >= o.width - 1 || y >= o.height - 1) return std::nullopt;
+    const double aspect = double(o.view.width) / o.view.height;
+    const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
+    const double x = (k / aspect * dot(r, d) / dot(f, d) + 1) / 2 * o.view.width;
+    const double y = (1 - k * dot(u, d) / dot(f, d)) / 2 * o.view.height;
+    if (x < 1 || y < 1 || x >= o.view.width - 1 || y >= o.view.height - 1) return std::nullopt;
     return std::array<std::uint32_t, 2>{std::uint32_t(x), std::uint32_t(y)};
   };
   // Markings are near white; the primary road's colour (F0B060) has little blue.

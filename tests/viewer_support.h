@@ -41,7 +41,7 @@ inline std::optional<Database> openAt(const std::string& dir, double lon, double
     return std::nullopt;
   }
   auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-  if (!geo.ok() || !geo.value()->toProjected(lon, lat, o.easting, o.northing)) {
+  if (!geo.ok() || !geo.value()->toProjected(lon, lat, o.motion.easting, o.motion.northing)) {
     ADD_FAILURE() << dir << ": cannot place " << lon << " " << lat;
     return std::nullopt;
   }

@@ -111,19 +111,19 @@ int run(const Args& a) {
   if (std::sscanf(a.size.c_str(), "%u%c%u%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X')) {
     return usageError(kName, "--size must look like 1280x720");
   }
-  base.width = w;
-  base.height = h;
-  base.frames = a.frames + a.warmup;
-  base.heightAgl = a.height;
-  base.headingDeg = a.heading;
-  base.pitchDeg = a.pitch;
-  base.speedKmh = a.speed;
-  base.viewDistance = a.viewDistance;
-  base.lod.pixelError = a.pixelError;
-  if (std::string e = parseRings(a.rings, base.lod.rings); !e.empty()) return usageError(kName, e);
+  base.view.width = w;
+  base.view.height = h;
+  base.output.frames = a.frames + a.warmup;
+  base.motion.heightAgl = a.height;
+  base.motion.headingDeg = a.heading;
+  base.motion.pitchDeg = a.pitch;
+  base.motion.speedKmh = a.speed;
+  base.view.viewDistance = a.viewDistance;
+  base.render.lod.pixelError = a.pixelError;
+  if (std::string e = parseRings(a.rings, base.render.lod.rings); !e.empty()) return usageError(kName, e);
   const auto& gh = db->grid->header();
-  base.easting = gh.originEasting + gh.spacing * (gh.postsX - 1) / 2.0;
-  base.northing = gh.originNorthing - gh.spacing * (gh.postsZ - 1) / 2.0;
+  base.motion.easting = gh.originEasting + gh.spacing * (gh.postsX - 1) / 2.0;
+  base.motion.northing = gh.originNorthing - gh.spacing * (gh.postsZ - 1) / 2.0;
 
   std::vector<Case> cases = {{"rings", runtime::TerrainMode::modules, runtime::LodMode::rings},
                              {"sse", runtime::TerrainMode::modules, runtime::LodMode::sse},
@@ -133,8 +133,8 @@ int run(const Args& a) {
   std::string renderer;
   for (const Case& c : cases) {
     runtime::FlightOptions o = base;
-    o.mode = c.mode;
-    o.lod.mode = c.lod;
+    o.render.mode = c.mode;
+    o.render.lod.mode = c.lod;
     auto r = runtime::fly(db.value(), o);
     if (!r) {
       const bool usage = r.problems().front().file == runtime::kFlightOptionProblem ||

@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "commands.h"
+#include "flags.h"
 #include "sandtable/viewer/fly_session.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
@@ -217,26 +218,26 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
                          FlightOptions& o) {
   const runtime::Terrain terrain(db.grid);
   const auto& m = db.manifest;
-  o.outDir = a.pngDir;
-  o.frames = a.frames;
-  if (!parseSize(a.size, o.width, o.height)) return "--size must look like 1280x720, not \"" + a.size + "\"";
-  if (!parseColor(a.background, o.background)) return "--background must be 6 hex digits RRGGBB, e.g. 87CEEB";
-  o.heightAgl = a.height;
-  o.headingDeg = a.heading;
-  o.pitchDeg = a.pitch;
-  o.speedKmh = a.speed;
-  o.viewDistance = a.viewDistance;
-  o.maxViewDistance = a.maxViewDistance;
-  o.hfovDeg = a.fov;
-  o.hud = !a.noHud;
-  o.fog = !a.noFog;
-  if (a.mode == "auto") o.mode = runtime::TerrainMode::automatic;
-  else if (a.mode == "mesh") o.mode = runtime::TerrainMode::mesh;
-  else if (a.mode == "modules") o.mode = runtime::TerrainMode::modules;
+  o.output.outDir = a.pngDir;
+  o.output.frames = a.frames;
+  if (!parseSize(a.size, o.view.width, o.view.height)) return "--size must look like 1280x720, not \"" + a.size + "\"";
+  if (!parseColor(a.background, o.view.background)) return "--background must be 6 hex digits RRGGBB, e.g. 87CEEB";
+  o.motion.heightAgl = a.height;
+  o.motion.headingDeg = a.heading;
+  o.motion.pitchDeg = a.pitch;
+  o.motion.speedKmh = a.speed;
+  o.view.viewDistance = a.viewDistance;
+  o.view.maxViewDistance = a.maxViewDistance;
+  o.view.hfovDeg = a.fov;
+  o.view.hud = !a.noHud;
+  o.view.fog = !a.noFog;
+  if (a.mode == "auto") o.render.mode = runtime::TerrainMode::automatic;
+  else if (a.mode == "mesh") o.render.mode = runtime::TerrainMode::mesh;
+  else if (a.mode == "modules") o.render.mode = runtime::TerrainMode::modules;
   else return "--mode must be auto, mesh or modules, not \"" + a.mode + "\"";
-  if (a.lod == "rings") o.lod.mode = runtime::LodMode::rings;
-  else if (a.lod == "sse") o.lod.mode = runtime::LodMode::sse;
-  else if (a.lod == "full") o.lod.mode = runtime::LodMode::full;
+  if (a.lod == "rings") o.render.lod.mode = runtime::LodMode::rings;
+  else if (a.lod == "sse") o.render.lod.mode = runtime::LodMode::sse;
+  else if (a.lod == "full") o.render.lod.mode = runtime::LodMode::full;
   else return "--lod must be rings, sse or full, not \"" + a.lod + "\"";
   if (!a.rings.empty()) {
     std::stringstream in(a.rings);
@@ -244,36 +245,36 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
     while (std::getline(in, item, ',')) {
       try {
         std::size_t used = 0;
-        o.lod.rings.push_back(std::stod(item, &used));
+        o.render.lod.rings.push_back(std::stod(item, &used));
         if (used != item.size()) throw std::invalid_argument(item);
       } catch (const std::exception&) {
         return "--rings must be metres separated by commas, e.g. 1500,3000,4500";
       }
     }
   }
-  o.lod.pixelError = a.pixelError;
-  o.lod.morph = !a.noMorph;
-  o.fogDensity = a.fogDensity;
-  o.pagerSync = a.pagerSync;
-  o.pagerBudgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
-  o.sky = !a.noSky;
-  o.msaa = a.msaa;
-  if (a.shading == "smooth") o.shading = runtime::Shading::smooth;
-  else if (a.shading == "flat") o.shading = runtime::Shading::flat;
+  o.render.lod.pixelError = a.pixelError;
+  o.render.lod.morph = !a.noMorph;
+  o.view.fogDensity = a.fogDensity;
+  o.pager.sync = a.pagerSync;
+  o.pager.budgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
+  o.view.sky = !a.noSky;
+  o.render.msaa = a.msaa;
+  if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
+  else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
-  if (a.colour == "natural") o.colour = runtime::ColourMode::natural;
-  else if (a.colour == "height") o.colour = runtime::ColourMode::height;
+  if (a.colour == "natural") o.render.colour = runtime::ColourMode::natural;
+  else if (a.colour == "height") o.render.colour = runtime::ColourMode::height;
   else return "--colour must be natural or height, not \"" + a.colour + "\"";
-  o.waterMaterials = waterMaterials(db);
+  o.render.waterMaterials = waterMaterials(db);
   const auto& h = db.grid->header();
-  o.easting = h.originEasting + h.spacing * (h.postsX - 1) / 2.0;
-  o.northing = h.originNorthing - h.spacing * (h.postsZ - 1) / 2.0;
+  o.motion.easting = h.originEasting + h.spacing * (h.postsX - 1) / 2.0;
+  o.motion.northing = h.originNorthing - h.spacing * (h.postsZ - 1) / 2.0;
   if (a.at.size() == 2) {
-    if (std::string err = project(geo, terrain, m, a.at[0], a.at[1], o.easting, o.northing); !err.empty()) {
+    if (std::string err = project(geo, terrain, m, a.at[0], a.at[1], o.motion.easting, o.motion.northing); !err.empty()) {
       return "--at " + err;
     }
   }
-  o.toLonLat = [&geo](double e, double n) -> std::optional<std::pair<double, double>> {
+  o.output.toLonLat = [&geo](double e, double n) -> std::optional<std::pair<double, double>> {
     double lon = 0, lat = 0;
     if (!geo.toLonLat(e, n, lon, lat)) return std::nullopt;
     return std::pair{lon, lat};
@@ -293,7 +294,7 @@ std::uint32_t framesForPath(const runtime::Path& p) {
 std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOptions& o,
                             FlySessionSettings& s) {
   s.freeFlight = a.freeFlight;
-  if (auto g = runtime::Terrain(db.grid).sampleEN(o.easting, o.northing)) {
+  if (auto g = runtime::Terrain(db.grid).sampleEN(o.motion.easting, o.motion.northing)) {
     s.altitude = a.altitude.value_or(g->elevation + a.height);
   } else {
     s.altitude = a.altitude.value_or(a.height);
@@ -304,13 +305,13 @@ std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOp
   s.mapScale = *scale;
   s.waterMaterials = waterMaterials(db);
   s.screenshotDir = !a.screenshotDir.empty() ? a.screenshotDir : !a.pngDir.empty() ? a.pngDir : ".";
-  const bool modules = db.modules && o.mode != runtime::TerrainMode::mesh;
+  const bool modules = db.modules && o.render.mode != runtime::TerrainMode::mesh;
   // Over load modules the pager's ring is sized for the most the keys may
   // ask for; the grid mesh has no such limit.
-  s.maxViewDistance = modules ? std::max(o.viewDistance, o.maxViewDistance > 0 ? o.maxViewDistance
-                                                                             : 3 * o.viewDistance)
-                              : std::max(s.maxViewDistance, o.viewDistance);
-  s.liveViewDistance = !(o.fogDensity > 0);
+  s.maxViewDistance = modules ? std::max(o.view.viewDistance, o.view.maxViewDistance > 0 ? o.view.maxViewDistance
+                                                                             : 3 * o.view.viewDistance)
+                              : std::max(s.maxViewDistance, o.view.viewDistance);
+  s.liveViewDistance = !(o.view.fogDensity > 0);
   return {};
 }
 
@@ -325,7 +326,7 @@ std::string openWindow(const FlyArgs& a, const Database& db, const FlightOptions
   }
   if (!runtime::ViewerWindow::displayConfigured()) return {};
   const std::string title = "sandtable fly " + std::filesystem::path(db.directory).filename().string();
-  auto w = runtime::ViewerWindow::open(o.width, o.height, title);
+  auto w = runtime::ViewerWindow::open(o.view.width, o.view.height, title);
   if (w) {
     window = std::move(w.value());
     return {};
@@ -345,7 +346,7 @@ std::string openVideo(const FlyArgs& a, const FlightOptions& o, std::unique_ptr<
   if (!runtime::VideoWriter::available()) return "--video: " + runtime::VideoWriter::notInstalledMessage();
   runtime::VideoOptions vo;
   vo.fps = runtime::kFramesPerSecond;
-  auto v = runtime::VideoWriter::open(a.videoFile, o.width, o.height, vo);
+  auto v = runtime::VideoWriter::open(a.videoFile, o.view.width, o.view.height, vo);
   if (!v) return "--video " + a.videoFile + ": " + v.problems().front().message;
   video = std::move(v.value());
   return {};
@@ -356,8 +357,8 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const 
   const auto& s = r.summary;
   std::printf("sandtable fly: %u frame%s at %ux%u%s", s.frames, s.frames == 1 ? "" : "s", s.width, s.height,
               session.windowed() ? " in a window" : "");
-  if (!o.outDir.empty() && s.frames > 0) {
-    std::printf(" in %s/ (%s .. %s)", o.outDir.c_str(), runtime::frameFileName(0).c_str(),
+  if (!o.output.outDir.empty() && s.frames > 0) {
+    std::printf(" in %s/ (%s .. %s)", o.output.outDir.c_str(), runtime::frameFileName(0).c_str(),
                 runtime::frameFileName(s.frames - 1).c_str());
   }
   std::printf("\n");
@@ -392,7 +393,7 @@ int reportFailure(const Result<runtime::FlightReport>& report) {
   const auto& first = report.problems().front();
   const bool usage = first.file == runtime::kFlightOptionProblem || first.file == runtime::kGlContextProblem;
   for (const auto& q : report.problems()) {
-    std::fprintf(stderr, "sandtable fly: error: %s\n", q.message.c_str());
+    std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(q.message).c_str());
   }
   return usage ? kUsage : kProblems;
 }
@@ -413,12 +414,12 @@ int run(FlyArgs& a) {
     auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
     if (!path) {
       // "--path FILE:N: what, how to fix" (the Problem's offset is always 0 here).
-      return usageError(kName, "--path " + runtime::pathProblemText(path.problems().front()));
+      return usageError(kName, withFlags("--path " + runtime::pathProblemText(path.problems().front())));
     }
     const auto& first = path->waypoints.front();
-    o.easting = first.easting;
-    o.northing = first.northing;
-    o.heightAgl = first.heightAgl;
+    o.motion.easting = first.easting;
+    o.motion.northing = first.northing;
+    o.motion.heightAgl = first.heightAgl;
     ss.path = std::move(path.value());
   }
   std::unique_ptr<runtime::VideoWriter> video;
@@ -428,21 +429,20 @@ int run(FlyArgs& a) {
   const bool framesGiven = a.framesOption && a.framesOption->count() > 0;
   if (window) {
     // In a window the flight runs until q, Escape or the window closes.
-    if (!framesGiven) o.frames = std::numeric_limits<std::uint32_t>::max();
+    if (!framesGiven) o.output.frames = std::numeric_limits<std::uint32_t>::max();
   } else {
     if (a.pngDir.empty() && a.videoFile.empty()) {
       return usageError(kName, "a headless flight needs --png DIR (or --video FILE) for its frames; "
                                "for a window, set DISPLAY (or use --window)");
     }
-    if (ss.path && !framesGiven) o.frames = framesForPath(*ss.path);
+    if (ss.path && !framesGiven) o.output.frames = framesForPath(*ss.path);
   }
   FlySession session(db.value(), std::move(ss), o, std::move(window), std::move(video));
-  session.install(o);
-  auto report = runtime::fly(db.value(), o);
+  auto report = runtime::fly(db.value(), o, &session);
   const std::string sessionError = session.finish();
   if (!report) return reportFailure(report);
   if (!sessionError.empty()) {
-    std::fprintf(stderr, "sandtable fly: error: %s\n", sessionError.c_str());
+    std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(sessionError).c_str());
     return kProblems;
   }
   printSummary(o, report.value(), session, a);

@@ -204,7 +204,7 @@ struct Renderer::Impl {
     const GLenum status = glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
     if (status != GL_FRAMEBUFFER_COMPLETE) {
       return "framebuffer " + std::to_string(w) + "x" + std::to_string(h) +
-             " is incomplete (status " + std::to_string(status) + "); try a smaller --size";
+             " is incomplete (status " + std::to_string(status) + "); try a smaller RenderSettings::width/height";
     }
     return {};
   }

@@ -80,10 +80,10 @@ std::vector<std::uint64_t> nodeTrianglePrefix(const module::Level& level, std::u
 
 std::string checkLodOptions(const LodOptions& o) {
   for (std::size_t k = 0; k < o.rings.size(); ++k) {
-    if (!(o.rings[k] > 0) || !std::isfinite(o.rings[k])) return "--rings must be positive metres";
-    if (k > 0 && !(o.rings[k] > o.rings[k - 1])) return "--rings must be strictly ascending";
+    if (!(o.rings[k] > 0) || !std::isfinite(o.rings[k])) return "LodOptions::rings must be positive metres";
+    if (k > 0 && !(o.rings[k] > o.rings[k - 1])) return "LodOptions::rings must be strictly ascending";
   }
-  if (!(o.pixelError > 0) || !std::isfinite(o.pixelError)) return "--pixel-error must be positive";
+  if (!(o.pixelError > 0) || !std::isfinite(o.pixelError)) return "LodOptions::pixelError must be positive";
   return {};
 }
 

@@ -254,3 +254,27 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
 }
 
 }  // namespace sandtable::runtime
+
+namespace sandtable::runtime {
+
+std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z) {
+  if (!buf.moduleMode || !(buf.moduleSize > 0)) return std::nullopt;
+  const double kxf = std::floor(x / buf.moduleSize), kzf = std::floor(z / buf.moduleSize);
+  if (kxf < 0 || kzf < 0) return std::nullopt;
+  const auto kx = static_cast<std::uint32_t>(kxf), kz = static_cast<std::uint32_t>(kzf);
+  const double lx = x - kxf * buf.moduleSize, lz = z - kzf * buf.moduleSize;
+  for (const NodeDraw& nd : buf.nodes) {
+    const ModuleDraw& md = buf.modules[nd.module];
+    if (md.kx != kx || md.kz != kz) continue;
+    const auto levels = static_cast<std::uint32_t>(md.ref.module().levels.size());
+    const std::uint32_t side = nodesPerSide(nd.level, levels);
+    const double node = buf.moduleSize / side;
+    const auto a = std::min(side - 1, static_cast<std::uint32_t>(lx / node));
+    const auto b = std::min(side - 1, static_cast<std::uint32_t>(lz / node));
+    const std::uint32_t m = mortonIndex(a, b);
+    if (m >= nd.first && m < nd.last) return DrawnLevel{nd.level, nd.morph};
+  }
+  return std::nullopt;
+}
+
+}  // namespace sandtable::runtime

@@ -44,14 +44,14 @@ double normalizeHeading(double deg) {
 }
 
 Pose straightPose(const FlightOptions& o, double t) {
-  const double d = o.speedKmh / 3.6 * t;
-  const double h = o.headingDeg * kDegToRad;
+  const double d = o.motion.speedKmh / 3.6 * t;
+  const double h = o.motion.headingDeg * kDegToRad;
   Pose p;
-  p.easting = o.easting + std::sin(h) * d;
-  p.northing = o.northing + std::cos(h) * d;
-  p.headingDeg = normalizeHeading(o.headingDeg);
-  p.heightAgl = o.heightAgl;
-  p.speedKmh = o.speedKmh;
+  p.easting = o.motion.easting + std::sin(h) * d;
+  p.northing = o.motion.northing + std::cos(h) * d;
+  p.headingDeg = normalizeHeading(o.motion.headingDeg);
+  p.heightAgl = o.motion.heightAgl;
+  p.speedKmh = o.motion.speedKmh;
   return p;
 }
 
@@ -155,21 +155,21 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                "draw and glReadPixels (waits for the GPU); frame_ms: time between frame "
                "completions on the render thread (the threads overlap), frame 0 cpu + render + "
                "panel; png_ms is not in frame_ms or fps"}};
-  j["options"] = {{"size", std::to_string(o.width) + "x" + std::to_string(o.height)},
-                  {"height_agl", o.heightAgl},
-                  {"pitch", o.pitchDeg},
-                  {"speed_kmh", o.speedKmh},
-                  {"fov", o.hfovDeg},
-                  {"view_distance", o.viewDistance},
-                  {"fog", o.fog},
-                  {"mode", terrainModeName(o.mode)},
-                  {"lod", lodModeName(o.lod.mode)},
-                  {"rings", o.lod.rings},
-                  {"pixel_error", o.lod.pixelError},
-                  {"morph", o.lod.morph},
-                  {"msaa", o.msaa},
-                  {"hud", o.hud},
-                  {"path_waypoints", o.path.size()}};
+  j["options"] = {{"size", std::to_string(o.view.width) + "x" + std::to_string(o.view.height)},
+                  {"height_agl", o.motion.heightAgl},
+                  {"pitch", o.motion.pitchDeg},
+                  {"speed_kmh", o.motion.speedKmh},
+                  {"fov", o.view.hfovDeg},
+                  {"view_distance", o.view.viewDistance},
+                  {"fog", o.view.fog},
+                  {"mode", terrainModeName(o.render.mode)},
+                  {"lod", lodModeName(o.render.lod.mode)},
+                  {"rings", o.render.lod.rings},
+                  {"pixel_error", o.render.lod.pixelError},
+                  {"morph", o.render.lod.morph},
+                  {"msaa", o.render.msaa},
+                  {"hud", o.view.hud},
+                  {"path_waypoints", o.motion.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
   for (const auto& f : r.frames) frames.push_back(frameJson(f));
   j["frames"] = frames;
@@ -196,7 +196,13 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
 }
 
 double effectiveViewDistance(const FlightOptions& o) {
-  return o.fogDensity > 0 ? detail::viewDistanceForFog(o.fogDensity) : o.viewDistance;
+  return o.view.fogDensity > 0 ? detail::viewDistanceForFog(o.view.fogDensity) : o.view.viewDistance;
+}
+
+/// The eye's elevation for a pose over `ground`: ground following, or
+/// free flight but never below the ground.
+double eyeFor(const Pose& p, double ground) {
+  return GroundClamp::eyeElevation(ground, p.heightAgl, p.altitude, 0.0);
 }
 
 /// Camera for a pose; the ground under the eye comes from `ground`.
@@ -204,11 +210,11 @@ Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, d
   Camera c;
   c.x = p.easting - h.originEasting;
   c.z = h.originNorthing - p.northing;
-  c.y = p.altitude ? *p.altitude : ground + p.heightAgl;
+  c.y = eyeFor(p, ground);
   c.headingDeg = p.headingDeg;
-  c.pitchDeg = std::clamp(p.pitchDeg.value_or(o.pitchDeg), -89.0, 89.0);
-  c.hfovDeg = std::clamp(p.hfovDeg.value_or(o.hfovDeg), 10.0, 90.0);
-  c.aspect = double(o.width) / double(o.height);
+  c.pitchDeg = std::clamp(p.pitchDeg.value_or(o.motion.pitchDeg), -89.0, 89.0);
+  c.hfovDeg = std::clamp(p.hfovDeg.value_or(o.view.hfovDeg), 10.0, 90.0);
+  c.aspect = double(o.view.width) / double(o.view.height);
   c.viewDistance = std::clamp(p.viewDistance.value_or(effectiveViewDistance(o)), 10.0, 1e6);
   return c;
 }
@@ -270,12 +276,16 @@ class Handoff {
 
 /// Everything one flight owns while it runs.
 struct FlightRun {
-  FlightRun(const FlightOptions& options, std::shared_ptr<const grid::GridFile> g, RenderSettings rs)
-      : o(options), grid(g), terrain(std::move(g)), renderSettings(std::move(rs)) {}
+  FlightRun(const FlightOptions& options, FlightApplication& application,
+            std::shared_ptr<const grid::GridFile> g, RenderSettings rs)
+      : o(options), app(application), grid(g), ground(std::move(g)), renderSettings(std::move(rs)) {}
 
   const FlightOptions& o;
+  FlightApplication& app;
   std::shared_ptr<const grid::GridFile> grid;
-  Terrain terrain;
+  /// The one ground clamp: the surface drawn under the eye (module mode:
+  /// reset with the pack's module size and levels).
+  GroundClamp ground;
   RenderSettings renderSettings;
   Pager* pager = nullptr;                 ///< module mode
   /// The view distance the pager's window has been filled to: the drawn
@@ -284,7 +294,6 @@ struct FlightRun {
   std::unique_ptr<ModuleScene> scene;     ///< module mode
   std::array<Slot, 2> slots;
   Handoff handoff{slots};
-  double ground = 0;  ///< last ground elevation seen under the eye
   // Written by the render thread only; read after it is joined.
   FlightReport report;
   std::string renderError;
@@ -317,17 +326,12 @@ struct FlightRun {
   /// Main thread, one frame: motion, paging, selection into a free buffer.
   /// False when the flight ends (the controller said so, or rendering failed).
   bool produce(std::uint32_t k, Pose& previous, double& previousT) {
-    Pose pose;
-    if (o.controller) {
-      auto p = o.controller(k, k / kFramesPerSecond);
-      if (!p) return false;
-      pose = *p;
-    } else {
-      pose = poseAt(o, k / kFramesPerSecond);
-    }
+    auto next = app.pose(k, k / kFramesPerSecond, ground);
+    if (!next) return false;
+    const Pose pose = *next;
     const double t = pose.clockS.value_or(k / kFramesPerSecond);
-    if (auto sample = terrain.sampleEN(pose.easting, pose.northing)) ground = sample->elevation;
-    Camera cam = cameraFor(grid->header(), o, pose, ground);
+    double groundHere = ground.groundEN(pose.easting, pose.northing);
+    Camera cam = cameraFor(grid->header(), o, pose, groundHere);
     if (pager) {
       // The window follows the view distance asked for (the + and - keys,
       // a path). Growing, the new ring is drawn only as it comes in, so the
@@ -335,7 +339,7 @@ struct FlightRun {
       const double asked = pager->setViewDistance(cam.viewDistance);
       const auto [vx, vz] = velocity(pose, t, previous, previousT, k == 0);
       pager->update(cam.x, cam.z, vx, vz, t);
-      if (k == 0 || o.pagerSync) pager->waitIdle(120);
+      if (k == 0 || o.pager.sync) pager->waitIdle(120);
       cam.viewDistance = drawnViewDistance(asked, cam.x, cam.z);
     }
     previous = pose;
@@ -344,8 +348,14 @@ struct FlightRun {
     if (!slot) return false;
     if (scene) {
       scene->fill(cam, k, slot->buf);
+      // The eye stands on the surface this frame draws under it, at the
+      // level and morph just selected there (seed Figure 23).
+      if (auto drawn = drawnLevelAt(slot->buf, cam.x, cam.z)) ground.setDrawn(*drawn);
+      groundHere = ground.groundEN(pose.easting, pose.northing);
+      cam.y = eyeFor(pose, groundHere);
+      slot->buf.camera.y = cam.y;
     } else {
-      fillDisplayBuffer(*grid, cam, k, slot->buf, o.waterMaterials);
+      fillDisplayBuffer(*grid, cam, k, slot->buf, o.render.waterMaterials);
       slot->buf.moduleMode = false;
     }
     FrameStats& s = slot->stats;
@@ -358,7 +368,7 @@ struct FlightRun {
     s.easting = pose.easting;
     s.northing = pose.northing;
     s.eyeElevation = cam.y;
-    s.heightAgl = cam.y - ground;
+    s.heightAgl = cam.y - groundHere;
     s.headingDeg = pose.headingDeg;
     s.speedKmh = pose.speedKmh;
     s.hfovDeg = cam.hfovDeg;
@@ -382,8 +392,8 @@ struct FlightRun {
       s.pagerTrimmedLevels = sc.pagerTrimmedLevels;
       s.pagerPoolBytes = sc.pagerPoolBytes;
     }
-    if (o.toLonLat) {
-      if (auto ll = o.toLonLat(pose.easting, pose.northing)) {
+    if (o.output.toLonLat) {
+      if (auto ll = o.output.toLonLat(pose.easting, pose.northing)) {
         s.lon = ll->first;
         s.lat = ll->second;
       }
@@ -421,16 +431,16 @@ struct FlightRun {
                       : std::chrono::duration<double, std::milli>(now - lastDone).count() - lastPngMs;
       s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
       // A height frame holds data in its pixels: nothing is drawn over it.
-      const bool data = o.colour == ColourMode::height;
-      if (o.hud && !data) drawHudPanel(image, hudLines(s, o));
-      if (o.composite && !data) o.composite(image, s);
+      const bool data = o.render.colour == ColourMode::height;
+      if (o.view.hud && !data) drawHudPanel(image, hudLines(s, o));
+      if (!data) app.overlay(image, s);
       s.frameMs += msSince(now);  // the panel is part of the frame
       lastDone = Clock::now();
-      if (o.onFrame) o.onFrame(s.frame, image);
+      app.frameDone(s.frame, image);
       lastPngMs = 0;
-      if (!o.outDir.empty()) {
+      if (!o.output.outDir.empty()) {
         const auto t2 = Clock::now();
-        const std::string path = (std::filesystem::path(o.outDir) / frameFileName(s.frame)).string();
+        const std::string path = (std::filesystem::path(o.output.outDir) / frameFileName(s.frame)).string();
         if (std::string e = writePng(path, image); !e.empty()) {
           renderError = e;
           handoff.fail();
@@ -464,11 +474,11 @@ struct FlightRun {
       render.join();
       return problems;
     }
-    const Pose start = o.controller ? Pose{} : poseAt(o, 0);
-    if (auto sample = terrain.sampleEN(start.easting, start.northing)) ground = sample->elevation;
+    const Pose start = poseAt(o, 0);
+    ground.groundEN(start.easting, start.northing);
     Pose previous = start;
     double previousT = 0;
-    for (std::uint32_t k = 0; k < o.frames; ++k) {
+    for (std::uint32_t k = 0; k < o.output.frames; ++k) {
       if (!produce(k, previous, previousT)) break;
     }
     handoff.close();
@@ -478,13 +488,13 @@ struct FlightRun {
     FlightReport& r = report;
     r.summary = summarize(r.frames);
     r.summary.mode = scene ? "modules" : "mesh";
-    r.summary.lod = scene ? lodModeName(o.lod.mode) : "";
+    r.summary.lod = scene ? lodModeName(o.render.lod.mode) : "";
     r.summary.renderer = rendererName;
     r.summary.rendererDetail = rendererDetail;
-    r.summary.width = o.width;
-    r.summary.height = o.height;
-    if (!o.outDir.empty()) {
-      const std::string path = (std::filesystem::path(o.outDir) / "stats.json").string();
+    r.summary.width = o.view.width;
+    r.summary.height = o.view.height;
+    if (!o.output.outDir.empty()) {
+      const std::string path = (std::filesystem::path(o.output.outDir) / "stats.json").string();
       if (std::string err = writeStats(path, r, o); !err.empty()) return Problem{"fly", 0, err};
       r.summary.statsPath = path;
     }
@@ -494,16 +504,16 @@ struct FlightRun {
 
 RenderSettings renderSettingsFor(const FlightOptions& o) {
   RenderSettings rs;
-  rs.width = o.width;
-  rs.height = o.height;
-  rs.background = o.background;
-  rs.fog = o.fog;
-  rs.sky = o.sky;
-  rs.clearColour = o.clearColour;
-  rs.samples = o.msaa;
-  rs.shading = o.shading;
-  rs.colour = o.colour;
-  rs.waterMaterials = o.waterMaterials;
+  rs.width = o.view.width;
+  rs.height = o.view.height;
+  rs.background = o.view.background;
+  rs.fog = o.view.fog;
+  rs.sky = o.view.sky;
+  rs.clearColour = o.view.clearColour;
+  rs.samples = o.render.msaa;
+  rs.shading = o.render.shading;
+  rs.colour = o.render.colour;
+  rs.waterMaterials = o.render.waterMaterials;
   return rs;
 }
 
@@ -521,38 +531,50 @@ std::vector<MaterialColour> paletteFor(const materials::Table& t) {
   return p;
 }
 
+/// Flies poseAt(options, t): the flight with no application.
+class StraightFlight final : public FlightApplication {
+ public:
+  explicit StraightFlight(const FlightOptions& o) : o_(o) {}
+  std::optional<Pose> pose(std::uint32_t, double t, GroundClamp&) override { return poseAt(o_, t); }
+
+ private:
+  const FlightOptions& o_;
+};
+
 Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Database* db,
-                             const FlightOptions& o) {
+                             const FlightOptions& o, FlightApplication* application) {
   if (!g) return Problem{"fly", 0, "no grid"};
-  if (auto problems = checkFlightOptions(g, o); !problems.empty()) return problems;
+  if (auto problems = checkFlightOptions(g, o, application); !problems.empty()) return problems;
+  StraightFlight straight(o);
+  FlightApplication& app = application ? *application : straight;
   const bool haveModules = db && db->modules;
-  if (o.mode == TerrainMode::modules && !haveModules) {
+  if (o.render.mode == TerrainMode::modules && !haveModules) {
     return Problem{kFlightOptionProblem, 0,
-                   "--mode modules needs load modules (modules.pack), and this database was "
-                   "built with --no-modules; rebuild it without, or fly it with --mode mesh"};
+                   "RenderOptions::mode = modules needs load modules (modules.pack), and this database was "
+                   "built without them; rebuild it with modules, or fly it with RenderOptions::mode = mesh"};
   }
-  const bool modules = haveModules && o.mode != TerrainMode::mesh;
-  if (!o.outDir.empty()) {
+  const bool modules = haveModules && o.render.mode != TerrainMode::mesh;
+  if (!o.output.outDir.empty()) {
     std::error_code ec;
-    std::filesystem::create_directories(o.outDir, ec);
+    std::filesystem::create_directories(o.output.outDir, ec);
     if (ec) {
       return Problem{kFlightOptionProblem, 0,
-                     "cannot create the output directory " + o.outDir + ": " + ec.message()};
+                     "cannot create the output directory " + o.output.outDir + ": " + ec.message()};
     }
   }
   std::unique_ptr<Pager> pager;
   if (modules) {
     PagerOptions po;
     po.viewDistance = effectiveViewDistance(o);
-    po.maxViewDistance = std::max(po.viewDistance, o.maxViewDistance > 0 ? o.maxViewDistance
+    po.maxViewDistance = std::max(po.viewDistance, o.view.maxViewDistance > 0 ? o.view.maxViewDistance
                                                                         : 3 * po.viewDistance);
-    po.loaderThreads = o.pagerLoaders;
-    po.memoryBudgetBytes = o.pagerBudgetBytes;
+    po.loaderThreads = o.pager.loaders;
+    po.memoryBudgetBytes = o.pager.budgetBytes;
     auto p = Pager::open(*db, po);
     if (!p) return p.problems();
     pager = std::move(p.value());
   }
-  FlightRun run(o, g, renderSettingsFor(o));
+  FlightRun run(o, app, g, renderSettingsFor(o));
   run.renderSettings.grid = g;
   if (pager) {
     if (db->materials) {
@@ -560,11 +582,12 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
       run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
     }
     ModuleSceneSettings ss;
-    ss.lod = o.lod;
-    ss.imageHeight = o.height;
+    ss.lod = o.render.lod;
+    ss.imageHeight = o.view.height;
     ss.gridSpacing = g->spacing();
     ss.minElevation = g->header().minElevation;
     ss.moduleSquares = db->modules->header().moduleSquares;
+    run.ground = GroundClamp(g, ss.moduleSquares, db->modules->header().levels);
     run.scene = std::make_unique<ModuleScene>(*pager, ss);
     run.pager = pager.get();
     run.readyViewDistance = effectiveViewDistance(o);
@@ -593,7 +616,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back(format("ELEV %.0f M  AGL %.0f M", s.eyeElevation, s.heightAgl) +
                   (s.freeFlight ? "  FREE" : ""));
   lines.push_back(format("HDG %05.1f\xC2\xB0  SPD %.0f KM/H", s.headingDeg, s.speedKmh));
-  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", s.hfovDeg > 0 ? s.hfovDeg : o.hfovDeg,
+  lines.push_back(format("FOV %.0f\xC2\xB0  VIEW %.0f M", s.hfovDeg > 0 ? s.hfovDeg : o.view.hfovDeg,
                          s.viewDistance > 0 ? s.viewDistance : effectiveViewDistance(o)));
   lines.push_back(format("FPS %.1f  FRAME %.1f MS", s.fps, s.frameMs));
   lines.push_back(format("CPU %.1f MS  DRAW %.1f MS", s.cpuMs, s.renderMs));
@@ -606,7 +629,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
     levels += (l ? "/" : "") + std::to_string(s.levelCounts[l]);
   }
   lines.push_back("TRIS " + std::to_string(s.triangles));
-  lines.push_back(std::string("LOD ") + lodModeName(o.lod.mode) + "  LEVELS " + levels);
+  lines.push_back(std::string("LOD ") + lodModeName(o.render.lod.mode) + "  LEVELS " + levels);
   lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
                   std::to_string(s.nodesDrawn));
   lines.push_back("RESIDENT " +
@@ -616,7 +639,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
 }
 
 Pose poseAt(const FlightOptions& o, double t) {
-  return o.path.size() >= 2 ? pathPose(o.path, t) : straightPose(o, t);
+  return o.motion.path.size() >= 2 ? pathPose(o.motion.path, t) : straightPose(o, t);
 }
 
 std::string frameFileName(std::uint32_t frame) {
@@ -626,52 +649,66 @@ std::string frameFileName(std::uint32_t frame) {
 }
 
 std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
-                                        const FlightOptions& o) {
+                                        const FlightOptions& o, const FlightApplication* app) {
   std::vector<Problem> out;
   auto bad = [&](const std::string& msg) { out.push_back({kFlightOptionProblem, 0, msg}); };
-  if (o.frames == 0) bad("--frames must be at least 1");
-  if (o.width < 16 || o.height < 16 || o.width > 16384 || o.height > 16384) {
-    bad("--size must be between 16x16 and 16384x16384");
+  if (o.output.frames == 0) bad("OutputOptions::frames must be at least 1");
+  if (o.view.width < 16 || o.view.height < 16 || o.view.width > 16384 || o.view.height > 16384) {
+    bad("ViewOptions::width/height must be between 16x16 and 16384x16384");
   }
-  if (!(o.hfovDeg >= 10 && o.hfovDeg <= 90)) bad("--fov must be between 10 and 90 degrees");
-  if (!(o.fogDensity >= 0) || !std::isfinite(o.fogDensity)) bad("--fog-density must be >= 0");
+  if (!(o.view.hfovDeg >= 10 && o.view.hfovDeg <= 90)) bad("ViewOptions::hfovDeg must be between 10 and 90 degrees");
+  if (!(o.view.fogDensity >= 0) || !std::isfinite(o.view.fogDensity)) bad("ViewOptions::fogDensity must be >= 0");
   const double vd = effectiveViewDistance(o);
   if (!(vd >= 10 && vd <= 1e6)) {
-    bad(o.fogDensity > 0 ? "--fog-density must give a view distance of 10 m .. 1000 km"
-                         : "--view-distance must be 10 m .. 1000 km");
+    bad(o.view.fogDensity > 0 ? "ViewOptions::fogDensity must give a view distance of 10 m .. 1000 km"
+                         : "ViewOptions::viewDistance must be 10 m .. 1000 km");
   }
-  if (!(o.maxViewDistance == 0 || (o.maxViewDistance >= vd && o.maxViewDistance <= 1e6))) {
-    bad("--max-view-distance must be 0 (3 x --view-distance) or --view-distance .. 1000 km");
+  if (!(o.view.maxViewDistance == 0 || (o.view.maxViewDistance >= vd && o.view.maxViewDistance <= 1e6))) {
+    bad("ViewOptions::maxViewDistance must be 0 (3 x ViewOptions::viewDistance) or ViewOptions::viewDistance .. 1000 km");
   }
-  if (!(o.pitchDeg >= -89 && o.pitchDeg <= 89)) bad("--pitch must be between -89 and 89 degrees");
-  if (!(o.speedKmh >= 0 && o.speedKmh <= 1e5)) bad("--speed must be 0 .. 100000 km/h");
-  if (!std::isfinite(o.headingDeg)) bad("--heading must be a number");
-  if (!(o.heightAgl >= 0 && o.heightAgl < 1e5)) bad("--height must be 0 .. 100000 m");
-  if (std::string e = checkLodOptions(o.lod); !e.empty()) bad(e);
-  if (o.pagerLoaders < 1 || o.pagerLoaders > 4) bad("pager loaders must be 1..4");
-  if (o.msaa > 16) bad("--msaa must be 0..16 samples");
+  if (!(o.motion.pitchDeg >= -89 && o.motion.pitchDeg <= 89)) bad("MotionOptions::pitchDeg must be between -89 and 89 degrees");
+  if (!(o.motion.speedKmh >= 0 && o.motion.speedKmh <= 1e5)) bad("MotionOptions::speedKmh must be 0 .. 100000 km/h");
+  if (!std::isfinite(o.motion.headingDeg)) bad("MotionOptions::headingDeg must be a number");
+  if (!(o.motion.heightAgl >= 0 && o.motion.heightAgl < 1e5)) bad("MotionOptions::heightAgl must be 0 .. 100000 m");
+  if (std::string e = checkLodOptions(o.render.lod); !e.empty()) bad(e);
+  if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
+  if (o.render.msaa > 16) bad("RenderOptions::msaa must be 0..16 samples");
   const Terrain terrain(std::move(g));
-  if (o.path.size() == 1) bad("--path needs at least two waypoints");
-  if (o.path.size() >= 2) {
-    for (std::size_t k = 0; k < o.path.size(); ++k) {
-      const Waypoint& w = o.path[k];
-      const std::string which = "--path waypoint " + std::to_string(k + 1);
-      if (k + 1 < o.path.size() && !(w.speedKmh > 0)) bad(which + ": speed must be positive");
+  if (o.motion.path.size() == 1) bad("MotionOptions::path needs at least two waypoints");
+  if (o.motion.path.size() >= 2) {
+    for (std::size_t k = 0; k < o.motion.path.size(); ++k) {
+      const Waypoint& w = o.motion.path[k];
+      const std::string which = "MotionOptions::path waypoint " + std::to_string(k + 1);
+      if (k + 1 < o.motion.path.size() && !(w.speedKmh > 0)) bad(which + ": speed must be positive");
       if (!(w.heightAgl >= 0 && w.heightAgl < 1e5)) bad(which + ": height must be 0 .. 100000 m");
       if (k == 0 && !terrain.sampleEN(w.easting, w.northing)) bad(which + " is outside the database");
     }
-  } else if (!o.controller && !terrain.sampleEN(o.easting, o.northing)) {
+  } else if (!app && !terrain.sampleEN(o.motion.easting, o.motion.northing)) {
     bad("the start point is outside the database");
   }
   return out;
 }
 
-Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o) {
-  return flyWith(std::move(g), nullptr, o);
+Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o,
+                         FlightApplication* app) {
+  return flyWith(std::move(g), nullptr, o, app);
 }
 
-Result<FlightReport> fly(const Database& db, const FlightOptions& o) {
-  return flyWith(db.grid, &db, o);
+Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app) {
+  return flyWith(db.grid, &db, o, app);
+}
+
+std::optional<Pose> FlightHooks::pose(std::uint32_t frame, double t, GroundClamp& ground) {
+  if (onPose) return onPose(frame, t, ground);
+  return poseAt(options, t);
+}
+
+void FlightHooks::overlay(Image& image, const FrameStats& s) {
+  if (onOverlay) onOverlay(image, s);
+}
+
+void FlightHooks::frameDone(std::uint32_t frame, const Image& image) {
+  if (onFrame) onFrame(frame, image);
 }
 
 }  // namespace sandtable::runtime

@@ -10,10 +10,12 @@ namespace {
 
 using runtime::Pose;
 
-/// A window flies on the wall clock, but one long frame (a stall, a
-/// screenshot written) must not make the eye jump: below 10 fps the
-/// flight slows down instead.
-constexpr double kMaxStepS = 0.1;
+/// The ground clamp of a database: modules' lattices when it has them.
+GroundClamp groundOf(const Database& db) {
+  if (!db.modules) return GroundClamp(db.grid);
+  const auto& h = db.modules->header();
+  return GroundClamp(db.grid, h.moduleSquares, h.levels);
+}
 
 double wallSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -71,51 +73,42 @@ FlySession::FlySession(const Database& db, FlySessionSettings settings, const ru
     : db_(db),
       settings_(std::move(settings)),
       options_(o),
-      terrain_(db.grid),
+      ground_(groundOf(db)),
       window_(std::move(window)),
       video_(std::move(video)) {
-  if (auto g = terrain_.sampleEN(o.easting, o.northing)) lastGround_ = g->elevation;
+  ground_.groundEN(o.motion.easting, o.motion.northing);
   if (window_) {
     runtime::ControllerSettings cs;
     cs.maxFovDeg = 90;  // the view triangle's limit (flight.h): 0 would ask 100
     cs.maxViewDistance = settings_.maxViewDistance;
-    cs.minViewDistance = std::min(cs.minViewDistance, o.viewDistance);
-    auto ground = [this](double e, double n) -> std::optional<double> {
-      if (auto g = terrain_.sampleEN(e, n)) return g->elevation;
-      return std::nullopt;
-    };
+    cs.minViewDistance = std::min(cs.minViewDistance, o.view.viewDistance);
+    auto ground = [this](double e, double n) { return ground_.surfaceEN(e, n, ground_.drawn()); };
     controller_.emplace(initialState(o), ground, cs);
   }
 }
 
 runtime::ViewerState FlySession::initialState(const runtime::FlightOptions& o) const {
   runtime::ViewerState s;
-  s.easting = o.easting;
-  s.northing = o.northing;
-  s.headingDeg = o.headingDeg;
-  s.pitchDeg = o.pitchDeg;
-  s.speedMs = o.speedKmh / 3.6;
-  s.heightAgl = o.heightAgl;
+  s.easting = o.motion.easting;
+  s.northing = o.motion.northing;
+  s.headingDeg = o.motion.headingDeg;
+  s.pitchDeg = o.motion.pitchDeg;
+  s.speedMs = o.motion.speedKmh / 3.6;
+  s.heightAgl = o.motion.heightAgl;
   s.groundFollowing = !settings_.freeFlight;
   s.eyeElevation = settings_.altitude;
-  s.hfovDeg = o.hfovDeg;
-  s.viewDistance = std::min(o.viewDistance, settings_.maxViewDistance);
+  s.hfovDeg = o.view.hfovDeg;
+  s.viewDistance = std::min(o.view.viewDistance, settings_.maxViewDistance);
   s.mapVisible = settings_.map;
   s.mapScale = settings_.mapScale;
   return s;
-}
-
-void FlySession::install(runtime::FlightOptions& o) {
-  o.controller = [this](std::uint32_t frame, double t) { return nextPose(frame, t); };
-  o.composite = [this](runtime::Image& img, const runtime::FrameStats& s) { composite(img, s); };
-  o.onFrame = [this](std::uint32_t frame, const runtime::Image& img) { frameDone(frame, img); };
 }
 
 double FlySession::pollKeys() {
   for (const auto& e : window_->pollEvents()) controller_->handle(e);
   if (controller_->quitRequested() || window_->closeRequested()) quitAfterThisFrame_ = true;
   const double now = wallSeconds();
-  const double dt = lastWall_ ? std::clamp(now - *lastWall_, 0.0, kMaxStepS) : 0.0;
+  const double dt = lastWall_ ? std::max(0.0, now - *lastWall_) : 0.0;
   lastWall_ = now;
   return dt;
 }
@@ -125,8 +118,8 @@ Pose FlySession::headlessPose(double t) {
   if (settings_.freeFlight) {
     // As the Controller does: free flight keeps its altitude but never goes
     // below 1 m above the ground (past the edge: the last ground seen).
-    if (auto g = terrain_.sampleEN(p.easting, p.northing)) lastGround_ = g->elevation;
-    p.altitude = std::max(settings_.altitude, lastGround_ + 1.0);
+    p.altitude = GroundClamp::eyeElevation(ground_.groundEN(p.easting, p.northing), 0,
+                                           settings_.altitude, 1.0);
   }
   return p;
 }
@@ -146,18 +139,19 @@ Pose FlySession::windowPose(double clock) const {
   return p;
 }
 
-std::optional<Pose> FlySession::nextPose(std::uint32_t frame, double t) {
+std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp& ground) {
+  ground_.setDrawn(ground.drawn());
   // q, Escape or closing the window: the frame with the keys pressed before
   // it is still drawn (so a last change shows), then the flight ends.
   if (failed_.load() || quitting_) return std::nullopt;
   FrameControl fc{frame, settings_.map, settings_.mapScale, false};
   Pose p;
   if (window_) {
-    const double dt = pollKeys();
-    controller_->advance(dt);
-    clock_ += dt;
-    p = windowPose(clock_);
-    p.clockS = clock_;
+    // The world advances in fixed steps of the wall clock (world/clock.h),
+    // so key repeats and turns do not depend on the frame rate.
+    for (std::uint32_t n = clock_.advance(pollKeys()); n > 0; --n) controller_->advance(clock_.stepS());
+    p = windowPose(clock_.timeS());
+    p.clockS = clock_.timeS();
     fc.map = controller_->state().mapVisible;
     fc.mapScale = controller_->state().mapScale;
     fc.screenshot = controller_->takeScreenshotRequest();
@@ -169,7 +163,7 @@ std::optional<Pose> FlySession::nextPose(std::uint32_t frame, double t) {
   return p;
 }
 
-void FlySession::composite(runtime::Image& img, const runtime::FrameStats& s) {
+void FlySession::overlay(runtime::Image& img, const runtime::FrameStats& s) {
   current_ = controls_.take(s.frame);
   if (!current_.map) return;
   if (!map_) {
@@ -201,7 +195,7 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   fs::create_directories(settings_.screenshotDir, ec);
   if (ec) {
     fail("screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
-         " (give a writable --screenshot-dir)");
+         " (give a writable FlySessionSettings::screenshotDir)");
     return;
   }
   // Never overwrite the screenshots of an earlier flight.

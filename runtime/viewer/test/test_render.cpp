@@ -121,15 +121,15 @@ class RenderTest : public ::testing::Test {
   /// Flight options: south of the hill, looking north across it.
   static FlightOptions southLookingNorth() {
     FlightOptions o;
-    o.width = 320;
-    o.height = 240;
-    o.frames = 2;
-    o.easting = kOriginE + 0.55 * (kPosts - 1) * kSpacing;
-    o.northing = kOriginN - 0.95 * (kPosts - 1) * kSpacing;
-    o.headingDeg = 0;
-    o.heightAgl = 150;
-    o.pitchDeg = -8;
-    o.viewDistance = 8000;
+    o.view.width = 320;
+    o.view.height = 240;
+    o.output.frames = 2;
+    o.motion.easting = kOriginE + 0.55 * (kPosts - 1) * kSpacing;
+    o.motion.northing = kOriginN - 0.95 * (kPosts - 1) * kSpacing;
+    o.motion.headingDeg = 0;
+    o.motion.heightAgl = 150;
+    o.motion.pitchDeg = -8;
+    o.view.viewDistance = 8000;
     return o;
   }
 };
@@ -170,20 +170,20 @@ TEST_F(RenderTest, StripsReproduceTheTerrainTriangles) {
 
 TEST(FlightPath, StraightAlongHeading) {
   FlightOptions o;
-  o.easting = 1000;
-  o.northing = 2000;
-  o.headingDeg = 90;
-  o.speedKmh = 36;  // 10 m/s
+  o.motion.easting = 1000;
+  o.motion.northing = 2000;
+  o.motion.headingDeg = 90;
+  o.motion.speedKmh = 36;  // 10 m/s
   const Pose p = poseAt(o, 1.5);
   EXPECT_NEAR(p.easting, 1015, 1e-9);
   EXPECT_NEAR(p.northing, 2000, 1e-9);
-  o.headingDeg = 0;
+  o.motion.headingDeg = 0;
   EXPECT_NEAR(poseAt(o, 1.0).northing, 2010, 1e-9);  // north is +northing
 }
 
 TEST(FlightPath, FollowsWaypointLegsAndStops) {
   FlightOptions o;
-  o.path = {{0, 0, 100, 36}, {100, 0, 300, 72}, {100, 100, 300, 10}};
+  o.motion.path = {{0, 0, 100, 36}, {100, 0, 300, 72}, {100, 100, 300, 10}};
   Pose p = poseAt(o, 5);  // half of the first leg (10 m/s)
   EXPECT_NEAR(p.easting, 50, 1e-9);
   EXPECT_NEAR(p.heightAgl, 200, 1e-9);
@@ -205,10 +205,10 @@ TEST(FlightPath, FollowsWaypointLegsAndStops) {
 
 TEST_F(RenderTest, RejectsBadOptions) {
   FlightOptions o = southLookingNorth();
-  o.hfovDeg = 5;
+  o.view.hfovDeg = 5;
   EXPECT_FALSE(checkFlightOptions(grid_, o).empty());
   o = southLookingNorth();
-  o.easting = kOriginE - 100;
+  o.motion.easting = kOriginE - 100;
   EXPECT_FALSE(checkFlightOptions(grid_, o).empty());
   EXPECT_TRUE(checkFlightOptions(grid_, southLookingNorth()).empty());
 }
@@ -235,21 +235,22 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
   std::string why;
   if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
   FlightOptions o = southLookingNorth();
-  o.outDir = (root_ / "frames").string();
+  o.output.outDir = (root_ / "frames").string();
   std::vector<Image> frames;
-  o.onFrame = [&](std::uint32_t, const Image& img) { frames.push_back(img); };
-  auto r = fly(grid_, o);
+  FlightHooks hooks(o);
+  hooks.onFrame = [&](std::uint32_t, const Image& img) { frames.push_back(img); };
+  auto r = fly(grid_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(frames.size(), 2u);
   ASSERT_EQ(r->frames.size(), 2u);
   EXPECT_GT(r->frames[0].triangles, 1000u);
   EXPECT_FALSE(r->summary.renderer.empty());
   for (std::uint32_t k = 0; k < 2; ++k) {
-    const auto png = fs::path(o.outDir) / frameFileName(k);
+    const auto png = fs::path(o.output.outDir) / frameFileName(k);
     ASSERT_TRUE(fs::exists(png));
     EXPECT_GT(fs::file_size(png), 1000u);
   }
-  std::ifstream statsFile(fs::path(o.outDir) / "stats.json");
+  std::ifstream statsFile(fs::path(o.output.outDir) / "stats.json");
   const auto stats = nlohmann::json::parse(statsFile);
   EXPECT_EQ(stats["summary"]["frames"], 2);
   EXPECT_EQ(stats["frames"].size(), 2u);
@@ -257,7 +258,7 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
   const Image& img = frames[1];
   ASSERT_EQ(img.width, 320u);
   ASSERT_EQ(img.height, 240u);
-  const Rgb sky = o.background;
+  const Rgb sky = o.view.background;
   // Top rows, right of the panel: sky, near the background colour.
   for (std::uint32_t x = 200; x < 320; x += 10) {
     const Rgb p = img.at(x, 2);
@@ -288,10 +289,11 @@ TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
   std::string why;
   if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
   FlightOptions o = southLookingNorth();
-  o.frames = 10;
+  o.output.frames = 10;
   const Pose start = poseAt(o, 0);
   // The controller steers three frames, then ends the flight.
-  o.controller = [&](std::uint32_t frame, double) -> std::optional<Pose> {
+  FlightHooks hooks(o);
+  hooks.onPose = [&](std::uint32_t frame, double, GroundClamp&) -> std::optional<Pose> {
     if (frame == 3) return std::nullopt;
     Pose p = start;
     p.headingDeg = 10.0 * frame;
@@ -300,13 +302,13 @@ TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
     return p;
   };
   std::vector<std::uint32_t> composited;
-  o.composite = [&](Image& img, const FrameStats& s) {
+  hooks.onOverlay = [&](Image& img, const FrameStats& s) {
     composited.push_back(s.frame);
     img.rgba[0] = 255, img.rgba[1] = 0, img.rgba[2] = 0;  // a map would go here
   };
   std::vector<Rgb> corners;
-  o.onFrame = [&](std::uint32_t, const Image& img) { corners.push_back(img.at(0, 0)); };
-  auto r = fly(grid_, o);
+  hooks.onFrame = [&](std::uint32_t, const Image& img) { corners.push_back(img.at(0, 0)); };
+  auto r = fly(grid_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 3u);
   EXPECT_EQ(composited, (std::vector<std::uint32_t>{0, 1, 2}));
@@ -323,7 +325,7 @@ TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
 
 TEST_F(RenderTest, FailsCleanlyOutsideTheGrid) {
   FlightOptions o = southLookingNorth();
-  o.northing = kOriginN + 1000;
+  o.motion.northing = kOriginN + 1000;
   auto r = fly(grid_, o);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().find("outside"), std::string::npos);

@@ -141,22 +141,23 @@ class ViewerModules : public ::testing::Test {
 TEST_F(ViewerModules, FliesThroughThePagerOnTwoThreads) {
   for (const LodMode mode : {LodMode::rings, LodMode::sse, LodMode::full}) {
     FlightOptions o;
-    o.width = 160;
-    o.height = 90;
-    o.frames = 40;
-    o.easting = kOriginE + 300;
-    o.northing = kOriginN - 1400;
-    o.headingDeg = 90;
-    o.heightAgl = 120;
-    o.pitchDeg = -12;
-    o.speedKmh = 3600;  // 33 m a frame: across modules, so the pager pages
-    o.viewDistance = 1500;
-    o.lod.mode = mode;
-    o.lod.rings = {300, 700};
-    o.hud = true;
+    o.view.width = 160;
+    o.view.height = 90;
+    o.output.frames = 40;
+    o.motion.easting = kOriginE + 300;
+    o.motion.northing = kOriginN - 1400;
+    o.motion.headingDeg = 90;
+    o.motion.heightAgl = 120;
+    o.motion.pitchDeg = -12;
+    o.motion.speedKmh = 3600;  // 33 m a frame: across modules, so the pager pages
+    o.view.viewDistance = 1500;
+    o.render.lod.mode = mode;
+    o.render.lod.rings = {300, 700};
+    o.view.hud = true;
     std::uint32_t images = 0;
-    o.onFrame = [&](std::uint32_t, const Image& img) { images += img.width == 160; };
-    auto r = fly(db_, o);
+    FlightHooks hooks(o);
+    hooks.onFrame = [&](std::uint32_t, const Image& img) { images += img.width == 160; };
+    auto r = fly(db_, o, &hooks);
     ASSERT_TRUE(r.ok()) << r.error();
     EXPECT_EQ(r->summary.mode, "modules");
     ASSERT_EQ(r->frames.size(), 40u);
@@ -181,23 +182,24 @@ TEST_F(ViewerModules, FliesThroughThePagerOnTwoThreads) {
 
 TEST_F(ViewerModules, ControllerViewDistanceGrowsThePagersWindowUpToItsMostAndItsClockIsReported) {
   FlightOptions o;
-  o.width = 160;
-  o.height = 90;
-  o.frames = 3;
-  o.easting = kOriginE + 300;
-  o.northing = kOriginN - 1400;
-  o.viewDistance = 1500;  // the pager's window at open; it may grow to 3 x, 4500 m
-  o.pagerSync = true;     // every load done before each frame
-  o.controller = [&](std::uint32_t frame, double) -> std::optional<Pose> {
+  o.view.width = 160;
+  o.view.height = 90;
+  o.output.frames = 3;
+  o.motion.easting = kOriginE + 300;
+  o.motion.northing = kOriginN - 1400;
+  o.view.viewDistance = 1500;  // the pager's window at open; it may grow to 3 x, 4500 m
+  o.pager.sync = true;     // every load done before each frame
+  FlightHooks hooks(o);
+  hooks.onPose = [&](std::uint32_t frame, double, GroundClamp&) -> std::optional<Pose> {
     Pose p;
-    p.easting = o.easting;
-    p.northing = o.northing;
+    p.easting = o.motion.easting;
+    p.northing = o.motion.northing;
     p.heightAgl = 120;
     p.viewDistance = frame == 0 ? 1000.0 : 5000.0;  // a "+" key beyond the most
     p.clockS = 10.0 + frame;                        // e.g. a window's wall clock
     return p;
   };
-  auto r = fly(db_, o);
+  auto r = fly(db_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 3u);
   EXPECT_EQ(r->frames[0].viewDistance, 1000.0);

@@ -1,5 +1,7 @@
 #include "sandtable/world/controls.h"
 
+#include "sandtable/world/ground.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,16 +54,13 @@ double Controller::groundAt(double e, double n) {
 }
 
 void Controller::followGround() {
-  const double floor = state_.groundElevation + settings_.minHeightAglM;
-  if (state_.groundFollowing) {
-    state_.heightAgl = std::max(state_.heightAgl, settings_.minHeightAglM);
-    state_.eyeElevation = state_.groundElevation + state_.heightAgl;
-  } else {
-    // Free flight keeps its altitude, but the ground pushes the eye up
-    // rather than letting it fly inside a hill.
-    state_.eyeElevation = std::max(state_.eyeElevation, floor);
-    state_.heightAgl = state_.eyeElevation - state_.groundElevation;
-  }
+  // Free flight keeps its altitude, but the ground pushes the eye up
+  // rather than letting it fly inside a hill (ground.h: the one clamp).
+  const std::optional<double> altitude =
+      state_.groundFollowing ? std::nullopt : std::optional<double>(state_.eyeElevation);
+  state_.eyeElevation = GroundClamp::eyeElevation(state_.groundElevation, state_.heightAgl, altitude,
+                                                  settings_.minHeightAglM);
+  state_.heightAgl = state_.eyeElevation - state_.groundElevation;
 }
 
 void Controller::setHeading(double deg) {

@@ -96,7 +96,7 @@ struct Parser {
     if (*h < 0) return fail(lineNo, "height_m " + tokens[2] + " is metres above the ground and must be >= 0");
     if (!(*h < kMaxHeightAgl)) {
       return fail(lineNo, "height_m " + tokens[2] + " is metres above the ground and must be below " +
-                              fmt(kMaxHeightAgl) + " (the limit of --height)");
+                              fmt(kMaxHeightAgl) + " (the limit of MotionOptions::heightAgl)");
     }
     PathPoint p;
     p.heightAgl = *h;

@@ -158,7 +158,7 @@ TEST(Path, AnOutOfRangeHeightNamesTheFileAndLine) {
   auto r = parsePath("frame projected\n0 0 10 speed=36\n100 0 100000\n200 0 10\n", "valley.path", lonLatOptions());
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(pathProblemText(r.problems().front()),
-            "valley.path:3: height_m 100000 is metres above the ground and must be below 100000 (the limit of --height)");
+            "valley.path:3: height_m 100000 is metres above the ground and must be below 100000 (the limit of MotionOptions::heightAgl)");
   EXPECT_TRUE(parsePath("frame projected\n0 0 99999.9 speed=36\n100 0 0\n", "ok.path", lonLatOptions()).ok());
   auto huge = parsePath("frame projected\n0 0 1e300 speed=36\n100 0 0\n", "x.path", lonLatOptions());
   ASSERT_FALSE(huge.ok());

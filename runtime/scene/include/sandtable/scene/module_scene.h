@@ -9,12 +9,14 @@
 // resident() (lock-free) and keeps a small cache of per-module level
 // errors and heights, keyed by the pager's generation.
 #include <cstdint>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
 #include "sandtable/scene/display_buffer.h"
 #include "sandtable/scene/lod.h"
 #include "sandtable/paging/pager.h"
+#include "sandtable/world/ground.h"
 
 namespace sandtable::runtime {
 
@@ -63,5 +65,14 @@ class ModuleScene {
   std::unordered_map<std::uint64_t, Info> info_;
   std::uint64_t frame_ = 0;
 };
+
+}  // namespace sandtable::runtime
+
+namespace sandtable::runtime {
+
+/// What `buf` draws at world (x east, z south of the grid origin): the
+/// level and morph of the quadtree node there, for the ground clamp
+/// (world/ground.h). Nullopt in grid-mesh mode or where no module is drawn.
+std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z);
 
 }  // namespace sandtable::runtime

@@ -9,12 +9,15 @@
 // context) draws the other, handed over with a mutex and condition
 // variable, no spinning. The pager's loader threads decode modules beside
 // them. After read-back, on the render thread, the frame is an Image: the
-// panel and `composite` (e.g. a 2-D map) are drawn on it on the CPU, then
-// it goes to `onFrame` and/or a PNG.
+// panel and the application's overlay (e.g. a 2-D map) are drawn on it,
+// then it goes to FlightApplication::frameDone and/or a PNG.
 //
 // Time: frame k shows the eye at simulated time k / kFramesPerSecond
-// seconds, whatever the real frame rate, so a flight is reproducible.
-// The eye keeps its height above the ground under it (ground following);
+// seconds, whatever the real frame rate, so a flight is reproducible; an
+// application with its own clock (a window flies on the wall clock, in
+// fixed steps: world/clock.h) says so in Pose::clockS.
+// The eye keeps its height above the surface DRAWN under it (the one
+// ground clamp, world/ground.h, at the level and morph selected there);
 // past the grid's edge it holds the last ground elevation it saw.
 //
 // All positions are projected coordinates of the database's CRS (easting,
@@ -22,9 +25,9 @@
 // PROJ here), so the caller passes a converter for the panel and stats.
 //
 // Thread safety: fly() starts its own render thread (GL objects live only
-// there) and joins it before returning; `composite` and `onFrame` run on
-// the render thread, `controller` on the calling thread. Run one flight
-// per calling thread.
+// there) and joins it before returning; FlightApplication::overlay and
+// frameDone run on the render thread, pose() on the calling thread. Run
+// one flight per calling thread.
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -36,6 +39,7 @@
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/base/result.h"
+#include "sandtable/world/ground.h"
 #include "sandtable/world/pose.h"
 #include "sandtable/render/image.h"
 #include "sandtable/scene/lod.h"
@@ -67,38 +71,39 @@ const char* terrainModeName(TerrainMode m);
 
 struct FrameStats;
 
-struct FlightOptions {
-  std::string outDir;  ///< frames and stats.json go here; "" writes nothing
-  std::uint32_t frames = 30;
-  std::uint32_t width = 1280, height = 720;
+/// Where the eye starts and how it moves when no application steers it.
+struct MotionOptions {
   double easting = 0, northing = 0;  ///< start (ignored with a path)
   double heightAgl = 300;
   double headingDeg = 0;  ///< clockwise from grid north (ignored with a path)
   double pitchDeg = -10;
   double speedKmh = 300;
   std::vector<Waypoint> path;  ///< two or more: fly this polyline instead
+};
+
+/// The frame and what it shows of the world.
+struct ViewOptions {
+  std::uint32_t width = 1280, height = 720;
+  double hfovDeg = 60;
   double viewDistance = 10000;
   /// How far the view distance may grow at run time (module mode: the
   /// pager's ring of slots is sized for it); 0: 3 x viewDistance.
   double maxViewDistance = 0;
-  double hfovDeg = 60;
-  Rgb background{0x87, 0xCE, 0xEB};
-  bool hud = true;
-  bool fog = true;
-  /// (easting, northing) -> (lon, lat); empty or nullopt leaves them out.
-  std::function<std::optional<std::pair<double, double>>(double, double)> toLonLat;
-  /// Called with each finished frame (after the panel), e.g. for tests.
-  std::function<void(std::uint32_t frame, const Image&)> onFrame;
-
-  // ---- the stealth viewer (module mode)
-  TerrainMode mode = TerrainMode::automatic;
-  LodOptions lod;
   /// Fog density per metre; > 0 sets the view distance to the obscuration
   /// distance (seed IX.A.3); 0 derives the density from the view distance.
   double fogDensity = 0;
+  bool fog = true;
+  bool hud = true;
+  Rgb background{0x87, 0xCE, 0xEB};
   /// Sky behind the terrain; false shows `clearColour` (crack tests).
   bool sky = true;
   Rgb clearColour{0xFF, 0x00, 0xFF};
+};
+
+/// How the terrain is drawn.
+struct RenderOptions {
+  TerrainMode mode = TerrainMode::automatic;
+  LodOptions lod;
   std::uint32_t msaa = 0;  ///< samples per pixel, 0 (off) .. 16
   /// Smooth (default) or the seed's flat look (docs/VIEWER.md, "Colours").
   Shading shading = Shading::smooth;
@@ -107,20 +112,70 @@ struct FlightOptions {
   ColourMode colour = ColourMode::natural;
   /// Grid material indices drawn as water (docs/FORMAT.md 4.7).
   std::vector<std::uint8_t> waterMaterials{1};
-  /// Wait for the pager to finish every queued load before each frame
-  /// (reproducible frames: tests, benchmarks). Otherwise only before frame 0.
-  bool pagerSync = false;
-  std::uint32_t pagerLoaders = 4;  ///< seed: four loaders, one per direction
-  std::uint64_t pagerBudgetBytes = 1ull << 30;
-
-  // ---- hooks for a controller, a map and a window (all optional)
-  /// Replaces poseAt: the pose of frame `frame` at simulated time `t`;
-  /// nullopt ends the flight (e.g. the window closed). Main thread.
-  std::function<std::optional<Pose>(std::uint32_t frame, double t)> controller;
-  /// Draws on the frame after the panel (a 2-D map, overlays). Render thread.
-  std::function<void(Image&, const FrameStats&)> composite;
 };
 
+/// The pager under a module flight (paging/pager.h has the full options).
+struct PagerSettings {
+  /// Wait for the pager to finish every queued load before each frame
+  /// (reproducible frames: tests, benchmarks). Otherwise only before frame 0.
+  bool sync = false;
+  std::uint32_t loaders = 4;  ///< seed: four loaders, one per direction
+  std::uint64_t budgetBytes = 1ull << 30;
+};
+
+/// What a flight writes and for how long it runs.
+struct OutputOptions {
+  std::string outDir;  ///< frames and stats.json go here; "" writes nothing
+  std::uint32_t frames = 30;
+  /// (easting, northing) -> (lon, lat); empty or nullopt leaves them out.
+  std::function<std::optional<std::pair<double, double>>(double, double)> toLonLat;
+};
+
+/// A flight's settings, one struct per concern. Plain values: nothing in
+/// them points back at the application (that is FlightApplication).
+struct FlightOptions {
+  MotionOptions motion;
+  ViewOptions view;
+  RenderOptions render;
+  PagerSettings pager;
+  OutputOptions output;
+};
+
+/// The application a flight serves (the stealth viewer, a test, a
+/// benchmark). The application owns its clock and its world and hands
+/// fly() one snapshot (a Pose) per frame; fly() selects, draws and times
+/// it (seed Figure 44: the producer/consumer with two display buffers).
+/// Without one, fly() flies poseAt(options, t).
+class FlightApplication {
+ public:
+  virtual ~FlightApplication() = default;
+  /// Main thread: the pose of frame `frame` at frame time `t`
+  /// (frame / kFramesPerSecond); nullopt ends the flight. `ground` is the
+  /// flight's one ground clamp (world/ground.h), at the level drawn under
+  /// the eye in the last frame: steer with it, do not sample the grid.
+  virtual std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) = 0;
+  /// Render thread: draws on the frame after the panel (a 2-D map).
+  virtual void overlay(Image&, const FrameStats&) {}
+  /// Render thread: each finished frame, after the panel and overlay.
+  virtual void frameDone(std::uint32_t /*frame*/, const Image&) {}
+};
+
+/// An application made of callbacks, for tests and small tools. Unset
+/// callbacks do nothing; no onPose flies poseAt(options, t). Thread
+/// contract as FlightApplication's: onPose on the main thread, the others
+/// on the render thread.
+struct FlightHooks final : FlightApplication {
+  explicit FlightHooks(const FlightOptions& o) : options(o) {}
+  std::function<std::optional<Pose>(std::uint32_t frame, double t, GroundClamp& ground)> onPose;
+  std::function<void(Image&, const FrameStats&)> onOverlay;
+  std::function<void(std::uint32_t frame, const Image&)> onFrame;
+
+  std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
+  void overlay(Image& image, const FrameStats& s) override;
+  void frameDone(std::uint32_t frame, const Image& image) override;
+
+  const FlightOptions& options;
+};
 
 /// Pose at simulated time `t` seconds: straight along the heading, or
 /// along the path legs at each leg's speed, stopping at the last waypoint.
@@ -178,17 +233,21 @@ struct FlightReport {
 };
 
 /// Checks the options against the grid; problems say which option is wrong.
+/// `app`: the application that will steer the flight (its start point is
+/// then not checked against the database).
 std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
-                                        const FlightOptions& o);
+                                        const FlightOptions& o,
+                                        const FlightApplication* app = nullptr);
 
 /// Flies over the grid mesh (TerrainMode::modules is refused: no pack).
 /// Fails with Problem::file == kGlContextProblem (renderer.h) when no
 /// headless GL context can be opened.
-Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o);
+Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o,
+                         FlightApplication* app = nullptr);
 /// Flies over a database: load modules through the pager when it has them
 /// (or TerrainMode::modules asks), else the grid mesh. Module colours come
 /// from its material table.
-Result<FlightReport> fly(const Database& db, const FlightOptions& o);
+Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app = nullptr);
 
 /// The lines of the information panel for a frame.
 std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o);

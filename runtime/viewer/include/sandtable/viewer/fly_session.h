@@ -1,10 +1,11 @@
 #pragma once
-// What `sandtable fly` plugs into the flight loop's hooks (flight.h): the
-// pose source (a path file, the keyboard Controller in a window, or the
-// straight line), the 2-D map, the window, screenshots and the video.
+// The stealth viewer application (`sandtable fly`), a FlightApplication
+// (flight.h): the pose source (a path file, the keyboard Controller in a
+// window on a fixed-step clock, or the straight line), the 2-D map, the
+// window, screenshots and the video.
 //
-// Threads: nextPose() runs on fly()'s main thread (it polls the window's
-// keys there); composite() and frameDone() run on its render thread. The
+// Threads: pose() runs on fly()'s main thread (it polls the window's
+// keys there); overlay() and frameDone() run on its render thread. The
 // main thread produces a frame or two ahead of the one being drawn, so
 // what the render thread needs of the controller's state (map on/off and
 // scale, a screenshot request) travels with the frame number through a
@@ -23,7 +24,8 @@
 #include "sandtable/viewer/flight.h"
 #include "sandtable/render/map_view.h"
 #include "sandtable/world/path.h"
-#include "sandtable/world/terrain.h"
+#include "sandtable/world/clock.h"
+#include "sandtable/world/ground.h"
 #include "sandtable/viewer/video.h"
 #include "sandtable/viewer/x11_window.h"
 
@@ -64,7 +66,7 @@ class FrameControlQueue {
   FrameControl last_;
 };
 
-class FlySession {
+class FlySession final : public FlightApplication {
  public:
   /// `window` and `video` may be null (headless, no video). `o` must be
   /// the flight's options (start, heading, speed, height, FOV...).
@@ -72,8 +74,9 @@ class FlySession {
              std::unique_ptr<runtime::ViewerWindow> window,
              std::unique_ptr<runtime::VideoWriter> video);
 
-  /// Sets o.controller, o.composite and o.onFrame to this session's.
-  void install(runtime::FlightOptions& o);
+  std::optional<runtime::Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
+  void overlay(runtime::Image& img, const runtime::FrameStats& s) override;
+  void frameDone(std::uint32_t frame, const runtime::Image& img) override;
   /// After fly(): finishes the video; "" or the first error of the flight's
   /// window, screenshots or video.
   std::string finish();
@@ -81,12 +84,9 @@ class FlySession {
   bool windowed() const { return window_ != nullptr; }
 
  private:
-  std::optional<runtime::Pose> nextPose(std::uint32_t frame, double t);
-  double pollKeys();  ///< window: handles the keys, returns the clamped wall-clock step
+  double pollKeys();  ///< window: handles the keys, returns the wall-clock time since the last poll
   runtime::Pose headlessPose(double t);
   runtime::Pose windowPose(double clock) const;
-  void composite(runtime::Image& img, const runtime::FrameStats& s);
-  void frameDone(std::uint32_t frame, const runtime::Image& img);
   void saveScreenshot(const runtime::Image& img);
   void fail(const std::string& e);
   runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
@@ -94,15 +94,16 @@ class FlySession {
   const Database& db_;
   FlySessionSettings settings_;
   const runtime::FlightOptions& options_;
-  runtime::Terrain terrain_;
+  /// The viewer's own copy of the flight's ground clamp (same surface; the
+  /// level drawn under the eye is copied from the flight's each frame).
+  GroundClamp ground_;
   std::unique_ptr<runtime::ViewerWindow> window_;
   std::unique_ptr<runtime::VideoWriter> video_;
   // main thread
   std::optional<runtime::Controller> controller_;
   bool quitAfterThisFrame_ = false, quitting_ = false;
-  double clock_ = 0;  ///< window: flight time, the sum of clamped wall-clock steps
+  FixedStepClock clock_;  ///< window: flight time, advanced in fixed steps of the wall clock
   std::optional<double> lastWall_;
-  double lastGround_ = 0;
   // render thread
   std::unique_ptr<runtime::MapView> map_;
   FrameControl current_;

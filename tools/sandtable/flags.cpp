@@ -1,0 +1,51 @@
+#include "flags.h"
+
+#include <array>
+#include <string_view>
+#include <utility>
+
+namespace sandtable::cli {
+namespace {
+
+/// Longest first where one field name starts another.
+constexpr std::array<std::pair<std::string_view, std::string_view>, 25> kFieldFlags{{
+    {"RenderOptions::mode = ", "--mode "},
+    {"RenderOptions::msaa", "--msaa"},
+    {"RenderOptions::mode", "--mode"},
+    {"OutputOptions::frames", "--frames"},
+    {"ViewOptions::width/height", "--size"},
+    {"RenderSettings::width/height", "--size"},
+    {"ViewOptions::hfovDeg", "--fov"},
+    {"ViewOptions::fogDensity", "--fog-density"},
+    {"ViewOptions::maxViewDistance", "--max-view-distance"},
+    {"ViewOptions::viewDistance", "--view-distance"},
+    {"MotionOptions::pitchDeg", "--pitch"},
+    {"MotionOptions::speedKmh", "--speed"},
+    {"MotionOptions::headingDeg", "--heading"},
+    {"MotionOptions::heightAgl", "--height"},
+    {"MotionOptions::path", "--path"},
+    {"PagerSettings::loaders", "pager loaders"},
+    {"PagerSettings::budgetBytes", "--memory-budget-mb"},
+    {"LodOptions::rings", "--rings"},
+    {"LodOptions::pixelError", "--pixel-error"},
+    {"FlySessionSettings::screenshotDir", "--screenshot-dir"},
+    {"FlySessionSettings::altitude", "--altitude"},
+    {"FlySessionSettings::mapScale", "--map-scale"},
+    {"FlySessionSettings::path", "--path"},
+    {"FlySessionSettings::freeFlight", "--free-flight"},
+    {"FlySessionSettings::map", "--map"},
+}};
+
+}  // namespace
+
+std::string withFlags(std::string message) {
+  for (const auto& [field, flag] : kFieldFlags) {
+    for (std::size_t at = message.find(field); at != std::string::npos; at = message.find(field, at)) {
+      message.replace(at, field.size(), flag);
+      at += flag.size();
+    }
+  }
+  return message;
+}
+
+}  // namespace sandtable::cli
