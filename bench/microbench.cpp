@@ -1,17 +1,28 @@
-// sandtable_microbench: the weighted resampling kernel and grid reads, in
-// nanoseconds per call. Run: build/bench/sandtable_microbench
+// sandtable_microbench: the weighted resampling kernel, grid reads, the
+// geometric module check at several module sizes (with its complexity fit)
+// and decaling per level, per call. Run: build/bench/sandtable_microbench
+// (--benchmark_filter=ModuleCheck, =Decal). Timings live here, not in
+// unit tests.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <numbers>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "sandtable/converters/crs.h"
+#include "sandtable/converters/culture.h"
 #include "sandtable/converters/elevation.h"
+#include "sandtable/converters/modules.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/materials.h"
+#include "sandtable/formats/module_check.h"
 
 namespace {
 
@@ -143,6 +154,184 @@ void BM_GridElevationRow(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_GridElevationRow);
+
+/// The sample material table (samples/materials.txt).
+const materials::Table& sampleTable() {
+  static const materials::Table t = [] {
+    auto r = materials::readFile(std::string(SANDTABLE_SOURCE_DIR) + "/samples/materials.txt");
+    return r ? r.value() : materials::Table{};
+  }();
+  return t;
+}
+
+std::string utm32Wkt() {
+  auto crs = convert::resolveCrs("EPSG:32632", 9.0, 45.0);
+  return crs ? crs.value().wkt : std::string();
+}
+
+/// The module check (formats/module_check.h) of one module of N level-0
+/// squares, 4 levels, built from SmallGrid by the converters' module builder
+/// without culture. Reports triangles per second; the complexity fit over N
+/// x N squares should come out O(N) in triangles (it was the
+/// ModuleCheck.linearTime unit test, which may not time things).
+void BM_ModuleCheck(benchmark::State& state) {
+  const SmallGrid& g = SmallGrid::get();
+  if (!g.file) {
+    state.SkipWithError(g.error.c_str());
+    return;
+  }
+  const auto squares = static_cast<std::uint32_t>(state.range(0));
+  constexpr int kLevels = 4;
+  const materials::Table& table = sampleTable();
+  convert::CultureOptions co;
+  const double edge = 30.0 * (SmallGrid::kPosts - 1);
+  auto culture = convert::Culture::load(co, table, {utm32Wkt(), 500000.0, 4700000.0, edge, edge});
+  if (!culture) {
+    state.SkipWithError(culture.error().c_str());
+    return;
+  }
+  const module::Module m = convert::buildModule(*g.file, *culture.value(), table.defaultArea, squares, kLevels, 0, 0);
+  pack::IndexHeader h;
+  h.modulesX = h.modulesZ = (SmallGrid::kPosts - 1 + squares - 1) / squares;
+  h.levels = kLevels;
+  h.moduleSquares = squares;
+  h.moduleSize = 30.0 * squares;
+  module::CheckOptions options;
+  options.materials = &table;
+  const module::ModuleChecker checker(*g.file, h, "bench/modules.pack", options);
+  std::int64_t triangles = 0;
+  for (const auto& lv : m.levels) triangles += static_cast<std::int64_t>(lv.indices.size() / 3);
+  for (auto _ : state) {
+    module::ModuleEdges e;
+    auto problems = checker.check(m, 4096, &e);
+    if (!problems.empty()) {
+      state.SkipWithError(problems.front().str().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(e);
+  }
+  state.SetComplexityN(triangles);
+  state.SetItemsProcessed(state.iterations() * triangles);
+  state.counters["triangles"] = static_cast<double>(triangles);
+}
+BENCHMARK(BM_ModuleCheck)->ArgName("squares")->Arg(32)->Arg(64)->Arg(128)->Arg(256)->Complexity(benchmark::oN)
+    ->Unit(benchmark::kMillisecond);
+
+/// The scene of the former Culture.decalTimePerLevel unit test: three roads
+/// and a lake through a 1 km module at 31.25 m posts (32 squares, 4
+/// levels), on hills; and the same module size where there is no culture.
+class DecalScene {
+ public:
+  static constexpr double kE0 = 500000, kN0 = 5500000, kSpacing = 31.25;
+  static constexpr int kSquares = 32;
+
+  static const DecalScene& get() {
+    static const DecalScene s;
+    return s;
+  }
+  ~DecalScene() {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  /// Culture with `cacheModules` partitions kept (0 = the default).
+  std::shared_ptr<const convert::Culture> load(std::size_t cacheModules, std::string& error) const {
+    convert::CultureOptions o;
+    o.sources = {(dir_ / "scene.geojson").string()};
+    o.cacheModules = cacheModules;
+    auto c = convert::Culture::load(o, sampleTable(), {utm32Wkt(), kE0, kN0, 3000, 1000});
+    if (!c) {
+      error = c.error();
+      return nullptr;
+    }
+    return c.value();
+  }
+  /// Level `level` of the module whose north-west corner is world (mx, 0).
+  static convert::LevelLattice lattice(double mx, int level) {
+    convert::LevelLattice lat;
+    lat.moduleX = mx;
+    lat.spacing = kSpacing * (1 << level);
+    for (int i = 0; i <= kSquares; i += 1 << level) lat.xs.push_back(i * kSpacing);
+    lat.zs = lat.xs;
+    for (double z : lat.zs) {
+      for (double x : lat.xs) lat.heights.push_back(static_cast<float>(hills(mx + x, z)));
+    }
+    return lat;
+  }
+
+ private:
+  using Path = std::vector<std::array<double, 2>>;
+  static double hills(double x, double z) { return 300 + 40 * std::sin(x / 170.0) * std::cos(z / 230.0) + 0.013 * x; }
+
+  DecalScene() : dir_(fs::temp_directory_path() / ("sandtable-microbench-decal-" + std::to_string(::getpid()))) {
+    fs::create_directories(dir_);
+    Path lake;
+    for (int k = 0; k <= 60; ++k) {
+      const double a = 0.1 + 2 * std::numbers::pi * (k % 60) / 60;
+      lake.push_back({900 + 250 * std::cos(a), 700 + 250 * std::sin(a)});
+    }
+    std::ofstream out(dir_ / "scene.geojson");
+    out.precision(17);
+    out << "{\"type\":\"FeatureCollection\",\"crs\":{\"type\":\"name\",\"properties\":{\"name\":"
+           "\"urn:ogc:def:crs:EPSG::32632\"}},\"features\":[\n";
+    auto feature = [&](const char* props, const char* type, const Path& p, bool last) {
+      out << "{\"type\":\"Feature\",\"properties\":{" << props << "},\"geometry\":{\"type\":\"" << type
+          << "\",\"coordinates\":" << (type[0] == 'P' ? "[[" : "[");
+      for (std::size_t k = 0; k < p.size(); ++k) out << (k ? "," : "") << "[" << kE0 + p[k][0] << "," << kN0 - p[k][1] << "]";
+      out << (type[0] == 'P' ? "]]" : "]") << "}}" << (last ? "\n" : ",\n");
+    };
+    feature("\"highway\": \"primary\"", "LineString", {{-50, 210}, {300, 260}, {620, 410}, {1050, 450}}, false);
+    feature("\"highway\": \"residential\"", "LineString", {{420, -20}, {450, 300}, {520, 700}, {480, 1020}}, false);
+    feature("\"highway\": \"track\"", "LineString", {{0, 880}, {400, 820}, {1000, 900}}, false);
+    feature("\"natural\": \"water\"", "Polygon", lake, true);
+    out << "]}\n";
+  }
+  fs::path dir_;
+};
+
+/// One level of the busy module (x 0..1000 m), its partition cached: the
+/// per-level cost of the module stage once the partition exists.
+void BM_DecalLevel(benchmark::State& state) {
+  std::string error;
+  const auto c = DecalScene::get().load(0, error);
+  if (!c) {
+    state.SkipWithError(error.c_str());
+    return;
+  }
+  const int level = static_cast<int>(state.range(0));
+  const double mx = state.range(1) ? 0.0 : 2000.0;  // 1: roads and lake; 0: no culture
+  const convert::LevelLattice lat = DecalScene::lattice(mx, level);
+  module::Level lv;
+  c->decalLevel(DecalScene::lattice(mx, 0), lv);  // builds and caches the module's partition
+  convert::DecalStats st;
+  for (auto _ : state) {
+    st = c->decalLevel(lat, lv);
+    benchmark::DoNotOptimize(lv);
+  }
+  state.counters["cut_triangles"] = static_cast<double>(st.slowTriangles);
+  state.counters["triangles"] = static_cast<double>(st.triangles);
+}
+BENCHMARK(BM_DecalLevel)->ArgNames({"level", "culture"})->ArgsProduct({{0, 1, 2, 3}, {1, 0}})
+    ->Unit(benchmark::kMillisecond);
+
+/// Level 0 with the module's partition built each time (one partition
+/// cached, two modules alternating): the first call of a module.
+void BM_DecalLevelWithPartition(benchmark::State& state) {
+  std::string error;
+  const auto c = DecalScene::get().load(1, error);
+  if (!c) {
+    state.SkipWithError(error.c_str());
+    return;
+  }
+  const convert::LevelLattice a = DecalScene::lattice(0, 0), b = DecalScene::lattice(1000, 0);
+  module::Level lv;
+  bool first = true;
+  for (auto _ : state) {
+    c->decalLevel(first ? a : b, lv);
+    first = !first;
+    benchmark::DoNotOptimize(lv);
+  }
+}
+BENCHMARK(BM_DecalLevelWithPartition)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

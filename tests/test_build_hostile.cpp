@@ -202,9 +202,23 @@ void expectNothingLeft(const TempDir& tmp) {
   }
 }
 
-// A stop is a behaviour, not a benchmark: the bound is generous (the
-// requirement is one second) so a loaded 2-core machine still passes.
-constexpr double kStopLimit = 3.0;
+// A stop is a behaviour, not a benchmark, and tests hold no timing
+// thresholds: promptness is checked by what the build printed after the
+// signal (it never finished the stage it was in, nor began another). This
+// limit only keeps a build that ignores the signal from hanging the test;
+// the seconds taken are printed.
+constexpr double kStopLimit = 60.0;
+
+/// The progress lines (`stage: NN% (Ts)`, non-TTY form) of `text`.
+std::vector<std::string> progressLines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) {
+    const auto pct = l.find("% (");
+    if (pct != std::string::npos && l.find(": ") < pct && l.back() == ')') out.push_back(l);
+  }
+  return out;
+}
 
 struct SignalCase {
   const char* name;
@@ -232,8 +246,13 @@ TEST_P(BuildSignal, stopsPromptlyAndLeavesNothing) {
   Running run(args, tmp / "stderr.txt");
   ASSERT_TRUE(run.spawned());
   ASSERT_TRUE(run.waitFor(c.marker, 120)) << run.err();
+  const std::size_t before = run.err().size();
   const double s = run.stopWith(c.sig, kStopLimit);
-  EXPECT_LE(s, kStopLimit) << run.err();
+  ASSERT_LE(s, kStopLimit) << "the build did not stop: " << run.err();
+  for (const std::string& l : progressLines(run.err().substr(before))) {
+    EXPECT_NE(l.find(c.marker), std::string::npos) << "a later stage began after the signal: " << l;
+    EXPECT_EQ(l.find("100%"), std::string::npos) << "the stage ran to its end after the signal: " << l;
+  }
   EXPECT_TRUE(WIFEXITED(run.status())) << run.err();
   EXPECT_EQ(WEXITSTATUS(run.status()), 128 + c.sig) << run.err();
   EXPECT_NE(run.err().find("cancelled"), std::string::npos) << run.err();

@@ -1,5 +1,6 @@
 // The CLI on bad inputs (clear error, exit 2, no output directory), help,
 // and the end-to-end slice: build, info, sample, headless flight.
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 
@@ -20,13 +21,54 @@ void expectNoOutput(const TempDir& tmp) {
   }
 }
 
-TEST(Cli, helpForEverySubcommand) {
-  EXPECT_EQ(runCli({"--help"}).exitCode, 0);
-  for (const char* cmd : {"synth", "build", "info", "validate", "sample", "fly", "bench"}) {
-    const auto r = runCli({cmd, "--help"});
-    EXPECT_EQ(r.exitCode, 0) << cmd;
-    EXPECT_NE(r.out.find("Usage"), std::string::npos) << cmd << ": " << r.out;
+/// The subcommand names a `--help` text lists (CLI11: the lines after
+/// "Subcommands:", each "  NAME  description", up to a blank line).
+std::vector<std::string> subcommandsIn(const std::string& help) {
+  std::vector<std::string> names;
+  std::istringstream in(help);
+  bool listing = false;
+  for (std::string l; std::getline(in, l);) {
+    if (l.rfind("Subcommands:", 0) == 0 || l.rfind("SUBCOMMANDS:", 0) == 0) {
+      listing = true;
+    } else if (listing && l.find_first_not_of(' ') == std::string::npos) {
+      listing = false;
+    } else if (listing && l.rfind("  ", 0) == 0 && l.size() > 2 && l[2] != ' ') {  // not a wrapped description
+      std::istringstream words(l);
+      std::string name;
+      words >> name;
+      names.push_back(name);
+    }
   }
+  return names;
+}
+
+void expectHelp(const std::vector<std::string>& cmd) {
+  std::vector<std::string> args = cmd;
+  args.push_back("--help");
+  const auto r = runCli(args);
+  std::string name;
+  for (const auto& c : cmd) name += c + " ";
+  EXPECT_EQ(r.exitCode, 0) << name;
+  EXPECT_NE(r.out.find("Usage"), std::string::npos) << name << ": " << r.out;
+}
+
+TEST(Cli, helpForEverySubcommand) {
+  // The lists come from the help texts, so a new subcommand cannot be
+  // missed; the known ones must be among them.
+  const auto root = runCli({"--help"});
+  EXPECT_EQ(root.exitCode, 0);
+  const auto commands = subcommandsIn(root.out);
+  for (const char* known : {"synth", "build", "info", "validate", "sample", "fly", "bench", "export"}) {
+    EXPECT_NE(std::find(commands.begin(), commands.end(), known), commands.end()) << known << " in\n" << root.out;
+  }
+  for (const auto& cmd : commands) expectHelp({cmd});
+  const auto bench = runCli({"bench", "--help"});
+  EXPECT_EQ(bench.exitCode, 0);
+  const auto benches = subcommandsIn(bench.out);
+  for (const char* known : {"build", "make-db", "modules", "paging", "render"}) {
+    EXPECT_NE(std::find(benches.begin(), benches.end(), known), benches.end()) << known << " in\n" << bench.out;
+  }
+  for (const auto& b : benches) expectHelp({"bench", b});
   EXPECT_EQ(runCli({}).exitCode, 2);
   EXPECT_EQ(runCli({"no-such-command"}).exitCode, 2);
   EXPECT_EQ(runCli({"build", "--bogus"}).exitCode, 2);

@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <random>
 
+#include <nlohmann/json.hpp>
+
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
@@ -175,6 +177,72 @@ TEST(DefaultKernel, nativeSpacingOnRuggedSrtmKeepsSummitsAndReportsRmse) {
   // kernel would fail here.
   EXPECT_LT(kernels[0].stats.rms, 0.75 * kernels[1].stats.rms);
   EXPECT_LT(std::fabs(kernels[0].summitError), std::fabs(kernels[1].summitError));
+}
+
+// The same accuracy as a user measures it: `sandtable build`, then
+// `sandtable sample --points` on at least 500 land points, against GDAL's
+// read of the source, bilinear at the same lon/lat (source_raster.h).
+TEST(ConversionAccuracyCli, buildThenSamplePointsMatchesSource) {
+  SANDTABLE_REQUIRE_DATA();
+  struct Case {
+    const char* file;
+    std::vector<std::string> extent;  ///< empty: the whole file
+  };
+  const Case cases[] = {{"elevation/dted/n43.dt0", {}},
+                        {"elevation/srtm/N49E011.hgt.zip", {"11.50", "49.95", "11.60", "50.00"}}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.file);
+    const std::string file = data(c.file);
+    SourceRaster src(file);
+    ASSERT_TRUE(src.ok());
+    TempDir tmp("acc-cli");
+    std::vector<std::string> args = {"build", "--elevation", file, "--resample", "bilinear", "--no-modules",
+                                     "-o", tmp / "db"};
+    if (!c.extent.empty()) {
+      args.push_back("--extent");
+      args.insert(args.end(), c.extent.begin(), c.extent.end());
+    }
+    const auto b = runCli(args);
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    const auto info = runCli({"info", tmp / "db", "--json"});
+    ASSERT_EQ(info.exitCode, 0) << info.err;
+    const auto j = nlohmann::json::parse(info.out);
+    // Points inside the database's lon/lat box, kept off its edges (the
+    // projected grid is turned against lon/lat), where the source is land.
+    const double w = j["lon_min"], e = j["lon_max"], so = j["lat_min"], n = j["lat_max"];
+    std::uniform_real_distribution<double> lon(w + 0.15 * (e - w), e - 0.15 * (e - w));
+    std::uniform_real_distribution<double> lat(so + 0.15 * (n - so), n - 0.15 * (n - so));
+    std::mt19937 rng(11);
+    std::vector<std::array<double, 3>> pts;  // lon, lat, source elevation
+    for (int tries = 0; tries < 20000 && pts.size() < 600; ++tries) {
+      const double x = lon(rng), y = lat(rng);
+      if (const auto z = src.bilinear(x, y, 0.0)) pts.push_back({x, y, *z});
+    }
+    ASSERT_GE(pts.size(), 500u) << "too few land points";
+    std::string text = "# lon lat\n";
+    char line[64];
+    for (const auto& p : pts) {
+      std::snprintf(line, sizeof line, "%.9f %.9f\n", p[0], p[1]);
+      text += line;
+    }
+    spit(tmp / "points.txt", text);
+    const auto r = runCli({"sample", tmp / "db", "--points", tmp / "points.txt", "--json"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const auto out = nlohmann::json::parse(r.out);
+    ASSERT_EQ(out.size(), pts.size());
+    std::vector<double> errs;
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      ASSERT_TRUE(out[k]["elevation"].is_number()) << out[k].dump();
+      EXPECT_NEAR(out[k]["lon"].get<double>(), pts[k][0], 1e-8);
+      errs.push_back(out[k]["elevation"].get<double>() - pts[k][2]);
+    }
+    const auto st = summarize(errs);
+    std::printf("[ accuracy ] %s via the CLI: %zu points, RMS %.3f m, p95 %.3f m, max %.2f m\n", c.file, st.n, st.rms,
+                st.p95, st.max);
+    EXPECT_GE(st.n, 500u);
+    EXPECT_LE(st.rms, 3.0);  // the limits of bilinearAtNativeSpacingMatchesSource
+    EXPECT_LE(st.p95, 6.0);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(RealData, ConversionAccuracy, ::testing::ValuesIn(demFiles()),

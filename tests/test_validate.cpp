@@ -1,12 +1,17 @@
 // validate on a real (small) database: flipped bytes, truncation at every
 // structural boundary, hand-edited manifests; each with its own message.
+#include <zlib.h>
+
 #include <fstream>
 #include <random>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/formats/grid.h"
 #include "test_support.h"
 
 namespace sandtable::test {
@@ -145,6 +150,53 @@ TEST_F(ValidateRealDatabase, cliExitCodes) {
   EXPECT_NE(bad.out.find("\"ok\": false"), std::string::npos) << bad.out;
   EXPECT_NE(bad.out.find("\"offset\""), std::string::npos);
   EXPECT_EQ(runCli({"validate", tmp_ / "nope"}).exitCode, 2);
+}
+
+TEST_F(ValidateRealDatabase, gridCorruptionUnderAResealedManifestIsCaughtByTheGridCheck) {
+  // One post's byte in block (0,0) changed, then the manifest's grid.stg
+  // CRC recomputed (zlib, here) and the manifest resealed: the whole-file
+  // check now passes, so only validateGrid's own block CRCs can catch it.
+  std::string b = slurpFile(gridPath_);
+  std::uint64_t dataOffset = 0;
+  for (int k = 7; k >= 0; --k) dataOffset = dataOffset << 8 | std::uint8_t(b[grid::field::dataOffset + std::size_t(k)]);
+  ASSERT_GT(dataOffset, 0u);
+  ASSERT_LT(dataOffset + 1000, b.size());
+  b[dataOffset + 1000] = static_cast<char>(b[dataOffset + 1000] ^ 0x04);
+  spit(gridPath_, b);
+  const auto crc = static_cast<std::uint32_t>(::crc32(0L, reinterpret_cast<const Bytef*>(b.data()), uInt(b.size())));
+  char hex[16];
+  std::snprintf(hex, sizeof hex, "0x%08x", crc);
+  resealManifest(db_, [&](nlohmann::json& j) {
+    for (auto& f : j["files"]) {
+      if (f["path"] == "grid.stg") f["crc32"] = hex;
+    }
+  });
+
+  const auto problems = validateDatabase(db_);
+  ASSERT_FALSE(problems.empty());
+  for (const Problem& p : problems) {
+    EXPECT_EQ(p.message.find("manifest"), std::string::npos) << "the manifest should now agree: " << p.str();
+    EXPECT_EQ(p.message.find("crc32"), std::string::npos) << p.str();
+  }
+  const auto gridProblems = grid::validateGrid(gridPath_);
+  ASSERT_FALSE(gridProblems.empty());
+  bool named = false;
+  for (const Problem& p : gridProblems) {
+    named |= p.message.find("block (0,0) checksum mismatch") != std::string::npos && p.offset == dataOffset;
+  }
+  EXPECT_TRUE(named) << gridProblems.front().str();
+
+  // And through the CLI: exit 1, the block named at its offset in grid.stg.
+  const auto v = runCli({"validate", db_, "--json"});
+  EXPECT_EQ(v.exitCode, 1) << v.out << v.err;
+  const auto report = nlohmann::json::parse(v.out);
+  EXPECT_FALSE(report["ok"].get<bool>());
+  bool cli = false;
+  for (const auto& p : report["problems"]) {
+    cli |= p.value("message", "").find("block (0,0) checksum mismatch") != std::string::npos &&
+           p.value("offset", std::uint64_t(0)) == dataOffset && p.value("file", "").find("grid.stg") != std::string::npos;
+  }
+  EXPECT_TRUE(cli) << v.out;
 }
 
 }  // namespace

@@ -30,6 +30,57 @@ using namespace culture;
 namespace {
 
 constexpr std::size_t kMaxMessages = 20;
+
+/// Every reason load drops, repairs, defaults or ignores a feature for
+/// (CultureStats::reasons; docs/CULTURE.md, "What load reports").
+struct Reason {
+  const char* key;
+  const char* action;
+  const char* text;
+  bool warning;
+};
+constexpr Reason kReasons[] = {
+    {"unmatched_line", "dropped", "line whose attributes match no rule, and the table's default-line is none", true},
+    {"no_rule_default", "defaulted", "matched no rule; took the table's default class", true},
+    {"ignore_rule", "ignored", "matched an ignore rule (\"-\") of the material table", false},
+    {"unknown_class", "dropped", "classified to a class the material table does not define", true},
+    {"no_transform", "dropped", "cannot be transformed into the database CRS", true},
+    {"not_finite", "dropped", "invalid geometry: coordinates that are not finite", true},
+    {"zero_length", "dropped", "invalid geometry: line of zero length", true},
+    {"no_area", "dropped", "invalid geometry: polygon of no area", true},
+    {"invalid_polygon_repaired", "repaired", "invalid polygon (self-intersection), made valid", true},
+    {"invalid_polygon_dropped", "dropped", "invalid polygon that cannot be made valid", true},
+    {"self_intersecting_line", "repaired",
+     "line that crosses or touches itself (a figure 8); widened as one outline, the crossing drawn once", true},
+    {"repeated_points", "repaired", "repeated points, removed", true},
+    {"unclosed_ring", "repaired", "polygon ring not closed, closed", true},
+    {"simplified", "repaired", "line simplified beyond the base tolerance to bound the work", true},
+    {"widen_failed", "dropped", "line whose widening failed (CGAL)", true},
+    {"outside", "dropped", "wholly outside the database", false},
+};
+
+/// Counts one feature under `key` (one of kReasons); the first gives the sample.
+void tally(CultureStats& st, const char* key, const std::string& id) {
+  for (const Reason& r : kReasons) {
+    if (std::strcmp(r.key, key) != 0) continue;
+    ReasonStats& rs = st.reasons[key];
+    if (rs.count++ == 0) rs = {1, r.action, r.text, id, r.warning};
+    return;
+  }
+}
+
+/// Whether any part crosses or touches itself (GEOS IsSimple; a closed part
+/// that meets itself only at its ends is simple).
+bool crossesItself(const std::vector<Polyline>& parts) {
+  for (const Polyline& p : parts) {
+    if (p.size() < 3) continue;
+    OGRLineString ls;
+    ls.setNumPoints(static_cast<int>(p.size()), FALSE);
+    for (std::size_t k = 0; k < p.size(); ++k) ls.setPoint(static_cast<int>(k), p[k].x, p[k].z);
+    if (!ls.IsSimple()) return true;
+  }
+  return false;
+}
 /// Size rule: vertices within about a width of each vertex, on average
 /// (crowding); 3 x width / spacing for a line that runs on, so this allows
 /// vertex spacings down to about width / 80.
@@ -109,6 +160,7 @@ struct LayerState {
   bool failed = false;
   int otherTags = -1;
   std::uint64_t defaulted = 0;
+  std::uint64_t unmatchedLines = 0;
   ~LayerState() { OGRCoordinateTransformation::DestroyCT(ct); }
 };
 
@@ -129,6 +181,7 @@ struct Loader {
   };
   std::vector<SourceTally> tallies;
   std::size_t sourceIndex = 0, sourceCount = 1;
+  std::vector<std::string> lineIds;  ///< of c.lines, in order, for the load report
 
   explicit Loader(CultureImpl& impl) : c(impl) {}
 
@@ -142,6 +195,7 @@ struct Loader {
     ++c.stats_.warnings;
     if (c.stats_.messages.size() < kMaxMessages) c.stats_.messages.push_back(m);
   }
+  void tally(const char* key, const std::string& id) { convert::tally(c.stats_, key, id); }
 
   Vec2 world(double e, double n) const { return {e - c.frame.originEasting, c.frame.originNorthing - n}; }
 
@@ -233,6 +287,11 @@ Result<bool> Loader::readSource(const std::string& source) {
       c.stats_.messages.push_back("culture: " + source + " layer " + s->name + ": " + std::to_string(s->defaulted) +
                                   " features matched no rule and took the default class");
     }
+    if (s->unmatchedLines > 0 && c.stats_.messages.size() < kMaxMessages) {
+      c.stats_.messages.push_back("culture: " + source + " layer " + s->name + ": " +
+                                  std::to_string(s->unmatchedLines) +
+                                  " lines matched no rule and the table's default-line is none; dropped");
+    }
   }
   GDALClose(ds);
   return true;
@@ -314,15 +373,26 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
   const int kind = kindOf(raw);
   if (kind == 0) return;  // points are not culture
   ++c.stats_.featuresRead;
+  const std::string id = where + " feature " + std::to_string(OGR_F_GetFID(f));
   FeatureView view{f, ls.otherTags};
   const materials::Match m = materials::classify(c.table, ls.name, &view, &attributeOf, kind == 1);
   if (m.classId == materials::kNoClass) {
     ++c.stats_.ignored;
+    if (m.matched) {
+      tally("ignore_rule", id);
+    } else {
+      // A line no rule matched, and default-line none: dropped, a warning.
+      tally("unmatched_line", id);
+      ++ls.unmatchedLines;
+      ++c.stats_.warnings;
+    }
     return;
   }
   const materials::Class* cls = c.table.find(m.classId);
   if (!cls) {
     ++c.stats_.ignored;
+    tally("unknown_class", id);
+    ++c.stats_.warnings;
     return;
   }
   ClassStats& cs = c.stats_.perClass[cls->name];
@@ -331,12 +401,13 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
     ++cs.defaulted;
     ++ls.defaulted;
     ++c.stats_.warnings;
+    tally("no_rule_default", id);
   }
-  const std::string id = where + " feature " + std::to_string(OGR_F_GetFID(f));
   // Curves to line strings, then into the database CRS.
   std::unique_ptr<OGRGeometry> g(raw->hasCurveGeometry() ? raw->getLinearGeometry() : raw->clone());
   if (!g || g->transform(ls.ct) != OGRERR_NONE) {
     ++cs.dropped;
+    tally("no_transform", id);
     warn("culture: " + id + ": cannot transform into the database CRS; dropped");
     return;
   }
@@ -347,8 +418,12 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
   tallies.back().extent.add(box);
   if (kind == 2 && dropDefaultAreas && cls->id == c.table.defaultArea) {
     // Changes nothing on the skin, but lands if it overlaps.
-    if (box.overlaps(dbProjected)) ++c.stats_.featuresLanded;
-    else ++outside;
+    if (box.overlaps(dbProjected)) {
+      ++c.stats_.featuresLanded;
+    } else {
+      ++outside;
+      tally("outside", id);
+    }
     return;
   }
   const bool kept = kind == 1 ? addLine(id, *g, *cls, m.width, cs) : addArea(id, *g, *cls, cs);
@@ -471,6 +546,7 @@ void Loader::simplifyLine(const std::string& id, LineFeature& lf) {
     if (fits || round >= 60) {
       if (round > 0) {
         ++c.stats_.coarsened;
+        tally("simplified", id);
         char t[32];
         std::snprintf(t, sizeof t, "%.3g", tol);
         const std::string why = before > c.options.maxLineVertices
@@ -511,11 +587,13 @@ bool Loader::addLine(const std::string& id, const OGRGeometry& g, const material
   });
   if (bad) {
     ++cs.dropped;
+    tally("not_finite", id);
     warn("culture: " + id + ": coordinates that are not finite; dropped");
     return false;
   }
   if (parts.empty()) {
     ++cs.dropped;
+    tally("zero_length", id);
     warn("culture: " + id + ": line of zero length; dropped");
     return false;
   }
@@ -535,14 +613,24 @@ bool Loader::addLine(const std::string& id, const OGRGeometry& g, const material
   if (lf.parts.empty()) {
     ++cs.dropped;
     ++outside;  // an extract larger than the database: expected, not a warning
+    tally("outside", id);
     return false;
   }
+  // The widening unites the outline by nonzero winding, so a figure 8 is
+  // drawn right; it is still reported, as the source is likely wrong.
+  const bool crossing = crossesItself(lf.parts);
   simplifyLine(id, lf);
   if (repaired) {
-    ++cs.repaired;
+    tally("repeated_points", id);
     warn("culture: " + id + ": repeated points removed");
   }
+  if (crossing) {
+    tally("self_intersecting_line", id);
+    warn("culture: " + id + ": line crosses itself; widened as one outline, the crossing drawn once");
+  }
+  if (repaired || crossing) ++cs.repaired;
   c.lines.push_back(std::move(lf));
+  lineIds.push_back(id);
   return true;
 }
 
@@ -587,22 +675,31 @@ bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Cla
   });
   if (bad) {
     ++cs.dropped;
+    tally("not_finite", id);
     warn("culture: " + id + ": coordinates that are not finite; dropped");
     return false;
   }
   std::unique_ptr<OGRGeometry> geom(mp.clone());
-  if (unclosed) warn("culture: " + id + ": ring not closed; closed it");
-  if (repeated) warn("culture: " + id + ": repeated points removed");
+  if (unclosed) {
+    tally("unclosed_ring", id);
+    warn("culture: " + id + ": ring not closed; closed it");
+  }
+  if (repeated) {
+    tally("repeated_points", id);
+    warn("culture: " + id + ": repeated points removed");
+  }
   repaired = unclosed || repeated;
   if (!geom->IsEmpty() && !geom->IsValid()) {
     std::unique_ptr<OGRGeometry> valid(geom->MakeValid());
     if (!valid) {
       ++cs.dropped;
+      tally("invalid_polygon_dropped", id);
       warn("culture: " + id + ": invalid polygon that cannot be repaired; dropped");
       return false;
     }
     geom = std::move(valid);
     repaired = true;
+    tally("invalid_polygon_repaired", id);
     warn("culture: " + id + ": invalid polygon (self-intersection); repaired");
   }
   // Clip to the database rectangle.
@@ -625,6 +722,7 @@ bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Cla
     if (!cut) {
       ++cs.dropped;
       ++outside;
+      tally("outside", id);
       return false;
     }
     geom = std::move(cut);
@@ -658,7 +756,9 @@ bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Cla
     ++cs.dropped;
     if (clipped && geom->IsEmpty()) {
       ++outside;
+      tally("outside", id);
     } else {
+      tally("no_area", id);
       warn("culture: " + id + ": polygon of no area; dropped");
     }
     return false;
@@ -806,6 +906,13 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
   bool cancelled = false;
   if (std::string e = widenAll(impl->lines, options.threads, options.mergeTolerance, loader, cancelled); !e.empty()) loader.warn("culture: " + e);
   if (cancelled) return Problem{"culture", 0, "build: cancelled"};
+  for (std::size_t k = 0; k < impl->lines.size(); ++k) {
+    const LineFeature& l = impl->lines[k];
+    if (!l.outline.empty()) continue;
+    tally(impl->stats_, "widen_failed", loader.lineIds[k]);
+    if (const materials::Class* cls = table.find(l.classId)) ++impl->stats_.perClass[cls->name].dropped;
+    --impl->stats_.featuresLanded;
+  }
   std::erase_if(impl->lines, [](const LineFeature& l) { return l.outline.empty(); });
   impl->buildIndex();
   impl->options.progress = nullptr;  // it may refer to the caller's state; load is over

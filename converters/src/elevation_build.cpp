@@ -351,8 +351,14 @@ nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
     classes[name] = {{"read", k.read},         {"dropped", k.dropped}, {"repaired", k.repaired},
                      {"defaulted", k.defaulted}, {"length_km", k.lengthKm}, {"area_km2", k.areaKm2}};
   }
+  nlohmann::json reasons = nlohmann::json::object();
+  for (const auto& [key, r] : st.reasons) {
+    reasons[key] = {{"count", r.count}, {"action", r.action}, {"text", r.text}, {"sample", r.sample},
+                    {"warning", r.warning}};
+  }
   return {{"sources", o.culture},
           {"materials", o.materials.empty() ? std::string("built-in default") : o.materials},
+          {"reasons", reasons},
           {"features_read", st.featuresRead},
           {"features_landed", st.featuresLanded},
           {"features_outside", st.featuresOutside},

@@ -877,61 +877,6 @@ TEST(Culture, concurrentDecalsMatchSequentialOnes) {
   }
 }
 
-// ------------------------------------------------------------ performance
-
-TEST(Culture, decalTimePerLevel) {
-  Scratch s("perf");
-  const auto t = sampleTable();
-  // A few roads and one lake boundary through a 1 km module.
-  auto c = loadScene(s,
-                     {line("\"highway\": \"primary\"", {{-50, 210}, {300, 260}, {620, 410}, {1050, 450}}),
-                      line("\"highway\": \"residential\"", {{420, -20}, {450, 300}, {520, 700}, {480, 1020}}),
-                      line("\"highway\": \"track\"", {{0, 880}, {400, 820}, {1000, 900}}),
-                      area("\"natural\": \"water\"", {circle(900, 700, 250, 60)})},
-                     t, 3000, 1000);
-  ASSERT_TRUE(c);
-  std::vector<std::uint64_t> cut(4), triangles(4);
-  auto timeModule = [&](double mx, int repeats, std::vector<double>& perLevel, double& cold) {
-    perLevel.assign(4, 0);
-    std::vector<LevelLattice> lats;
-    for (int l = 0; l < 4; ++l) lats.push_back(lattice(mx, 0, 32, 31.25, l, hills));
-    module::Level lv;
-    auto t0 = std::chrono::steady_clock::now();
-    c->decalLevel(lats[0], lv);  // builds and caches the module's partition
-    cold = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    for (int l = 0; l < 4; ++l) {
-      const DecalStats st = c->decalLevel(lats[l], lv);
-      cut[l] = st.slowTriangles, triangles[l] = st.triangles;
-    }
-    for (int r = 0; r < repeats; ++r) {
-      for (int l = 0; l < 4; ++l) {
-        t0 = std::chrono::steady_clock::now();
-        c->decalLevel(lats[l], lv);
-        perLevel[l] += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / repeats;
-      }
-    }
-  };
-  std::vector<double> busy, empty;
-  double coldBusy = 0, coldEmpty = 0;
-  timeModule(0, std::getenv("SANDTABLE_PERF_REPEATS") ? std::atoi(std::getenv("SANDTABLE_PERF_REPEATS")) : 20, busy, coldBusy);
-  std::printf("roads + lake: cut grid triangles per level %llu %llu %llu %llu of 2048 512 128 32; triangles written "
-              "%llu %llu %llu %llu\n",
-              (unsigned long long)cut[0], (unsigned long long)cut[1], (unsigned long long)cut[2], (unsigned long long)cut[3],
-              (unsigned long long)triangles[0], (unsigned long long)triangles[1], (unsigned long long)triangles[2],
-              (unsigned long long)triangles[3]);
-  timeModule(2000, 20, empty, coldEmpty);
-  std::printf("decal ms per level, 1 km module at 31.25 m, roads + lake: L0 %.3f L1 %.3f L2 %.3f L3 %.3f "
-              "(all 4: %.3f; first call with the partition: %.3f)\n",
-              busy[0], busy[1], busy[2], busy[3], busy[0] + busy[1] + busy[2] + busy[3], coldBusy);
-  std::printf("decal ms per level, no culture: L0 %.3f L1 %.3f L2 %.3f L3 %.3f (first call %.3f)\n", empty[0], empty[1],
-              empty[2], empty[3], coldEmpty);
-  RecordProperty("busy_ms_all_levels", std::to_string(busy[0] + busy[1] + busy[2] + busy[3]));
-  RecordProperty("empty_ms_level0", std::to_string(empty[0]));
-  // Loose bounds (shared CI machines); the figures above are the report.
-  EXPECT_LT(busy[0] + busy[1] + busy[2] + busy[3], 50.0);
-  EXPECT_LT(empty[0], 5.0);
-}
-
 // ------------------------------------------------------------ real data
 
 /// The frame over a lon/lat box in a UTM zone, snapped to 31.25 m posts.

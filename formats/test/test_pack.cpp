@@ -3,6 +3,7 @@
 // table of structural faults each with its message.
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -51,6 +52,29 @@ std::string hex(std::span<const std::byte> b) {
     s += d[std::to_integer<int>(x) & 15];
   }
   return s;
+}
+
+/// zlib's crc32 called directly: expected CRCs that do not come from the
+/// code under test (formats' crc32 wraps the same function).
+std::uint32_t zlibCrc(std::span<const std::byte> b) {
+  return static_cast<std::uint32_t>(
+      ::crc32(0L, reinterpret_cast<const Bytef*>(b.data()), static_cast<uInt>(b.size())));
+}
+
+/// Bytes of a hex string (two digits a byte).
+std::vector<std::byte> fromHex(const std::string& h) {
+  std::vector<std::byte> b;
+  for (std::size_t k = 0; k + 1 < h.size(); k += 2) {
+    b.push_back(static_cast<std::byte>(std::stoi(h.substr(k, 2), nullptr, 16)));
+  }
+  return b;
+}
+
+/// A u32 as 8 hex digits, little-endian.
+std::string leHex(std::uint32_t v) {
+  std::vector<std::byte> b(4);
+  storeLE(b.data(), v);
+  return hex(b);
 }
 
 IndexHeader smallHeader(std::uint32_t mx, std::uint32_t mz, std::uint32_t squares = 4,
@@ -122,47 +146,60 @@ TEST(Pack, layoutConstantsArePinned) {
 }
 
 // Golden bytes of version 1. If this fails, the format changed: bump
-// kVersion, keep a reader for version 1, and add a new golden test.
+// kVersion, keep a reader for version 1, and add a new golden test. The
+// fields are written out by hand; every CRC is computed here with zlib over
+// the bytes FORMAT.md says it covers.
 TEST(Pack, version1GoldenHeaders) {
   // Pack header: magic "SANDPACK", version 1, header 64, flags 0, codec 1
-  // (zstd), 36 reserved zero bytes, header CRC 0x1af7f5bd.
-  EXPECT_EQ(hex(encodePackHeader()),
-            "53414e445041434b"
-            "01000000"
-            "40000000"
-            "00000000"
-            "01000000"
-            "000000000000000000000000000000000000000000000000000000000000000000000000"
-            "bdf5f71a");
+  // (zstd), 36 reserved zero bytes, then the CRC of bytes 0..59.
+  const std::string packFields = "53414e445041434b"
+                                 "01000000"
+                                 "40000000"
+                                 "00000000"
+                                 "01000000"
+                                 "000000000000000000000000000000000000000000000000000000000000000000000000";
+  const std::uint32_t packHeaderCrc = zlibCrc(fromHex(packFields));
+  EXPECT_EQ(packHeaderCrc, 0x1af7f5bdu);  // the value FORMAT.md 10.1 quotes
+  const std::vector<std::byte> packHeader = fromHex(packFields + leHex(packHeaderCrc));
+  ASSERT_EQ(packHeader.size(), kPackHeaderBytes);
+  EXPECT_EQ(hex(encodePackHeader()), hex(packHeader));
+  // The index's packHeaderCrc: the CRC of all 64 bytes, its headerCrc included
+  // (FORMAT.md 10.2), which is not the pack's own headerCrc.
+  // CRC-32 over bytes followed by their own CRC is the constant residue
+  // 0x2144df1c, so every sound pack header gives this value.
+  const std::uint32_t wholePackHeaderCrc = zlibCrc(packHeader);
+  EXPECT_NE(wholePackHeaderCrc, packHeaderCrc);
+  EXPECT_EQ(wholePackHeaderCrc, 0x2144df1cu);
+
   IndexHeader h = smallHeader(3, 2, 32, 4);
   h.moduleSize = 960;
   h.packBytes = 123456;
-  h.packHeaderCrc = 0x01020304;
+  h.packHeaderCrc = wholePackHeaderCrc;
   h.tableCrc = 0xa0b0c0d0;
   const auto page = encodeIndexHeader(h);
   ASSERT_EQ(page.size(), 4096u);
   // magic "SANDIDX1", version 1, header 4096, 3 x 2 modules, 4 levels, 32
   // squares, 960.0 m, pack 123456 bytes, pack header CRC, entry 32 bytes,
-  // 6 entries, table at 4096, table CRC, reserved zeros, header CRC
-  // 0x2dea9c0a.
-  EXPECT_EQ(hex(std::span(page).first(128)),
-            "53414e4449445831"
-            "01000000"
-            "00100000"
-            "03000000"
-            "02000000"
-            "04000000"
-            "20000000"
-            "0000000000008e40"
-            "40e2010000000000"
-            "04030201"
-            "20000000"
-            "0600000000000000"
-            "0010000000000000"
-            "d0c0b0a0"
-            "000000000000000000000000000000000000000000000000"
-            "000000000000000000000000000000000000000000000000"
-            "0a9cea2d");
+  // 6 entries, table at 4096, table CRC, reserved zeros, then the CRC of
+  // bytes 0..123.
+  const std::string indexFields = "53414e4449445831"
+                                  "01000000"
+                                  "00100000"
+                                  "03000000"
+                                  "02000000"
+                                  "04000000"
+                                  "20000000"
+                                  "0000000000008e40"
+                                  "40e2010000000000" +
+                                  leHex(wholePackHeaderCrc) +
+                                  "20000000"
+                                  "0600000000000000"
+                                  "0010000000000000"
+                                  "d0c0b0a0"
+                                  "000000000000000000000000000000000000000000000000"
+                                  "000000000000000000000000000000000000000000000000";
+  ASSERT_EQ(fromHex(indexFields).size(), indexField::headerCrc);
+  EXPECT_EQ(hex(std::span(page).first(128)), indexFields + leHex(zlibCrc(fromHex(indexFields))));
   EXPECT_TRUE(
       std::all_of(page.begin() + 128, page.end(), [](std::byte b) { return b == std::byte{0}; }));
   std::vector<std::byte> entry(kEntryBytes);
@@ -176,12 +213,13 @@ TEST(Pack, version1GoldenHeaders) {
             "07000000"
             "09000000");
 
-  // The writer writes exactly these headers.
+  // The writer writes exactly these headers, and the index it writes holds
+  // the CRC of the pack's 64 header bytes.
   const std::string dir = tempDir("golden");
   writePack(dir, smallHeader(2, 1));
   const auto pack = readAll(dir + "/modules.pack");
   const auto idx = readAll(dir + "/modules.idx");
-  EXPECT_EQ(hex(std::span(pack).first(64)), hex(encodePackHeader()));
+  EXPECT_EQ(hex(std::span(pack).first(64)), hex(packHeader));
   auto back = decodeIndexHeader(idx, "idx", idx.size());
   ASSERT_TRUE(back.ok()) << back.error();
   EXPECT_EQ(back->modulesX, 2u);
@@ -189,7 +227,10 @@ TEST(Pack, version1GoldenHeaders) {
   EXPECT_EQ(back->moduleSquares, 4u);
   EXPECT_EQ(back->moduleSize, 120.0);
   EXPECT_EQ(back->packBytes, pack.size());
-  EXPECT_EQ(back->packHeaderCrc, crc32(std::span(pack).first(64)));
+  EXPECT_EQ(back->packHeaderCrc, wholePackHeaderCrc);
+  EXPECT_EQ(loadLE<std::uint32_t>(idx.data() + indexField::packHeaderCrc), zlibCrc(std::span(pack).first(64)));
+  EXPECT_EQ(loadLE<std::uint32_t>(idx.data() + indexField::headerCrc),
+            zlibCrc(std::span(idx).first(indexField::headerCrc)));
   EXPECT_EQ(hex(std::span(idx).first(4096)), hex(encodeIndexHeader(back.value())));
   fs::remove_all(dir);
 }

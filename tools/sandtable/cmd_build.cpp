@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "culture_report.h"
 #include "progress.h"
 #include "sandtable/converters/elevation.h"
 
@@ -30,6 +31,7 @@ void printModuleSummary(const convert::ElevationReport& r) {
   std::printf("  culture    %llu features on the terrain (%llu read, %llu outside), %llu warnings\n",
               count("features_landed"), count("features_read"), count("features_outside"), count("warnings"));
   for (const auto& msg : c["messages"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
+  printCultureReasons(c, "    ");
 }
 
 struct BuildArgs {

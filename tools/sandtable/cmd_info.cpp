@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "culture_report.h"
 #include "db_util.h"
 
 namespace sandtable::cli {
@@ -119,6 +120,7 @@ void printModules(const nlohmann::json& m) {
 void printCulture(const nlohmann::json& c) {
   std::printf("culture    %s features read, %s warnings, materials: %s\n", count(c, "features_read").c_str(),
               count(c, "warnings").c_str(), text(c, "materials").c_str());
+  printCultureReasons(c, "  ");
   const auto& classes = field(c, "classes");
   if (!classes.is_object()) return;
   std::printf("  %-16s %8s %8s %8s %9s %10s %10s\n", "class", "read", "dropped", "repaired", "defaulted", "km",

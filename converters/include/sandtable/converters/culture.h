@@ -70,8 +70,22 @@ struct ClassStats {
   double areaKm2 = 0;           ///< area classes: area inside the database
 };
 
+/// Features load dropped, repaired, defaulted or ignored for one reason
+/// (docs/CULTURE.md, "What load reports"): nothing is lost in silence.
+struct ReasonStats {
+  std::uint64_t count = 0;
+  std::string action;    ///< "dropped", "repaired", "defaulted" or "ignored"
+  std::string text;      ///< the reason in words
+  std::string sample;    ///< the first such feature: "SOURCE layer L feature FID"
+  bool warning = true;   ///< false for the expected ones: outside the database, an ignore rule
+};
+
 struct CultureStats {
   std::map<std::string, ClassStats> perClass;  ///< by class name
+  /// By reason key (unmatched_line, no_rule_default, self_intersecting_line,
+  /// outside, ...; the list is in docs/CULTURE.md). A feature counts once per
+  /// reason that applies to it.
+  std::map<std::string, ReasonStats> reasons;
   std::uint64_t featuresRead = 0;  ///< line and area features (points are not culture)
   std::uint64_t featuresLanded = 0;   ///< of those, on the database (kept, or default-class areas inside it)
   std::uint64_t featuresOutside = 0;  ///< of those, wholly outside the database (dropped, not a warning)
@@ -79,7 +93,7 @@ struct CultureStats {
   std::uint64_t lineVerticesKept = 0;  ///< and after simplification (what is widened)
   std::uint64_t coarsened = 0;  ///< line features simplified beyond the base tolerance to fit maxLineVertices
   std::uint64_t ignored = 0;       ///< matched an ignore rule ("-"), or an unmatched line with default-line none
-  std::uint64_t warnings = 0;      ///< defaulted, repaired and dropped features, unreadable layers
+  std::uint64_t warnings = 0;      ///< defaulted, repaired and dropped features (unmatched lines too), unreadable layers
   std::vector<std::string> messages;  ///< first few warnings, for the report
   double seconds = 0;              ///< wall time of load()
 };

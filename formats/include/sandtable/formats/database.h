@@ -36,7 +36,7 @@ Result<Database> openDatabase(const std::string& directory);
 /// the grid header and manifest agree. With load modules also: the pack
 /// (validatePack), the pack index against manifest and grid, materials.txt,
 /// and every module's geometry and its edges against its neighbours
-/// (module_check.h; docs/_validate_modules.md), at most a few problems of
+/// (module_check.h; docs/VALIDATE.md), at most a few problems of
 /// each kind per module. Empty when the database is sound.
 /// `work` reports progress by stage ("checking files", "checking grid",
 /// "checking pack", "checking modules") and may cancel: the problems found

@@ -1,6 +1,6 @@
 #pragma once
 // Exports load modules as standard meshes for inspection in other tools
-// (docs/_export.md): Wavefront OBJ + MTL, or glTF 2.0 (.gltf with the
+// (docs/EXPORT.md): Wavefront OBJ + MTL, or glTF 2.0 (.gltf with the
 // buffer embedded as base64, or binary .glb).
 //
 // Frame: metres, X east, Y up (elevation above the vertical datum, as in

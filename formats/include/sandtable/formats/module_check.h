@@ -1,6 +1,6 @@
 #pragma once
 // Geometric checks of decoded load modules against the grid they were built
-// from (docs/_validate_modules.md): every skin and decal triangle lies in
+// from (docs/VALIDATE.md): every skin and decal triangle lies in
 // its grid triangle and in that triangle's plane, the skin tiles each grid
 // triangle exactly, lattice vertices carry the grid's elevations bit for
 // bit, skirts hang along every module edge at least as deep as the worst
@@ -32,7 +32,7 @@ namespace sandtable::module {
 /// not fail spuriously).
 inline constexpr double kCheckTolerance = 1e-3;
 /// Relative tolerance of the skin-area and skirt-area sums (plus an
-/// absolute float32 rounding floor, see docs/_validate_modules.md).
+/// absolute float32 rounding floor, see docs/VALIDATE.md, "Tolerances").
 inline constexpr double kCheckAreaTolerance = 1e-6;
 /// How far maxHeight may lie above the highest vertex of its square, metres.
 inline constexpr double kCheckMaxHeightTolerance = 1e-3;

@@ -83,7 +83,7 @@ struct IndexHeader {
   std::uint32_t moduleSquares = 0;  ///< level-0 squares along a module edge, 1..65536
   double moduleSize = 0;            ///< metres along a module edge
   std::uint64_t packBytes = 0;      ///< exact size of modules.pack
-  std::uint32_t packHeaderCrc = 0;  ///< CRC-32 of the pack file's header
+  std::uint32_t packHeaderCrc = 0;  ///< CRC-32 of all 64 bytes of the pack file's header (FORMAT.md 10.2)
   std::uint32_t tableCrc = 0;       ///< CRC-32 of the entry table
 
   std::uint64_t entryCount() const { return std::uint64_t(modulesX) * modulesZ; }
