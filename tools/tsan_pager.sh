@@ -18,12 +18,12 @@ cmake -S "$src" -B "$build" -G Ninja \
   -DCMAKE_CXX_FLAGS=-fsanitize=thread \
   -DSANDTABLE_BENCH=OFF >/dev/null
 # JOBS: parallel compile jobs (default 2: the machines here are shared).
-cmake --build "$build" --target sandtable_runtime_test -j "${JOBS:-2}" || exit 2
+cmake --build "$build" --target sandtable_paging_test -j "${JOBS:-2}" || exit 2
 
 # halt_on_error=0: run every test and count every report.
 status=0
 TSAN_OPTIONS="halt_on_error=0 second_deadlock_stack=1 ${TSAN_OPTIONS:-}" \
-  "$build/runtime/sandtable_runtime_test" \
+  "$build/runtime/sandtable_paging_test" \
   --gtest_filter='StripPlanner.*:NeededSet.*:Pager.*:PagerStress.*' 2>&1 | tee "$log" || status=1
 reports=$(grep -c 'WARNING: ThreadSanitizer' "$log" || true)
 echo "tsan_pager: ThreadSanitizer reports: $reports (log: $log)"

@@ -13,7 +13,7 @@
 // seed's look): three vertices per triangle with its face normal and its
 // half's colour, indexed 0, 1, 2, ...
 //
-// Decals (docs/_culture.md, section 9): the skin (priority 1) of every
+// Decals (docs/CULTURE.md, section 9): the skin (priority 1) of every
 // module is drawn first with depth writes; then each decal priority in
 // ascending order, depth writes off, depth test GEQUAL (reversed Z) and a
 // polygon offset growing with the priority, so a decal wins against its

@@ -1,10 +1,10 @@
-// sandtable bench paging: real-time flights over a database, one per speed
-// and mode, each from a cold cache. The predictive pager is measured
-// against demand paging (no prediction) and the NPSStealth mmap mode in the
-// same run, modes interleaved so that drift on a shared machine hits all
-// three alike. Definitions (hole, degraded frame, mmap holes) and the
+// bench paging: real-time flights over a database, one per speed and mode,
+// each from a cold cache. The predictive pager is measured against demand
+// paging (no prediction), the seed's scheme and the NPSStealth mmap mode in
+// the same run, modes interleaved so that drift on a shared machine hits
+// them alike. Definitions (hole, degraded frame, mmap holes) and the
 // measured figures: docs/PAGER.md §11.
-#include "bench_paging.h"
+#include "sandtable/bench/paging.h"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -18,17 +18,15 @@
 #include <fstream>
 #include <map>
 #include <numbers>
-#include <sstream>
+#include <optional>
 #include <thread>
 
-#include <nlohmann/json.hpp>
-
-#include "db_util.h"
-#include "sandtable/render/hud.h"
-#include "sandtable/render/image.h"
+#include "paging_plot.h"
+#include "sandtable/base/stats.h"
+#include "sandtable/formats/database.h"
 #include "sandtable/paging/pager.h"
 
-namespace sandtable::cli {
+namespace sandtable::bench {
 namespace {
 
 namespace fs = std::filesystem;
@@ -37,25 +35,6 @@ using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
 constexpr double kTickHz = 60.0;
-
-struct Args {
-  std::string db;
-  double viewDistance = 10000;
-  std::vector<double> speedsKmh = {2000, 5000, 10000, 20000, 50000, 100000, 200000, 300000};
-  bool ramp = false;
-  std::string path = "straight";
-  bool json = false;
-  std::vector<std::string> plots;
-  double seconds = 8;
-  int repeat = 3;
-  std::vector<std::string> modes = {"predictive", "seed", "demand", "mmap"};
-  std::uint32_t loaders = 4;
-  std::uint32_t maxLeadStrips = 16;
-  double lookAhead = 2;
-  double halfAngle = 35;
-  double budgetMb = 2048;
-  bool warm = false;
-};
 
 // ------------------------------------------------------------------ path
 
@@ -124,7 +103,7 @@ Result<FlightPath> makePath(const std::string& kind, double w, double d, double 
     std::snprintf(msg, sizeof msg,
                   "the database is %.0f x %.0f km, too small to fly at this view distance without leaving it "
                   "(a margin of %.1f km is kept on every side); build a larger one with `sandtable bench make-db "
-                  "--size-km N` or lower --view-distance",
+                  "--size-km N` or lower PagingBenchOptions::viewDistance",
                   w / 1000, d / 1000, m / 1000);
     return Problem{"bench paging", 0, msg};
   }
@@ -138,7 +117,7 @@ Result<FlightPath> makePath(const std::string& kind, double w, double d, double 
       v.push_back({v.back()[0] + amp, up ? z0 : z0 + amp});
       up = !up;
     }
-    if (v.size() < 2) return Problem{"bench paging", 0, "the database is too narrow for a zigzag; use --path straight"};
+    if (v.size() < 2) return Problem{"bench paging", 0, "the database is too narrow for a zigzag; use PagingBenchOptions::path straight"};
     return FlightPath::polyline(std::move(v));
   }
   const double r = std::min(uw, ud) / 2;
@@ -148,7 +127,7 @@ Result<FlightPath> makePath(const std::string& kind, double w, double d, double 
 
 // --------------------------------------------------------- speed profile
 
-/// Constant speed, or (--ramp) a geometric ramp from the first to the last
+/// Constant speed, or (ramp) a geometric ramp from the first to the last
 /// speed, so that every octave of speed gets the same time.
 struct Profile {
   double v0 = 0, v1 = 0, duration = 0;  ///< m/s, m/s, s
@@ -242,13 +221,6 @@ void resetPeakRss() {
   out << "5";
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 // ----------------------------------------------------------------- holes
 
 /// mmap mode has no modules: a needed module is a hole when any page of the
@@ -325,7 +297,7 @@ struct Flight {
   double seconds = 0;
 };
 
-runtime::PagerOptions pagerOptions(const Args& a, const ModeSpec& mode) {
+runtime::PagerOptions pagerOptions(const PagingBenchOptions& a, const ModeSpec& mode, const Notes& notes) {
   runtime::PagerOptions o;
   o.mode = mode.mode;
   o.viewDistance = a.viewDistance;
@@ -334,13 +306,13 @@ runtime::PagerOptions pagerOptions(const Args& a, const ModeSpec& mode) {
   o.lookAheadScale = mode.lead ? a.lookAhead : 0;
   o.workStealing = mode.lead;  // "seed": the seed's four independent loaders
   o.memoryBudgetBytes = std::uint64_t(a.budgetMb * 1024 * 1024);
-  o.log = [](const std::string& m) { std::fprintf(stderr, "bench paging: pager: %s\n", m.c_str()); };
+  o.log = [&notes](const std::string& m) { notes.say("pager: " + m); };
   return o;
 }
 
 class FlightRunner {
  public:
-  FlightRunner(const Args& a, const Database& db, const runtime::Pager& pager) : pager_(pager) {
+  FlightRunner(const PagingBenchOptions& a, const Database& db, const runtime::Pager& pager) : pager_(pager) {
     const pack::IndexHeader& h = db.modules->header();
     edge_ = h.moduleSize;
     mx_ = h.modulesX;
@@ -415,16 +387,16 @@ void sample(const runtime::Pager& pager, FlightResult& out) {
   out.maxEstimateMs = std::max(out.maxEstimateMs, m.latencyEstimateSeconds * 1000);
 }
 
-Result<FlightResult> fly(const Args& a, const Flight& f, const FlightPath& path) {
+Result<FlightResult> fly(const PagingBenchOptions& a, const Flight& f, const FlightPath& path, const Notes& notes) {
   FlightResult out;
   if (!a.warm) {
-    dropCache(a.db);
-    out.cachedAfterDrop = cachedFraction(a.db);
+    dropCache(a.database);
+    out.cachedAfterDrop = cachedFraction(a.database);
   }
-  auto dbr = openDatabase(a.db);
+  auto dbr = openDatabase(a.database);
   if (!dbr) return dbr.problems();
   const Database db = std::move(dbr.value());
-  auto pr = runtime::Pager::open(db, pagerOptions(a, f.mode));
+  auto pr = runtime::Pager::open(db, pagerOptions(a, f.mode, notes));
   if (!pr) return pr.problems();
   runtime::Pager& pager = *pr.value();
   FlightRunner runner(a, db, pager);
@@ -472,9 +444,9 @@ Result<FlightResult> fly(const Args& a, const Flight& f, const FlightPath& path)
 /// cold cache: pread of the record, unpack (CRCs + zstd), module::decode,
 /// and the copy into reused storage that publishing does. Modules are taken
 /// along the path, as a flight meets them.
-json stageBreakdown(const Args& a, const FlightPath& path, std::size_t want) {
-  if (!a.warm) dropCache(a.db);
-  auto dbr = openDatabase(a.db);
+json stageBreakdown(const PagingBenchOptions& a, const FlightPath& path, std::size_t want) {
+  if (!a.warm) dropCache(a.database);
+  auto dbr = openDatabase(a.database);
   if (!dbr || !dbr->modules) return json::object();
   const pack::PackReader& pk = *dbr->modules;
   const pack::IndexHeader& h = pk.header();
@@ -578,12 +550,12 @@ json medianOf(const std::vector<json>& runs) {
     if (v.is_number()) {
       std::vector<double> xs;
       for (const json& r : runs) xs.push_back(r[k].get<double>());
-      v = median(xs);
+      v = stats::median(xs);
     } else if (v.is_object()) {
       for (auto& [k2, v2] : v.items()) {
         std::vector<double> xs;
         for (const json& r : runs) xs.push_back(r[k][k2].get<double>());
-        v2 = median(xs);
+        v2 = stats::median(xs);
       }
     }
   }
@@ -614,226 +586,6 @@ double maxZeroHoles(const json& speeds) {
     }
   }
   return best;
-}
-
-// ------------------------------------------------------------------ plot
-
-struct Series {
-  std::string label;
-  std::vector<std::array<double, 2>> points;  ///< speed km/h, % of frames
-  runtime::Rgb color;
-  bool dashed = false;
-};
-
-std::string speedLabel(double v) {
-  char b[32];
-  if (v >= 1e6) std::snprintf(b, sizeof b, "%gM", v / 1e6);
-  else if (v >= 1000) std::snprintf(b, sizeof b, "%gk", v / 1000);
-  else std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
-std::vector<Series> plotSeries(const json& modes) {
-  const std::map<std::string, runtime::Rgb> colors = {
-      {"predictive", {0, 114, 178}}, {"demand", {213, 94, 0}}, {"mmap", {0, 158, 115}}, {"seed", {204, 121, 167}}};
-  std::vector<Series> out;
-  for (const auto& [mode, m] : modes.items()) {
-    for (const char* what : {"hole_frames", "degraded_frames"}) {
-      if (mode == "mmap" && std::string(what) == "degraded_frames") continue;  // one level: never degraded
-      const bool holes = std::string(what) == "hole_frames";
-      std::string label = mode + (holes ? " holes" : " degraded");
-      if (holes) {
-        const double z = m["max_speed_zero_holes_kmh"].get<double>();
-        label += z > 0 ? ", 0 to " + speedLabel(z) : ", never 0";
-      }
-      Series s{label, {}, colors.at(mode), !holes};
-      for (const json& p : m["speeds"]) {
-        const double frames = p["frames"].get<double>();
-        if (frames > 0) s.points.push_back({p["speed_kmh"].get<double>(), 100 * p[what].get<double>() / frames});
-      }
-      out.push_back(std::move(s));
-    }
-  }
-  // Predictive last, so that its line at 0 % is drawn over the others.
-  std::stable_partition(out.begin(), out.end(), [](const Series& s) { return s.label.rfind("predictive", 0) != 0; });
-  return out;
-}
-
-/// Plot frame: log X (speed), linear Y (0..100 % of frames).
-struct Axes {
-  int w = 1120, h = 560, left = 80, right = 440, top = 70, bottom = 60;
-  double x0 = 1000, x1 = 1e6;
-  double px(double speed) const {
-    return left + (std::log10(speed) - std::log10(x0)) / (std::log10(x1) - std::log10(x0)) * (w - left - right);
-  }
-  double py(double pct) const { return top + (1 - pct / 100) * (h - top - bottom); }
-};
-
-Axes axesFor(const std::vector<Series>& series) {
-  Axes ax;
-  double lo = 1e12, hi = 0;
-  for (const Series& s : series) {
-    for (const auto& p : s.points) lo = std::min(lo, p[0]), hi = std::max(hi, p[0]);
-  }
-  if (hi <= 0) lo = 1000, hi = 1e6;
-  ax.x0 = std::pow(10, std::floor(std::log10(lo)));
-  ax.x1 = std::pow(10, std::ceil(std::log10(hi) - 1e-9));
-  if (ax.x1 <= ax.x0) ax.x1 = ax.x0 * 10;
-  return ax;
-}
-
-std::string svgPlot(const std::vector<Series>& series, const std::string& title) {
-  const Axes ax = axesFor(series);
-  std::ostringstream o;
-  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << ax.w << "' height='" << ax.h
-    << "' font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' fill='white'/>\n";
-  o << "<text x='" << ax.left << "' y='28' font-size='15'>" << title << "</text>\n";
-  const double xr = ax.w - ax.right, yb = ax.h - ax.bottom;
-  for (int pct = 0; pct <= 100; pct += 20) {
-    o << "<line x1='" << ax.left << "' y1='" << ax.py(pct) << "' x2='" << xr << "' y2='" << ax.py(pct)
-      << "' stroke='#ddd'/>\n<text x='" << ax.left - 8 << "' y='" << ax.py(pct) + 4 << "' text-anchor='end'>" << pct
-      << "%</text>\n";
-  }
-  for (double v = ax.x0; v <= ax.x1 * 1.0001; v *= 10) {
-    for (int m = 1; m < 10 && v * m <= ax.x1 * 1.0001; ++m) {
-      const double x = ax.px(v * m);
-      o << "<line x1='" << x << "' y1='" << ax.top << "' x2='" << x << "' y2='" << yb << "' stroke='"
-        << (m == 1 ? "#bbb" : "#eee") << "'/>\n";
-      if (m == 1 || m == 2 || m == 5) {
-        o << "<text x='" << x << "' y='" << yb + 18 << "' text-anchor='middle'>" << speedLabel(v * m) << "</text>\n";
-      }
-    }
-  }
-  o << "<rect x='" << ax.left << "' y='" << ax.top << "' width='" << xr - ax.left << "' height='" << yb - ax.top
-    << "' fill='none' stroke='black'/>\n";
-  o << "<text x='" << (ax.left + xr) / 2 << "' y='" << ax.h - 18 << "' text-anchor='middle'>speed, km/h (log)</text>\n";
-  o << "<text transform='translate(20," << (ax.top + yb) / 2
-    << ") rotate(-90)' text-anchor='middle'>frames with a hole / degraded, % of frames</text>\n";
-  int ly = ax.top + 10;
-  for (const Series& s : series) {
-    char rgb[16];
-    std::snprintf(rgb, sizeof rgb, "#%02x%02x%02x", s.color.r, s.color.g, s.color.b);
-    const std::string dash = s.dashed ? " stroke-dasharray='6,4'" : "";
-    o << "<polyline fill='none' stroke='" << rgb << "' stroke-width='2'" << dash << " points='";
-    for (const auto& p : s.points) o << ax.px(p[0]) << "," << ax.py(p[1]) << " ";
-    o << "'/>\n";
-    for (const auto& p : s.points) {
-      o << "<circle cx='" << ax.px(p[0]) << "' cy='" << ax.py(p[1]) << "' r='3' fill='" << rgb << "'/>\n";
-    }
-    o << "<line x1='" << xr + 15 << "' y1='" << ly << "' x2='" << xr + 45 << "' y2='" << ly << "' stroke='" << rgb
-      << "' stroke-width='2'" << dash << "/>\n<text x='" << xr + 52 << "' y='" << ly + 4 << "'>" << s.label
-      << "</text>\n";
-    ly += 20;
-  }
-  o << "</svg>\n";
-  return o.str();
-}
-
-void dot(runtime::Image& img, int x, int y, runtime::Rgb c) {
-  if (x < 0 || y < 0 || x >= int(img.width) || y >= int(img.height)) return;
-  const std::size_t k = (std::size_t(y) * img.width + std::size_t(x)) * 4;
-  img.rgba[k] = c.r, img.rgba[k + 1] = c.g, img.rgba[k + 2] = c.b, img.rgba[k + 3] = 255;
-}
-
-/// A line two pixels wide; `dashed` leaves gaps every 6 pixels.
-void line(runtime::Image& img, double x0, double y0, double x1, double y1, runtime::Rgb c, bool dashed = false) {
-  const double len = std::max(1.0, std::hypot(x1 - x0, y1 - y0));
-  for (double t = 0; t <= len; t += 0.5) {
-    if (dashed && int(t) % 10 >= 6) continue;
-    const double x = x0 + (x1 - x0) * t / len, y = y0 + (y1 - y0) * t / len;
-    for (int dy = 0; dy < 2; ++dy)
-      for (int dx = 0; dx < 2; ++dx) dot(img, int(x) + dx, int(y) + dy, c);
-  }
-}
-
-std::string pngPlot(const std::string& file, const std::vector<Series>& series, const std::string& title) {
-  const Axes ax = axesFor(series);
-  runtime::Image img{std::uint32_t(ax.w), std::uint32_t(ax.h), {}};
-  img.rgba.assign(std::size_t(ax.w) * ax.h * 4, 255);
-  const runtime::Rgb grey{200, 200, 200}, black{0, 0, 0};
-  const double xr = ax.w - ax.right, yb = ax.h - ax.bottom;
-  for (int pct = 0; pct <= 100; pct += 20) {
-    line(img, ax.left, ax.py(pct), xr, ax.py(pct), grey);
-    const std::string t = std::to_string(pct) + "%";
-    runtime::drawText(img, ax.left - 8 - runtime::textWidth(t, 2), int(ax.py(pct)) - 7, t, 2, black);
-  }
-  for (double v = ax.x0; v <= ax.x1 * 1.0001; v *= 10) {
-    line(img, ax.px(v), ax.top, ax.px(v), yb, grey);
-    const std::string t = speedLabel(v);
-    runtime::drawText(img, int(ax.px(v)) - runtime::textWidth(t, 2) / 2, int(yb) + 8, t, 2, black);
-  }
-  line(img, ax.left, ax.top, xr, ax.top, black);
-  line(img, ax.left, yb, xr, yb, black);
-  line(img, ax.left, ax.top, ax.left, yb, black);
-  line(img, xr, ax.top, xr, yb, black);
-  runtime::drawText(img, ax.left, 14, title, 2, black);
-  runtime::drawText(img, int(ax.left + xr) / 2 - 100, ax.h - 28, "SPEED KM/H (LOG)", 2, black);
-  runtime::drawText(img, ax.left - 60, ax.top - 32, "% OF FRAMES", 2, black);
-  int ly = ax.top + 10;
-  for (const Series& s : series) {
-    for (std::size_t i = 1; i < s.points.size(); ++i) {
-      line(img, ax.px(s.points[i - 1][0]), ax.py(s.points[i - 1][1]), ax.px(s.points[i][0]), ax.py(s.points[i][1]),
-           s.color, s.dashed);
-    }
-    for (const auto& p : s.points) {
-      for (int dy = -3; dy <= 3; ++dy)
-        for (int dx = -3; dx <= 3; ++dx) dot(img, int(ax.px(p[0])) + dx, int(ax.py(p[1])) + dy, s.color);
-    }
-    line(img, xr + 10, ly, xr + 40, ly, s.color, s.dashed);
-    runtime::drawText(img, int(xr) + 46, ly - 6, s.label, 2, black);
-    ly += 22;
-  }
-  return runtime::writePng(file, img);
-}
-
-std::string writePlot(const std::string& file, const json& modes, const std::string& title) {
-  const std::vector<Series> series = plotSeries(modes);
-  const std::string ext = fs::path(file).extension().string();
-  if (ext == ".png") return pngPlot(file, series, title);
-  std::ofstream out(file);
-  out << svgPlot(series, title);
-  return out ? "" : "cannot write " + file;
-}
-
-// ----------------------------------------------------------------- report
-
-void printHuman(const json& j) {
-  std::printf("bench paging: %s, %s path, view distance %.0f m, %s, median of %d\n",
-              j["database"].get<std::string>().c_str(), j["path"].get<std::string>().c_str(),
-              j["view_distance_m"].get<double>(), j["cold_cache"].get<bool>() ? "cold cache" : "warm cache",
-              j["repeat"].get<int>());
-  std::printf("%-10s %9s %6s %6s %7s %7s %8s %8s %8s %8s %7s %7s %6s\n", "mode", "km/h", "sec", "frames", "holes",
-              "degr.", "p50 ms", "p99 ms", "max ms", "mod/s", "MB/s", "RSS MB", "lead");
-  for (const std::string mode : {"predictive", "seed", "demand", "mmap"}) {
-    if (!j["modes"].contains(mode)) continue;
-    const json& m = j["modes"][mode];
-    for (const json& s : m["speeds"]) {
-      const double rate = s.contains("modules_per_s") ? s["modules_per_s"].get<double>() : s["blocks_per_s"].get<double>();
-      std::printf("%-10s %9.0f %6.2f %6.0f %7.0f %7.0f %8.1f %8.1f %8.1f %8.0f %7.1f %7.0f %6.0f\n", mode.c_str(),
-                  s["speed_kmh"].get<double>(), s["seconds_flown"].get<double>(), s["frames"].get<double>(),
-                  s["hole_frames"].get<double>(), s["degraded_frames"].get<double>(), s["latency_ms"]["p50"].get<double>(),
-                  s["latency_ms"]["p99"].get<double>(), s["latency_ms"]["max"].get<double>(), rate,
-                  s[mode == "mmap" ? "disk_mb_per_s" : "mb_per_s"].get<double>(), s["peak_rss_mb"].get<double>(),
-                  s["lead_strips_max"].get<double>());
-    }
-    std::printf("%-10s highest speed with zero hole frames (every repeat): %.0f km/h; under 1%% of frames: %.0f km/h\n",
-                mode.c_str(), m["max_speed_zero_holes_kmh"].get<double>(),
-                m["max_speed_under_1pct_hole_frames_kmh"].get<double>());
-  }
-  for (const auto& [k, v] : j["ratios"].items()) {
-    if (v.is_number()) std::printf("ratio %s: %.1f\n", k.c_str(), v.get<double>());
-    else std::printf("ratio %s: %s\n", k.c_str(), v.get<std::string>().c_str());
-  }
-  if (const json& st = j["stages"]; !st.empty()) {
-    std::printf("one load, one core, %s (%llu modules along the path, %.1f kB compressed, %.1f kB raw): pread %.0f us,"
-                " unpack (CRC + zstd) %.0f us, decode %.0f us, copy %.0f us = %.0f us, %.0f modules/s\n",
-                st["cold_cache"].get<bool>() ? "cold cache" : "warm", static_cast<unsigned long long>(st["modules"].get<std::uint64_t>()),
-                st["compressed_kb_mean"].get<double>(), st["raw_kb_mean"].get<double>(), st["pread_us"].get<double>(),
-                st["unpack_us"].get<double>(), st["decode_us"].get<double>(), st["copy_us"].get<double>(),
-                st["total_us"].get<double>(), st["modules_per_s_one_core"].get<double>());
-  }
-  std::printf("(mmap: mod/s is grid blocks prefetched per second, MB/s is disk reads; holes are needed modules whose\n"
-              " grid pages are not in the page cache; mmap has one level, so never a degraded frame)\n");
 }
 
 /// predictive / baseline for both speed criteria; a baseline that met a
@@ -871,43 +623,52 @@ std::optional<ModeSpec> modeOf(const std::string& s) {
   return std::nullopt;
 }
 
-std::string checkArgs(Args& a, const Database& db) {
-  if (!db.modules) return a.db + " has no load modules; build one with `sandtable bench make-db`";
-  if (a.speedsKmh.empty()) return "--speeds needs at least one speed";
+/// "" or what is wrong; sorts and deduplicates the speeds.
+std::string checkOptions(PagingBenchOptions& a, const Database& db) {
+  if (!db.modules) return a.database + " has no load modules; build one with `sandtable bench make-db`";
+  if (a.speedsKmh.empty()) return "PagingBenchOptions::speedsKmh needs at least one speed";
   for (double s : a.speedsKmh) {
-    if (!(s > 0) || !std::isfinite(s)) return "--speeds: every speed must be > 0 km/h";
+    if (!(s > 0) || !std::isfinite(s)) return "PagingBenchOptions::speedsKmh: every speed must be > 0 km/h";
   }
   std::sort(a.speedsKmh.begin(), a.speedsKmh.end());
   a.speedsKmh.erase(std::unique(a.speedsKmh.begin(), a.speedsKmh.end()), a.speedsKmh.end());
   for (const std::string& m : a.modes) {
-    if (!modeOf(m)) return "--modes: unknown mode '" + m + "' (predictive, seed, demand, mmap)";
+    if (!modeOf(m)) return "PagingBenchOptions::modes: unknown mode '" + m + "' (predictive, seed, demand, mmap)";
   }
   for (const std::string& plot : a.plots) {
     const std::string ext = fs::path(plot).extension().string();
-    if (ext != ".png" && ext != ".svg") return "--plot " + plot + ": the file must end in .png or .svg";
+    if (ext != ".png" && ext != ".svg") {
+      return "PagingBenchOptions::plots " + plot + ": the file must end in .png or .svg";
+    }
   }
   return "";
 }
 
-int runBench(Args& a) {
-  auto db = openOrReport("bench paging", a.db);
-  if (!db) return kUsage;
-  if (const std::string err = checkArgs(a, *db); !err.empty()) return usageError("bench paging", err);
-  const pack::IndexHeader h = db->modules->header();
-  const double w = h.modulesX * h.moduleSize, d = h.modulesZ * h.moduleSize;
-  const double margin = a.viewDistance + (a.maxLeadStrips + 2) * h.moduleSize;
-  auto path = makePath(a.path, w, d, margin, h.moduleSize);
-  if (!path) return usageError("bench paging", path.error());
-  db.reset();  // a mapped grid would keep its pages in the cache
-
-  const json stages = stageBreakdown(a, path.value(), 400);
+std::vector<Flight> flightsOf(const PagingBenchOptions& a) {
   std::vector<Flight> flights;
   for (const std::string& m : a.modes) {
     if (a.ramp) flights.push_back({*modeOf(m), a.speedsKmh, a.seconds * double(a.speedsKmh.size())});
     else for (double s : a.speedsKmh) flights.push_back({*modeOf(m), {s}, a.seconds});
   }
-  // runs[mode][speed] = one json per repeat
-  std::map<std::string, std::map<double, std::vector<json>>> runs;
+  return flights;
+}
+
+/// runs[mode][speed] = one json per repeat
+using Runs = std::map<std::string, std::map<double, std::vector<json>>>;
+
+std::string binNote(std::size_t done, std::size_t total, const Flight& f, const Bin& b, const FlightResult& r) {
+  char line[300];
+  std::snprintf(line, sizeof line, "[%zu/%zu] %-10s %8.0f km/h  %5.2f s  %4llu/%llu hole frames, %llu degraded%s",
+                done, total, f.mode.name.c_str(), b.speedKmh, b.seconds,
+                static_cast<unsigned long long>(b.holeFrames), static_cast<unsigned long long>(b.frames),
+                static_cast<unsigned long long>(b.degradedFrames),
+                r.cachedAfterDrop > 0.01 ? "  (warning: cache not dropped)" : "");
+  return line;
+}
+
+Result<Runs> flyAll(const PagingBenchOptions& a, const std::vector<Flight>& flights, const FlightPath& path,
+                    const Notes& notes) {
+  Runs runs;
   const std::size_t total = flights.size() * std::size_t(a.repeat);
   std::size_t done = 0;
   for (int rep = 0; rep < a.repeat; ++rep) {
@@ -919,39 +680,38 @@ int runBench(Args& a) {
     });
     for (std::size_t i : order) {
       const Flight& f = flights[i];
-      auto r = fly(a, f, path.value());
-      if (!r) {
-        reportProblems("bench paging", r.problems());
-        return kUsage;
-      }
+      auto r = fly(a, f, path, notes);
+      if (!r) return r.problems();
       ++done;
       for (const Bin& b : r->bins) {
         const double share = r->seconds > 0 ? b.seconds / r->seconds : 0;
         runs[f.mode.name][b.speedKmh].push_back(binJson(b, r.value(), std::min(1.0, share)));
-        {
-          std::fprintf(stderr, "bench paging: [%zu/%zu] %-10s %8.0f km/h  %5.2f s  %4llu/%llu hole frames, %llu degraded%s\n",
-                       done, total, f.mode.name.c_str(), b.speedKmh, b.seconds,
-                       static_cast<unsigned long long>(b.holeFrames), static_cast<unsigned long long>(b.frames),
-                       static_cast<unsigned long long>(b.degradedFrames),
-                       r->cachedAfterDrop > 0.01 ? "  (warning: cache not dropped)" : "");
-        }
+        notes.say(binNote(done, total, f, b, r.value()));
       }
     }
   }
+  return runs;
+}
+
+json modesJson(const Runs& runs) {
   json modes = json::object();
-  for (auto& [mode, bySpeed] : runs) {
+  for (const auto& [mode, bySpeed] : runs) {
     json speeds = json::array();
-    for (auto& [speed, rs] : bySpeed) speeds.push_back(medianOf(rs));
+    for (const auto& [speed, rs] : bySpeed) speeds.push_back(medianOf(rs));
     modes[mode] = {{"speeds", speeds},
                    {"max_speed_zero_holes_kmh", maxZeroHoles(speeds)},
                    {"max_speed_under_1pct_hole_frames_kmh", maxUnderOnePercent(speeds)}};
   }
-  json j = {{"database", a.db},
+  return modes;
+}
+
+json reportJson(const PagingBenchOptions& a, const pack::IndexHeader& h, const FlightPath& path, const json& modes) {
+  json j = {{"database", a.database},
             {"modules", {{"x", h.modulesX}, {"z", h.modulesZ}, {"edge_m", h.moduleSize}, {"levels", h.levels}}},
             {"view_distance_m", a.viewDistance},
             {"half_angle_deg", a.halfAngle},
             {"path", a.path},
-            {"path_length_km", path->length() / 1000},
+            {"path_length_km", path.length() / 1000},
             {"ramp", a.ramp},
             {"repeat", a.repeat},
             {"seconds_per_speed", a.seconds},
@@ -963,64 +723,49 @@ int runBench(Args& a) {
             {"cpus", std::thread::hardware_concurrency()},
             {"modes", modes}};
   j["ratios"] = ratios(modes);
-  j["stages"] = stages;
+  return j;
+}
+
+std::string writePlots(const PagingBenchOptions& a, const json& modes) {
   for (const std::string& plot : a.plots) {
     char title[160];
     std::snprintf(title, sizeof title, "bench paging: %s path, vd %.0f km, %s", a.path.c_str(), a.viewDistance / 1000,
                   a.warm ? "warm" : "cold cache");
-    if (const std::string err = writePlot(plot, modes, title); !err.empty()) {
-      return usageError("bench paging", "--plot: " + err);
-    }
+    if (const std::string err = writePlot(plot, modes, title); !err.empty()) return err;
   }
-  if (a.json) std::printf("%s\n", j.dump(2).c_str());
-  else printHuman(j);
-  return kOk;
+  return "";
 }
 
 }  // namespace
 
-void registerBenchPaging(CLI::App& bench, Commands& c) {
-  auto a = std::make_shared<Args>();
-  auto* sub = bench.add_subcommand("paging", "Fly in real time at a list of speeds: predictive pager vs demand vs mmap");
-  sub->footer(
-      "Example:\n  sandtable bench paging out/bench-db --view-distance 10000 --speeds 2000,20000,200000 --plot paging.svg\n"
-      "Each speed and mode is one real-time flight at 60 Hz from a cold cache (posix_fadvise DONTNEED on every\n"
-      "database file) along a path that never revisits a module. Every tick counts the modules under the view\n"
-      "triangle that are not resident (holes) or only coarser than needed (degraded). See docs/PAGER.md.");
-  sub->add_option("DB", a->db, "Database directory (with load modules)")->required();
-  sub->add_option("--view-distance", a->viewDistance, "View distance, metres")
-      ->default_val(10000)
-      ->check(CLI::Range(100.0, 100000.0));
-  sub->add_option("--speeds", a->speedsKmh, "Speeds in km/h, comma separated")
-      ->delimiter(',')
-      ->default_str("2000,5000,10000,20000,50000,100000,200000,300000");
-  sub->add_flag("--ramp", a->ramp, "One flight per mode with the speed rising geometrically through the list");
-  sub->add_option("--path", a->path, "Flight path")->default_val("straight")->check(CLI::IsMember({"straight", "zigzag", "circle"}));
-  sub->add_option("--seconds", a->seconds, "Seconds per speed (capped by what the path allows)")
-      ->default_val(8)
-      ->check(CLI::Range(0.5, 600.0));
-  sub->add_option("--repeat", a->repeat, "Flights per speed and mode (median reported)")->default_val(3)->check(CLI::Range(1, 50));
-  sub->add_option("--modes", a->modes,
-                  "Modes, comma separated: predictive, seed (the seed's strips, no lead), demand, mmap")
-      ->delimiter(',')
-      ->default_str("predictive,seed,demand,mmap");
-  sub->add_option("--loaders", a->loaders, "Loader threads (1..4)")->default_val(4)->check(CLI::Range(1, 4));
-  sub->add_option("--max-lead-strips", a->maxLeadStrips, "Most strips loaded ahead on one axis (0..16)")
-      ->default_val(16)
-      ->check(CLI::Range(0, 16));
-  sub->add_option("--look-ahead", a->lookAhead, "Lead time as a multiple of the loaders' latency estimate")
-      ->default_val(2)
-      ->check(CLI::NonNegativeNumber);
-  sub->add_option("--half-angle", a->halfAngle, "Half the view triangle's ground angle, degrees")
-      ->default_val(35)
-      ->check(CLI::Range(1.0, 89.0));
-  sub->add_option("--budget-mb", a->budgetMb, "Pager memory budget, MiB")->default_val(2048)->check(CLI::PositiveNumber);
-  sub->add_flag("--warm", a->warm, "Keep the page cache (skip the cold-cache drop)");
-  sub->add_flag("--json", a->json, "Print one JSON object");
-  sub->add_option("--plot", a->plots, "Write holes and degraded frames against speed, FILE.png or FILE.svg (repeatable)")
-      ->take_all()
-      ->allow_extra_args(false);
-  c.add(sub, [a] { return runBench(*a); });
+Result<PagingBenchReport> runPagingBench(const PagingBenchOptions& options, const Notes& notes) {
+  PagingBenchOptions a = options;
+  pack::IndexHeader h;
+  {
+    auto db = openDatabase(a.database);
+    if (!db) return db.problems();
+    if (const std::string err = checkOptions(a, db.value()); !err.empty()) return Problem{"", 0, err};
+    h = db->modules->header();
+  }  // closed: a mapped grid would keep its pages in the cache
+  const double w = h.modulesX * h.moduleSize, d = h.modulesZ * h.moduleSize;
+  const double margin = a.viewDistance + (a.maxLeadStrips + 2) * h.moduleSize;
+  auto path = makePath(a.path, w, d, margin, h.moduleSize);
+  if (!path) return path.problems();
+
+  const json stages = stageBreakdown(a, path.value(), 400);
+  auto runs = flyAll(a, flightsOf(a), path.value(), notes);
+  if (!runs) return runs.problems();
+  const json modes = modesJson(runs.value());
+  PagingBenchReport report;
+  for (const auto& [mode, m] : modes.items()) {
+    report.maxSpeedZeroHolesKmh[mode] = m["max_speed_zero_holes_kmh"].get<double>();
+  }
+  report.json = reportJson(a, h, path.value(), modes);
+  report.json["stages"] = stages;
+  if (const std::string err = writePlots(a, modes); !err.empty()) {
+    return Problem{"", 0, "PagingBenchOptions::plots: " + err};
+  }
+  return report;
 }
 
-}  // namespace sandtable::cli
+}  // namespace sandtable::bench

@@ -1,10 +1,10 @@
-// sandtable bench build: grid conversion speed, ours against gdalwarp.
+// bench build: grid conversion speed, ours against gdalwarp.
 //
 // Both sides convert the same DTED2 sources onto the same target grid (CRS,
 // extent, post spacing) in one run. Measurements alternate between the sides
 // and every one is repeated, reporting the median, because the machine is
 // shared and noisy: a burst of load then falls on both sides alike.
-#include "bench_build.h"
+#include "sandtable/bench/build.h"
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -13,10 +13,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
@@ -30,19 +30,17 @@
 #include <stdexcept>
 #include <thread>
 
-#include <nlohmann/json.hpp>
-
+#include "sandtable/base/stats.h"
 #include "sandtable/converters/elevation.h"
 
 extern char** environ;
 
-namespace sandtable::cli {
+namespace sandtable::bench {
 namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-constexpr const char* kCmd = "bench build";
 /// The issue asks for a target of at least this many posts a side.
 constexpr std::uint32_t kMinPostsPerAxis = 5000;
 /// The UTM grid is the largest rectangle inside the projected lon/lat square
@@ -50,17 +48,6 @@ constexpr std::uint32_t kMinPostsPerAxis = 5000;
 /// This margin on the synthesized square keeps the grid >= 5000 posts
 /// (measured: a 161 km square at 42.3 N gives 5265 x 5246 posts at 30 m).
 constexpr double kInnerMargin = 1.04;
-
-struct Args {
-  std::string input;
-  double sizeKm = 0;  ///< 0: just enough for kMinPostsPerAxis at the spacing
-  double spacing = 30;
-  std::vector<std::string> kernels{"bilinear", "weighted"};
-  int repeat = 3;
-  int threads = 0;
-  bool json = false;
-  bool keep = false;
-};
 
 /// A benchmark step failed; the message is for the user as it stands.
 struct BenchError : std::runtime_error {
@@ -76,7 +63,7 @@ struct Sample {
   std::vector<std::pair<std::string, double>> stages;
 };
 
-/// One of our kernels as --kernels names it. "bilinear" keeps GDAL's
+/// One of our kernels as BuildBenchOptions::kernels names it. "bilinear" keeps GDAL's
 /// samples (fit "posts"): GDALWarp's bilinear kernel, as gdalwarp -r
 /// bilinear, reading our in-memory source image instead of the VRT;
 /// "bilinear-triangles" adds the least-squares triangle fit that
@@ -116,17 +103,15 @@ struct Gdal {
 
 // ------------------------------------------------------------ small helpers
 
-/// Progress lines go to stderr, so stdout stays the report (or the JSON).
-__attribute__((format(printf, 1, 2))) void note(const char* format, ...) {
+/// Progress lines go to the caller, so its stdout stays the report.
+__attribute__((format(printf, 2, 3))) void note(const Notes& notes, const char* format, ...) {
+  char line[1024];
   std::va_list args;
   va_start(args, format);
-  std::fputs("bench: ", stderr);
-  std::vfprintf(stderr, format, args);
-  std::fputc('\n', stderr);
+  std::vsnprintf(line, sizeof line, format, args);
   va_end(args);
+  notes.say(line);
 }
-
-void onSignal(int) { convert::requestCancel(); }
 
 void throwIfCancelled() {
   if (convert::cancelRequested()) throw BenchError("cancelled");
@@ -134,17 +119,10 @@ void throwIfCancelled() {
 
 double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 double medianOf(const std::vector<Sample>& s, double Sample::*field) {
   std::vector<double> v;
   for (const auto& x : s) v.push_back(x.*field);
-  return median(v);
+  return stats::median(v);
 }
 
 double cpuSeconds(const rusage& ru) {
@@ -198,7 +176,7 @@ std::string lastLines(const fs::path& file, std::size_t count) {
   return out;
 }
 
-/// A fresh directory under $TMPDIR, removed at the end unless --keep.
+/// A fresh directory under $TMPDIR, removed at the end unless BuildBenchOptions::keep.
 class WorkDir {
  public:
   explicit WorkDir(bool keep) : keep_(keep) {
@@ -283,7 +261,8 @@ Sample runProcess(const std::vector<std::string>& argv, const fs::path& log) {
   return s;
 }
 
-fs::path selfExecutable() {
+fs::path synthExecutable(const BuildBenchOptions& a) {
+  if (!a.synthExecutable.empty()) return a.synthExecutable;
   std::error_code ec;
   fs::path p = fs::read_symlink("/proc/self/exe", ec);
   return ec ? fs::path("/proc/self/exe") : p;
@@ -305,24 +284,24 @@ std::array<double, 4> synthBounds(const fs::path& synthJson) {
 
 double autoSizeKm(double spacing) { return std::ceil(kMinPostsPerAxis * spacing * kInnerMargin / 1000.0); }
 
-/// Uses --input (its dted2/ tree when there is one, and the square from
+/// Uses the input (its dted2/ tree when there is one, and the square from
 /// its synth.json), or synthesizes a square with this same binary.
-Input prepareInput(const Args& a, const fs::path& work) {
+Input prepareInput(const BuildBenchOptions& a, const fs::path& work, const Notes& notes) {
   Input in;
   fs::path dir = a.input;
   if (a.input.empty()) {
     dir = work / "synth";
     const double km = a.sizeKm > 0 ? a.sizeKm : autoSizeKm(a.spacing);
-    note("synthesizing a %.0f km square into %s (not timed)", km, dir.c_str());
+    note(notes, "synthesizing a %.0f km square into %s (not timed)", km, dir.c_str());
     const auto t0 = Clock::now();
-    runProcess({selfExecutable().string(), "synth", "-o", dir.string(), "--size-km", fmt(km), "--threads",
+    runProcess({synthExecutable(a).string(), "synth", "-o", dir.string(), "--size-km", fmt(km), "--threads",
                 std::to_string(a.threads)},
                work / "synth.log");
-    note("synthesized in %.1f s", seconds(t0));
+    note(notes, "synthesized in %.1f s", seconds(t0));
     in.description = "synthesized " + fmt(km) + " km square, DTED2 (1 arc-second)";
   } else {
-    if (!fs::is_directory(dir)) throw BenchError("--input " + a.input + " is not a directory");
-    in.description = "--input " + a.input;
+    if (!fs::is_directory(dir)) throw BenchError("BuildBenchOptions::input " + a.input + " is not a directory");
+    in.description = "BuildBenchOptions::input " + a.input;
   }
   in.sources = fs::is_directory(dir / "dted2") ? dir / "dted2" : dir;
   if (fs::exists(dir / "synth.json")) in.extent = synthBounds(dir / "synth.json");
@@ -337,7 +316,7 @@ Input prepareInput(const Args& a, const fs::path& work) {
 /// One full in-process build (sources to published database, as
 /// `sandtable build` does it), wall-clocked. The previous output is removed
 /// before the clock starts so deleting it is not timed.
-Sample runOurs(const Args& a, const Input& in, const std::string& kernel, const fs::path& out, TargetGrid* grid) {
+Sample runOurs(const BuildBenchOptions& a, const Input& in, const std::string& kernel, const fs::path& out, TargetGrid* grid) {
   std::error_code ec;
   fs::remove_all(out, ec);
   const OurKernel k = ourKernel(kernel);
@@ -458,36 +437,37 @@ struct Measurements {
 
 /// The untimed warm-up: one run of each side, so both read the sources from
 /// the page cache in the timed runs. Ours also fixes the target grid.
-TargetGrid warmUp(const Args& a, const Input& in, Gdal& g, const fs::path& work) {
+TargetGrid warmUp(const BuildBenchOptions& a, const Input& in, Gdal& g, const fs::path& work, const Notes& notes) {
   TargetGrid grid;
-  note("warm-up (untimed): ours, %s", a.kernels.front().c_str());
+  note(notes, "warm-up (untimed): ours, %s", a.kernels.front().c_str());
   runOurs(a, in, a.kernels.front(), work / ("ours-" + a.kernels.front()), &grid);
   prepareGdal(g, in, grid, work);
   const std::string k = comparableKernels(a.kernels.front()).front();
-  note("warm-up (untimed): gdalwarp -r %s -multi", k.c_str());
+  note(notes, "warm-up (untimed): gdalwarp -r %s -multi", k.c_str());
   runGdalwarp(g, grid, k, true, a.threads, work / ("gdalwarp-" + k + "-mt"));
   return grid;
 }
 
 /// Repeats alternate the sides kernel by kernel; each gdalwarp kernel runs
 /// once per repeat even when two of our kernels compare against it.
-Measurements measure(const Args& a, const Input& in, const Gdal& g, const TargetGrid& grid, const fs::path& work) {
+Measurements measure(const BuildBenchOptions& a, const Input& in, const Gdal& g, const TargetGrid& grid,
+                     const fs::path& work, const Notes& notes) {
   Measurements m;
   for (int r = 1; r <= a.repeat; ++r) {
     std::vector<std::string> warped;
     for (const auto& k : a.kernels) {
       const Sample s = runOurs(a, in, k, work / ("ours-" + k), nullptr);
       m.ours[k].push_back(s);
-      note("repeat %d/%d  ours      %-8s %7.2f s (resampling %.2f s)", r, a.repeat, k.c_str(), s.wallS, s.resampleS);
+      note(notes, "repeat %d/%d  ours      %-8s %7.2f s (resampling %.2f s)", r, a.repeat, k.c_str(), s.wallS, s.resampleS);
       for (const auto& gk : comparableKernels(k)) {
         if (std::find(warped.begin(), warped.end(), gk) != warped.end()) continue;
         warped.push_back(gk);
         const Sample s1 = runGdalwarp(g, grid, gk, false, a.threads, work / ("gdalwarp-" + gk + "-1t"));
         m.warp1t[gk].push_back(s1);
-        note("repeat %d/%d  gdalwarp  %-8s %7.2f s (1 thread)", r, a.repeat, gk.c_str(), s1.wallS);
+        note(notes, "repeat %d/%d  gdalwarp  %-8s %7.2f s (1 thread)", r, a.repeat, gk.c_str(), s1.wallS);
         const Sample sm = runGdalwarp(g, grid, gk, true, a.threads, work / ("gdalwarp-" + gk + "-mt"));
         m.warpMt[gk].push_back(sm);
-        note("repeat %d/%d  gdalwarp  %-8s %7.2f s (-multi)", r, a.repeat, gk.c_str(), sm.wallS);
+        note(notes, "repeat %d/%d  gdalwarp  %-8s %7.2f s (-multi)", r, a.repeat, gk.c_str(), sm.wallS);
       }
     }
   }
@@ -495,13 +475,6 @@ Measurements measure(const Args& a, const Input& in, const Gdal& g, const Target
 }
 
 // ------------------------------------------------------------ report
-
-struct Row {
-  std::string kernel, warpKernel;
-  double oursS, oursResampleS, oursCpuS, warp1tS, warp1tCpuS, warpMtS, warpMtCpuS;
-  std::vector<double> oursSamples, warp1tSamples, warpMtSamples;
-  std::vector<std::pair<std::string, double>> oursStages;  ///< median seconds per stage
-};
 
 /// Median of each stage over the runs, in the order the stages ran.
 std::vector<std::pair<std::string, double>> medianStages(const std::vector<Sample>& runs) {
@@ -513,7 +486,7 @@ std::vector<std::pair<std::string, double>> medianStages(const std::vector<Sampl
         if (n == name) v.push_back(sec);
       }
     }
-    out.emplace_back(name, median(v));
+    out.emplace_back(name, stats::median(v));
   }
   return out;
 }
@@ -524,8 +497,8 @@ std::vector<double> walls(const std::vector<Sample>& s) {
   return v;
 }
 
-std::vector<Row> rows(const Args& a, const Measurements& m) {
-  std::vector<Row> out;
+std::vector<BuildBenchRow> rows(const BuildBenchOptions& a, const Measurements& m) {
+  std::vector<BuildBenchRow> out;
   for (const auto& k : a.kernels) {
     const auto& o = m.ours.at(k);
     for (const auto& gk : comparableKernels(k)) {
@@ -539,20 +512,11 @@ std::vector<Row> rows(const Args& a, const Measurements& m) {
   return out;
 }
 
-struct Context {
-  const Args& args;
-  const Input& input;
-  const Gdal& gdal;
-  const TargetGrid& grid;
-  double loadStart, loadEnd;
-};
-
-std::string threadsText(int threads) { return threads > 0 ? std::to_string(threads) : "all (" + std::to_string(cpuCount()) + ")"; }
-
-void printJson(const Context& c, const std::vector<Row>& rs) {
-  const double posts = static_cast<double>(c.grid.posts());
+/// The report as `--json` prints it; `source` and `threads` as given.
+nlohmann::json toJson(const BuildBenchOptions& a, const BuildBenchReport& rep) {
+  const double posts = static_cast<double>(rep.grid.posts());
   nlohmann::json results = nlohmann::json::array();
-  for (const auto& r : rs) {
+  for (const auto& r : rep.rows) {
     results.push_back({{"kernel", r.kernel},
                        {"ours_s", r.oursS},
                        {"ours_posts_per_s", posts / r.oursS},
@@ -573,100 +537,26 @@ void printJson(const Context& c, const std::vector<Row>& rs) {
     for (const auto& [name, sec] : r.oursStages) stages[name] = sec;
     results.back()["ours_stages_s"] = stages;
   }
-  const nlohmann::json j = {{"posts", c.grid.posts()},
-                            {"posts_x", c.grid.postsX},
-                            {"posts_z", c.grid.postsZ},
-                            {"spacing_m", c.grid.spacing},
-                            {"repeat", c.args.repeat},
-                            {"crs", c.grid.crsName},
-                            {"source", c.input.description},
-                            {"threads", c.args.threads},
-                            {"cpus", cpuCount()},
-                            {"warm_up", true},
-                            {"gdalwarp_version", c.gdal.version},
-                            {"load_average_start", c.loadStart},
-                            {"load_average_end", c.loadEnd},
-                            {"results", results}};
-  std::printf("%s\n", j.dump(2).c_str());
+  return {{"posts", rep.grid.posts()},
+          {"posts_x", rep.grid.postsX},
+          {"posts_z", rep.grid.postsZ},
+          {"spacing_m", rep.grid.spacing},
+          {"repeat", a.repeat},
+          {"crs", rep.grid.crsName},
+          {"source", rep.source},
+          {"threads", a.threads},
+          {"cpus", rep.cpus},
+          {"warm_up", true},
+          {"gdalwarp_version", rep.gdalwarpVersion},
+          {"load_average_start", rep.loadAverageStart},
+          {"load_average_end", rep.loadAverageEnd},
+          {"results", results}};
 }
 
-void printHeader(const Context& c) {
-  std::printf("sandtable bench build: %u x %u posts (%.1f M) at %g m, %s\n", c.grid.postsX, c.grid.postsZ,
-              static_cast<double>(c.grid.posts()) / 1e6, c.grid.spacing, c.grid.crsName.c_str());
-  std::printf("  sources   %s, %zu files\n", c.input.description.c_str(), c.input.files);
-  std::printf("  gdalwarp  %s: same sources (VRT), CRS, -te, -tr; -of ENVI -ot Float32\n", c.gdal.version.c_str());
-  std::printf("  method    one untimed warm-up of each side first, so both read the sources from the page cache;\n"
-              "            then the median of %d repeats, wall clock, sides alternating\n", c.args.repeat);
-  std::printf("  threads   ours %s; gdalwarp 1t = default (no -multi), mt = -multi -wo NUM_THREADS=%s\n",
-              threadsText(c.args.threads).c_str(),
-              c.args.threads > 0 ? std::to_string(c.args.threads).c_str() : "ALL_CPUS");
-  std::printf("  load      %.2f at start, %.2f at end (1-minute load average, %u CPUs)\n\n", c.loadStart, c.loadEnd,
-              cpuCount());
-}
+// ------------------------------------------------------------ the benchmark
 
-int kernelWidth(const std::vector<Row>& rs) {
-  std::size_t w = 6;
-  for (const auto& r : rs) w = std::max(w, r.kernel.size());
-  return static_cast<int>(w);
-}
-
-void printResults(const Context& c, const std::vector<Row>& rs) {
-  const double posts = static_cast<double>(c.grid.posts());
-  const int w = kernelWidth(rs);
-  std::printf("%-*s %8s %9s %9s | %-8s %8s %9s %8s %9s | %7s %7s\n", w, "kernel", "ours s", "Mposts/s", "resamp s",
-              "gdalwarp", "1t s", "Mposts/s", "mt s", "Mposts/s", "1t/ours", "mt/ours");
-  for (const auto& r : rs) {
-    std::printf("%-*s %8.2f %9.2f %9.2f | %-8s %8.2f %9.2f %8.2f %9.2f | %7.2f %7.2f\n", w, r.kernel.c_str(),
-                r.oursS, posts / r.oursS / 1e6, r.oursResampleS, r.warpKernel.c_str(), r.warp1tS,
-                posts / r.warp1tS / 1e6, r.warpMtS, posts / r.warpMtS / 1e6, r.warp1tS / r.oursS, r.warpMtS / r.oursS);
-  }
-  std::printf("\nratio = gdalwarp seconds / our seconds: above 1 we are faster. Ours is the whole build\n"
-              "(read + CRC of the sources, resample, void fill, normals, grid file with CRCs, fsync);\n"
-              "\"resamp s\" is its resampling stage alone. gdalwarp only resamples and writes raw floats.\n");
-}
-
-/// Where our time goes, and CPU seconds, which other users' load inflates
-/// less than wall time. Once per kernel of ours.
-void printBreakdown(const std::vector<Row>& rs) {
-  std::printf("\nours by stage (median s) and CPU seconds (user + system, median):\n");
-  std::string last;
-  for (const auto& r : rs) {
-    if (r.kernel == last) continue;
-    last = r.kernel;
-    std::printf("  %-18s", r.kernel.c_str());
-    for (const auto& [name, sec] : r.oursStages) std::printf(" %s %.2f,", name.c_str(), sec);
-    std::printf(" cpu %.1f\n", r.oursCpuS);
-  }
-  std::vector<std::string> seen;
-  for (const auto& r : rs) {
-    if (std::find(seen.begin(), seen.end(), r.warpKernel) != seen.end()) continue;
-    seen.push_back(r.warpKernel);
-    std::printf("  gdalwarp %-9s cpu %.1f (1t), %.1f (mt)\n", r.warpKernel.c_str(), r.warp1tCpuS, r.warpMtCpuS);
-  }
-}
-
-/// The issue's goal: no slower than gdalwarp, i.e. ratio >= 1 against
-/// gdalwarp's faster mode.
-void printVerdict(const std::vector<Row>& rs) {
-  std::printf("\ngoal (no slower than gdalwarp, against its faster mode):\n");
-  for (const auto& r : rs) {
-    const double ratio = std::min(r.warp1tS, r.warpMtS) / r.oursS;
-    std::printf("  %-18s vs %-8s %5.2f  %s\n", r.kernel.c_str(), r.warpKernel.c_str(), ratio,
-                ratio >= 1 ? "met" : "NOT met");
-  }
-}
-
-void printTable(const Context& c, const std::vector<Row>& rs) {
-  printHeader(c);
-  printResults(c, rs);
-  printBreakdown(rs);
-  printVerdict(rs);
-}
-
-// ------------------------------------------------------------ command
-
-std::string checkArgs(const Args& a) {
-  if (a.kernels.empty()) return "--kernels is empty";
+std::string checkOptions(const BuildBenchOptions& a) {
+  if (a.kernels.empty()) return "BuildBenchOptions::kernels is empty";
   for (const auto& k : a.kernels) {
     if (std::find(kKernelNames.begin(), kKernelNames.end(), k) == kKernelNames.end()) {
       return "unknown kernel \"" + k + "\"; use weighted, bilinear, bilinear-triangles, cubic or average";
@@ -674,79 +564,53 @@ std::string checkArgs(const Args& a) {
     if (std::count(a.kernels.begin(), a.kernels.end(), k) > 1) return "kernel \"" + k + "\" given twice";
   }
   if (a.input.empty() && a.sizeKm <= 0 && autoSizeKm(a.spacing) > 1000) {
-    return "--spacing " + fmt(a.spacing) + " needs a square over synth's 1000 km limit; pass --size-km or --input";
+    return "BuildBenchOptions::spacing " + fmt(a.spacing) +
+           " needs a square over synth's 1000 km limit; pass BuildBenchOptions::sizeKm or BuildBenchOptions::input";
   }
   return {};
 }
 
-void checkGridSize(const TargetGrid& g) {
-  note("target grid: %u x %u = %.1f M posts at %g m, %s", g.postsX, g.postsZ, static_cast<double>(g.posts()) / 1e6,
-       g.spacing, g.crsName.c_str());
+void checkGridSize(const TargetGrid& g, const Notes& notes) {
+  note(notes, "target grid: %u x %u = %.1f M posts at %g m, %s", g.postsX, g.postsZ,
+       static_cast<double>(g.posts()) / 1e6, g.spacing, g.crsName.c_str());
   if (g.postsX < kMinPostsPerAxis || g.postsZ < kMinPostsPerAxis) {
-    note("note: below the %u x %u posts the benchmark is meant for; raise --size-km or lower --spacing",
-         kMinPostsPerAxis, kMinPostsPerAxis);
+    note(notes, "note: below the %u x %u posts the benchmark is meant for; raise BuildBenchOptions::sizeKm or lower "
+         "BuildBenchOptions::spacing", kMinPostsPerAxis, kMinPostsPerAxis);
   }
 }
 
-int runBenchBuild(const Args& a) {
-  if (std::string e = checkArgs(a); !e.empty()) return usageError(kCmd, e);
-  Gdal gdal;
-  try {
-    gdal = findGdal();
-  } catch (const BenchError& e) {
-    return usageError(kCmd, e.what());
-  }
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
-  try {
-    WorkDir work(a.keep);
-    if (a.keep) note("work directory %s (kept)", work.path().c_str());
-    const double loadStart = loadAverage();
-    const Input in = prepareInput(a, work.path());
-    const TargetGrid grid = warmUp(a, in, gdal, work.path());
-    checkGridSize(grid);
-    const Measurements m = measure(a, in, gdal, grid, work.path());
-    const Context c{a, in, gdal, grid, loadStart, loadAverage()};
-    const auto rs = rows(a, m);
-    a.json ? printJson(c, rs) : printTable(c, rs);
-    return kOk;
-  } catch (const BenchError& e) {
-    return usageError(kCmd, e.what());
-  } catch (const fs::filesystem_error& e) {
-    return usageError(kCmd, e.what());
-  }
+BuildBenchReport run(const BuildBenchOptions& a, Gdal& gdal, const Notes& notes) {
+  WorkDir work(a.keep);
+  if (a.keep) note(notes, "work directory %s (kept)", work.path().c_str());
+  BuildBenchReport rep;
+  rep.loadAverageStart = loadAverage();
+  const Input in = prepareInput(a, work.path(), notes);
+  const TargetGrid grid = warmUp(a, in, gdal, work.path(), notes);
+  checkGridSize(grid, notes);
+  const Measurements m = measure(a, in, gdal, grid, work.path(), notes);
+  rep.loadAverageEnd = loadAverage();
+  rep.grid = {grid.postsX, grid.postsZ, grid.spacing, grid.crsName};
+  rep.source = in.description;
+  rep.sourceFiles = in.files;
+  rep.gdalwarpVersion = gdal.version;
+  rep.cpus = cpuCount();
+  rep.rows = rows(a, m);
+  rep.json = toJson(a, rep);
+  return rep;
 }
 
 }  // namespace
 
-void registerBenchBuild(CLI::App& bench, Commands& c) {
-  auto a = std::make_shared<Args>();
-  auto* sub = bench.add_subcommand("build", "Time grid conversion against gdalwarp on the same target grid");
-  sub->footer(
-      "Example:\n  sandtable bench build --kernels bilinear,weighted --repeat 3\n"
-      "Synthesizes a square (sandtable synth) unless --input names one, converts its DTED2 tree\n"
-      "with our build and with the gdalwarp binary onto the same UTM grid, and reports the\n"
-      "median seconds, posts/s and gdalwarp/ours ratios (> 1: we are faster). Needs gdal-bin.");
-  sub->add_option("--input", a->input, "Existing synth output (uses DIR/dted2) or a directory of sources");
-  sub->add_option("--size-km", a->sizeKm, "Side of the synthesized square (default: enough for 5000 x 5000 posts)")
-      ->check(CLI::Range(1.0, 1000.0));
-  sub->add_option("--spacing", a->spacing, "Target post spacing in metres")
-      ->default_val(30.0)
-      ->check(CLI::PositiveNumber);
-  sub->add_option("--kernels", a->kernels,
-                  "Our kernels: weighted, bilinear (point samples, as gdalwarp), bilinear-triangles (plus the "
-                  "triangle fit, as `sandtable build --resample bilinear`), cubic, average")
-      ->delimiter(',')
-      ->default_str("bilinear,weighted");
-  sub->add_option("--repeat", a->repeat, "Timed runs of each measurement (median reported)")
-      ->default_val(3)
-      ->check(CLI::Range(1, 100));
-  sub->add_option("--threads", a->threads, "Threads for ours and gdalwarp -multi (0 = all cores)")
-      ->default_val(0)
-      ->check(CLI::NonNegativeNumber);
-  sub->add_flag("--json", a->json, "Print the results as one JSON object");
-  sub->add_flag("--keep", a->keep, "Keep the work directory (synth data, outputs, logs)");
-  c.add(sub, [a] { return runBenchBuild(*a); });
+Result<BuildBenchReport> runBuildBench(const BuildBenchOptions& options, const Notes& notes) {
+  if (std::string e = checkOptions(options); !e.empty()) return Problem{"", 0, e};
+  try {
+    Gdal gdal = findGdal();
+    return run(options, gdal, notes);
+  } catch (const BenchError& e) {
+    return Problem{"", 0, e.what()};
+  } catch (const fs::filesystem_error& e) {
+    return Problem{"", 0, e.what()};
+  }
 }
 
-}  // namespace sandtable::cli
+}  // namespace sandtable::bench

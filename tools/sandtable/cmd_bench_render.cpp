@@ -1,0 +1,114 @@
+// sandtable bench render DB: flags and printing for bench::runRenderBench,
+// the viewer's frame rate with range-ring LoD, screen-space-error LoD and
+// the full resolution over the same flight.
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <memory>
+
+#include "cmd_bench.h"
+#include "sandtable/bench/render.h"
+#include "sandtable/viewer/flight.h"
+#include "sandtable/render/renderer.h"
+
+namespace sandtable::cli {
+namespace {
+
+constexpr const char* kName = "bench render";
+
+struct Args {
+  std::string database;
+  bench::RenderBenchOptions o;
+  std::string size = "1280x720";
+  std::string rings;
+  bool json = false;
+};
+
+const FlagMap kFlags = {{"ElevationOptions::modules = false", "--no-modules"},
+                        {"with ElevationOptions::modules = true", "without --no-modules"}};
+
+std::string parseRings(const std::string& text, std::vector<double>& out) {
+  std::size_t at = 0;
+  while (at <= text.size() && !text.empty()) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    try {
+      std::size_t used = 0;
+      const std::string item = text.substr(at, comma - at);
+      out.push_back(std::stod(item, &used));
+      if (used != item.size()) return "--rings must be metres separated by commas";
+    } catch (const std::exception&) {
+      return "--rings must be metres separated by commas";
+    }
+    at = comma + 1;
+  }
+  return {};
+}
+
+void printHuman(const Args& a, const bench::RenderBenchReport& r) {
+  std::printf("sandtable bench render: %s, %ux%u, %u frames after %u warm-up, view %.0f m\n",
+              a.database.c_str(), a.o.width, a.o.height, a.o.frames, a.o.warmup, a.o.viewDistance);
+  std::printf("  renderer: %s\n", r.renderer.c_str());
+  std::printf("  %-6s %8s %10s %10s %12s %10s\n", "case", "fps", "p50 ms", "p99 ms", "triangles",
+              "max err px");
+  for (const auto& f : r.cases) {
+    std::printf("  %-6s %8.1f %10.1f %10.1f %12.0f %10.2f\n", f.name.c_str(), f.fps, f.p50, f.p99,
+                f.triangles, f.maxErrorPx);
+  }
+}
+
+int run(Args& a) {
+  unsigned w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(a.size.c_str(), "%u%c%u%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X')) {
+    return usageError(kName, "--size must look like 1280x720");
+  }
+  a.o.width = w;
+  a.o.height = h;
+  a.o.rings.clear();
+  if (std::string e = parseRings(a.rings, a.o.rings); !e.empty()) return usageError(kName, e);
+  auto db = openDatabase(a.database);
+  if (!db) return usageError(kName, db.error());
+  auto r = bench::runRenderBench(db.value(), a.o);
+  if (!r) {
+    const Problem& first = r.problems().front();
+    if (first.file.empty()) return reportBenchProblems(kName, r.problems(), kFlags);
+    const bool usage = first.file == runtime::kFlightOptionProblem || first.file == runtime::kGlContextProblem;
+    reportProblems(kName, r.problems());
+    return usage ? kUsage : kProblems;
+  }
+  if (a.json) std::printf("%s\n", r->json.dump(2).c_str());
+  else printHuman(a, r.value());
+  return kOk;
+}
+
+}  // namespace
+
+void registerBenchRender(CLI::App& bench, Commands& c) {
+  auto args = std::make_shared<Args>();
+  auto& o = args->o;
+  auto* sub = bench.add_subcommand(
+      "render", "Viewer frame rate: range-ring LoD, screen-space LoD and full resolution");
+  sub->footer(
+      "Flies straight from the database centre at --speed, once per case, headless (EGL).\n"
+      "frame ms is the time between frame completions on the render thread (main and\n"
+      "render threads overlap); the first --warmup frames (uploads, shader compiles)\n"
+      "are left out. Exit status: 0 done, 1 failed, 2 bad input or no GL context.");
+  sub->add_option("DB", args->database, "Database with load modules")->required();
+  sub->add_option("--frames", o.frames, "Frames measured per case")
+      ->capture_default_str()->check(CLI::Range(1u, 100000u));
+  sub->add_option("--warmup", o.warmup, "Frames drawn first and left out")->capture_default_str();
+  sub->add_option("--size", args->size, "Frame size WxH")->capture_default_str();
+  sub->add_option("--height", o.heightAgl, "Eye height above the ground, metres")->capture_default_str();
+  sub->add_option("--heading", o.headingDeg, "Degrees clockwise from grid north")->capture_default_str();
+  sub->add_option("--pitch", o.pitchDeg, "Degrees, negative looks down")->capture_default_str();
+  sub->add_option("--speed", o.speedKmh, "km/h")->capture_default_str();
+  sub->add_option("--view-distance", o.viewDistance, "Metres")->capture_default_str();
+  sub->add_option("--pixel-error", o.pixelError, "sse case: pixels")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  sub->add_option("--rings", args->rings, "rings case: bin edges M,M,... (default Table 8 scaled)");
+  sub->add_flag("--mesh", o.mesh, "Also the first flight's full-resolution grid mesh");
+  sub->add_flag("--json", args->json, "Print JSON");
+  c.add(sub, [args] { return run(*args); });
+}
+
+}  // namespace sandtable::cli
