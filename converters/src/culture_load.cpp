@@ -16,10 +16,10 @@
 #include <exception>
 #include <map>
 #include <numbers>
-#include <thread>
 #include <unordered_map>
 
 #include "culture_internal.h"
+#include "sandtable/base/jobs.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
 
@@ -700,37 +700,31 @@ void markJoins(std::vector<LineFeature>& lines) {
 /// ("" if none); `cancelled` is set when the build was cancelled.
 std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeTolerance, const Loader& loader,
                      bool& cancelled) {
-  const unsigned n = threads > 0 ? unsigned(threads) : std::max(1u, std::thread::hardware_concurrency());
-  std::atomic<std::size_t> next{0}, done{0};
+  std::atomic<std::size_t> done{0};
   std::atomic<std::size_t> failed{0};
   std::atomic<bool> stop{false};
   std::mutex progressMutex;
-  auto work = [&] {
-    for (std::size_t k = next++; k < lines.size() && !stop; k = next++) {
-      LineFeature& l = lines[k];
-      try {
-        l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
-      } catch (const Cancelled&) {
-        stop = true;
-        break;
-      } catch (const std::exception&) {
-        l.outline.clear();
-        ++failed;
-      }
-      l.box = Box{};
-      for (const Ring& r : l.outline) l.box.add(boxOf(r));
-      {
-        std::lock_guard lock(progressMutex);  // callbacks are called one at a time
-        loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
-      }
-      if (cancelRequested()) stop = true;
+  auto work = [&](std::size_t k) {
+    LineFeature& l = lines[k];
+    try {
+      l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
+    } catch (const Cancelled&) {
+      stop = true;
+      return;
+    } catch (const std::exception&) {
+      l.outline.clear();
+      ++failed;
     }
+    l.box = Box{};
+    for (const Ring& r : l.outline) l.box.add(boxOf(r));
+    {
+      std::lock_guard lock(progressMutex);  // callbacks are called one at a time
+      loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
+    }
+    if (cancelRequested()) stop = true;
   };
   if (!lines.empty()) loader.progress(0.5, "widening lines");
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
+  jobs::parallelFor(lines.size(), threads, work, &stop);
   cancelled = stop;
   return failed ? std::to_string(failed.load()) + " line features could not be widened (CGAL failure); dropped"
                 : std::string();
@@ -742,8 +736,7 @@ namespace culture {
 
 CultureImpl::CultureImpl(const materials::Table& t, const CultureFrame& f, const CultureOptions& o)
     : table(t), frame(f), options(o) {
-  const std::size_t hw = std::max(1u, std::thread::hardware_concurrency());
-  cacheCapacity_ = o.cacheModules > 0 ? o.cacheModules : 4 * hw;
+  cacheCapacity_ = o.cacheModules > 0 ? o.cacheModules : 4 * std::size_t(jobs::threadCount(0));
 }
 
 void CultureImpl::buildIndex() {

@@ -9,9 +9,9 @@
 #include <limits>
 #include <numbers>
 #include <queue>
-#include <thread>
 
 #include "synth_internal.h"
+#include "sandtable/base/jobs.h"
 
 namespace sandtable::convert::synth {
 
@@ -36,16 +36,9 @@ std::uint32_t hash32(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
 }
 
 void parallelFor(std::size_t n, int threads, const std::function<void(std::size_t, std::size_t)>& fn) {
-  const std::size_t t = std::min<std::size_t>(static_cast<std::size_t>(std::max(1, threads)), std::max<std::size_t>(n, 1));
-  if (t <= 1) {
-    fn(0, n);
-    return;
-  }
-  std::vector<std::thread> pool;
-  for (std::size_t k = 0; k < t; ++k) {
-    pool.emplace_back([&, k] { fn(n * k / t, n * (k + 1) / t); });
-  }
-  for (auto& th : pool) th.join();
+  // About four ranges per worker: balanced when rows cost unequal amounts.
+  const std::size_t t = static_cast<std::size_t>(jobs::threadCount(threads));
+  jobs::parallelRanges(n, threads, std::max<std::size_t>(1, n / (4 * t)), fn);
 }
 
 // ---------------------------------------------------------------- noise
