@@ -20,6 +20,7 @@
 
 #include "culture_internal.h"
 #include "sandtable/base/jobs.h"
+#include "sandtable/converters/clip.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
 
@@ -367,49 +368,9 @@ void forEachPart(const OGRGeometry& g, OGRwkbGeometryType want, Fn fn) {
   }
 }
 
-/// Liang-Barsky: the parts of segment a-b inside `r`, as parameters.
-bool clipSegment(Vec2 a, Vec2 b, const Box& r, double& t0, double& t1) {
-  t0 = 0, t1 = 1;
-  const double dx = b.x - a.x, dz = b.z - a.z;
-  const double p[4] = {-dx, dx, -dz, dz};
-  const double q[4] = {a.x - r.x0, r.x1 - a.x, a.z - r.z0, r.z1 - a.z};
-  for (int e = 0; e < 4; ++e) {
-    if (p[e] == 0) {
-      if (q[e] < 0) return false;
-    } else {
-      const double t = q[e] / p[e];
-      if (p[e] < 0) t0 = std::max(t0, t);
-      else t1 = std::min(t1, t);
-    }
-  }
-  return t0 < t1;
-}
-
 /// The parts of a polyline inside `r`.
 std::vector<Polyline> clipPolyline(const Polyline& pts, const Box& r) {
-  std::vector<Polyline> parts;
-  Polyline cur;
-  auto flush = [&] {
-    if (cur.size() >= 2) parts.push_back(std::move(cur));
-    cur.clear();
-  };
-  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
-    const Vec2 a = pts[k], b = pts[k + 1];
-    double t0 = 0, t1 = 1;
-    if (!clipSegment(a, b, r, t0, t1)) {
-      flush();
-      continue;
-    }
-    const Vec2 ca = t0 > 0 ? a + t0 * (b - a) : a, cb = t1 < 1 ? a + t1 * (b - a) : b;
-    if (cur.empty() || t0 > 0) {
-      flush();
-      cur.push_back(ca);
-    }
-    cur.push_back(cb);
-    if (t1 < 1) flush();
-  }
-  flush();
-  return parts;
+  return clip::polyline(pts, clip::Rect{r.x0, r.z0, r.x1, r.z1}, &Vec2::x, &Vec2::z);
 }
 
 double lengthOf(const Polyline& p) {

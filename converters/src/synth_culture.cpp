@@ -13,6 +13,7 @@
 #include <ogr_srs_api.h>
 
 #include "synth_internal.h"
+#include "sandtable/converters/clip.h"
 
 namespace sandtable::convert::synth {
 
@@ -85,44 +86,7 @@ void densify(std::vector<Vec2>& pts, double maxGap) {
 }
 
 std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double half) {
-  std::vector<std::vector<Vec2>> parts;
-  std::vector<Vec2> cur;
-  auto flush = [&] {
-    if (cur.size() >= 2) parts.push_back(std::move(cur));
-    cur.clear();
-  };
-  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
-    // Liang-Barsky against the square.
-    const Vec2 a = pts[k], b = pts[k + 1];
-    const double dx = b.x - a.x, dy = b.y - a.y;
-    double t0 = 0, t1 = 1;
-    bool inside = true;
-    const double p[4] = {-dx, dx, -dy, dy};
-    const double q[4] = {a.x + half, half - a.x, a.y + half, half - a.y};
-    for (int e = 0; e < 4 && inside; ++e) {
-      if (p[e] == 0) {
-        if (q[e] < 0) inside = false;
-      } else {
-        const double r = q[e] / p[e];
-        if (p[e] < 0) t0 = std::max(t0, r);
-        else t1 = std::min(t1, r);
-        if (t0 > t1) inside = false;
-      }
-    }
-    if (!inside) {
-      flush();
-      continue;
-    }
-    const Vec2 ca{a.x + t0 * dx, a.y + t0 * dy}, cb{a.x + t1 * dx, a.y + t1 * dy};
-    if (cur.empty() || t0 > 0) {
-      flush();
-      cur.push_back(ca);
-    }
-    cur.push_back(cb);
-    if (t1 < 1) flush();
-  }
-  flush();
-  return parts;
+  return clip::polyline(pts, clip::Rect{-half, -half, half, half}, &Vec2::x, &Vec2::y);
 }
 
 // ---------------------------------------------------------------- routing
