@@ -14,6 +14,7 @@
 
 #include "synth_internal.h"
 #include "sandtable/converters/clip.h"
+#include "sandtable/converters/grid8.h"
 
 namespace sandtable::convert::synth {
 
@@ -93,8 +94,6 @@ std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double
 
 namespace {
 
-constexpr int kDi[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-constexpr int kDj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
 
 /// How a class of road trades distance against gradient.
 struct CostModel {
@@ -140,16 +139,11 @@ std::vector<std::size_t> route(const Terrain2d& t, std::size_t from, const std::
       reached = c;
       break;
     }
-    const int i = static_cast<int>(c % static_cast<std::uint32_t>(g.nx));
-    const int j = static_cast<int>(c / static_cast<std::uint32_t>(g.nx));
-    for (int k = 0; k < 8; ++k) {
-      const int ni = i + kDi[k], nj = j + kDj[k];
-      if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
-      const std::size_t nc = g.index(ni, nj);
-      if (t.blocked[nc]) continue;
+    grid8::forEachNeighbour(g.nx, g.ny, c, [&](int k, std::size_t nc) {
+      if (t.blocked[nc]) return;
       const double s = 0.5 * (t.slope[c] + t.slope[nc]);
-      if (s > m.maxSlope) continue;
-      const double len = (k < 4 ? 1.0 : std::numbers::sqrt2) * g.step;
+      if (s > m.maxSlope) return;
+      const double len = (grid8::diagonal(k) ? std::numbers::sqrt2 : 1.0) * g.step;
       const double ratio = s / m.slopeScale;
       double cost = len * (1.0 + ratio * ratio) * t.wiggle[nc];
       if (t.river[nc] && !t.river[c]) cost += m.bridgePenalty;
@@ -159,7 +153,7 @@ std::vector<std::size_t> route(const Terrain2d& t, std::size_t from, const std::
         prev[nc] = static_cast<std::int32_t>(c);
         open.push({nd, static_cast<std::uint32_t>(nc)});
       }
-    }
+    });
   }
   std::vector<std::size_t> path;
   if (reached < 0) return path;
