@@ -665,8 +665,18 @@ std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeT
   std::atomic<std::size_t> failed{0};
   std::atomic<bool> stop{false};
   std::mutex progressMutex;
-  auto work = [&](std::size_t k) {
-    LineFeature& l = lines[k];
+  // Longest first: one long river started last would widen alone while
+  // the other workers wait. (Each line is widened on its own, so the
+  // order changes no result.)
+  std::vector<std::size_t> order(lines.size());
+  std::vector<std::size_t> vertices(lines.size(), 0);
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    order[k] = k;
+    for (const Polyline& p : lines[k].parts) vertices[k] += p.size();
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return vertices[a] > vertices[b]; });
+  auto work = [&](std::size_t index) {
+    LineFeature& l = lines[order[index]];
     try {
       l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
     } catch (const Cancelled&) {

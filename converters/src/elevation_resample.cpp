@@ -924,12 +924,14 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
     std::swap(z, next2);
     if (progress) progress(0.5 + 0.5 * (it + 1) / kFitIterations, "fitting triangles");
   }
-  for (std::size_t k = 0; k < grid.size(); ++k) {
-    const std::uint32_t i = static_cast<std::uint32_t>(k % f.postsX), j = static_cast<std::uint32_t>(k / f.postsX);
-    double mz, diag;
-    applyMass(sys, rule, z, i, j, mz, diag);
-    if (diag > 0) grid[k] = static_cast<float>(z[k]);
-  }
+  parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
+    for (std::uint32_t i = 0; i < f.postsX; ++i) {
+      const std::size_t k = std::size_t(j) * f.postsX + i;
+      double mz, diag;
+      applyMass(sys, rule, z, i, j, mz, diag);
+      if (diag > 0) grid[k] = static_cast<float>(z[k]);
+    }
+  });
   return {};
 }
 
