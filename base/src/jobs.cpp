@@ -2,6 +2,8 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -62,6 +64,37 @@ void parallelRanges(std::size_t n, int threads, std::size_t grain,
           if (!stopped(cancel)) body(r.begin(), r.end());
         },
         tbb::simple_partitioner());
+  });
+}
+
+void both(int threads, const std::function<void()>& f, const std::function<void()>& g) {
+  inArena(threads, [&] { tbb::parallel_invoke(f, g); });
+}
+
+void orderedPipeline(std::size_t n, int threads, std::size_t inFlight,
+                     const std::function<void(std::size_t)>& work,
+                     const std::function<void(std::size_t)>& finish,
+                     const std::atomic<bool>* cancel) {
+  if (n == 0) return;
+  inArena(threads, [&] {
+    std::size_t next = 0;
+    tbb::parallel_pipeline(
+        std::max<std::size_t>(inFlight, 1),
+        tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                            [&](tbb::flow_control& fc) -> std::size_t {
+                                              if (next == n || stopped(cancel)) {
+                                                fc.stop();
+                                                return 0;
+                                              }
+                                              return next++;
+                                            }) &
+            tbb::make_filter<std::size_t, std::size_t>(tbb::filter_mode::parallel,
+                                                       [&](std::size_t i) {
+                                                         work(i);
+                                                         return i;
+                                                       }) &
+            tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order,
+                                                [&](std::size_t i) { finish(i); }));
   });
 }
 

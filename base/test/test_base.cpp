@@ -76,6 +76,85 @@ TEST(Jobs, threadLimitIsHonoured) {
   EXPECT_GE(jobs::threadCount(0), 1);
 }
 
+TEST(Jobs, orderedPipelineFinishesInIndexOrder) {
+  for (const int threads : {1, 2, 0}) {
+    const std::size_t n = 500, inFlight = 4;
+    std::vector<std::atomic<int>> worked(n);
+    std::vector<std::size_t> order;
+    std::atomic<int> live{0}, mostLive{0}, finishing{0};
+    bool overlapped = false;
+    jobs::orderedPipeline<std::size_t>(
+        n, threads, inFlight,
+        [&](std::size_t i) {
+          const int now = ++live;
+          int m = mostLive.load();
+          while (now > m && !mostLive.compare_exchange_weak(m, now)) {}
+          worked[i]++;
+          return i * i;
+        },
+        [&](std::size_t i, std::size_t&& square) {
+          if (++finishing != 1) overlapped = true;
+          EXPECT_EQ(square, i * i);
+          order.push_back(i);
+          --finishing;
+          --live;
+        });
+    std::vector<std::size_t> want(n);
+    std::iota(want.begin(), want.end(), std::size_t{0});
+    EXPECT_EQ(order, want) << "threads " << threads;
+    for (auto& w : worked) ASSERT_EQ(w.load(), 1);
+    EXPECT_FALSE(overlapped) << "finish ran concurrently with itself";
+    EXPECT_LE(mostLive.load(), int(inFlight));
+  }
+}
+
+TEST(Jobs, orderedPipelineCancelFinishesWhatItStarted) {
+  std::atomic<bool> cancel{false};
+  std::atomic<int> worked{0};
+  int finished = 0;
+  std::size_t last = 0;
+  jobs::orderedPipeline(
+      100000, 2, 8,
+      [&](std::size_t i) {
+        worked++;
+        if (i == 20) cancel = true;
+      },
+      [&](std::size_t i) {
+        ++finished;
+        last = i;
+      },
+      &cancel);
+  EXPECT_LT(worked.load(), 100000);
+  EXPECT_EQ(finished, worked.load());
+  EXPECT_EQ(last + 1, std::size_t(finished));  // no gap: items 0..last
+}
+
+TEST(Jobs, scratchIsNeverShared) {
+  struct State {
+    std::atomic<int> users{0};
+    int uses = 0;
+  };
+  jobs::Scratch<State> scratch;
+  std::atomic<int> made{0}, shared{0};
+  jobs::parallelFor(2000, 2, [&](std::size_t) {
+    scratch.use([&](State& s) {
+      if (s.users++ != 0) shared++;
+      if (s.uses++ == 0) made++;
+      --s.users;
+    });
+  });
+  EXPECT_EQ(shared.load(), 0);
+  EXPECT_GE(made.load(), 1);
+  EXPECT_LE(made.load(), 2);  // at most one per worker of the two
+}
+
+TEST(Jobs, bothRunsBoth) {
+  std::atomic<int> a{0}, b{0};
+  jobs::both(2, [&] { a = 1; }, [&] { jobs::parallelFor(10, 0, [&](std::size_t) { b++; }); });
+  EXPECT_EQ(a.load(), 1);
+  EXPECT_EQ(b.load(), 10);
+}
+
 TEST(Stats, nearestRankAndMedian) {
   // Independent: nearest rank of p=0.9 over 1..10 is the 9th value.
   std::vector<double> v(10);

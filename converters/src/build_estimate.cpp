@@ -5,8 +5,8 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <thread>
 
+#include "sandtable/base/jobs.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/converters/modules.h"
 #include "sandtable/formats/grid.h"
@@ -43,8 +43,8 @@ BuildEstimate estimateBuild(const ElevationOptions& o, std::uint32_t postsX, std
   e.postsX = postsX, e.postsZ = postsZ;
   e.posts = std::uint64_t(postsX) * postsZ;
   e.gridBytes = grid::makeHeader(postsX, postsZ, spacing, 0, 0).fileBytes;
-  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
-  e.threads = int(o.threads > 0 ? std::min<unsigned>(unsigned(o.threads), hw) : hw);
+  const int hw = jobs::threadCount(0);
+  e.threads = o.threads > 0 ? std::min(o.threads, hw) : hw;
   double squares = 0;  // level-0 squares over all modules
   if (o.modules && postsX >= 2 && postsZ >= 2) {
     const std::uint32_t side = moduleSquares(o.moduleSize, spacing, std::clamp(o.levels, 1, 8));

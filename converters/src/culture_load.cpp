@@ -16,10 +16,11 @@
 #include <exception>
 #include <map>
 #include <numbers>
-#include <thread>
 #include <unordered_map>
 
 #include "culture_internal.h"
+#include "sandtable/base/jobs.h"
+#include "sandtable/converters/clip.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
 
@@ -442,49 +443,9 @@ void forEachPart(const OGRGeometry& g, OGRwkbGeometryType want, Fn fn) {
   }
 }
 
-/// Liang-Barsky: the parts of segment a-b inside `r`, as parameters.
-bool clipSegment(Vec2 a, Vec2 b, const Box& r, double& t0, double& t1) {
-  t0 = 0, t1 = 1;
-  const double dx = b.x - a.x, dz = b.z - a.z;
-  const double p[4] = {-dx, dx, -dz, dz};
-  const double q[4] = {a.x - r.x0, r.x1 - a.x, a.z - r.z0, r.z1 - a.z};
-  for (int e = 0; e < 4; ++e) {
-    if (p[e] == 0) {
-      if (q[e] < 0) return false;
-    } else {
-      const double t = q[e] / p[e];
-      if (p[e] < 0) t0 = std::max(t0, t);
-      else t1 = std::min(t1, t);
-    }
-  }
-  return t0 < t1;
-}
-
 /// The parts of a polyline inside `r`.
 std::vector<Polyline> clipPolyline(const Polyline& pts, const Box& r) {
-  std::vector<Polyline> parts;
-  Polyline cur;
-  auto flush = [&] {
-    if (cur.size() >= 2) parts.push_back(std::move(cur));
-    cur.clear();
-  };
-  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
-    const Vec2 a = pts[k], b = pts[k + 1];
-    double t0 = 0, t1 = 1;
-    if (!clipSegment(a, b, r, t0, t1)) {
-      flush();
-      continue;
-    }
-    const Vec2 ca = t0 > 0 ? a + t0 * (b - a) : a, cb = t1 < 1 ? a + t1 * (b - a) : b;
-    if (cur.empty() || t0 > 0) {
-      flush();
-      cur.push_back(ca);
-    }
-    cur.push_back(cb);
-    if (t1 < 1) flush();
-  }
-  flush();
-  return parts;
+  return clip::polyline(pts, clip::Rect{r.x0, r.z0, r.x1, r.z1}, &Vec2::x, &Vec2::z);
 }
 
 double lengthOf(const Polyline& p) {
@@ -800,37 +761,41 @@ void markJoins(std::vector<LineFeature>& lines) {
 /// ("" if none); `cancelled` is set when the build was cancelled.
 std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeTolerance, const Loader& loader,
                      bool& cancelled) {
-  const unsigned n = threads > 0 ? unsigned(threads) : std::max(1u, std::thread::hardware_concurrency());
-  std::atomic<std::size_t> next{0}, done{0};
+  std::atomic<std::size_t> done{0};
   std::atomic<std::size_t> failed{0};
   std::atomic<bool> stop{false};
   std::mutex progressMutex;
-  auto work = [&] {
-    for (std::size_t k = next++; k < lines.size() && !stop; k = next++) {
-      LineFeature& l = lines[k];
-      try {
-        l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
-      } catch (const Cancelled&) {
-        stop = true;
-        break;
-      } catch (const std::exception&) {
-        l.outline.clear();
-        ++failed;
-      }
-      l.box = Box{};
-      for (const Ring& r : l.outline) l.box.add(boxOf(r));
-      {
-        std::lock_guard lock(progressMutex);  // callbacks are called one at a time
-        loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
-      }
-      if (cancelRequested()) stop = true;
+  // Longest first: one long river started last would widen alone while
+  // the other workers wait. (Each line is widened on its own, so the
+  // order changes no result.)
+  std::vector<std::size_t> order(lines.size());
+  std::vector<std::size_t> vertices(lines.size(), 0);
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    order[k] = k;
+    for (const Polyline& p : lines[k].parts) vertices[k] += p.size();
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return vertices[a] > vertices[b]; });
+  auto work = [&](std::size_t index) {
+    LineFeature& l = lines[order[index]];
+    try {
+      l.outline = widenLine(l.parts, l.joinStart, l.joinEnd, l.width, simplifyTolerance(l.width, mergeTolerance));
+    } catch (const Cancelled&) {
+      stop = true;
+      return;
+    } catch (const std::exception&) {
+      l.outline.clear();
+      ++failed;
     }
+    l.box = Box{};
+    for (const Ring& r : l.outline) l.box.add(boxOf(r));
+    {
+      std::lock_guard lock(progressMutex);  // callbacks are called one at a time
+      loader.progress(0.5 + 0.5 * double(++done) / double(lines.size()), "widening lines");
+    }
+    if (cancelRequested()) stop = true;
   };
   if (!lines.empty()) loader.progress(0.5, "widening lines");
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
+  jobs::parallelFor(lines.size(), threads, work, &stop);
   cancelled = stop;
   return failed ? std::to_string(failed.load()) + " line features could not be widened (CGAL failure); dropped"
                 : std::string();
@@ -842,8 +807,7 @@ namespace culture {
 
 CultureImpl::CultureImpl(const materials::Table& t, const CultureFrame& f, const CultureOptions& o)
     : table(t), frame(f), options(o) {
-  const std::size_t hw = std::max(1u, std::thread::hardware_concurrency());
-  cacheCapacity_ = o.cacheModules > 0 ? o.cacheModules : 4 * hw;
+  cacheCapacity_ = o.cacheModules > 0 ? o.cacheModules : 4 * std::size_t(jobs::threadCount(0));
 }
 
 void CultureImpl::buildIndex() {

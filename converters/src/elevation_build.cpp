@@ -13,9 +13,9 @@
 #include <mutex>
 #include <optional>
 #include <string_view>
-#include <thread>
 
 #include "elevation_internal.h"
+#include "sandtable/base/jobs.h"
 #include "sandtable/converters/culture.h"
 #include "sandtable/converters/modules.h"
 #include "sandtable/formats/bytes.h"
@@ -187,24 +187,22 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
   const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
   auto writer = grid::GridWriter::create(path, h);
   if (!writer) return writer.problems();
-  std::atomic<std::uint64_t> next{0}, done{0};
+  std::uint64_t done = 0;
   std::mutex mutex;
   std::string firstError;
-  auto worker = [&] {
-    auto block = std::make_unique<grid::BlockData>();
-    for (std::uint64_t k; (k = next++) < h.blockCount() && !cancelRequested();) {
-      const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
-      fillBlock(g, cls, f, bx, bz, *block);
-      const std::string err = writer.value()->writeBlock(bx, bz, *block);
-      std::lock_guard lock(mutex);
-      if (!err.empty() && firstError.empty()) firstError = err;
-      const std::uint64_t d = ++done;
-      if (progress && (d % 64 == 0 || d == h.blockCount())) progress(double(d) / double(h.blockCount()), "writing grid");
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < detail::threadCount(threads); ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+  jobs::Scratch<grid::BlockData> blocks;
+  jobs::parallelFor(h.blockCount(), threads, [&](std::size_t k) {
+    if (cancelRequested()) return;
+    const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
+    const std::string err = blocks.use([&](grid::BlockData& block) {
+      fillBlock(g, cls, f, bx, bz, block);
+      return writer.value()->writeBlock(bx, bz, block);
+    });
+    std::lock_guard lock(mutex);
+    if (!err.empty() && firstError.empty()) firstError = err;
+    const std::uint64_t d = ++done;
+    if (progress && (d % 64 == 0 || d == h.blockCount())) progress(double(d) / double(h.blockCount()), "writing grid");
+  });
   if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
   if (!firstError.empty()) return Problem{path, 0, firstError};
   if (std::string err = writer.value()->finish(); !err.empty()) return Problem{path, 0, err};
@@ -406,18 +404,9 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
   const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   std::vector<std::uint8_t> cls(g.size());  // detail::PostClass per post
-  {
-    const int nt = detail::threadCount(o.threads);
-    std::vector<std::thread> pool;
-    for (int t = 0; t < nt; ++t) {
-      pool.emplace_back([&, t] {
-        for (std::size_t k = g.size() * t / nt, e = g.size() * (t + 1) / nt; k < e; ++k) {
-          cls[k] = std::isnan(g[k]) ? detail::kVoidPost : detail::kValidPost;
-        }
-      });
-    }
-    for (auto& t : pool) t.join();
-  }
+  jobs::parallelRanges(g.size(), o.threads, std::size_t(1) << 16, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b; k < e; ++k) cls[k] = std::isnan(g[k]) ? detail::kVoidPost : detail::kValidPost;
+  });
   const std::uint64_t seaPosts = o.seaFromVoids ? detail::markSea(f, g, cls) : 0;
   auto voids = detail::fillVoids(f, g, progress);
   if (!voids) return voids.problems();

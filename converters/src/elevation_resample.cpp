@@ -2,7 +2,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -10,7 +9,6 @@
 #include <memory>
 #include <mutex>
 #include <new>
-#include <thread>
 
 #include <cpl_string.h>
 #include <gdal_alg.h>
@@ -19,6 +17,7 @@
 #include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
+#include "sandtable/base/jobs.h"
 
 namespace sandtable::convert {
 
@@ -436,6 +435,18 @@ struct MosaicReader {
   GDALRasterBand& band() { return *ds->GetRasterBand(1); }
 };
 
+/// A worker's mosaic (jobs::Scratch state), opened on first use; `error`
+/// says why it did not open.
+struct WorkerMosaic {
+  MosaicReader m;
+  bool tried = false;
+  std::string error;
+  const std::string& open(const std::string& vrtPath, const Frame& f) {
+    if (!tried) error = m.open(vrtPath, f), tried = true;
+    return error;
+  }
+};
+
 /// One source of the VRT mosaic, as GDALBuildVRT writes it.
 struct VrtSource {
   std::string path;
@@ -574,43 +585,42 @@ void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, in
   const float init = validOrNan(hasNoData ? fnd : 0.0f, hasNoData != 0, fnd);
   img.v.reset(new (std::nothrow) float[n]);
   if (!img.v) return;  // no memory for it: strip by strip
-  {
-    const int nt = threadCount(threads);
-    std::vector<std::thread> fill;
-    for (int t = 0; t < nt; ++t) {
-      fill.emplace_back([&, t] { std::fill(img.v.get() + n * t / nt, img.v.get() + n * (t + 1) / nt, init); });
-    }
-    for (auto& t : fill) t.join();
-  }
+  jobs::parallelRanges(n, threads, std::size_t(1) << 20,
+                       [&](std::size_t b, std::size_t e) { std::fill(img.v.get() + b, img.v.get() + e, init); });
   // Sources are read in parallel and composited in the VRT's order (a
-  // later source's valid posts replace an earlier one's, as in the VRT).
-  std::atomic<std::size_t> next{0};
-  std::size_t composited = 0;
-  bool failed = false;
-  std::mutex mutex;
-  std::condition_variable turn;
-  auto worker = [&] {
+  // later source's valid posts replace an earlier one's, as in the VRT);
+  // as many are read ahead as there are workers.
+  struct Read {
+    bool ok = true, empty = false;
+    int ax = 0, ay = 0, bx = 0, by = 0;
     std::vector<float> buf;
-    for (std::size_t k; (k = next++) < sources.size();) {
-      const VrtSource& s = sources[k];
-      const int ax = std::max(x0, s.dx), ay = std::max(y0, s.dy);
-      const int bx = std::min(x1 + 1, s.dx + s.w), by = std::min(y1 + 1, s.dy + s.h);
-      bool ok = true, empty = ax >= bx || ay >= by;
-      if (!empty) {
-        std::unique_ptr<GDALDataset> ds(GDALDataset::Open(s.path.c_str(), GDAL_OF_RASTER | GDAL_OF_VERBOSE_ERROR));
-        GDALRasterBand* b = ds && s.band >= 1 && s.band <= ds->GetRasterCount() ? ds->GetRasterBand(s.band) : nullptr;
-        ok = b && readSourceRect(*b, s.sx + ax - s.dx, s.sy + ay - s.dy, bx - ax, by - ay, buf);
-      }
-      std::unique_lock lock(mutex);
-      turn.wait(lock, [&] { return composited == k; });
-      if (!ok) failed = true;
-      if (ok && !empty && !failed) {
-        const int w = bx - ax;
+  };
+  bool failed = false;
+  jobs::orderedPipeline<Read>(
+      sources.size(), threads, std::size_t(jobs::threadCount(threads)),
+      [&](std::size_t k) {
+        const VrtSource& s = sources[k];
+        Read r;
+        r.ax = std::max(x0, s.dx), r.ay = std::max(y0, s.dy);
+        r.bx = std::min(x1 + 1, s.dx + s.w), r.by = std::min(y1 + 1, s.dy + s.h);
+        r.empty = r.ax >= r.bx || r.ay >= r.by;
+        if (!r.empty) {
+          std::unique_ptr<GDALDataset> ds(GDALDataset::Open(s.path.c_str(), GDAL_OF_RASTER | GDAL_OF_VERBOSE_ERROR));
+          GDALRasterBand* b = ds && s.band >= 1 && s.band <= ds->GetRasterCount() ? ds->GetRasterBand(s.band) : nullptr;
+          r.ok = b && readSourceRect(*b, s.sx + r.ax - s.dx, s.sy + r.ay - s.dy, r.bx - r.ax, r.by - r.ay, r.buf);
+        }
+        return r;
+      },
+      [&](std::size_t k, Read&& r) {
+        const VrtSource& s = sources[k];
+        if (!r.ok) failed = true;
+        if (!r.ok || r.empty || failed) return;
+        const int w = r.bx - r.ax;
         const float snd = static_cast<float>(s.noData);
         const bool vnd = hasNoData != 0;
-        for (int r = ay; r < by; ++r) {
-          float* dst = img.v.get() + std::size_t(r - y0) * img.w + (ax - x0);
-          const float* src = buf.data() + std::size_t(r - ay) * w;
+        for (int row = r.ay; row < r.by; ++row) {
+          float* dst = img.v.get() + std::size_t(row - y0) * img.w + (r.ax - x0);
+          const float* src = r.buf.data() + std::size_t(row - r.ay) * w;
           if (!s.hasNoData) {
             for (int c = 0; c < w; ++c) dst[c] = validOrNan(src[c], vnd, fnd);
           } else {
@@ -619,14 +629,7 @@ void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, in
             }
           }
         }
-      }
-      ++composited;
-      turn.notify_all();
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < std::min<int>(threadCount(threads), int(sources.size())); ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+      });
   if (failed) return;  // the strips read the VRT and report its error
   image = std::move(img);
 }
@@ -679,7 +682,7 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
   out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
   constexpr std::uint32_t kStripRows = 64;
   const std::uint32_t strips = (f.postsZ + kStripRows - 1) / kStripRows;
-  std::atomic<std::uint32_t> next{0}, done{0};
+  std::uint32_t done = 0;
   std::mutex mutex;
   std::string firstError;
   // Seed Figure 13 uses one grid size; never less than a source cell's
@@ -699,32 +702,34 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
   const double radius = std::max(f.spacing, sourceDiagonal * 1.01);
   SourceImage image;
   if (minPostMetres > 0) buildSourceImage(vrtPath, f, 2 * radius / minPostMetres + 16, threads, image);
-  auto worker = [&] {
-    MosaicReader m;
-    if (std::string e = m.open(vrtPath, f); !e.empty()) {
-      std::lock_guard lock(mutex);
-      if (firstError.empty()) firstError = e;
-      return;
-    }
+  struct StripState {
+    WorkerMosaic mosaic;
     Lattice L;
     Window win;
-    for (std::uint32_t s; (s = next++) < strips;) {
-      if (cancelRequested()) return;
-      {
-        std::lock_guard lock(mutex);
-        if (!firstError.empty()) return;
-      }
-      const std::uint32_t j0 = s * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
-      const std::string err = resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, L, win, image, out.data());
-      std::lock_guard lock(mutex);
-      if (!err.empty() && firstError.empty()) firstError = err;
-      const std::uint32_t d = ++done;
-      if (progress) progress(double(d) / strips, "resampling");
-    }
   };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threadCount(threads); ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+  jobs::Scratch<StripState> states;
+  jobs::parallelFor(strips, threads, [&](std::size_t s) {
+    if (cancelRequested()) return;
+    {
+      std::lock_guard lock(mutex);
+      if (!firstError.empty()) return;
+    }
+    bool opened = true;
+    const std::string err = states.use([&](StripState& st) {
+      if (const std::string& e = st.mosaic.open(vrtPath, f); !e.empty()) {
+        opened = false;
+        return e;
+      }
+      MosaicReader& m = st.mosaic.m;
+      const std::uint32_t j0 = std::uint32_t(s) * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
+      return resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, st.L, st.win, image, out.data());
+    });
+    std::lock_guard lock(mutex);
+    if (!err.empty() && firstError.empty()) firstError = err;
+    if (!opened) return;
+    const std::uint32_t d = ++done;
+    if (progress) progress(double(d) / strips, "resampling");
+  });
   if (cancelRequested()) return "build: cancelled";
   return firstError;
 }
@@ -853,16 +858,9 @@ void applyMass(const FitSystem& sys, const SquareRule& rule, const std::vector<d
 
 template <typename Fn>
 void parallelRows(std::uint32_t rows, int threads, Fn fn) {
-  std::atomic<std::uint32_t> next{0};
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) {
-    pool.emplace_back([&] {
-      for (std::uint32_t j; (j = next.fetch_add(16)) < rows;) {
-        for (std::uint32_t k = j; k < std::min(rows, j + 16); ++k) fn(k);
-      }
-    });
-  }
-  for (auto& t : pool) t.join();
+  jobs::parallelRanges(rows, threads, 16, [&](std::size_t b, std::size_t e) {
+    for (std::size_t j = b; j < e; ++j) fn(std::uint32_t(j));
+  });
 }
 
 }  // namespace
@@ -878,33 +876,31 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
   constexpr std::uint32_t kStripRows = 64;
   const std::uint32_t squareRows = f.postsZ - 1;
   const std::uint32_t strips = (squareRows + kStripRows - 1) / kStripRows;
-  std::atomic<std::uint32_t> next{0}, done{0};
+  std::uint32_t done = 0;
   std::string firstError;
   std::mutex errMutex;
-  auto worker = [&] {
-    MosaicReader m;
-    if (std::string e = m.open(vrtPath, f); !e.empty()) {
-      std::lock_guard lock(errMutex);
-      if (firstError.empty()) firstError = e;
-      return;
-    }
-    for (std::uint32_t s; (s = next++) < strips && !cancelRequested();) {
-      const std::uint32_t j0 = s * kStripRows, j1 = std::min(squareRows, j0 + kStripRows);
-      const std::string e = fitStrip(f, j0, j1, m.band(), *m.toSource, m.geo, rule, sys);
-      std::lock_guard lock(errMutex);
-      if (!e.empty() && firstError.empty()) firstError = e;
-      if (progress) progress(0.5 * double(++done) / strips, "fitting triangles");
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threadCount(threads); ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+  jobs::Scratch<WorkerMosaic> mosaics;
+  jobs::parallelFor(strips, threads, [&](std::size_t s) {
+    if (cancelRequested()) return;
+    bool opened = true;
+    const std::string e = mosaics.use([&](WorkerMosaic& w) {
+      if (const std::string& err = w.open(vrtPath, f); !err.empty()) {
+        opened = false;
+        return err;
+      }
+      const std::uint32_t j0 = std::uint32_t(s) * kStripRows, j1 = std::min(squareRows, j0 + kStripRows);
+      return fitStrip(f, j0, j1, w.m.band(), *w.m.toSource, w.m.geo, rule, sys);
+    });
+    std::lock_guard lock(errMutex);
+    if (!e.empty() && firstError.empty()) firstError = e;
+    if (opened && progress) progress(0.5 * double(++done) / strips, "fitting triangles");
+  });
   if (cancelRequested()) return "build: cancelled";
   if (!firstError.empty()) return firstError;
 
   // Start from the point samples; a post no included square touches keeps its sample.
   std::vector<double> z(grid.size()), next2(grid.size());
-  parallelRows(f.postsZ, threadCount(threads), [&](std::uint32_t j) {
+  parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
     for (std::uint32_t i = 0; i < f.postsX; ++i) {
       const std::size_t k = std::size_t(j) * f.postsX + i;
       double mz, diag;
@@ -917,7 +913,7 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
     }
   });
   for (int it = 0; it < kFitIterations; ++it) {
-    parallelRows(f.postsZ, threadCount(threads), [&](std::uint32_t j) {
+    parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
       for (std::uint32_t i = 0; i < f.postsX; ++i) {
         const std::size_t k = std::size_t(j) * f.postsX + i;
         double mz, diag;
@@ -928,12 +924,14 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
     std::swap(z, next2);
     if (progress) progress(0.5 + 0.5 * (it + 1) / kFitIterations, "fitting triangles");
   }
-  for (std::size_t k = 0; k < grid.size(); ++k) {
-    const std::uint32_t i = static_cast<std::uint32_t>(k % f.postsX), j = static_cast<std::uint32_t>(k / f.postsX);
-    double mz, diag;
-    applyMass(sys, rule, z, i, j, mz, diag);
-    if (diag > 0) grid[k] = static_cast<float>(z[k]);
-  }
+  parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
+    for (std::uint32_t i = 0; i < f.postsX; ++i) {
+      const std::size_t k = std::size_t(j) * f.postsX + i;
+      double mz, diag;
+      applyMass(sys, rule, z, i, j, mz, diag);
+      if (diag > 0) grid[k] = static_cast<float>(z[k]);
+    }
+  });
   return {};
 }
 
@@ -1033,7 +1031,7 @@ std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::
     GDALClose(dst);
     return "resample: cannot open the mosaic: " + lastGdalError();
   }
-  const std::string nthreads = "NUM_THREADS=" + std::to_string(threadCount(threads));
+  const std::string nthreads = "NUM_THREADS=" + std::to_string(jobs::threadCount(threads));
   const char* args[] = {"-r", kernel.c_str(), "-multi", "-wo", nthreads.c_str(), "-wo", "INIT_DEST=NO_DATA",
                         "-wm", "512", "-et", "0.01", "-q", nullptr};
   GDALWarpAppOptions* opts = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);

@@ -6,12 +6,12 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
-#include <thread>
 
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
+#include "sandtable/base/jobs.h"
 #include "sandtable/formats/bytes.h"
 
 namespace sandtable::convert {
@@ -85,12 +85,6 @@ Result<std::vector<std::string>> expandSources(const std::vector<std::string>& a
 }
 
 namespace detail {
-
-int threadCount(int requested) {
-  if (requested > 0) return requested;
-  const unsigned hw = std::thread::hardware_concurrency();
-  return hw == 0 ? 2 : static_cast<int>(hw);
-}
 
 namespace {
 
@@ -192,20 +186,14 @@ Result<std::vector<Source>> openSources(const std::vector<std::string>& paths, i
                                         const ProgressFn& progress) {
   initGdal();
   std::vector<std::optional<Result<Source>>> results(paths.size());
-  std::atomic<std::size_t> next{0}, done{0};
+  std::size_t done = 0;
   std::mutex progressMutex;
-  auto worker = [&] {
-    for (std::size_t k; (k = next++) < paths.size() && !cancelRequested();) {
-      results[k].emplace(openOne(paths[k]));
-      const std::size_t d = ++done;
-      std::lock_guard lock(progressMutex);
-      if (progress) progress(double(d) / double(paths.size()), "reading sources");
-    }
-  };
-  std::vector<std::thread> pool;
-  const int n = std::min<int>(threadCount(threads), static_cast<int>(paths.size()));
-  for (int t = 0; t < n; ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+  jobs::parallelFor(paths.size(), threads, [&](std::size_t k) {
+    if (cancelRequested()) return;
+    results[k].emplace(openOne(paths[k]));
+    std::lock_guard lock(progressMutex);
+    if (progress) progress(double(++done) / double(paths.size()), "reading sources");
+  });
   if (cancelRequested()) return Problem{"build", 0, "build: cancelled"};
   std::vector<Source> out;
   std::vector<Problem> problems;

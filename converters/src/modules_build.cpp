@@ -8,8 +8,9 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <mutex>
-#include <thread>
+#include <optional>
+
+#include "sandtable/base/jobs.h"
 
 namespace sandtable::convert {
 namespace {
@@ -292,50 +293,61 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   auto writer = pack::PackWriter::create(directory, h, o.zstdLevel);
   if (!writer) return writer.problems();
 
-  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
-  const unsigned threads = o.threads > 0 ? unsigned(o.threads) : hw;
-  std::atomic<std::uint64_t> next{0}, done{0};
-  std::mutex mu;
-  std::string error;
-  r.levels.assign(std::size_t(o.levels), {});
-  auto work = [&] {
-    std::vector<LevelTotals> local(std::size_t(o.levels));
-    for (std::uint64_t k = next++; k < r.modules; k = next++) {
-      if (cancelRequested()) break;
-      {
-        std::lock_guard lock(mu);
-        if (!error.empty()) break;
-      }
-      const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
-      const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, local.data());
-      if (cancelRequested()) break;  // not compressed nor written: the build is being abandoned
-      if (std::string e = writer.value()->add(m); !e.empty()) {
-        std::lock_guard lock(mu);
-        if (error.empty()) error = e;
-        break;
-      }
-      ++done;
-    }
-    std::lock_guard lock(mu);
-    for (std::size_t l = 0; l < local.size(); ++l) {
-      r.levels[l].triangles += local[l].triangles;
-      r.levels[l].skinPolygons += local[l].skinPolygons;
-      r.levels[l].decalPolygons += local[l].decalPolygons;
-      r.levels[l].skirtTriangles += local[l].skirtTriangles;
-    }
+  // Modules are built and compressed on every worker and appended in
+  // row-major order: the pack does not depend on thread timing. A few
+  // modules per worker wait to be appended, so a slow one (a town) does
+  // not idle the others.
+  struct Built {
+    std::optional<pack::PackWriter::Record> record;  ///< none: skipped or failed
+    std::string error;
+    std::vector<LevelTotals> totals;
   };
-  std::vector<std::thread> pool;
-  for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work);
-  while (done.load() < r.modules) {
-    {
-      std::lock_guard lock(mu);
-      if (!error.empty()) break;
-    }
-    if (cancelRequested()) break;
-    if (progress) progress(double(done.load()) / double(r.modules), "modules");
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  for (auto& t : pool) t.join();
+  std::atomic<bool> stop{false};
+  std::string error;
+  std::uint64_t done = 0;
+  auto lastReport = std::chrono::steady_clock::now();
+  r.levels.assign(std::size_t(o.levels), {});
+  if (progress) progress(0.0, "modules");
+  jobs::orderedPipeline<Built>(
+      r.modules, o.threads, 4 * std::size_t(jobs::threadCount(o.threads)),
+      [&](std::size_t k) {
+        Built b;
+        if (stop || cancelRequested()) return b;
+        b.totals.assign(std::size_t(o.levels), {});
+        const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
+        const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data());
+        if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
+        auto packed = writer.value()->compress(m);
+        if (packed) b.record = std::move(packed.value());
+        else b.error = packed.problems().front().message;
+        return b;
+      },
+      [&](std::size_t, Built&& b) {
+        if (stop) return;
+        if (b.record) b.error = writer.value()->append(std::move(*b.record));
+        if (!b.error.empty()) {
+          error = b.error;  // the first in module order
+          stop = true;
+          return;
+        }
+        if (!b.record) {
+          stop = true;  // cancelled
+          return;
+        }
+        for (std::size_t l = 0; l < b.totals.size(); ++l) {
+          r.levels[l].triangles += b.totals[l].triangles;
+          r.levels[l].skinPolygons += b.totals[l].skinPolygons;
+          r.levels[l].decalPolygons += b.totals[l].decalPolygons;
+          r.levels[l].skirtTriangles += b.totals[l].skirtTriangles;
+        }
+        ++done;
+        const auto now = std::chrono::steady_clock::now();
+        if (progress && now - lastReport >= std::chrono::milliseconds(100)) {
+          progress(double(done) / double(r.modules), "modules");
+          lastReport = now;
+        }
+      },
+      &stop);
   if (!error.empty()) return Problem{directory, 0, "build: modules: " + error};
   if (cancelRequested()) return Problem{directory, 0, "build: cancelled"};
   if (progress) progress(1.0, "modules");

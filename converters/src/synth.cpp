@@ -14,7 +14,6 @@
 #include <filesystem>
 #include <limits>
 #include <mutex>
-#include <thread>
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
@@ -25,6 +24,7 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"  // requestCancel / cancelRequested: one Ctrl-C flag for all
 #include "synth_internal.h"
+#include "sandtable/base/jobs.h"
 
 namespace sandtable::convert {
 
@@ -232,28 +232,22 @@ Result<Range> writeDted(const World& w, const std::vector<Cell>& all, const fs::
     fs::create_directories((root / cellPath(c)).parent_path(), ec);
     if (ec) return Problem{(root / cellPath(c)).parent_path().string(), 0, "synth: dted: " + ec.message()};
   }
-  std::atomic<std::size_t> next{0};
   std::mutex mutex;
   Range range;
   std::vector<Problem> problems;
-  auto worker = [&] {
-    std::vector<std::int16_t> buf;
-    for (std::size_t k; (k = next++) < all.size();) {
-      {
-        std::lock_guard lock(mutex);
-        if (!problems.empty()) return;
-      }
-      auto r = writeDtedCell(w, all[k], root / cellPath(all[k]), buf, rep);
+  jobs::Scratch<std::vector<std::int16_t>> buffers;
+  jobs::parallelFor(all.size(), threads, [&](std::size_t k) {
+    {
       std::lock_guard lock(mutex);
-      if (r) range.add(r.value());
-      else problems.insert(problems.end(), r.problems().begin(), r.problems().end());
+      if (!problems.empty()) return;
     }
-  };
-  const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(threads), all.size());
-  std::vector<std::thread> pool;
-  for (std::size_t k = 1; k < n; ++k) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
+    auto r = buffers.use([&](std::vector<std::int16_t>& buf) {
+      return writeDtedCell(w, all[k], root / cellPath(all[k]), buf, rep);
+    });
+    std::lock_guard lock(mutex);
+    if (r) range.add(r.value());
+    else problems.insert(problems.end(), r.problems().begin(), r.problems().end());
+  });
   if (!problems.empty()) return problems;
   return range;
 }
@@ -459,11 +453,6 @@ std::vector<Problem> validateGeometry(const SynthOptions& o) {
   return out;
 }
 
-int threadCount(const SynthOptions& o) {
-  if (o.threads > 0) return o.threads;
-  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-}
-
 }  // namespace
 
 std::vector<Problem> validateSynthOptions(const SynthOptions& o) {
@@ -476,7 +465,7 @@ Result<SynthSummary> synthesize(const SynthOptions& o, const SynthProgress& prog
   if (auto problems = validateSynthOptions(o); !problems.empty()) return problems;
   initGdal();
   const auto start = std::chrono::steady_clock::now();
-  const int threads = threadCount(o);
+  const int threads = jobs::threadCount(o.threads);
   const fs::path target = targetPath(o.outDir);
   std::error_code ec;
   if (fs::exists(target, ec) && !o.force) {
@@ -536,7 +525,7 @@ Result<std::unique_ptr<SynthTerrain>> SynthTerrain::create(const SynthOptions& o
   if (auto problems = validateGeometry(o); !problems.empty()) return problems;
   const Layout l = layout(o);
   auto impl = std::make_unique<Impl>();
-  impl->world = synth::buildWorld(l.frame, l.sizeM, o.seed, threadCount(o), false, {});
+  impl->world = synth::buildWorld(l.frame, l.sizeM, o.seed, jobs::threadCount(o.threads), false, {});
   return std::unique_ptr<SynthTerrain>(new SynthTerrain(std::move(impl)));
 }
 

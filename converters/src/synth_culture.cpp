@@ -13,6 +13,8 @@
 #include <ogr_srs_api.h>
 
 #include "synth_internal.h"
+#include "sandtable/converters/clip.h"
+#include "sandtable/converters/grid8.h"
 
 namespace sandtable::convert::synth {
 
@@ -85,52 +87,13 @@ void densify(std::vector<Vec2>& pts, double maxGap) {
 }
 
 std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double half) {
-  std::vector<std::vector<Vec2>> parts;
-  std::vector<Vec2> cur;
-  auto flush = [&] {
-    if (cur.size() >= 2) parts.push_back(std::move(cur));
-    cur.clear();
-  };
-  for (std::size_t k = 0; k + 1 < pts.size(); ++k) {
-    // Liang-Barsky against the square.
-    const Vec2 a = pts[k], b = pts[k + 1];
-    const double dx = b.x - a.x, dy = b.y - a.y;
-    double t0 = 0, t1 = 1;
-    bool inside = true;
-    const double p[4] = {-dx, dx, -dy, dy};
-    const double q[4] = {a.x + half, half - a.x, a.y + half, half - a.y};
-    for (int e = 0; e < 4 && inside; ++e) {
-      if (p[e] == 0) {
-        if (q[e] < 0) inside = false;
-      } else {
-        const double r = q[e] / p[e];
-        if (p[e] < 0) t0 = std::max(t0, r);
-        else t1 = std::min(t1, r);
-        if (t0 > t1) inside = false;
-      }
-    }
-    if (!inside) {
-      flush();
-      continue;
-    }
-    const Vec2 ca{a.x + t0 * dx, a.y + t0 * dy}, cb{a.x + t1 * dx, a.y + t1 * dy};
-    if (cur.empty() || t0 > 0) {
-      flush();
-      cur.push_back(ca);
-    }
-    cur.push_back(cb);
-    if (t1 < 1) flush();
-  }
-  flush();
-  return parts;
+  return clip::polyline(pts, clip::Rect{-half, -half, half, half}, &Vec2::x, &Vec2::y);
 }
 
 // ---------------------------------------------------------------- routing
 
 namespace {
 
-constexpr int kDi[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-constexpr int kDj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
 
 /// How a class of road trades distance against gradient.
 struct CostModel {
@@ -176,16 +139,11 @@ std::vector<std::size_t> route(const Terrain2d& t, std::size_t from, const std::
       reached = c;
       break;
     }
-    const int i = static_cast<int>(c % static_cast<std::uint32_t>(g.nx));
-    const int j = static_cast<int>(c / static_cast<std::uint32_t>(g.nx));
-    for (int k = 0; k < 8; ++k) {
-      const int ni = i + kDi[k], nj = j + kDj[k];
-      if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
-      const std::size_t nc = g.index(ni, nj);
-      if (t.blocked[nc]) continue;
+    grid8::forEachNeighbour(g.nx, g.ny, c, [&](int k, std::size_t nc) {
+      if (t.blocked[nc]) return;
       const double s = 0.5 * (t.slope[c] + t.slope[nc]);
-      if (s > m.maxSlope) continue;
-      const double len = (k < 4 ? 1.0 : std::numbers::sqrt2) * g.step;
+      if (s > m.maxSlope) return;
+      const double len = (grid8::diagonal(k) ? std::numbers::sqrt2 : 1.0) * g.step;
       const double ratio = s / m.slopeScale;
       double cost = len * (1.0 + ratio * ratio) * t.wiggle[nc];
       if (t.river[nc] && !t.river[c]) cost += m.bridgePenalty;
@@ -195,7 +153,7 @@ std::vector<std::size_t> route(const Terrain2d& t, std::size_t from, const std::
         prev[nc] = static_cast<std::int32_t>(c);
         open.push({nd, static_cast<std::uint32_t>(nc)});
       }
-    }
+    });
   }
   std::vector<std::size_t> path;
   if (reached < 0) return path;

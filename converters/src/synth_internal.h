@@ -150,7 +150,8 @@ struct World {
 
 using Fraction = std::function<void(double)>;
 
-/// Runs fn(begin, end) over [0, n) in `threads` contiguous chunks.
+/// Runs fn(begin, end) over contiguous ranges covering [0, n), on the job
+/// system's workers (jobs::parallelRanges, about four ranges per worker).
 void parallelFor(std::size_t n, int threads, const std::function<void(std::size_t, std::size_t)>& fn);
 
 /// Seeded integer hash, used for every random choice so runs are reproducible.

@@ -9,9 +9,10 @@
 #include <limits>
 #include <numbers>
 #include <queue>
-#include <thread>
 
 #include "synth_internal.h"
+#include "sandtable/base/jobs.h"
+#include "sandtable/converters/grid8.h"
 
 namespace sandtable::convert::synth {
 
@@ -36,16 +37,9 @@ std::uint32_t hash32(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
 }
 
 void parallelFor(std::size_t n, int threads, const std::function<void(std::size_t, std::size_t)>& fn) {
-  const std::size_t t = std::min<std::size_t>(static_cast<std::size_t>(std::max(1, threads)), std::max<std::size_t>(n, 1));
-  if (t <= 1) {
-    fn(0, n);
-    return;
-  }
-  std::vector<std::thread> pool;
-  for (std::size_t k = 0; k < t; ++k) {
-    pool.emplace_back([&, k] { fn(n * k / t, n * (k + 1) / t); });
-  }
-  for (auto& th : pool) th.join();
+  // About four ranges per worker: balanced when rows cost unequal amounts.
+  const std::size_t t = static_cast<std::size_t>(jobs::threadCount(threads));
+  jobs::parallelRanges(n, threads, std::max<std::size_t>(1, n / (4 * t)), fn);
 }
 
 // ---------------------------------------------------------------- noise
@@ -342,9 +336,6 @@ void Terrain::setLakes(std::vector<Lake> lakes) {
 
 namespace {
 
-constexpr int kDi[8] = {1, -1, 0, 0, 1, 1, -1, -1};
-constexpr int kDj[8] = {0, 0, 1, -1, 1, -1, 1, -1};
-
 /// The landform with every closed depression filled to its spill level
 /// (priority flood from the sea and the grid border). buildWorld fills
 /// basins part way towards it (kBasinFill): rivers then leave a basin
@@ -367,17 +358,12 @@ std::vector<float> fillDepressions(const Grid& g, const std::vector<float>& h) {
   while (!open.empty()) {
     const auto [level, c] = open.top();
     open.pop();
-    const int i = static_cast<int>(c % static_cast<std::uint32_t>(g.nx));
-    const int j = static_cast<int>(c / static_cast<std::uint32_t>(g.nx));
-    for (int k = 0; k < 8; ++k) {
-      const int ni = i + kDi[k], nj = j + kDj[k];
-      if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
-      const std::size_t nc = g.index(ni, nj);
-      if (seen[nc]) continue;
+    grid8::forEachNeighbour(g.nx, g.ny, c, [&](int, std::size_t nc) {
+      if (seen[nc]) return;
       seen[nc] = 1;
       f[nc] = std::max(h[nc], level);
       open.push({f[nc], static_cast<std::uint32_t>(nc)});
-    }
+    });
   }
   return f;
 }
@@ -438,17 +424,12 @@ Drainage drain(const Grid& g, const std::vector<float>& h, std::uint32_t seed) {
       const Item it = open.top();
       open.pop();
       floodOrder.push_back(it.cell);
-      const int i = static_cast<int>(it.cell % static_cast<std::uint32_t>(g.nx));
-      const int j = static_cast<int>(it.cell / static_cast<std::uint32_t>(g.nx));
-      for (int k = 0; k < 8; ++k) {
-        const int ni = i + kDi[k], nj = j + kDj[k];
-        if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
-        const std::size_t nc = g.index(ni, nj);
-        if (seen[nc]) continue;
+      grid8::forEachNeighbour(g.nx, g.ny, it.cell, [&](int, std::size_t nc) {
+        if (seen[nc]) return;
         seen[nc] = 1;
         floodParent[nc] = static_cast<std::int32_t>(it.cell);
         open.push({std::max(z[nc], it.level), z[nc], seq++, static_cast<std::uint32_t>(nc)});
-      }
+      });
     }
   }
 
@@ -456,16 +437,12 @@ Drainage drain(const Grid& g, const std::vector<float>& h, std::uint32_t seed) {
   // one is already lower. Lowering never makes a new pit (each lowered cell
   // has its lower successor), so one pass over the cells does.
   auto lowestNeighbour = [&](std::size_t c, float& drop) {
-    const int i = static_cast<int>(c % static_cast<std::size_t>(g.nx)), j = static_cast<int>(c / static_cast<std::size_t>(g.nx));
     std::int32_t best = -1;
     drop = 0;
-    for (int k = 0; k < 8; ++k) {
-      const int ni = i + kDi[k], nj = j + kDj[k];
-      if (ni < 0 || nj < 0 || ni >= g.nx || nj >= g.ny) continue;
-      const std::size_t nc = g.index(ni, nj);
-      const float d = (z[c] - z[nc]) / (k < 4 ? 1.0f : std::numbers::sqrt2_v<float>);
+    grid8::forEachNeighbour(g.nx, g.ny, c, [&](int k, std::size_t nc) {
+      const float d = (z[c] - z[nc]) / (grid8::diagonal(k) ? std::numbers::sqrt2_v<float> : 1.0f);
       if (d > drop) drop = d, best = static_cast<std::int32_t>(nc);
-    }
+    });
     return best;
   };
   for (std::uint32_t c : floodOrder) {

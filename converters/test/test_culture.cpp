@@ -20,13 +20,13 @@
 #include <set>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <ogr_api.h>
 #include <ogr_geometry.h>
 #include <ogr_spatialref.h>
 
+#include "sandtable/base/jobs.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/culture.h"
 #include "sandtable/converters/synth.h"
@@ -860,18 +860,15 @@ TEST(Culture, concurrentDecalsMatchSequentialOnes) {
                          t, 2000, 1000);
   ASSERT_TRUE(fresh);
   std::vector<std::size_t> got(8 * 4);
-  std::vector<std::thread> pool;
-  for (int th = 0; th < 4; ++th) {
-    pool.emplace_back([&, th] {
-      for (int k = 0; k < 8; ++k) {
-        const double mx = k < 4 ? 0.0 : 1000.0;
-        module::Level lv;
-        fresh->decalLevel(lattice(mx, 0, 32, 31.25, (k + th) % 4, hills), lv);
-        got[std::size_t(th * 8 + (k < 4 ? 0 : 4) + (k + th) % 4)] = lv.indices.size() * 1000003u + lv.vertices.size();
-      }
-    });
-  }
-  for (auto& p : pool) p.join();
+  jobs::parallelFor(4, 4, [&](std::size_t task) {
+    const int th = int(task);
+    for (int k = 0; k < 8; ++k) {
+      const double mx = k < 4 ? 0.0 : 1000.0;
+      module::Level lv;
+      fresh->decalLevel(lattice(mx, 0, 32, 31.25, (k + th) % 4, hills), lv);
+      got[std::size_t(th * 8 + (k < 4 ? 0 : 4) + (k + th) % 4)] = lv.indices.size() * 1000003u + lv.vertices.size();
+    }
+  });
   for (int th = 0; th < 4; ++th) {
     for (int k = 0; k < 8; ++k) EXPECT_EQ(got[std::size_t(th * 8 + k)], want[std::size_t(k)]) << th << " " << k;
   }

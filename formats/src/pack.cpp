@@ -568,20 +568,27 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
 }
 
 std::string PackWriter::add(const module::Module& m) {
-  State& s = *state_;
+  auto r = compress(m);
+  if (!r) return r.problems().front().message;
+  return append(std::move(r.value()));
+}
+
+Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
+  const State& s = *state_;
   const std::string name = "pack writer: " + moduleName(m.kx, m.kz);
+  auto fail = [&](const std::string& message) { return Problem{s.packTmp, 0, message}; };
   if (m.kx >= s.header.modulesX || m.kz >= s.header.modulesZ) {
-    return name + " is outside the pack's " + str(s.header.modulesX) + " x " +
-           str(s.header.modulesZ) + " modules";
+    return fail(name + " is outside the pack's " + str(s.header.modulesX) + " x " +
+                str(s.header.modulesZ) + " modules");
   }
   if (m.levels.size() != s.header.levels) {
-    return name + " has " + str(m.levels.size()) + " levels, the pack holds " +
-           str(s.header.levels);
+    return fail(name + " has " + str(m.levels.size()) + " levels, the pack holds " +
+                str(s.header.levels));
   }
-  if (const std::string e = module::checkEncodable(m); !e.empty()) return name + ": " + e;
+  if (const std::string e = module::checkEncodable(m); !e.empty()) return fail(name + ": " + e);
   if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
-    return name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) +
-           " allowed";
+    return fail(name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) +
+                " allowed");
   }
   const std::vector<std::byte> raw = module::encode(m);
   // Decoding our own encoding checks everything checkEncodable leaves out
@@ -589,32 +596,41 @@ std::string PackWriter::add(const module::Module& m) {
   // that its reader would refuse.
   if (auto back = module::decode(raw, "encoded module"); !back) {
     const Problem& p = back.problems().front();
-    return name + " is malformed: " + p.message + " (byte " + str(p.offset) + " of its encoding)";
+    return fail(name + " is malformed: " + p.message + " (byte " + str(p.offset) + " of its encoding)");
   }
-  const std::vector<std::byte> packed = compress(raw, s.level);
-  if (packed.empty()) return name + ": zstd compression failed (out of memory?)";
-  if (packed.size() > kMaxModuleBytes) return name + " compresses to more than the allowed size";
-  Entry e;
-  e.compressedBytes = static_cast<std::uint32_t>(packed.size());
+  Record r;
+  r.bytes = sandtable::pack::compress(raw, s.level);
+  if (r.bytes.empty()) return fail(name + ": zstd compression failed (out of memory?)");
+  if (r.bytes.size() > kMaxModuleBytes) return fail(name + " compresses to more than the allowed size");
+  Entry& e = r.entry;
+  e.compressedBytes = static_cast<std::uint32_t>(r.bytes.size());
   e.rawBytes = static_cast<std::uint32_t>(raw.size());
-  e.compressedCrc = crc32(packed);
+  e.compressedCrc = crc32(r.bytes);
   e.rawCrc = crc32(raw);
   e.kx = m.kx;
   e.kz = m.kz;
+  return r;
+}
 
+std::string PackWriter::append(Record r) {
+  State& s = *state_;
+  Entry& e = r.entry;
   const std::lock_guard lock(s.mutex);
   if (s.finished) return "pack writer: add() after finish()";
   if (!s.failed.empty()) return s.failed;
-  Entry& slot = s.entries[std::size_t(m.kz) * s.header.modulesX + m.kx];
-  if (slot.compressedBytes != 0) return name + " was added twice";
+  if (e.kx >= s.header.modulesX || e.kz >= s.header.modulesZ || e.compressedBytes != r.bytes.size()) {
+    return "pack writer: append() of a record that compress() did not make";
+  }
+  Entry& slot = s.entries[std::size_t(e.kz) * s.header.modulesX + e.kx];
+  if (slot.compressedBytes != 0) return "pack writer: " + moduleName(e.kx, e.kz) + " was added twice";
   e.offset = s.end;
-  const std::string err = pwriteAll(s.fd, packed.data(), packed.size(), s.end);
+  const std::string err = pwriteAll(s.fd, r.bytes.data(), r.bytes.size(), s.end);
   if (!err.empty()) {
     s.failed = "pack writer: cannot write " + s.packTmp + ": " + err + " (is the disk full?)";
     return s.failed;
   }
-  s.end += packed.size();
-  s.crc = crc32(packed, s.crc);
+  s.end += r.bytes.size();
+  s.crc = crc32(r.bytes, s.crc);
   slot = e;
   return {};
 }

@@ -336,6 +336,37 @@ TEST(Pack, threadsAddConcurrently) {
   fs::remove_all(dir);
 }
 
+TEST(Pack, recordsLandInAppendOrder) {
+  const std::string dir = tempDir("append-order");
+  const IndexHeader h = smallHeader(3, 2);
+  auto w = PackWriter::create(dir, h, 3);
+  ASSERT_TRUE(w.ok()) << w.error();
+  // Compressed in row-major order, appended in reverse: the pack follows append().
+  std::vector<PackWriter::Record> records;
+  for (std::uint32_t k = 0; k < 6; ++k) {
+    auto r = w.value()->compress(sample(k % 3, k / 3, h));
+    ASSERT_TRUE(r.ok()) << r.error();
+    records.push_back(std::move(r.value()));
+  }
+  PackWriter::Record again = records[5];
+  for (std::uint32_t k = 6; k-- > 0;) ASSERT_EQ(w.value()->append(std::move(records[k])), "");
+  EXPECT_NE(w.value()->append(std::move(again)).find("module (2,1) was added twice"), std::string::npos);
+  ASSERT_EQ(w.value()->finish(), "");
+  auto r = PackReader::open(dir);
+  ASSERT_TRUE(r.ok()) << r.error();
+  std::uint64_t offset = kPackHeaderBytes;
+  for (std::uint32_t k = 6; k-- > 0;) {
+    const Entry e = r.value()->entry(k % 3, k / 3);
+    EXPECT_EQ(e.offset, offset) << k;
+    offset += e.compressedBytes;
+    auto m = r.value()->read(k % 3, k / 3);
+    ASSERT_TRUE(m.ok()) << m.error();
+    EXPECT_EQ(module::encode(m.value()), module::encode(sample(k % 3, k / 3, h)));
+  }
+  EXPECT_EQ(offset, fs::file_size(dir + "/modules.pack"));
+  fs::remove_all(dir);
+}
+
 TEST(Pack, sizeStatsAreNearestRank) {
   const std::string dir = tempDir("stats");
   const IndexHeader h = smallHeader(5, 4, 4, 2);

@@ -151,6 +151,21 @@ class PackWriter {
   /// exactly once. Returns "" or an error; a failed write poisons the
   /// writer (every later call fails).
   std::string add(const module::Module& m);
+
+  /// add() in two halves, so a caller can compress on many threads and
+  /// append in an order of its choosing (the build appends in row-major
+  /// module order, which makes the pack independent of thread timing).
+  struct Record {
+    Entry entry;                  ///< all but offset filled in
+    std::vector<std::byte> bytes; ///< the compressed record
+  };
+  /// The checks, the encoding and the compression of add(), in the calling
+  /// thread. Changes nothing in the writer; any thread, any time before
+  /// finish(). The error is add()'s message (Problem::message).
+  Result<Record> compress(const module::Module& m) const;
+  /// The rest of add(), under the lock: appends the record at the end of
+  /// the pack and fills its entry. Same errors and poisoning as add().
+  std::string append(Record r);
   /// Fails if any module was not added. Otherwise writes the index, fsyncs
   /// both files, renames them into place and fsyncs the directory.
   std::string finish();
