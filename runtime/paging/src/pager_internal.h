@@ -142,11 +142,11 @@ void copyLevel(const module::Level& src, module::Level& dst);
 /// Reserves dst's vectors to at least src's sizes.
 void reserveLike(const module::Level& src, module::Level& dst);
 
-/// A flat stand-in for module (kx, kz) at the coarsest level, on the same
-/// lattice as a real one: posts every 2^(levels-1) grid posts, at the
-/// grid's elevation at the module's centre post, with skirts as deep as the
-/// elevation range of the grid blocks under the module. Written into
-/// `out` reusing its capacity.
+/// A coarse stand-in for module (kx, kz): the coarsest level as
+/// sandtable_meshing assembles it from the grid (posts every 2^(levels-1)
+/// grid posts, the grid's own heights, the grid triangles as the skin in
+/// `material`), with skirts round the module as deep as the elevation range
+/// of the grid blocks under it. Written into `out` reusing its capacity.
 void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, std::uint32_t kx,
                       std::uint32_t kz, std::uint16_t material, module::Level& out);
 
