@@ -150,7 +150,7 @@ void reclaimEmptySlots(Impl& im, const Slot& self, std::uint64_t need) {
     }
     settleCapacity(im, s, 0);
     if (before > s.capacityBytes) {
-      im.reclaimedBytes.fetch_add(before - s.capacityBytes, std::memory_order_relaxed);
+      im.count.reclaimedBytes.fetch_add(before - s.capacityBytes, std::memory_order_relaxed);
     }
   }
 }
@@ -214,7 +214,7 @@ struct PublishTimer {
 void loadModule(Impl& im, Loader& ld, const Pending& p) {
   const ModuleKey k = unpackKey(p.key);
   if (!im.window.load().window.contains(k.kx, k.kz)) {
-    im.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+    im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
     return;
   }
   Slot& s = im.slotFor(k.kx, k.kz);
@@ -227,7 +227,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   std::uint64_t gen = 0;
   for (;;) {
     if (wordKey(w) == p.key && wordState(w) != SlotState::empty) {
-      im.duplicates.fetch_add(1, std::memory_order_relaxed);
+      im.count.duplicates.fetch_add(1, std::memory_order_relaxed);
       return;
     }
     gen = (wordGen(w) + 1) & 0x3fffffffull;
@@ -237,9 +237,9 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
     }
   }
   // Reusing a slot whose module left the window frees that module.
-  if (wordState(w) != SlotState::empty) im.freed.fetch_add(1, std::memory_order_relaxed);
+  if (wordState(w) != SlotState::empty) im.count.freed.fetch_add(1, std::memory_order_relaxed);
   if (s.readers.load(std::memory_order_seq_cst) != 0) {
-    im.readerWaits.fetch_add(1, std::memory_order_relaxed);
+    im.count.readerWaits.fetch_add(1, std::memory_order_relaxed);
     while (s.readers.load(std::memory_order_seq_cst) != 0) std::this_thread::yield();
   }
 
@@ -264,7 +264,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
       Problem problem;
       const bool ok = im.pack->readInto(k.kx, k.kz, loaded, problem);
       im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
-      im.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
+      im.count.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
       if (!ok) {
         failure = problem.str();
         missing = recordBeyondEof(im, e);
@@ -273,7 +273,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   }
   if (!im.window.load().window.contains(k.kx, k.kz)) {
     // Left the window during the read: give the slot back unpublished.
-    im.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
     std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
     s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::empty, gen + 1),
                                    std::memory_order_seq_cst);
@@ -289,7 +289,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   bool placeholder = bad || !failure.empty();
   if (!placeholder && !copyWithinBudget(im, s, loaded.levels[coarse], coarse)) {
     placeholder = true;
-    im.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
+    im.count.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
     if (!im.loggedBudget.exchange(true)) {
       im.log("the memory budget of " + std::to_string(im.options.memoryBudgetBytes) +
              " bytes is spent (pool " +
@@ -306,25 +306,25 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
         first = im.badModules.insert(p.key).second;
       }
       if (first) {
-        (missing ? im.missingModules : im.corruptModules).fetch_add(1, std::memory_order_relaxed);
+        (missing ? im.count.missingModules : im.count.corruptModules).fetch_add(1, std::memory_order_relaxed);
         im.log(failure + " (a coarse placeholder stands in; logged once per module)");
       }
     }
     buildPlaceholder(*im.grid, im.header, k.kx, k.kz, im.placeholderMaterial, d.levels[coarse]);
     settleCapacity(im, s, 0);
-    im.placeholders.fetch_add(1, std::memory_order_relaxed);
+    im.count.placeholders.fetch_add(1, std::memory_order_relaxed);
   }
   d.placeholder = placeholder;
   s.finest.store(coarse, std::memory_order_release);
   std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
                                       std::memory_order_seq_cst)) {
-    im.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
     return;
   }
   recordLatency(im, p);
   ld.published.fetch_add(1, std::memory_order_relaxed);
-  if (!placeholder) im.loaded.fetch_add(1, std::memory_order_relaxed);
+  if (!placeholder) im.count.loaded.fetch_add(1, std::memory_order_relaxed);
   if (im.options.onResident) im.options.onResident(ld.index, k, placeholder);
   if (placeholder) return;
 
@@ -334,7 +334,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   const module::Module& m = loaded;
   for (std::uint32_t l = coarse; l-- > 0;) {
     if (!copyWithinBudget(im, s, m.levels[l], l)) {
-      im.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);
+      im.count.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);
       if (!im.loggedBudget.exchange(true)) {
         im.log("the memory budget of " + std::to_string(im.options.memoryBudgetBytes) +
                " bytes is spent: fine levels are left out (logged once)");
@@ -354,7 +354,7 @@ void freeModule(Impl& im, std::uint32_t key) {
   while (wordKey(w) == key && wordState(w) != SlotState::empty) {
     if (s.word.compare_exchange_weak(w, makeWord(key, SlotState::empty, wordGen(w) + 1),
                                      std::memory_order_seq_cst)) {
-      im.freed.fetch_add(1, std::memory_order_relaxed);
+      im.count.freed.fetch_add(1, std::memory_order_relaxed);
       return;
     }
   }
@@ -396,7 +396,7 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
   for (std::size_t i = 0; i < ld.pending.size();) {
     const ModuleKey k = unpackKey(ld.pending[i].key);
     if (!ws.window.contains(k.kx, k.kz)) {
-      im.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+      im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
       im.outstanding.fetch_sub(1);
       ld.pending[i] = ld.pending.back();
       ld.pending.pop_back();
@@ -451,7 +451,7 @@ void collectFaults(Impl& im, Loader& ld) {
       im.outstanding.fetch_sub(1);
       continue;
     }
-    im.requested.fetch_add(1, std::memory_order_relaxed);
+    im.count.requested.fetch_add(1, std::memory_order_relaxed);
     ld.pending.push_back({key, 0, t});
   }
 }
@@ -510,7 +510,7 @@ void loaderLoop(Impl& im, Loader& ld) {
       stolen = p.has_value();
     }
     if (p) {
-      if (stolen) im.stolen.fetch_add(1, std::memory_order_relaxed);
+      if (stolen) im.count.stolen.fetch_add(1, std::memory_order_relaxed);
       loadModule(im, ld, *p);
       im.outstanding.fetch_sub(1);
       continue;
@@ -682,7 +682,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
 void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ, double timeNow) {
   Impl& im = *impl_;
   if (im.stopped) return;
-  im.updates.fetch_add(1, std::memory_order_relaxed);
+  im.count.updates.fetch_add(1, std::memory_order_relaxed);
   // Velocity not given: from the last update's position and time.
   if (!std::isfinite(velocityX) || !std::isfinite(velocityZ)) {
     const WindowState last = im.window.load();
@@ -706,8 +706,8 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
   for (std::size_t d = 0; d < kDirections; ++d) {
     im.leadStrips[d].store(im.planner.lead()[d], std::memory_order_relaxed);
   }
-  if (st.crossed) im.boxCrossings.fetch_add(1, std::memory_order_relaxed);
-  if (st.refill) im.refills.fetch_add(1, std::memory_order_relaxed);
+  if (st.crossed) im.count.boxCrossings.fetch_add(1, std::memory_order_relaxed);
+  if (st.refill) im.count.refills.fetch_add(1, std::memory_order_relaxed);
   if (im.options.mode == PagerMode::mmap) {
     if (st.refill) {  // a jump: wake the prefetcher (a lost wake costs one sleep)
       im.wake.store(true);
@@ -729,7 +729,7 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
       im.outstanding.fetch_add(1);
       if (!ld.queue->push(r)) {
         im.outstanding.fetch_sub(1);
-        im.queueOverflows.fetch_add(1, std::memory_order_relaxed);
+        im.count.queueOverflows.fetch_add(1, std::memory_order_relaxed);
         ld.resync.store(true);
       }
     };
@@ -737,7 +737,7 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
     for (const ModuleKey& k : job.load) {
       push({packKey(k.kx, k.kz), 0, std::uint8_t(st.refill ? 1 : 0), now});
     }
-    im.requested.fetch_add(job.load.size(), std::memory_order_relaxed);
+    im.count.requested.fetch_add(job.load.size(), std::memory_order_relaxed);
     signalLoader(ld);
   }
   // Wake the idle loaders too, so they can steal from the busy ones.
@@ -750,7 +750,7 @@ ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wa
   const Impl& im = *impl_;
   ResidentRef ref;
   if (!im.slots || kx >= im.header.modulesX || kz >= im.header.modulesZ) return ref;
-  im.residentQueries.fetch_add(1, std::memory_order_relaxed);
+  im.count.residentQueries.fetch_add(1, std::memory_order_relaxed);
   Slot& s = im.slotFor(kx, kz);
   const std::uint32_t key = packKey(kx, kz);
   // Admission: announce, then check (seq_cst both; see loadModule).
@@ -758,13 +758,13 @@ ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wa
   const std::uint64_t w = s.word.load(std::memory_order_seq_cst);
   if (wordKey(w) != key || wordState(w) != SlotState::resident) {
     s.readers.fetch_sub(1, std::memory_order_release);
-    im.residentMisses.fetch_add(1, std::memory_order_relaxed);
+    im.count.residentMisses.fetch_add(1, std::memory_order_relaxed);
     if (im.options.mode == PagerMode::demand) {
       const std::uint64_t tagged = (1ull << 32) | key;
       if (s.demand.load(std::memory_order_relaxed) != tagged) {
         s.demandNs.store(nowNs(), std::memory_order_relaxed);
         s.demand.store(tagged, std::memory_order_release);
-        im.demandFaults.fetch_add(1, std::memory_order_relaxed);
+        im.count.demandFaults.fetch_add(1, std::memory_order_relaxed);
         const auto slot = std::size_t(&s - im.slots.get());
         signalLoader(*im.loaders[slot % im.loaders.size()]);
       }
@@ -781,14 +781,28 @@ ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wa
   return ref;
 }
 
+namespace {
+
+/// Every counter, each loaded once (relaxed).
+PagerCounters snapshot(const PagerCountersOf<std::atomic<std::uint64_t>>& live) {
+  static_assert(sizeof(PagerCounters) ==
+                    std::tuple_size_v<decltype(std::declval<PagerCounters&>().fields())> * sizeof(std::uint64_t),
+                "a counter of PagerCountersOf is missing from fields()");
+  PagerCounters out;
+  std::apply([&](auto&... dst) {
+    std::apply([&](const auto&... src) { ((dst = src.load(std::memory_order_relaxed)), ...); }, live.fields());
+  }, out.fields());
+  return out;
+}
+
+}  // namespace
+
 PagerMetrics Pager::metrics() const {
   const Impl& im = *impl_;
   auto get = [](const std::atomic<std::uint64_t>& a) { return a.load(std::memory_order_relaxed); };
   PagerMetrics m;
+  static_cast<PagerCounters&>(m) = snapshot(im.count);
   m.mode = im.options.mode;
-  m.updates = get(im.updates);
-  m.boxCrossings = get(im.boxCrossings);
-  m.refills = get(im.refills);
   for (std::size_t d = 0; d < kDirections; ++d) {
     m.stripSignals[d] = get(im.stripSignals[d]);
     m.leadStrips[d] = im.leadStrips[d].load(std::memory_order_relaxed);
@@ -798,25 +812,6 @@ PagerMetrics Pager::metrics() const {
     m.queueLength[i] = std::uint32_t(im.loaders[i]->queue->size()) +
                        im.loaders[i]->backlog.load(std::memory_order_relaxed);
   }
-  m.requested = get(im.requested);
-  m.loaded = get(im.loaded);
-  m.freed = get(im.freed);
-  m.duplicates = get(im.duplicates);
-  m.cancelledQueued = get(im.cancelledQueued);
-  m.cancelledInFlight = get(im.cancelledInFlight);
-  m.placeholders = get(im.placeholders);
-  m.missingModules = get(im.missingModules);
-  m.corruptModules = get(im.corruptModules);
-  m.budgetRefusals = get(im.budgetRefusals);
-  m.budgetTrimmedLevels = get(im.budgetTrimmedLevels);
-  m.reclaimedBytes = get(im.reclaimedBytes);
-  m.bytesRead = get(im.bytesRead);
-  m.readerWaits = get(im.readerWaits);
-  m.queueOverflows = get(im.queueOverflows);
-  m.residentQueries = get(im.residentQueries);
-  m.residentMisses = get(im.residentMisses);
-  m.demandFaults = get(im.demandFaults);
-  m.stolen = get(im.stolen);
   m.maxQueueLength = im.maxQueueLength.load(std::memory_order_relaxed);
   m.latency = im.latency.stats();
   m.stripLatency = im.stripLatency.stats();
@@ -844,11 +839,6 @@ PagerMetrics Pager::metrics() const {
   m.modulesPerSecond = m.elapsedSeconds > 0 ? double(m.loaded) / m.elapsedSeconds : 0;
   m.readSeconds = double(get(im.readNs)) / 1e9;
   m.publishSeconds = double(get(im.publishNs)) / 1e9;
-  m.prefetchPasses = get(im.prefetchPasses);
-  m.prefetchBlocks = get(im.prefetchBlocks);
-  m.prefetchPages = get(im.prefetchPages);
-  m.prefetchMajorFaults = get(im.prefetchMajorFaults);
-  m.prefetchMinorFaults = get(im.prefetchMinorFaults);
   m.lastPassSeconds = im.lastPassSeconds.load(std::memory_order_relaxed);
   m.lastSleepSeconds = im.lastSleepSeconds.load(std::memory_order_relaxed);
   return m;

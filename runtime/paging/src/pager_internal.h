@@ -215,12 +215,9 @@ struct Pager::Impl {
   std::atomic<double> liveViewDistance{0};  ///< the planner's, for the prefetch thread
   std::atomic<bool> loggedBudget{false};
 
-  // Counters (relaxed).
-  std::atomic<std::uint64_t> updates{0}, boxCrossings{0}, refills{0}, requested{0}, loaded{0},
-      freed{0}, duplicates{0}, cancelledQueued{0}, cancelledInFlight{0}, placeholders{0},
-      missingModules{0}, corruptModules{0}, budgetRefusals{0}, budgetTrimmedLevels{0}, reclaimedBytes{0},
-      bytesRead{0}, readerWaits{0}, queueOverflows{0}, readNs{0}, publishNs{0}, stolen{0};
-  mutable std::atomic<std::uint64_t> residentQueries{0}, residentMisses{0}, demandFaults{0};
+  // Counters (relaxed); metrics() snapshots them in one loop.
+  mutable PagerCountersOf<std::atomic<std::uint64_t>> count;
+  std::atomic<std::uint64_t> readNs{0}, publishNs{0};
   std::array<std::atomic<std::uint64_t>, kDirections> stripSignals{};
   std::array<std::atomic<std::uint32_t>, kDirections> leadStrips{};
   std::atomic<std::uint32_t> maxQueueLength{0};
@@ -232,8 +229,6 @@ struct Pager::Impl {
   std::mutex sleepMutex;
   std::condition_variable sleepCv;
   std::atomic<bool> wake{false};
-  std::atomic<std::uint64_t> prefetchPasses{0}, prefetchBlocks{0}, prefetchPages{0},
-      prefetchMajorFaults{0}, prefetchMinorFaults{0};
   std::atomic<double> lastPassSeconds{0}, lastSleepSeconds{0};
   std::atomic<std::uint64_t> touchSink{0};
 
