@@ -47,6 +47,7 @@
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
 #include "sandtable/base/result.h"
+#include "sandtable/paging/module_source.h"
 
 namespace sandtable::runtime {
 
@@ -57,12 +58,6 @@ enum class Direction : std::uint8_t { north = 0, east = 1, south = 2, west = 3 }
 inline constexpr std::size_t kDirections = 4;
 /// "north", "east", "south", "west".
 const char* directionName(Direction d);
-
-struct ModuleKey {
-  std::uint32_t kx = 0;
-  std::uint32_t kz = 0;
-  bool operator==(const ModuleKey&) const = default;
-};
 
 /// Half-open rectangle of module indices [x0, x1) x [z0, z1); may lie
 /// partly or wholly outside the database until clipped.
@@ -273,6 +268,7 @@ struct PagerOptions {
 struct ResidentModule {
   std::uint32_t kx = 0, kz = 0;
   bool placeholder = false;  ///< a coarse stand-in from the grid (missing, corrupt, or no budget)
+  std::uint64_t generation = 0;  ///< the source's generation of these levels (ModuleSource)
   std::vector<module::Level> levels;
 };
 
@@ -297,7 +293,8 @@ class ResidentRef {
   /// The chosen level is coarser than the one asked for.
   bool coarser() const { return coarser_; }
   bool placeholder() const { return module_->placeholder; }
-  /// Changes each time the slot receives a module (cache key for GPU data).
+  /// Changes each time the slot receives a module, or a newer generation
+  /// of its module (cache key for GPU data).
   std::uint64_t generation() const { return generation_; }
   const module::Level& level() const { return module_->levels[level_]; }
   /// Any level from finestLevel() to the coarsest (asserted).
@@ -346,6 +343,7 @@ struct PagerCountersOf {
   T residentMisses{};  ///< queries for a database module not resident
   T demandFaults{};
   T stolen{};  ///< modules loaded by a loader other than their direction's
+  T reloaded{};  ///< resident modules replaced by a newer generation from the source
   // mmap mode
   T prefetchPasses{};
   T prefetchBlocks{};
@@ -359,7 +357,7 @@ struct PagerCountersOf {
     return std::tie(updates, boxCrossings, refills, requested, loaded, freed, duplicates, cancelledQueued,
                     cancelledInFlight, placeholders, missingModules, corruptModules, budgetRefusals,
                     budgetTrimmedLevels, reclaimedBytes, bytesRead, readerWaits, queueOverflows, residentQueries,
-                    residentMisses, demandFaults, stolen, prefetchPasses, prefetchBlocks, prefetchPages,
+                    residentMisses, demandFaults, stolen, reloaded, prefetchPasses, prefetchBlocks, prefetchPages,
                     prefetchMajorFaults, prefetchMinorFaults);
   }
   auto fields() const { return const_cast<PagerCountersOf&>(*this).fields(); }
@@ -398,13 +396,21 @@ struct PagerMetrics : PagerCounters {
 
 class Pager {
  public:
-  /// Opens a pager on a grid and (except in mmap mode) a pack, and starts
-  /// its threads. Fails ("pager options: ..." / "pager: ...") on bad
-  /// options, a missing pack, or when the slots' placeholder storage alone
-  /// exceeds the budget.
+  /// Opens a pager on a grid and (except in mmap mode) a module source,
+  /// and starts its threads. Fails ("pager options: ..." / "pager: ...") on
+  /// bad options, no source, or when the slots' placeholder storage alone
+  /// exceeds the budget. Placeholders use material 0.
+  static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid,
+                                             std::shared_ptr<const ModuleSource> source,
+                                             const PagerOptions& options);
+  /// The pack as the source (PackSource).
   static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid,
                                              std::shared_ptr<const pack::PackReader> pack,
                                              const PagerOptions& options);
+  /// No modules: mmap mode only.
+  static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid, std::nullptr_t,
+                                             const PagerOptions& options);
+  /// The database's pack, placeholders in its default area material.
   static Result<std::unique_ptr<Pager>> open(const Database& db, const PagerOptions& options);
   static Result<std::unique_ptr<Pager>> open(const std::string& directory,
                                              const PagerOptions& options);
@@ -453,7 +459,7 @@ class Pager {
 
  private:
   static Result<std::unique_ptr<Pager>> openWith(std::shared_ptr<const grid::GridFile> grid,
-                                                 std::shared_ptr<const pack::PackReader> pack,
+                                                 std::shared_ptr<const ModuleSource> source,
                                                  const PagerOptions& options,
                                                  std::uint16_t placeholderMaterial);
   explicit Pager(std::unique_ptr<Impl> impl);
