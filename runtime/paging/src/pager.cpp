@@ -247,20 +247,11 @@ struct PublishTimer {
 };
 
 void publishFinerLevels(Impl& im, Slot& s, const module::Module& m);
-void reloadWhileStale(Impl& im, Loader& ld, Slot& s, std::uint32_t key);
 
-/// Reads module p.key into its slot and publishes it, coarse level first.
-/// A request for a module resident at an older generation than the
-/// source's reloads it instead.
-void loadModule(Impl& im, Loader& ld, const Pending& p) {
+/// Reads module p.key into slot s (whose `write` the caller holds) and
+/// publishes it, coarse level first, unless it is resident already.
+void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   const ModuleKey k = unpackKey(p.key);
-  if (!im.window.load().window.contains(k.kx, k.kz)) {
-    im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  Slot& s = im.slotFor(k.kx, k.kz);
-  const std::unique_lock lock(s.write);  // loaders only; readers never take it
-
   // Claim the slot. The seq_cst CAS stops new readers from being admitted
   // to the old occupant; the seq_cst load of `readers` after it then sees
   // every reader that was admitted (docs/PAGER.md, section 4).
@@ -268,13 +259,10 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   std::uint64_t gen = 0;
   for (;;) {
     if (wordKey(w) == p.key && wordState(w) != SlotState::empty) {
-      if (wordState(w) == SlotState::resident &&
-          s.data[wordBuffer(w)].generation < im.source->generation(k.kx, k.kz)) {
-        reloadWhileStale(im, ld, s, p.key);  // a change notice: a newer generation
-        return;
-      }
-      im.count.duplicates.fetch_add(1, std::memory_order_relaxed);
-      return;
+      const bool stale = wordState(w) == SlotState::resident &&
+                         s.data[wordBuffer(w)].generation < im.source->generation(k.kx, k.kz);
+      if (!stale) im.count.duplicates.fetch_add(1, std::memory_order_relaxed);
+      return;  // a stale one is a change notice: loadModule reloads it
     }
     gen = (wordGen(w) + 1) & kGenMask;
     if (s.word.compare_exchange_weak(w, makeWord(p.key, SlotState::loading, gen),
@@ -358,8 +346,22 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   if (!placeholder) im.count.loaded.fetch_add(1, std::memory_order_relaxed);
   if (im.options.onResident) im.options.onResident(ld.index, k, placeholder);
   if (!placeholder) publishFinerLevels(im, s, loaded);
-  // The source may have moved on during the read (its change notice found
-  // this module loading, a duplicate): catch up now.
+}
+
+void reloadWhileStale(Impl& im, Loader& ld, Slot& s, std::uint32_t key);
+
+/// Reads module p.key into its slot and publishes it, coarse level first.
+/// A module resident at an older generation than the source's (a change
+/// notice, or a source that moved on during the read) is reloaded.
+void loadModule(Impl& im, Loader& ld, const Pending& p) {
+  const ModuleKey k = unpackKey(p.key);
+  if (!im.window.load().window.contains(k.kx, k.kz)) {
+    im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  Slot& s = im.slotFor(k.kx, k.kz);
+  const std::unique_lock lock(s.write);  // loaders only; readers never take it
+  loadFresh(im, ld, s, p);
   reloadWhileStale(im, ld, s, p.key);
 }
 

@@ -23,7 +23,9 @@
 // new strip in and frees the strip on the opposite side (Figure 31). A jump
 // refills the whole window, nearest modules first, spread over all loaders.
 // Any number of reader threads (render, simulation) call resident() at any
-// time: it takes no lock and never waits.
+// time: it takes no lock and never waits. Modules come from a ModuleSource
+// (module_source.h; the pack is PackSource); a module whose generation
+// there moves on is reloaded while the older one stays readable.
 //
 // Thread safety of Pager: update() and stop() from one thread (the main
 // thread) only; resident(), metrics(), waitIdle() and the const accessors
