@@ -1,8 +1,6 @@
 // The pager: residency slots, loader threads and the lock-free read path
 // (docs/PAGER.md). The strip logic is in pager_plan.cpp, storage helpers
 // in pager_pool.cpp, mmap mode in pager_prefetch.cpp.
-#include <sys/stat.h>
-
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -115,7 +113,9 @@ bool takeBudget(Impl& im, std::uint64_t bytes) {
 /// for which `taken` bytes were taken from the budget.
 void settleCapacity(Impl& im, Slot& s, std::uint64_t taken) {
   std::uint64_t now = 0;
-  for (const module::Level& l : s.data.levels) now += levelCapacityBytes(l);
+  for (const ResidentModule& d : s.data) {
+    for (const module::Level& l : d.levels) now += levelCapacityBytes(l);
+  }
   const std::int64_t delta = std::int64_t(now) - std::int64_t(s.capacityBytes) - std::int64_t(taken);
   if (delta > 0) im.poolBytes.fetch_add(std::uint64_t(delta), std::memory_order_relaxed);
   if (delta < 0) im.poolBytes.fetch_sub(std::uint64_t(-delta), std::memory_order_relaxed);
@@ -137,49 +137,85 @@ void reclaimEmptySlots(Impl& im, const Slot& self, std::uint64_t need) {
     const std::unique_lock lock(s.write, std::try_to_lock);
     if (!lock.owns_lock()) continue;
     if (wordState(s.word.load(std::memory_order_seq_cst)) != SlotState::empty ||
-        s.readers.load(std::memory_order_seq_cst) != 0) {
+        s.readers[0].load(std::memory_order_seq_cst) != 0 || s.readers[1].load(std::memory_order_seq_cst) != 0) {
       continue;
     }
     const std::uint64_t before = s.capacityBytes;
-    for (std::size_t l = 0; l < s.data.levels.size(); ++l) {
-      module::Level fresh;
-      if (l + 1 == s.data.levels.size()) reserveLike(im.placeholderProto, fresh);
-      if (levelCapacityBytes(fresh) < levelCapacityBytes(s.data.levels[l])) {
-        s.data.levels[l] = std::move(fresh);
+    for (std::size_t b = 0; b < s.data.size(); ++b) {
+      std::vector<module::Level>& levels = s.data[b].levels;
+      for (std::size_t l = 0; l < levels.size(); ++l) {
+        module::Level fresh;  // buffer 0 keeps the placeholder reserve; the reload buffer keeps nothing
+        if (b == 0 && l + 1 == levels.size()) reserveLike(im.placeholderProto, fresh);
+        if (levelCapacityBytes(fresh) < levelCapacityBytes(levels[l])) levels[l] = std::move(fresh);
       }
     }
     settleCapacity(im, s, 0);
     if (before > s.capacityBytes) {
-      im.reclaimedBytes.fetch_add(before - s.capacityBytes, std::memory_order_relaxed);
+      im.count.reclaimedBytes.fetch_add(before - s.capacityBytes, std::memory_order_relaxed);
     }
   }
 }
 
-/// Copies one decoded level into the slot if the budget allows.
-bool copyWithinBudget(Impl& im, Slot& s, const module::Level& src, std::uint32_t l) {
-  const std::uint64_t growth = levelGrowthBytes(src, s.data.levels[l]);
+/// Copies one decoded level into buffer `b` of the slot if the budget allows.
+bool copyWithinBudget(Impl& im, Slot& s, const module::Level& src, std::uint32_t l, std::uint32_t b = 0) {
+  const std::uint64_t growth = levelGrowthBytes(src, s.data[b].levels[l]);
   if (growth > 0 && !takeBudget(im, growth)) {
     reclaimEmptySlots(im, s, growth);
     if (!takeBudget(im, growth)) return false;
   }
-  copyLevel(src, s.data.levels[l]);
+  copyLevel(src, s.data[b].levels[l]);
   settleCapacity(im, s, growth);
   return true;
 }
 
 // ------------------------------------------------------------ the loads
 
-bool knownBad(Impl& im, std::uint32_t key) {
+/// The module failed to read at the source's generation `gen`.
+bool knownBad(Impl& im, std::uint32_t key, std::uint64_t gen) {
   const std::lock_guard lock(im.badMutex);
-  return im.badModules.count(key) != 0;
+  const auto it = im.badModules.find(key);
+  return it != im.badModules.end() && it->second == gen;
 }
 
-/// True when the record lies (partly) beyond the end of modules.pack now:
-/// the module is missing rather than corrupt.
-bool recordBeyondEof(const Impl& im, const pack::Entry& e) {
-  struct stat st {};
-  if (::fstat(im.pack->packFd(), &st) != 0) return false;
-  return e.offset + e.compressedBytes > std::uint64_t(st.st_size);
+/// This loader's decoded module, whose capacity is reused from read to
+/// read: in steady state a load allocates nothing.
+module::Module& loaderModule() {
+  thread_local module::Module loaded;
+  return loaded;
+}
+
+struct ReadOutcome {
+  std::uint64_t generation = 0;  ///< the source's, of what was read (or tried)
+  std::string failure;           ///< "" when read
+  bool missing = false;
+};
+
+/// One read from the source into loaderModule(), timed and counted.
+ReadOutcome readModule(Impl& im, ModuleKey k) {
+  ReadOutcome out;
+  const ModuleInfo info = im.source->info(k.kx, k.kz);
+  if (info.storedBytes > 0 && im.options.simulatedReadSeconds > 0) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(im.options.simulatedReadSeconds));
+  }
+  out.generation = im.source->generation(k.kx, k.kz);
+  const std::int64_t t0 = nowNs();
+  const Result<std::uint64_t> r = im.source->read(k.kx, k.kz, loaderModule());
+  if (info.storedBytes > 0) {
+    im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
+    im.count.bytesRead.fetch_add(info.storedBytes, std::memory_order_relaxed);
+  }
+  if (r.ok()) {
+    out.generation = r.value();
+    if (loaderModule().levels.size() != im.levels) {
+      out.failure = "pager: module (" + std::to_string(k.kx) + ", " + std::to_string(k.kz) + ") has " +
+                    std::to_string(loaderModule().levels.size()) + " levels, the source's layout " +
+                    std::to_string(im.levels);
+    }
+  } else {
+    out.failure = r.error();
+    out.missing = im.source->missing(k.kx, k.kz);
+  }
+  return out;
 }
 
 void recordLatency(Impl& im, const Pending& p) {
@@ -210,16 +246,12 @@ struct PublishTimer {
   PublishTimer& operator=(const PublishTimer&) = delete;
 };
 
-/// Reads module p.key into its slot and publishes it, coarse level first.
-void loadModule(Impl& im, Loader& ld, const Pending& p) {
-  const ModuleKey k = unpackKey(p.key);
-  if (!im.window.load().window.contains(k.kx, k.kz)) {
-    im.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  Slot& s = im.slotFor(k.kx, k.kz);
-  const std::unique_lock lock(s.write);  // loaders only; readers never take it
+void publishFinerLevels(Impl& im, Slot& s, const module::Module& m);
 
+/// Reads module p.key into slot s (whose `write` the caller holds) and
+/// publishes it, coarse level first, unless it is resident already.
+void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
+  const ModuleKey k = unpackKey(p.key);
   // Claim the slot. The seq_cst CAS stops new readers from being admitted
   // to the old occupant; the seq_cst load of `readers` after it then sees
   // every reader that was admitted (docs/PAGER.md, section 4).
@@ -227,53 +259,39 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   std::uint64_t gen = 0;
   for (;;) {
     if (wordKey(w) == p.key && wordState(w) != SlotState::empty) {
-      im.duplicates.fetch_add(1, std::memory_order_relaxed);
-      return;
+      const bool stale = wordState(w) == SlotState::resident &&
+                         s.data[wordBuffer(w)].generation < im.source->generation(k.kx, k.kz);
+      if (!stale) im.count.duplicates.fetch_add(1, std::memory_order_relaxed);
+      return;  // a stale one is a change notice: loadModule reloads it
     }
-    gen = (wordGen(w) + 1) & 0x3fffffffull;
+    gen = (wordGen(w) + 1) & kGenMask;
     if (s.word.compare_exchange_weak(w, makeWord(p.key, SlotState::loading, gen),
                                      std::memory_order_seq_cst)) {
       break;
     }
   }
   // Reusing a slot whose module left the window frees that module.
-  if (wordState(w) != SlotState::empty) im.freed.fetch_add(1, std::memory_order_relaxed);
-  if (s.readers.load(std::memory_order_seq_cst) != 0) {
-    im.readerWaits.fetch_add(1, std::memory_order_relaxed);
-    while (s.readers.load(std::memory_order_seq_cst) != 0) std::this_thread::yield();
+  if (wordState(w) != SlotState::empty) im.count.freed.fetch_add(1, std::memory_order_relaxed);
+  // A fresh load goes into buffer 0; readers of the other buffer (an older
+  // module's reloaded generation) are never in its way.
+  if (s.readers[0].load(std::memory_order_seq_cst) != 0) {
+    im.count.readerWaits.fetch_add(1, std::memory_order_relaxed);
+    while (s.readers[0].load(std::memory_order_seq_cst) != 0) std::this_thread::yield();
   }
 
-  // Read: one pread, CRC, zstd, decode (PackReader::readInto), into this
-  // loader's own module and buffers, whose capacity is reused from read to
-  // read: in steady state a load allocates nothing.
-  const bool bad = knownBad(im, p.key);
-  thread_local module::Module loaded;
-  std::string failure;
-  bool missing = false;
-  if (!bad) {
-    const pack::Entry e = im.pack->entry(k.kx, k.kz);
-    if (e.compressedBytes == 0) {
-      missing = true;
-      failure = im.pack->indexPath() + ": pack index: module (" + std::to_string(k.kx) + ", " +
-                std::to_string(k.kz) + ") is missing (its entry has no record)";
-    } else {
-      if (im.options.simulatedReadSeconds > 0) {
-        std::this_thread::sleep_for(std::chrono::duration<double>(im.options.simulatedReadSeconds));
-      }
-      const std::int64_t t0 = nowNs();
-      Problem problem;
-      const bool ok = im.pack->readInto(k.kx, k.kz, loaded, problem);
-      im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
-      im.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
-      if (!ok) {
-        failure = problem.str();
-        missing = recordBeyondEof(im, e);
-      }
-    }
-  }
+  // Read (for the pack: one pread, CRC, zstd, decode) into this loader's
+  // own module, whose capacity is reused: a load allocates nothing.
+  const std::uint64_t sourceGen = im.source->generation(k.kx, k.kz);
+  const bool bad = knownBad(im, p.key, sourceGen);
+  ReadOutcome read;
+  read.generation = sourceGen;
+  if (!bad) read = readModule(im, k);
+  const module::Module& loaded = loaderModule();
+  const std::string& failure = read.failure;
+  const bool missing = read.missing;
   if (!im.window.load().window.contains(k.kx, k.kz)) {
     // Left the window during the read: give the slot back unpublished.
-    im.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
     std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
     s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::empty, gen + 1),
                                    std::memory_order_seq_cst);
@@ -283,13 +301,14 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
   // The coarsest level first (or a placeholder).
   const PublishTimer timer(im);
   const std::uint32_t coarse = im.levels - 1;
-  ResidentModule& d = s.data;
+  ResidentModule& d = s.data[0];
   d.kx = k.kx;
   d.kz = k.kz;
+  d.generation = read.generation;
   bool placeholder = bad || !failure.empty();
   if (!placeholder && !copyWithinBudget(im, s, loaded.levels[coarse], coarse)) {
     placeholder = true;
-    im.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
+    im.count.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
     if (!im.loggedBudget.exchange(true)) {
       im.log("the memory budget of " + std::to_string(im.options.memoryBudgetBytes) +
              " bytes is spent (pool " +
@@ -303,45 +322,139 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
       bool first = false;
       {
         const std::lock_guard bl(im.badMutex);
-        first = im.badModules.insert(p.key).second;
+        first = im.badModules.insert_or_assign(p.key, read.generation).second;
       }
       if (first) {
-        (missing ? im.missingModules : im.corruptModules).fetch_add(1, std::memory_order_relaxed);
+        (missing ? im.count.missingModules : im.count.corruptModules).fetch_add(1, std::memory_order_relaxed);
         im.log(failure + " (a coarse placeholder stands in; logged once per module)");
       }
     }
     buildPlaceholder(*im.grid, im.header, k.kx, k.kz, im.placeholderMaterial, d.levels[coarse]);
     settleCapacity(im, s, 0);
-    im.placeholders.fetch_add(1, std::memory_order_relaxed);
+    im.count.placeholders.fetch_add(1, std::memory_order_relaxed);
   }
   d.placeholder = placeholder;
-  s.finest.store(coarse, std::memory_order_release);
+  s.finest[0].store(coarse, std::memory_order_release);
   std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
                                       std::memory_order_seq_cst)) {
-    im.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
     return;
   }
   recordLatency(im, p);
   ld.published.fetch_add(1, std::memory_order_relaxed);
-  if (!placeholder) im.loaded.fetch_add(1, std::memory_order_relaxed);
+  if (!placeholder) im.count.loaded.fetch_add(1, std::memory_order_relaxed);
   if (im.options.onResident) im.options.onResident(ld.index, k, placeholder);
-  if (placeholder) return;
+  if (!placeholder) publishFinerLevels(im, s, loaded);
+}
 
-  // Then the finer levels, each published by a release store of `finest`:
-  // readers admitted meanwhile use only levels >= the finest they loaded,
-  // which this loop no longer writes.
-  const module::Module& m = loaded;
+void reloadWhileStale(Impl& im, Loader& ld, Slot& s, std::uint32_t key);
+
+/// Reads module p.key into its slot and publishes it, coarse level first.
+/// A module resident at an older generation than the source's (a change
+/// notice, or a source that moved on during the read) is reloaded.
+void loadModule(Impl& im, Loader& ld, const Pending& p) {
+  const ModuleKey k = unpackKey(p.key);
+  if (!im.window.load().window.contains(k.kx, k.kz)) {
+    im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  Slot& s = im.slotFor(k.kx, k.kz);
+  const std::unique_lock lock(s.write);  // loaders only; readers never take it
+  loadFresh(im, ld, s, p);
+  reloadWhileStale(im, ld, s, p.key);
+}
+
+/// Publishes m's finer levels into buffer 0 of a slot whose coarsest level
+/// is published, finest last.
+void publishFinerLevels(Impl& im, Slot& s, const module::Module& m) {
+  const std::uint32_t coarse = im.levels - 1;
+
+  // Each finer level is published by a release store of `finest`: readers
+  // admitted meanwhile use only levels >= the finest they loaded, which
+  // this loop no longer writes.
   for (std::uint32_t l = coarse; l-- > 0;) {
     if (!copyWithinBudget(im, s, m.levels[l], l)) {
-      im.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);
+      im.count.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);
       if (!im.loggedBudget.exchange(true)) {
         im.log("the memory budget of " + std::to_string(im.options.memoryBudgetBytes) +
                " bytes is spent: fine levels are left out (logged once)");
       }
       break;
     }
-    s.finest.store(l, std::memory_order_release);
+    s.finest[0].store(l, std::memory_order_release);
+  }
+}
+
+/// Replaces the resident module of slot `s` (word `w`, its key's module,
+/// older than the source's generation) by the source's newer generation,
+/// with no hole: the new levels go into the buffer readers are not
+/// admitted to, and one CAS flips the word to it. If the read fails or
+/// the budget refuses, the older generation stays. Holds s.write.
+void reloadModule(Impl& im, Loader& ld, Slot& s, std::uint64_t w) {
+  const ModuleKey k = unpackKey(wordKey(w));
+  const ReadOutcome read = readModule(im, k);
+  if (!read.failure.empty()) {
+    im.log(read.failure + " (generation " + std::to_string(read.generation) + "; the older one stays drawn)");
+    return;
+  }
+  if (!im.window.load().window.contains(k.kx, k.kz)) {
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  const PublishTimer timer(im);
+  const std::uint32_t nb = wordBuffer(w) ^ 1u;
+  // Readers of buffer nb were admitted before the last flip away from it;
+  // a reader that loaded an older word and arrives now sees the word
+  // changed and leaves without reading (resident()).
+  if (s.readers[nb].load(std::memory_order_seq_cst) != 0) {
+    im.count.readerWaits.fetch_add(1, std::memory_order_relaxed);
+    while (s.readers[nb].load(std::memory_order_seq_cst) != 0) std::this_thread::yield();
+  }
+  const module::Module& m = loaderModule();
+  const std::uint32_t coarse = im.levels - 1;
+  std::uint32_t finest = im.levels;
+  for (std::uint32_t l = im.levels; l-- > 0;) {
+    if (!copyWithinBudget(im, s, m.levels[l], l, nb)) {
+      (l == coarse ? im.count.budgetRefusals : im.count.budgetTrimmedLevels)
+          .fetch_add(l == coarse ? 1 : l + 1, std::memory_order_relaxed);
+      break;
+    }
+    finest = l;
+  }
+  if (finest == im.levels) return;  // not even the coarsest fits: keep the older one
+  ResidentModule& d = s.data[nb];
+  d.kx = k.kx;
+  d.kz = k.kz;
+  d.placeholder = false;
+  d.generation = read.generation;
+  s.finest[nb].store(finest, std::memory_order_release);
+  std::uint64_t expect = w;
+  if (!s.word.compare_exchange_strong(
+          expect, makeWord(wordKey(w), SlotState::resident, (wordGen(w) + 1) & kGenMask, nb),
+          std::memory_order_seq_cst)) {
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
+    return;
+  }
+  {
+    const std::lock_guard bl(im.badMutex);
+    im.badModules.erase(wordKey(w));
+  }
+  im.count.reloaded.fetch_add(1, std::memory_order_relaxed);
+  ld.published.fetch_add(1, std::memory_order_relaxed);
+  if (im.options.onResident) im.options.onResident(ld.index, k, false);
+}
+
+/// While slot `s` holds `key` resident at an older generation than the
+/// source's, reloads it (a few times at most: a source changing faster
+/// than it reads is caught by its next change notice). Holds s.write.
+void reloadWhileStale(Impl& im, Loader& ld, Slot& s, std::uint32_t key) {
+  const ModuleKey k = unpackKey(key);
+  for (int tries = 0; tries < 4; ++tries) {
+    const std::uint64_t w = s.word.load(std::memory_order_seq_cst);
+    if (wordKey(w) != key || wordState(w) != SlotState::resident) return;
+    if (s.data[wordBuffer(w)].generation >= im.source->generation(k.kx, k.kz)) return;
+    reloadModule(im, ld, s, w);
   }
 }
 
@@ -352,9 +465,9 @@ void freeModule(Impl& im, std::uint32_t key) {
   Slot& s = im.slotFor(k.kx, k.kz);
   std::uint64_t w = s.word.load(std::memory_order_seq_cst);
   while (wordKey(w) == key && wordState(w) != SlotState::empty) {
-    if (s.word.compare_exchange_weak(w, makeWord(key, SlotState::empty, wordGen(w) + 1),
+    if (s.word.compare_exchange_weak(w, makeWord(key, SlotState::empty, wordGen(w) + 1, wordBuffer(w)),
                                      std::memory_order_seq_cst)) {
-      im.freed.fetch_add(1, std::memory_order_relaxed);
+      im.count.freed.fetch_add(1, std::memory_order_relaxed);
       return;
     }
   }
@@ -396,7 +509,7 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
   for (std::size_t i = 0; i < ld.pending.size();) {
     const ModuleKey k = unpackKey(ld.pending[i].key);
     if (!ws.window.contains(k.kx, k.kz)) {
-      im.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+      im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
       im.outstanding.fetch_sub(1);
       ld.pending[i] = ld.pending.back();
       ld.pending.pop_back();
@@ -451,7 +564,7 @@ void collectFaults(Impl& im, Loader& ld) {
       im.outstanding.fetch_sub(1);
       continue;
     }
-    im.requested.fetch_add(1, std::memory_order_relaxed);
+    im.count.requested.fetch_add(1, std::memory_order_relaxed);
     ld.pending.push_back({key, 0, t});
   }
 }
@@ -510,7 +623,7 @@ void loaderLoop(Impl& im, Loader& ld) {
       stolen = p.has_value();
     }
     if (p) {
-      if (stolen) im.stolen.fetch_add(1, std::memory_order_relaxed);
+      if (stolen) im.count.stolen.fetch_add(1, std::memory_order_relaxed);
       loadModule(im, ld, *p);
       im.outstanding.fetch_sub(1);
       continue;
@@ -544,27 +657,62 @@ void preallocate(Impl& im) {
   sizes.reserve(std::size_t(h.modulesX) * h.modulesZ);
   for (std::uint32_t z = 0; z < h.modulesZ; ++z) {
     for (std::uint32_t x = 0; x < h.modulesX; ++x) {
-      const std::uint32_t raw = im.pack->entry(x, z).rawBytes;
+      const auto raw = std::uint32_t(im.source->info(x, z).rawBytes);
       if (raw > 0) sizes.emplace_back(raw, z * h.modulesX + x);
     }
   }
   if (sizes.empty()) return;
   const auto nth = sizes.begin() + std::ptrdiff_t((sizes.size() - 1) / 2);
   std::nth_element(sizes.begin(), nth, sizes.end());
-  const Result<module::Module> m = im.pack->read(nth->second % h.modulesX, nth->second / h.modulesX);
-  if (!m.ok() || m->levels.size() != im.levels) return;
+  module::Module median;
+  const module::Module* m = &median;
+  if (!im.source->read(nth->second % h.modulesX, nth->second / h.modulesX, median).ok() ||
+      median.levels.size() != im.levels) {
+    return;
+  }
   const std::uint64_t cap = im.options.memoryBudgetBytes / 4;
   for (std::uint32_t i = 0; i < im.slotCount; ++i) {
     Slot& s = im.slots[i];
     std::uint64_t growth = 0;
     for (std::uint32_t l = 0; l < im.levels; ++l) {
-      growth += levelGrowthBytes(m->levels[l], s.data.levels[l]);
+      growth += levelGrowthBytes(m->levels[l], s.data[0].levels[l]);
     }
     if (im.poolBytes.load(std::memory_order_relaxed) + growth > cap || !takeBudget(im, growth)) {
       return;
     }
-    for (std::uint32_t l = 0; l < im.levels; ++l) reserveLike(m->levels[l], s.data.levels[l]);
+    for (std::uint32_t l = 0; l < im.levels; ++l) reserveLike(m->levels[l], s.data[0].levels[l]);
     settleCapacity(im, s, growth);
+  }
+}
+
+/// Main thread, every update: the source's changed modules that are in
+/// the window go to a loader (predictive) or are faulted (demand), which
+/// reloads each one resident at an older generation. Changes outside the
+/// window need nothing: a later load reads the newest generation.
+void pollChanges(Impl& im, const ModuleRect& window, std::int64_t now) {
+  const std::uint64_t c = im.source->changes();
+  if (c == im.seenChanges) return;
+  im.changed.clear();
+  im.seenChanges = im.source->changedSince(im.seenChanges, im.changed);
+  const std::size_t n = im.loaders.size();
+  for (const ModuleKey& k : im.changed) {
+    if (!window.contains(k.kx, k.kz)) continue;
+    Slot& s = im.slotFor(k.kx, k.kz);
+    const std::uint32_t key = packKey(k.kx, k.kz);
+    const auto slot = std::size_t(&s - im.slots.get());
+    Loader& ld = *im.loaders[slot % n];
+    if (im.options.mode == PagerMode::demand) {
+      s.demandNs.store(now, std::memory_order_relaxed);
+      s.demand.store((1ull << 32) | key, std::memory_order_release);
+    } else {
+      im.outstanding.fetch_add(1);
+      if (!ld.queue->push({key, 0, 0, now})) {
+        im.outstanding.fetch_sub(1);
+        im.count.queueOverflows.fetch_add(1, std::memory_order_relaxed);
+        ld.resync.store(true);
+      }
+    }
+    signalLoader(ld);
   }
 }
 
@@ -577,13 +725,31 @@ Pager::Pager(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Pager::~Pager() { stop(); }
 
 Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile> grid,
+                                           std::shared_ptr<const ModuleSource> source,
+                                           const PagerOptions& options) {
+  return openWith(std::move(grid), std::move(source), options, 0);
+}
+
+namespace {
+std::shared_ptr<const ModuleSource> packSource(std::shared_ptr<const pack::PackReader> pack) {
+  if (!pack) return nullptr;
+  return std::make_shared<const PackSource>(std::move(pack));
+}
+}  // namespace
+
+Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile> grid,
                                            std::shared_ptr<const pack::PackReader> pack,
                                            const PagerOptions& options) {
-  return openWith(std::move(grid), std::move(pack), options, 0);
+  return openWith(std::move(grid), packSource(std::move(pack)), options, 0);
+}
+
+Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile> grid, std::nullptr_t,
+                                           const PagerOptions& options) {
+  return openWith(std::move(grid), nullptr, options, 0);
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(const Database& db, const PagerOptions& options) {
-  return openWith(db.grid, db.modules, options, db.materials ? db.materials->defaultArea : 0);
+  return openWith(db.grid, packSource(db.modules), options, db.materials ? db.materials->defaultArea : 0);
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(const std::string& directory,
@@ -594,23 +760,23 @@ Result<std::unique_ptr<Pager>> Pager::open(const std::string& directory,
 }
 
 Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridFile> grid,
-                                               std::shared_ptr<const pack::PackReader> pack,
+                                               std::shared_ptr<const ModuleSource> source,
                                                const PagerOptions& options,
                                                std::uint16_t material) {
   if (!grid) return Problem{"pager", 0, "pager: no grid"};
-  if (options.mode != PagerMode::mmap && !pack) {
+  if (options.mode != PagerMode::mmap && !source) {
     return Problem{grid->path(), 0,
                    "pager: the database has no load modules (modules.pack); build it with "
                    "modules or use mode mmap"};
   }
-  const pack::IndexHeader header = pack ? pack->header() : pack::IndexHeader{};
+  const pack::IndexHeader header = source ? source->header() : pack::IndexHeader{};
   PagingGeometry g;
-  g.moduleSize = pack ? header.moduleSize : options.mmapModuleSize;
+  g.moduleSize = source ? header.moduleSize : options.mmapModuleSize;
   if (!(g.moduleSize > 0)) return Problem{"pager", 0, "pager: the module size is not positive"};
   if (const std::string err = checkOptions(options, g.moduleSize); !err.empty()) {
     return Problem{"pager options", 0, "pager options: " + err};
   }
-  if (pack) {
+  if (source) {
     g.modulesX = header.modulesX;
     g.modulesZ = header.modulesZ;
   } else {
@@ -626,9 +792,9 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
   auto im = std::make_unique<Impl>(g);
   im->options = options;
   im->grid = std::move(grid);
-  im->pack = std::move(pack);
+  im->source = std::move(source);
   im->header = header;
-  im->levels = im->pack ? std::max<std::uint32_t>(1, header.levels) : 1;
+  im->levels = im->source ? std::max<std::uint32_t>(1, header.levels) : 1;
   im->ringX = std::max<std::uint32_t>(1, g.ringX());
   im->ringZ = std::max<std::uint32_t>(1, g.ringZ());
   im->placeholderMaterial = material;
@@ -645,8 +811,9 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
     buildPlaceholder(*im->grid, im->header, 0, 0, material, proto);
     for (std::uint32_t i = 0; i < im->slotCount; ++i) {
       Slot& s = im->slots[i];
-      s.data.levels.resize(im->levels);
-      reserveLike(proto, s.data.levels[im->levels - 1]);
+      s.data[0].levels.resize(im->levels);
+      s.data[1].levels.resize(im->levels);
+      reserveLike(proto, s.data[0].levels[im->levels - 1]);
       settleCapacity(*im, s, 0);
     }
     const std::uint64_t base = im->poolBytes.load();
@@ -659,6 +826,8 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
                          " bytes; raise memoryBudgetBytes or lower viewDistance"};
     }
     if (options.preallocate) preallocate(*im);
+    im->changed.reserve(64);
+    im->seenChanges = im->source->changes();
     const std::uint32_t n = options.loaderThreads;
     for (std::uint32_t i = 0; i < n; ++i) {
       auto ld = std::make_unique<Loader>();
@@ -682,7 +851,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
 void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ, double timeNow) {
   Impl& im = *impl_;
   if (im.stopped) return;
-  im.updates.fetch_add(1, std::memory_order_relaxed);
+  im.count.updates.fetch_add(1, std::memory_order_relaxed);
   // Velocity not given: from the last update's position and time.
   if (!std::isfinite(velocityX) || !std::isfinite(velocityZ)) {
     const WindowState last = im.window.load();
@@ -706,8 +875,9 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
   for (std::size_t d = 0; d < kDirections; ++d) {
     im.leadStrips[d].store(im.planner.lead()[d], std::memory_order_relaxed);
   }
-  if (st.crossed) im.boxCrossings.fetch_add(1, std::memory_order_relaxed);
-  if (st.refill) im.refills.fetch_add(1, std::memory_order_relaxed);
+  if (im.source && im.options.mode != PagerMode::mmap) pollChanges(im, st.after, nowNs());
+  if (st.crossed) im.count.boxCrossings.fetch_add(1, std::memory_order_relaxed);
+  if (st.refill) im.count.refills.fetch_add(1, std::memory_order_relaxed);
   if (im.options.mode == PagerMode::mmap) {
     if (st.refill) {  // a jump: wake the prefetcher (a lost wake costs one sleep)
       im.wake.store(true);
@@ -729,7 +899,7 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
       im.outstanding.fetch_add(1);
       if (!ld.queue->push(r)) {
         im.outstanding.fetch_sub(1);
-        im.queueOverflows.fetch_add(1, std::memory_order_relaxed);
+        im.count.queueOverflows.fetch_add(1, std::memory_order_relaxed);
         ld.resync.store(true);
       }
     };
@@ -737,7 +907,7 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
     for (const ModuleKey& k : job.load) {
       push({packKey(k.kx, k.kz), 0, std::uint8_t(st.refill ? 1 : 0), now});
     }
-    im.requested.fetch_add(job.load.size(), std::memory_order_relaxed);
+    im.count.requested.fetch_add(job.load.size(), std::memory_order_relaxed);
     signalLoader(ld);
   }
   // Wake the idle loaders too, so they can steal from the busy ones.
@@ -750,30 +920,44 @@ ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wa
   const Impl& im = *impl_;
   ResidentRef ref;
   if (!im.slots || kx >= im.header.modulesX || kz >= im.header.modulesZ) return ref;
-  im.residentQueries.fetch_add(1, std::memory_order_relaxed);
+  im.count.residentQueries.fetch_add(1, std::memory_order_relaxed);
   Slot& s = im.slotFor(kx, kz);
   const std::uint32_t key = packKey(kx, kz);
-  // Admission: announce, then check (seq_cst both; see loadModule).
-  s.readers.fetch_add(1, std::memory_order_seq_cst);
-  const std::uint64_t w = s.word.load(std::memory_order_seq_cst);
-  if (wordKey(w) != key || wordState(w) != SlotState::resident) {
-    s.readers.fetch_sub(1, std::memory_order_release);
-    im.residentMisses.fetch_add(1, std::memory_order_relaxed);
+  // Admission: see the word, announce on its buffer, then check that the
+  // word is unchanged (seq_cst all three; see loadModule and reloadModule).
+  // A reload flipping the buffer in between costs one more try; two flips
+  // in that instant read as a miss, so the read stays wait-free.
+  std::uint64_t w = s.word.load(std::memory_order_seq_cst);
+  bool admitted = false;
+  for (int tries = 0; tries < 2 && wordKey(w) == key && wordState(w) == SlotState::resident; ++tries) {
+    std::atomic<std::uint32_t>& readers = s.readers[wordBuffer(w)];
+    readers.fetch_add(1, std::memory_order_seq_cst);
+    const std::uint64_t again = s.word.load(std::memory_order_seq_cst);
+    if (again == w) {
+      admitted = true;
+      break;
+    }
+    readers.fetch_sub(1, std::memory_order_release);
+    w = again;
+  }
+  if (!admitted) {
+    im.count.residentMisses.fetch_add(1, std::memory_order_relaxed);
     if (im.options.mode == PagerMode::demand) {
       const std::uint64_t tagged = (1ull << 32) | key;
       if (s.demand.load(std::memory_order_relaxed) != tagged) {
         s.demandNs.store(nowNs(), std::memory_order_relaxed);
         s.demand.store(tagged, std::memory_order_release);
-        im.demandFaults.fetch_add(1, std::memory_order_relaxed);
+        im.count.demandFaults.fetch_add(1, std::memory_order_relaxed);
         const auto slot = std::size_t(&s - im.slots.get());
         signalLoader(*im.loaders[slot % im.loaders.size()]);
       }
     }
     return ref;
   }
-  const std::uint32_t finest = s.finest.load(std::memory_order_acquire);
-  ref.readers_ = &s.readers;
-  ref.module_ = &s.data;
+  const std::uint32_t b = wordBuffer(w);
+  const std::uint32_t finest = s.finest[b].load(std::memory_order_acquire);
+  ref.readers_ = &s.readers[b];
+  ref.module_ = &s.data[b];
   ref.finest_ = finest;
   ref.level_ = std::max(std::min(wantLevel, im.levels - 1), finest);
   ref.coarser_ = finest > wantLevel;
@@ -781,14 +965,28 @@ ResidentRef Pager::resident(std::uint32_t kx, std::uint32_t kz, std::uint32_t wa
   return ref;
 }
 
+namespace {
+
+/// Every counter, each loaded once (relaxed).
+PagerCounters snapshot(const PagerCountersOf<std::atomic<std::uint64_t>>& live) {
+  static_assert(sizeof(PagerCounters) ==
+                    std::tuple_size_v<decltype(std::declval<PagerCounters&>().fields())> * sizeof(std::uint64_t),
+                "a counter of PagerCountersOf is missing from fields()");
+  PagerCounters out;
+  std::apply([&](auto&... dst) {
+    std::apply([&](const auto&... src) { ((dst = src.load(std::memory_order_relaxed)), ...); }, live.fields());
+  }, out.fields());
+  return out;
+}
+
+}  // namespace
+
 PagerMetrics Pager::metrics() const {
   const Impl& im = *impl_;
   auto get = [](const std::atomic<std::uint64_t>& a) { return a.load(std::memory_order_relaxed); };
   PagerMetrics m;
+  static_cast<PagerCounters&>(m) = snapshot(im.count);
   m.mode = im.options.mode;
-  m.updates = get(im.updates);
-  m.boxCrossings = get(im.boxCrossings);
-  m.refills = get(im.refills);
   for (std::size_t d = 0; d < kDirections; ++d) {
     m.stripSignals[d] = get(im.stripSignals[d]);
     m.leadStrips[d] = im.leadStrips[d].load(std::memory_order_relaxed);
@@ -798,25 +996,6 @@ PagerMetrics Pager::metrics() const {
     m.queueLength[i] = std::uint32_t(im.loaders[i]->queue->size()) +
                        im.loaders[i]->backlog.load(std::memory_order_relaxed);
   }
-  m.requested = get(im.requested);
-  m.loaded = get(im.loaded);
-  m.freed = get(im.freed);
-  m.duplicates = get(im.duplicates);
-  m.cancelledQueued = get(im.cancelledQueued);
-  m.cancelledInFlight = get(im.cancelledInFlight);
-  m.placeholders = get(im.placeholders);
-  m.missingModules = get(im.missingModules);
-  m.corruptModules = get(im.corruptModules);
-  m.budgetRefusals = get(im.budgetRefusals);
-  m.budgetTrimmedLevels = get(im.budgetTrimmedLevels);
-  m.reclaimedBytes = get(im.reclaimedBytes);
-  m.bytesRead = get(im.bytesRead);
-  m.readerWaits = get(im.readerWaits);
-  m.queueOverflows = get(im.queueOverflows);
-  m.residentQueries = get(im.residentQueries);
-  m.residentMisses = get(im.residentMisses);
-  m.demandFaults = get(im.demandFaults);
-  m.stolen = get(im.stolen);
   m.maxQueueLength = im.maxQueueLength.load(std::memory_order_relaxed);
   m.latency = im.latency.stats();
   m.stripLatency = im.stripLatency.stats();
@@ -844,11 +1023,6 @@ PagerMetrics Pager::metrics() const {
   m.modulesPerSecond = m.elapsedSeconds > 0 ? double(m.loaded) / m.elapsedSeconds : 0;
   m.readSeconds = double(get(im.readNs)) / 1e9;
   m.publishSeconds = double(get(im.publishNs)) / 1e9;
-  m.prefetchPasses = get(im.prefetchPasses);
-  m.prefetchBlocks = get(im.prefetchBlocks);
-  m.prefetchPages = get(im.prefetchPages);
-  m.prefetchMajorFaults = get(im.prefetchMajorFaults);
-  m.prefetchMinorFaults = get(im.prefetchMinorFaults);
   m.lastPassSeconds = im.lastPassSeconds.load(std::memory_order_relaxed);
   m.lastSleepSeconds = im.lastSleepSeconds.load(std::memory_order_relaxed);
   return m;

@@ -11,7 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <thread>
-#include <unordered_set>
+#include <unordered_map>
 #include <vector>
 
 #include "sandtable/paging/pager.h"
@@ -25,34 +25,43 @@ inline std::int64_t nowNs() {
 }
 
 // ------------------------------------------------------------- slot word
-// One 64-bit word per slot holds the module key, the state and a
-// generation, so one CAS changes all three.
+// One 64-bit word per slot holds the module key, the state, which of the
+// slot's two buffers readers are admitted to, and a generation, so one CAS
+// changes all of them.
 //   bits  0..31  key = kz << 16 | kx (modules per axis <= 65536)
 //   bits 32..33  state
-//   bits 34..63  generation (bumped on every claim and free)
+//   bit  34      buffer: 0 for every fresh load, flipped by each reload
+//   bits 35..63  generation (bumped on every claim, reload and free)
 enum class SlotState : std::uint32_t { empty = 0, loading = 1, resident = 2 };
+inline constexpr std::uint64_t kGenMask = 0x1fffffffull;
 
 inline std::uint32_t packKey(std::uint32_t kx, std::uint32_t kz) { return (kz << 16) | kx; }
 inline ModuleKey unpackKey(std::uint32_t k) { return {k & 0xffffu, k >> 16}; }
-inline std::uint64_t makeWord(std::uint32_t key, SlotState s, std::uint64_t gen) {
-  return std::uint64_t(key) | (std::uint64_t(s) << 32) | ((gen & 0x3fffffffull) << 34);
+inline std::uint64_t makeWord(std::uint32_t key, SlotState s, std::uint64_t gen, std::uint32_t buffer = 0) {
+  return std::uint64_t(key) | (std::uint64_t(s) << 32) | (std::uint64_t(buffer & 1u) << 34) |
+         ((gen & kGenMask) << 35);
 }
 inline std::uint32_t wordKey(std::uint64_t w) { return std::uint32_t(w & 0xffffffffu); }
 inline SlotState wordState(std::uint64_t w) { return SlotState((w >> 32) & 3u); }
-inline std::uint64_t wordGen(std::uint64_t w) { return w >> 34; }
+inline std::uint32_t wordBuffer(std::uint64_t w) { return std::uint32_t((w >> 34) & 1u); }
+inline std::uint64_t wordGen(std::uint64_t w) { return w >> 35; }
 
-/// One residency slot. Readers touch word, readers and finest (atomics) and,
-/// once admitted, the published levels of data. Loaders write data only
-/// while holding `write` and after every reader has left.
+/// One residency slot. Readers touch word, readers[] and finest[] (atomics)
+/// and, once admitted to a buffer, that buffer's published levels. Loaders
+/// write a buffer only while holding `write` and after every reader of that
+/// buffer has left. Buffer 0 takes every fresh load (it holds the
+/// placeholder reserve); a reload writes the buffer readers are not
+/// admitted to while the old generation stays readable in the other, then
+/// flips the word's buffer bit (docs/PAGER.md, section 4).
 struct alignas(64) Slot {
   std::atomic<std::uint64_t> word{0};
-  std::atomic<std::uint32_t> readers{0};
-  std::atomic<std::uint32_t> finest{0};  ///< finest published level
+  std::array<std::atomic<std::uint32_t>, 2> readers{};
+  std::array<std::atomic<std::uint32_t>, 2> finest{};  ///< finest published level per buffer
   /// Demand mode: 1 << 32 | key of a fault not yet taken, else 0.
   std::atomic<std::uint64_t> demand{0};
   std::atomic<std::int64_t> demandNs{0};  ///< time of that fault
   std::mutex write;                       ///< loaders only
-  ResidentModule data;                    ///< levels sized once at open
+  std::array<ResidentModule, 2> data;     ///< levels sized once at open
   std::uint64_t capacityBytes = 0;        ///< under `write`
 };
 
@@ -142,11 +151,11 @@ void copyLevel(const module::Level& src, module::Level& dst);
 /// Reserves dst's vectors to at least src's sizes.
 void reserveLike(const module::Level& src, module::Level& dst);
 
-/// A flat stand-in for module (kx, kz) at the coarsest level, on the same
-/// lattice as a real one: posts every 2^(levels-1) grid posts, at the
-/// grid's elevation at the module's centre post, with skirts as deep as the
-/// elevation range of the grid blocks under the module. Written into
-/// `out` reusing its capacity.
+/// A coarse stand-in for module (kx, kz): the coarsest level as
+/// sandtable_meshing assembles it from the grid (posts every 2^(levels-1)
+/// grid posts, the grid's own heights, the grid triangles as the skin in
+/// `material`), with skirts round the module as deep as the elevation range
+/// of the grid blocks under it. Written into `out` reusing its capacity.
 void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, std::uint32_t kx,
                       std::uint32_t kz, std::uint16_t material, module::Level& out);
 
@@ -182,7 +191,7 @@ struct Pager::Impl {
 
   PagerOptions options;
   std::shared_ptr<const grid::GridFile> grid;
-  std::shared_ptr<const pack::PackReader> pack;  ///< null in mmap mode without modules
+  std::shared_ptr<const ModuleSource> source;  ///< null in mmap mode without modules
   pack::IndexHeader header;                       ///< zero levels without a pack
   PagingGeometry geometry;
   std::uint32_t levels = 1;
@@ -195,6 +204,8 @@ struct Pager::Impl {
 
   // Main thread only.
   StripPlanner planner;
+  std::uint64_t seenChanges = 0;    ///< the source's changes() last polled
+  std::vector<ModuleKey> changed;   ///< reused by the poll
   double lastTime = 0;
   bool haveTime = false;
 
@@ -206,7 +217,9 @@ struct Pager::Impl {
 
   // Loader-shared state that may block (loaders only).
   std::mutex badMutex;
-  std::unordered_set<std::uint32_t> badModules;  ///< keys known missing or corrupt
+  /// Keys known missing or corrupt, with the source generation that failed
+  /// (a newer generation is read again).
+  std::unordered_map<std::uint32_t, std::uint64_t> badModules;
   std::mutex statsMutex;
   double srtt = 0, rttvar = 0;
   bool haveRtt = false;
@@ -215,12 +228,9 @@ struct Pager::Impl {
   std::atomic<double> liveViewDistance{0};  ///< the planner's, for the prefetch thread
   std::atomic<bool> loggedBudget{false};
 
-  // Counters (relaxed).
-  std::atomic<std::uint64_t> updates{0}, boxCrossings{0}, refills{0}, requested{0}, loaded{0},
-      freed{0}, duplicates{0}, cancelledQueued{0}, cancelledInFlight{0}, placeholders{0},
-      missingModules{0}, corruptModules{0}, budgetRefusals{0}, budgetTrimmedLevels{0}, reclaimedBytes{0},
-      bytesRead{0}, readerWaits{0}, queueOverflows{0}, readNs{0}, publishNs{0}, stolen{0};
-  mutable std::atomic<std::uint64_t> residentQueries{0}, residentMisses{0}, demandFaults{0};
+  // Counters (relaxed); metrics() snapshots them in one loop.
+  mutable PagerCountersOf<std::atomic<std::uint64_t>> count;
+  std::atomic<std::uint64_t> readNs{0}, publishNs{0};
   std::array<std::atomic<std::uint64_t>, kDirections> stripSignals{};
   std::array<std::atomic<std::uint32_t>, kDirections> leadStrips{};
   std::atomic<std::uint32_t> maxQueueLength{0};
@@ -232,8 +242,6 @@ struct Pager::Impl {
   std::mutex sleepMutex;
   std::condition_variable sleepCv;
   std::atomic<bool> wake{false};
-  std::atomic<std::uint64_t> prefetchPasses{0}, prefetchBlocks{0}, prefetchPages{0},
-      prefetchMajorFaults{0}, prefetchMinorFaults{0};
   std::atomic<double> lastPassSeconds{0}, lastSleepSeconds{0};
   std::atomic<std::uint64_t> touchSink{0};
 

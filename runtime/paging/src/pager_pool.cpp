@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "pager_internal.h"
+#include "sandtable/meshing/assemble.h"
+#include "sandtable/meshing/skirts.h"
 
 namespace sandtable::runtime::pager_detail {
 
@@ -157,101 +159,31 @@ void reserveLike(const module::Level& src, module::Level& dst) {
 
 void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, std::uint32_t kx,
                       std::uint32_t kz, std::uint16_t material, module::Level& out) {
-  const std::uint32_t S = h.moduleSquares;
-  const std::uint32_t step = 1u << (h.levels > 0 ? h.levels - 1 : 0);
+  const int levels = int(std::max<std::uint32_t>(h.levels, 1));
+  const std::uint32_t S = std::max<std::uint32_t>(h.moduleSquares, 1);
   const std::uint32_t lastI = grid.postsX() - 1, lastJ = grid.postsZ() - 1;
-  const std::uint32_t i0 = kx * S, j0 = kz * S;
-  const std::uint32_t i1 = std::max(i0 + 1, std::min(i0 + S, lastI));
-  const std::uint32_t j1 = std::max(j0 + 1, std::min(j0 + S, lastJ));
-
-  // The coarsest level's lattice with the grid's own heights, so a stand-in
-  // has the right shape (coarse, not a flat plain with walls round it);
-  // skirts as deep as the blocks' range.
-  auto heightAt = [&](std::uint32_t i, std::uint32_t j) {
-    const float e = grid.elevation(std::min(i, lastI), std::min(j, lastJ));
-    return std::isfinite(e) ? e : 0.0f;
-  };
-  const float y = heightAt(i0 + S / 2, j0 + S / 2);
-  const grid::Header& gh = grid.header();
-  float lo = y, hi = y;
-  for (std::uint32_t bz = std::min(j0, lastJ) / grid::kBlockPosts;
-       bz <= std::min(j1, lastJ) / grid::kBlockPosts && bz < gh.blocksZ; ++bz) {
-    for (std::uint32_t bx = std::min(i0, lastI) / grid::kBlockPosts;
-         bx <= std::min(i1, lastI) / grid::kBlockPosts && bx < gh.blocksX; ++bx) {
-      const grid::BlockEntry e = grid.blockEntry(bx, bz);
-      if (std::isfinite(e.minElevation)) lo = std::min(lo, e.minElevation);
-      if (std::isfinite(e.maxElevation)) hi = std::max(hi, e.maxElevation);
-    }
+  if (std::uint64_t(kx) * S >= lastI || std::uint64_t(kz) * S >= lastJ) {
+    // A pack larger than its grid (only Pager::open on a mismatched pair):
+    // nothing of the grid to show.
+    out.squaresX = out.squaresZ = 0;
+    out.vertices.clear();
+    out.indices.clear();
+    out.groups.clear();
+    out.maxHeight.clear();
+    return;
   }
-  const float depth = std::max(1.0f, hi - lo);
-
-  // The coarse lattice: posts every `step`, the last one clamped.
-  const std::uint32_t nx = (i1 - i0 + step - 1) / step, nz = (j1 - j0 + step - 1) / step;
-  auto col = [&](std::uint32_t a) { return std::min(i0 + a * step, i1); };
-  auto row = [&](std::uint32_t b) { return std::min(j0 + b * step, j1); };
-  const double sp = grid.spacing();
-  out.spacing = sp * step;
-  out.squaresX = nx;
-  out.squaresZ = nz;
-  out.skirtDepth = depth;
-  out.vertices.clear();
-  out.indices.clear();
-  out.groups.clear();
-  out.maxHeight.assign(std::size_t(nx) * nz, y);
-  for (std::uint32_t b = 0; b <= nz; ++b) {
-    for (std::uint32_t a = 0; a <= nx; ++a) {
-      out.vertices.push_back({float(double(col(a) - i0) * sp), heightAt(col(a), row(b)),
-                              float(double(row(b) - j0) * sp), 0.0f, 0.0f});
-    }
-  }
-  for (std::uint32_t sz = 0; sz < nz; ++sz) {
-    for (std::uint32_t sx = 0; sx < nx; ++sx) {
-      float top = lo;
-      for (std::uint32_t c : {0u, 1u, 2u, 3u}) {
-        top = std::max(top, out.vertices[(sz + (c >> 1)) * (nx + 1) + sx + (c & 1)].y);
-      }
-      out.maxHeight[std::size_t(sz) * nx + sx] = top;
-    }
-  }
-  auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (nx + 1) + a; };
-  auto group = [&](std::uint32_t square, module::Half half, std::uint32_t first) {
-    module::Group g;
-    g.square = square;
-    g.half = half;
-    g.priority = module::kPrioritySkin;
-    g.material = material;
-    g.firstIndex = first;
-    g.indexCount = std::uint32_t(out.indices.size()) - first;
-    out.groups.push_back(g);
-  };
-  auto hang = [&](std::uint32_t top0, std::uint32_t top1) {
-    module::Vertex b0 = out.vertices[top0], b1 = out.vertices[top1];
-    b0.y -= depth;
-    b1.y -= depth;
-    const auto bb0 = std::uint32_t(out.vertices.size());
-    out.vertices.push_back(b0);
-    out.vertices.push_back(b1);
-    for (std::uint32_t v : {top0, bb0, top1, top1, bb0, bb0 + 1}) out.indices.push_back(v);
-  };
-  for (std::uint32_t sz = 0; sz < nz; ++sz) {
-    for (std::uint32_t sx = 0; sx < nx; ++sx) {
-      const std::uint32_t sq = sz * nx + sx;
-      const std::uint32_t nw = post(sx, sz), ne = post(sx + 1, sz), sw = post(sx, sz + 1),
-                          se = post(sx + 1, sz + 1);
-      std::uint32_t first = std::uint32_t(out.indices.size());
-      for (std::uint32_t v : {nw, sw, ne}) out.indices.push_back(v);
-      group(sq, module::Half::upper, first);
-      first = std::uint32_t(out.indices.size());
-      for (std::uint32_t v : {ne, sw, se}) out.indices.push_back(v);
-      group(sq, module::Half::lower, first);
-      first = std::uint32_t(out.indices.size());
-      if (sz == 0) hang(nw, ne);
-      if (sz == nz - 1) hang(sw, se);
-      if (sx == 0) hang(nw, sw);
-      if (sx == nx - 1) hang(ne, se);
-      if (out.indices.size() > first) group(sq, module::Half::skirt, first);
-    }
-  }
+  // The coarsest level's lattice with the grid's own heights (a flat
+  // stand-in drew as a plain with walls round it), meshed as the module
+  // builder meshes it. Its skirts hang as deep as the blocks' elevation
+  // range: a stand-in has no finer levels to measure the builder's depth
+  // against, and its neighbours may be drawn at any level.
+  const meshing::ModuleWindow w = meshing::moduleWindow(grid, S, levels, kx, kz);
+  const meshing::LevelLattice lat = meshing::levelLattice(grid, w, levels - 1, meshing::NonFinite::zero);
+  meshing::plainSkin(lat, material, out);
+  const float centre = grid.elevation(std::min(w.i0 + S / 2, lastI), std::min(w.j0 + S / 2, lastJ));
+  const float depth = meshing::blockRangeDepth(grid, w, std::isfinite(centre) ? centre : 0.0f);
+  const std::uint32_t node = std::max<std::uint32_t>(1, meshing::nodeSquares(S, levels));
+  meshing::finishLevel(lat, node, depth, material, out);
 }
 
 }  // namespace sandtable::runtime::pager_detail

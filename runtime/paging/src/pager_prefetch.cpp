@@ -42,7 +42,7 @@ void runPrefetcher(Pager::Impl& im) {
   while (!im.stopping.load(std::memory_order_acquire)) {
     const WindowState ws = im.window.load();
     double sleep = im.options.maxSleepSeconds;
-    if (im.updates.load(std::memory_order_relaxed) > 0 && h.blocksX > 0 && h.blocksZ > 0) {
+    if (im.count.updates.load(std::memory_order_relaxed) > 0 && h.blocksX > 0 && h.blocksZ > 0) {
       const std::int64_t t0 = nowNs();
       const double speed = std::hypot(ws.vx, ws.vz);
       // Slower viewer, longer sleep: the time to cover a fraction of a block.
@@ -104,12 +104,12 @@ void runPrefetcher(Pager::Impl& im) {
       passEstimate = 0.875 * passEstimate + 0.125 * pass;
       im.latencyEstimate.store(passEstimate, std::memory_order_relaxed);
       im.latency.add(nowNs() - t0);
-      im.prefetchPasses.fetch_add(1, std::memory_order_relaxed);
-      im.prefetchBlocks.fetch_add(order.size(), std::memory_order_relaxed);
-      im.prefetchPages.fetch_add(pages, std::memory_order_relaxed);
-      im.prefetchMinorFaults.fetch_add(std::uint64_t(std::max(0L, min1 - min0)),
+      im.count.prefetchPasses.fetch_add(1, std::memory_order_relaxed);
+      im.count.prefetchBlocks.fetch_add(order.size(), std::memory_order_relaxed);
+      im.count.prefetchPages.fetch_add(pages, std::memory_order_relaxed);
+      im.count.prefetchMinorFaults.fetch_add(std::uint64_t(std::max(0L, min1 - min0)),
                                        std::memory_order_relaxed);
-      im.prefetchMajorFaults.fetch_add(std::uint64_t(std::max(0L, maj1 - maj0)),
+      im.count.prefetchMajorFaults.fetch_add(std::uint64_t(std::max(0L, maj1 - maj0)),
                                        std::memory_order_relaxed);
       im.lastPassSeconds.store(pass, std::memory_order_relaxed);
     }

@@ -1107,5 +1107,183 @@ TEST(PagerStress, fastRandomWalkWithSlowReads) {
   hammer(db, 3000, 0.0005);
 }
 
+// ------------------------------------------------------- module sources
+
+/// An in-memory source over makeModule's modules in which a module's
+/// generation can be bumped: generation g lifts every vertex by 100 km * g,
+/// so a reader can tell the generations apart (and a torn copy) from y.
+class GenerationSource final : public ModuleSource {
+ public:
+  explicit GenerationSource(const pack::IndexHeader& h)
+      : header_(h), generations_(std::size_t(h.modulesX) * h.modulesZ) {}
+  const pack::IndexHeader& header() const override { return header_; }
+  ModuleInfo info(std::uint32_t, std::uint32_t) const override { return {1000, 1000}; }
+  std::uint64_t generation(std::uint32_t kx, std::uint32_t kz) const override {
+    return generations_[index(kx, kz)].load();
+  }
+  Result<std::uint64_t> read(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    const std::uint64_t g = generation(kx, kz);
+    if (slow_.load() == index(kx, kz) + 1) std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    into = makeModule(kx, kz, header_.moduleSquares, header_.levels);
+    for (module::Level& l : into.levels) {
+      for (module::Vertex& v : l.vertices) v.y += float(100000.0 * double(g));
+      for (float& y : l.maxHeight) y += float(100000.0 * double(g));
+    }
+    return g;
+  }
+  bool missing(std::uint32_t, std::uint32_t) const override { return false; }
+  std::uint64_t changes() const override { return changes_.load(); }
+  std::uint64_t changedSince(std::uint64_t since, std::vector<ModuleKey>& out) const override {
+    const std::lock_guard lock(mu_);
+    out.insert(out.end(), log_.begin() + std::ptrdiff_t(since), log_.end());
+    return log_.size();
+  }
+
+  /// A newer generation of module (kx, kz); its reads take 300 ms if slow.
+  void bump(std::uint32_t kx, std::uint32_t kz, bool slow) {
+    slow_.store(slow ? index(kx, kz) + 1 : 0);
+    generations_[index(kx, kz)].fetch_add(1);
+    const std::lock_guard lock(mu_);
+    log_.push_back({kx, kz});
+    changes_.store(log_.size());
+  }
+
+ private:
+  std::size_t index(std::uint32_t kx, std::uint32_t kz) const { return std::size_t(kz) * header_.modulesX + kx; }
+  pack::IndexHeader header_;
+  std::vector<std::atomic<std::uint64_t>> generations_;
+  std::atomic<std::size_t> slow_{0};
+  mutable std::mutex mu_;
+  std::vector<ModuleKey> log_;
+  std::atomic<std::uint64_t> changes_{0};
+};
+
+/// y of every vertex of makeModule(kx, kz) at source generation g.
+float generationY(std::uint32_t kx, std::uint32_t kz, std::uint64_t g) {
+  return float(1000.0 * kx + kz) + float(100000.0 * double(g));
+}
+
+TEST(Pager, aNewerGenerationReplacesTheResidentModuleWithNoHoleMeanwhile) {
+  const TestDb db = makeDb("generations", 10, 10);
+  const auto source = std::make_shared<GenerationSource>(db.pack->header());
+  auto opened = Pager::open(db.grid, std::shared_ptr<const ModuleSource>(source), baseOptions());
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  p.update(5500, 5500, 0, 0, 0);
+  ASSERT_TRUE(p.waitIdle(30));
+  std::uint64_t slotGeneration = 0;
+  {
+    const ResidentRef r = p.resident(5, 5);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r.module().generation, 0u);
+    EXPECT_EQ(r.level(0).vertices[0].y, generationY(5, 5, 0));
+    slotGeneration = r.generation();
+  }
+  // A reader draws module (5, 5) all along: it must never miss it, and
+  // every guard it takes must show one whole generation.
+  std::atomic<bool> done{false};
+  std::atomic<std::uint64_t> holes{0}, torn{0}, seenOld{0}, seenNew{0};
+  std::thread reader([&] {
+    while (!done.load()) {
+      const ResidentRef r = p.resident(5, 5, 0);
+      if (!r) {
+        ++holes;
+        continue;
+      }
+      const std::uint64_t g = r.module().generation;
+      for (std::uint32_t l = r.finestLevel(); l < p.levels(); ++l) {
+        for (const module::Vertex& v : r.level(l).vertices) {
+          if (v.y != generationY(5, 5, g)) ++torn;
+        }
+      }
+      ++(g == 0 ? seenOld : seenNew);
+    }
+  });
+  while (seenOld.load() == 0 && holes.load() == 0) std::this_thread::yield();
+  source->bump(5, 5, true);  // its read takes 300 ms
+  p.update(5500, 5500, 0, 0, 1);
+  ASSERT_TRUE(p.waitIdle(30));
+  const std::uint64_t oldBeforeNew = seenOld.load();
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (seenNew.load() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::yield();
+  done.store(true);
+  reader.join();
+  EXPECT_EQ(holes.load(), 0u);
+  EXPECT_EQ(torn.load(), 0u);
+  EXPECT_GT(oldBeforeNew, 1u);  // the older generation was drawn during the slow read
+  EXPECT_GT(seenNew.load(), 0u);
+  {
+    const ResidentRef r = p.resident(5, 5);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r.module().generation, 1u);
+    EXPECT_EQ(r.level(0).vertices[0].y, generationY(5, 5, 1));
+    EXPECT_EQ(r.finestLevel(), 0u);
+    EXPECT_NE(r.generation(), slotGeneration);  // the GPU cache's key moved on
+  }
+  PagerMetrics m = p.metrics();
+  EXPECT_EQ(m.reloaded, 1u);
+  EXPECT_EQ(m.placeholders, 0u);
+  EXPECT_EQ(m.holesInWindow, 0u);
+  // A change outside the window reloads nothing now; the module comes in
+  // at its newest generation when the window reaches it.
+  source->bump(0, 0, false);
+  p.update(5500, 5500, 0, 0, 2);
+  ASSERT_TRUE(p.waitIdle(30));
+  EXPECT_EQ(p.metrics().reloaded, 1u);
+  p.update(500, 500, 0, 0, 3);
+  ASSERT_TRUE(p.waitIdle(30));
+  const ResidentRef r = p.resident(0, 0);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r.module().generation, 1u);
+  EXPECT_EQ(r.level(0).vertices[0].y, generationY(0, 0, 1));
+  // Twice more for the same module: each generation replaces the last
+  // (the reload alternates between the slot's two buffers).
+  for (std::uint64_t g = 2; g <= 3; ++g) {
+    source->bump(1, 1, false);
+    p.update(500, 500, 0, 0, double(g + 2));
+    ASSERT_TRUE(p.waitIdle(30));
+    const ResidentRef q = p.resident(1, 1);
+    ASSERT_TRUE(q);
+    EXPECT_EQ(q.module().generation, g - 1);
+    EXPECT_EQ(q.level(0).vertices[0].y, generationY(1, 1, g - 1));
+  }
+}
+
+TEST(Pager, demandModeReloadsAChangedModuleToo) {
+  const TestDb db = makeDb("generations-demand", 10, 10);
+  const auto source = std::make_shared<GenerationSource>(db.pack->header());
+  PagerOptions o = baseOptions();
+  o.mode = PagerMode::demand;
+  auto opened = Pager::open(db.grid, std::shared_ptr<const ModuleSource>(source), o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  p.update(5500, 5500, 0, 0, 0);
+  EXPECT_FALSE(p.resident(5, 5));  // the fault
+  ASSERT_TRUE(p.waitIdle(30));
+  ASSERT_TRUE(p.resident(5, 5));
+  source->bump(5, 5, false);
+  p.update(5500, 5500, 0, 0, 1);
+  ASSERT_TRUE(p.waitIdle(30));
+  const ResidentRef r = p.resident(5, 5);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r.module().generation, 1u);
+  EXPECT_EQ(r.level(0).vertices[0].y, generationY(5, 5, 1));
+  EXPECT_EQ(p.metrics().reloaded, 1u);
+}
+
+TEST(Pager, thePackIsASourceOfOneGeneration) {
+  const TestDb db = makeDb("packsource", 4, 4);
+  const PackSource src(db.pack);
+  EXPECT_EQ(src.generation(1, 2), 0u);
+  EXPECT_EQ(src.changes(), 0u);
+  EXPECT_EQ(src.info(1, 2).storedBytes, db.pack->entry(1, 2).compressedBytes);
+  module::Module m;
+  const Result<std::uint64_t> r = src.read(1, 2, m);
+  ASSERT_TRUE(r.ok()) << r.error();
+  EXPECT_EQ(r.value(), 0u);
+  EXPECT_EQ(m.levels[0].vertices[0].y, generationY(1, 2, 0));
+  EXPECT_FALSE(src.missing(1, 2));
+}
+
 }  // namespace
 }  // namespace sandtable::runtime

@@ -29,6 +29,7 @@
 
 #include "sandtable/formats/materials.h"
 #include "sandtable/formats/module.h"
+#include "sandtable/meshing/lattice.h"
 #include "sandtable/base/result.h"
 
 namespace sandtable::convert {
@@ -111,17 +112,9 @@ struct DecalStats {
   std::uint64_t failures = 0;
 };
 
-/// One module level's lattice: where its posts are and their elevations.
-/// Every level of one module has the same extent (xs.front()..xs.back(),
-/// zs.front()..zs.back()); that extent and moduleX/moduleZ key the cache.
-struct LevelLattice {
-  double moduleX = 0;  ///< world X of the module's NW corner (metres east of the grid origin)
-  double moduleZ = 0;  ///< world Z of the module's NW corner (metres south of the grid origin)
-  std::vector<double> xs;   ///< module-local x of each lattice column (size squaresX + 1)
-  std::vector<double> zs;   ///< module-local z of each lattice row (size squaresZ + 1)
-  std::vector<float> heights;  ///< (squaresZ + 1) * (squaresX + 1), row-major, from the grid
-  double spacing = 0;  ///< nominal spacing of the level
-};
+/// One module level's lattice (sandtable/meshing/lattice.h): the decaler's
+/// input.
+using meshing::LevelLattice;
 
 /// Loaded, classified and transformed culture; immutable after load, so
 /// decalLevel may run on many threads at once.

@@ -10,6 +10,7 @@
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/pack.h"
+#include "sandtable/meshing/lattice.h"
 
 namespace sandtable::convert {
 
@@ -20,15 +21,10 @@ struct ModuleOptions {
   int zstdLevel = 9;
 };
 
-/// Grid squares along a module edge at level 0: moduleSize / spacing,
-/// rounded to a multiple of 2^(levels-1) (at least that) so every level's
-/// lattice lands on grid posts. 1000 m at 31.25 m posts gives 32.
-std::uint32_t moduleSquares(double moduleSize, double spacing, int levels);
-
-/// Squares along a quadtree node edge, the same at every level: the
-/// coarsest level is one node per module, and each finer level splits
-/// every node into four (squares >> (levels - 1); 4 at 32 squares, 4 levels).
-inline std::uint32_t nodeSquares(std::uint32_t squares, int levels) { return squares >> (levels - 1); }
+// moduleSquares and nodeSquares (sandtable/meshing/lattice.h), as the
+// module builder's callers have always named them.
+using meshing::moduleSquares;
+using meshing::nodeSquares;
 
 struct LevelTotals {
   std::uint64_t triangles = 0;

@@ -23,7 +23,9 @@
 // new strip in and frees the strip on the opposite side (Figure 31). A jump
 // refills the whole window, nearest modules first, spread over all loaders.
 // Any number of reader threads (render, simulation) call resident() at any
-// time: it takes no lock and never waits.
+// time: it takes no lock and never waits. Modules come from a ModuleSource
+// (module_source.h; the pack is PackSource); a module whose generation
+// there moves on is reloaded while the older one stays readable.
 //
 // Thread safety of Pager: update() and stop() from one thread (the main
 // thread) only; resident(), metrics(), waitIdle() and the const accessors
@@ -39,6 +41,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "sandtable/formats/database.h"
@@ -46,6 +49,7 @@
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
 #include "sandtable/base/result.h"
+#include "sandtable/paging/module_source.h"
 
 namespace sandtable::runtime {
 
@@ -56,12 +60,6 @@ enum class Direction : std::uint8_t { north = 0, east = 1, south = 2, west = 3 }
 inline constexpr std::size_t kDirections = 4;
 /// "north", "east", "south", "west".
 const char* directionName(Direction d);
-
-struct ModuleKey {
-  std::uint32_t kx = 0;
-  std::uint32_t kz = 0;
-  bool operator==(const ModuleKey&) const = default;
-};
 
 /// Half-open rectangle of module indices [x0, x1) x [z0, z1); may lie
 /// partly or wholly outside the database until clipped.
@@ -272,6 +270,7 @@ struct PagerOptions {
 struct ResidentModule {
   std::uint32_t kx = 0, kz = 0;
   bool placeholder = false;  ///< a coarse stand-in from the grid (missing, corrupt, or no budget)
+  std::uint64_t generation = 0;  ///< the source's generation of these levels (ModuleSource)
   std::vector<module::Level> levels;
 };
 
@@ -296,7 +295,8 @@ class ResidentRef {
   /// The chosen level is coarser than the one asked for.
   bool coarser() const { return coarser_; }
   bool placeholder() const { return module_->placeholder; }
-  /// Changes each time the slot receives a module (cache key for GPU data).
+  /// Changes each time the slot receives a module, or a newer generation
+  /// of its module (cache key for GPU data).
   std::uint64_t generation() const { return generation_; }
   const module::Level& level() const { return module_->levels[level_]; }
   /// Any level from finestLevel() to the coarsest (asserted).
@@ -318,34 +318,61 @@ struct LatencyStats {
   double meanMs = 0, p50Ms = 0, p90Ms = 0, p99Ms = 0, maxMs = 0;  ///< p: bucket upper edges
 };
 
-/// Counters since open. Taken without stopping anything: a snapshot of
-/// independent counters, each exact, not mutually consistent.
-struct PagerMetrics {
+/// The pager's event counters since open. T is std::uint64_t in
+/// PagerMetrics and std::atomic<std::uint64_t> inside the pager, so the
+/// list is written once and a snapshot is one loop over fields().
+template <typename T>
+struct PagerCountersOf {
+  T updates{};
+  T boxCrossings{};  ///< the viewer left the bounding box
+  T refills{};       ///< jumps (and the first update)
+  T requested{};     ///< loads queued (or demand faults taken)
+  T loaded{};        ///< real modules published
+  T freed{};         ///< modules freed: opposite strips, or slots reused for new ones
+  T duplicates{};    ///< requests for a module already resident (and of its source's generation)
+  T cancelledQueued{};    ///< left the window before the read began
+  T cancelledInFlight{};  ///< left the window during the read
+  T placeholders{};       ///< placeholder publications
+  T missingModules{};     ///< distinct modules with no record
+  T corruptModules{};     ///< distinct modules that failed to read or decode
+  T budgetRefusals{};     ///< modules not resident (placeholder) for the budget
+  T budgetTrimmedLevels{};///< fine levels left out for the budget
+  T reclaimedBytes{};     ///< storage given back by empty slots under budget pressure
+  T bytesRead{};     ///< bytes read from the module source (compressed, for the pack)
+  T readerWaits{};   ///< loader waited for readers to leave a slot
+  T queueOverflows{};
+  T residentQueries{};
+  T residentMisses{};  ///< queries for a database module not resident
+  T demandFaults{};
+  T stolen{};  ///< modules loaded by a loader other than their direction's
+  T reloaded{};  ///< resident modules replaced by a newer generation from the source
+  // mmap mode
+  T prefetchPasses{};
+  T prefetchBlocks{};
+  T prefetchPages{};
+  T prefetchMajorFaults{};  ///< faults taken by the prefetch thread
+  T prefetchMinorFaults{};
+
+  /// Every counter above, in order (pager.cpp static_asserts that none is
+  /// left out).
+  auto fields() {
+    return std::tie(updates, boxCrossings, refills, requested, loaded, freed, duplicates, cancelledQueued,
+                    cancelledInFlight, placeholders, missingModules, corruptModules, budgetRefusals,
+                    budgetTrimmedLevels, reclaimedBytes, bytesRead, readerWaits, queueOverflows, residentQueries,
+                    residentMisses, demandFaults, stolen, reloaded, prefetchPasses, prefetchBlocks, prefetchPages,
+                    prefetchMajorFaults, prefetchMinorFaults);
+  }
+  auto fields() const { return const_cast<PagerCountersOf&>(*this).fields(); }
+};
+using PagerCounters = PagerCountersOf<std::uint64_t>;
+
+/// Counters since open and the pager's state now. Taken without stopping
+/// anything: a snapshot of independent counters, each exact, not mutually
+/// consistent.
+struct PagerMetrics : PagerCounters {
   PagerMode mode = PagerMode::predictive;
-  std::uint64_t updates = 0;
-  std::uint64_t boxCrossings = 0;  ///< the viewer left the bounding box
-  std::uint64_t refills = 0;       ///< jumps (and the first update)
   std::array<std::uint64_t, kDirections> stripSignals{};  ///< strip moves per direction
   std::array<std::uint64_t, kDirections> loadsByLoader{}; ///< modules published per loader
-  std::uint64_t requested = 0;     ///< loads queued (or demand faults taken)
-  std::uint64_t loaded = 0;        ///< real modules published
-  std::uint64_t freed = 0;  ///< modules freed: opposite strips, or slots reused for new ones
-  std::uint64_t duplicates = 0;    ///< requests for a module already resident
-  std::uint64_t cancelledQueued = 0;    ///< left the window before the read began
-  std::uint64_t cancelledInFlight = 0;  ///< left the window during the read
-  std::uint64_t placeholders = 0;  ///< placeholder publications
-  std::uint64_t missingModules = 0;     ///< distinct modules with no record
-  std::uint64_t corruptModules = 0;     ///< distinct modules that failed to read or decode
-  std::uint64_t budgetRefusals = 0;     ///< modules not resident (placeholder) for the budget
-  std::uint64_t budgetTrimmedLevels = 0;///< fine levels left out for the budget
-  std::uint64_t reclaimedBytes = 0;     ///< storage given back by empty slots under budget pressure
-  std::uint64_t bytesRead = 0;     ///< compressed bytes read from the pack
-  std::uint64_t readerWaits = 0;   ///< loader waited for readers to leave a slot
-  std::uint64_t queueOverflows = 0;
-  std::uint64_t residentQueries = 0;
-  std::uint64_t residentMisses = 0;  ///< queries for a database module not resident
-  std::uint64_t demandFaults = 0;
-  std::uint64_t stolen = 0;  ///< modules loaded by a loader other than their direction's
   std::array<std::uint32_t, 4> queueLength{};  ///< per loader, now (queued + pending)
   std::uint32_t maxQueueLength = 0;            ///< largest seen
   LatencyStats latency;       ///< every publication (mmap mode: prefetch passes)
@@ -361,29 +388,31 @@ struct PagerMetrics {
   std::array<std::uint32_t, kDirections> leadStrips{};
   double elapsedSeconds = 0;
   double modulesPerSecond = 0;
-  /// Loader time summed over loaders: in PackReader::read (pread, CRC,
-  /// zstd, decode) and in copying into the slot and publishing.
+  /// Loader time summed over loaders: in the source's read (for the pack:
+  /// pread, CRC, zstd, decode) and in copying into the slot and publishing.
   double readSeconds = 0;
   double publishSeconds = 0;
-  // mmap mode
-  std::uint64_t prefetchPasses = 0;
-  std::uint64_t prefetchBlocks = 0;
-  std::uint64_t prefetchPages = 0;
-  std::uint64_t prefetchMajorFaults = 0;  ///< faults taken by the prefetch thread
-  std::uint64_t prefetchMinorFaults = 0;
-  double lastPassSeconds = 0;
+  double lastPassSeconds = 0;  ///< mmap mode
   double lastSleepSeconds = 0;
 };
 
 class Pager {
  public:
-  /// Opens a pager on a grid and (except in mmap mode) a pack, and starts
-  /// its threads. Fails ("pager options: ..." / "pager: ...") on bad
-  /// options, a missing pack, or when the slots' placeholder storage alone
-  /// exceeds the budget.
+  /// Opens a pager on a grid and (except in mmap mode) a module source,
+  /// and starts its threads. Fails ("pager options: ..." / "pager: ...") on
+  /// bad options, no source, or when the slots' placeholder storage alone
+  /// exceeds the budget. Placeholders use material 0.
+  static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid,
+                                             std::shared_ptr<const ModuleSource> source,
+                                             const PagerOptions& options);
+  /// The pack as the source (PackSource).
   static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid,
                                              std::shared_ptr<const pack::PackReader> pack,
                                              const PagerOptions& options);
+  /// No modules: mmap mode only.
+  static Result<std::unique_ptr<Pager>> open(std::shared_ptr<const grid::GridFile> grid, std::nullptr_t,
+                                             const PagerOptions& options);
+  /// The database's pack, placeholders in its default area material.
   static Result<std::unique_ptr<Pager>> open(const Database& db, const PagerOptions& options);
   static Result<std::unique_ptr<Pager>> open(const std::string& directory,
                                              const PagerOptions& options);
@@ -432,7 +461,7 @@ class Pager {
 
  private:
   static Result<std::unique_ptr<Pager>> openWith(std::shared_ptr<const grid::GridFile> grid,
-                                                 std::shared_ptr<const pack::PackReader> pack,
+                                                 std::shared_ptr<const ModuleSource> source,
                                                  const PagerOptions& options,
                                                  std::uint16_t placeholderMaterial);
   explicit Pager(std::unique_ptr<Impl> impl);

@@ -1,0 +1,182 @@
+// Skirts along the quadtree node edges (skirts.h).
+#include "sandtable/meshing/skirts.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+namespace sandtable::meshing {
+
+using module::Group;
+using module::Half;
+using module::Level;
+using module::Vertex;
+
+std::vector<float> skirtDepths(const std::vector<LevelLattice>& lats, const ModuleWindow& m, std::uint32_t node) {
+  const int levels = int(lats.size());
+  const std::uint32_t w = m.i1 - m.i0 + 1, h = m.j1 - m.j0 + 1;
+  std::vector<double> lowest(std::size_t(w) * h, std::numeric_limits<double>::infinity());
+  std::vector<std::vector<double>> surf(std::size_t(levels), std::vector<double>(lowest.size()));
+  for (int l = 0; l < levels; ++l) {
+    for (std::uint32_t j = 0; j < h; ++j) {
+      for (std::uint32_t i = 0; i < w; ++i) {
+        const double v = surfaceAt(lats[std::size_t(l)], m, l, m.i0 + i, m.j0 + j);
+        surf[std::size_t(l)][j * w + i] = v;
+        lowest[j * w + i] = std::min(lowest[j * w + i], v);
+      }
+    }
+  }
+  std::vector<float> depth(std::size_t(levels), static_cast<float>(kSkirtMargin));
+  for (int l = 0; l < levels; ++l) {
+    const std::uint32_t edge = node << l;  // node edge in level-0 posts
+    double worst = 0;
+    for (std::uint32_t j = 0; j < h; ++j) {
+      for (std::uint32_t i = 0; i < w; ++i) {
+        const bool onLine = i % edge == 0 || j % edge == 0 || i == w - 1 || j == h - 1;
+        if (onLine) worst = std::max(worst, surf[std::size_t(l)][j * w + i] - lowest[j * w + i]);
+      }
+    }
+    depth[std::size_t(l)] = float(worst + kSkirtMargin);
+  }
+  return depth;
+}
+
+float blockRangeDepth(const grid::GridFile& g, const ModuleWindow& w, float seed) {
+  const std::uint32_t lastI = g.postsX() - 1, lastJ = g.postsZ() - 1;
+  const grid::Header& gh = g.header();
+  float lo = seed, hi = seed;
+  for (std::uint32_t bz = std::min(w.j0, lastJ) / grid::kBlockPosts;
+       bz <= std::min(w.j1, lastJ) / grid::kBlockPosts && bz < gh.blocksZ; ++bz) {
+    for (std::uint32_t bx = std::min(w.i0, lastI) / grid::kBlockPosts;
+         bx <= std::min(w.i1, lastI) / grid::kBlockPosts && bx < gh.blocksX; ++bx) {
+      const grid::BlockEntry e = g.blockEntry(bx, bz);
+      if (std::isfinite(e.minElevation)) lo = std::min(lo, e.minElevation);
+      if (std::isfinite(e.maxElevation)) hi = std::max(hi, e.maxElevation);
+    }
+  }
+  return std::max(1.0f, hi - lo);
+}
+
+namespace {
+
+/// Appends one node side's skirt: a strip of quads hanging below the
+/// lattice vertices top[0..n] (module-local positions from the level).
+void appendSkirtSide(Level& level, const std::vector<std::uint32_t>& top, float depth,
+                     std::vector<std::uint32_t>& indices) {
+  const std::uint32_t base = std::uint32_t(level.vertices.size());
+  for (std::uint32_t v : top) {
+    Vertex b = level.vertices[v];
+    b.y -= depth;
+    b.s = b.t = 0;
+    level.vertices.push_back(b);
+  }
+  for (std::size_t k = 0; k + 1 < top.size(); ++k) {
+    const std::uint32_t a = top[k], c = top[k + 1];
+    const std::uint32_t ab = base + std::uint32_t(k), cb = base + std::uint32_t(k + 1);
+    indices.insert(indices.end(), {a, ab, c, c, ab, cb});
+  }
+}
+
+/// Finds (or adds) the level vertex at lattice post (a, b).
+std::uint32_t latticeVertex(Level& level, const LevelLattice& lat, std::size_t a, std::size_t b,
+                            std::vector<std::uint32_t>& cache) {
+  const std::size_t k = b * lat.xs.size() + a;
+  if (cache[k] == UINT32_MAX) {
+    cache[k] = std::uint32_t(level.vertices.size());
+    level.vertices.push_back({float(lat.xs[a]), lat.heights[k], float(lat.zs[b]), 0, 0});
+  }
+  return cache[k];
+}
+
+/// The skirt groups and their indices, apart from the level's.
+void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, float depth, std::uint16_t material,
+                 std::vector<Group>& groups, std::vector<std::uint32_t>& indices) {
+  // Lattice vertices already emitted by the skin are reused when found at
+  // exactly the lattice position, so skirts share the skin's edge vertices.
+  std::vector<std::uint32_t> cache(lat.xs.size() * lat.zs.size(), UINT32_MAX);
+  for (std::uint32_t v = 0; v < level.vertices.size(); ++v) {
+    const Vertex& p = level.vertices[v];
+    const auto a = std::lower_bound(lat.xs.begin(), lat.xs.end(), double(p.x) - 1e-4);
+    const auto b = std::lower_bound(lat.zs.begin(), lat.zs.end(), double(p.z) - 1e-4);
+    if (a == lat.xs.end() || b == lat.zs.end()) continue;
+    if (float(*a) != p.x || float(*b) != p.z) continue;
+    const std::size_t k = std::size_t(b - lat.zs.begin()) * lat.xs.size() + std::size_t(a - lat.xs.begin());
+    if (cache[k] == UINT32_MAX && p.y == lat.heights[k]) cache[k] = v;
+  }
+  const std::size_t sx = lat.xs.size() - 1, sz = lat.zs.size() - 1;
+  for (std::size_t nz = 0; nz < sz; nz += node) {
+    for (std::size_t nx = 0; nx < sx; nx += node) {
+      const std::size_t ax = nx, bx = std::min(nx + node, sx), az = nz, bz = std::min(nz + node, sz);
+      Group g;
+      g.square = std::uint32_t(nz * sx + nx);
+      g.half = Half::skirt;
+      g.priority = module::kPrioritySkin;
+      g.material = material;
+      g.firstIndex = std::uint32_t(indices.size());
+      std::vector<std::uint32_t> top;
+      auto side = [&](std::size_t a0, std::size_t b0, std::size_t a1, std::size_t b1) {
+        top.clear();
+        const std::size_t n = std::max(a1 - a0, b1 - b0);
+        for (std::size_t k = 0; k <= n; ++k) {
+          const std::size_t a = a0 == a1 ? a0 : a0 + k, b = b0 == b1 ? b0 : b0 + k;
+          top.push_back(latticeVertex(level, lat, a, b, cache));
+        }
+        appendSkirtSide(level, top, depth, indices);
+      };
+      side(ax, az, bx, az);  // north
+      side(ax, bz, bx, bz);  // south
+      side(ax, az, ax, bz);  // west
+      side(bx, az, bx, bz);  // east
+      g.indexCount = std::uint32_t(indices.size()) - g.firstIndex;
+      groups.push_back(g);
+    }
+  }
+}
+
+bool groupBefore(const Group& a, const Group& b) {
+  if (a.priority != b.priority) return a.priority < b.priority;
+  if (a.square != b.square) return a.square < b.square;
+  if (a.half != b.half) return a.half < b.half;
+  return a.material < b.material;
+}
+
+/// Merges the skirt groups into the level, keeping groups sorted and each
+/// group's indices contiguous in group order.
+void mergeGroups(Level& level, const std::vector<Group>& extra, const std::vector<std::uint32_t>& extraIndices) {
+  std::vector<std::pair<Group, bool>> all;  // bool: indices live in extraIndices
+  all.reserve(level.groups.size() + extra.size());
+  for (const Group& g : level.groups) all.push_back({g, false});
+  for (const Group& g : extra) all.push_back({g, true});
+  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return groupBefore(a.first, b.first); });
+  std::vector<std::uint32_t> indices;
+  indices.reserve(level.indices.size() + extraIndices.size());
+  level.groups.clear();
+  for (auto& [g, isExtra] : all) {
+    const auto& src = isExtra ? extraIndices : level.indices;
+    const std::uint32_t first = std::uint32_t(indices.size());
+    indices.insert(indices.end(), src.begin() + g.firstIndex, src.begin() + g.firstIndex + g.indexCount);
+    g.firstIndex = first;
+    level.groups.push_back(g);
+  }
+  // A pager slot's level keeps its reserved capacity; a fresh level takes
+  // the merged vector as it is.
+  if (level.indices.capacity() >= indices.size()) {
+    level.indices.assign(indices.begin(), indices.end());
+  } else {
+    level.indices = std::move(indices);
+  }
+}
+
+}  // namespace
+
+std::uint64_t addSkirts(Level& level, const LevelLattice& lat, std::uint32_t node, float depth,
+                        std::uint16_t material) {
+  std::vector<Group> groups;
+  std::vector<std::uint32_t> indices;
+  skirtGroups(level, lat, node, depth, material, groups, indices);
+  mergeGroups(level, groups, indices);
+  return indices.size() / 3;
+}
+
+}  // namespace sandtable::meshing
