@@ -437,6 +437,26 @@ TEST_F(Viewer, ClearErrorsForBadViewerOptions) {
   EXPECT_EQ(mesh.exitCode, 0) << mesh.err;
   EXPECT_NE(mesh.out.find("terrain:  mesh"), std::string::npos) << mesh.out;
   EXPECT_EQ(runCli({"bench", "render", o.output, "--frames", "1"}).exitCode, 2);
+  // The library names the option field; the CLI shows the user the flag.
+  const auto pitch = fly({"--pitch", "95"});
+  EXPECT_EQ(pitch.exitCode, 2);
+  EXPECT_NE(pitch.err.find("--pitch must be between -89 and 89 degrees"), std::string::npos) << pitch.err;
+  EXPECT_EQ(pitch.err.find("MotionOptions::"), std::string::npos) << pitch.err;
+  runtime::FlightOptions bad;
+  bad.motion.pitchDeg = 95;
+  const auto problems = runtime::checkFlightOptions(openDatabase(monaco_).value().grid, bad);
+  ASSERT_FALSE(problems.empty());
+  EXPECT_NE(problems.front().message.find("MotionOptions::pitchDeg"), std::string::npos);
+}
+
+TEST_F(Viewer, HeadlessFlightShowsFramesFpsAndTimeLeft) {
+  // Not a TTY here: plain lines at 25 % steps, the last one at 100 %.
+  const auto r = runCli({"fly", monaco_, "--png", *tmp_ / "progress", "--frames", "8", "--size", "64x36"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("fly: 100% ("), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("frame 8/8"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(" fps  0 s left"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("fly:  25% ("), std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 // fly_session.cpp.
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -16,6 +17,7 @@
 
 #include "commands.h"
 #include "flags.h"
+#include "progress.h"
 #include "sandtable/viewer/fly_session.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
@@ -387,6 +389,20 @@ std::string checkArgs(const FlyArgs& a) {
   return {};
 }
 
+/// "frame 120/900  31.2 fps  25 s left" after each frame (render thread).
+std::function<void(std::uint32_t)> flightProgress(Progress& progress, std::uint32_t total) {
+  const auto start = std::chrono::steady_clock::now();
+  return [&progress, total, start](std::uint32_t frame) {
+    const std::uint32_t done = frame + 1;
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double fps = s > 0 ? done / s : 0;
+    char detail[96];
+    std::snprintf(detail, sizeof detail, "frame %u/%u  %.1f fps  %.0f s left", done, total, fps,
+                  fps > 0 ? (total - done) / fps : 0.0);
+    progress.update(double(done) / total, "fly", detail);
+  };
+}
+
 int reportFailure(const Result<runtime::FlightReport>& report) {
   // Bad options and a missing GL context are the caller's to fix (2);
   // anything else went wrong while flying (1).
@@ -437,8 +453,13 @@ int run(FlyArgs& a) {
     }
     if (ss.path && !framesGiven) o.output.frames = framesForPath(*ss.path);
   }
+  // A headless flight of many frames takes minutes: frames done, frame
+  // rate and time left (a bar on a TTY, plain lines in a log).
+  Progress progress(window != nullptr);
+  if (!window) ss.onFrameDone = flightProgress(progress, o.output.frames);
   FlySession session(db.value(), std::move(ss), o, std::move(window), std::move(video));
   auto report = runtime::fly(db.value(), o, &session);
+  progress.done();
   const std::string sessionError = session.finish();
   if (!report) return reportFailure(report);
   if (!sessionError.empty()) {

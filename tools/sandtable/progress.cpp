@@ -12,7 +12,7 @@ Progress::Progress(bool quiet)
 
 Progress::~Progress() { done(); }
 
-void Progress::update(double fraction, const std::string& stage) {
+void Progress::update(double fraction, const std::string& stage, const std::string& detail) {
   if (quiet_) return;
   std::lock_guard lock(mutex_);
   fraction = std::clamp(fraction, 0.0, 1.0);
@@ -25,8 +25,8 @@ void Progress::update(double fraction, const std::string& stage) {
     const int filled = static_cast<int>(std::lround(fraction * width));
     std::string bar(static_cast<std::size_t>(filled), '#');
     bar.resize(width, '.');
-    std::fprintf(stderr, "\r%-18.18s [%s] %5.1f%% %6.1fs", stage.c_str(), bar.c_str(),
-                 fraction * 100.0, elapsed);
+    std::fprintf(stderr, "\r%-18.18s [%s] %5.1f%% %6.1fs%s%s\x1b[K", stage.c_str(), bar.c_str(),
+                 fraction * 100.0, elapsed, detail.empty() ? "" : "  ", detail.c_str());
     std::fflush(stderr);
     open_ = true;
     lastStage_ = stage;
@@ -36,7 +36,8 @@ void Progress::update(double fraction, const std::string& stage) {
   if (step == lastStep_ && stage == lastStage_) return;
   lastStep_ = step;
   lastStage_ = stage;
-  std::fprintf(stderr, "%s: %3d%% (%.1fs)\n", stage.c_str(), step * 25, elapsed);
+  std::fprintf(stderr, "%s: %3d%% (%.1fs)%s%s\n", stage.c_str(), step * 25, elapsed,
+               detail.empty() ? "" : "  ", detail.c_str());
 }
 
 void Progress::done() {

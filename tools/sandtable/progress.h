@@ -13,8 +13,10 @@ class Progress {
   /// `quiet` suppresses everything (used with --json).
   explicit Progress(bool quiet = false);
   ~Progress();
-  /// fraction in [0, 1]; stage names what is running. Thread-safe.
-  void update(double fraction, const std::string& stage);
+  /// fraction in [0, 1]; stage names what is running; `detail` (e.g.
+  /// "frame 120/900  31 fps  23 s left") follows the bar or the line.
+  /// Thread-safe.
+  void update(double fraction, const std::string& stage, const std::string& detail = "");
   /// Ends the bar line.
   void done();
 

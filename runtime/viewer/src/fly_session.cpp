@@ -179,11 +179,12 @@ void FlySession::overlay(runtime::Image& img, const runtime::FrameStats& s) {
   map_->compose(img, x, z, s.headingDeg);
 }
 
-void FlySession::frameDone(std::uint32_t, const runtime::Image& img) {
+void FlySession::frameDone(std::uint32_t frame, const runtime::Image& img) {
   if (window_) {
     if (std::string e = window_->present(img); !e.empty()) fail(e);
   }
   if (current_.screenshot) saveScreenshot(img);
+  if (settings_.onFrameDone) settings_.onFrameDone(frame);
   if (video_) {
     if (std::string e = video_->write(img); !e.empty()) fail(e);
   }

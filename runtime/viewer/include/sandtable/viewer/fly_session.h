@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -43,6 +44,9 @@ struct FlySessionSettings {
   /// the pager was opened with, which it cannot grow).
   double maxViewDistance = 200000;
   bool liveViewDistance = true;       ///< false with --fog-density (fog fixes it)
+  /// Called on the render thread after each frame is done (e.g. to show
+  /// progress); `frame` counts from 0.
+  std::function<void(std::uint32_t frame)> onFrameDone;
 };
 
 /// Per frame, what the render thread needs of the controller's state.
