@@ -151,10 +151,11 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
   j["timing"] = {
       {"simulated_frame_rate", kFramesPerSecond},
       {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
-               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload, "
-               "draw and glReadPixels (waits for the GPU); frame_ms: time between frame "
+               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload "
+               "and the passes up to the HUD (waits for the GPU); frame_ms: time between frame "
                "completions on the render thread (the threads overlap), frame 0 cpu + render + "
-               "panel; png_ms is not in frame_ms or fps"}};
+               "HUD + read-back + present; glReadPixels only for frames a PNG or onFrame sink "
+               "takes; png_ms is not in frame_ms or fps"}};
   j["options"] = {{"size", std::to_string(o.width) + "x" + std::to_string(o.height)},
                   {"height_agl", o.heightAgl},
                   {"pitch", o.pitchDeg},
@@ -287,7 +288,7 @@ struct FlightRun {
   double ground = 0;  ///< last ground elevation seen under the eye
   // Written by the render thread only; read after it is joined.
   FlightReport report;
-  std::string renderError;
+  std::vector<Problem> renderProblems;
   std::string rendererName, rendererDetail;
 
   /// Velocity in the world frame (X east, Z south) for the pager's lead
@@ -392,16 +393,26 @@ struct FlightRun {
     return true;
   }
 
-  /// Render thread: draws, reads back, composites and hands out each
-  /// frame, then returns the buffer (its pager guards released).
+  /// Render thread: the failure that ends the flight.
+  void stop(const Status& st) {
+    renderProblems = st.problems();
+    handoff.fail();
+  }
+
+  /// Render thread: runs the renderer's passes, draws the panel and
+  /// `composite` into the HUD overlay, reads the frame back only for a
+  /// sink that wants its pixels, presents it in the window, and hands out
+  /// each frame, then returns the buffer (its pager guards released).
   void consume(Renderer& renderer) {
     Image image;
+    Overlay overlay;
     Clock::time_point lastDone{};
     double lastPngMs = 0;
     while (Slot* slot = handoff.takeFull()) {
       FrameStats s = slot->stats;
       const auto t0 = Clock::now();
-      const std::string err = renderer.draw(slot->buf, image);
+      const Status drawn = renderer.draw(slot->buf);
+      if (drawn) renderer.finish();
       s.renderMs = msSince(t0);
       slot->buf.modules.clear();  // release the pager's guards within the frame
       const RenderStats& rs = renderer.stats();
@@ -410,11 +421,7 @@ struct FlightRun {
       s.cachedLevels = rs.cachedLevels;
       s.gpuBytes = rs.gpuBytes;
       handoff.pushFree(slot);
-      if (!err.empty()) {
-        renderError = err;
-        handoff.fail();
-        return;
-      }
+      if (!drawn) return stop(drawn);
       const auto now = Clock::now();
       s.frameMs = report.frames.empty()
                       ? s.cpuMs + s.renderMs
@@ -422,20 +429,22 @@ struct FlightRun {
       s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
       // A height frame holds data in its pixels: nothing is drawn over it.
       const bool data = o.colour == ColourMode::height;
-      if (o.hud && !data) drawHudPanel(image, hudLines(s, o));
-      if (o.composite && !data) o.composite(image, s);
-      s.frameMs += msSince(now);  // the panel is part of the frame
+      overlay.begin(o.width, o.height);
+      if (o.hud && !data) drawHudPanel(overlay, hudLines(s, o));
+      if (o.composite && !data) o.composite(overlay, s);
+      Status shown = renderer.drawOverlay(overlay);
+      const bool sink = o.onFrame && (!o.wantsFrame || o.wantsFrame(s.frame));
+      if (shown && (sink || !o.outDir.empty())) shown = renderer.readFrame(image);
+      if (shown && o.window) shown = renderer.present();
+      if (!shown) return stop(shown);
+      s.frameMs += msSince(now);  // the HUD, a read-back and the present are part of the frame
       lastDone = Clock::now();
-      if (o.onFrame) o.onFrame(s.frame, image);
+      if (sink) o.onFrame(s.frame, image);
       lastPngMs = 0;
       if (!o.outDir.empty()) {
         const auto t2 = Clock::now();
         const std::string path = (std::filesystem::path(o.outDir) / frameFileName(s.frame)).string();
-        if (std::string e = writePng(path, image); !e.empty()) {
-          renderError = e;
-          handoff.fail();
-          return;
-        }
+        if (Status st = writePng(path, image); !st) return stop(st);
         s.pngMs = msSince(t2);
       }
       lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
@@ -445,7 +454,7 @@ struct FlightRun {
 
   /// The render thread's body: the GL context is made, used and destroyed here.
   void renderThread(std::promise<std::vector<Problem>>& ready) {
-    auto renderer = Renderer::create(renderSettings);
+    auto renderer = Renderer::create(renderSettings, o.window);
     if (!renderer) {
       ready.set_value(renderer.problems());
       return;
@@ -474,7 +483,7 @@ struct FlightRun {
     handoff.close();
     render.join();
     for (auto& slot : slots) slot.buf.modules.clear();
-    if (!renderError.empty()) return Problem{"fly", 0, renderError};
+    if (!renderProblems.empty()) return renderProblems;
     FlightReport& r = report;
     r.summary = summarize(r.frames);
     r.summary.mode = scene ? "modules" : "mesh";

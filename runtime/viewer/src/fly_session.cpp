@@ -107,7 +107,11 @@ runtime::ViewerState FlySession::initialState(const runtime::FlightOptions& o) c
 
 void FlySession::install(runtime::FlightOptions& o) {
   o.controller = [this](std::uint32_t frame, double t) { return nextPose(frame, t); };
-  o.composite = [this](runtime::Image& img, const runtime::FrameStats& s) { composite(img, s); };
+  o.composite = [this](runtime::Overlay& overlay, const runtime::FrameStats& s) { composite(overlay, s); };
+  // The window presents on the GPU; only a video or a screenshot needs the
+  // frame's pixels back.
+  o.window = window_.get();
+  o.wantsFrame = [this](std::uint32_t) { return video_ != nullptr || current_.screenshot; };
   o.onFrame = [this](std::uint32_t frame, const runtime::Image& img) { frameDone(frame, img); };
 }
 
@@ -169,7 +173,7 @@ std::optional<Pose> FlySession::nextPose(std::uint32_t frame, double t) {
   return p;
 }
 
-void FlySession::composite(runtime::Image& img, const runtime::FrameStats& s) {
+void FlySession::composite(runtime::Overlay& overlay, const runtime::FrameStats& s) {
   current_ = controls_.take(s.frame);
   if (!current_.map) return;
   if (!map_) {
@@ -182,16 +186,15 @@ void FlySession::composite(runtime::Image& img, const runtime::FrameStats& s) {
   map_->setScale(current_.mapScale);
   double x = 0, z = 0;
   runtime::MapView::toWorld(db_.grid->header(), s.easting, s.northing, x, z);
-  map_->compose(img, x, z, s.headingDeg);
+  const runtime::MapLayout box = map_->compose(overlay.layer(), x, z, s.headingDeg);
+  // The map, its label and marker inside a one-pixel border.
+  if (box.drawn) overlay.drawn({box.x - 1, box.y - 1, box.width + 2, box.height + 2});
 }
 
 void FlySession::frameDone(std::uint32_t, const runtime::Image& img) {
-  if (window_) {
-    if (std::string e = window_->present(img); !e.empty()) fail(e);
-  }
   if (current_.screenshot) saveScreenshot(img);
   if (video_) {
-    if (std::string e = video_->write(img); !e.empty()) fail(e);
+    if (Status st = video_->write(img); !st) fail(st);
   }
 }
 
@@ -200,8 +203,9 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   std::error_code ec;
   fs::create_directories(settings_.screenshotDir, ec);
   if (ec) {
-    fail("screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
-         " (give a writable --screenshot-dir)");
+    fail(Problem{"screenshot", 0,
+                 "screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
+                     " (give a writable --screenshot-dir)"});
     return;
   }
   // Never overwrite the screenshots of an earlier flight.
@@ -209,8 +213,8 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   do {
     file = fs::path(settings_.screenshotDir) / screenshotName(nextShot_++);
   } while (fs::exists(file, ec));
-  if (std::string e = runtime::writePng(file.string(), img); !e.empty()) {
-    fail("screenshot: " + e);
+  if (Status st = runtime::writePng(file.string(), img); !st) {
+    fail(Problem{"screenshot", 0, "screenshot: " + st.problems().front().message});
     return;
   }
   ++screenshots_;
@@ -218,15 +222,15 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   std::fflush(stdout);
 }
 
-void FlySession::fail(const std::string& e) {
+void FlySession::fail(const Status& st) {
   std::lock_guard lock(errorMutex_);
-  if (error_.empty()) error_ = e;
+  if (error_.ok()) error_ = st;
   failed_ = true;
 }
 
-std::string FlySession::finish() {
+Status FlySession::finish() {
   if (video_) {
-    if (std::string e = video_->finish(); !e.empty()) fail(e);
+    if (Status st = video_->finish(); !st) fail(st);
   }
   std::lock_guard lock(errorMutex_);
   return error_;

@@ -8,9 +8,11 @@
 // of two display buffers while the render thread (which owns the GL
 // context) draws the other, handed over with a mutex and condition
 // variable, no spinning. The pager's loader threads decode modules beside
-// them. After read-back, on the render thread, the frame is an Image: the
-// panel and `composite` (e.g. a 2-D map) are drawn on it on the CPU, then
-// it goes to `onFrame` and/or a PNG.
+// them. On the render thread each frame runs the renderer's passes on the
+// GPU (renderer.h); the panel and `composite` (e.g. a 2-D map) are drawn
+// on the CPU into the HUD pass's overlay, which the GPU blends over it.
+// The frame is read back only for a sink that wants its pixels (`outDir`
+// PNGs, `onFrame`); a `window` shows it by a GPU blit and a swap.
 //
 // Time: frame k shows the eye at simulated time k / kFramesPerSecond
 // seconds, whatever the real frame rate, so a flight is reproducible.
@@ -87,8 +89,15 @@ struct FlightOptions {
   bool fog = true;
   /// (easting, northing) -> (lon, lat); empty or nullopt leaves them out.
   std::function<std::optional<std::pair<double, double>>(double, double)> toLonLat;
-  /// Called with each finished frame (after the panel), e.g. for tests.
+  /// Called with each finished frame's pixels (after the panel), e.g. for
+  /// tests, a video or a screenshot; each such frame is read back.
   std::function<void(std::uint32_t frame, const Image&)> onFrame;
+  /// Which frames onFrame wants (asked on the render thread after
+  /// `composite`); empty: every frame.
+  std::function<bool(std::uint32_t frame)> wantsFrame;
+  /// Shows every frame in this window (present.h) without a read-back;
+  /// it must outlive the flight. Null: headless.
+  PresentTarget* window = nullptr;
 
   // ---- the stealth viewer (module mode)
   TerrainMode mode = TerrainMode::automatic;
@@ -117,8 +126,9 @@ struct FlightOptions {
   /// Replaces poseAt: the pose of frame `frame` at simulated time `t`;
   /// nullopt ends the flight (e.g. the window closed). Main thread.
   std::function<std::optional<Pose>(std::uint32_t frame, double t)> controller;
-  /// Draws on the frame after the panel (a 2-D map, overlays). Render thread.
-  std::function<void(Image&, const FrameStats&)> composite;
+  /// Draws into the HUD pass's overlay after the panel (a 2-D map,
+  /// overlays), marking what it drew (overlay.h). Render thread.
+  std::function<void(Overlay&, const FrameStats&)> composite;
 };
 
 
@@ -130,7 +140,7 @@ struct FrameStats {
   std::uint32_t frame = 0;
   double timeS = 0;
   double cpuMs = 0;     ///< main thread: selection (+ vertex build in mesh mode)
-  double renderMs = 0;  ///< render thread: upload, draw and read-back (waits for the GPU)
+  double renderMs = 0;  ///< render thread: upload and draw up to the HUD (waits for the GPU)
   /// Time between this frame's completion and the previous one's on the
   /// render thread, PNG writing excluded (frame 0: cpu + render + panel).
   /// With the two threads overlapping, this is what limits the frame rate.

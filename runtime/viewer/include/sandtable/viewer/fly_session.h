@@ -5,6 +5,9 @@
 //
 // Threads: nextPose() runs on fly()'s main thread (it polls the window's
 // keys there); composite() and frameDone() run on its render thread. The
+// window is the renderer's PresentTarget (frames reach it on the GPU);
+// frameDone() gets the pixels only of frames a video or a screenshot takes.
+// The
 // main thread produces a frame or two ahead of the one being drawn, so
 // what the render thread needs of the controller's state (map on/off and
 // scale, a screenshot request) travels with the frame number through a
@@ -72,11 +75,12 @@ class FlySession {
              std::unique_ptr<runtime::ViewerWindow> window,
              std::unique_ptr<runtime::VideoWriter> video);
 
-  /// Sets o.controller, o.composite and o.onFrame to this session's.
+  /// Sets o.controller, o.composite, o.window, o.wantsFrame and o.onFrame
+  /// to this session's.
   void install(runtime::FlightOptions& o);
-  /// After fly(): finishes the video; "" or the first error of the flight's
-  /// window, screenshots or video.
-  std::string finish();
+  /// After fly(): finishes the video; the first error of the flight's
+  /// screenshots or video.
+  Status finish();
   std::uint32_t screenshotsTaken() const { return screenshots_.load(); }
   bool windowed() const { return window_ != nullptr; }
 
@@ -85,10 +89,10 @@ class FlySession {
   double pollKeys();  ///< window: handles the keys, returns the clamped wall-clock step
   runtime::Pose headlessPose(double t);
   runtime::Pose windowPose(double clock) const;
-  void composite(runtime::Image& img, const runtime::FrameStats& s);
+  void composite(runtime::Overlay& overlay, const runtime::FrameStats& s);
   void frameDone(std::uint32_t frame, const runtime::Image& img);
   void saveScreenshot(const runtime::Image& img);
-  void fail(const std::string& e);
+  void fail(const Status& st);
   runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
 
   const Database& db_;
@@ -112,7 +116,7 @@ class FlySession {
   std::atomic<bool> failed_{false};
   std::atomic<std::uint32_t> screenshots_{0};
   std::mutex errorMutex_;
-  std::string error_;
+  Status error_;
 };
 
 /// Water material indices from the database's material table (manifest
