@@ -319,7 +319,8 @@ struct Renderer::Impl {
         break;
       case RenderPass::models:
         if (models) {
-          PassContext ctx{buf, vp};
+          PassContext ctx{buf, {}};
+          std::copy(vp.data(), vp.data() + 16, ctx.viewProjection.begin());
           if (Status st = models->draw(ctx); !st) return st;
           glBindFramebuffer(GL_FRAMEBUFFER, fbo);
         }

@@ -26,7 +26,6 @@
 // Thread safety: a Renderer owns a GL context that is current on the thread
 // that created it. Create, use and destroy it on that one thread (the render
 // thread); it reads DisplayBuffers that other threads filled.
-#include <Eigen/Dense>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -121,11 +120,12 @@ inline constexpr std::array<RenderPass, 6> kRenderPasses = {RenderPass::sky,    
                                                             RenderPass::resolve, RenderPass::hud};
 const char* renderPassName(RenderPass p);
 
-/// What a pass is given: the frame's buffer and its view-projection
-/// (positions relative to buf.originX / originZ, reversed Z).
+/// What a pass is given: the frame's buffer and its view-projection, a
+/// column-major 4 x 4 matrix (positions relative to buf.originX / originZ,
+/// reversed Z; camera_math.h's detail::viewProjection).
 struct PassContext {
   const DisplayBuffer& buf;
-  Eigen::Matrix4f viewProjection;
+  std::array<float, 16> viewProjection;
 };
 
 /// The models pass: the hook the next issue (icons and static objects)
