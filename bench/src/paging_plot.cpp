@@ -186,7 +186,7 @@ std::string pngPlot(const std::string& file, const std::vector<Series>& series, 
     runtime::drawText(img, int(xr) + 46, ly - 6, s.label, 2, black);
     ly += 22;
   }
-  return runtime::writePng(file, img);
+  return runtime::writePng(file, img).error();
 }
 
 }  // namespace

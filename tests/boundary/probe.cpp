@@ -20,7 +20,7 @@ int main(int argc, char**) {
   runtime::LodOptions lod;
   std::printf("%d %s\n", g.ok() ? 1 : 0, runtime::checkLodOptions(lod).c_str());
 #ifdef SANDTABLE_PROBE_RENDER
-  std::printf("%s\n", runtime::writePng("/nonexistent/x.png", runtime::Image{}).c_str());
+  std::printf("%s\n", runtime::writePng("/nonexistent/x.png", runtime::Image{}).error().c_str());
 #endif
   return 0;
 }

@@ -367,15 +367,13 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const 
   if (!s.statsPath.empty()) std::printf("  stats:    %s\n", s.statsPath.c_str());
   if (!a.videoFile.empty()) std::printf("  video:    %s\n", a.videoFile.c_str());
   if (session.screenshotsTaken() > 0) std::printf("  screenshots: %u\n", session.screenshotsTaken());
-  // In a window the frames are still drawn offscreen (the renderer's EGL
-  // context) and then shown through the window's own EGL window surface on
-  // X11, so say both rather than "surfaceless" alone.
+  // In a window the renderer's context is on the window's EGL surface: the
+  // frame is drawn offscreen and blitted into the window on the GPU.
   std::printf("  renderer: %s%s\n", s.rendererDetail.c_str(),
-              session.windowed() ? " (offscreen); shown in an X11 window through an EGL window surface"
-                                 : "");
+              session.windowed() ? " (offscreen target, blitted into the window on the GPU)" : "");
   std::printf("  terrain:  %s%s%s\n", s.mode.c_str(), s.lod.empty() ? "" : ", lod ", s.lod.c_str());
-  std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + read-back;"
-              " PNG writing excluded), %.0f triangles per frame\n",
+  std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + HUD,"
+              " read-back for --png / --video, present; PNG writing excluded), %.0f triangles per frame\n",
               s.fpsMean, s.frameMsP50, s.frameMsP99, s.trianglesMean);
 }
 
@@ -460,10 +458,10 @@ int run(FlyArgs& a) {
   FlySession session(db.value(), std::move(ss), o, std::move(window), std::move(video));
   auto report = runtime::fly(db.value(), o, &session);
   progress.done();
-  const std::string sessionError = session.finish();
+  const Status sessionStatus = session.finish();
   if (!report) return reportFailure(report);
-  if (!sessionError.empty()) {
-    std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(sessionError).c_str());
+  if (!sessionStatus) {
+    std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(sessionStatus.problems().front().message).c_str());
     return kProblems;
   }
   printSummary(o, report.value(), session, a);

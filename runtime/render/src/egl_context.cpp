@@ -1,4 +1,4 @@
-#include "egl_context.h"
+#include "sandtable/render/egl_context.h"
 
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
@@ -133,8 +133,57 @@ Result<std::unique_ptr<EglContext>> EglContext::create() {
                      "needs no GPU) or set EGL_PLATFORM=surfaceless; EGL_LOG_LEVEL=debug shows why a driver refused"};
 }
 
+Result<std::unique_ptr<EglContext>> EglContext::createOn(PresentTarget& window) {
+  const PresentTarget::EglSurface w = window.eglSurface();
+  auto fail = [](const char* step) {
+    return Problem{"EGL", 0, "EGL: cannot open the renderer's OpenGL 4.5 core context on the window: " +
+                                 std::string(step) + " failed (" + eglErrorText(eglGetError()) + ")"};
+  };
+  if (!w.display || !w.config || !w.surface) {
+    return Problem{"EGL", 0, "EGL: the window has no EGL surface to present to"};
+  }
+  if (!eglBindAPI(EGL_OPENGL_API)) return fail("eglBindAPI(EGL_OPENGL_API)");
+  const EGLint contextAttribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 5,
+                                   EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                                   EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  const EGLContext context = eglCreateContext(w.display, w.config, EGL_NO_CONTEXT, contextAttribs);
+  if (context == EGL_NO_CONTEXT) return fail("eglCreateContext (OpenGL 4.5 core)");
+  bool current = false;
+  window.withSurface([&](std::uint32_t, std::uint32_t) {
+    current = eglMakeCurrent(w.display, w.surface, w.surface, context);
+  });
+  if (!current) {
+    auto p = fail("eglMakeCurrent (the window surface)");
+    eglDestroyContext(w.display, context);
+    return p;
+  }
+  std::unique_ptr<EglContext> c(new EglContext());
+  c->display_ = w.display;
+  c->context_ = context;
+  c->surface_ = w.surface;
+  c->window_ = &window;
+  c->platform_ = "X11 window surface";
+  return c;
+}
+
+Status EglContext::swapBuffers() {
+  if (!window_) return Problem{"EGL", 0, "EGL: a headless context has no window to swap"};
+  if (!eglSwapBuffers(display_, surface_)) {
+    return Problem{"EGL", 0, "EGL: eglSwapBuffers failed (" + eglErrorText(eglGetError()) + ")"};
+  }
+  return {};
+}
+
 EglContext::~EglContext() {
   if (!display_) return;
+  if (window_) {
+    // The display and surface are the window's: release only our context.
+    window_->withSurface([&](std::uint32_t, std::uint32_t) {
+      eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    });
+    eglDestroyContext(display_, context_);
+    return;
+  }
   eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   if (surface_) eglDestroySurface(display_, surface_);
   if (context_) eglDestroyContext(display_, context_);

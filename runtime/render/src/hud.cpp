@@ -14,6 +14,7 @@ void blendPixel(Image& img, int x, int y, Rgb c, float alpha) {
   p[0] = mix(p[0], c.r);
   p[1] = mix(p[1], c.g);
   p[2] = mix(p[2], c.b);
+  p[3] = mix(p[3], 255);  // coverage: a frame stays opaque, an overlay's layer gains it
 }
 
 void fillRect(Image& img, int x0, int y0, int w, int h, Rgb c, float alpha) {
@@ -61,20 +62,47 @@ void drawText(Image& img, int x, int y, std::string_view text, int scale, Rgb co
   }
 }
 
-void drawHudPanel(Image& img, const std::vector<std::string>& lines) {
-  if (lines.empty()) return;
-  const int scale = img.width >= 800 ? 2 : 1;
+namespace {
+
+int panelScale(std::uint32_t frameWidth) { return frameWidth >= 800 ? 2 : 1; }
+
+void drawPanelText(Image& img, const std::vector<std::string>& lines) {
+  const int scale = panelScale(img.width);
   const int pad = 4 * scale;
-  int width = 0;
-  for (const auto& l : lines) width = std::max(width, textWidth(l, scale));
-  const int height = int(lines.size()) * kLineAdvance * scale - 3 * scale;
-  // Darken rather than cover so the terrain stays visible behind the text.
-  fillRect(img, 0, 0, width + 2 * pad, height + 2 * pad, Rgb{0, 0, 0}, 0.55f);
   int y = pad;
   for (const auto& l : lines) {
     drawText(img, pad, y, l, scale, Rgb{255, 255, 255});
     y += kLineAdvance * scale;
   }
+}
+
+}  // namespace
+
+PixelBox hudPanelBox(std::uint32_t frameWidth, const std::vector<std::string>& lines) {
+  if (lines.empty()) return {};
+  const int scale = panelScale(frameWidth);
+  const int pad = 4 * scale;
+  int width = 0;
+  for (const auto& l : lines) width = std::max(width, textWidth(l, scale));
+  const int height = int(lines.size()) * kLineAdvance * scale - 3 * scale;
+  return {0, 0, width + 2 * pad, height + 2 * pad};
+}
+
+void drawHudPanel(Image& img, const std::vector<std::string>& lines) {
+  if (lines.empty()) return;
+  const PixelBox b = hudPanelBox(img.width, lines);
+  // Darken rather than cover so the terrain stays visible behind the text.
+  fillRect(img, b.x, b.y, b.width, b.height, Rgb{0, 0, 0}, kHudPanelDarken);
+  drawPanelText(img, lines);
+}
+
+PixelBox drawHudPanel(Overlay& overlay, const std::vector<std::string>& lines) {
+  if (lines.empty()) return {};
+  const PixelBox b = hudPanelBox(overlay.layer().width, lines);
+  overlay.darken(b, kHudPanelDarken);
+  drawPanelText(overlay.layer(), lines);
+  overlay.drawn(b);
+  return b;
 }
 
 }  // namespace sandtable::runtime

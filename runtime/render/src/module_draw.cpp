@@ -239,7 +239,6 @@ std::array<std::uint8_t, 4> roadTexel(double u, double v, std::uint32_t hash) {
 
 ModuleRenderer::~ModuleRenderer() {
   for (auto& [key, e] : cache_) glDeleteBuffers(1, &e.vbo);
-  if (program_) glDeleteProgram(program_);
   if (vao_) glDeleteVertexArrays(1, &vao_);
   if (roadTexture_) glDeleteTextures(1, &roadTexture_);
 }
@@ -279,19 +278,14 @@ void ModuleRenderer::createRoadTexture() {
   }
 }
 
-std::string ModuleRenderer::create(const RenderSettings& s, const Eigen::Vector3f& sun) {
+Status ModuleRenderer::create(const RenderSettings& s) {
   settings_ = s;
-  std::string error;
-  const std::string fragment = shadingGlsl() + kFragmentMain;
-  program_ = linkProgram(kVertexShader, fragment.c_str(), error);
-  if (!program_) return "module " + error;
-  uViewProjection_ = glGetUniformLocation(program_, "uViewProjection");
-  uOffset_ = glGetUniformLocation(program_, "uOffset");
-  uMorph_ = glGetUniformLocation(program_, "uMorph");
-  uEye_ = glGetUniformLocation(program_, "uEye");
-  uFogDensity_ = glGetUniformLocation(program_, "uFogDensity");
-  uFogStart_ = glGetUniformLocation(program_, "uFogStart");
-  setShadingUniforms(program_, s, sun);
+  auto program = GlProgram::build("module", kVertexShader, shadingGlsl() + kFragmentMain);
+  if (!program) return program.problems();
+  program_ = std::move(program.value());
+  uOffset_ = program_.uniform("uOffset");
+  uMorph_ = program_.uniform("uMorph");
+  setShadingUniforms(program_, s);
   glCreateVertexArrays(1, &vao_);
   const auto attrib = [&](GLuint index, GLint size, GLenum type, GLboolean norm, GLuint offset) {
     glEnableVertexArrayAttrib(vao_, index);
@@ -486,40 +480,41 @@ void ModuleRenderer::drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std
   }
 }
 
-void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
-                          RenderStats& stats) {
+void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   const auto t0 = std::chrono::steady_clock::now();
   nodeSquares_ = buf.nodeSquares;
   moduleSize_ = buf.moduleSize;
-  std::vector<Entry*> entries;
-  entries.reserve(buf.nodes.size());
+  entries_.clear();
+  entries_.reserve(buf.nodes.size());
   for (const NodeDraw& nd : buf.nodes) {
-    entries.push_back(&entryFor(buf.modules[nd.module], nd.level, buf.frame, stats));
+    entries_.push_back(&entryFor(buf.modules[nd.module], nd.level, buf.frame, stats));
   }
   stats.uploadMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
 
-  const Camera& cam = buf.camera;
-  glUseProgram(program_);
+void ModuleRenderer::drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
+  program_.use();
   glBindVertexArray(vao_);
   glBindTextureUnit(0, roadTexture_);
-  glUniformMatrix4fv(uViewProjection_, 1, GL_FALSE, viewProjection.data());
-  glUniform3f(uEye_, float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
-  glUniform1f(uFogDensity_, float(fogDensityFor(cam.viewDistance)));
-  glUniform1f(uFogStart_, float(kFogClearFraction * cam.viewDistance));
+  program_.setMatrix4("uViewProjection", viewProjection.data());
+  setFrameShading(program_, buf);
   // Skirts hang as vertical walls that may face either way: no culling.
   glDisable(GL_CULL_FACE);
   glEnable(GL_DEPTH_TEST);
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_GREATER);
-  drawPriority(buf, module::kPrioritySkin, module::kPrioritySkin, entries);
+  drawPriority(buf, module::kPrioritySkin, module::kPrioritySkin, entries_);
   // The plain lattice under culture-cut skin, pushed away from the eye, so
   // it shows only through pinholes where cut triangles meet at T-junctions.
   glEnable(GL_POLYGON_OFFSET_FILL);
   glPolygonOffset(-1.0f, -4.0f);
-  drawPriority(buf, kUnderlayPriority, kUnderlayPriority, entries);
+  drawPriority(buf, kUnderlayPriority, kUnderlayPriority, entries_);
+}
 
+void ModuleRenderer::drawDecals(const DisplayBuffer& buf) {
+  // The terrain pass left this program, its buffers and uniforms bound.
   std::vector<std::uint8_t> priorities;
-  for (const Entry* e : entries) {
+  for (const Entry* e : entries_) {
     for (const Block& b : e->blocks) {
       if (b.priority > module::kPrioritySkin && b.priority < module::kPriorityObject) {
         priorities.push_back(b.priority);
@@ -528,18 +523,22 @@ void ModuleRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   }
   std::sort(priorities.begin(), priorities.end());
   priorities.erase(std::unique(priorities.begin(), priorities.end()), priorities.end());
+  glEnable(GL_POLYGON_OFFSET_FILL);
   glDepthMask(GL_FALSE);
   glDepthFunc(GL_GEQUAL);
   for (const std::uint8_t p : priorities) {
     // Reversed Z: a positive offset moves towards the eye.
     glPolygonOffset(1.0f, float(p));
-    drawPriority(buf, p, p, entries);
+    drawPriority(buf, p, p, entries_);
   }
   glDisable(GL_POLYGON_OFFSET_FILL);
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_GREATER);
-  drawPriority(buf, module::kPriorityObject, kUnderlayPriority - 1, entries);
+  drawPriority(buf, module::kPriorityObject, kUnderlayPriority - 1, entries_);
+}
 
+void ModuleRenderer::finishFrame(const DisplayBuffer& buf, RenderStats& stats) {
+  entries_.clear();
   release(stats, buf);
   stats.cachedLevels = std::uint32_t(cache_.size());
   stats.gpuBytes = gpuBytes_;

@@ -27,16 +27,12 @@
 #include <utility>
 #include <vector>
 
-#include "sandtable/scene/display_buffer.h"
+#include "sandtable/base/result.h"
+#include "sandtable/render/gl_program.h"
 #include "sandtable/render/renderer.h"
+#include "sandtable/scene/display_buffer.h"
 
 namespace sandtable::runtime::detail {
-
-/// Compiles and links a program (renderer.cpp); 0 and `error` on failure.
-GLuint linkProgram(const char* vertexSource, const char* fragmentSource, std::string& error);
-/// Sets the uniforms of terrain_shading.h's block that never change over a
-/// flight (sun, fog colour and switch, height mode, road texture unit).
-void setShadingUniforms(GLuint program, const RenderSettings& s, const Eigen::Vector3f& sun);
 
 // 32 bytes each.
 struct GpuVertex {
@@ -55,10 +51,16 @@ class ModuleRenderer {
   ModuleRenderer(const ModuleRenderer&) = delete;
   ModuleRenderer& operator=(const ModuleRenderer&) = delete;
 
-  /// Compiles the program; "" or the error.
-  std::string create(const RenderSettings& s, const Eigen::Vector3f& sun);
-  /// Uploads what is missing, draws, then releases what the pager let go.
-  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  /// Compiles the program and makes the road texture.
+  Status create(const RenderSettings& s);
+  /// One frame, in the renderer's pass order: prepare() uploads what is
+  /// missing, drawTerrain() the skin and its underlay (terrain pass),
+  /// drawDecals() the decal priorities and the modules' own object
+  /// polygons (decals pass), finishFrame() releases what the pager let go.
+  void prepare(const DisplayBuffer& buf, RenderStats& stats);
+  void drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
+  void drawDecals(const DisplayBuffer& buf);
+  void finishFrame(const DisplayBuffer& buf, RenderStats& stats);
 
  private:
   /// The triangles of one priority, bucketed by quadtree node: node m's
@@ -89,8 +91,10 @@ class ModuleRenderer {
   void createRoadTexture();
 
   RenderSettings settings_;
-  GLuint program_ = 0, vao_ = 0, roadTexture_ = 0;
-  GLint uViewProjection_ = -1, uOffset_ = -1, uMorph_ = -1, uEye_ = -1, uFogDensity_ = -1, uFogStart_ = -1;
+  GlProgram program_;
+  GLuint vao_ = 0, roadTexture_ = 0;
+  GLint uOffset_ = -1, uMorph_ = -1;  ///< set per node: looked up once
+  std::vector<Entry*> entries_;  ///< this frame's, one per buf.nodes entry
   std::unordered_map<std::uint64_t, Entry> cache_;
   std::uint64_t gpuBytes_ = 0;
   std::uint32_t nodeSquares_ = 4;

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <memory>
+#include <string>
 
 #include "sandtable/render/image.h"
 
@@ -36,9 +37,10 @@ bool encode(std::FILE* f, const Image& img, const std::vector<png_bytep>& rows) 
 
 }  // namespace
 
-std::string writePng(const std::string& path, const Image& img) {
+Status writePng(const std::string& path, const Image& img) {
+  const auto fail = [](std::string message) { return Problem{kPngProblem, 0, "png: " + std::move(message)}; };
   if (img.width == 0 || img.height == 0 || img.rgba.size() != std::size_t(img.width) * img.height * 4) {
-    return "png: " + path + ": empty or inconsistent image";
+    return fail(path + ": empty or inconsistent image");
   }
   std::vector<std::uint8_t> rgb(std::size_t(img.width) * img.height * 3);
   for (std::size_t p = 0, n = std::size_t(img.width) * img.height; p < n; ++p) {
@@ -49,9 +51,9 @@ std::string writePng(const std::string& path, const Image& img) {
   std::vector<png_bytep> rows(img.height);
   for (std::uint32_t y = 0; y < img.height; ++y) rows[y] = rgb.data() + std::size_t(y) * img.width * 3;
   std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
-  if (!f) return "png: cannot create " + path;
-  if (!encode(f.get(), img, rows)) return "png: libpng failed writing " + path;
-  if (std::fflush(f.get()) != 0) return "png: write failed for " + path + " (is the disk full?)";
+  if (!f) return fail("cannot create " + path + " (is its directory writable?)");
+  if (!encode(f.get(), img, rows)) return fail("libpng failed writing " + path);
+  if (std::fflush(f.get()) != 0) return fail("write failed for " + path + " (is the disk full?)");
   return {};
 }
 

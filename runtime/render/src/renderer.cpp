@@ -6,11 +6,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <cstring>
 
 #include "sandtable/scene/camera_math.h"
-#include "egl_context.h"
 #include "module_draw.h"
+#include "sandtable/render/egl_context.h"
+#include "sandtable/render/gl_program.h"
 #include "terrain_shading.h"
 
 namespace sandtable::runtime {
@@ -56,17 +58,8 @@ void main() {
 }
 )";
 
-// A full-screen triangle from gl_VertexID; the colour follows the angle of
-// each pixel's view ray above the horizon, so the horizon tracks the pitch.
-const char* kSkyVertexShader = R"(#version 450 core
-out vec2 vNdc;
-void main() {
-  vec2 p = vec2((gl_VertexID == 1) ? 3.0 : -1.0, (gl_VertexID == 2) ? 3.0 : -1.0);
-  vNdc = p;
-  gl_Position = vec4(p, 0.0, 1.0);
-}
-)";
-
+// The sky over kFullScreenVertexGlsl: the colour follows the angle of each
+// pixel's view ray above the horizon, so the horizon tracks the pitch.
 const char* kSkyFragmentShader = R"(#version 450 core
 in vec2 vNdc;
 uniform vec2 uTanHalfFov;
@@ -81,81 +74,61 @@ void main() {
 }
 )";
 
-std::string shaderLog(GLuint obj, bool program) {
-  GLint len = 0;
-  program ? glGetProgramiv(obj, GL_INFO_LOG_LENGTH, &len) : glGetShaderiv(obj, GL_INFO_LOG_LENGTH, &len);
-  std::string log(std::size_t(std::max(len, 1)), '\0');
-  program ? glGetProgramInfoLog(obj, len, nullptr, log.data())
-          : glGetShaderInfoLog(obj, len, nullptr, log.data());
-  return log.c_str();
+// The HUD pass's layer over kFullScreenVertexGlsl: one texel per pixel,
+// the layer's row 0 (uploaded first, so texture row 0) at the top.
+const char* kOverlayFragmentShader = R"(#version 450 core
+layout(binding = 0) uniform sampler2D uLayer;
+out vec4 fragColor;
+void main() {
+  ivec2 size = textureSize(uLayer, 0);
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  fragColor = texelFetch(uLayer, ivec2(p.x, size.y - 1 - p.y), 0);
 }
+)";
 
-GLuint compile(GLenum type, const char* source, std::string& error) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &source, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    error = "shader compile failed: " + shaderLog(s, false);
-    glDeleteShader(s);
-    return 0;
-  }
-  return s;
+// A darkened box from a copy of the frame behind it, with the arithmetic
+// of the CPU panel (hud.cpp: dst + (0 - dst) * alpha + 0.5, truncated, in
+// float): fixed-function blending rounds its factors to 8 bits and would
+// leave some pixels one step off the panel's PNGs.
+const char* kDarkenFragmentShader = R"(#version 450 core
+layout(binding = 1) uniform sampler2D uBehind;
+uniform float uAlpha;
+out vec4 fragColor;
+void main() {
+  vec3 dst = round(texelFetch(uBehind, ivec2(gl_FragCoord.xy), 0).rgb * 255.0);
+  precise vec3 toward = (vec3(0.0) - dst) * uAlpha;
+  precise vec3 mixed = (dst + toward) + 0.5;
+  fragColor = vec4(floor(mixed) / 255.0, 1.0);
 }
-
-}  // namespace
-
-GLuint detail::linkProgram(const char* vs, const char* fs, std::string& error) {
-  const GLuint v = compile(GL_VERTEX_SHADER, vs, error);
-  if (!v) return 0;
-  const GLuint f = compile(GL_FRAGMENT_SHADER, fs, error);
-  if (!f) {
-    glDeleteShader(v);
-    return 0;
-  }
-  const GLuint p = glCreateProgram();
-  glAttachShader(p, v);
-  glAttachShader(p, f);
-  glLinkProgram(p);
-  glDeleteShader(v);
-  glDeleteShader(f);
-  GLint ok = 0;
-  glGetProgramiv(p, GL_LINK_STATUS, &ok);
-  if (!ok) {
-    error = "shader link failed: " + shaderLog(p, true);
-    glDeleteProgram(p);
-    return 0;
-  }
-  return p;
-}
-
-void detail::setShadingUniforms(GLuint program, const RenderSettings& s, const Eigen::Vector3f& sun) {
-  const Eigen::Vector3f fog(s.background.r / 255.0f, s.background.g / 255.0f, s.background.b / 255.0f);
-  glProgramUniform3fv(program, glGetUniformLocation(program, "uSun"), 1, sun.data());
-  glProgramUniform3fv(program, glGetUniformLocation(program, "uFogColor"), 1, fog.data());
-  glProgramUniform1i(program, glGetUniformLocation(program, "uFog"), s.fog);
-  glProgramUniform1i(program, glGetUniformLocation(program, "uHeightMode"), s.colour == ColourMode::height);
-  glProgramUniform1i(program, glGetUniformLocation(program, "uRoad"), 0);
-}
-
-namespace {
-
-GLuint link(const char* vs, const char* fs, std::string& error) {
-  return detail::linkProgram(vs, fs, error);
-}
+)";
 
 Eigen::Vector3f toVec(Rgb c) { return {c.r / 255.0f, c.g / 255.0f, c.b / 255.0f}; }
 
-/// Direction towards the fixed sun: azimuth 200 degrees (south-south-west,
-/// so a northbound eye sees the slopes facing it lit), 40 degrees up.
-Eigen::Vector3f sunDirection() {
-  const double az = 200.0 * kDegToRad, el = 40.0 * kDegToRad;
-  return Eigen::Vector3d(std::cos(el) * std::sin(az), std::sin(el), -std::cos(el) * std::cos(az))
-      .cast<float>();
+/// A box with row 0 at the top as GL's scissor rectangle (row 0 at the bottom).
+void scissorTo(const PixelBox& b, std::uint32_t frameHeight) {
+  glScissor(b.x, GLint(frameHeight) - b.y - b.height, b.width, b.height);
+}
+
+Problem glProblem(GLenum e, const char* where, std::uint64_t frame) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "renderer: GL error 0x%04X %s in frame %llu", unsigned(e), where,
+                static_cast<unsigned long long>(frame));
+  return Problem{"renderer", 0, buf};
 }
 
 }  // namespace
+
+const char* renderPassName(RenderPass p) {
+  switch (p) {
+    case RenderPass::sky: return "sky";
+    case RenderPass::terrain: return "terrain";
+    case RenderPass::decals: return "decals";
+    case RenderPass::models: return "models";
+    case RenderPass::resolve: return "resolve";
+    case RenderPass::hud: return "hud";
+  }
+  return "?";
+}
 
 struct Renderer::Impl {
   std::unique_ptr<EglContext> egl;
@@ -163,20 +136,30 @@ struct Renderer::Impl {
   std::string rendererName, version;
   GLuint fbo = 0, colorRb = 0, depthRb = 0;
   GLuint resolveFbo = 0, resolveRb = 0;  ///< single-sample copy of a multisampled frame
-  GLuint terrainProgram = 0, skyProgram = 0;
-  GLuint terrainVao = 0, skyVao = 0, vbo = 0;
+  GlProgram terrainProgram, skyProgram, overlayProgram, darkenProgram;
+  GLuint terrainVao = 0, emptyVao = 0, vbo = 0;
+  GLuint layerTexture = 0;  ///< the HUD pass's overlay layer, frame-sized
+  GLuint behindTexture = 0; ///< the frame under the darkened boxes, copied there
   std::vector<std::uint8_t> readback;
   std::unique_ptr<detail::ModuleRenderer> modules;
+  std::unique_ptr<ModelsPass> models;
   RenderStats stats;
+  std::uint64_t frame = 0, readBackCount = 0;
+  std::uint64_t layerOverlay = 0;  ///< Overlay::id() the layer texture holds
 
   ~Impl() {
     if (!egl) return;
+    models.reset();
     modules.reset();
-    glDeleteProgram(terrainProgram);
-    glDeleteProgram(skyProgram);
+    terrainProgram.reset();
+    skyProgram.reset();
+    overlayProgram.reset();
+    darkenProgram.reset();
     glDeleteVertexArrays(1, &terrainVao);
-    glDeleteVertexArrays(1, &skyVao);
+    glDeleteVertexArrays(1, &emptyVao);
     glDeleteBuffers(1, &vbo);
+    glDeleteTextures(1, &layerTexture);
+    glDeleteTextures(1, &behindTexture);
     glDeleteFramebuffers(1, &fbo);
     glDeleteRenderbuffers(1, &colorRb);
     glDeleteRenderbuffers(1, &depthRb);
@@ -184,7 +167,12 @@ struct Renderer::Impl {
     glDeleteRenderbuffers(1, &resolveRb);
   }
 
-  std::string createTargets() {
+  /// The single-sampled target: what the HUD pass draws into, read-back
+  /// reads and present() blits.
+  GLuint frameTarget() const { return resolveFbo ? resolveFbo : fbo; }
+  GLuint frameColour() const { return resolveFbo ? resolveRb : colorRb; }
+
+  Status createTargets() {
     const auto w = GLsizei(settings.width), h = GLsizei(settings.height);
     const auto samples = GLsizei(settings.samples);
     glCreateRenderbuffers(1, &colorRb);
@@ -192,7 +180,8 @@ struct Renderer::Impl {
     glCreateRenderbuffers(1, &depthRb);
     glNamedRenderbufferStorageMultisample(depthRb, samples, GL_DEPTH_COMPONENT32F, w, h);
     if (samples > 0) {
-      // Read-back needs single samples: resolve into a plain colour buffer.
+      // The HUD, read-back and present need single samples: resolve into a
+      // plain colour buffer.
       glCreateRenderbuffers(1, &resolveRb);
       glNamedRenderbufferStorage(resolveRb, GL_RGBA8, w, h);
       glCreateFramebuffers(1, &resolveFbo);
@@ -203,9 +192,17 @@ struct Renderer::Impl {
     glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb);
     const GLenum status = glCheckNamedFramebufferStatus(fbo, GL_FRAMEBUFFER);
     if (status != GL_FRAMEBUFFER_COMPLETE) {
-      return "framebuffer " + std::to_string(w) + "x" + std::to_string(h) +
-             " is incomplete (status " + std::to_string(status) + "); try a smaller RenderSettings::width/height";
+      return Problem{"renderer", 0,
+                     "renderer: framebuffer " + std::to_string(w) + "x" + std::to_string(h) +
+                         " is incomplete (status " + std::to_string(status) +
+                         "); try a smaller RenderSettings::width / height"};
     }
+    glCreateTextures(GL_TEXTURE_2D, 1, &layerTexture);
+    glTextureStorage2D(layerTexture, 1, GL_RGBA8, w, h);
+    const std::vector<std::uint8_t> clear(std::size_t(w) * std::size_t(h) * 4, 0);
+    glTextureSubImage2D(layerTexture, 0, 0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, clear.data());
+    glCreateTextures(GL_TEXTURE_2D, 1, &behindTexture);
+    glTextureStorage2D(behindTexture, 1, GL_RGBA8, w, h);
     return {};
   }
 
@@ -222,57 +219,55 @@ struct Renderer::Impl {
     glEnableVertexArrayAttrib(terrainVao, 2);
     glVertexArrayAttribFormat(terrainVao, 2, 1, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, water));
     glVertexArrayAttribBinding(terrainVao, 2, 0);
-    glCreateVertexArrays(1, &skyVao);  // the sky needs no attributes, but core GL needs a VAO
+    // Full-screen triangles need no attributes, but core GL needs a VAO.
+    glCreateVertexArrays(1, &emptyVao);
   }
 
-  std::string createPrograms() {
-    std::string error;
-    const std::string terrainFragment = detail::shadingGlsl() + kTerrainFragmentMain;
-    terrainProgram = link(kTerrainVertexShader, terrainFragment.c_str(), error);
-    if (!terrainProgram) return "terrain " + error;
-    skyProgram = link(kSkyVertexShader, kSkyFragmentShader, error);
-    if (!skyProgram) return "sky " + error;
+  Status createPrograms() {
+    auto terrain = GlProgram::build("terrain", kTerrainVertexShader, detail::shadingGlsl() + kTerrainFragmentMain);
+    if (!terrain) return terrain.problems();
+    terrainProgram = std::move(terrain.value());
+    auto sky = GlProgram::build("sky", kFullScreenVertexGlsl, kSkyFragmentShader);
+    if (!sky) return sky.problems();
+    skyProgram = std::move(sky.value());
+    auto overlay = GlProgram::build("overlay", kFullScreenVertexGlsl, kOverlayFragmentShader);
+    if (!overlay) return overlay.problems();
+    overlayProgram = std::move(overlay.value());
+    auto darken = GlProgram::build("darken", kFullScreenVertexGlsl, kDarkenFragmentShader);
+    if (!darken) return darken.problems();
+    darkenProgram = std::move(darken.value());
     modules = std::make_unique<detail::ModuleRenderer>();
-    if (std::string e = modules->create(settings, sunDirection()); !e.empty()) return e;
+    if (Status st = modules->create(settings); !st) return st;
     // Settings that never change over a flight.
-    const Eigen::Vector3f fogColor = toVec(settings.background);
-    detail::setShadingUniforms(terrainProgram, settings, sunDirection());
-    glProgramUniform1i(terrainProgram, glGetUniformLocation(terrainProgram, "uFlat"),
-                       settings.shading == Shading::flat);
+    detail::setShadingUniforms(terrainProgram, settings);
+    terrainProgram.set("uFlat", int(settings.shading == Shading::flat));
     // The zenith is a deeper, bluer shade of the background colour.
-    const Eigen::Vector3f zenith = fogColor.cwiseProduct(Eigen::Vector3f(0.55f, 0.72f, 0.95f));
-    glProgramUniform3fv(skyProgram, glGetUniformLocation(skyProgram, "uHorizon"), 1, fogColor.data());
-    glProgramUniform3fv(skyProgram, glGetUniformLocation(skyProgram, "uZenith"), 1, zenith.data());
+    const Eigen::Vector3f horizon = toVec(settings.background);
+    const Eigen::Vector3f zenith = horizon.cwiseProduct(Eigen::Vector3f(0.55f, 0.72f, 0.95f));
+    skyProgram.set("uHorizon", horizon.x(), horizon.y(), horizon.z());
+    skyProgram.set("uZenith", zenith.x(), zenith.y(), zenith.z());
     return {};
   }
 
   void drawSky(const Camera& cam) {
     const float tanH = float(std::tan(cam.hfovDeg * kDegToRad / 2.0));
     const float tanV = float(std::tan(cam.vfovDeg() * kDegToRad / 2.0));
-    glProgramUniform2f(skyProgram, glGetUniformLocation(skyProgram, "uTanHalfFov"), tanH, tanV);
-    glProgramUniform1f(skyProgram, glGetUniformLocation(skyProgram, "uPitch"),
-                       float(cam.pitchDeg * kDegToRad));
+    skyProgram.set("uTanHalfFov", tanH, tanV);
+    skyProgram.set("uPitch", float(cam.pitchDeg * kDegToRad));
     glDisable(GL_DEPTH_TEST);
     glDepthMask(GL_FALSE);
-    glUseProgram(skyProgram);
-    glBindVertexArray(skyVao);
+    skyProgram.use();
+    glBindVertexArray(emptyVao);
     glDrawArrays(GL_TRIANGLES, 0, 3);
     glDepthMask(GL_TRUE);
   }
 
-  void drawTerrain(const DisplayBuffer& buf) {
+  void drawMesh(const DisplayBuffer& buf) {
     if (buf.vertices.empty()) return;
-    const Camera& cam = buf.camera;
-    const Eigen::Vector3f eyeF(float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
     const Eigen::Matrix4f viewProjection =
-        detail::viewProjection(cam, buf.originX, buf.originZ).cast<float>();
-    glProgramUniformMatrix4fv(terrainProgram, glGetUniformLocation(terrainProgram, "uViewProjection"),
-                              1, GL_FALSE, viewProjection.data());
-    glProgramUniform3fv(terrainProgram, glGetUniformLocation(terrainProgram, "uEye"), 1, eyeF.data());
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogDensity"),
-                       float(detail::fogDensityFor(cam.viewDistance)));
-    glProgramUniform1f(terrainProgram, glGetUniformLocation(terrainProgram, "uFogStart"),
-                       float(detail::kFogClearFraction * cam.viewDistance));
+        detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+    terrainProgram.setMatrix4("uViewProjection", viewProjection.data());
+    detail::setFrameShading(terrainProgram, buf);
     // Re-specifying the store each frame orphans last frame's copy, so the
     // driver never waits for the GPU to finish with it.
     glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(TerrainVertex)),
@@ -283,14 +278,14 @@ struct Renderer::Impl {
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
     glFrontFace(GL_CCW);
-    glUseProgram(terrainProgram);
+    terrainProgram.use();
     glBindVertexArray(terrainVao);
     glMultiDrawArrays(GL_TRIANGLE_STRIP, buf.firsts.data(), buf.counts.data(),
                       GLsizei(buf.firsts.size()));
     glDisable(GL_CULL_FACE);
   }
 
-  void renderInto(const DisplayBuffer& buf) {
+  void beginFrame() {
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glViewport(0, 0, GLsizei(settings.width), GLsizei(settings.height));
     glClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE);
@@ -298,18 +293,110 @@ struct Renderer::Impl {
     const Rgb c = settings.clearColour;
     glClearColor(c.r / 255.0f, c.g / 255.0f, c.b / 255.0f, 1.0f);
     glClear(GL_DEPTH_BUFFER_BIT | (settings.sky ? 0 : GL_COLOR_BUFFER_BIT));
-    if (settings.sky) drawSky(buf.camera);
-    stats = RenderStats{};
-    if (buf.moduleMode) {
-      const Eigen::Matrix4f vp = detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
-      modules->draw(buf, vp, stats);
-    } else {
-      drawTerrain(buf);
+  }
+
+  void resolve() {
+    if (!resolveFbo) return;
+    const auto w = GLint(settings.width), h = GLint(settings.height);
+    glBlitNamedFramebuffer(fbo, resolveFbo, 0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  }
+
+  Status runPass(RenderPass pass, const DisplayBuffer& buf, const Eigen::Matrix4f& vp) {
+    switch (pass) {
+      case RenderPass::sky:
+        if (settings.sky) drawSky(buf.camera);
+        break;
+      case RenderPass::terrain:
+        if (buf.moduleMode) {
+          modules->prepare(buf, stats);
+          modules->drawTerrain(buf, vp);
+        } else {
+          drawMesh(buf);
+        }
+        break;
+      case RenderPass::decals:
+        if (buf.moduleMode) modules->drawDecals(buf);
+        break;
+      case RenderPass::models:
+        if (models) {
+          PassContext ctx{buf, {}};
+          std::copy(vp.data(), vp.data() + 16, ctx.viewProjection.begin());
+          if (Status st = models->draw(ctx); !st) return st;
+          glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        }
+        break;
+      case RenderPass::resolve:
+        resolve();
+        break;
+      case RenderPass::hud:
+        break;  // drawOverlay(): the caller fills the overlay after draw()
     }
+    return {};
+  }
+
+  Status drawPasses(const DisplayBuffer& buf) {
+    stats = RenderStats{};
+    frame = buf.frame;
+    beginFrame();
+    const Eigen::Matrix4f vp = detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+    Status st;
+    for (const RenderPass pass : kRenderPasses) {
+      st = runPass(pass, buf, vp);
+      if (!st) break;
+    }
+    if (buf.moduleMode) modules->finishFrame(buf, stats);
+    return st;
+  }
+
+  void uploadLayer(const Overlay& overlay) {
+    const Image& layer = overlay.layer();
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, GLint(layer.width));
+    std::vector<PixelBox> boxes = overlay.changedBoxes();
+    if (overlay.id() != layerOverlay) boxes = {PixelBox{0, 0, int(layer.width), int(layer.height)}};
+    layerOverlay = overlay.id();
+    for (const PixelBox& b : boxes) {
+      const std::uint8_t* first = layer.rgba.data() + (std::size_t(b.y) * layer.width + std::size_t(b.x)) * 4;
+      glTextureSubImage2D(layerTexture, 0, b.x, b.y, b.width, b.height, GL_RGBA, GL_UNSIGNED_BYTE, first);
+    }
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+  }
+
+  void drawHud(const Overlay& overlay) {
+    uploadLayer(overlay);
+    glBindFramebuffer(GL_FRAMEBUFFER, frameTarget());
+    glViewport(0, 0, GLsizei(settings.width), GLsizei(settings.height));
+    glDisable(GL_DEPTH_TEST);
+    glDepthMask(GL_FALSE);
+    glEnable(GL_SCISSOR_TEST);
+    glDisable(GL_BLEND);
+    glBindVertexArray(emptyVao);
+    darkenProgram.use();
+    glBindTextureUnit(1, behindTexture);
+    for (const Darken& d : overlay.darkened()) {
+      const GLint y = GLint(settings.height) - d.box.y - d.box.height;  // GL rows from the bottom
+      glCopyImageSubData(frameColour(), GL_RENDERBUFFER, 0, d.box.x, y, 0, behindTexture, GL_TEXTURE_2D, 0,
+                         d.box.x, y, 0, d.box.width, d.box.height, 1);
+      darkenProgram.set("uAlpha", d.alpha);
+      scissorTo(d.box, settings.height);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+    }
+    const PixelBox bounds = overlay.drawnBounds();
+    if (!bounds.empty()) {
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+      overlayProgram.use();
+      glBindTextureUnit(0, layerTexture);
+      scissorTo(bounds, settings.height);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+    }
+    glDisable(GL_BLEND);
+    glDisable(GL_SCISSOR_TEST);
+    glDepthMask(GL_TRUE);
   }
 
   /// llvmpipe compiles shaders for the actual state on the first draw;
-  /// doing one tiny frame here keeps that out of frame 0's timing.
+  /// doing one tiny frame (with a panel) here keeps that out of frame 0's timing.
   void warmUp() {
     DisplayBuffer b;
     b.camera.y = 10;
@@ -318,22 +405,25 @@ struct Renderer::Impl {
                   {1, 0, -19, 0, 1, 0, 0}};
     b.firsts = {0};
     b.counts = {4};
-    renderInto(b);
+    (void)drawPasses(b);
+    if (settings.colour != ColourMode::height) {
+      Overlay o;
+      o.begin(settings.width, settings.height);
+      o.layer().rgba[3] = 255;
+      o.darken({0, 0, 1, 1}, 0.5f);
+      o.drawn({0, 0, 1, 1});
+      drawHud(o);
+    }
     Image scratch;
-    readFrame(scratch);
+    readInto(scratch);
   }
 
-  void readFrame(Image& out) {
+  void readInto(Image& out) {
     const std::uint32_t w = settings.width, h = settings.height;
     const std::size_t row = std::size_t(w) * 4;
     readback.resize(row * h);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    GLuint source = fbo;
-    if (resolveFbo) {
-      glBlitNamedFramebuffer(fbo, resolveFbo, 0, 0, GLint(w), GLint(h), 0, 0, GLint(w), GLint(h),
-                             GL_COLOR_BUFFER_BIT, GL_NEAREST);
-      source = resolveFbo;
-    }
+    const GLuint source = frameTarget();
     glNamedFramebufferReadBuffer(source, GL_COLOR_ATTACHMENT0);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, source);
     glReadPixels(0, 0, GLsizei(w), GLsizei(h), GL_RGBA, GL_UNSIGNED_BYTE, readback.data());
@@ -345,17 +435,40 @@ struct Renderer::Impl {
       std::memcpy(out.rgba.data() + row * y, readback.data() + row * (h - 1 - y), row);
     }
   }
+
+  Status glStatus(const char* where) const {
+    const GLenum e = glGetError();
+    if (e != GL_NO_ERROR) return glProblem(e, where, frame);
+    return {};
+  }
+
+  /// Blits the frame into the window's back buffer, fitted and centred
+  /// (nearest pixels at 1:1 and when enlarging, linear when shrinking),
+  /// black around it, and swaps. Inside the window's lock.
+  Status presentLocked(std::uint32_t winW, std::uint32_t winH) {
+    const double s = std::min(double(winW) / settings.width, double(winH) / settings.height);
+    const auto vw = GLint(std::lround(settings.width * s)), vh = GLint(std::lround(settings.height * s));
+    const GLint x0 = (GLint(winW) - vw) / 2, y0 = (GLint(winH) - vh) / 2;
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    glViewport(0, 0, GLsizei(winW), GLsizei(winH));
+    glClearColor(0, 0, 0, 1);
+    glClear(GL_COLOR_BUFFER_BIT);
+    glBlitNamedFramebuffer(frameTarget(), 0, 0, 0, GLint(settings.width), GLint(settings.height), x0, y0,
+                           x0 + vw, y0 + vh, GL_COLOR_BUFFER_BIT, s < 1.0 ? GL_LINEAR : GL_NEAREST);
+    if (Status st = glStatus("presenting the frame"); !st) return st;
+    return egl->swapBuffers();
+  }
 };
 
 Renderer::Renderer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Renderer::~Renderer() = default;
 
-Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s) {
+Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s, PresentTarget* window) {
   if (s.width == 0 || s.height == 0 || s.width > 16384 || s.height > 16384) {
-    return Problem{"renderer", 0, "frame size must be 1..16384 pixels each way"};
+    return Problem{"renderer", 0, "RenderSettings::width and height must be 1..16384 pixels"};
   }
-  if (s.samples > 16) return Problem{"renderer", 0, "multisampling must be 0..16 samples"};
-  auto egl = EglContext::create();
+  if (s.samples > 16) return Problem{"renderer", 0, "RenderSettings::samples must be 0..16"};
+  auto egl = window ? EglContext::createOn(*window) : EglContext::create();
   if (!egl) return egl.problems();
   auto impl = std::make_unique<Impl>();
   impl->egl = std::move(egl.value());
@@ -374,24 +487,60 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s) {
   }
   impl->rendererName = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
   impl->version = reinterpret_cast<const char*>(glGetString(GL_VERSION));
-  std::string err = impl->createTargets();
-  if (err.empty()) err = impl->createPrograms();
-  if (!err.empty()) return Problem{"renderer", 0, "renderer: " + err};
+  if (Status st = impl->createTargets(); !st) return st.problems();
+  if (Status st = impl->createPrograms(); !st) return st.problems();
   impl->createGeometry();
   impl->warmUp();
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }
 
-std::string Renderer::draw(const DisplayBuffer& buf, Image& out) {
+Status Renderer::draw(const DisplayBuffer& buf) {
   Impl& m = *impl_;
-  m.renderInto(buf);
-  m.readFrame(out);
-  const GLenum e = glGetError();
-  if (e != GL_NO_ERROR) return "renderer: GL error " + std::to_string(e) + " in frame " + std::to_string(buf.frame);
-  return {};
+  if (Status st = m.drawPasses(buf); !st) return st;
+  return m.glStatus("drawing");
 }
 
+Status Renderer::drawOverlay(const Overlay& overlay) {
+  Impl& m = *impl_;
+  if (m.settings.colour == ColourMode::height) return {};  // data pixels: nothing over them
+  const Image& layer = overlay.layer();
+  if (layer.width != m.settings.width || layer.height != m.settings.height) {
+    return Problem{"renderer", 0,
+                   "renderer: the overlay is " + std::to_string(layer.width) + "x" + std::to_string(layer.height) +
+                       ", the frame " + std::to_string(m.settings.width) + "x" + std::to_string(m.settings.height)};
+  }
+  m.drawHud(overlay);
+  return m.glStatus("in the HUD pass");
+}
+
+void Renderer::finish() {
+  const GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  // Flush first, then wait in steps: a second per step, for ever.
+  GLbitfield flags = GL_SYNC_FLUSH_COMMANDS_BIT;
+  while (glClientWaitSync(fence, flags, 1'000'000'000) == GL_TIMEOUT_EXPIRED) flags = 0;
+  glDeleteSync(fence);
+}
+
+Status Renderer::readFrame(Image& out) {
+  impl_->readInto(out);
+  ++impl_->readBackCount;
+  return impl_->glStatus("reading the frame back");
+}
+
+Status Renderer::present() {
+  Impl& m = *impl_;
+  PresentTarget* window = m.egl->window();
+  if (!window) return Problem{"renderer", 0, "renderer: present() needs a renderer created on a window"};
+  Status st;
+  window->withSurface([&](std::uint32_t w, std::uint32_t h) { st = m.presentLocked(w, h); });
+  return st;
+}
+
+void Renderer::setModelsPass(std::unique_ptr<ModelsPass> pass) { impl_->models = std::move(pass); }
+
 const RenderStats& Renderer::stats() const { return impl_->stats; }
+
+std::uint64_t Renderer::framesReadBack() const { return impl_->readBackCount; }
 
 const std::string& Renderer::glRenderer() const { return impl_->rendererName; }
 

@@ -13,9 +13,14 @@
 // `--colour height` replaces all of it: the fragment writes its world
 // height as a 24-bit code in RGB (renderer.h, kHeightCode*).
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <string>
+
+#include "sandtable/render/gl_program.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/scene/camera_math.h"
 
 namespace sandtable::runtime::detail {
 
@@ -117,6 +122,33 @@ inline std::string shadingGlsl() {
   const std::string n = std::to_string(kTintRamp.size());
   return "#version 450 core\nconst int kStops = " + n + ";\nconst float kAt[kStops] = float[](" + at +
          ");\nconst vec3 kTint[kStops] = vec3[](" + tint + ");\n" + water + kShadingGlsl;
+}
+
+/// Direction towards the fixed sun: azimuth 200 degrees (south-south-west,
+/// so a northbound eye sees the slopes facing it lit), 40 degrees up.
+inline std::array<float, 3> sunDirection() {
+  const double az = 200.0 * kDegToRad, el = 40.0 * kDegToRad;
+  return {float(std::cos(el) * std::sin(az)), float(std::sin(el)), float(-std::cos(el) * std::cos(az))};
+}
+
+/// The block's uniforms that never change over a flight: sun, fog colour
+/// and switch, height mode, road texture unit.
+inline void setShadingUniforms(const GlProgram& p, const RenderSettings& s) {
+  const auto sun = sunDirection();
+  p.set("uSun", sun[0], sun[1], sun[2]);
+  p.set("uFogColor", s.background.r / 255.0f, s.background.g / 255.0f, s.background.b / 255.0f);
+  p.set("uFog", int(s.fog));
+  p.set("uHeightMode", int(s.colour == ColourMode::height));
+  p.set("uRoad", 0);
+}
+
+/// The uniforms of one frame: the eye (relative to the buffer's origin)
+/// and the fog that the view distance sets.
+inline void setFrameShading(const GlProgram& p, const DisplayBuffer& buf) {
+  const Camera& cam = buf.camera;
+  p.set("uEye", float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
+  p.set("uFogDensity", float(fogDensityFor(cam.viewDistance)));
+  p.set("uFogStart", float(kFogClearFraction * cam.viewDistance));
 }
 
 }  // namespace sandtable::runtime::detail

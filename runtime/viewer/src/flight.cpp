@@ -151,8 +151,8 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
   j["timing"] = {
       {"simulated_frame_rate", kFramesPerSecond},
       {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
-               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload, "
-               "draw and glReadPixels (waits for the GPU); frame_ms: time between frame "
+               "selection and LoD (mesh: vertex build too); render_ms: render thread, upload "
+               "and the passes up to the HUD (waits for the GPU); frame_ms: time between frame "
                "completions on the render thread (the threads overlap), frame 0 cpu + render + "
                "panel; png_ms is not in frame_ms or fps"}};
   j["options"] = {{"size", std::to_string(o.view.width) + "x" + std::to_string(o.view.height)},
@@ -296,7 +296,7 @@ struct FlightRun {
   Handoff handoff{slots};
   // Written by the render thread only; read after it is joined.
   FlightReport report;
-  std::string renderError;
+  std::vector<Problem> renderProblems;
   std::string rendererName, rendererDetail;
 
   /// Velocity in the world frame (X east, Z south) for the pager's lead
@@ -402,16 +402,27 @@ struct FlightRun {
     return true;
   }
 
-  /// Render thread: draws, reads back, composites and hands out each
-  /// frame, then returns the buffer (its pager guards released).
+  /// Render thread: the failure that ends the flight.
+  void stop(const Status& st) {
+    renderProblems = st.problems();
+    handoff.fail();
+  }
+
+  /// Render thread: runs the renderer's passes, draws the panel and
+  /// `composite` into the HUD overlay, reads the frame back only for a
+  /// sink that wants its pixels, presents it in the window, and hands out
+  /// each frame, then returns the buffer (its pager guards released).
   void consume(Renderer& renderer) {
+    PresentTarget* const window = app.window();
     Image image;
+    Overlay overlay;
     Clock::time_point lastDone{};
     double lastPngMs = 0;
     while (Slot* slot = handoff.takeFull()) {
       FrameStats s = slot->stats;
       const auto t0 = Clock::now();
-      const std::string err = renderer.draw(slot->buf, image);
+      const Status drawn = renderer.draw(slot->buf);
+      if (drawn) renderer.finish();
       s.renderMs = msSince(t0);
       slot->buf.modules.clear();  // release the pager's guards within the frame
       const RenderStats& rs = renderer.stats();
@@ -420,11 +431,7 @@ struct FlightRun {
       s.cachedLevels = rs.cachedLevels;
       s.gpuBytes = rs.gpuBytes;
       handoff.pushFree(slot);
-      if (!err.empty()) {
-        renderError = err;
-        handoff.fail();
-        return;
-      }
+      if (!drawn) return stop(drawn);
       const auto now = Clock::now();
       s.frameMs = report.frames.empty()
                       ? s.cpuMs + s.renderMs
@@ -432,30 +439,33 @@ struct FlightRun {
       s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
       // A height frame holds data in its pixels: nothing is drawn over it.
       const bool data = o.render.colour == ColourMode::height;
-      if (o.view.hud && !data) drawHudPanel(image, hudLines(s, o));
-      if (!data) app.overlay(image, s);
-      s.frameMs += msSince(now);  // the panel is part of the frame
+      overlay.begin(o.view.width, o.view.height);
+      if (o.view.hud && !data) drawHudPanel(overlay, hudLines(s, o));
+      if (!data) app.overlay(overlay, s);
+      Status shown = renderer.drawOverlay(overlay);
+      const bool sink = app.wantsFrame(s.frame);
+      if (shown && (sink || !o.output.outDir.empty())) shown = renderer.readFrame(image);
+      if (shown && window) shown = renderer.present();
+      if (!shown) return stop(shown);
+      s.frameMs += msSince(now);  // the HUD, a read-back and the present are part of the frame
       lastDone = Clock::now();
-      app.frameDone(s.frame, image);
+      if (sink) app.frameDone(s.frame, image);
       lastPngMs = 0;
       if (!o.output.outDir.empty()) {
         const auto t2 = Clock::now();
         const std::string path = (std::filesystem::path(o.output.outDir) / frameFileName(s.frame)).string();
-        if (std::string e = writePng(path, image); !e.empty()) {
-          renderError = e;
-          handoff.fail();
-          return;
-        }
+        if (Status st = writePng(path, image); !st) return stop(st);
         s.pngMs = msSince(t2);
       }
       lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
+      app.frameShown(s);
       report.frames.push_back(std::move(s));
     }
   }
 
   /// The render thread's body: the GL context is made, used and destroyed here.
   void renderThread(std::promise<std::vector<Problem>>& ready) {
-    auto renderer = Renderer::create(renderSettings);
+    auto renderer = Renderer::create(renderSettings, app.window());
     if (!renderer) {
       ready.set_value(renderer.problems());
       return;
@@ -484,7 +494,7 @@ struct FlightRun {
     handoff.close();
     render.join();
     for (auto& slot : slots) slot.buf.modules.clear();
-    if (!renderError.empty()) return Problem{"fly", 0, renderError};
+    if (!renderProblems.empty()) return renderProblems;
     FlightReport& r = report;
     r.summary = summarize(r.frames);
     r.summary.mode = scene ? "modules" : "mesh";
@@ -703,8 +713,12 @@ std::optional<Pose> FlightHooks::pose(std::uint32_t frame, double t, GroundClamp
   return poseAt(options, t);
 }
 
-void FlightHooks::overlay(Image& image, const FrameStats& s) {
-  if (onOverlay) onOverlay(image, s);
+void FlightHooks::overlay(Overlay& overlay, const FrameStats& s) {
+  if (onOverlay) onOverlay(overlay, s);
+}
+
+bool FlightHooks::wantsFrame(std::uint32_t frame) {
+  return onFrame && (!onWantsFrame || onWantsFrame(frame));
 }
 
 void FlightHooks::frameDone(std::uint32_t frame, const Image& image) {

@@ -104,6 +104,18 @@ runtime::ViewerState FlySession::initialState(const runtime::FlightOptions& o) c
   return s;
 }
 
+bool FlySession::wantsFrame(std::uint32_t) {
+  // The window presents on the GPU; only a video or a screenshot needs the
+  // frame's pixels back.
+  return video_ != nullptr || current_.screenshot;
+}
+
+PresentTarget* FlySession::window() { return window_.get(); }
+
+void FlySession::frameShown(const runtime::FrameStats& s) {
+  if (settings_.onFrameDone) settings_.onFrameDone(s.frame);
+}
+
 double FlySession::pollKeys() {
   for (const auto& e : window_->pollEvents()) controller_->handle(e);
   if (controller_->quitRequested() || window_->closeRequested()) quitAfterThisFrame_ = true;
@@ -163,7 +175,7 @@ std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp&
   return p;
 }
 
-void FlySession::overlay(runtime::Image& img, const runtime::FrameStats& s) {
+void FlySession::overlay(runtime::Overlay& overlay, const runtime::FrameStats& s) {
   current_ = controls_.take(s.frame);
   if (!current_.map) return;
   if (!map_) {
@@ -176,17 +188,15 @@ void FlySession::overlay(runtime::Image& img, const runtime::FrameStats& s) {
   map_->setScale(current_.mapScale);
   double x = 0, z = 0;
   runtime::MapView::toWorld(db_.grid->header(), s.easting, s.northing, x, z);
-  map_->compose(img, x, z, s.headingDeg);
+  const runtime::MapLayout box = map_->compose(overlay.layer(), x, z, s.headingDeg);
+  // The map, its label and marker inside a one-pixel border.
+  if (box.drawn) overlay.drawn({box.x - 1, box.y - 1, box.width + 2, box.height + 2});
 }
 
-void FlySession::frameDone(std::uint32_t frame, const runtime::Image& img) {
-  if (window_) {
-    if (std::string e = window_->present(img); !e.empty()) fail(e);
-  }
+void FlySession::frameDone(std::uint32_t, const runtime::Image& img) {
   if (current_.screenshot) saveScreenshot(img);
-  if (settings_.onFrameDone) settings_.onFrameDone(frame);
   if (video_) {
-    if (std::string e = video_->write(img); !e.empty()) fail(e);
+    if (Status st = video_->write(img); !st) fail(st);
   }
 }
 
@@ -195,8 +205,9 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   std::error_code ec;
   fs::create_directories(settings_.screenshotDir, ec);
   if (ec) {
-    fail("screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
-         " (give a writable FlySessionSettings::screenshotDir)");
+    fail(Problem{"screenshot", 0,
+                 "screenshot: cannot create " + settings_.screenshotDir + ": " + ec.message() +
+                     " (give a writable FlySessionSettings::screenshotDir)"});
     return;
   }
   // Never overwrite the screenshots of an earlier flight.
@@ -204,8 +215,8 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   do {
     file = fs::path(settings_.screenshotDir) / screenshotName(nextShot_++);
   } while (fs::exists(file, ec));
-  if (std::string e = runtime::writePng(file.string(), img); !e.empty()) {
-    fail("screenshot: " + e);
+  if (Status st = runtime::writePng(file.string(), img); !st) {
+    fail(Problem{"screenshot", 0, "screenshot: " + st.problems().front().message});
     return;
   }
   ++screenshots_;
@@ -213,15 +224,15 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   std::fflush(stdout);
 }
 
-void FlySession::fail(const std::string& e) {
+void FlySession::fail(const Status& st) {
   std::lock_guard lock(errorMutex_);
-  if (error_.empty()) error_ = e;
+  if (error_.ok()) error_ = st;
   failed_ = true;
 }
 
-std::string FlySession::finish() {
+Status FlySession::finish() {
   if (video_) {
-    if (std::string e = video_->finish(); !e.empty()) fail(e);
+    if (Status st = video_->finish(); !st) fail(st);
   }
   std::lock_guard lock(errorMutex_);
   return error_;

@@ -134,23 +134,24 @@ Result<std::unique_ptr<VideoWriter>> VideoWriter::open(const std::string& path, 
   return v;
 }
 
-std::string VideoWriter::write(const Image& frame) {
-  if (fd_ < 0) return "video " + path_ + ": already finished";
+Status VideoWriter::write(const Image& frame) {
+  const auto fail = [](std::string m) { return Problem{kVideoProblem, 0, std::move(m)}; };
+  if (fd_ < 0) return fail("video " + path_ + ": already finished");
   if (frame.width != width_ || frame.height != height_ || frame.rgba.size() != std::size_t(width_) * height_ * 4) {
-    return "video " + path_ + ": frame is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
-           ", the video is " + std::to_string(width_) + "x" + std::to_string(height_);
+    return fail("video " + path_ + ": frame is " + std::to_string(frame.width) + "x" + std::to_string(frame.height) +
+                ", the video is " + std::to_string(width_) + "x" + std::to_string(height_));
   }
   int err = 0;
   if (!writeAll(fd_, frame.rgba.data(), frame.rgba.size(), err)) {
-    const std::string why = finish();
-    return "video " + path_ + ": ffmpeg stopped reading (" + std::strerror(err) + ")" +
-           (why.empty() ? "" : "; " + why);
+    const Status why = finish();
+    return fail("video " + path_ + ": ffmpeg stopped reading (" + std::strerror(err) + ")" +
+                (why ? "" : "; " + why.problems().front().message));
   }
   ++frames_;
   return {};
 }
 
-std::string VideoWriter::finish() {
+Status VideoWriter::finish() {
   if (finished_) return {};
   finished_ = true;
   if (fd_ >= 0) ::close(fd_);
@@ -164,10 +165,11 @@ std::string VideoWriter::finish() {
   }
   const std::string how = WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
                                             : "signal " + std::to_string(WTERMSIG(status));
-  return "ffmpeg failed writing " + path_ + " (" + how + "): " + tail(logPath_, 600) + " (full log: " +
-         logPath_ + ")";
+  return Problem{kVideoProblem, 0,
+                 "ffmpeg failed writing " + path_ + " (" + how + "): " + tail(logPath_, 600) + " (full log: " +
+                     logPath_ + ")"};
 }
 
-VideoWriter::~VideoWriter() { finish(); }
+VideoWriter::~VideoWriter() { (void)finish(); }
 
 }  // namespace sandtable::runtime

@@ -19,10 +19,13 @@
 #include <cstring>
 #include <optional>
 
+#include "sandtable/render/gl_program.h"
+
 namespace sandtable::runtime {
 
 struct ViewerWindow::Gl {
-  GLuint program = 0, vao = 0, texture = 0;
+  GlProgram program;
+  GLuint vao = 0, texture = 0;
   std::uint32_t texW = 0, texH = 0;
 };
 
@@ -97,33 +100,12 @@ std::optional<Key> keyForSym(KeySym s) {
   }
 }
 
-GLuint compile(GLenum type, const char* src, std::string& err) {
-  const GLuint s = glCreateShader(type);
-  glShaderSource(s, 1, &src, nullptr);
-  glCompileShader(s);
-  GLint ok = 0;
-  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[512] = {};
-    glGetShaderInfoLog(s, sizeof log, nullptr, log);
-    err = std::string("window shader: ") + log;
-  }
-  return s;
-}
-
-constexpr const char* kVertex = R"(#version 450 core
-out vec2 uv;
-void main() {
-  // One triangle covering the viewport; image row 0 is the top.
-  vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
-  uv = vec2(p.x, 1.0 - p.y);
-  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-})";
+// Over kFullScreenVertexGlsl; image row 0 is the top.
 constexpr const char* kFragment = R"(#version 450 core
-in vec2 uv;
+in vec2 vNdc;
 layout(binding = 0) uniform sampler2D frame;
 out vec4 color;
-void main() { color = vec4(texture(frame, uv).rgb, 1.0); })";
+void main() { color = vec4(texture(frame, vec2(vNdc.x * 0.5 + 0.5, 0.5 - vNdc.y * 0.5)).rgb, 1.0); })";
 
 /// Shift and width of a visual's colour mask, for converting XGetImage pixels.
 void maskShape(unsigned long mask, int& shift, int& bits) {
@@ -259,31 +241,36 @@ Result<std::unique_ptr<ViewerWindow>> ViewerWindow::open(std::uint32_t width, st
     saved.restore(EGL_NO_DISPLAY);
     return fail(eglError("eglMakeCurrent (window)"));
   }
-  const std::string glErr = w->makeGl();
+  w->eglConfig_ = config;
+  Status gl = w->makeGl();
   saved.restore(ed);
-  if (!glErr.empty()) return fail(glErr);
+  if (!gl) return gl.problems();
   return w;
 }
 
-std::string ViewerWindow::makeGl() {
-  if (epoxy_gl_version() < 45) return "the window's context offers OpenGL " + std::to_string(epoxy_gl_version()) + ", 4.5 is needed";
+Status ViewerWindow::makeGl() {
+  if (epoxy_gl_version() < 45) {
+    return Problem{kWindowProblem, 0,
+                   "window: the window's context offers OpenGL " + std::to_string(epoxy_gl_version()) +
+                       ", 4.5 is needed"};
+  }
   if (const auto* r = glGetString(GL_RENDERER)) renderer_ = reinterpret_cast<const char*>(r);
   gl_ = std::make_unique<Gl>();
-  std::string err;
-  const GLuint vs = compile(GL_VERTEX_SHADER, kVertex, err);
-  const GLuint fs = compile(GL_FRAGMENT_SHADER, kFragment, err);
-  gl_->program = glCreateProgram();
-  glAttachShader(gl_->program, vs);
-  glAttachShader(gl_->program, fs);
-  glLinkProgram(gl_->program);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint linked = 0;
-  glGetProgramiv(gl_->program, GL_LINK_STATUS, &linked);
-  if (!err.empty()) return err;
-  if (!linked) return "window shader program did not link";
+  auto program = GlProgram::build("window", kFullScreenVertexGlsl, kFragment);
+  if (!program) return program.problems();
+  gl_->program = std::move(program.value());
   glCreateVertexArrays(1, &gl_->vao);
   return {};
+}
+
+PresentTarget::EglSurface ViewerWindow::eglSurface() const {
+  std::lock_guard lock(mutex_);
+  return {eglDisplay_, eglConfig_, eglSurface_};
+}
+
+void ViewerWindow::withSurface(const std::function<void(std::uint32_t, std::uint32_t)>& use) {
+  std::lock_guard lock(mutex_);
+  use(width_, height_);
 }
 
 std::uint32_t ViewerWindow::width() const {
@@ -340,15 +327,16 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
   return out;
 }
 
-std::string ViewerWindow::present(const Image& frame) {
+Status ViewerWindow::present(const Image& frame) {
+  auto fail = [](const std::string& m) { return Problem{kWindowProblem, 0, "window: " + m}; };
   if (frame.width == 0 || frame.height == 0 || frame.rgba.size() != std::size_t(frame.width) * frame.height * 4) {
-    return "window: present() needs a non-empty RGBA frame";
+    return fail("present() needs a non-empty RGBA frame");
   }
   std::lock_guard lock(mutex_);
   SavedEgl saved;
   if (!eglMakeCurrent(eglDisplay_, eglSurface_, eglSurface_, eglContext_)) {
     saved.restore(EGL_NO_DISPLAY);
-    return "window: " + eglError("eglMakeCurrent (window)");
+    return fail(eglError("eglMakeCurrent (window)"));
   }
   if (gl_->texW != frame.width || gl_->texH != frame.height) {
     if (gl_->texture) glDeleteTextures(1, &gl_->texture);
@@ -373,21 +361,21 @@ std::string ViewerWindow::present(const Image& frame) {
   glClearColor(0, 0, 0, 1);
   glClear(GL_COLOR_BUFFER_BIT);
   glViewport((GLint(width_) - vw) / 2, (GLint(height_) - vh) / 2, vw, vh);
-  glUseProgram(gl_->program);
+  gl_->program.use();
   glBindTextureUnit(0, gl_->texture);
   glBindVertexArray(gl_->vao);
   glDrawArrays(GL_TRIANGLES, 0, 3);
   glBindVertexArray(0);
   const GLenum glErr = glGetError();
-  std::string err;
+  Status st;
   if (glErr != GL_NO_ERROR) {
     char buf[64];
-    std::snprintf(buf, sizeof buf, "window: GL error 0x%04X drawing the frame", unsigned(glErr));
-    err = buf;
+    std::snprintf(buf, sizeof buf, "GL error 0x%04X drawing the frame", unsigned(glErr));
+    st = fail(buf);
   }
-  if (!eglSwapBuffers(eglDisplay_, eglSurface_) && err.empty()) err = "window: " + eglError("eglSwapBuffers");
+  if (!eglSwapBuffers(eglDisplay_, eglSurface_) && st) st = fail(eglError("eglSwapBuffers"));
   saved.restore(eglDisplay_);
-  return err;
+  return st;
 }
 
 Result<Image> ViewerWindow::capture() {
@@ -425,13 +413,15 @@ void ViewerWindow::releaseEgl() {
     if (eglMakeCurrent(eglDisplay_, eglSurface_, eglSurface_, eglContext_)) {
       if (gl_->texture) glDeleteTextures(1, &gl_->texture);
       if (gl_->vao) glDeleteVertexArrays(1, &gl_->vao);
-      if (gl_->program) glDeleteProgram(gl_->program);
+      gl_->program.reset();
     }
     saved.restore(eglDisplay_);
   }
+  if (gl_) gl_->program.abandon();  // its context is destroyed next
   if (eglContext_) eglDestroyContext(eglDisplay_, eglContext_);
   if (eglSurface_) eglDestroySurface(eglDisplay_, eglSurface_);
-  // Terminating only this X11 display: the renderer's display is another.
+  // A renderer on this display (PresentTarget) is gone by now: it may not
+  // outlive the window. A headless renderer's display is another.
   eglTerminate(eglDisplay_);
   eglDisplay_ = nullptr;
   eglContext_ = nullptr;

@@ -302,9 +302,11 @@ TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
     return p;
   };
   std::vector<std::uint32_t> composited;
-  hooks.onOverlay = [&](Image& img, const FrameStats& s) {
+  hooks.onOverlay = [&](Overlay& overlay, const FrameStats& s) {
     composited.push_back(s.frame);
-    img.rgba[0] = 255, img.rgba[1] = 0, img.rgba[2] = 0;  // a map would go here
+    Image& layer = overlay.layer();
+    layer.rgba[0] = 255, layer.rgba[1] = 0, layer.rgba[2] = 0, layer.rgba[3] = 255;  // a map would go here
+    overlay.drawn({0, 0, 1, 1});
   };
   std::vector<Rgb> corners;
   hooks.onFrame = [&](std::uint32_t, const Image& img) { corners.push_back(img.at(0, 0)); };

@@ -38,10 +38,13 @@ TEST(Video, WritesAnMp4) {
   const fs::path out = tempVideo("odd.mp4");
   auto v = VideoWriter::open(out.string(), 65, 47);  // odd: padded for yuv420p
   ASSERT_TRUE(v.ok()) << v.error();
-  for (int k = 0; k < 10; ++k) ASSERT_EQ(v.value()->write(frame(65, 47, std::uint8_t(k * 20))), "");
-  EXPECT_NE(v.value()->write(frame(64, 48, 0)).find("the video is 65x47"), std::string::npos);
+  for (int k = 0; k < 10; ++k) ASSERT_TRUE(v.value()->write(frame(65, 47, std::uint8_t(k * 20))).ok());
+  const Status wrongSize = v.value()->write(frame(64, 48, 0));
+  ASSERT_FALSE(wrongSize.ok());
+  EXPECT_EQ(wrongSize.problems().front().file, kVideoProblem);
+  EXPECT_NE(wrongSize.error().find("the video is 65x47"), std::string::npos);
   EXPECT_EQ(v.value()->framesWritten(), 10u);
-  EXPECT_EQ(v.value()->finish(), "");
+  EXPECT_TRUE(v.value()->finish().ok());
   ASSERT_TRUE(fs::exists(out));
   EXPECT_GT(fs::file_size(out), 0u);
   EXPECT_FALSE(fs::exists(out.string() + ".ffmpeg.log"));
@@ -64,8 +67,8 @@ TEST(Video, FfmpegFailureIsReported) {
   auto v = VideoWriter::open(out.string(), 32, 32, o);
   ASSERT_TRUE(v.ok()) << v.error();
   std::string err;
-  for (int k = 0; k < 200 && err.empty(); ++k) err = v.value()->write(frame(32, 32, 0));
-  if (err.empty()) err = v.value()->finish();
+  for (int k = 0; k < 200 && err.empty(); ++k) err = v.value()->write(frame(32, 32, 0)).error();
+  if (err.empty()) err = v.value()->finish().error();
   EXPECT_NE(err.find("ffmpeg"), std::string::npos) << err;
   EXPECT_NE(err.find("exit status"), std::string::npos) << err;
   fs::remove(out);

@@ -1,7 +1,9 @@
 // The viewer window under Xvfb: a key sent through XTest comes back from
 // pollEvents(), a Controller fed with it changes the speed, and the panel
 // that shows the speed reaches the screen (read back with XGetImage). The
-// renderer's headless context stays current across present().
+// renderer's headless context stays current across present(). A renderer
+// opened on the window presents its frames there on the GPU: the window
+// shows exactly the pixels a read-back gives, with no read-back needed.
 //
 // Skips when Xvfb is not installed (tools/setup.sh installs it).
 #include <gtest/gtest.h>
@@ -25,8 +27,9 @@
 #include <sstream>
 #include <thread>
 
-#include "../../render/src/egl_context.h"
+#include "sandtable/render/egl_context.h"
 #include "sandtable/render/hud.h"
+#include "sandtable/render/renderer.h"
 #include "sandtable/viewer/x11_window.h"
 #include "sandtable/testing/xvfb.h"
 
@@ -138,7 +141,7 @@ TEST_F(WindowTest, KeypressChangesTheSpeedShownInThePanel) {
 
   Controller c(ViewerState{}, {});
   const Image before = panelFrame(c.state());
-  ASSERT_EQ(win.present(before), "");
+  ASSERT_TRUE(win.present(before).ok());
   auto shown = win.capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
   EXPECT_EQ(differs(shown.value(), before), "");
@@ -154,7 +157,7 @@ TEST_F(WindowTest, KeypressChangesTheSpeedShownInThePanel) {
 
   const Image after = panelFrame(c.state());
   ASSERT_NE(differs(after, before), "") << "the panel must show the new speed";
-  ASSERT_EQ(win.present(after), "");
+  ASSERT_TRUE(win.present(after).ok());
   shown = win.capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
   EXPECT_EQ(differs(shown.value(), after), "");
@@ -191,7 +194,7 @@ TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
   ASSERT_TRUE(opened.ok()) << opened.error();
   EXPECT_EQ(eglGetCurrentContext(), renderer);
   const Image frame = filled(64, 48, {200, 30, 90});
-  ASSERT_EQ(opened.value()->present(frame), "");
+  ASSERT_TRUE(opened.value()->present(frame).ok());
   EXPECT_EQ(eglGetCurrentContext(), renderer);
   EXPECT_EQ(eglGetCurrentSurface(EGL_DRAW), draw);
   auto shown = opened.value()->capture();
@@ -212,11 +215,11 @@ TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
   const Image last = filled(96, 64, {20, 40, 60});
   std::string renderError;
   std::thread render([&] {
-    auto headless = EglContext::create();  // the renderer's own context, as in fly()
+    auto headless = EglContext::create();  // a headless renderer's own context
     for (int k = 0; k < 30 && renderError.empty(); ++k) {
-      renderError = win.present(filled(96, 64, {std::uint8_t(k * 8), 0, 0}));
+      renderError = win.present(filled(96, 64, {std::uint8_t(k * 8), 0, 0})).error();
     }
-    if (renderError.empty()) renderError = win.present(last);
+    if (renderError.empty()) renderError = win.present(last).error();
   });
   sendKey(keys_, XK_Right, true);
   sendKey(keys_, XK_Right, false);
@@ -230,10 +233,65 @@ TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
   EXPECT_EQ(differs(shown.value(), last), "");
 }
 
+/// Ground ahead of an eye 30 m up (no grid needed: a hand-made strip).
+DisplayBuffer groundAhead(std::uint32_t w, std::uint32_t h) {
+  DisplayBuffer b;
+  b.camera.y = 30;
+  b.camera.pitchDeg = -8;
+  b.camera.aspect = double(w) / double(h);
+  b.camera.viewDistance = 3000;
+  b.vertices = {{-1000, 0, -2000, 0, 1, 0, 0}, {-1000, 0, 0, 0, 1, 0, 0}, {1000, 0, -2000, 0, 1, 0, 0},
+                {1000, 0, 0, 0, 1, 0, 0}};
+  b.firsts = {0};
+  b.counts = {4};
+  return b;
+}
+
+TEST_F(WindowTest, RendererPresentsIntoTheWindowWithoutReadBack) {
+  auto opened = ViewerWindow::open(160, 120, "present", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  RenderSettings rs;
+  rs.width = 160;
+  rs.height = 120;
+  Image shownFirst, readBack, cpuPanel;
+  std::string error;
+  std::uint64_t readBeforeAsking = 99;
+  // On its own thread, as fly()'s render thread does it.
+  std::thread render([&] {
+    auto r = Renderer::create(rs, &win);
+    if (!r) {
+      error = r.error();
+      return;
+    }
+    Overlay overlay;
+    for (std::uint32_t k = 0; k < 3 && error.empty(); ++k) {
+      error = r.value()->draw(groundAhead(160, 120)).error();
+      overlay.begin(160, 120);
+      drawHudPanel(overlay, {"FRAME " + std::to_string(k)});
+      if (error.empty()) error = r.value()->drawOverlay(overlay).error();
+      if (error.empty()) error = r.value()->present().error();
+    }
+    readBeforeAsking = r.value()->framesReadBack();
+    auto shown = win.capture();
+    if (shown) shownFirst = shown.value();
+    if (error.empty()) error = r.value()->readFrame(readBack).error();
+    // The same frame without the HUD pass, given the panel on the CPU.
+    if (error.empty()) error = r.value()->draw(groundAhead(160, 120)).error();
+    if (error.empty()) error = r.value()->readFrame(cpuPanel).error();
+    drawHudPanel(cpuPanel, {"FRAME 2"});
+  });
+  render.join();
+  ASSERT_EQ(error, "");
+  EXPECT_EQ(readBeforeAsking, 0u) << "presenting must not read the frame back";
+  EXPECT_EQ(differs(shownFirst, readBack), "") << "the window shows the frame the renderer drew";
+  EXPECT_EQ(differs(readBack, cpuPanel), "") << "the HUD pass draws the CPU panel's pixels";
+}
+
 TEST_F(WindowTest, SmallerFrameIsLetterboxed) {
   auto opened = ViewerWindow::open(200, 100, "letterbox", xvfb_->display);
   ASSERT_TRUE(opened.ok()) << opened.error();
-  ASSERT_EQ(opened.value()->present(filled(100, 100, {255, 255, 255})), "");
+  ASSERT_TRUE(opened.value()->present(filled(100, 100, {255, 255, 255})).ok());
   auto shown = opened.value()->capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
   const Rgb side = shown->at(10, 50), middle = shown->at(100, 50);

@@ -1,11 +1,13 @@
 #pragma once
 // The information panel (seed chapter VI: "the information panel"): a few
-// lines of text composited into a frame after read-back, with a 5 x 7
-// bitmap font drawn for sandtable. Upper-case letters, digits and
+// lines of text in a darkened box, with a 5 x 7 bitmap font drawn for
+// sandtable. The flight loop draws it into the HUD pass's overlay
+// (overlay.h), which the GPU blends over the frame; drawHudPanel(Image&)
+// draws the same panel straight onto a frame on the CPU. Upper-case letters, digits and
 // . , : - / ( ) + % = ° and space; lower case prints as upper case, any
 // other character as '?'.
 //
-// Thread safety: pure functions on caller-owned images.
+// Thread safety: pure functions on caller-owned images and overlays.
 #include <array>
 #include <cstdint>
 #include <string>
@@ -13,6 +15,7 @@
 #include <vector>
 
 #include "sandtable/render/image.h"
+#include "sandtable/render/overlay.h"
 
 namespace sandtable::runtime {
 
@@ -35,10 +38,20 @@ std::u32string decodeHudText(std::string_view text);
 int textWidth(std::string_view text, int scale);
 
 /// Draws `text` with its top-left corner at (x, y); clipped to the image.
+/// Its pixels get alpha 255, so text drawn into an overlay's layer covers.
 void drawText(Image& img, int x, int y, std::string_view text, int scale, Rgb color);
+
+/// How much the panel darkens the frame behind its text.
+inline constexpr float kHudPanelDarken = 0.55f;
+
+/// The panel's box on a frame `frameWidth` wide (at its top-left corner).
+PixelBox hudPanelBox(std::uint32_t frameWidth, const std::vector<std::string>& lines);
 
 /// Draws the lines in a darkened panel at the image's top-left corner.
 /// Scale 2 for frames at least 800 pixels wide keeps it legible at HD.
 void drawHudPanel(Image& img, const std::vector<std::string>& lines);
+/// The same panel into the HUD pass's overlay: the box darkened, the text
+/// into the layer. Returns the box.
+PixelBox drawHudPanel(Overlay& overlay, const std::vector<std::string>& lines);
 
 }  // namespace sandtable::runtime

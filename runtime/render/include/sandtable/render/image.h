@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/base/result.h"
+
 namespace sandtable::runtime {
 
 struct Rgb {
@@ -22,8 +24,11 @@ struct Image {
   }
 };
 
+/// Problem::file of PNG writing problems (the message names the path).
+inline constexpr const char* kPngProblem = "png";
+
 /// Writes `img` as an 8-bit RGB PNG (alpha dropped: frames are opaque).
-/// Fast zlib level: frames are many and large. Returns "" or an error.
-std::string writePng(const std::string& path, const Image& img);
+/// Fast zlib level: frames are many and large.
+Status writePng(const std::string& path, const Image& img);
 
 }  // namespace sandtable::runtime

@@ -1,20 +1,32 @@
 #pragma once
-// The renderer: draws a DisplayBuffer into an offscreen frame with OpenGL
-// 4.5 core through headless EGL and reads it back.
+// The renderer: draws a DisplayBuffer with OpenGL 4.5 core through EGL,
+// headless (an offscreen target, read back only when asked) or into a
+// window's EGL surface (present.h: shown by a GPU blit and a swap).
 //
-// Each frame: the sky (a full-screen triangle shaded from the background
-// colour at the horizon to a deeper tone at the zenith), then the terrain:
-// the grid mesh's strips from a streamed vertex buffer with one
-// glMultiDrawArrays, or the load modules' indexed triangles. Both modes
-// colour the ground by the same rules (docs/VIEWER.md, "Colours"): culture
-// class colours where culture covers it (modules), water where the grid's
-// material is water, else a fixed elevation tint; lit by a fixed sun from
-// smooth per-post normals and fogged towards the background colour, full
-// fog at the view distance. Shading::flat gives the seed's look instead.
+// Each frame runs the passes of kRenderPasses into the frame's target
+// (docs/VIEWER.md, "Passes"):
+//   sky      a full-screen triangle shaded from the background colour at
+//            the horizon to a deeper tone at the zenith;
+//   terrain  the grid mesh's strips from a streamed vertex buffer with one
+//            glMultiDrawArrays, or the load modules' skin and underlay;
+//   decals   the modules' decal priorities over their skin (and their own
+//            object polygons); nothing in mesh mode;
+//   models   the slot for the next issue's icons and objects: the
+//            ModelsPass given to setModelsPass(), else empty;
+//   resolve  a multisampled target into the single-sampled one;
+//   hud      the Overlay (overlay.h): darkened boxes, then the layer
+//            blended over them. Height frames skip it.
+// Both terrain modes colour the ground by the same rules (docs/VIEWER.md,
+// "Colours"): culture class colours where culture covers it (modules),
+// water where the grid's material is water, else a fixed elevation tint;
+// lit by a fixed sun from smooth per-post normals and fogged towards the
+// background colour, full fog at the view distance. Shading::flat gives
+// the seed's look instead.
 //
 // Thread safety: a Renderer owns a GL context that is current on the thread
 // that created it. Create, use and destroy it on that one thread (the render
 // thread); it reads DisplayBuffers that other threads filled.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -25,6 +37,8 @@
 #include "sandtable/base/result.h"
 #include "sandtable/scene/display_buffer.h"
 #include "sandtable/render/image.h"
+#include "sandtable/render/overlay.h"
+#include "sandtable/render/present.h"
 
 namespace sandtable::runtime {
 
@@ -99,19 +113,65 @@ struct RenderStats {
   double uploadMs = 0;              ///< building and uploading them
 };
 
+/// The passes of one frame, in order (the class comment says what each draws).
+enum class RenderPass : std::uint8_t { sky, terrain, decals, models, resolve, hud };
+inline constexpr std::array<RenderPass, 6> kRenderPasses = {RenderPass::sky,    RenderPass::terrain,
+                                                            RenderPass::decals, RenderPass::models,
+                                                            RenderPass::resolve, RenderPass::hud};
+const char* renderPassName(RenderPass p);
+
+/// What a pass is given: the frame's buffer and its view-projection, a
+/// column-major 4 x 4 matrix (positions relative to buf.originX / originZ,
+/// reversed Z; camera_math.h's detail::viewProjection).
+struct PassContext {
+  const DisplayBuffer& buf;
+  std::array<float, 16> viewProjection;
+};
+
+/// The models pass: the hook the next issue (icons and static objects)
+/// fills. draw() runs on the render thread after the decals, with the
+/// frame's target bound (multisampled when RenderSettings::samples > 0),
+/// the terrain's depth buffer, depth test GREATER (reversed Z) and depth
+/// writes on; it may change any GL state but must leave the target bound.
+class ModelsPass {
+ public:
+  virtual ~ModelsPass() = default;
+  virtual Status draw(const PassContext& frame) = 0;
+};
+
 class Renderer {
  public:
-  static Result<std::unique_ptr<Renderer>> create(const RenderSettings& s);
+  /// A headless renderer, or with `window` one whose context lives on the
+  /// window's EGL surface so present() can show frames there. `window`
+  /// must outlive the renderer.
+  static Result<std::unique_ptr<Renderer>> create(const RenderSettings& s, PresentTarget* window = nullptr);
   ~Renderer();
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
 
-  /// Draws `buf` and reads the frame into `out` (top row first). Returns ""
-  /// or a GL error.
-  std::string draw(const DisplayBuffer& buf, Image& out);
+  /// Runs the passes up to and including resolve for `buf`.
+  Status draw(const DisplayBuffer& buf);
+  /// The HUD pass: `overlay`'s darkened boxes, then its layer, blended
+  /// into the frame drawn last (uploading only its changed boxes). The
+  /// overlay must have the frame's size.
+  Status drawOverlay(const Overlay& overlay);
+  /// Waits until the GPU has finished the frame drawn so far, so that the
+  /// caller's clock measures the work (read-back and present wait anyway).
+  void finish();
+  /// Reads the frame back (top row first). Only for sinks that need the
+  /// pixels (PNG, video, screenshot, tests): a windowed frame need not.
+  Status readFrame(Image& out);
+  /// Shows the frame in the window the renderer was created on, scaled to
+  /// fit (letterboxed), by a blit on the GPU, and swaps.
+  Status present();
+
+  /// Sets the models pass (null: the slot stays empty).
+  void setModelsPass(std::unique_ptr<ModelsPass> pass);
 
   /// Counters of the last draw.
   const RenderStats& stats() const;
+  /// Frames read back with readFrame() since create() (not counting its warm-up).
+  std::uint64_t framesReadBack() const;
 
   /// GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)".
   const std::string& glRenderer() const;

@@ -8,9 +8,12 @@
 // of two display buffers while the render thread (which owns the GL
 // context) draws the other, handed over with a mutex and condition
 // variable, no spinning. The pager's loader threads decode modules beside
-// them. After read-back, on the render thread, the frame is an Image: the
-// panel and the application's overlay (e.g. a 2-D map) are drawn on it,
-// then it goes to FlightApplication::frameDone and/or a PNG.
+// them. On the render thread each frame runs the renderer's passes on the
+// GPU (renderer.h); the panel and the application's overlay (e.g. a 2-D
+// map) are drawn on the CPU into the HUD pass's overlay, which the GPU
+// blends over it. The frame is read back only for a sink that wants its
+// pixels (OutputOptions::outDir PNGs, FlightApplication::wantsFrame); the
+// application's window shows it by a GPU blit and a swap.
 //
 // Time: frame k shows the eye at simulated time k / kFramesPerSecond
 // seconds, whatever the real frame rate, so a flight is reproducible; an
@@ -154,10 +157,20 @@ class FlightApplication {
   /// flight's one ground clamp (world/ground.h), at the level drawn under
   /// the eye in the last frame: steer with it, do not sample the grid.
   virtual std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) = 0;
-  /// Render thread: draws on the frame after the panel (a 2-D map).
-  virtual void overlay(Image&, const FrameStats&) {}
-  /// Render thread: each finished frame, after the panel and overlay.
+  /// Render thread: draws into the HUD pass's overlay after the panel (a
+  /// 2-D map), marking what it drew (overlay.h).
+  virtual void overlay(Overlay&, const FrameStats&) {}
+  /// Render thread: whether frameDone wants frame `frame`'s pixels; each
+  /// such frame is read back from the GPU (a video, a screenshot, a test).
+  virtual bool wantsFrame(std::uint32_t /*frame*/) { return false; }
+  /// Render thread: the pixels of each frame wantsFrame asked for, after
+  /// the panel and overlay.
   virtual void frameDone(std::uint32_t /*frame*/, const Image&) {}
+  /// Render thread: every frame, once it is done (e.g. progress).
+  virtual void frameShown(const FrameStats&) {}
+  /// The window every frame is shown in by a GPU blit (present.h), asked
+  /// once before the first frame; it must outlive the flight. Null: headless.
+  virtual PresentTarget* window() { return nullptr; }
 };
 
 /// An application made of callbacks, for tests and small tools. Unset
@@ -167,11 +180,14 @@ class FlightApplication {
 struct FlightHooks final : FlightApplication {
   explicit FlightHooks(const FlightOptions& o) : options(o) {}
   std::function<std::optional<Pose>(std::uint32_t frame, double t, GroundClamp& ground)> onPose;
-  std::function<void(Image&, const FrameStats&)> onOverlay;
+  std::function<void(Overlay&, const FrameStats&)> onOverlay;
+  /// Every frame's pixels, or those onWantsFrame picks when it is set.
   std::function<void(std::uint32_t frame, const Image&)> onFrame;
+  std::function<bool(std::uint32_t frame)> onWantsFrame;
 
   std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
-  void overlay(Image& image, const FrameStats& s) override;
+  void overlay(Overlay& overlay, const FrameStats& s) override;
+  bool wantsFrame(std::uint32_t frame) override;
   void frameDone(std::uint32_t frame, const Image& image) override;
 
   const FlightOptions& options;
@@ -185,7 +201,7 @@ struct FrameStats {
   std::uint32_t frame = 0;
   double timeS = 0;
   double cpuMs = 0;     ///< main thread: selection (+ vertex build in mesh mode)
-  double renderMs = 0;  ///< render thread: upload, draw and read-back (waits for the GPU)
+  double renderMs = 0;  ///< render thread: upload and draw up to the HUD (waits for the GPU)
   /// Time between this frame's completion and the previous one's on the
   /// render thread, PNG writing excluded (frame 0: cpu + render + panel).
   /// With the two threads overlapping, this is what limits the frame rate.

@@ -5,7 +5,10 @@
 // window, screenshots and the video.
 //
 // Threads: pose() runs on fly()'s main thread (it polls the window's
-// keys there); overlay() and frameDone() run on its render thread. The
+// keys there); overlay(), frameDone() and frameShown() run on its render
+// thread. The window is the renderer's PresentTarget (frames reach it on
+// the GPU); frameDone() gets the pixels only of frames a video or a
+// screenshot takes. The
 // main thread produces a frame or two ahead of the one being drawn, so
 // what the render thread needs of the controller's state (map on/off and
 // scale, a screenshot request) travels with the frame number through a
@@ -79,11 +82,14 @@ class FlySession final : public FlightApplication {
              std::unique_ptr<runtime::VideoWriter> video);
 
   std::optional<runtime::Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
-  void overlay(runtime::Image& img, const runtime::FrameStats& s) override;
+  void overlay(runtime::Overlay& overlay, const runtime::FrameStats& s) override;
+  bool wantsFrame(std::uint32_t frame) override;
   void frameDone(std::uint32_t frame, const runtime::Image& img) override;
-  /// After fly(): finishes the video; "" or the first error of the flight's
-  /// window, screenshots or video.
-  std::string finish();
+  void frameShown(const runtime::FrameStats& s) override;
+  PresentTarget* window() override;
+  /// After fly(): finishes the video; the first error of the flight's
+  /// screenshots or video.
+  Status finish();
   std::uint32_t screenshotsTaken() const { return screenshots_.load(); }
   bool windowed() const { return window_ != nullptr; }
 
@@ -92,7 +98,7 @@ class FlySession final : public FlightApplication {
   runtime::Pose headlessPose(double t);
   runtime::Pose windowPose(double clock) const;
   void saveScreenshot(const runtime::Image& img);
-  void fail(const std::string& e);
+  void fail(const Status& st);
   runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
 
   const Database& db_;
@@ -117,7 +123,7 @@ class FlySession final : public FlightApplication {
   std::atomic<bool> failed_{false};
   std::atomic<std::uint32_t> screenshots_{0};
   std::mutex errorMutex_;
-  std::string error_;
+  Status error_;
 };
 
 /// Water material indices from the database's material table (manifest

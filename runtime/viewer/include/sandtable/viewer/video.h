@@ -42,11 +42,11 @@ class VideoWriter {
   VideoWriter(const VideoWriter&) = delete;
   VideoWriter& operator=(const VideoWriter&) = delete;
 
-  /// Sends one frame; it must have the size given to open(). "" or error.
-  std::string write(const Image& frame);
-  /// Closes the pipe and waits for ffmpeg. "" or an error with ffmpeg's
-  /// exit status and the end of what it printed.
-  std::string finish();
+  /// Sends one frame; it must have the size given to open().
+  Status write(const Image& frame);
+  /// Closes the pipe and waits for ffmpeg. Fails with ffmpeg's exit
+  /// status and the end of what it printed.
+  Status finish();
 
   std::uint64_t framesWritten() const { return frames_; }
   const std::string& path() const { return path_; }

@@ -1,14 +1,15 @@
 #pragma once
 // The stealth viewer's window: an X11 window (Xlib) with an EGL window
-// surface and its own OpenGL 4.5 core context. The renderer keeps drawing
-// offscreen in its headless context (egl_context.h); the finished frame,
-// already composited with the panel and the map, is handed to present(),
-// which shows it as one full-window texture and swaps.
+// surface. It is a PresentTarget (render/present.h): the flight's renderer
+// opens its context on this window's EGL display and surface and shows
+// each frame with a GPU blit and a swap (docs/VIEWER.md, "Frame path").
+// present(Image) shows a frame that is already in memory instead, through
+// the window's own OpenGL 4.5 core context (tests, tools).
 //
-// Contexts: present() makes the window's context current, draws, swaps,
-// and then makes current again whatever EGL display / surfaces / context /
-// API were current before, so the renderer's context survives on the same
-// thread. open() and the destructor restore it the same way.
+// Contexts: present(Image) makes the window's context current, draws,
+// swaps, and then makes current again whatever EGL display / surfaces /
+// context / API were current before, so a renderer's context survives on
+// the same thread. open() and the destructor restore it the same way.
 //
 // Keys: pollEvents() returns presses and releases of the keys controls.h
 // knows (others are dropped). X11 auto-repeat is made "detectable", so a
@@ -17,10 +18,9 @@
 //
 // Thread safety: every method may be called from any thread and they are
 // serialised by one mutex, so pollEvents() can run on the main thread (with
-// the Controller) while present() runs on the render thread (fly()'s
-// onFrame). This works without XInitThreads() because only this object
-// touches its own X connection. present() saves and restores the EGL
-// state of the thread it runs on.
+// the Controller) while the render thread presents (withSurface() holds
+// the same mutex). This works without XInitThreads() because only this
+// object, and EGL inside withSurface(), touch its own X connection.
 #include <cstdint>
 #include <atomic>
 #include <memory>
@@ -31,13 +31,14 @@
 #include "sandtable/base/result.h"
 #include "sandtable/world/controls.h"
 #include "sandtable/render/image.h"
+#include "sandtable/render/present.h"
 
 namespace sandtable::runtime {
 
 /// Problem::file of window problems.
 inline constexpr const char* kWindowProblem = "window";
 
-class ViewerWindow {
+class ViewerWindow : public PresentTarget {
  public:
   /// True when $DISPLAY is set (not a promise that the server answers).
   static bool displayConfigured();
@@ -49,7 +50,7 @@ class ViewerWindow {
   static Result<std::unique_ptr<ViewerWindow>> open(std::uint32_t width, std::uint32_t height,
                                                     const std::string& title,
                                                     const std::string& display = "");
-  ~ViewerWindow();
+  ~ViewerWindow() override;
   ViewerWindow(const ViewerWindow&) = delete;
   ViewerWindow& operator=(const ViewerWindow&) = delete;
 
@@ -59,8 +60,12 @@ class ViewerWindow {
   bool closeRequested() const { return closeRequested_.load(); }
 
   /// Shows the frame scaled to fit the window (letterboxed, nearest
-  /// pixels at 1:1) and swaps. "" or an error.
-  std::string present(const Image& frame);
+  /// pixels at 1:1) and swaps.
+  Status present(const Image& frame);
+
+  // PresentTarget: the renderer's way into the window.
+  EglSurface eglSurface() const override;
+  void withSurface(const std::function<void(std::uint32_t width, std::uint32_t height)>& use) override;
 
   /// The window's pixels as the X server holds them (XGetImage): what the
   /// user sees; for tests and screenshots.
@@ -79,7 +84,7 @@ class ViewerWindow {
  private:
   ViewerWindow() = default;
   struct Gl;
-  std::string makeGl();
+  Status makeGl();
   void releaseEgl();
 
   void* display_ = nullptr;  // Display*
@@ -89,6 +94,7 @@ class ViewerWindow {
   void* eglDisplay_ = nullptr;
   void* eglSurface_ = nullptr;
   void* eglContext_ = nullptr;
+  void* eglConfig_ = nullptr;
   std::unique_ptr<Gl> gl_;
   std::uint32_t width_ = 0, height_ = 0;
   std::atomic<bool> closeRequested_{false};
