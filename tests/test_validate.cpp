@@ -34,7 +34,7 @@ class ValidateRealDatabase : public ::testing::Test {
     db_ = o.output;
     gridPath_ = db_ + "/grid.stg";
     manifestPath_ = db_ + "/manifest.json";
-    ASSERT_TRUE(validateDatabase(db_).empty());
+    ASSERT_TRUE(validateDatabase(db_).ok());
   }
   TempDir tmp_{"val"};
   std::string db_, gridPath_, manifestPath_;
@@ -52,7 +52,7 @@ TEST_F(ValidateRealDatabase, catchesEachOfAThousandRandomByteFlips) {
     const std::size_t off = at(rng);
     bytes[off] = static_cast<char>(bytes[off] ^ (1 << bit(rng)));
     spit(gridPath_, bytes);
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     if (problems.empty()) {
       ++missed;
       ADD_FAILURE() << "flip at byte " << off << " was not caught";
@@ -60,7 +60,7 @@ TEST_F(ValidateRealDatabase, catchesEachOfAThousandRandomByteFlips) {
   }
   spit(gridPath_, original);
   EXPECT_EQ(missed, 0);
-  EXPECT_TRUE(validateDatabase(db_).empty());
+  EXPECT_TRUE(validateDatabase(db_).ok());
 }
 
 TEST_F(ValidateRealDatabase, catchesTruncationAtEveryStructuralBoundary) {
@@ -82,7 +82,7 @@ TEST_F(ValidateRealDatabase, catchesTruncationAtEveryStructuralBoundary) {
   cuts.back() = h.fileBytes - 1;
   for (std::uint64_t cut : cuts) {
     spit(gridPath_, original.substr(0, cut));
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     ASSERT_FALSE(problems.empty()) << "truncation at " << cut;
     EXPECT_TRUE(anyMessageHas(problems, "truncated")) << "cut " << cut << ": " << problems.front().str();
     bool named = false;
@@ -125,13 +125,13 @@ TEST_F(ValidateRealDatabase, eachDamageHasItsOwnMessage) {
   };
   for (const auto& c : cases) {
     c.damage();
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     EXPECT_TRUE(anyMessageHas(problems, c.expected)) << c.what << ": "
                                                       << (problems.empty() ? "no problem" : problems.front().str());
     spit(manifestPath_, manifest);
     spit(gridPath_, gridBytes);
   }
-  EXPECT_TRUE(validateDatabase(db_).empty());
+  EXPECT_TRUE(validateDatabase(db_).ok());
 }
 
 TEST_F(ValidateRealDatabase, cliExitCodes) {

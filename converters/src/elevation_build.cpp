@@ -195,7 +195,7 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
     for (std::uint64_t k; (k = next++) < h.blockCount() && !cancelRequested();) {
       const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
       fillBlock(g, cls, f, bx, bz, *block);
-      const std::string err = writer.value()->writeBlock(bx, bz, *block);
+      const std::string err = writer.value()->writeBlock(bx, bz, *block).message();
       std::lock_guard lock(mutex);
       if (!err.empty() && firstError.empty()) firstError = err;
       const std::uint64_t d = ++done;
@@ -207,7 +207,7 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
   for (auto& t : pool) t.join();
   if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
   if (!firstError.empty()) return Problem{path, 0, firstError};
-  if (std::string err = writer.value()->finish(); !err.empty()) return Problem{path, 0, err};
+  if (Status st = writer.value()->finish(); !st) return st.problems();
   return WrittenGrid{writer.value()->header(), writer.value()->fileCrc()};
 }
 
@@ -303,8 +303,8 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   if (!r) return r.problems();
   const std::string text = materials::format(c.table);
   const auto bytes = std::as_bytes(std::span(text.data(), text.size()));
-  if (std::string e = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !e.empty()) {
-    return Problem{dir, 0, "build: " + e};
+  if (Status st = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !st) {
+    return Problem{dir, 0, "build: " + st.message()};
   }
   auto& files = report.manifest.files;
   files.push_back({pack::kPackFileName, r->packBytes, r->packCrc});
@@ -469,10 +469,10 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
 
   const std::string text = manifest::encode(report.manifest);
-  if (std::string e = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
-                                      std::as_bytes(std::span(text.data(), text.size())));
-      !e.empty()) {
-    return Problem{o.output, 0, "build: " + e};
+  if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
+                                  std::as_bytes(std::span(text.data(), text.size())));
+      !st) {
+    return Problem{o.output, 0, "build: " + st.message()};
   }
   if (cancelRequested()) return Problem{o.output, 0, "build: cancelled"};
   if (std::string e = publish(partial.path(), o.output); !e.empty()) return Problem{o.output, 0, "build: " + e};

@@ -153,7 +153,10 @@ Result<bool> probeEnds(GDALRasterBand& band, const std::string& path) {
 Result<Source> openOne(const std::string& path) {
   Source s;
   s.path = fs::absolute(path).lexically_normal().string();
-  if (!crc32File(path, s.crc, s.bytes)) return Problem{path, 0, "source: cannot read the file"};
+  const auto crc = crc32File(path);
+  if (!crc) return Problem{path, 0, "source: cannot read the file"};
+  s.crc = crc->crc;
+  s.bytes = crc->bytes;
   CPLErrorReset();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) {

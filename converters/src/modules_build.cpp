@@ -309,7 +309,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
       const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
       const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, local.data());
       if (cancelRequested()) break;  // not compressed nor written: the build is being abandoned
-      if (std::string e = writer.value()->add(m); !e.empty()) {
+      if (std::string e = writer.value()->add(m).message(); !e.empty()) {
         std::lock_guard lock(mu);
         if (error.empty()) error = e;
         break;
@@ -339,7 +339,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   if (!error.empty()) return Problem{directory, 0, "build: modules: " + error};
   if (cancelRequested()) return Problem{directory, 0, "build: cancelled"};
   if (progress) progress(1.0, "modules");
-  if (std::string e = writer.value()->finish(); !e.empty()) return Problem{directory, 0, "build: modules: " + e};
+  if (Status st = writer.value()->finish(); !st) return Problem{directory, 0, "build: modules: " + st.message()};
   r.sizes = writer.value()->stats();
   r.packBytes = writer.value()->packBytes();
   r.indexBytes = writer.value()->indexBytes();

@@ -79,7 +79,7 @@ std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::s
 }
 
 std::vector<Problem> validateDatabaseWithCrs(const std::string& dir, const Work& work) {
-  std::vector<Problem> out = validateDatabase(dir, work);
+  std::vector<Problem> out = validateDatabase(dir, work).problems();
   if (work.cancelled()) return out;
   auto m = manifest::readFromDirectory(dir);
   if (!m) return out;  // validateDatabase has reported why

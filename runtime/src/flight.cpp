@@ -174,7 +174,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
   for (const auto& f : r.frames) frames.push_back(frameJson(f));
   j["frames"] = frames;
   const std::string text = j.dump(2) + "\n";
-  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size()))).message();
 }
 
 FlightSummary summarize(const std::vector<FrameStats>& frames) {

@@ -261,12 +261,11 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
         std::this_thread::sleep_for(std::chrono::duration<double>(im.options.simulatedReadSeconds));
       }
       const std::int64_t t0 = nowNs();
-      Problem problem;
-      const bool ok = im.pack->readInto(k.kx, k.kz, loaded, problem);
+      const Status read = im.pack->readInto(k.kx, k.kz, loaded);
       im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
       im.bytesRead.fetch_add(e.compressedBytes, std::memory_order_relaxed);
-      if (!ok) {
-        failure = problem.str();
+      if (!read) {
+        failure = read.error();
         missing = recordBeyondEof(im, e);
       }
     }
