@@ -80,10 +80,10 @@ class SmallGrid {
     for (std::uint32_t bz = 0; bz < h.blocksZ && error.empty(); ++bz) {
       for (std::uint32_t bx = 0; bx < h.blocksX && error.empty(); ++bx) {
         fillBlock(bx, bz, *block);
-        error = writer.value()->writeBlock(bx, bz, *block);
+        error = writer.value()->writeBlock(bx, bz, *block).message();
       }
     }
-    if (error.empty()) error = writer.value()->finish();
+    if (error.empty()) error = writer.value()->finish().message();
     if (!error.empty()) return;
     auto opened = grid::GridFile::open(path_.string());
     if (opened) file = opened.value();

@@ -10,6 +10,8 @@
 #include <X11/Xlib.h>
 #include <X11/extensions/XTest.h>
 #include <X11/keysym.h>
+// Xlib defines Status as a macro; ours is sandtable::Status (base/result.h).
+#undef Status
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
