@@ -1,0 +1,56 @@
+#include "flags.h"
+
+#include <string_view>
+#include <utility>
+
+namespace sandtable::cli {
+namespace {
+
+/// Longest first where one field name starts another.
+constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
+    {"ElevationOptions::sources", "--elevation"},
+    {"ElevationOptions::output", "-o"},
+    {"ElevationOptions::crs", "--crs"},
+    {"ElevationOptions::spacing", "--spacing"},
+    {"ElevationOptions::resample", "--resample"},
+    {"ElevationOptions::fit", "--fit"},
+    {"ElevationOptions::extent", "--extent"},
+    {"ElevationOptions::moduleSize", "--module-size"},
+    {"ElevationOptions::levels", "--levels"},
+    {"ElevationOptions::culture", "--culture"},
+    {"ElevationOptions::materials", "--materials"},
+    {"ElevationOptions::modules = false", "--no-modules"},
+    {"ElevationOptions::zstdLevel", "--zstd-level"},
+    {"ElevationOptions::maxScaleError", "--max-scale-error"},
+    {"ElevationOptions::seaFromVoids = false", "--no-sea-from-voids"},
+    {"ElevationOptions::force", "--force"},
+    {"ElevationOptions::threads", "--threads"},
+    {"CultureOptions::sources", "--culture"},
+    {"SynthOptions::outDir", "-o DIR"},
+    {"SynthOptions::sizeKm", "--size-km"},
+    {"SynthOptions::centerLon, centerLat", "--center LON LAT"},
+    {"SynthOptions::seed", "--seed"},
+    {"SynthOptions::force", "--force"},
+    {"SynthOptions::threads", "--threads"},
+};
+
+}  // namespace
+
+std::string withFlags(std::string message) {
+  for (const auto& [field, flag] : kFieldFlags) {
+    for (std::size_t at = message.find(field); at != std::string::npos; at = message.find(field, at)) {
+      message.replace(at, field.size(), flag);
+      at += flag.size();
+    }
+  }
+  return message;
+}
+
+std::string flagFor(const std::string& field) {
+  for (const auto& [f, flag] : kFieldFlags) {
+    if (field == f) return std::string(flag);
+  }
+  return {};
+}
+
+}  // namespace sandtable::cli
