@@ -140,7 +140,7 @@ void damageGrid(const std::string& db, const std::function<void(std::string&, co
   resealFiles(db);
 }
 
-std::vector<Problem> validateAll(const std::string& db) { return convert::validateDatabaseWithCrs(db); }
+std::vector<Problem> validateAll(const std::string& db) { return convert::validateDatabaseWithCrs(db).problems(); }
 
 /// A number as the validator prints it: 17 significant digits, shortest form.
 std::string fmt17(double v) {
@@ -337,7 +337,7 @@ TEST_F(HostileCli, validateShowsProgressAndStopsWhenCancelled) {
   std::vector<std::pair<std::string, double>> seen;
   Work work;
   work.progress = [&](double f, const std::string& stage) { seen.emplace_back(stage, f); };
-  EXPECT_TRUE(convert::validateDatabaseWithCrs(db_, work).empty());
+  EXPECT_TRUE(convert::validateDatabaseWithCrs(db_, work).ok());
   std::vector<std::string> stages;
   for (const auto& [stage, f] : seen) {
     if (stages.empty() || stages.back() != stage) stages.push_back(stage);
@@ -350,7 +350,7 @@ TEST_F(HostileCli, validateShowsProgressAndStopsWhenCancelled) {
   work.progress = [&](double, const std::string& stage) {
     if (stage == "checking pack") cancel = true;  // Ctrl-C during the pack
   };
-  const auto ps = convert::validateDatabaseWithCrs(db_, work);
+  const auto ps = convert::validateDatabaseWithCrs(db_, work).problems();
   ASSERT_EQ(ps.size(), 1u);
   EXPECT_EQ(ps[0].message, kCancelledMessage);
   // Non-TTY progress is plain lines on stderr.

@@ -62,7 +62,7 @@ Result<std::vector<std::string>> expandGlob(const std::string& pattern) {
 }  // namespace
 
 Result<std::vector<std::string>> expandSources(const std::vector<std::string>& args) {
-  if (args.empty()) return Problem{"--elevation", 0, "source: no elevation source given"};
+  if (args.empty()) return Problem{"ElevationOptions::sources", 0, "source: no elevation source given"};
   std::vector<std::string> out;
   for (const auto& a : args) {
     std::error_code ec;

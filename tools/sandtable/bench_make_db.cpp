@@ -58,7 +58,7 @@ Result<convert::SynthSummary> synthesizeInputs(const MakeDbArgs& a, const fs::pa
   // The build reads DTED2 and culture only; the rest would cost time and disk.
   so.dted1 = false;
   so.dem = false;
-  if (auto problems = convert::validateSynthOptions(so); !problems.empty()) return problems;
+  if (Status valid = convert::validateSynthOptions(so); !valid) return valid.problems();
   Progress progress(a.json);
   auto s = convert::synthesize(so, [&](double f, const std::string& stage) { progress.update(f, "synth " + stage); });
   progress.done();
