@@ -91,10 +91,10 @@ class SmallGrid {
     for (std::uint32_t bz = 0; bz < h.blocksZ && error.empty(); ++bz) {
       for (std::uint32_t bx = 0; bx < h.blocksX && error.empty(); ++bx) {
         fillBlock(bx, bz, *block);
-        error = writer.value()->writeBlock(bx, bz, *block);
+        error = writer.value()->writeBlock(bx, bz, *block).message();
       }
     }
-    if (error.empty()) error = writer.value()->finish();
+    if (error.empty()) error = writer.value()->finish().message();
     if (!error.empty()) return;
     auto opened = grid::GridFile::open(path_.string());
     if (opened) file = opened.value();
@@ -203,9 +203,9 @@ void BM_ModuleCheck(benchmark::State& state) {
   for (const auto& lv : m.levels) triangles += static_cast<std::int64_t>(lv.indices.size() / 3);
   for (auto _ : state) {
     module::ModuleEdges e;
-    auto problems = checker.check(m, 4096, &e);
-    if (!problems.empty()) {
-      state.SkipWithError(problems.front().str().c_str());
+    const Status checked = checker.check(m, 4096, &e);
+    if (!checked) {
+      state.SkipWithError(checked.error().c_str());
       return;
     }
     benchmark::DoNotOptimize(e);

@@ -137,6 +137,34 @@ TEST(Cli, existingOutputIsKeptUnlessForced) {
   EXPECT_EQ(runCli({"validate", tmp / "db"}).exitCode, 0);
 }
 
+// The libraries name option fields (converters/test: OptionProblemsNameTheFieldNotAFlag);
+// the CLI prints the flag that sets each, on stderr and in --json.
+TEST(Cli, optionErrorsNameTheFlagNotTheLibraryField) {
+  TempDir tmp("flags");
+  const auto build = runCli({"build", "--elevation", tmp / "none.dt1", "--spacing=-30", "-o", tmp / "db"});
+  EXPECT_EQ(build.exitCode, 2);
+  EXPECT_NE(build.err.find("sandtable build: error: --spacing @0: build: --spacing must be positive"),
+            std::string::npos)
+      << build.err;
+  EXPECT_EQ(build.err.find("ElevationOptions::"), std::string::npos) << build.err;
+  const auto noModules =
+      runCli({"build", "--elevation", tmp / "none.dt1", "--no-modules", "--culture", tmp / "c.gpkg", "-o", tmp / "db",
+              "--json"});
+  EXPECT_EQ(noModules.exitCode, 2);
+  EXPECT_NE(noModules.err.find("build: --culture and --materials need load modules; drop --no-modules"),
+            std::string::npos)
+      << noModules.err;
+  const auto j = nlohmann::json::parse(noModules.out);
+  EXPECT_EQ(j["errors"][0]["file"], "--culture");
+  EXPECT_EQ(j["error"], "build: --culture and --materials need load modules; drop --no-modules");
+  const auto synth = runCli({"synth", "-o", tmp / "s", "--size-km", "0"});
+  EXPECT_EQ(synth.exitCode, 2);
+  EXPECT_NE(synth.err.find("sandtable synth: error: --size-km must be between 1 and 1000 (got 0)"), std::string::npos)
+      << synth.err;
+  EXPECT_EQ(synth.err.find("SynthOptions::"), std::string::npos) << synth.err;
+  expectNoOutput(tmp);
+}
+
 TEST(Cli, buildInfoSampleFlyEndToEnd) {
   SANDTABLE_REQUIRE_DATA();
   TempDir tmp("e2e");

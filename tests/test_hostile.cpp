@@ -102,11 +102,10 @@ TEST_F(HostileCli, infoAndValidateTreatTheBuildObjectAsInformational) {
 void resealFiles(const std::string& db) {
   resealManifest(db, [&](json& j) {
     for (auto& f : j["files"]) {
-      std::uint32_t crc = 0;
-      std::uint64_t bytes = 0;
-      ASSERT_TRUE(crc32File(db + "/" + f["path"].get<std::string>(), crc, bytes));
-      f["bytes"] = bytes;
-      f["crc32"] = crcHex(crc);
+      const auto c = crc32File(db + "/" + f["path"].get<std::string>());
+      ASSERT_TRUE(c.ok()) << c.error();
+      f["bytes"] = c->bytes;
+      f["crc32"] = crcHex(c->crc);
     }
   });
 }
@@ -141,7 +140,7 @@ void damageGrid(const std::string& db, const std::function<void(std::string&, co
   resealFiles(db);
 }
 
-std::vector<Problem> validateAll(const std::string& db) { return convert::validateDatabaseWithCrs(db); }
+std::vector<Problem> validateAll(const std::string& db) { return convert::validateDatabaseWithCrs(db).problems(); }
 
 /// A number as the validator prints it: 17 significant digits, shortest form.
 std::string fmt17(double v) {
@@ -313,10 +312,10 @@ TEST_F(HostileCli, validateChecksSkinTextureCoordinates) {
         auto m = reader.value()->read(kx, kz);
         ASSERT_TRUE(m.ok()) << m.error();
         if (kx == 3 && kz == 2) m.value().levels[0].vertices[0].s += 0.5f;  // 32 m off
-        ASSERT_EQ(w.value()->add(m.value()), "");
+        ASSERT_EQ(w.value()->add(m.value()).message(), "");
       }
     }
-    ASSERT_EQ(w.value()->finish(), "");
+    ASSERT_EQ(w.value()->finish().message(), "");
   }
   resealFiles(db);
   auto r = pack::PackReader::open(db);
@@ -338,7 +337,7 @@ TEST_F(HostileCli, validateShowsProgressAndStopsWhenCancelled) {
   std::vector<std::pair<std::string, double>> seen;
   Work work;
   work.progress = [&](double f, const std::string& stage) { seen.emplace_back(stage, f); };
-  EXPECT_TRUE(convert::validateDatabaseWithCrs(db_, work).empty());
+  EXPECT_TRUE(convert::validateDatabaseWithCrs(db_, work).ok());
   std::vector<std::string> stages;
   for (const auto& [stage, f] : seen) {
     if (stages.empty() || stages.back() != stage) stages.push_back(stage);
@@ -351,7 +350,7 @@ TEST_F(HostileCli, validateShowsProgressAndStopsWhenCancelled) {
   work.progress = [&](double, const std::string& stage) {
     if (stage == "checking pack") cancel = true;  // Ctrl-C during the pack
   };
-  const auto ps = convert::validateDatabaseWithCrs(db_, work);
+  const auto ps = convert::validateDatabaseWithCrs(db_, work).problems();
   ASSERT_EQ(ps.size(), 1u);
   EXPECT_EQ(ps[0].message, kCancelledMessage);
   // Non-TTY progress is plain lines on stderr.

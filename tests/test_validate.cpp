@@ -39,7 +39,7 @@ class ValidateRealDatabase : public ::testing::Test {
     db_ = o.output;
     gridPath_ = db_ + "/grid.stg";
     manifestPath_ = db_ + "/manifest.json";
-    ASSERT_TRUE(validateDatabase(db_).empty());
+    ASSERT_TRUE(validateDatabase(db_).ok());
   }
   TempDir tmp_{"val"};
   std::string db_, gridPath_, manifestPath_;
@@ -57,7 +57,7 @@ TEST_F(ValidateRealDatabase, catchesEachOfAThousandRandomByteFlips) {
     const std::size_t off = at(rng);
     bytes[off] = static_cast<char>(bytes[off] ^ (1 << bit(rng)));
     spit(gridPath_, bytes);
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     if (problems.empty()) {
       ++missed;
       ADD_FAILURE() << "flip at byte " << off << " was not caught";
@@ -65,7 +65,7 @@ TEST_F(ValidateRealDatabase, catchesEachOfAThousandRandomByteFlips) {
   }
   spit(gridPath_, original);
   EXPECT_EQ(missed, 0);
-  EXPECT_TRUE(validateDatabase(db_).empty());
+  EXPECT_TRUE(validateDatabase(db_).ok());
 }
 
 TEST_F(ValidateRealDatabase, catchesTruncationAtEveryStructuralBoundary) {
@@ -87,7 +87,7 @@ TEST_F(ValidateRealDatabase, catchesTruncationAtEveryStructuralBoundary) {
   cuts.back() = h.fileBytes - 1;
   for (std::uint64_t cut : cuts) {
     spit(gridPath_, original.substr(0, cut));
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     ASSERT_FALSE(problems.empty()) << "truncation at " << cut;
     EXPECT_TRUE(anyMessageHas(problems, "truncated")) << "cut " << cut << ": " << problems.front().str();
     bool named = false;
@@ -130,13 +130,13 @@ TEST_F(ValidateRealDatabase, eachDamageHasItsOwnMessage) {
   };
   for (const auto& c : cases) {
     c.damage();
-    const auto problems = validateDatabase(db_);
+    const auto problems = validateDatabase(db_).problems();
     EXPECT_TRUE(anyMessageHas(problems, c.expected)) << c.what << ": "
                                                       << (problems.empty() ? "no problem" : problems.front().str());
     spit(manifestPath_, manifest);
     spit(gridPath_, gridBytes);
   }
-  EXPECT_TRUE(validateDatabase(db_).empty());
+  EXPECT_TRUE(validateDatabase(db_).ok());
 }
 
 TEST_F(ValidateRealDatabase, cliExitCodes) {
@@ -172,19 +172,19 @@ TEST_F(ValidateRealDatabase, gridCorruptionUnderAResealedManifestIsCaughtByTheGr
     }
   });
 
-  const auto problems = validateDatabase(db_);
-  ASSERT_FALSE(problems.empty());
-  for (const Problem& p : problems) {
+  const Status problems = validateDatabase(db_);
+  ASSERT_FALSE(problems.ok());
+  for (const Problem& p : problems.problems()) {
     EXPECT_EQ(p.message.find("manifest"), std::string::npos) << "the manifest should now agree: " << p.str();
     EXPECT_EQ(p.message.find("crc32"), std::string::npos) << p.str();
   }
-  const auto gridProblems = grid::validateGrid(gridPath_);
-  ASSERT_FALSE(gridProblems.empty());
+  const Status gridProblems = grid::validateGrid(gridPath_);
+  ASSERT_FALSE(gridProblems.ok());
   bool named = false;
-  for (const Problem& p : gridProblems) {
+  for (const Problem& p : gridProblems.problems()) {
     named |= p.message.find("block (0,0) checksum mismatch") != std::string::npos && p.offset == dataOffset;
   }
-  EXPECT_TRUE(named) << gridProblems.front().str();
+  EXPECT_TRUE(named) << gridProblems.error();
 
   // And through the CLI: exit 1, the block named at its offset in grid.stg.
   const auto v = runCli({"validate", db_, "--json"});

@@ -40,6 +40,32 @@ TEST(Status, okUntilAProblemIsAdded) {
   EXPECT_TRUE(Status(std::vector<Problem>{}).ok());
 }
 
+TEST(Status, messageIsTheFirstProblemWithoutItsPlace) {
+  Status s;
+  EXPECT_EQ(s.message(), "");
+  s.add(Problem{"x.tmp", 5, "No space left on device"});
+  s.add(Problem{"y", 0, "second"});
+  EXPECT_EQ(s.message(), "No space left on device");
+  EXPECT_EQ(s.error(), "x.tmp @5: No space left on device");
+}
+
+TEST(Status, mergeKeepsEveryProblemAndWarningInOrder) {
+  Status all;
+  all.add(Problem{"a", 1, "first"});
+  Status sub;
+  sub.addWarning({"b", 2, "defaulted"});
+  all.merge(sub);
+  EXPECT_EQ(all.problems().size(), 1u);  // a sound sub-check adds no problem
+  Result<int> failed(Problem{"c", 3, "second"});
+  failed.addWarning({"c", 4, "repaired"});
+  all.merge(failed);
+  ASSERT_EQ(all.problems().size(), 2u);
+  EXPECT_EQ(all.problems()[1].str(), "c @3: second");
+  ASSERT_EQ(all.warnings().size(), 2u);
+  EXPECT_EQ(all.warnings()[0].message, "defaulted");
+  EXPECT_EQ(all.warnings()[1].message, "repaired");
+}
+
 TEST(Jobs, everyIndexRunsOnce) {
   for (int threads : {1, 2, 0}) {
     std::vector<std::atomic<int>> hits(1000);

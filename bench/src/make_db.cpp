@@ -35,7 +35,7 @@ Result<convert::SynthSummary> synthesizeInputs(const MakeDbOptions& a, const fs:
   // The build reads DTED2 and culture only; the rest would cost time and disk.
   so.dted1 = false;
   so.dem = false;
-  if (auto problems = convert::validateSynthOptions(so); !problems.empty()) return problems;
+  if (Status valid = convert::validateSynthOptions(so); !valid) return valid.problems();
   return convert::synthesize(so, [&](double f, const std::string& stage) { notes.report(f, "synth " + stage); });
 }
 

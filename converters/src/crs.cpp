@@ -33,11 +33,11 @@ std::string toWkt2(const OGRSpatialReference& srs) {
 
 Result<TargetCrs> finish(OGRSpatialReference& srs, const std::string& request) {
   if (!srs.IsProjected()) {
-    return Problem{"--crs", 0, "crs: \"" + request + "\" is not a projected CRS; the grid needs a "
+    return Problem{"ElevationOptions::crs", 0, "crs: \"" + request + "\" is not a projected CRS; the grid needs a "
                                                      "flat frame in metres (try utm or cassini)"};
   }
   if (std::fabs(srs.GetLinearUnits() - 1.0) > 1e-12) {
-    return Problem{"--crs", 0, "crs: \"" + request + "\" is not in metres"};
+    return Problem{"ElevationOptions::crs", 0, "crs: \"" + request + "\" is not in metres"};
   }
   TargetCrs t;
   t.wkt = toWkt2(srs);
@@ -58,7 +58,7 @@ Result<TargetCrs> resolveCrs(const std::string& request, double lon, double lat)
     const int zone = std::clamp(static_cast<int>(std::floor((lon + 180.0) / 6.0)) + 1, 1, 60);
     const int epsg = (lat >= 0 ? 32600 : 32700) + zone;
     if (srs.importFromEPSG(epsg) != OGRERR_NONE) {
-      return Problem{"--crs", 0, "crs: cannot load EPSG:" + std::to_string(epsg) + " (is proj-data installed?)"};
+      return Problem{"ElevationOptions::crs", 0, "crs: cannot load EPSG:" + std::to_string(epsg) + " (is proj-data installed?)"};
     }
     return finish(srs, request);
   }
@@ -72,14 +72,14 @@ Result<TargetCrs> resolveCrs(const std::string& request, double lon, double lat)
     char* end = nullptr;
     const long code = std::strtol(request.c_str() + 5, &end, 10);
     if (end == request.c_str() + 5 || *end != '\0' || code <= 0) {
-      return Problem{"--crs", 0, "crs: \"" + request + "\" is not of the form EPSG:<number>"};
+      return Problem{"ElevationOptions::crs", 0, "crs: \"" + request + "\" is not of the form EPSG:<number>"};
     }
     if (srs.importFromEPSG(static_cast<int>(code)) != OGRERR_NONE) {
-      return Problem{"--crs", 0, "crs: EPSG:" + std::to_string(code) + " is unknown to PROJ"};
+      return Problem{"ElevationOptions::crs", 0, "crs: EPSG:" + std::to_string(code) + " is unknown to PROJ"};
     }
     return finish(srs, request);
   }
-  return Problem{"--crs", 0, "crs: unknown request \"" + request + "\"; use utm, cassini or EPSG:<n>"};
+  return Problem{"ElevationOptions::crs", 0, "crs: unknown request \"" + request + "\"; use utm, cassini or EPSG:<n>"};
 }
 
 GeoTransformer::~GeoTransformer() {

@@ -333,8 +333,9 @@ std::vector<Problem> Loader::nothingLanded(const CultureFrame& frame) {
           std::to_string(t.outside) + " wholly outside): the culture covers " + lonLatExtent(t.extent) +
           ", the database " + lonLatExtent(db);
     }
-    out.push_back({t.path, 0, m + "; give culture that overlaps the elevation (or a larger --elevation or "
-                                  "--extent), or leave out --culture"});
+    out.push_back({t.path, 0, m + "; give culture that overlaps the elevation (or a larger "
+                                  "ElevationOptions::sources or ElevationOptions::extent), or leave out "
+                                  "CultureOptions::sources"});
   }
   return out;
 }
@@ -757,10 +758,9 @@ void markJoins(std::vector<LineFeature>& lines) {
   }
 }
 
-/// Widens every line feature (widenLine), in parallel. Returns a warning
-/// ("" if none); `cancelled` is set when the build was cancelled.
-std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeTolerance, const Loader& loader,
-                     bool& cancelled) {
+/// Widens every line feature (widenLine), in parallel. Fails only when the
+/// build was cancelled; lines that could not be widened are a warning.
+Status widenAll(std::vector<LineFeature>& lines, int threads, double mergeTolerance, const Loader& loader) {
   std::atomic<std::size_t> done{0};
   std::atomic<std::size_t> failed{0};
   std::atomic<bool> stop{false};
@@ -796,9 +796,14 @@ std::string widenAll(std::vector<LineFeature>& lines, int threads, double mergeT
   };
   if (!lines.empty()) loader.progress(0.5, "widening lines");
   jobs::parallelFor(lines.size(), threads, work, &stop);
-  cancelled = stop;
-  return failed ? std::to_string(failed.load()) + " line features could not be widened (CGAL failure); dropped"
-                : std::string();
+  Status st;
+  if (stop) st.add(Problem{"culture", 0, "build: cancelled"});
+  if (failed) {
+    st.addWarning({"culture", 0,
+                   "culture: " + std::to_string(failed.load()) +
+                       " line features could not be widened (CGAL failure); dropped"});
+  }
+  return st;
 }
 
 }  // namespace
@@ -867,9 +872,9 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
   }
   if (!options.sources.empty() && impl->stats_.featuresLanded == 0) return loader.nothingLanded(frame);
   markJoins(impl->lines);
-  bool cancelled = false;
-  if (std::string e = widenAll(impl->lines, options.threads, options.mergeTolerance, loader, cancelled); !e.empty()) loader.warn("culture: " + e);
-  if (cancelled) return Problem{"culture", 0, "build: cancelled"};
+  const Status widened = widenAll(impl->lines, options.threads, options.mergeTolerance, loader);
+  for (const Problem& w : widened.warnings()) loader.warn(w.message);
+  if (!widened) return widened.problems();
   for (std::size_t k = 0; k < impl->lines.size(); ++k) {
     const LineFeature& l = impl->lines[k];
     if (!l.outline.empty()) continue;

@@ -50,11 +50,10 @@ bool sourceBox(const Frame& f, OGRCoordinateTransformation& toSource, const std:
 
 }  // namespace
 
-std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid,
-                            SourceAccuracy& out) {
-  out = {};
+Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid) {
+  SourceAccuracy out;
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
-  if (!ds || !ds->GetSpatialRef()) return "accuracy: cannot open the mosaic";
+  if (!ds || !ds->GetSpatialRef()) return stageError("accuracy: cannot open the mosaic");
   std::array<double, 6> geo{};
   ds->GetGeoTransform(geo.data());
   OGRSpatialReference src(*ds->GetSpatialRef()), dst, wgs;
@@ -64,10 +63,10 @@ std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const st
   std::unique_ptr<OGRCoordinateTransformation> toSource(OGRCreateCoordinateTransformation(&dst, &src));
   std::unique_ptr<OGRCoordinateTransformation> toTarget(OGRCreateCoordinateTransformation(&src, &dst));
   std::unique_ptr<OGRCoordinateTransformation> toLonLat(OGRCreateCoordinateTransformation(&dst, &wgs));
-  if (!toSource || !toTarget || !toLonLat) return "accuracy: PROJ cannot transform between the mosaic and the grid";
+  if (!toSource || !toTarget || !toLonLat) return stageError("accuracy: PROJ cannot transform between the mosaic and the grid");
   GDALRasterBand& band = *ds->GetRasterBand(1);
   int box[4] = {0, 0, -1, -1};
-  if (!sourceBox(f, *toSource, geo, band.GetXSize(), band.GetYSize(), box)) return "accuracy: PROJ failed";
+  if (!sourceBox(f, *toSource, geo, band.GetXSize(), band.GetYSize(), box)) return stageError("accuracy: PROJ failed");
   const double area = double(box[2] - box[0] + 1) * double(box[3] - box[1] + 1);
   const int step = std::max(1, static_cast<int>(std::floor(std::sqrt(area / kAccuracyPosts))));
   int hasNoData = 0;
@@ -78,7 +77,7 @@ std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const st
     for (int c = box[0]; c <= box[2]; c += step) {
       float v = 0;
       if (band.RasterIO(GF_Read, c, r, 1, 1, &v, 1, 1, GDT_Float32, 0, 0) != CE_None) {
-        return "accuracy: cannot read the sources";
+        return stageError("accuracy: cannot read the sources");
       }
       if (std::isnan(validOrNan(v, hasNoData != 0, nd))) continue;
       x.push_back(geo[0] + (c + 0.5) * geo[1] + (r + 0.5) * geo[2]);
@@ -86,8 +85,8 @@ std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const st
       z.push_back(v);
     }
   }
-  if (x.empty()) return {};
-  if (!toTarget->Transform(static_cast<int>(x.size()), x.data(), y.data())) return "accuracy: PROJ failed";
+  if (x.empty()) return out;
+  if (!toTarget->Transform(static_cast<int>(x.size()), x.data(), y.data())) return stageError("accuracy: PROJ failed");
   double sum = 0, sum2 = 0, worstE = 0, worstN = 0;
   for (std::size_t k = 0; k < x.size(); ++k) {
     const double u = (x[k] - f.originEasting) / f.spacing, v = (f.originNorthing - y[k]) / f.spacing;
@@ -103,12 +102,12 @@ std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const st
       worstE = x[k], worstN = y[k];
     }
   }
-  if (out.samples == 0) return {};
+  if (out.samples == 0) return out;
   out.mean = sum / double(out.samples);
   out.rmse = std::sqrt(sum2 / double(out.samples));
   toLonLat->Transform(1, &worstE, &worstN);
   out.worstLonLat = {worstE, worstN};
-  return {};
+  return out;
 }
 
 }  // namespace sandtable::convert::detail

@@ -96,37 +96,48 @@ std::string utcNow() {
 Result<bool> checkOptions(const ElevationOptions& o) {
   static const char* kKernels[] = {"auto", "weighted", "bilinear", "cubic", "average"};
   if (std::find(std::begin(kKernels), std::end(kKernels), o.resample) == std::end(kKernels)) {
-    return Problem{"--resample", 0, "build: unknown --resample \"" + o.resample +
+    return Problem{"ElevationOptions::resample", 0, "build: unknown ElevationOptions::resample \"" + o.resample +
                                         "\"; use auto, weighted, bilinear, cubic or average"};
   }
   if (o.fit != "triangles" && o.fit != "posts") {
-    return Problem{"--fit", 0, "build: unknown --fit \"" + o.fit + "\"; use triangles or posts"};
+    return Problem{"ElevationOptions::fit", 0, "build: unknown ElevationOptions::fit \"" + o.fit + "\"; use triangles or posts"};
   }
-  if (o.output.empty()) return Problem{"-o", 0, "build: no output directory (-o DB)"};
+  if (o.output.empty()) return Problem{"ElevationOptions::output", 0, "build: no output directory (ElevationOptions::output)"};
   std::error_code ec;
   if (fs::exists(o.output, ec) && !o.force) {
-    return Problem{o.output, 0, "build: the output already exists; choose another -o or pass --force to replace it"};
+    return Problem{o.output, 0,
+                   "build: the output already exists; choose another ElevationOptions::output or pass "
+                   "ElevationOptions::force to replace it"};
   }
   const fs::path parent = fs::absolute(o.output).parent_path();
   if (!fs::is_directory(parent, ec)) {
     return Problem{o.output, 0, "build: the parent directory " + parent.string() + " does not exist"};
   }
-  if (o.spacing < 0 || !std::isfinite(o.spacing)) return Problem{"--spacing", 0, "build: --spacing must be positive"};
+  if (o.spacing < 0 || !std::isfinite(o.spacing)) {
+    return Problem{"ElevationOptions::spacing", 0, "build: ElevationOptions::spacing must be positive"};
+  }
   if (!(o.moduleSize > 0) || o.levels < 1 || o.levels > 8) {
-    return Problem{"--module-size", 0, "build: --module-size must be positive and --levels 1..8"};
+    return Problem{"ElevationOptions::moduleSize", 0,
+                   "build: ElevationOptions::moduleSize must be positive and ElevationOptions::levels 1..8"};
   }
   if (!o.modules && (!o.culture.empty() || !o.materials.empty())) {
-    return Problem{"--culture", 0, "build: --culture and --materials need load modules; drop --no-modules"};
+    return Problem{"ElevationOptions::culture", 0,
+                   "build: ElevationOptions::culture and ElevationOptions::materials need load modules; drop "
+                   "ElevationOptions::modules = false"};
   }
-  if (o.zstdLevel < 1 || o.zstdLevel > 22) return Problem{"--zstd-level", 0, "build: --zstd-level must be 1..22"};
+  if (o.zstdLevel < 1 || o.zstdLevel > 22) {
+    return Problem{"ElevationOptions::zstdLevel", 0, "build: ElevationOptions::zstdLevel must be 1..22"};
+  }
   // OGR would say only that it cannot open a missing file; GDAL's virtual
   // paths (/vsizip/...) and connection strings (PG:...) are OGR's to judge.
   for (const auto& c : o.culture) {
     const bool plainPath = c.rfind("/vsi", 0) != 0 && c.find(':') == std::string::npos;
-    if (plainPath && !fs::exists(c, ec)) return Problem{c, 0, "culture: file not found; check the --culture path"};
+    if (plainPath && !fs::exists(c, ec)) {
+      return Problem{c, 0, "culture: file not found; check the ElevationOptions::culture path"};
+    }
   }
   if (!o.materials.empty() && !fs::exists(o.materials, ec)) {
-    return Problem{o.materials, 0, "materials: file not found; check the --materials path"};
+    return Problem{o.materials, 0, "materials: file not found; check the ElevationOptions::materials path"};
   }
   return true;
 }
@@ -196,7 +207,7 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
     const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
     const std::string err = blocks.use([&](grid::BlockData& block) {
       fillBlock(g, cls, f, bx, bz, block);
-      return writer.value()->writeBlock(bx, bz, block);
+      return writer.value()->writeBlock(bx, bz, block).message();
     });
     std::lock_guard lock(mutex);
     if (!err.empty() && firstError.empty()) firstError = err;
@@ -205,34 +216,36 @@ Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std
   });
   if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
   if (!firstError.empty()) return Problem{path, 0, firstError};
-  if (std::string err = writer.value()->finish(); !err.empty()) return Problem{path, 0, err};
+  if (Status st = writer.value()->finish(); !st) return st.problems();
   return WrittenGrid{writer.value()->header(), writer.value()->fileCrc()};
 }
 
-std::string fsyncDirectory(const std::string& dir) {
+Status fsyncDirectory(const std::string& dir) {
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return "cannot open " + dir;
+  if (fd < 0) return Problem{dir, 0, "cannot open " + dir};
   const int rc = ::fsync(fd);
   ::close(fd);
-  return rc == 0 ? std::string() : "cannot fsync " + dir;
+  if (rc != 0) return Problem{dir, 0, "cannot fsync " + dir};
+  return {};
 }
 
 /// Renames the finished directory into place, replacing an old one only
-/// after the new one is complete.
-std::string publish(const std::string& partial, const std::string& output) {
-  if (std::string e = fsyncDirectory(partial); !e.empty()) return e;
+/// after the new one is complete. Problems name `output`.
+Status publish(const std::string& partial, const std::string& output) {
+  auto fail = [&](const std::string& msg) { return Status(Problem{output, 0, "build: " + msg}); };
+  if (Status st = fsyncDirectory(partial); !st) return fail(st.message());
   std::error_code ec;
   std::string old;
   if (fs::exists(output, ec)) {
     old = output + ".old." + std::to_string(::getpid());
     fs::rename(output, old, ec);
-    if (ec) return "cannot move the old " + output + " aside: " + ec.message();
+    if (ec) return fail("cannot move the old " + output + " aside: " + ec.message());
   }
   fs::rename(partial, output, ec);
   if (ec) {
     std::error_code back;
     if (!old.empty()) fs::rename(old, output, back);  // put the old database back
-    return "cannot rename " + partial + " to " + output + ": " + ec.message();
+    return fail("cannot rename " + partial + " to " + output + ": " + ec.message());
   }
   if (!old.empty()) fs::remove_all(old, ec);
   fsyncDirectory(fs::absolute(output).parent_path().string());
@@ -301,8 +314,8 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   if (!r) return r.problems();
   const std::string text = materials::format(c.table);
   const auto bytes = std::as_bytes(std::span(text.data(), text.size()));
-  if (std::string e = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !e.empty()) {
-    return Problem{dir, 0, "build: " + e};
+  if (Status st = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !st) {
+    return Problem{dir, 0, "build: " + st.message()};
   }
   auto& files = report.manifest.files;
   files.push_back({pack::kPackFileName, r->packBytes, r->packCrc});
@@ -391,16 +404,18 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   if (ec) return Problem{partial.path(), 0, "build: cannot create the work directory: " + ec.message()};
 
   const std::string vrt = partial.path() + "/mosaic.vrt";
-  if (std::string e = detail::buildMosaic(sources.value(), vrt); !e.empty()) return Problem{o.output, 0, e};
+  // The stages' problems carry only a message; the build names its output.
+  auto atOutput = [&](const auto& st) { return Problem{o.output, 0, st.message()}; };
+  if (Status st = detail::buildMosaic(sources.value(), vrt); !st) return atOutput(st);
   std::vector<float> g;
   const KernelChoice kernel = chooseKernel(o.resample, o.fit, f.spacing, detail::nativeSpacingMetres(sources.value()));
   const auto tr = std::chrono::steady_clock::now();
-  const std::string err = kernel.resample == "weighted"
+  const Status resampled = kernel.resample == "weighted"
                               ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
                               : detail::resampleGdal(vrt, f, kernel.resample, o.threads, g, progress);
-  if (!err.empty()) return Problem{o.output, 0, err};
+  if (!resampled) return atOutput(resampled);
   if (kernel.fit == "triangles") {
-    if (std::string e = detail::fitTriangles(vrt, f, o.threads, g, progress); !e.empty()) return Problem{o.output, 0, e};
+    if (Status st = detail::fitTriangles(vrt, f, o.threads, g, progress); !st) return atOutput(st);
   }
   const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
   std::vector<std::uint8_t> cls(g.size());  // detail::PostClass per post
@@ -410,8 +425,9 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   const std::uint64_t seaPosts = o.seaFromVoids ? detail::markSea(f, g, cls) : 0;
   auto voids = detail::fillVoids(f, g, progress);
   if (!voids) return voids.problems();
-  SourceAccuracy accuracy;
-  if (std::string e = detail::measureAccuracy(vrt, f, g, accuracy); !e.empty()) return Problem{o.output, 0, e};
+  const auto measured = detail::measureAccuracy(vrt, f, g);
+  if (!measured) return atOutput(measured);
+  const SourceAccuracy accuracy = measured.value();
   fs::remove(vrt, ec);
 
   const std::string gridPath = partial.path() + "/" + manifest::kGridFileName;
@@ -464,13 +480,13 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
 
   const std::string text = manifest::encode(report.manifest);
-  if (std::string e = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
-                                      std::as_bytes(std::span(text.data(), text.size())));
-      !e.empty()) {
-    return Problem{o.output, 0, "build: " + e};
+  if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
+                                  std::as_bytes(std::span(text.data(), text.size())));
+      !st) {
+    return Problem{o.output, 0, "build: " + st.message()};
   }
   if (cancelRequested()) return Problem{o.output, 0, "build: cancelled"};
-  if (std::string e = publish(partial.path(), o.output); !e.empty()) return Problem{o.output, 0, "build: " + e};
+  if (Status st = publish(partial.path(), o.output); !st) return st.problems();
   partial.published();
   return report;
 }

@@ -22,11 +22,11 @@ Result<Box> lonLatExtent(const ElevationOptions& o, const std::vector<Source>& s
   if (!o.extent) return b;
   const Box& e = *o.extent;
   if (!(e[0] < e[2] && e[1] < e[3])) {
-    return Problem{"--extent", 0, "frame: --extent must be WEST SOUTH EAST NORTH with west < east and south < north"};
+    return Problem{"ElevationOptions::extent", 0, "frame: ElevationOptions::extent must be WEST SOUTH EAST NORTH with west < east and south < north"};
   }
   const Box c = {std::max(b[0], e[0]), std::max(b[1], e[1]), std::min(b[2], e[2]), std::min(b[3], e[3])};
   if (!(c[0] < c[2] && c[1] < c[3])) {
-    return Problem{"--extent", 0, "frame: --extent does not overlap the sources (they cover lon " +
+    return Problem{"ElevationOptions::extent", 0, "frame: ElevationOptions::extent does not overlap the sources (they cover lon " +
                                       std::to_string(b[0]) + ".." + std::to_string(b[2]) + ", lat " +
                                       std::to_string(b[1]) + ".." + std::to_string(b[3]) + ")"};
   }
@@ -73,17 +73,17 @@ Result<bool> checkScale(const GeoTransformer& t, const Box& b, const std::string
       bool ok = true;
       const double err = scaleError(t, p[0], p[1], ok);
       if (!ok) {
-        return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: lon " + std::to_string(p[0]) +
-                                       " lat " + std::to_string(p[1]) + " does not project; use --crs utm or cassini"};
+        return Problem{"ElevationOptions::crs", 0, "frame: " + crsName + " cannot hold the extent: lon " + std::to_string(p[0]) +
+                                       " lat " + std::to_string(p[1]) + " does not project; use ElevationOptions::crs utm or cassini"};
       }
       if (err > worst) worst = err, worstLon = p[0], worstLat = p[1];
     }
   }
   if (worst > maxScaleError) {
-    return Problem{"--crs", 0, "frame: " + crsName + " cannot hold the extent: its scale error reaches " +
+    return Problem{"ElevationOptions::crs", 0, "frame: " + crsName + " cannot hold the extent: its scale error reaches " +
                                    std::to_string(worst * 100) + "% at lon " + std::to_string(worstLon) + " lat " +
                                    std::to_string(worstLat) + " (limit " + std::to_string(maxScaleError * 100) +
-                                   "%); use --crs utm or cassini, or a smaller extent"};
+                                   "%); use ElevationOptions::crs utm or cassini, or a smaller extent"};
   }
   return true;
 }
@@ -97,7 +97,7 @@ Result<Inner> innerRectangle(const Box& b, const OGRSpatialReference& from, cons
   src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   dst.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&src, &dst));
-  if (!ct) return Problem{"--crs", 0, "frame: PROJ cannot transform the sources into " + to.name};
+  if (!ct) return Problem{"ElevationOptions::crs", 0, "frame: PROJ cannot transform the sources into " + to.name};
   Inner in;
   constexpr int kSteps = 64;
   for (int k = 0; k <= kSteps; ++k) {
@@ -105,14 +105,14 @@ Result<Inner> innerRectangle(const Box& b, const OGRSpatialReference& from, cons
     const double u = b[0] + f * (b[2] - b[0]), v = b[1] + f * (b[3] - b[1]);
     double xs[4] = {b[0], b[2], u, u}, ys[4] = {v, v, b[1], b[3]};
     if (!ct->Transform(4, xs, ys)) {
-      return Problem{"--crs", 0, "frame: " + to.name + " cannot hold the extent; use --crs utm or cassini"};
+      return Problem{"ElevationOptions::crs", 0, "frame: " + to.name + " cannot hold the extent; use ElevationOptions::crs utm or cassini"};
     }
     in.west = std::max(in.west, xs[0]);
     in.east = std::min(in.east, xs[1]);
     in.south = std::max(in.south, ys[2]);
     in.north = std::min(in.north, ys[3]);
   }
-  if (!(in.west < in.east && in.south < in.north)) return Problem{"--crs", 0, "frame: the extent is empty in " + to.name};
+  if (!(in.west < in.east && in.south < in.north)) return Problem{"ElevationOptions::crs", 0, "frame: the extent is empty in " + to.name};
   return in;
 }
 
@@ -150,7 +150,7 @@ Result<Inner> targetRectangle(const ElevationOptions& o, const std::vector<Sourc
     if (!crop) return crop.problems();
     in->intersect(crop.value());
     if (!(in->west < in->east && in->south < in->north)) {
-      return Problem{"--extent", 0, "frame: --extent does not overlap the sources"};
+      return Problem{"ElevationOptions::extent", 0, "frame: ElevationOptions::extent does not overlap the sources"};
     }
   }
   return in;
@@ -206,25 +206,25 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   Frame f;
   f.crs = crs.value();
   f.spacing = o.spacing > 0 ? o.spacing : std::max(0.01, std::round(nativeSpacingMetres(sources) * 100) / 100);
-  if (!(f.spacing > 0) || !std::isfinite(f.spacing)) return Problem{"--spacing", 0, "frame: spacing must be positive"};
+  if (!(f.spacing > 0) || !std::isfinite(f.spacing)) return Problem{"ElevationOptions::spacing", 0, "frame: spacing must be positive"};
   const double s = f.spacing;
   const Posts posts = postsAt(inner.value(), s);
   f.originEasting = posts.west;
   f.originNorthing = posts.north;
   const double east = posts.east, south = posts.south, nx = posts.nx, nz = posts.nz;
   if (nx < 2 || nz < 2) {
-    return Problem{"--spacing", 0, "frame: the extent holds fewer than 2 x 2 posts at " + std::to_string(s) +
-                                       " m spacing; use a smaller --spacing"};
+    return Problem{"ElevationOptions::spacing", 0, "frame: the extent holds fewer than 2 x 2 posts at " + std::to_string(s) +
+                                       " m spacing; use a smaller ElevationOptions::spacing"};
   }
   if (!fits(posts)) {
     const double fitting = smallestFittingSpacing(inner.value());
-    char buf[400];
+    char buf[512];
     std::snprintf(buf, sizeof buf,
                   "frame: %.0f x %.0f posts at %g m spacing is too many: the limit is %u posts along each "
-                  "axis and %.0f in all; the smallest spacing that fits this extent is %.2f m (use --spacing "
-                  "%.2f or more, or a smaller --extent)",
+                  "axis and %.0f in all; the smallest spacing that fits this extent is %.2f m (use ElevationOptions::spacing "
+                  "%.2f or more, or a smaller ElevationOptions::extent)",
                   nx, nz, s, grid::kMaxPostsPerAxis, kMaxPosts, fitting, fitting);
-    return Problem{"--spacing", 0, buf};
+    return Problem{"ElevationOptions::spacing", 0, buf};
   }
   f.postsX = static_cast<std::uint32_t>(nx);
   f.postsZ = static_cast<std::uint32_t>(nz);
@@ -232,7 +232,7 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   const double ys[4] = {f.originNorthing, f.originNorthing, south, south};
   for (int k = 0; k < 4; ++k) {
     if (!t.value()->toLonLat(xs[k], ys[k], f.cornersLonLat[k][0], f.cornersLonLat[k][1])) {
-      return Problem{"--crs", 0, "frame: a corner of the grid does not transform back to lon/lat"};
+      return Problem{"ElevationOptions::crs", 0, "frame: a corner of the grid does not transform back to lon/lat"};
     }
   }
   return f;

@@ -56,21 +56,25 @@ std::array<double, 2> postMetres(const std::array<double, 6>& geo, bool geograph
 /// Finest source post spacing in metres near the sources' centre.
 double nativeSpacingMetres(const std::vector<Source>& sources);
 
+/// The failure of a stage below buildElevation: no file or offset (the
+/// build names its output), the message alone ("resample: ...").
+inline Problem stageError(std::string message) { return {"", 0, std::move(message)}; }
+
 /// Writes a VRT mosaic of the sources (GDALBuildVRT, highest resolution)
 /// to `vrtPath`. Voids are told apart by nodata or the valid range.
-std::string buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath);
+Status buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath);
 
 /// Resamples the mosaic into `out` (postsX * postsZ, row-major from the
 /// north-west; NaN = void).
-std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int threads,
-                             std::vector<float>& out, const ProgressFn& progress);
-std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel,
-                         int threads, std::vector<float>& out, const ProgressFn& progress);
+Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
+                        const ProgressFn& progress);
+Status resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
+                    std::vector<float>& out, const ProgressFn& progress);
 
 /// Refines the posts so the terrain triangles are the least-squares fit of
 /// the source's bilinear surface (not point samples of it).
-std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
-                         const ProgressFn& progress);
+Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
+                    const ProgressFn& progress);
 
 /// What a post was after resampling: the void map behind materials 1 and 2.
 enum PostClass : std::uint8_t { kValidPost = 0, kVoidPost = 1, kSeaPost = 2 };
@@ -88,8 +92,7 @@ std::uint64_t markSea(const Frame& f, std::vector<float>& grid, std::vector<std:
 /// posts: every k-th source post along rows and columns, k chosen for about
 /// kAccuracyPosts posts over the grid, those inside the grid kept.
 inline constexpr double kAccuracyPosts = 8192;
-std::string measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid,
-                            SourceAccuracy& out);
+Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid);
 
 /// Fills NaN posts by interpolation (GDALFillNodata); returns how many.
 Result<std::uint64_t> fillVoids(const Frame& f, std::vector<float>& grid, const ProgressFn& progress);

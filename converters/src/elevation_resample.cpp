@@ -82,7 +82,7 @@ double weightedPlaneEstimate(const double* dx, const double* dy, const double* z
 
 namespace detail {
 
-std::string buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath) {
+Status buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath) {
   std::vector<const char*> names;
   for (const auto& s : sources) names.push_back(s.path.c_str());
   const char* args[] = {"-resolution", "highest", "-q", nullptr};
@@ -93,8 +93,8 @@ std::string buildMosaic(const std::vector<Source>& sources, const std::string& v
                                   names.data(), opts, &usageError);
   GDALBuildVRTOptionsFree(opts);
   if (!vrt) {
-    return "mosaic: cannot build a mosaic of the sources: " + lastGdalError() +
-           " (all sources must share one coordinate system)";
+    return stageError("mosaic: cannot build a mosaic of the sources: " + lastGdalError() +
+                      " (all sources must share one coordinate system)");
   }
   GDALClose(vrt);
   return {};
@@ -677,8 +677,8 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
 
 }  // namespace
 
-std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
-                             const ProgressFn& progress) {
+Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
+                        const ProgressFn& progress) {
   out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
   constexpr std::uint32_t kStripRows = 64;
   const std::uint32_t strips = (f.postsZ + kStripRows - 1) / kStripRows;
@@ -690,7 +690,7 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
   double sourceDiagonal = 0, minPostMetres = 0;
   {
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
-    if (!ds) return "resample: cannot open the mosaic: " + lastGdalError();
+    if (!ds) return stageError("resample: cannot open the mosaic: " + lastGdalError());
     std::array<double, 6> g{};
     ds->GetGeoTransform(g.data());
     const bool geographic = ds->GetSpatialRef() && ds->GetSpatialRef()->IsGeographic();
@@ -730,8 +730,9 @@ std::string resampleWeighted(const std::string& vrtPath, const Frame& f, int thr
     const std::uint32_t d = ++done;
     if (progress) progress(double(d) / strips, "resampling");
   });
-  if (cancelRequested()) return "build: cancelled";
-  return firstError;
+  if (cancelRequested()) return stageError("build: cancelled");
+  if (!firstError.empty()) return stageError(firstError);
+  return {};
 }
 
 namespace {
@@ -865,8 +866,8 @@ void parallelRows(std::uint32_t rows, int threads, Fn fn) {
 
 }  // namespace
 
-std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
-                         const ProgressFn& progress) {
+Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
+                    const ProgressFn& progress) {
   const SquareRule rule;
   FitSystem sys;
   sys.w = f.postsX;
@@ -895,8 +896,8 @@ std::string fitTriangles(const std::string& vrtPath, const Frame& f, int threads
     if (!e.empty() && firstError.empty()) firstError = e;
     if (opened && progress) progress(0.5 * double(++done) / strips, "fitting triangles");
   });
-  if (cancelRequested()) return "build: cancelled";
-  if (!firstError.empty()) return firstError;
+  if (cancelRequested()) return stageError("build: cancelled");
+  if (!firstError.empty()) return stageError(firstError);
 
   // Start from the point samples; a post no included square touches keeps its sample.
   std::vector<double> z(grid.size()), next2(grid.size());
@@ -1018,18 +1019,18 @@ GDALDataset* imageDataset(const std::string& vrtPath, const Frame& f, int thread
 
 }  // namespace
 
-std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
-                         std::vector<float>& out, const ProgressFn& progress) {
+Status resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
+                    std::vector<float>& out, const ProgressFn& progress) {
   out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
   GDALDataset* dst = wrapBuffer(out.data(), GDT_Float32, f.postsX, f.postsZ, f);
-  if (!dst) return "resample: cannot create the in-memory target: " + lastGdalError();
+  if (!dst) return stageError("resample: cannot create the in-memory target: " + lastGdalError());
   dst->GetRasterBand(1)->SetNoDataValue(NAN);
   SourceImage image;  // must outlive the MEM dataset that aliases it
   GDALDatasetH src = imageDataset(vrtPath, f, threads, image);
   if (!src) src = GDALOpen(vrtPath.c_str(), GA_ReadOnly);
   if (!src) {
     GDALClose(dst);
-    return "resample: cannot open the mosaic: " + lastGdalError();
+    return stageError("resample: cannot open the mosaic: " + lastGdalError());
   }
   const std::string nthreads = "NUM_THREADS=" + std::to_string(jobs::threadCount(threads));
   const char* args[] = {"-r", kernel.c_str(), "-multi", "-wo", nthreads.c_str(), "-wo", "INIT_DEST=NO_DATA",
@@ -1042,8 +1043,8 @@ std::string resampleGdal(const std::string& vrtPath, const Frame& f, const std::
   GDALWarpAppOptionsFree(opts);
   GDALClose(src);
   GDALClose(dst);  // does not free `out`: the band only aliases it
-  if (cancelRequested()) return "build: cancelled";
-  if (!res) return "resample: GDAL warp failed: " + lastGdalError();
+  if (cancelRequested()) return stageError("build: cancelled");
+  if (!res) return stageError("resample: GDAL warp failed: " + lastGdalError());
   for (float& v : out) {
     if (!(v >= kMinValid && v <= kMaxValid)) v = NAN;
   }

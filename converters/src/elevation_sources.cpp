@@ -62,7 +62,7 @@ Result<std::vector<std::string>> expandGlob(const std::string& pattern) {
 }  // namespace
 
 Result<std::vector<std::string>> expandSources(const std::vector<std::string>& args) {
-  if (args.empty()) return Problem{"--elevation", 0, "source: no elevation source given"};
+  if (args.empty()) return Problem{"ElevationOptions::sources", 0, "source: no elevation source given"};
   std::vector<std::string> out;
   for (const auto& a : args) {
     std::error_code ec;
@@ -147,7 +147,10 @@ Result<bool> probeEnds(GDALRasterBand& band, const std::string& path) {
 Result<Source> openOne(const std::string& path) {
   Source s;
   s.path = fs::absolute(path).lexically_normal().string();
-  if (!crc32File(path, s.crc, s.bytes)) return Problem{path, 0, "source: cannot read the file"};
+  const auto crc = crc32File(path);
+  if (!crc) return Problem{path, 0, "source: cannot read the file"};
+  s.crc = crc->crc;
+  s.bytes = crc->bytes;
   CPLErrorReset();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) {

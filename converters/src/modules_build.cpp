@@ -91,7 +91,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
       },
       [&](std::size_t, Built&& b) {
         if (stop) return;
-        if (b.record) b.error = writer.value()->append(std::move(*b.record));
+        if (b.record) b.error = writer.value()->append(std::move(*b.record)).message();
         if (!b.error.empty()) {
           error = b.error;  // the first in module order
           stop = true;
@@ -118,7 +118,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   if (!error.empty()) return Problem{directory, 0, "build: modules: " + error};
   if (cancelRequested()) return Problem{directory, 0, "build: cancelled"};
   if (progress) progress(1.0, "modules");
-  if (std::string e = writer.value()->finish(); !e.empty()) return Problem{directory, 0, "build: modules: " + e};
+  if (Status st = writer.value()->finish(); !st) return Problem{directory, 0, "build: modules: " + st.message()};
   r.sizes = writer.value()->stats();
   r.packBytes = writer.value()->packBytes();
   r.indexBytes = writer.value()->indexBytes();

@@ -430,24 +430,26 @@ Result<bool> moveIntoPlace(const fs::path& tmp, const fs::path& target, bool for
   return true;
 }
 
-/// Everything but the output directory.
-std::vector<Problem> validateGeometry(const SynthOptions& o) {
-  std::vector<Problem> out;
-  auto bad = [&](const std::string& opt, const std::string& msg) { out.push_back(Problem{opt, 0, msg}); };
+/// Everything but the output directory. Problems name the option field
+/// (file and message); the CLI shows its flag instead.
+Status validateGeometry(const SynthOptions& o) {
+  Status out;
+  auto bad = [&](const std::string& field, const std::string& msg) { out.add(Problem{field, 0, msg}); };
   if (!std::isfinite(o.sizeKm) || o.sizeKm < 1.0 || o.sizeKm > 1000.0) {
     char got[32];
     std::snprintf(got, sizeof got, "%g", o.sizeKm);
-    bad("--size-km", std::string("--size-km must be between 1 and 1000 (got ") + got + ")");
+    bad("SynthOptions::sizeKm", std::string("SynthOptions::sizeKm must be between 1 and 1000 (got ") + got + ")");
   }
   if (!std::isfinite(o.centerLon) || o.centerLon < -180.0 || o.centerLon > 180.0 || !std::isfinite(o.centerLat) ||
       o.centerLat < -80.0 || o.centerLat > 80.0) {
-    bad("--center", "--center LON LAT must have -180 <= LON <= 180 and -80 <= LAT <= 80");
+    bad("SynthOptions::centerLon, centerLat",
+        "SynthOptions::centerLon, centerLat must have -180 <= LON <= 180 and -80 <= LAT <= 80");
   }
-  if (o.threads < 0) bad("--threads", "--threads must be >= 0");
-  if (out.empty()) {
+  if (o.threads < 0) bad("SynthOptions::threads", "SynthOptions::threads must be >= 0");
+  if (out.ok()) {
     const Layout l = layout(o);
     if (l.west < -180.0 || l.east > 180.0 || l.south < -80.0 || l.north > 80.0) {
-      bad("--center", "the square must lie within -180..180 longitude and -80..80 latitude");
+      bad("SynthOptions::centerLon, centerLat", "the square must lie within -180..180 longitude and -80..80 latitude");
     }
   }
   return out;
@@ -455,21 +457,24 @@ std::vector<Problem> validateGeometry(const SynthOptions& o) {
 
 }  // namespace
 
-std::vector<Problem> validateSynthOptions(const SynthOptions& o) {
-  std::vector<Problem> out = validateGeometry(o);
-  if (o.outDir.empty() || targetPath(o.outDir).empty()) out.insert(out.begin(), Problem{"-o", 0, "an output directory (-o DIR) is required"});
+Status validateSynthOptions(const SynthOptions& o) {
+  Status out;
+  if (o.outDir.empty() || targetPath(o.outDir).empty()) {
+    out.add(Problem{"SynthOptions::outDir", 0, "an output directory (SynthOptions::outDir) is required"});
+  }
+  out.merge(validateGeometry(o));
   return out;
 }
 
 Result<SynthSummary> synthesize(const SynthOptions& o, const SynthProgress& progress) {
-  if (auto problems = validateSynthOptions(o); !problems.empty()) return problems;
+  if (Status valid = validateSynthOptions(o); !valid) return valid.problems();
   initGdal();
   const auto start = std::chrono::steady_clock::now();
   const int threads = jobs::threadCount(o.threads);
   const fs::path target = targetPath(o.outDir);
   std::error_code ec;
   if (fs::exists(target, ec) && !o.force) {
-    return Problem{target.string(), 0, "synth: " + target.string() + " exists (use --force to replace it)"};
+    return Problem{target.string(), 0, "synth: " + target.string() + " exists (use SynthOptions::force to replace it)"};
   }
   TempDir tmp{target.string() + ".partial." + std::to_string(::getpid())};
   if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
@@ -522,7 +527,7 @@ SynthTerrain::SynthTerrain(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) 
 SynthTerrain::~SynthTerrain() = default;
 
 Result<std::unique_ptr<SynthTerrain>> SynthTerrain::create(const SynthOptions& o) {
-  if (auto problems = validateGeometry(o); !problems.empty()) return problems;
+  if (Status valid = validateGeometry(o); !valid) return valid.problems();
   const Layout l = layout(o);
   auto impl = std::make_unique<Impl>();
   impl->world = synth::buildWorld(l.frame, l.sizeM, o.seed, jobs::threadCount(o.threads), false, {});

@@ -18,20 +18,21 @@ std::string format(const char* fmt, auto... args) {
   return buf;
 }
 
-/// Why the WKT is not a frame the tools can use, or "".
-std::string crsProblem(const std::string& wkt) {
+/// Whether the WKT is a frame the tools can use; the message says why not
+/// (no file: the caller names the manifest).
+Status checkCrs(const std::string& wkt) {
   initGdal();
   OGRSpatialReference srs;
   if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE) {
-    return "crs.wkt cannot be parsed as a CRS (GDAL/PROJ refuse it), so sample, fly and export cannot place "
-           "lon/lat in the database; rebuild the database";
+    return Problem{"", 0, "crs.wkt cannot be parsed as a CRS (GDAL/PROJ refuse it), so sample, fly and export cannot "
+                          "place lon/lat in the database; rebuild the database"};
   }
   if (!srs.IsProjected()) {
-    return "crs.wkt is not a projected CRS; the grid is in metres of a projected frame (the build only "
-           "writes utm, cassini or a projected EPSG code); rebuild the database";
+    return Problem{"", 0, "crs.wkt is not a projected CRS; the grid is in metres of a projected frame (the build only "
+                          "writes utm, cassini or a projected EPSG code); rebuild the database"};
   }
   if (std::fabs(srs.GetLinearUnits() - 1.0) > 1e-12) {
-    return format("crs.wkt is in units of %.9g m, not metres; rebuild the database", srs.GetLinearUnits());
+    return Problem{"", 0, format("crs.wkt is in units of %.9g m, not metres; rebuild the database", srs.GetLinearUnits())};
   }
   return {};
 }
@@ -47,12 +48,12 @@ double groundMetres(double lon0, double lat0, double lon1, double lat1) {
 
 }  // namespace
 
-std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::string& manifestPath) {
-  auto fail = [&](const std::string& msg) { return std::vector<Problem>{{manifestPath, 0, "manifest: " + msg}}; };
-  if (std::string why = crsProblem(m.crsWkt); !why.empty()) return fail(why);
+Status checkGeoreference(const manifest::Manifest& m, const std::string& manifestPath) {
+  auto fail = [&](const std::string& msg) { return Status(Problem{manifestPath, 0, "manifest: " + msg}); };
+  if (Status crs = checkCrs(m.crsWkt); !crs) return fail(crs.message());
   auto geo = GeoTransformer::create(m.crsWkt);
   if (!geo) return fail("crs.wkt: " + geo.problems().front().message + "; rebuild the database");
-  std::vector<Problem> out;
+  Status out;
   const char* names[4] = {"NW", "NE", "SE", "SW"};
   const double es[4] = {m.originEasting, m.eastEasting(), m.eastEasting(), m.originEasting};
   const double ns[4] = {m.originNorthing, m.originNorthing, m.southNorthing(), m.southNorthing()};
@@ -60,7 +61,7 @@ std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::s
     const auto& c = m.cornersLonLat[std::size_t(k)];
     double lon = 0, lat = 0;
     if (!geo.value()->toLonLat(es[k], ns[k], lon, lat)) {
-      out.push_back({manifestPath, 0,
+      out.add({manifestPath, 0,
                      format("manifest: the grid's %s corner post (E %.3f, N %.3f) does not transform to lon/lat "
                             "through crs.wkt",
                             names[k], es[k], ns[k])});
@@ -68,7 +69,7 @@ std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::s
     }
     const double d = groundMetres(c[0], c[1], lon, lat);
     if (!(d <= kCornerToleranceMetres)) {
-      out.push_back({manifestPath, 0,
+      out.add({manifestPath, 0,
                      format("manifest: corners_lonlat[%d] (%s) is lon %.9f lat %.9f, but the grid's %s corner post "
                             "(E %.3f, N %.3f) transforms through crs.wkt to lon %.9f lat %.9f, %.3f m away (more "
                             "than %.2f m)",
@@ -78,13 +79,12 @@ std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::s
   return out;
 }
 
-std::vector<Problem> validateDatabaseWithCrs(const std::string& dir, const Work& work) {
-  std::vector<Problem> out = validateDatabase(dir, work);
+Status validateDatabaseWithCrs(const std::string& dir, const Work& work) {
+  Status out = validateDatabase(dir, work);
   if (work.cancelled()) return out;
   auto m = manifest::readFromDirectory(dir);
   if (!m) return out;  // validateDatabase has reported why
-  auto geo = checkGeoreference(m.value(), dir + "/" + manifest::kFileName);
-  out.insert(out.end(), geo.begin(), geo.end());
+  out.merge(checkGeoreference(m.value(), dir + "/" + manifest::kFileName));
   return out;
 }
 

@@ -18,6 +18,7 @@
 #include <ogr_srs_api.h>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/converters/elevation.h"
 #include "sandtable/converters/synth.h"
 
 namespace fs = std::filesystem;
@@ -303,7 +304,8 @@ TEST(Synth, RefusesAnExistingDirectoryUnlessForced) {
   std::ofstream(s.dir / "data/marker") << "old";
   auto again = synthesize(o);
   ASSERT_FALSE(again);
-  EXPECT_NE(again.error().find("--force"), std::string::npos);
+  EXPECT_NE(again.error().find("SynthOptions::force"), std::string::npos) << again.error();
+  EXPECT_EQ(again.error().find("--"), std::string::npos) << again.error();
   EXPECT_TRUE(fs::exists(s.dir / "data/marker"));
   o.force = true;
   ASSERT_TRUE(synthesize(o));
@@ -318,20 +320,59 @@ TEST(Synth, ValidatesOptions) {
   using sandtable::convert::validateSynthOptions;
   SynthOptions o;
   o.outDir = "x";
-  EXPECT_TRUE(validateSynthOptions(o).empty());
+  EXPECT_TRUE(validateSynthOptions(o).ok());
   SynthOptions bad = o;
   bad.sizeKm = 0;
-  EXPECT_FALSE(validateSynthOptions(bad).empty());
+  EXPECT_FALSE(validateSynthOptions(bad).ok());
   bad.sizeKm = 1001;
-  EXPECT_FALSE(validateSynthOptions(bad).empty());
+  EXPECT_FALSE(validateSynthOptions(bad).ok());
   bad = o;
   bad.centerLat = 85;
-  EXPECT_FALSE(validateSynthOptions(bad).empty());
+  EXPECT_FALSE(validateSynthOptions(bad).ok());
   bad = o;
   bad.outDir.clear();
-  EXPECT_FALSE(validateSynthOptions(bad).empty());
+  EXPECT_FALSE(validateSynthOptions(bad).ok());
   // A 1000 km square is allowed and spans many cells.
   bad = o;
   bad.sizeKm = 1000;
-  EXPECT_TRUE(validateSynthOptions(bad).empty());
+  EXPECT_TRUE(validateSynthOptions(bad).ok());
+}
+
+// One Status holds every finding, and each names its option field (file
+// and message), never a CLI flag: the CLI maps fields to flags.
+TEST(Synth, OptionProblemsNameTheFieldNotAFlag) {
+  using sandtable::convert::validateSynthOptions;
+  SynthOptions bad;
+  bad.sizeKm = 0;
+  bad.threads = -1;
+  const sandtable::Status st = validateSynthOptions(bad);
+  ASSERT_EQ(st.problems().size(), 3u) << st.error();
+  const char* fields[] = {"SynthOptions::outDir", "SynthOptions::sizeKm", "SynthOptions::threads"};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const sandtable::Problem& p = st.problems()[k];
+    EXPECT_EQ(p.file, fields[k]);
+    EXPECT_NE(p.message.find(fields[k]), std::string::npos) << p.message;
+    EXPECT_EQ(p.message.find("--"), std::string::npos) << p.message;
+  }
+}
+
+TEST(Elevation, OptionProblemsNameTheFieldNotAFlag) {
+  Scratch s("fields");
+  sandtable::convert::ElevationOptions o;
+  o.sources = {(s.dir / "none.dt1").string()};
+  o.output = (s.dir / "db").string();
+  o.spacing = -30;
+  auto r = sandtable::convert::buildElevation(o, {});
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.problems().front().file, "ElevationOptions::spacing");
+  EXPECT_EQ(r.problems().front().message, "build: ElevationOptions::spacing must be positive");
+  o.spacing = 0;
+  o.modules = false;
+  o.culture = {"roads.gpkg"};
+  r = sandtable::convert::buildElevation(o, {});
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.problems().front().message,
+            "build: ElevationOptions::culture and ElevationOptions::materials need load modules; drop "
+            "ElevationOptions::modules = false");
+  EXPECT_FALSE(fs::exists(s.dir / "db"));
 }

@@ -25,25 +25,25 @@ std::uint32_t crc32(std::span<const std::byte> data, std::uint32_t seed) {
   return static_cast<std::uint32_t>(c);
 }
 
-bool crc32File(const std::string& path, std::uint32_t& crc, std::uint64_t& bytes) {
+Result<FileCrc> crc32File(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return false;
+  if (fd < 0) return Problem{path, 0, std::string("cannot open: ") + std::strerror(errno)};
   std::vector<std::byte> buf(1 << 20);
-  crc = 0;
-  bytes = 0;
+  FileCrc f;
   for (;;) {
     const ssize_t n = ::read(fd, buf.data(), buf.size());
     if (n < 0) {
       if (errno == EINTR) continue;
+      const std::string e = std::strerror(errno);
       ::close(fd);
-      return false;
+      return Problem{path, f.bytes, "cannot read: " + e};
     }
     if (n == 0) break;
-    crc = crc32(std::span(buf.data(), static_cast<std::size_t>(n)), crc);
-    bytes += static_cast<std::uint64_t>(n);
+    f.crc = crc32(std::span(buf.data(), static_cast<std::size_t>(n)), f.crc);
+    f.bytes += static_cast<std::uint64_t>(n);
   }
   ::close(fd);
-  return true;
+  return f;
 }
 
 std::string crcHex(std::uint32_t crc) {
@@ -52,10 +52,11 @@ std::string crcHex(std::uint32_t crc) {
   return s;
 }
 
-std::string writeFileAtomic(const std::string& path, std::span<const std::byte> data) {
+Status writeFileAtomic(const std::string& path, std::span<const std::byte> data) {
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  auto fail = [&](const std::string& msg) { return Status(Problem{path, 0, msg}); };
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return "cannot create " + tmp + ": " + std::strerror(errno);
+  if (fd < 0) return fail("cannot create " + tmp + ": " + std::strerror(errno));
   std::size_t done = 0;
   while (done < data.size()) {
     const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
@@ -64,63 +65,57 @@ std::string writeFileAtomic(const std::string& path, std::span<const std::byte> 
       const std::string e = std::strerror(errno);
       ::close(fd);
       ::unlink(tmp.c_str());
-      return "cannot write " + tmp + ": " + e;
+      return fail("cannot write " + tmp + ": " + e);
     }
     done += static_cast<std::size_t>(n);
   }
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     ::unlink(tmp.c_str());
-    return "cannot flush " + tmp;
+    return fail("cannot flush " + tmp);
   }
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const std::string e = std::strerror(errno);
     ::unlink(tmp.c_str());
-    return "cannot rename " + tmp + " to " + path + ": " + e;
+    return fail("cannot rename " + tmp + " to " + path + ": " + e);
   }
   return {};
 }
 
-bool readSmallFile(const std::string& path, std::vector<std::byte>& out,
-                   std::uint64_t maxBytes, std::string& error) {
+Result<std::vector<std::byte>> readSmallFile(const std::string& path, std::uint64_t maxBytes) {
+  auto fail = [&](const std::string& msg) { return Result<std::vector<std::byte>>(Problem{path, 0, msg}); };
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    error = std::string("cannot open: ") + std::strerror(errno);
-    return false;
-  }
+  if (fd < 0) return fail(std::string("cannot open: ") + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
-    error = "not a regular file";
-    return false;
+    return fail("not a regular file");
   }
   if (static_cast<std::uint64_t>(st.st_size) > maxBytes) {
     ::close(fd);
-    error = "file is " + std::to_string(st.st_size) + " bytes, more than the " +
-            std::to_string(maxBytes) + " allowed";
-    return false;
+    return fail("file is " + std::to_string(st.st_size) + " bytes, more than the " +
+                std::to_string(maxBytes) + " allowed");
   }
-  out.resize(static_cast<std::size_t>(st.st_size));
+  std::vector<std::byte> out(static_cast<std::size_t>(st.st_size));
   std::size_t done = 0;
   while (done < out.size()) {
     const ssize_t n = ::read(fd, out.data() + done, out.size() - done);
     if (n <= 0) {
       if (n < 0 && errno == EINTR) continue;
       ::close(fd);
-      error = "short read";
-      return false;
+      return fail("short read");
     }
     done += static_cast<std::size_t>(n);
   }
   ::close(fd);
-  return true;
+  return out;
 }
 
-std::string pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
+Status pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off) {
   while (n > 0) {
     const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(off));
     if (w < 0) {
       if (errno == EINTR) continue;
-      return std::strerror(errno);
+      return Problem{"", off, std::strerror(errno)};
     }
     data += w;
     n -= static_cast<std::size_t>(w);

@@ -44,12 +44,12 @@ void checkFiles(const std::string& dir, const manifest::Manifest& m, const Work&
     done += f.bytes;
     const std::string path = dir + "/" + f.path;
     hasGrid = hasGrid || f.path == manifest::kGridFileName;
-    std::uint32_t crc = 0;
-    std::uint64_t bytes = 0;
-    if (!crc32File(path, crc, bytes)) {
+    const auto read = crc32File(path);
+    if (!read) {
       out.push_back({path, 0, "database: listed in the manifest but cannot be read"});
       continue;
     }
+    const auto [crc, bytes] = read.value();
     if (bytes != f.bytes) {
       out.push_back({path, std::min(bytes, f.bytes),
                      "database: file is " + std::to_string(bytes) + " bytes, the manifest says " +
@@ -133,7 +133,7 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
                                         (idx ? pack::kPackFileName : pack::kIndexFileName)});
     return;
   }
-  std::vector<Problem> found = pack::validatePack(dir, work);
+  std::vector<Problem> found = pack::validatePack(dir, work).problems();
   if (work.cancelled()) {
     out.insert(out.end(), found.begin(), found.end());
     return;
@@ -160,7 +160,7 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
     const module::ModuleChecker checker(*g, h, r.packPath(), o);
     std::vector<module::ModuleEdges> above(h.modulesX), row(h.modulesX);
     std::vector<bool> haveAbove(h.modulesX, false), haveRow(h.modulesX, false);
-    auto append = [&](std::vector<Problem>&& ps) { found.insert(found.end(), ps.begin(), ps.end()); };
+    auto append = [&](const Status& st) { found.insert(found.end(), st.problems().begin(), st.problems().end()); };
     for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
       work.report(double(kz) / h.modulesZ, "checking modules");
       if (work.cancelled()) {
@@ -171,7 +171,7 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
         haveRow[kx] = false;
         auto mod = r.read(kx, kz);
         if (!mod) {
-          if (packSound) append(std::vector<Problem>(mod.problems()));
+          if (packSound) found.insert(found.end(), mod.problems().begin(), mod.problems().end());
           continue;
         }
         append(checker.check(mod.value(), r.entry(kx, kz).offset, &row[kx]));
@@ -225,10 +225,10 @@ Result<Database> openDatabase(const std::string& directory) {
   return db;
 }
 
-std::vector<Problem> validateDatabase(const std::string& directory, const Work& work) {
+Status validateDatabase(const std::string& directory, const Work& work) {
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) {
-    return {{directory, 0, "database: not a directory"}};
+    return Problem{directory, 0, "database: not a directory"};
   }
   auto m = manifest::readFromDirectory(directory);
   if (!m) return m.problems();
@@ -242,8 +242,8 @@ std::vector<Problem> validateDatabase(const std::string& directory, const Work& 
   checkFiles(directory, m.value(), work, out);
   if (stopped(directory + "/" + manifest::kFileName)) return out;
   const std::string gridPath = directory + "/" + manifest::kGridFileName;
-  auto gridProblems = grid::validateGrid(gridPath, work);
-  out.insert(out.end(), gridProblems.begin(), gridProblems.end());
+  const Status gridStatus = grid::validateGrid(gridPath, work);
+  out.insert(out.end(), gridStatus.problems().begin(), gridStatus.problems().end());
   if (stopped(gridPath)) return out;
   auto g = grid::GridFile::open(gridPath);
   if (g) checkAgreement(m.value(), g.value()->header(), gridPath, out);

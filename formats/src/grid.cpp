@@ -192,7 +192,7 @@ Result<std::unique_ptr<GridWriter>> GridWriter::create(const std::string& path, 
   return std::unique_ptr<GridWriter>(new GridWriter(path, tmp, fd, h));
 }
 
-std::string GridWriter::writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b) {
+Status GridWriter::writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b) {
   assert(bx < header_.blocksX && bz < header_.blocksZ);
   // One buffer per thread: encodeBlock overwrites all of it, and a fresh
   // zero-filled 44 KiB vector per block cost a memset of the whole file.
@@ -205,13 +205,14 @@ std::string GridWriter::writeBlock(std::uint32_t bx, std::uint32_t bz, const Blo
   e.maxElevation = *mx;
   const std::uint64_t off =
       header_.dataOffset + (std::uint64_t(bz) * header_.blocksX + bx) * kBlockBytes;
-  const std::string err = pwriteAll(fd_, buf.data(), buf.size(), off);
+  const Status w = pwriteAll(fd_, buf.data(), buf.size(), off);
   // Start writing the block back now, so finish()'s fsync has less to wait for.
-  if (err.empty()) ::sync_file_range(fd_, static_cast<off_t>(off), static_cast<off_t>(buf.size()), SYNC_FILE_RANGE_WRITE);
-  return err.empty() ? err : "grid writer: " + path_ + ": " + err;
+  if (w) ::sync_file_range(fd_, static_cast<off_t>(off), static_cast<off_t>(buf.size()), SYNC_FILE_RANGE_WRITE);
+  if (!w) return Problem{path_, 0, "grid writer: " + path_ + ": " + w.message()};
+  return {};
 }
 
-std::string GridWriter::finish() {
+Status GridWriter::finish() {
   std::vector<std::byte> table(header_.dataOffset - header_.blockTableOffset, std::byte{0});
   float mn = INFINITY, mx = -INFINITY;
   for (std::size_t k = 0; k < entries_.size(); ++k) {
@@ -235,11 +236,11 @@ std::string GridWriter::finish() {
     for (const BlockEntry& e : entries_) c = crc32_combine_op(c, e.crc, op);
     fileCrc_ = static_cast<std::uint32_t>(c);
   }
-  std::string err = pwriteAll(fd_, table.data(), table.size(), header_.blockTableOffset);
-  if (err.empty()) err = pwriteAll(fd_, head.data(), head.size(), 0);
+  std::string err = pwriteAll(fd_, table.data(), table.size(), header_.blockTableOffset).message();
+  if (err.empty()) err = pwriteAll(fd_, head.data(), head.size(), 0).message();
   if (err.empty() && ::fsync(fd_) != 0) err = std::strerror(errno);
   if (err.empty() && ::rename(tmp_.c_str(), path_.c_str()) != 0) err = std::strerror(errno);
-  if (!err.empty()) return "grid writer: " + path_ + ": " + err;
+  if (!err.empty()) return Problem{path_, 0, "grid writer: " + path_ + ": " + err};
   finished_ = true;
   return {};
 }
@@ -324,12 +325,12 @@ class Report {
   explicit Report(std::string file) : file_(std::move(file)) {}
   void add(const std::string& kind, std::uint64_t off, const std::string& msg) {
     auto& n = counts_[kind];
-    if (++n <= kPerKind) problems_.push_back({file_, off, msg});
+    if (++n <= kPerKind) problems_.add({file_, off, msg});
   }
-  std::vector<Problem> take() {
+  Status take() {
     for (const auto& [kind, n] : counts_) {
       if (n > kPerKind) {
-        problems_.push_back({file_, 0, "grid: " + std::to_string(n - kPerKind) + " more " + kind +
+        problems_.add({file_, 0, "grid: " + std::to_string(n - kPerKind) + " more " + kind +
                                            " problems not listed"});
       }
     }
@@ -339,7 +340,7 @@ class Report {
  private:
   static constexpr int kPerKind = 20;
   std::string file_;
-  std::vector<Problem> problems_;
+  Status problems_;
   std::map<std::string, int> counts_;
 };
 
@@ -421,7 +422,7 @@ void checkEdgePadding(const GridFile& g, std::uint32_t bx, std::uint32_t bz, std
 
 }  // namespace
 
-std::vector<Problem> validateGrid(const std::string& path, const Work& work) {
+Status validateGrid(const std::string& path, const Work& work) {
   auto opened = GridFile::open(path);
   if (!opened) return opened.problems();
   const GridFile& g = *opened.value();
@@ -452,7 +453,7 @@ std::vector<Problem> validateGrid(const std::string& path, const Work& work) {
     work.report(double(bz) / h.blocksZ, "checking grid");
     if (work.cancelled()) {
       auto out = r.take();
-      out.push_back({path, 0, kCancelledMessage});
+      out.add({path, 0, kCancelledMessage});
       return out;
     }
     for (std::uint32_t bx = 0; bx < h.blocksX; ++bx) {

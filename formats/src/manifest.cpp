@@ -230,12 +230,9 @@ Result<Manifest> decode(std::span<const std::byte> bytes, const std::string& fil
 
 Result<Manifest> readFromDirectory(const std::string& dir) {
   const std::string path = dir + "/" + kFileName;
-  std::vector<std::byte> bytes;
-  std::string err;
-  if (!readSmallFile(path, bytes, kMaxBytes, err)) {
-    return Problem{path, 0, "manifest: " + err + " (is this a sandtable database directory?)"};
-  }
-  return decode(bytes, path);
+  auto bytes = readSmallFile(path, kMaxBytes);
+  if (!bytes) return Problem{path, 0, "manifest: " + bytes.message() + " (is this a sandtable database directory?)"};
+  return decode(bytes.value(), path);
 }
 
 }  // namespace sandtable::manifest

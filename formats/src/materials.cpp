@@ -413,10 +413,9 @@ Result<Table> parse(std::span<const std::byte> text, const std::string& file) {
 }
 
 Result<Table> readFile(const std::string& path) {
-  std::vector<std::byte> bytes;
-  std::string error;
-  if (!readSmallFile(path, bytes, kMaxFileBytes, error)) return Problem{path, 0, "materials: " + error};
-  return parse(bytes, path);
+  auto bytes = readSmallFile(path, kMaxFileBytes);
+  if (!bytes) return Problem{path, 0, "materials: " + bytes.message()};
+  return parse(bytes.value(), path);
 }
 
 std::string format(const Table& t) {

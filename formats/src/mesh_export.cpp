@@ -60,10 +60,11 @@ std::size_t Mesh::triangles() const {
 
 MeshBuilder::MeshBuilder(Options o) : o_(o) {}
 
-std::string MeshBuilder::add(const module::Module& m, double x, double z) {
+Status MeshBuilder::add(const module::Module& m, double x, double z) {
+  auto fail = [](const std::string& msg) { return Status(Problem{"", 0, msg}); };
   if (o_.level >= m.levels.size()) {
-    return "export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) + ") has " +
-           std::to_string(m.levels.size()) + " levels; there is no level " + std::to_string(o_.level);
+    return fail("export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) + ") has " +
+           std::to_string(m.levels.size()) + " levels; there is no level " + std::to_string(o_.level));
   }
   const module::Level& lv = m.levels[o_.level];
   remap_.assign(lv.vertices.size(), kNone);
@@ -71,8 +72,8 @@ std::string MeshBuilder::add(const module::Module& m, double x, double z) {
     const bool skirt = g.half == module::Half::skirt;
     if (skirt && !o_.skirts) continue;
     if (std::uint64_t(g.firstIndex) + g.indexCount > lv.indices.size()) {
-      return "export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) +
-             ") has a group past its indices; run `sandtable validate`";
+      return fail("export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) +
+             ") has a group past its indices; run `sandtable validate`");
     }
     PartState& ps = parts_[{skirt, skirt ? std::uint16_t(0) : g.material}];
     ps.priority = std::min(ps.priority, g.priority);
@@ -81,11 +82,11 @@ std::string MeshBuilder::add(const module::Module& m, double x, double z) {
     for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount; ++k) {
       const std::uint32_t v = lv.indices[k];
       if (v >= lv.vertices.size()) {
-        return "export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) +
-               ") has an index past its vertices; run `sandtable validate`";
+        return fail("export: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) +
+               ") has an index past its vertices; run `sandtable validate`");
       }
       if (remap_[v] == kNone) {
-        if (mesh_.positions.size() >= kNone) return "export: more than 2^32 vertices; export fewer modules";
+        if (mesh_.positions.size() >= kNone) return fail("export: more than 2^32 vertices; export fewer modules");
         remap_[v] = std::uint32_t(mesh_.positions.size());
         const module::Vertex& p = lv.vertices[v];
         mesh_.positions.push_back({float(double(p.x) + x), p.y, float(double(p.z) + z)});

@@ -101,38 +101,39 @@ std::string str(std::uint64_t v) { return std::to_string(v); }
 
 }  // namespace
 
-std::string checkEncodable(const Module& m) {
+Status checkEncodable(const Module& m) {
+  auto fail = [](const std::string& msg) { return Status(Problem{"", 0, msg}); };
   if (m.levels.empty() || m.levels.size() > kMaxLevels) {
-    return "module: " + str(m.levels.size()) + " levels; a module holds 1 to " + str(kMaxLevels);
+    return fail("module: " + str(m.levels.size()) + " levels; a module holds 1 to " + str(kMaxLevels));
   }
   for (std::size_t li = 0; li < m.levels.size(); ++li) {
     const Level& l = m.levels[li];
     const std::string where = "module: level " + str(li);
     if (l.squaresX < 1 || l.squaresZ < 1 || l.squaresX > kMaxSquaresPerAxis ||
         l.squaresZ > kMaxSquaresPerAxis) {
-      return where + " squares " + str(l.squaresX) + " x " + str(l.squaresZ) +
-             " are out of range (1 to 65536 each)";
+      return fail(where + " squares " + str(l.squaresX) + " x " + str(l.squaresZ) +
+             " are out of range (1 to 65536 each)");
     }
     if (l.maxHeight.size() != squareCount(l)) {
-      return where + " has " + str(l.maxHeight.size()) + " maxHeight values for " +
-             str(squareCount(l)) + " squares";
+      return fail(where + " has " + str(l.maxHeight.size()) + " maxHeight values for " +
+             str(squareCount(l)) + " squares");
     }
     if (l.vertices.size() > 0xffffffffu || l.indices.size() > 0xffffffffu ||
         l.groups.size() > 0xffffffffu) {
-      return where + " has more than 2^32 - 1 vertices, indices or groups";
+      return fail(where + " has more than 2^32 - 1 vertices, indices or groups");
     }
     std::uint64_t next = 0;
     for (std::size_t g = 0; g < l.groups.size(); ++g) {
       if (l.groups[g].firstIndex != next) {
-        return where + " group " + str(g) + " firstIndex " + str(l.groups[g].firstIndex) +
+        return fail(where + " group " + str(g) + " firstIndex " + str(l.groups[g].firstIndex) +
                " is not " + str(next) +
                ", the sum of the index counts before it (groups must cover the indices "
-               "contiguously, in order)";
+               "contiguously, in order)");
       }
       next += l.groups[g].indexCount;
     }
     if (next != l.indices.size()) {
-      return where + " groups cover " + str(next) + " of its " + str(l.indices.size()) + " indices";
+      return fail(where + " groups cover " + str(next) + " of its " + str(l.indices.size()) + " indices");
     }
   }
   return {};
@@ -145,7 +146,7 @@ std::uint64_t encodedBytes(const Module& m) {
 }
 
 std::vector<std::byte> encode(const Module& m) {
-  assert(checkEncodable(m).empty());
+  assert(checkEncodable(m).ok());
   std::vector<bool> wide(m.levels.size());
   std::uint64_t total = kHeaderBytes;
   for (std::size_t li = 0; li < m.levels.size(); ++li) {
@@ -213,12 +214,11 @@ class LevelDecoder {
   LevelDecoder(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base)
       : bytes_(bytes), file_(file), base_(base) {}
 
-  /// True on success; otherwise `problem` is set.
-  bool decode(std::size_t li, std::size_t& pos, Level& l, Problem& problem) const {
+  /// The first problem of the level, if any.
+  Status decode(std::size_t li, std::size_t& pos, Level& l) const {
     const std::string lv = "level " + str(li);
     auto fail = [&](std::size_t off, const std::string& msg) {
-      problem = Problem{file_, base_ + off, "module: " + lv + msg};
-      return false;
+      return Status(Problem{file_, base_ + off, "module: " + lv + msg});
     };
     const std::size_t left = bytes_.size() - pos;
     if (left < kLevelHeaderBytes) {
@@ -370,7 +370,7 @@ class LevelDecoder {
                   " groups cover " + str(first) + " of the level's " + str(ni) + " indices");
     }
     pos = countPlane + 4 * std::size_t(ng);
-    return true;
+    return {};
   }
 
  private:
@@ -381,11 +381,10 @@ class LevelDecoder {
 
 }  // namespace
 
-bool decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
-                Module& m, Problem& problem) {
+Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
+                  Module& m) {
   auto fail = [&](std::uint64_t off, const std::string& msg) {
-    problem = Problem{file, baseOffset + off, "module: " + msg};
-    return false;
+    return Status(Problem{file, baseOffset + off, "module: " + msg});
   };
   if (bytes.size() < kHeaderBytes) {
     return fail(bytes.size(), "truncated: the header needs " + str(kHeaderBytes) +
@@ -438,19 +437,18 @@ bool decodeInto(std::span<const std::byte> bytes, const std::string& file, std::
   const LevelDecoder levels(bytes, file, baseOffset);
   std::size_t pos = kHeaderBytes;
   for (std::uint32_t li = 0; li < levelCount; ++li) {
-    if (!levels.decode(li, pos, m.levels[li], problem)) return false;
+    if (Status level = levels.decode(li, pos, m.levels[li]); !level) return level;
   }
   if (pos != bytes.size()) {
     return fail(pos, str(bytes.size() - pos) + " bytes follow the last level");
   }
-  return true;
+  return {};
 }
 
 Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
                       std::uint64_t baseOffset) {
   Module m;
-  Problem problem;
-  if (!decodeInto(bytes, file, baseOffset, m, problem)) return problem;
+  if (Status st = decodeInto(bytes, file, baseOffset, m); !st) return st.problems();
   return m;
 }
 

@@ -39,13 +39,13 @@ constexpr const char* kKindNames[kKindCount] = {
 
 class Report {
  public:
-  Report(const std::string& file, std::string who, std::uint32_t cap, std::vector<Problem>& out)
+  Report(const std::string& file, std::string who, std::uint32_t cap, Status& out)
       : file_(file), who_(std::move(who)), cap_(cap), out_(out) {}
   /// Counts one problem of `k`; true when it should be written out (so the
   /// message is only formatted when it will be listed).
   bool want(Kind k) { return ++counts_[k] <= cap_ || cap_ == 0; }
   void add(std::uint64_t offset, const std::string& msg) {
-    out_.push_back({file_, offset, "module check: " + msg});
+    out_.add({file_, offset, "module check: " + msg});
   }
   void finish(std::uint64_t offset) {
     for (std::size_t k = 0; k < kKindCount; ++k) {
@@ -60,7 +60,7 @@ class Report {
   const std::string& file_;
   std::string who_;
   std::uint32_t cap_;
-  std::vector<Problem>& out_;
+  Status& out_;
   std::array<std::uint64_t, kKindCount> counts_{};
 };
 
@@ -827,9 +827,8 @@ ModuleChecker::ModuleChecker(const grid::GridFile& grid, const pack::IndexHeader
   }
 }
 
-std::vector<Problem> ModuleChecker::check(const Module& m, std::uint64_t offset,
-                                          ModuleEdges* edges) const {
-  std::vector<Problem> out;
+Status ModuleChecker::check(const Module& m, std::uint64_t offset, ModuleEdges* edges) const {
+  Status out;
   Report r(file_, "module (" + str(m.kx) + "," + str(m.kz) + ")", options_.maxPerKind, out);
   ModuleRun run(grid_, header_, options_, classIndex_, m, offset, r);
   run.run(edges);
@@ -837,7 +836,7 @@ std::vector<Problem> ModuleChecker::check(const Module& m, std::uint64_t offset,
   return out;
 }
 
-std::vector<Problem> ModuleChecker::neighbours(const ModuleEdges& a, const ModuleEdges& b) const {
+Status ModuleChecker::neighbours(const ModuleEdges& a, const ModuleEdges& b) const {
   const bool eastOf = b.kx == a.kx + 1 && b.kz == a.kz;
   const bool southOf = b.kz == a.kz + 1 && b.kx == a.kx;
   assert((eastOf || southOf) && "neighbours: b must lie east or south of a");
@@ -846,7 +845,7 @@ std::vector<Problem> ModuleChecker::neighbours(const ModuleEdges& a, const Modul
   const Side sb = eastOf ? Side::west : Side::north;
   const std::string nameA = "module (" + str(a.kx) + "," + str(a.kz) + ")";
   const std::string nameB = "module (" + str(b.kx) + "," + str(b.kz) + ")";
-  std::vector<Problem> out;
+  Status out;
   Report r(file_, "modules (" + str(a.kx) + "," + str(a.kz) + ") and (" + str(b.kx) + "," +
                       str(b.kz) + ")",
            options_.maxPerKind, out);
@@ -885,16 +884,14 @@ std::vector<Problem> ModuleChecker::neighbours(const ModuleEdges& a, const Modul
   return out;
 }
 
-std::vector<Problem> checkModule(const Module& m, const grid::GridFile& g,
-                                 const pack::IndexHeader& h, const std::string& file,
-                                 std::uint64_t offset, const CheckOptions& o) {
+Status checkModule(const Module& m, const grid::GridFile& g, const pack::IndexHeader& h, const std::string& file,
+                   std::uint64_t offset, const CheckOptions& o) {
   return ModuleChecker(g, h, file, o).check(m, offset);
 }
 
-std::vector<Problem> checkNeighbours(const Module& a, std::uint64_t offsetA, const Module& b,
-                                     std::uint64_t offsetB, const grid::GridFile& g,
-                                     const pack::IndexHeader& h, const std::string& file,
-                                     const CheckOptions& o) {
+Status checkNeighbours(const Module& a, std::uint64_t offsetA, const Module& b, std::uint64_t offsetB,
+                       const grid::GridFile& g, const pack::IndexHeader& h, const std::string& file,
+                       const CheckOptions& o) {
   const ModuleChecker checker(g, h, file, o);
   ModuleEdges ea, eb;
   checker.check(a, offsetA, &ea);

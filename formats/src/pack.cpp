@@ -36,15 +36,16 @@ std::uint64_t entryOffset(const IndexHeader& h, std::uint32_t kx, std::uint32_t 
 
 // ---------------------------------------------------------------- file I/O
 
-/// Reads exactly n bytes at `off`. "" or an error (a short file is one).
-std::string preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off) {
+/// Reads exactly n bytes at `off` (a short file is an error). The problem
+/// has no file, only the offset and the reason.
+Status preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off) {
   while (n > 0) {
     const ssize_t r = ::pread(fd, data, n, static_cast<off_t>(off));
     if (r < 0) {
       if (errno == EINTR) continue;
-      return std::strerror(errno);
+      return Problem{"", off, std::strerror(errno)};
     }
-    if (r == 0) return "the file ends at byte " + str(off);
+    if (r == 0) return Problem{"", off, "the file ends at byte " + str(off)};
     data += r;
     n -= static_cast<std::size_t>(r);
     off += static_cast<std::uint64_t>(r);
@@ -62,14 +63,14 @@ class MappedFile {
   MappedFile(const MappedFile&) = delete;
   MappedFile& operator=(const MappedFile&) = delete;
 
-  /// "" or an error.
-  std::string open(const std::string& path) {
+  /// The problem names `path`; its message says why.
+  Status open(const std::string& path) {
     const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) return std::string("cannot open: ") + std::strerror(errno);
+    if (fd < 0) return Problem{path, 0, std::string("cannot open: ") + std::strerror(errno)};
     struct stat st {};
     if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
       ::close(fd);
-      return "not a regular file";
+      return Problem{path, 0, "not a regular file"};
     }
     size_ = static_cast<std::size_t>(st.st_size);
     if (size_ > 0) {
@@ -78,7 +79,7 @@ class MappedFile {
         const std::string e = std::strerror(errno);
         ::close(fd);
         size_ = 0;
-        return "mmap failed: " + e;
+        return Problem{path, 0, "mmap failed: " + e};
       }
       base_ = static_cast<const std::byte*>(m);
     }
@@ -122,40 +123,42 @@ ZSTD_DCtx* threadDCtx() {
 
 // ---------------------------------------------------------------- shared checks
 
-/// Checks an entry against the index header, with no I/O. Appends problems
-/// (in modules.idx); `placed` says whether the record lies within the pack
-/// and has sane sizes, so that it can be read.
-void checkEntry(const IndexHeader& h, const Entry& e, std::uint32_t kx, std::uint32_t kz,
-                const std::string& indexPath, std::vector<Problem>& out, bool& placed) {
-  placed = false;
+/// Checks an entry against the index header, with no I/O. The problems
+/// are in modules.idx; `placed` (when given) says whether the record lies
+/// within the pack and has sane sizes, so that it can be read.
+Status checkEntry(const IndexHeader& h, const Entry& e, std::uint32_t kx, std::uint32_t kz,
+                  const std::string& indexPath, bool* placed = nullptr) {
+  Status out;
+  if (placed) *placed = false;
   const std::uint64_t at = entryOffset(h, kx, kz);
   const std::string name = moduleName(kx, kz);
   if (e.kx != kx || e.kz != kz) {
-    out.push_back({indexPath, at + entryField::kx,
+    out.add({indexPath, at + entryField::kx,
                    "pack index: the entry of " + name + " names " + moduleName(e.kx, e.kz)});
   }
   if (e.compressedBytes == 0) {
-    out.push_back({indexPath, at + entryField::compressedBytes,
+    out.add({indexPath, at + entryField::compressedBytes,
                    "pack index: " + name + " is missing (its entry has no record)"});
-    return;
+    return out;
   }
   if (e.compressedBytes > kMaxModuleBytes || e.rawBytes == 0 || e.rawBytes > kMaxModuleBytes) {
-    out.push_back({indexPath, at + entryField::compressedBytes,
+    out.add({indexPath, at + entryField::compressedBytes,
                    "pack index: " + name + " sizes (" + str(e.compressedBytes) + " compressed, " +
                        str(e.rawBytes) + " raw) are out of range (1 to " + str(kMaxModuleBytes) +
                        " bytes)"});
-    return;
+    return out;
   }
   if (e.offset < kPackHeaderBytes || e.offset > h.packBytes ||
       e.compressedBytes > h.packBytes - e.offset) {
-    out.push_back({indexPath, at + entryField::offset,
+    out.add({indexPath, at + entryField::offset,
                    "pack index: " + name + " record at bytes " + str(e.offset) + ".." +
                        str(e.offset + e.compressedBytes - 1) +
                        " is not within the records of modules.pack (bytes " +
                        str(kPackHeaderBytes) + ".." + str(h.packBytes - 1) + ")"});
-    return;
+    return out;
   }
-  placed = true;
+  if (placed) *placed = true;
+  return out;
 }
 
 /// Checks a record's CRC, decompresses it and checks the raw size and (with
@@ -177,9 +180,8 @@ Result<std::vector<std::byte>> unpackRecord(const Entry& e, std::uint32_t kx, st
                 crcHex(c) + "): the pack is corrupt; rebuild the database");
   }
   std::vector<std::byte> raw;
-  std::string err;
-  if (!decompress(record, e.rawBytes, raw, err)) {
-    return fail(" record does not decompress: " + err);
+  if (const Status z = decompress(record, e.rawBytes, raw); !z) {
+    return fail(" record does not decompress: " + z.message());
   }
   if (!checkRawCrc) return raw;
   const std::uint32_t rc = crc32(raw);
@@ -215,34 +217,34 @@ Result<module::Module> decodeRecord(const IndexHeader& h, const Entry& e, std::u
 
 /// Opens modules.pack and checks its header; with the index header `h`,
 /// also its size and header CRC. Returns the descriptor (or -1) and appends
-/// problems.
-int openPack(const std::string& packPath, const IndexHeader* h, std::vector<Problem>& out) {
+/// problems to `out` (an open pack with a bad header still returns its
+/// descriptor, so that validatePack can go on to the records).
+int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
   const int fd = ::open(packPath.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
-    out.push_back({packPath, 0, std::string("pack: cannot open: ") + std::strerror(errno)});
+    out.add({packPath, 0, std::string("pack: cannot open: ") + std::strerror(errno)});
     return -1;
   }
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
-    out.push_back({packPath, 0, "pack: not a regular file"});
+    out.add({packPath, 0, "pack: not a regular file"});
     return -1;
   }
   const auto size = static_cast<std::uint64_t>(st.st_size);
   std::vector<std::byte> head(
       static_cast<std::size_t>(std::min<std::uint64_t>(size, kPackHeaderBytes)));
-  const std::string err = preadAll(fd, head.data(), head.size(), 0);
-  if (!err.empty()) {
+  if (const Status read = preadAll(fd, head.data(), head.size(), 0); !read) {
     ::close(fd);
-    out.push_back({packPath, 0, "pack: cannot read the header: " + err});
+    out.add({packPath, 0, "pack: cannot read the header: " + read.message()});
     return -1;
   }
-  auto headerProblems = checkPackHeader(head, packPath);
-  const bool headerOk = headerProblems.empty();
-  out.insert(out.end(), headerProblems.begin(), headerProblems.end());
+  const Status header = checkPackHeader(head, packPath);
+  const bool headerOk = header.ok();
+  out.merge(header);
   if (h) {
     if (size != h->packBytes) {
-      out.push_back({packPath, std::min(size, h->packBytes),
+      out.add({packPath, std::min(size, h->packBytes),
                      "pack: file is " + str(size) + " bytes but the index says " +
                          str(h->packBytes) +
                          (size < h->packBytes ? ": truncated" : ": trailing bytes") +
@@ -251,7 +253,7 @@ int openPack(const std::string& packPath, const IndexHeader* h, std::vector<Prob
     if (headerOk) {
       const std::uint32_t c = crc32(head);
       if (c != h->packHeaderCrc) {
-        out.push_back({packPath, packField::headerCrc,
+        out.add({packPath, packField::headerCrc,
                        "pack: header checksum " + crcHex(c) + " differs from the index's " +
                            crcHex(h->packHeaderCrc) +
                            ": modules.pack and modules.idx are not from the same build"});
@@ -261,12 +263,13 @@ int openPack(const std::string& packPath, const IndexHeader* h, std::vector<Prob
   return fd;
 }
 
-std::string tableCrcProblem(const IndexHeader& h, std::span<const std::byte> index) {
+Status checkTableCrc(const IndexHeader& h, std::span<const std::byte> index, const std::string& indexPath) {
   const std::uint32_t c = crc32(
       index.subspan(kIndexHeaderBytes, static_cast<std::size_t>(kEntryBytes * h.entryCount())));
   if (c == h.tableCrc) return {};
-  return "pack index: entry table checksum mismatch (stored " + crcHex(h.tableCrc) + ", computed " +
-         crcHex(c) + "): the index is corrupt; rebuild the database";
+  return Problem{indexPath, kIndexHeaderBytes,
+                 "pack index: entry table checksum mismatch (stored " + crcHex(h.tableCrc) + ", computed " +
+                     crcHex(c) + "): the index is corrupt; rebuild the database"};
 }
 
 }  // namespace
@@ -285,10 +288,8 @@ std::vector<std::byte> encodePackHeader() {
   return b;
 }
 
-std::vector<Problem> checkPackHeader(std::span<const std::byte> bytes, const std::string& file) {
-  auto fail = [&](std::uint64_t off, const std::string& msg) {
-    return std::vector<Problem>{Problem{file, off, "pack: " + msg}};
-  };
+Status checkPackHeader(std::span<const std::byte> bytes, const std::string& file) {
+  auto fail = [&](std::uint64_t off, const std::string& msg) { return Status(Problem{file, off, "pack: " + msg}); };
   if (bytes.size() < kPackHeaderBytes) {
     return fail(bytes.size(), "truncated: the header needs " + str(kPackHeaderBytes) +
                                   " bytes, the file ends at byte " + str(bytes.size()) +
@@ -469,29 +470,20 @@ std::vector<std::byte> compress(std::span<const std::byte> raw, int level) {
   return out;
 }
 
-bool decompress(std::span<const std::byte> packed, std::uint32_t rawBytes,
-                std::vector<std::byte>& out, std::string& error) {
+Status decompress(std::span<const std::byte> packed, std::uint32_t rawBytes, std::vector<std::byte>& out) {
   const unsigned long long declared = ZSTD_getFrameContentSize(packed.data(), packed.size());
-  if (declared == ZSTD_CONTENTSIZE_ERROR) {
-    error = "not a zstd frame";
-    return false;
-  }
+  if (declared == ZSTD_CONTENTSIZE_ERROR) return Problem{"", 0, "not a zstd frame"};
   if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared != rawBytes) {
-    error = "the frame holds " + str(declared) + " bytes, the index says " + str(rawBytes);
-    return false;
+    return Problem{"", 0, "the frame holds " + str(declared) + " bytes, the index says " + str(rawBytes)};
   }
   out.resize(rawBytes);
   const std::size_t n =
       ZSTD_decompressDCtx(threadDCtx(), out.data(), out.size(), packed.data(), packed.size());
-  if (ZSTD_isError(n)) {
-    error = std::string("zstd: ") + ZSTD_getErrorName(n);
-    return false;
-  }
+  if (ZSTD_isError(n)) return Problem{"", 0, std::string("zstd: ") + ZSTD_getErrorName(n)};
   if (n != rawBytes) {
-    error = "decompressed to " + str(n) + " bytes, the index says " + str(rawBytes);
-    return false;
+    return Problem{"", 0, "decompressed to " + str(n) + " bytes, the index says " + str(rawBytes)};
   }
-  return true;
+  return {};
 }
 
 // ---------------------------------------------------------------- writer
@@ -505,7 +497,7 @@ struct PackWriter::State {
   std::vector<Entry> entries;            ///< row-major; compressedBytes == 0 until added
   std::uint64_t end = kPackHeaderBytes;  ///< bytes written to the pack so far
   std::uint32_t crc = 0;                 ///< CRC-32 of the pack bytes so far
-  std::string failed;                    ///< first write error; poisons the writer
+  Status failed;                         ///< first write error; poisons the writer
   bool finished = false;
   std::uint32_t indexCrc = 0;
   std::uint64_t indexBytes = 0;
@@ -560,23 +552,25 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
   s->fd = ::open(s->packTmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (s->fd < 0) return fail("cannot create " + s->packTmp + ": " + std::strerror(errno));
   const auto head = encodePackHeader();
-  const std::string err = pwriteAll(s->fd, head.data(), head.size(), 0);
-  if (!err.empty()) return fail("cannot write " + s->packTmp + ": " + err);
+  if (const Status w = pwriteAll(s->fd, head.data(), head.size(), 0); !w) {
+    return fail("cannot write " + s->packTmp + ": " + w.message());
+  }
   s->crc = crc32(head);
   s->header.packHeaderCrc = s->crc;
   return std::unique_ptr<PackWriter>(new PackWriter(std::move(s)));
 }
 
-std::string PackWriter::add(const module::Module& m) {
+Status PackWriter::add(const module::Module& m) {
   auto r = compress(m);
-  if (!r) return r.problems().front().message;
+  if (!r) return Status(r.problems());
   return append(std::move(r.value()));
 }
 
 Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   const State& s = *state_;
   const std::string name = "pack writer: " + moduleName(m.kx, m.kz);
-  auto fail = [&](const std::string& message) { return Problem{s.packTmp, 0, message}; };
+  // Problems name the module, not a file: the pack is not in place yet.
+  auto fail = [](const std::string& msg) { return Problem{"", 0, msg}; };
   if (m.kx >= s.header.modulesX || m.kz >= s.header.modulesZ) {
     return fail(name + " is outside the pack's " + str(s.header.modulesX) + " x " +
                 str(s.header.modulesZ) + " modules");
@@ -585,7 +579,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
     return fail(name + " has " + str(m.levels.size()) + " levels, the pack holds " +
                 str(s.header.levels));
   }
-  if (const std::string e = module::checkEncodable(m); !e.empty()) return fail(name + ": " + e);
+  if (const Status e = module::checkEncodable(m); !e) return fail(name + ": " + e.message());
   if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
     return fail(name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) +
                 " allowed");
@@ -612,21 +606,21 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   return r;
 }
 
-std::string PackWriter::append(Record r) {
+Status PackWriter::append(Record r) {
   State& s = *state_;
   Entry& e = r.entry;
+  auto fail = [](const std::string& msg) { return Status(Problem{"", 0, msg}); };
   const std::lock_guard lock(s.mutex);
-  if (s.finished) return "pack writer: add() after finish()";
-  if (!s.failed.empty()) return s.failed;
+  if (s.finished) return fail("pack writer: add() after finish()");
+  if (!s.failed) return s.failed;
   if (e.kx >= s.header.modulesX || e.kz >= s.header.modulesZ || e.compressedBytes != r.bytes.size()) {
-    return "pack writer: append() of a record that compress() did not make";
+    return fail("pack writer: append() of a record that compress() did not make");
   }
   Entry& slot = s.entries[std::size_t(e.kz) * s.header.modulesX + e.kx];
-  if (slot.compressedBytes != 0) return "pack writer: " + moduleName(e.kx, e.kz) + " was added twice";
+  if (slot.compressedBytes != 0) return fail("pack writer: " + moduleName(e.kx, e.kz) + " was added twice");
   e.offset = s.end;
-  const std::string err = pwriteAll(s.fd, r.bytes.data(), r.bytes.size(), s.end);
-  if (!err.empty()) {
-    s.failed = "pack writer: cannot write " + s.packTmp + ": " + err + " (is the disk full?)";
+  if (const Status w = pwriteAll(s.fd, r.bytes.data(), r.bytes.size(), s.end); !w) {
+    s.failed = fail("pack writer: cannot write " + s.packTmp + ": " + w.message() + " (is the disk full?)");
     return s.failed;
   }
   s.end += r.bytes.size();
@@ -635,11 +629,12 @@ std::string PackWriter::append(Record r) {
   return {};
 }
 
-std::string PackWriter::finish() {
+Status PackWriter::finish() {
   State& s = *state_;
+  auto fail = [](const std::string& msg) { return Status(Problem{"", 0, msg}); };
   const std::lock_guard lock(s.mutex);
-  if (s.finished) return "pack writer: finish() was already called";
-  if (!s.failed.empty()) return s.failed;
+  if (s.finished) return fail("pack writer: finish() was already called");
+  if (!s.failed) return s.failed;
   std::uint64_t missing = 0;
   std::size_t firstMissing = 0;
   for (std::size_t k = 0; k < s.entries.size(); ++k) {
@@ -648,8 +643,8 @@ std::string PackWriter::finish() {
   if (missing > 0) {
     const auto kx = static_cast<std::uint32_t>(firstMissing % s.header.modulesX);
     const auto kz = static_cast<std::uint32_t>(firstMissing / s.header.modulesX);
-    return "pack writer: " + str(missing) + " of " + str(s.entries.size()) +
-           " modules were not added (the first is " + moduleName(kx, kz) + ")";
+    return fail("pack writer: " + str(missing) + " of " + str(s.entries.size()) +
+                " modules were not added (the first is " + moduleName(kx, kz) + ")");
   }
   std::vector<std::byte> index(static_cast<std::size_t>(s.header.indexBytes()), std::byte{0});
   for (std::size_t k = 0; k < s.entries.size(); ++k) {
@@ -661,14 +656,14 @@ std::string PackWriter::finish() {
   std::copy(head.begin(), head.end(), index.begin());
 
   auto failWith = [&](const std::string& what) {
-    s.failed = "pack writer: " + what;
+    s.failed = fail("pack writer: " + what);
     return s.failed;
   };
   if (::fsync(s.fd) != 0)
     return failWith("cannot flush " + s.packTmp + ": " + std::strerror(errno));
   FdGuard idx{::open(s.indexTmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
   if (idx.fd < 0) return failWith("cannot create " + s.indexTmp + ": " + std::strerror(errno));
-  std::string err = pwriteAll(idx.fd, index.data(), index.size(), 0);
+  std::string err = pwriteAll(idx.fd, index.data(), index.size(), 0).message();
   if (err.empty() && ::fsync(idx.fd) != 0) err = std::strerror(errno);
   if (!err.empty()) return failWith("cannot write " + s.indexTmp + ": " + err);
   // The pack first, the index last: an index under its final name always
@@ -745,18 +740,18 @@ Result<std::shared_ptr<const PackReader>> PackReader::open(const std::string& di
   auto s = std::make_unique<State>();
   s->packPath = join(directory, kPackFileName);
   s->indexPath = join(directory, kIndexFileName);
-  if (const std::string err = s->index.open(s->indexPath); !err.empty()) {
-    return Problem{s->indexPath, 0, "pack index: " + err};
+  if (const Status mapped = s->index.open(s->indexPath); !mapped) {
+    return Problem{s->indexPath, 0, "pack index: " + mapped.message()};
   }
   auto h = decodeIndexHeader(s->index.bytes(), s->indexPath, s->index.size());
   if (!h) return h.problems();
   s->header = h.value();
-  if (const std::string err = tableCrcProblem(s->header, s->index.bytes()); !err.empty()) {
-    return Problem{s->indexPath, kIndexHeaderBytes, err};
+  if (const Status table = checkTableCrc(s->header, s->index.bytes(), s->indexPath); !table) {
+    return table.problems();
   }
-  std::vector<Problem> problems;
-  s->pack.fd = openPack(s->packPath, &s->header, problems);
-  if (!problems.empty()) return problems;
+  Status pack;
+  s->pack.fd = openPack(s->packPath, &s->header, pack);
+  if (!pack) return pack.problems();
   return std::shared_ptr<const PackReader>(new PackReader(std::move(s)));
 }
 
@@ -774,10 +769,9 @@ Entry PackReader::entry(std::uint32_t kx, std::uint32_t kz) const {
 Result<std::vector<std::byte>> PackReader::unpack(std::uint32_t kx, std::uint32_t kz,
                                                   std::span<const std::byte> record) const {
   const Entry e = entry(kx, kz);
-  std::vector<Problem> problems;
-  bool placed = false;
-  checkEntry(state_->header, e, kx, kz, state_->indexPath, problems, placed);
-  if (!problems.empty()) return problems;
+  if (const Status checked = checkEntry(state_->header, e, kx, kz, state_->indexPath); !checked) {
+    return checked.problems();
+  }
   return unpackRecord(e, kx, kz, record, state_->packPath, true);
 }
 
@@ -787,16 +781,12 @@ namespace {
 Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
                                           std::uint32_t kz, int fd, const std::string& packPath,
                                           const std::string& indexPath, bool checkRawCrc) {
-  std::vector<Problem> problems;
-  bool placed = false;
-  checkEntry(h, e, kx, kz, indexPath, problems, placed);
-  if (!problems.empty()) return problems;
+  if (const Status checked = checkEntry(h, e, kx, kz, indexPath); !checked) return checked.problems();
   thread_local std::vector<std::byte> record;  // reused: no allocation per read
   record.resize(e.compressedBytes);
-  const std::string err = preadAll(fd, record.data(), record.size(), e.offset);
-  if (!err.empty()) {
+  if (const Status read = preadAll(fd, record.data(), record.size(), e.offset); !read) {
     return Problem{packPath, e.offset,
-                   "pack: cannot read the record of " + moduleName(kx, kz) + ": " + err};
+                   "pack: cannot read the record of " + moduleName(kx, kz) + ": " + read.message()};
   }
   return unpackRecord(e, kx, kz, record, packPath, checkRawCrc);
 }
@@ -818,40 +808,35 @@ Result<module::Module> PackReader::read(std::uint32_t kx, std::uint32_t kz) cons
   return decodeRecord(s.header, e, kx, kz, raw.value(), s.packPath);
 }
 
-bool PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out, Problem& problem) const {
+Status PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const {
   const State& s = *state_;
   const Entry e = entry(kx, kz);
   const std::string name = moduleName(kx, kz);
-  std::vector<Problem> problems;
-  bool placed = false;
-  checkEntry(s.header, e, kx, kz, s.indexPath, problems, placed);
-  if (!problems.empty()) {
-    problem = problems.front();
-    return false;
+  if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) {
+    return checked.problems().front();
   }
   thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
   record.resize(e.compressedBytes);
-  auto fail = [&](const std::string& msg) {
-    problem = Problem{s.packPath, e.offset, "pack: " + name + msg};
-    return false;
-  };
-  if (const std::string err = preadAll(s.pack.fd, record.data(), record.size(), e.offset); !err.empty()) {
-    return fail(": cannot read the record: " + err);
+  auto fail = [&](const std::string& msg) { return Status(Problem{s.packPath, e.offset, "pack: " + name + msg}); };
+  if (const Status read = preadAll(s.pack.fd, record.data(), record.size(), e.offset); !read) {
+    return fail(": cannot read the record: " + read.message());
   }
   if (const std::uint32_t c = crc32(record); c != e.compressedCrc) {
     return fail(" record checksum mismatch (stored " + crcHex(e.compressedCrc) + ", computed " + crcHex(c) +
                 "): the pack is corrupt; rebuild the database");
   }
-  if (std::string err; !decompress(record, e.rawBytes, raw, err)) return fail(" record does not decompress: " + err);
-  Problem p;
-  if (!module::decodeInto(raw, s.packPath, 0, out, p)) {
+  if (const Status z = decompress(record, e.rawBytes, raw); !z) {
+    return fail(" record does not decompress: " + z.message());
+  }
+  if (const Status d = module::decodeInto(raw, s.packPath, 0, out); !d) {
+    const Problem& p = d.problems().front();
     return fail(", decompressed byte " + str(p.offset) + ": " + p.message);
   }
   if (out.kx != kx || out.kz != kz) return fail(": the record holds " + moduleName(out.kx, out.kz));
   if (out.levels.size() != s.header.levels) {
     return fail(" has " + str(out.levels.size()) + " levels, the index says " + str(s.header.levels));
   }
-  return true;
+  return {};
 }
 
 // ---------------------------------------------------------------- validate
@@ -865,15 +850,15 @@ class Report {
   void add(const std::string& kind, Problem p) {
     auto& [n, file] = counts_[kind];
     if (n++ == 0) file = p.file;
-    if (n <= kPerKind) problems_.push_back(std::move(p));
+    if (n <= kPerKind) problems_.add(std::move(p));
   }
-  void add(const std::string& kind, const std::vector<Problem>& ps) {
-    for (const Problem& p : ps) add(kind, p);
+  void add(const std::string& kind, const Status& st) {
+    for (const Problem& p : st.problems()) add(kind, p);
   }
-  std::vector<Problem> take() {
+  Status take() {
     for (const auto& [kind, c] : counts_) {
       if (c.first > kPerKind) {
-        problems_.push_back({c.second, 0,
+        problems_.add({c.second, 0,
                              "pack: " + str(std::uint64_t(c.first - kPerKind)) + " more " + kind +
                                  " problems not listed"});
       }
@@ -883,7 +868,7 @@ class Report {
 
  private:
   static constexpr int kPerKind = 20;
-  std::vector<Problem> problems_;
+  Status problems_;
   std::map<std::string, std::pair<int, std::string>> counts_;
 };
 
@@ -894,22 +879,22 @@ struct Placed {
 
 }  // namespace
 
-std::vector<Problem> validatePack(const std::string& directory, const Work& work) {
+Status validatePack(const std::string& directory, const Work& work) {
   const std::string indexPath = join(directory, kIndexFileName);
   const std::string packPath = join(directory, kPackFileName);
   Report r;
   MappedFile index;
   IndexHeader h;
   bool haveHeader = false;
-  if (const std::string err = index.open(indexPath); !err.empty()) {
-    r.add("index", Problem{indexPath, 0, "pack index: " + err});
+  if (const Status mapped = index.open(indexPath); !mapped) {
+    r.add("index", Problem{indexPath, 0, "pack index: " + mapped.message()});
   } else if (auto dh = decodeIndexHeader(index.bytes(), indexPath, index.size()); !dh) {
-    r.add("index", dh.problems());
+    r.add("index", Status(dh.problems()));
   } else {
     h = dh.value();
     haveHeader = true;
   }
-  std::vector<Problem> packProblems;
+  Status packProblems;
   FdGuard pack{openPack(packPath, haveHeader ? &h : nullptr, packProblems)};
   r.add("pack", packProblems);
   if (!haveHeader) return r.take();
@@ -921,9 +906,7 @@ std::vector<Problem> validatePack(const std::string& directory, const Work& work
       break;
     }
   }
-  if (const std::string err = tableCrcProblem(h, all); !err.empty()) {
-    r.add("index", Problem{indexPath, kIndexHeaderBytes, err});
-  }
+  r.add("index", checkTableCrc(h, all, indexPath));
   // Reserved header bytes: the CRCs cover them, so only a writer that
   // resealed the CRC can put anything there; v1 writes zeros.
   for (std::size_t k = indexField::reserved; k < indexField::headerCrc; ++k) {
@@ -934,7 +917,7 @@ std::vector<Problem> validatePack(const std::string& directory, const Work& work
   }
   if (pack.fd >= 0) {
     std::array<std::byte, kPackHeaderBytes> head{};
-    if (preadAll(pack.fd, head.data(), head.size(), 0).empty()) {
+    if (preadAll(pack.fd, head.data(), head.size(), 0)) {
       for (std::size_t k = packField::reserved; k < packField::headerCrc; ++k) {
         if (head[k] != std::byte{0}) {
           r.add("pack", Problem{packPath, k, "pack: header reserved bytes 24..59 are not zero"});
@@ -949,10 +932,8 @@ std::vector<Problem> validatePack(const std::string& directory, const Work& work
   for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
     for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
       const Entry e = decodeEntry(all.subspan(entryOffset(h, kx, kz), kEntryBytes));
-      std::vector<Problem> problems;
       bool ok = false;
-      checkEntry(h, e, kx, kz, indexPath, problems, ok);
-      r.add("entry", problems);
+      r.add("entry", checkEntry(h, e, kx, kz, indexPath, &ok));
       if (ok) placed.push_back({e, kx, kz});
     }
   }
@@ -994,25 +975,24 @@ std::vector<Problem> validatePack(const std::string& directory, const Work& work
       work.report(double(done - 1) / double(placed.size()), "checking pack");
       if (work.cancelled()) {
         auto out = r.take();
-        out.push_back({packPath, 0, kCancelledMessage});
+        out.add({packPath, 0, kCancelledMessage});
         return out;
       }
     }
     record.resize(p.entry.compressedBytes);
-    if (const std::string err = preadAll(pack.fd, record.data(), record.size(), p.entry.offset);
-        !err.empty()) {
+    if (const Status read = preadAll(pack.fd, record.data(), record.size(), p.entry.offset); !read) {
       r.add("record",
             Problem{packPath, p.entry.offset,
-                    "pack: cannot read the record of " + moduleName(p.kx, p.kz) + ": " + err});
+                    "pack: cannot read the record of " + moduleName(p.kx, p.kz) + ": " + read.message()});
       continue;
     }
     auto raw = unpackRecord(p.entry, p.kx, p.kz, record, packPath, true);
     if (!raw) {
-      r.add("record", raw.problems());
+      r.add("record", Status(raw.problems()));
       continue;
     }
     auto m = decodeRecord(h, p.entry, p.kx, p.kz, raw.value(), packPath);
-    if (!m) r.add("module", m.problems());
+    if (!m) r.add("module", Status(m.problems()));
   }
   work.report(1.0, "checking pack");
   return r.take();

@@ -47,10 +47,10 @@ inline std::shared_ptr<const grid::GridFile> writeGrid(const std::string& dir, s
         b->normalZ[k] = 0;
         b->material[k] = 0;
       }
-      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b), "");
+      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b).message(), "");
     }
   }
-  EXPECT_EQ(w.value()->finish(), "");
+  EXPECT_EQ(w.value()->finish().message(), "");
   auto g = grid::GridFile::open(path);
   EXPECT_TRUE(g.ok()) << g.error();
   return g.value();

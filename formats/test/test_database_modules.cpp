@@ -50,13 +50,13 @@ class DatabaseModules : public ::testing::Test {
       for (std::uint32_t kx = 0; kx < header_.modulesX; ++kx) {
         module::Module m = buildModule(*grid_, header_, kx, kz);
         if (damage) damage(m);
-        ASSERT_EQ(w.value()->add(m), "");
+        ASSERT_EQ(w.value()->add(m).message(), "");
       }
     }
-    ASSERT_EQ(w.value()->finish(), "");
+    ASSERT_EQ(w.value()->finish().message(), "");
     const std::string text = materials::format(table());
     ASSERT_EQ(writeFileAtomic(dir_ + "/" + materials::kFileName,
-                              std::as_bytes(std::span(text.data(), text.size()))),
+                              std::as_bytes(std::span(text.data(), text.size()))).message(),
               "");
     manifest::Manifest m;
     m.toolVersion = "0.1.0";
@@ -76,14 +76,14 @@ class DatabaseModules : public ::testing::Test {
     m.levels = int(header_.levels);
     for (const char* name : {manifest::kGridFileName, pack::kPackFileName, pack::kIndexFileName,
                              materials::kFileName}) {
-      manifest::FileEntry f{name, 0, 0};
-      ASSERT_TRUE(crc32File(dir_ + "/" + name, f.crc, f.bytes));
-      m.files.push_back(f);
+      const auto c = crc32File(dir_ + "/" + name);
+      ASSERT_TRUE(c.ok()) << c.error();
+      m.files.push_back({name, c->bytes, c->crc});
     }
     if (edit) edit(m);
     const std::string json = manifest::encode(m);
     ASSERT_EQ(writeFileAtomic(dir_ + "/" + manifest::kFileName,
-                              std::as_bytes(std::span(json.data(), json.size()))),
+                              std::as_bytes(std::span(json.data(), json.size()))).message(),
               "");
   }
 
@@ -115,7 +115,7 @@ const Problem* find(const std::vector<Problem>& ps, const std::string& needle) {
 
 TEST_F(DatabaseModules, soundDatabaseValidatesAndOpensWithModulesAndMaterials) {
   write();
-  EXPECT_EQ(joined(validateDatabase(dir_)), "");
+  EXPECT_EQ(joined(validateDatabase(dir_).problems()), "");
   auto db = openDatabase(dir_);
   ASSERT_TRUE(db.ok()) << db.error();
   ASSERT_TRUE(db->modules);
@@ -130,7 +130,7 @@ TEST_F(DatabaseModules, gridOnlyDatabaseOpensWithoutModules) {
   for (const char* name : {pack::kPackFileName, pack::kIndexFileName, materials::kFileName}) {
     fs::remove(dir_ + "/" + name);
   }
-  EXPECT_EQ(joined(validateDatabase(dir_)), "");
+  EXPECT_EQ(joined(validateDatabase(dir_).problems()), "");
   auto db = openDatabase(dir_);
   ASSERT_TRUE(db.ok()) << db.error();
   EXPECT_FALSE(db->modules);
@@ -141,7 +141,7 @@ TEST_F(DatabaseModules, moduleProblemsNameThePackAndTheModulesOffset) {
   write([](module::Module& m) {
     if (m.kx == 1 && m.kz == 1) m.levels[0].maxHeight[0] += 0.5f;
   });
-  const auto ps = validateDatabase(dir_);
+  const auto ps = validateDatabase(dir_).problems();
   ASSERT_EQ(ps.size(), 1u) << joined(ps);
   EXPECT_EQ(ps[0].file, packPath());
   EXPECT_EQ(ps[0].offset, offsetOf(1, 1));
@@ -206,7 +206,7 @@ TEST_F(DatabaseModules, eachDamageHasItsOwnMessage) {
     fs::remove_all(dir_);
     grid_ = writeGrid(dir_, 8, 9);
     write(c.damage, c.edit);
-    const auto ps = validateDatabase(dir_);
+    const auto ps = validateDatabase(dir_).problems();
     EXPECT_TRUE(find(ps, c.expected)) << c.what << ": expected \"" << c.expected << "\" in\n" << joined(ps);
   }
 }
@@ -225,7 +225,7 @@ TEST_F(DatabaseModules, badlyBrokenModulesGiveAShortReportInPackOrder) {
       lv.skirtDepth = 0.5f;  // too shallow, and the skirts (20 m) leave the band
     }
   });
-  const auto ps = validateDatabase(dir_);
+  const auto ps = validateDatabase(dir_).problems();
   ASSERT_FALSE(ps.empty());
   // Per module: at most 5 of each kind plus one count line per kind.
   std::map<std::uint64_t, int> perModule;

@@ -36,18 +36,17 @@ std::string writeSmallGrid(const std::string& path, std::uint32_t nx, std::uint3
         b->normalZ[k] = 0;
         b->material[k] = std::uint8_t((i + j) % 3);
       }
-      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b), "");
+      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b).message(), "");
     }
   }
-  EXPECT_EQ(w.value()->finish(), "");
+  EXPECT_EQ(w.value()->finish().message(), "");
   return path;
 }
 
 std::vector<std::byte> readAll(const std::string& path) {
-  std::vector<std::byte> v;
-  std::string err;
-  EXPECT_TRUE(readSmallFile(path, v, 1u << 30, err)) << err;
-  return v;
+  auto v = readSmallFile(path, 1u << 30);
+  EXPECT_TRUE(v.ok()) << v.error();
+  return v.ok() ? v.value() : std::vector<std::byte>{};
 }
 
 void writeAll(const std::string& path, std::span<const std::byte> bytes) {
@@ -105,7 +104,7 @@ TEST(Grid, roundTripsThroughMmap) {
   EXPECT_EQ(g.value()->material(2, 2), 1);
   EXPECT_NEAR(g.value()->normal(5, 5)[1], 1.0f, 1e-6);
   EXPECT_FLOAT_EQ(g.value()->header().maxElevation, 1359.0f);
-  EXPECT_TRUE(validateGrid(path).empty());
+  EXPECT_TRUE(validateGrid(path).ok());
   fs::remove(path);
 }
 
@@ -122,7 +121,7 @@ TEST(Grid, everyTruncatedPrefixFailsWithFileAndOffset) {
     EXPECT_EQ(p.file, cut);
     EXPECT_NE(p.message.find("grid"), std::string::npos) << p.message;
     EXPECT_LE(p.offset, n);
-    EXPECT_FALSE(validateGrid(cut).empty());
+    EXPECT_FALSE(validateGrid(cut).ok());
   }
   fs::remove(cut);
   fs::remove(path);
@@ -178,7 +177,7 @@ TEST(Grid, validateFindsEveryFlippedByteInASmallFile) {
   for (std::size_t off = 0; off < bytes.size(); off += 13) {
     bytes[off] ^= std::byte{0x5a};
     writeAll(bad, bytes);
-    EXPECT_FALSE(validateGrid(bad).empty()) << "flip at " << off << " not caught";
+    EXPECT_FALSE(validateGrid(bad).ok()) << "flip at " << off << " not caught";
     bytes[off] ^= std::byte{0x5a};
   }
   fs::remove(bad);
@@ -193,9 +192,9 @@ TEST(Grid, validateReportsNanAndBadNormals) {
   b.normalY[7] = 0;
   auto w = GridWriter::create(tempPath("nan.stg"), makeHeader(64, 64, 1.0, 0, 0));
   ASSERT_TRUE(w.ok());
-  ASSERT_EQ(w.value()->writeBlock(0, 0, b), "");
-  ASSERT_EQ(w.value()->finish(), "");
-  const auto problems = validateGrid(tempPath("nan.stg"));
+  ASSERT_EQ(w.value()->writeBlock(0, 0, b).message(), "");
+  ASSERT_EQ(w.value()->finish().message(), "");
+  const auto problems = validateGrid(tempPath("nan.stg")).problems();
   bool nan = false, normal = false;
   for (const auto& p : problems) {
     nan = nan || p.message.find("NaN") != std::string::npos;

@@ -44,8 +44,8 @@ class MeshExport : public ::testing::Test {
     o.skirts = skirts;
     o.materials = &table_;
     MeshBuilder b(o);
-    EXPECT_EQ(b.add(west_, 0, 0), "");
-    EXPECT_EQ(b.add(east_, header_.moduleSize, 0), "");
+    EXPECT_EQ(b.add(west_, 0, 0).message(), "");
+    EXPECT_EQ(b.add(east_, header_.moduleSize, 0).message(), "");
     return b.finish();
   }
   static std::size_t triangles(const module::Module& m, std::uint32_t level, bool skirts) {
@@ -196,7 +196,7 @@ TEST_F(MeshExport, unknownClassesAndNamesAreMadeSafe) {
   Options o;
   o.materials = &t;
   MeshBuilder b(o);
-  ASSERT_EQ(b.add(west_, 0, 0), "");
+  ASSERT_EQ(b.add(west_, 0, 0).message(), "");
   const Mesh m = b.finish();
   ASSERT_EQ(m.parts.size(), 4u);
   EXPECT_EQ(m.parts[0].name, "tall_grass");
@@ -210,7 +210,7 @@ TEST_F(MeshExport, levelOutOfRangeIsAnError) {
   Options o;
   o.level = 3;
   MeshBuilder b(o);
-  EXPECT_EQ(b.add(west_, 0, 0), "export: module (0,0) has 3 levels; there is no level 3");
+  EXPECT_EQ(b.add(west_, 0, 0).message(), "export: module (0,0) has 3 levels; there is no level 3");
 }
 
 std::vector<std::byte> unbase64(const std::string& s) {

@@ -217,7 +217,7 @@ TEST(Module, roundTripsEveryField) {
   m.levels[1].vertices[5].y = std::bit_cast<float>(1u);           // smallest denormal
   m.levels[2].maxHeight[0] = -1e30f;
   m.levels[3].skirtDepth = 0;
-  ASSERT_EQ(checkEncodable(m), "");
+  ASSERT_EQ(checkEncodable(m).message(), "");
   const auto bytes = encode(m);
   EXPECT_EQ(bytes.size(), encodedBytes(m));
   auto back = decode(bytes, "m.bin");
@@ -234,19 +234,21 @@ TEST(Module, roundTripsEveryField) {
 TEST(Module, decodeIntoReusesAModuleAndMatchesDecode) {
   const Module big = samples::realistic(5, 7), small = samples::realistic(2, 3);  // two different modules
   Module reused;
-  Problem problem;
-  ASSERT_TRUE(decodeInto(encode(big), "big.bin", 0, reused, problem)) << problem.str();
+  Status st = decodeInto(encode(big), "big.bin", 0, reused);
+  ASSERT_TRUE(st.ok()) << st.error();
   expectEqual(big, reused);
   const std::size_t capacity = reused.levels[0].vertices.capacity();
   // Another module into the same storage: every field replaced.
-  ASSERT_TRUE(decodeInto(encode(small), "small.bin", 0, reused, problem)) << problem.str();
+  st = decodeInto(encode(small), "small.bin", 0, reused);
+  ASSERT_TRUE(st.ok()) << st.error();
   expectEqual(small, reused);
   EXPECT_GE(reused.levels[0].vertices.capacity(), capacity);  // never shrinks: no reallocation for smaller
   // Failures set the problem as decode's do.
   auto bytes = encode(small);
   bytes[bytes.size() / 2] ^= std::byte{1};
-  EXPECT_FALSE(decodeInto(bytes, "bad.bin", 100, reused, problem));
-  EXPECT_EQ(problem.str(), decode(bytes, "bad.bin", 100).error());
+  st = decodeInto(bytes, "bad.bin", 100, reused);
+  EXPECT_FALSE(st.ok());
+  EXPECT_EQ(st.error(), decode(bytes, "bad.bin", 100).error());
 }
 
 TEST(Module, decodeRecomputesFirstIndexAsTheRunningSum) {
@@ -453,7 +455,7 @@ TEST(Module, malformedContentIsRejectedWithItsMessage) {
   for (const Case& c : cases) {
     Module m = samples::tiny();
     c.mutate(m.levels[0]);
-    ASSERT_EQ(checkEncodable(m), "") << c.name;
+    ASSERT_EQ(checkEncodable(m).message(), "") << c.name;
     auto r = decode(encode(m), "bad.bin", 7);
     ASSERT_FALSE(r.ok()) << c.name;
     EXPECT_EQ(r.problems().front().message, c.message) << c.name;
@@ -507,24 +509,24 @@ TEST(Module, checksumsAndMagicAreChecked) {
 
 TEST(Module, checkEncodableFindsWhatTheBytesCannotSay) {
   Module m = samples::tiny();
-  EXPECT_EQ(checkEncodable(m), "");
+  EXPECT_EQ(checkEncodable(m).message(), "");
   m.levels[0].groups[1].firstIndex = 4;
-  EXPECT_EQ(checkEncodable(m),
+  EXPECT_EQ(checkEncodable(m).message(),
             "module: level 0 group 1 firstIndex 4 is not 3, the sum of the index counts before it "
             "(groups must cover the indices contiguously, in order)");
   m = samples::tiny();
   m.levels[0].indices.push_back(0);
-  EXPECT_EQ(checkEncodable(m), "module: level 0 groups cover 6 of its 7 indices");
+  EXPECT_EQ(checkEncodable(m).message(), "module: level 0 groups cover 6 of its 7 indices");
   m = samples::tiny();
   m.levels[0].maxHeight.clear();
-  EXPECT_EQ(checkEncodable(m), "module: level 0 has 0 maxHeight values for 1 squares");
+  EXPECT_EQ(checkEncodable(m).message(), "module: level 0 has 0 maxHeight values for 1 squares");
   m = samples::tiny();
   m.levels[0].squaresX = 0;
-  EXPECT_EQ(checkEncodable(m), "module: level 0 squares 0 x 1 are out of range (1 to 65536 each)");
+  EXPECT_EQ(checkEncodable(m).message(), "module: level 0 squares 0 x 1 are out of range (1 to 65536 each)");
   m.levels.clear();
-  EXPECT_EQ(checkEncodable(m), "module: 0 levels; a module holds 1 to 16");
+  EXPECT_EQ(checkEncodable(m).message(), "module: 0 levels; a module holds 1 to 16");
   m.levels.assign(17, samples::tiny().levels[0]);
-  EXPECT_EQ(checkEncodable(m), "module: 17 levels; a module holds 1 to 16");
+  EXPECT_EQ(checkEncodable(m).message(), "module: 17 levels; a module holds 1 to 16");
 }
 
 }  // namespace

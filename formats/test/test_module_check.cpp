@@ -71,7 +71,7 @@ class ModuleCheck : public ::testing::Test {
     fs::remove_all(dir_);
   }
   std::vector<Problem> check(const Module& m, std::uint64_t offset = 4096) const {
-    return checkModule(m, *grid_, header_, kPack, offset, options_);
+    return checkModule(m, *grid_, header_, kPack, offset, options_).problems();
   }
 
   std::string dir_;
@@ -105,13 +105,13 @@ TEST_F(ModuleCheck, soundNeighboursPass) {
   ModuleEdges e[2][2];
   for (std::uint32_t kz = 0; kz < 2; ++kz) {
     for (std::uint32_t kx = 0; kx < 2; ++kx) {
-      EXPECT_TRUE(checker.check(buildModule(*grid_, header_, kx, kz), 100 * (kz * 2 + kx), &e[kz][kx]).empty());
+      EXPECT_TRUE(checker.check(buildModule(*grid_, header_, kx, kz), 100 * (kz * 2 + kx), &e[kz][kx]).ok());
     }
   }
-  EXPECT_EQ(joined(checker.neighbours(e[0][0], e[0][1])), "");
-  EXPECT_EQ(joined(checker.neighbours(e[1][0], e[1][1])), "");
-  EXPECT_EQ(joined(checker.neighbours(e[0][0], e[1][0])), "");
-  EXPECT_EQ(joined(checker.neighbours(e[0][1], e[1][1])), "");
+  EXPECT_EQ(joined(checker.neighbours(e[0][0], e[0][1]).problems()), "");
+  EXPECT_EQ(joined(checker.neighbours(e[1][0], e[1][1]).problems()), "");
+  EXPECT_EQ(joined(checker.neighbours(e[0][0], e[1][0]).problems()), "");
+  EXPECT_EQ(joined(checker.neighbours(e[0][1], e[1][1]).problems()), "");
   // Level 0 of module (0,0): 5 skin vertices on each edge (4 squares).
   ASSERT_EQ(e[0][0].levels.size(), 3u);
   EXPECT_EQ(e[0][0].levels[0][std::size_t(Side::east)].size(), 5u);
@@ -350,9 +350,9 @@ TEST_F(ModuleCheck, neighbourEdgesMustMatch) {
   ModuleEdges west, east;
   // An extra (sound) skin vertex halfway along each east-edge segment of
   // module (0,0), which module (1,0) does not have.
-  EXPECT_EQ(joined(checker.check(buildModule(*grid_, header_, 0, 0, split), 10, &west)), "");
-  EXPECT_EQ(joined(checker.check(buildModule(*grid_, header_, 1, 0), 20, &east)), "");
-  const auto ps = checker.neighbours(west, east);
+  EXPECT_EQ(joined(checker.check(buildModule(*grid_, header_, 0, 0, split), 10, &west).problems()), "");
+  EXPECT_EQ(joined(checker.check(buildModule(*grid_, header_, 1, 0), 20, &east).problems()), "");
+  const auto ps = checker.neighbours(west, east).problems();
   // 4 + 2 + 1 segments over the three levels, 5 listed, then a count.
   ASSERT_EQ(ps.size(), 6u) << joined(ps);
   EXPECT_EQ(ps[0].message,
@@ -369,7 +369,7 @@ TEST_F(ModuleCheck, neighbourEdgesMustMatch) {
   b.levels.resize(1);
   a.levels[0][std::size_t(Side::south)] = {{0, 10}, {30, 11}};
   b.levels[0][std::size_t(Side::north)] = {{0, 10}, {15, 10.5f}, {30.0005f, 11.5}};
-  const auto qs = checker.neighbours(a, b);
+  const auto qs = checker.neighbours(a, b).problems();
   ASSERT_EQ(qs.size(), 2u) << joined(qs);
   EXPECT_EQ(qs[0].message,
             "module check: module (0,1) level 0 north edge: skin vertex at x 15.000 y 10.500 has no "
@@ -412,7 +412,7 @@ TEST_F(ModuleCheck, bigModulePasses) {
   const Module m = buildModule(*g, h, 0, 0);
   const ModuleChecker checker(*g, h, kPack, options_);
   ModuleEdges e;
-  EXPECT_EQ(joined(checker.check(m, 0, &e)), "");
+  EXPECT_EQ(joined(checker.check(m, 0, &e).problems()), "");
   ASSERT_EQ(e.levels.size(), 4u);
   EXPECT_EQ(e.levels[0][std::size_t(Side::east)].size(), 257u);
 }

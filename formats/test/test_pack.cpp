@@ -32,10 +32,9 @@ std::string tempDir(const std::string& name) {
 }
 
 std::vector<std::byte> readAll(const std::string& path) {
-  std::vector<std::byte> v;
-  std::string err;
-  EXPECT_TRUE(readSmallFile(path, v, 1u << 30, err)) << path << ": " << err;
-  return v;
+  auto v = readSmallFile(path, 1u << 30);
+  EXPECT_TRUE(v.ok()) << v.error();
+  return v.ok() ? v.value() : std::vector<std::byte>{};
 }
 
 void writeAll(const std::string& path, std::span<const std::byte> bytes) {
@@ -98,10 +97,10 @@ void writePack(const std::string& dir, const IndexHeader& h, int level = kDefaul
   ASSERT_TRUE(w.ok()) << w.error();
   for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
     for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
-      ASSERT_EQ(w.value()->add(sample(kx, kz, h)), "");
+      ASSERT_EQ(w.value()->add(sample(kx, kz, h)).message(), "");
     }
   }
-  ASSERT_EQ(w.value()->finish(), "");
+  ASSERT_EQ(w.value()->finish().message(), "");
 }
 
 std::vector<std::string> messages(const std::vector<Problem>& ps) {
@@ -241,20 +240,20 @@ TEST(Pack, roundTripsEveryModule) {
   auto w = PackWriter::create(dir, h);
   ASSERT_TRUE(w.ok()) << w.error();
   for (std::uint32_t kz = 0; kz < 2; ++kz) {
-    for (std::uint32_t kx = 0; kx < 3; ++kx) ASSERT_EQ(w.value()->add(sample(kx, kz, h)), "");
+    for (std::uint32_t kx = 0; kx < 3; ++kx) ASSERT_EQ(w.value()->add(sample(kx, kz, h)).message(), "");
   }
-  ASSERT_EQ(w.value()->finish(), "");
+  ASSERT_EQ(w.value()->finish().message(), "");
   const PackWriter& writer = *w.value();
   // The writer's CRCs and sizes are those of the files (for the manifest).
-  std::uint32_t crc = 0;
-  std::uint64_t bytes = 0;
-  ASSERT_TRUE(crc32File(dir + "/modules.pack", crc, bytes));
-  EXPECT_EQ(crc, writer.packCrc());
-  EXPECT_EQ(bytes, writer.packBytes());
-  ASSERT_TRUE(crc32File(dir + "/modules.idx", crc, bytes));
-  EXPECT_EQ(crc, writer.indexCrc());
-  EXPECT_EQ(bytes, writer.indexBytes());
-  EXPECT_EQ(bytes, 4096u + 6 * 32);
+  const auto pack = crc32File(dir + "/modules.pack");
+  ASSERT_TRUE(pack.ok()) << pack.error();
+  EXPECT_EQ(pack->crc, writer.packCrc());
+  EXPECT_EQ(pack->bytes, writer.packBytes());
+  const auto index = crc32File(dir + "/modules.idx");
+  ASSERT_TRUE(index.ok()) << index.error();
+  EXPECT_EQ(index->crc, writer.indexCrc());
+  EXPECT_EQ(index->bytes, writer.indexBytes());
+  EXPECT_EQ(index->bytes, 4096u + 6 * 32);
 
   auto r = PackReader::open(dir);
   ASSERT_TRUE(r.ok()) << r.error();
@@ -291,7 +290,7 @@ TEST(Pack, roundTripsEveryModule) {
     }
   }
   EXPECT_EQ(expectedOffset, writer.packBytes());
-  EXPECT_TRUE(validatePack(dir).empty()) << ::testing::PrintToString(messages(validatePack(dir)));
+  EXPECT_TRUE(validatePack(dir).ok()) << ::testing::PrintToString(messages(validatePack(dir).problems()));
   fs::remove_all(dir);
 }
 
@@ -315,7 +314,7 @@ TEST(Pack, threadsAddConcurrently) {
   for (std::uint32_t t = 0; t < 4; ++t) {
     threads.emplace_back([&, t] {
       for (std::uint32_t k = t; k < 30; k += 4) {
-        const std::string e = w.value()->add(sample(k % 6, k / 6, h));
+        const std::string e = w.value()->add(sample(k % 6, k / 6, h)).message();
         if (!e.empty()) errors[t] = e;
       }
     });
@@ -324,8 +323,8 @@ TEST(Pack, threadsAddConcurrently) {
   for (const auto& e : errors) EXPECT_EQ(e, "");
   const SizeStats st = w.value()->stats();
   EXPECT_EQ(st.count, 30u);
-  ASSERT_EQ(w.value()->finish(), "");
-  EXPECT_TRUE(validatePack(dir).empty()) << ::testing::PrintToString(messages(validatePack(dir)));
+  ASSERT_EQ(w.value()->finish().message(), "");
+  EXPECT_TRUE(validatePack(dir).ok()) << ::testing::PrintToString(messages(validatePack(dir).problems()));
   auto r = PackReader::open(dir);
   ASSERT_TRUE(r.ok()) << r.error();
   for (std::uint32_t k = 0; k < 30; ++k) {
@@ -349,9 +348,9 @@ TEST(Pack, recordsLandInAppendOrder) {
     records.push_back(std::move(r.value()));
   }
   PackWriter::Record again = records[5];
-  for (std::uint32_t k = 6; k-- > 0;) ASSERT_EQ(w.value()->append(std::move(records[k])), "");
-  EXPECT_NE(w.value()->append(std::move(again)).find("module (2,1) was added twice"), std::string::npos);
-  ASSERT_EQ(w.value()->finish(), "");
+  for (std::uint32_t k = 6; k-- > 0;) ASSERT_TRUE(w.value()->append(std::move(records[k])).ok());
+  EXPECT_NE(w.value()->append(std::move(again)).error().find("module (2,1) was added twice"), std::string::npos);
+  ASSERT_TRUE(w.value()->finish().ok());
   auto r = PackReader::open(dir);
   ASSERT_TRUE(r.ok()) << r.error();
   std::uint64_t offset = kPackHeaderBytes;
@@ -378,10 +377,10 @@ TEST(Pack, sizeStatsAreNearestRank) {
   for (std::uint32_t k = 0; k < 20; ++k) {
     // Varied sizes: some modules carry more levels of detail squares.
     const Module m = module::samples::realistic(k % 5, k / 5, 4 + (k % 3) * 4, 2);
-    ASSERT_EQ(w.value()->add(m), "");
+    ASSERT_EQ(w.value()->add(m).message(), "");
     raw += module::encode(m).size();
   }
-  ASSERT_EQ(w.value()->finish(), "");
+  ASSERT_EQ(w.value()->finish().message(), "");
   auto r = PackReader::open(dir);
   ASSERT_TRUE(r.ok());
   for (std::uint32_t k = 0; k < 20; ++k)
@@ -404,17 +403,17 @@ TEST(Pack, finishFailsWhileAModuleIsMissing) {
   const IndexHeader h = smallHeader(2, 2);
   auto w = PackWriter::create(dir, h);
   ASSERT_TRUE(w.ok());
-  for (std::uint32_t k = 0; k < 3; ++k) ASSERT_EQ(w.value()->add(sample(k % 2, k / 2, h)), "");
-  EXPECT_EQ(w.value()->finish(),
+  for (std::uint32_t k = 0; k < 3; ++k) ASSERT_EQ(w.value()->add(sample(k % 2, k / 2, h)).message(), "");
+  EXPECT_EQ(w.value()->finish().message(),
             "pack writer: 1 of 4 modules were not added (the first is module (1,1))");
   EXPECT_FALSE(fs::exists(dir + "/modules.pack"));
   EXPECT_FALSE(fs::exists(dir + "/modules.idx"));
   // The writer stays usable: add the last one and finish.
-  ASSERT_EQ(w.value()->add(sample(1, 1, h)), "");
-  ASSERT_EQ(w.value()->finish(), "");
-  EXPECT_EQ(w.value()->finish(), "pack writer: finish() was already called");
-  EXPECT_EQ(w.value()->add(sample(0, 0, h)), "pack writer: add() after finish()");
-  EXPECT_TRUE(validatePack(dir).empty());
+  ASSERT_EQ(w.value()->add(sample(1, 1, h)).message(), "");
+  ASSERT_EQ(w.value()->finish().message(), "");
+  EXPECT_EQ(w.value()->finish().message(), "pack writer: finish() was already called");
+  EXPECT_EQ(w.value()->add(sample(0, 0, h)).message(), "pack writer: add() after finish()");
+  EXPECT_TRUE(validatePack(dir).ok());
   // Only the two files: no temporaries left behind.
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 2);
   fs::remove_all(dir);
@@ -426,15 +425,15 @@ TEST(Pack, writerDestroyedWithoutFinishLeavesNoFiles) {
   {
     auto w = PackWriter::create(dir, h);
     ASSERT_TRUE(w.ok());
-    ASSERT_EQ(w.value()->add(sample(0, 0, h)), "");
+    ASSERT_EQ(w.value()->add(sample(0, 0, h)).message(), "");
     EXPECT_TRUE(fs::exists(dir + "/modules.pack.tmp." + std::to_string(::getpid())));
   }
   EXPECT_TRUE(fs::is_empty(dir));
   {
     auto w = PackWriter::create(dir, h);  // one of two added: finish fails, then abandoned
     ASSERT_TRUE(w.ok());
-    ASSERT_EQ(w.value()->add(sample(0, 0, h)), "");
-    EXPECT_NE(w.value()->finish(), "");
+    ASSERT_EQ(w.value()->add(sample(0, 0, h)).message(), "");
+    EXPECT_NE(w.value()->finish().message(), "");
   }
   EXPECT_TRUE(fs::is_empty(dir));
   fs::remove_all(dir);
@@ -458,28 +457,28 @@ TEST(Pack, writerRefusesBadInput) {
   auto w = PackWriter::create(dir, h);
   ASSERT_TRUE(w.ok());
   PackWriter& pw = *w.value();
-  EXPECT_EQ(pw.add(sample(2, 0, h)),
+  EXPECT_EQ(pw.add(sample(2, 0, h)).message(),
             "pack writer: module (2,0) is outside the pack's 2 x 2 modules");
-  EXPECT_EQ(pw.add(module::samples::realistic(0, 0, 4, 3)),
+  EXPECT_EQ(pw.add(module::samples::realistic(0, 0, 4, 3)).message(),
             "pack writer: module (0,0) has 3 levels, the pack holds 2");
   Module m = sample(0, 0, h);
   m.levels[1].groups[2].firstIndex += 3;
-  EXPECT_EQ(pw.add(m).rfind("pack writer: module (0,0): module: level 1 group 2 firstIndex", 0),
+  EXPECT_EQ(pw.add(m).message().rfind("pack writer: module (0,0): module: level 1 group 2 firstIndex", 0),
             0u);
   m = sample(0, 0, h);
   m.levels[0].indices[5] = 100000;
-  EXPECT_EQ(pw.add(m).rfind("pack writer: module (0,0) is malformed: module: level 0 index 5 is "
+  EXPECT_EQ(pw.add(m).message().rfind("pack writer: module (0,0) is malformed: module: level 0 index 5 is "
                             "100000, not below the vertex count",
                             0),
             0u)
-      << pw.add(m);
+      << pw.add(m).message();
   m = sample(0, 0, h);
   std::swap(m.levels[0].groups[0], m.levels[0].groups[1]);
   m.levels[0].groups[0].firstIndex = 0;
   m.levels[0].groups[1].firstIndex = m.levels[0].groups[0].indexCount;
-  EXPECT_NE(pw.add(m).find("in (priority, square, half, material) order"), std::string::npos);
-  ASSERT_EQ(pw.add(sample(0, 0, h)), "");
-  EXPECT_EQ(pw.add(sample(0, 0, h)), "pack writer: module (0,0) was added twice");
+  EXPECT_NE(pw.add(m).message().find("in (priority, square, half, material) order"), std::string::npos);
+  ASSERT_EQ(pw.add(sample(0, 0, h)).message(), "");
+  EXPECT_EQ(pw.add(sample(0, 0, h)).message(), "pack writer: module (0,0) was added twice");
   fs::remove_all(dir);
 }
 
@@ -497,12 +496,12 @@ TEST(Pack, everyTruncatedIndexPrefixFails) {
     EXPECT_EQ(p.file, idxPath);
     EXPECT_EQ(p.offset, n);
     EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
-    const auto problems = validatePack(dir);
+    const auto problems = validatePack(dir).problems();
     ASSERT_FALSE(problems.empty()) << "prefix " << n;
     EXPECT_EQ(problems.front().offset, n);
   }
   writeAll(idxPath, idx);
-  EXPECT_TRUE(validatePack(dir).empty());
+  EXPECT_TRUE(validatePack(dir).ok());
   fs::remove_all(dir);
 }
 
@@ -519,7 +518,7 @@ TEST(Pack, truncatedPacksFail) {
     ASSERT_FALSE(r.ok()) << "prefix " << n;
     EXPECT_EQ(r.problems().back().file, packPath);
     EXPECT_NE(r.problems().back().message.find("truncated"), std::string::npos) << r.error();
-    const auto problems = validatePack(dir);
+    const auto problems = validatePack(dir).problems();
     ASSERT_FALSE(problems.empty()) << "prefix " << n;
     EXPECT_TRUE(hasMessage(
         problems, "bytes but the index says " + std::to_string(pack.size()) + ": truncated"));
@@ -540,11 +539,11 @@ TEST(Pack, randomFlipsInEitherFileAreDetected) {
       const auto mask = static_cast<std::byte>(1 + (seed >> 32) % 255);
       bytes[off] ^= mask;
       writeAll(path, bytes);
-      EXPECT_FALSE(validatePack(dir).empty()) << name << ": flip at " << off << " not caught";
+      EXPECT_FALSE(validatePack(dir).ok()) << name << ": flip at " << off << " not caught";
       bytes[off] ^= mask;
     }
     writeAll(path, bytes);
-    EXPECT_TRUE(validatePack(dir).empty());
+    EXPECT_TRUE(validatePack(dir).ok());
   }
   fs::remove_all(dir);
 }
@@ -642,7 +641,7 @@ TEST(Pack, validateReportsEachStructuralFault) {
     c.edit(idx);
     resealIndex(idx);
     writeAll(idxPath, idx);
-    const auto problems = validatePack(dir);
+    const auto problems = validatePack(dir).problems();
     const bool found = std::any_of(problems.begin(), problems.end(), [&](const Problem& p) {
       return p.file == c.file && p.offset == c.offset && p.message.rfind(c.message, 0) == 0;
     });
@@ -650,7 +649,7 @@ TEST(Pack, validateReportsEachStructuralFault) {
                        << "\ngot " << ::testing::PrintToString(messages(problems));
   }
   writeAll(idxPath, goodIdx);
-  ASSERT_TRUE(validatePack(dir).empty());
+  ASSERT_TRUE(validatePack(dir).ok());
 
   // The reader reports the same faults when it reads the module.
   auto idx = goodIdx;
@@ -673,7 +672,7 @@ TEST(Pack, validateReportsEachStructuralFault) {
   storeLE<std::uint32_t>(pack.data() + packField::codec, 2);
   storeLE<std::uint32_t>(pack.data() + packField::headerCrc, crc32(std::span(pack).first(60)));
   writeAll(packPath, pack);
-  const auto problems = validatePack(dir);
+  const auto problems = validatePack(dir).problems();
   EXPECT_TRUE(hasMessage(problems, "pack: codec 2 is not supported (1 = zstd)"))
       << ::testing::PrintToString(messages(problems));
   EXPECT_FALSE(PackReader::open(dir).ok());
@@ -714,7 +713,7 @@ TEST(Pack, hostileIndexHeaderFieldsAreRejected) {
     ASSERT_FALSE(r.ok()) << c.expected;
     EXPECT_NE(r.error().find(c.expected), std::string::npos) << r.error();
     EXPECT_EQ(r.problems().front().offset, c.offset) << r.error();
-    EXPECT_TRUE(hasMessage(validatePack(dir), c.expected));
+    EXPECT_TRUE(hasMessage(validatePack(dir).problems(), c.expected));
   }
   auto bytes = good;
   bytes[0] = std::byte{'X'};
@@ -737,7 +736,7 @@ TEST(Pack, hostileIndexHeaderFieldsAreRejected) {
   EXPECT_NE(PackReader::open(dir).error().find("entry table checksum mismatch"), std::string::npos);
   fs::remove(idxPath);
   EXPECT_NE(PackReader::open(dir).error().find("pack index: cannot open"), std::string::npos);
-  EXPECT_FALSE(validatePack(dir).empty());
+  EXPECT_FALSE(validatePack(dir).ok());
   fs::remove_all(dir);
 }
 
@@ -747,18 +746,17 @@ TEST(Pack, compressRoundTripsAndDecompressRefusesBadFrames) {
   ASSERT_FALSE(packed.empty());
   EXPECT_LT(packed.size(), raw.size() / 3);
   std::vector<std::byte> out;
-  std::string err;
-  ASSERT_TRUE(decompress(packed, static_cast<std::uint32_t>(raw.size()), out, err)) << err;
+  const Status whole = decompress(packed, static_cast<std::uint32_t>(raw.size()), out);
+  ASSERT_TRUE(whole.ok()) << whole.error();
   EXPECT_EQ(out, raw);
-  EXPECT_FALSE(decompress(packed, static_cast<std::uint32_t>(raw.size() - 1), out, err));
-  EXPECT_EQ(err, "the frame holds " + std::to_string(raw.size()) + " bytes, the index says " +
-                     std::to_string(raw.size() - 1));
-  EXPECT_FALSE(decompress(std::span(raw).first(100), 100, out, err));
-  EXPECT_EQ(err, "not a zstd frame");
-  EXPECT_FALSE(decompress(std::span(packed).first(packed.size() - 1),
-                          static_cast<std::uint32_t>(raw.size()), out, err));
-  EXPECT_EQ(err.rfind("zstd: ", 0), 0u) << err;
-  EXPECT_FALSE(decompress({}, 10, out, err));
+  EXPECT_EQ(decompress(packed, static_cast<std::uint32_t>(raw.size() - 1), out).message(),
+            "the frame holds " + std::to_string(raw.size()) + " bytes, the index says " +
+                std::to_string(raw.size() - 1));
+  EXPECT_EQ(decompress(std::span(raw).first(100), 100, out).message(), "not a zstd frame");
+  const Status cut = decompress(std::span(packed).first(packed.size() - 1), static_cast<std::uint32_t>(raw.size()), out);
+  EXPECT_FALSE(cut.ok());
+  EXPECT_EQ(cut.message().rfind("zstd: ", 0), 0u) << cut.message();
+  EXPECT_FALSE(decompress({}, 10, out).ok());
 }
 
 }  // namespace

@@ -44,10 +44,10 @@ std::shared_ptr<const grid::GridFile> makeGrid(const std::string& name, std::uin
         b->elevation[k] = f(i, j);
         b->normalY[k] = grid::toSnorm(1.0f);
       }
-      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *b), "");
+      EXPECT_TRUE(gw.value()->writeBlock(bx, bz, *b).ok());
     }
   }
-  EXPECT_EQ(gw.value()->finish(), "");
+  EXPECT_TRUE(gw.value()->finish().ok());
   auto g = grid::GridFile::open(path);
   EXPECT_TRUE(g.ok()) << g.error();
   fs::remove_all(dir);  // the mapping stays valid
@@ -303,7 +303,7 @@ TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
     EXPECT_EQ(lv.squaresX, postsByHand(16, 29, l).size() - 1);
     EXPECT_EQ(lv.skirtDepth, depths[std::size_t(l)]);
     EXPECT_EQ(lv.maxHeight.size(), std::size_t(lv.squaresX) * lv.squaresZ);
-    EXPECT_EQ(module::checkEncodable(m), "");
+    EXPECT_TRUE(module::checkEncodable(m).ok()) << module::checkEncodable(m).error();
     EXPECT_TRUE(std::any_of(lv.groups.begin(), lv.groups.end(),
                             [](const module::Group& gr) { return gr.half == module::Half::skirt; }));
   }

@@ -39,7 +39,7 @@ std::string moduleName(std::uint32_t kx, std::uint32_t kz) {
   return "(" + std::to_string(kx) + "," + std::to_string(kz) + ")";
 }
 
-std::string writeText(const std::string& path, const std::string& text) {
+Status writeText(const std::string& path, const std::string& text) {
   return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
 }
 
@@ -146,8 +146,8 @@ int runExport(ExportArgs& a) {
         std::fprintf(stderr, "sandtable export: hint: run `sandtable validate %s` for a full report\n", a.dir.c_str());
         return kUsage;
       }
-      if (std::string e = builder.add(m.value(), double(kx - kx0) * edge, double(kz - kz0) * edge); !e.empty()) {
-        return usageError("export", e);
+      if (Status st = builder.add(m.value(), double(kx - kx0) * edge, double(kz - kz0) * edge); !st) {
+        return usageError("export", st.message());
       }
     }
   }
@@ -175,7 +175,7 @@ int runExport(ExportArgs& a) {
   }
 
   std::vector<std::string> written = {a.output};
-  std::string err;
+  Status saved;
   if (format == "obj") {
     fs::path mtl = fs::path(a.output).replace_extension(".mtl");
     const std::vector<std::string> header = {
@@ -184,15 +184,15 @@ int runExport(ExportArgs& a) {
         info["frame"].get<std::string>(),
         "origin: easting " + std::to_string(easting) + ", northing " + std::to_string(northing) + " in " +
             man.crsName + (man.epsg ? " (EPSG:" + std::to_string(man.epsg) + ")" : std::string())};
-    err = writeText(mtl.string(), mesh_export::toMtl(mesh));
-    if (err.empty()) err = writeText(a.output, mesh_export::toObj(mesh, mtl.filename().string(), header));
+    saved = writeText(mtl.string(), mesh_export::toMtl(mesh));
+    if (saved) saved = writeText(a.output, mesh_export::toObj(mesh, mtl.filename().string(), header));
     written.push_back(mtl.string());
   } else if (glb) {
-    err = writeFileAtomic(a.output, mesh_export::toGlb(mesh, {{"sandtable", info}}));
+    saved = writeFileAtomic(a.output, mesh_export::toGlb(mesh, {{"sandtable", info}}));
   } else {
-    err = writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}));
+    saved = writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}));
   }
-  if (!err.empty()) return usageError("export", err);
+  if (!saved) return usageError("export", saved.message());
 
   if (a.json) {
     nlohmann::json j = info;

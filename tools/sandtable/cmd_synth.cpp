@@ -49,9 +49,7 @@ int runSynth(SynthArgs& a) {
     a.o.centerLon = a.center[0];
     a.o.centerLat = a.center[1];
   }
-  if (auto problems = convert::validateSynthOptions(a.o); !problems.empty()) {
-    return usageError("synth", problems.front().message);
-  }
+  if (Status valid = convert::validateSynthOptions(a.o); !valid) return usageError("synth", valid.message());
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   Progress progress(a.json);

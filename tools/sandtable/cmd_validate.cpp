@@ -30,7 +30,8 @@ int runValidate(const std::string& dir, bool json) {
   Work work;
   work.progress = [&](double f, const std::string& stage) { progress.update(f, stage); };
   work.cancel = &gCancel;
-  const auto problems = convert::validateDatabaseWithCrs(dir, work);
+  const Status checked = convert::validateDatabaseWithCrs(dir, work);
+  const std::vector<Problem>& problems = checked.problems();
   progress.done();
   if (!problems.empty() && problems.back().message == kCancelledMessage) {
     return usageError("validate", "cancelled; " + dir + " was not fully checked (" +

@@ -1,6 +1,5 @@
 #include "flags.h"
 
-#include <array>
 #include <string_view>
 #include <utility>
 
@@ -8,7 +7,31 @@ namespace sandtable::cli {
 namespace {
 
 /// Longest first where one field name starts another.
-constexpr std::array<std::pair<std::string_view, std::string_view>, 25> kFieldFlags{{
+constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
+    {"ElevationOptions::sources", "--elevation"},
+    {"ElevationOptions::output", "-o"},
+    {"ElevationOptions::crs", "--crs"},
+    {"ElevationOptions::spacing", "--spacing"},
+    {"ElevationOptions::resample", "--resample"},
+    {"ElevationOptions::fit", "--fit"},
+    {"ElevationOptions::extent", "--extent"},
+    {"ElevationOptions::moduleSize", "--module-size"},
+    {"ElevationOptions::levels", "--levels"},
+    {"ElevationOptions::culture", "--culture"},
+    {"ElevationOptions::materials", "--materials"},
+    {"ElevationOptions::modules = false", "--no-modules"},
+    {"ElevationOptions::zstdLevel", "--zstd-level"},
+    {"ElevationOptions::maxScaleError", "--max-scale-error"},
+    {"ElevationOptions::seaFromVoids = false", "--no-sea-from-voids"},
+    {"ElevationOptions::force", "--force"},
+    {"ElevationOptions::threads", "--threads"},
+    {"CultureOptions::sources", "--culture"},
+    {"SynthOptions::outDir", "-o DIR"},
+    {"SynthOptions::sizeKm", "--size-km"},
+    {"SynthOptions::centerLon, centerLat", "--center LON LAT"},
+    {"SynthOptions::seed", "--seed"},
+    {"SynthOptions::force", "--force"},
+    {"SynthOptions::threads", "--threads"},
     {"RenderOptions::mode = ", "--mode "},
     {"RenderOptions::msaa", "--msaa"},
     {"RenderOptions::mode", "--mode"},
@@ -34,7 +57,7 @@ constexpr std::array<std::pair<std::string_view, std::string_view>, 25> kFieldFl
     {"FlySessionSettings::path", "--path"},
     {"FlySessionSettings::freeFlight", "--free-flight"},
     {"FlySessionSettings::map", "--map"},
-}};
+};
 
 }  // namespace
 
@@ -46,6 +69,13 @@ std::string withFlags(std::string message) {
     }
   }
   return message;
+}
+
+std::string flagFor(const std::string& field) {
+  for (const auto& [f, flag] : kFieldFlags) {
+    if (field == f) return std::string(flag);
+  }
+  return {};
 }
 
 }  // namespace sandtable::cli

@@ -7,5 +7,8 @@ namespace sandtable::cli {
 
 /// `message` with every option field the table knows replaced by its flag.
 std::string withFlags(std::string message);
+/// The flag that sets `field` exactly ("ElevationOptions::crs" -> "--crs"),
+/// or "" when the CLI has none.
+std::string flagFor(const std::string& field);
 
 }  // namespace sandtable::cli

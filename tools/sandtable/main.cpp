@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "flags.h"
 
 namespace sandtable::cli {
 namespace {
@@ -17,7 +18,7 @@ nlohmann::json& errorList() {
 }
 
 void printError(const std::string& cmd, const std::string& text) {
-  std::fprintf(stderr, "sandtable%s%s: error: %s\n", cmd.empty() ? "" : " ", cmd.c_str(), text.c_str());
+  std::fprintf(stderr, "sandtable%s%s: error: %s\n", cmd.empty() ? "" : " ", cmd.c_str(), withFlags(text).c_str());
 }
 
 /// The deepest subcommand that was parsed ("bench render"), or null.
@@ -67,14 +68,14 @@ int finish(int rc, const std::string& cmd, bool json) {
 
 int usageError(const std::string& cmd, const std::string& msg) {
   printError(cmd, msg);
-  errorList().push_back({{"message", msg}});
+  errorList().push_back({{"message", withFlags(msg)}});
   return kUsage;
 }
 
 int reportProblems(const std::string& cmd, const std::vector<Problem>& problems) {
   for (const auto& p : problems) {
     printError(cmd, p.str());
-    errorList().push_back({{"message", p.message}, {"file", p.file}, {"offset", p.offset}});
+    errorList().push_back({{"message", withFlags(p.message)}, {"file", withFlags(p.file)}, {"offset", p.offset}});
   }
   return kUsage;
 }

@@ -18,8 +18,7 @@ Result<std::uint64_t> PackSource::read(std::uint32_t kx, std::uint32_t kz, modul
                    "pack index: module (" + std::to_string(kx) + ", " + std::to_string(kz) +
                        ") is missing (its entry has no record)"};
   }
-  Problem problem;
-  if (!pack_->readInto(kx, kz, into, problem)) return problem;
+  if (Status read = pack_->readInto(kx, kz, into); !read) return read.problems();
   return std::uint64_t{0};
 }
 

@@ -157,10 +157,10 @@ TestDb makeDb(const std::string& name, std::uint32_t mx, std::uint32_t mz,
         b->elevation[k] = gridElevation(i, j);
         b->normalY[k] = grid::toSnorm(1.0f);
       }
-      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *b), "");
+      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *b).message(), "");
     }
   }
-  EXPECT_EQ(gw.value()->finish(), "");
+  EXPECT_EQ(gw.value()->finish().message(), "");
   auto g = grid::GridFile::open(db.dir + "/grid.stg");
   EXPECT_TRUE(g.ok()) << g.error();
   db.grid = g.value();
@@ -175,10 +175,10 @@ TestDb makeDb(const std::string& name, std::uint32_t mx, std::uint32_t mz,
   EXPECT_TRUE(pw.ok()) << pw.error();
   for (std::uint32_t kz = 0; kz < mz; ++kz) {
     for (std::uint32_t kx = 0; kx < mx; ++kx) {
-      EXPECT_EQ(pw.value()->add(makeModule(kx, kz, squares, levels)), "");
+      EXPECT_EQ(pw.value()->add(makeModule(kx, kz, squares, levels)).message(), "");
     }
   }
-  EXPECT_EQ(pw.value()->finish(), "");
+  EXPECT_EQ(pw.value()->finish().message(), "");
   auto pr = pack::PackReader::open(db.dir);
   EXPECT_TRUE(pr.ok()) << pr.error();
   db.pack = pr.value();

@@ -46,10 +46,10 @@ std::shared_ptr<const grid::GridFile> writeGrid() {
           b->normalZ[k] = 0;
         }
       }
-      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b), "");
+      EXPECT_EQ(w.value()->writeBlock(bx, bz, *b).message(), "");
     }
   }
-  EXPECT_EQ(w.value()->finish(), "");
+  EXPECT_EQ(w.value()->finish().message(), "");
   auto g = grid::GridFile::open(path.string());
   EXPECT_TRUE(g.ok()) << g.error();
   fs::remove(path);  // the mapping stays valid

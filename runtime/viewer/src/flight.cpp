@@ -174,7 +174,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
   for (const auto& f : r.frames) frames.push_back(frameJson(f));
   j["frames"] = frames;
   const std::string text = j.dump(2) + "\n";
-  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size()))).message();
 }
 
 FlightSummary summarize(const std::vector<FrameStats>& frames) {
@@ -636,7 +636,8 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   }
   std::string levels;
   for (std::size_t l = 0; l < s.levelCounts.size(); ++l) {
-    levels += (l ? "/" : "") + std::to_string(s.levelCounts[l]);
+    if (l) levels += '/';
+    levels += std::to_string(s.levelCounts[l]);
   }
   lines.push_back("TRIS " + std::to_string(s.triangles));
   lines.push_back(std::string("LOD ") + lodModeName(o.render.lod.mode) + "  LEVELS " + levels);

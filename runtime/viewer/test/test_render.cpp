@@ -71,10 +71,10 @@ std::string writeSyntheticDatabase(const fs::path& dir) {
           block->material[k] = 0;
         }
       }
-      EXPECT_EQ(writer.value()->writeBlock(bx, bz, *block), "");
+      EXPECT_EQ(writer.value()->writeBlock(bx, bz, *block).message(), "");
     }
   }
-  EXPECT_EQ(writer.value()->finish(), "");
+  EXPECT_EQ(writer.value()->finish().message(), "");
   const auto& h = writer.value()->header();
 
   manifest::Manifest m;
@@ -89,12 +89,12 @@ std::string writeSyntheticDatabase(const fs::path& dir) {
   m.minElevation = h.minElevation;
   m.maxElevation = h.maxElevation;
   m.cornersLonLat = {{{9, 47}, {9.1, 47}, {9.1, 46.93}, {9, 46.93}}};
-  manifest::FileEntry f{manifest::kGridFileName, 0, 0};
-  EXPECT_TRUE(crc32File(gridPath, f.crc, f.bytes));
-  m.files.push_back(f);
+  const auto c = crc32File(gridPath);
+  EXPECT_TRUE(c.ok()) << c.error();
+  m.files.push_back({manifest::kGridFileName, c.ok() ? c->bytes : 0, c.ok() ? c->crc : 0});
   const std::string text = manifest::encode(m);
   EXPECT_EQ(writeFileAtomic((dir / manifest::kFileName).string(),
-                            std::as_bytes(std::span(text.data(), text.size()))),
+                            std::as_bytes(std::span(text.data(), text.size()))).message(),
             "");
   return dir.string();
 }

@@ -88,10 +88,10 @@ Database planarDatabase(const std::string& dir) {
         block->elevation[k] = planeY(i * kSpacing, j * kSpacing);
         block->normalY[k] = grid::toSnorm(1.0f);
       }
-      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *block), "");
+      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *block).message(), "");
     }
   }
-  EXPECT_EQ(gw.value()->finish(), "");
+  EXPECT_EQ(gw.value()->finish().message(), "");
   pack::IndexHeader h;
   h.modulesX = h.modulesZ = kModules;
   h.levels = kLevels;
@@ -100,9 +100,9 @@ Database planarDatabase(const std::string& dir) {
   auto pw = pack::PackWriter::create(dir, h, 1);
   EXPECT_TRUE(pw.ok()) << pw.error();
   for (std::uint32_t kz = 0; kz < kModules; ++kz) {
-    for (std::uint32_t kx = 0; kx < kModules; ++kx) EXPECT_EQ(pw.value()->add(planarModule(kx, kz)), "");
+    for (std::uint32_t kx = 0; kx < kModules; ++kx) EXPECT_EQ(pw.value()->add(planarModule(kx, kz)).message(), "");
   }
-  EXPECT_EQ(pw.value()->finish(), "");
+  EXPECT_EQ(pw.value()->finish().message(), "");
   Database db;
   db.directory = dir;
   auto g = grid::GridFile::open(dir + "/grid.stg");

@@ -46,6 +46,9 @@ class Outcome {
   void addWarnings(const Warnings& w) { warnings_.insert(warnings_.end(), w.begin(), w.end()); }
   /// First problem as a printable line, or "" when there is none.
   std::string error() const { return problems_.empty() ? std::string() : problems_.front().str(); }
+  /// First problem's message alone (no file, no offset), or "": for a
+  /// caller that wraps a lower layer's words in its own.
+  std::string message() const { return problems_.empty() ? std::string() : problems_.front().message; }
 
  protected:
   std::vector<Problem> problems_;
@@ -91,6 +94,12 @@ class Result<void> : public detail::Outcome {
   explicit operator bool() const { return ok(); }
   void add(Problem p) { problems_.push_back(std::move(p)); }
   void add(const std::vector<Problem>& ps) { problems_.insert(problems_.end(), ps.begin(), ps.end()); }
+  /// Another outcome's problems and warnings, appended (validators that
+  /// run sub-validators).
+  void merge(const detail::Outcome& o) {
+    add(o.problems());
+    addWarnings(o.warnings());
+  }
 };
 
 using Status = Result<void>;

@@ -17,7 +17,7 @@ struct TargetCrs {
   int epsg = 0;      ///< 0 when there is none (Cassini)
 };
 
-/// Resolves a --crs request for a database centred at (lon, lat):
+/// Resolves an ElevationOptions::crs request for a database centred at (lon, lat):
 /// "utm" (the UTM zone of the centre, WGS 84), "cassini" (Cassini-Soldner
 /// centred there), or "EPSG:n" (must be a projected CRS in metres).
 Result<TargetCrs> resolveCrs(const std::string& request, double centerLon, double centerLat);

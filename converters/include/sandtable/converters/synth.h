@@ -55,8 +55,9 @@ struct SynthSummary {
 /// Called from worker threads, but never concurrently.
 using SynthProgress = std::function<void(double fraction, const std::string& stage)>;
 
-/// Checks options without touching the disk: the problems are usage errors.
-std::vector<Problem> validateSynthOptions(const SynthOptions& options);
+/// Checks options without touching the disk: the problems are usage errors,
+/// each naming its SynthOptions field.
+Status validateSynthOptions(const SynthOptions& options);
 
 /// Writes the synthetic data set. Fails (nothing left behind) when outDir
 /// exists and force is off, or on any write error.

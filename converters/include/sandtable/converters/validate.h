@@ -20,11 +20,11 @@ inline constexpr double kCornerToleranceMetres = 0.01;
 /// crs.wkt must parse, be a projected CRS in metres, and transform to and
 /// from WGS 84; each of corners_lonlat (NW, NE, SE, SW) must be its grid
 /// corner post transformed to lon/lat. Problems name `manifestPath`, offset
-/// 0, and the key. Empty when sound.
-std::vector<Problem> checkGeoreference(const manifest::Manifest& m, const std::string& manifestPath);
+/// 0, and the key. Ok when sound.
+Status checkGeoreference(const manifest::Manifest& m, const std::string& manifestPath);
 
 /// validateDatabase(dir, work), then checkGeoreference when the manifest
 /// reads and the check was not cancelled.
-std::vector<Problem> validateDatabaseWithCrs(const std::string& dir, const Work& work = {});
+Status validateDatabaseWithCrs(const std::string& dir, const Work& work = {});
 
 }  // namespace sandtable::convert

@@ -37,10 +37,10 @@ Result<Database> openDatabase(const std::string& directory);
 /// (validatePack), the pack index against manifest and grid, materials.txt,
 /// and every module's geometry and its edges against its neighbours
 /// (module_check.h; docs/VALIDATE.md), at most a few problems of
-/// each kind per module. Empty when the database is sound.
+/// each kind per module. Ok when the database is sound.
 /// `work` reports progress by stage ("checking files", "checking grid",
 /// "checking pack", "checking modules") and may cancel: the problems found
 /// so far are returned, the last one kCancelledMessage.
-std::vector<Problem> validateDatabase(const std::string& directory, const Work& work = {});
+Status validateDatabase(const std::string& directory, const Work& work = {});
 
 }  // namespace sandtable

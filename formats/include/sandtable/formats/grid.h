@@ -121,9 +121,10 @@ class GridWriter {
   GridWriter& operator=(const GridWriter&) = delete;
 
   /// Writes block (bx, bz). Safe to call concurrently for distinct blocks.
-  std::string writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b);
-  /// Writes table and header, fsyncs, and renames into place. "" or error.
-  std::string finish();
+  /// Problems name the grid's path; messages start "grid writer: ".
+  Status writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b);
+  /// Writes table and header, fsyncs, and renames into place.
+  Status finish();
   const Header& header() const { return header_; }
   /// CRC-32 and size of the whole file as finish() wrote it, combined from
   /// the header's, the table's and the blocks' CRCs (no re-read).
@@ -177,7 +178,8 @@ class GridFile {
 /// Every check on a grid file: header, sizes, reserved header bytes, table,
 /// block CRCs, zero padding, NaN/inf, unit normals, plausible elevations,
 /// edge padding repeating the edge posts, header min/max. Each problem
-/// names the file and byte offset. Progress: "checking grid", per block row.
-std::vector<Problem> validateGrid(const std::string& path, const Work& work = {});
+/// names the file and byte offset; ok when the grid is sound. Progress:
+/// "checking grid", per block row.
+Status validateGrid(const std::string& path, const Work& work = {});
 
 }  // namespace sandtable::grid

@@ -66,8 +66,9 @@ class MeshBuilder {
  public:
   explicit MeshBuilder(Options o);
   /// Appends one module, its north-west corner placed at (x, z) of the
-  /// output frame. Returns "" or an error (e.g. no such level).
-  std::string add(const module::Module& m, double x, double z);
+  /// output frame. Fails (no file; messages start "export: ") on a module
+  /// it cannot export, e.g. one without that level.
+  Status add(const module::Module& m, double x, double z);
   /// The mesh, parts in draw order. The builder is empty afterwards.
   Mesh finish();
 

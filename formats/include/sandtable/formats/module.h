@@ -153,16 +153,17 @@ struct Module {
 /// What encode needs and the bytes cannot say: 1 to 16 levels, squares
 /// counts 1..65536, maxHeight sized squaresX * squaresZ, and every group's
 /// firstIndex equal to the sum of the indexCounts before it (the groups
-/// cover Level::indices contiguously, in order). Returns "" or the first
-/// violation, starting "module: ". Everything else (indices below the
-/// vertex count, group order, squares in range) is checked by decode.
-std::string checkEncodable(const Module& m);
+/// cover Level::indices contiguously, in order). Fails with the first
+/// violation (no file; the message starts "module: "). Everything else
+/// (indices below the vertex count, group order, squares in range) is
+/// checked by decode.
+Status checkEncodable(const Module& m);
 
 /// Exact size of encode(m) in bytes.
 std::uint64_t encodedBytes(const Module& m);
 
 /// Uncompressed bytes of a module (little-endian, layout above and in
-/// docs/FORMAT.md). Deterministic. Asserts checkEncodable(m) == "" in debug
+/// docs/FORMAT.md). Deterministic. Asserts checkEncodable(m).ok() in debug
 /// builds; in release builds it still writes a well-formed container (a
 /// short maxHeight is padded with 0, firstIndex is ignored).
 std::vector<std::byte> encode(const Module& m);
@@ -179,9 +180,9 @@ Result<Module> decode(std::span<const std::byte> bytes, const std::string& file,
 
 /// decode into `out`, reusing the capacity of its vectors: a reader that
 /// decodes module after module into one Module allocates nothing once its
-/// vectors have grown to the largest module. On failure returns false, sets
-/// `problem`, and leaves `out` in an unspecified but valid state.
-bool decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
-                Module& out, Problem& problem);
+/// vectors have grown to the largest module. On failure returns decode's
+/// problem and leaves `out` in an unspecified but valid state.
+Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std::uint64_t baseOffset,
+                  Module& out);
 
 }  // namespace sandtable::module

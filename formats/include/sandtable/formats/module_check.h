@@ -77,14 +77,13 @@ class ModuleChecker {
 
   /// Every per-module check, at every level. `offset` is the module's byte
   /// offset in the pack (named in every problem). Fills `edges` for the
-  /// neighbour check when non-null. Empty when the module is sound.
-  std::vector<Problem> check(const Module& m, std::uint64_t offset,
-                             ModuleEdges* edges = nullptr) const;
+  /// neighbour check when non-null. Ok when the module is sound.
+  Status check(const Module& m, std::uint64_t offset, ModuleEdges* edges = nullptr) const;
 
   /// Compares the shared edge of two adjacent modules at every level: `a`
-  /// must be the west or north neighbour of `b` (asserted). Empty when
-  /// every skin vertex on the edge has a twin (x, z, y within tolerance).
-  std::vector<Problem> neighbours(const ModuleEdges& a, const ModuleEdges& b) const;
+  /// must be the west or north neighbour of `b` (asserted). Ok when every
+  /// skin vertex on the edge has a twin (x, z, y within tolerance).
+  Status neighbours(const ModuleEdges& a, const ModuleEdges& b) const;
 
   const pack::IndexHeader& header() const { return header_; }
   const std::string& file() const { return file_; }
@@ -99,14 +98,12 @@ class ModuleChecker {
 };
 
 /// One module: ModuleChecker(g, h, file, o).check(m, offset).
-std::vector<Problem> checkModule(const Module& m, const grid::GridFile& g,
-                                 const pack::IndexHeader& h, const std::string& file,
-                                 std::uint64_t offset, const CheckOptions& o = {});
+Status checkModule(const Module& m, const grid::GridFile& g, const pack::IndexHeader& h, const std::string& file,
+                   std::uint64_t offset, const CheckOptions& o = {});
 
 /// Two adjacent modules: `a` is the west or north neighbour of `b`.
-std::vector<Problem> checkNeighbours(const Module& a, std::uint64_t offsetA, const Module& b,
-                                     std::uint64_t offsetB, const grid::GridFile& g,
-                                     const pack::IndexHeader& h, const std::string& file,
-                                     const CheckOptions& o = {});
+Status checkNeighbours(const Module& a, std::uint64_t offsetA, const Module& b, std::uint64_t offsetB,
+                       const grid::GridFile& g, const pack::IndexHeader& h, const std::string& file,
+                       const CheckOptions& o = {});
 
 }  // namespace sandtable::module

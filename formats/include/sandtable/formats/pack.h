@@ -115,8 +115,8 @@ struct SizeStats {
 /// The 64-byte pack header (CRC filled in). It has no per-database fields.
 std::vector<std::byte> encodePackHeader();
 /// Checks a pack header: size, magic, version, CRC, header size, flags,
-/// codec. Empty when sound. Messages start with "pack: ".
-std::vector<Problem> checkPackHeader(std::span<const std::byte> bytes, const std::string& file);
+/// codec. Ok when sound. Messages start with "pack: ".
+Status checkPackHeader(std::span<const std::byte> bytes, const std::string& file);
 
 /// The 4096-byte index header page (entry count, table offset and header
 /// CRC filled in from `h`).
@@ -148,9 +148,9 @@ class PackWriter {
   /// Checks (module::checkEncodable, then module::decode of the encoding,
   /// kx/kz within the pack, level count), encodes and compresses in the
   /// calling thread, then appends under a lock. Each (kx, kz) must be added
-  /// exactly once. Returns "" or an error; a failed write poisons the
-  /// writer (every later call fails).
-  std::string add(const module::Module& m);
+  /// exactly once. A failed write poisons the writer (every later call
+  /// fails). Problems name no file (offset 0); messages start "pack writer: ".
+  Status add(const module::Module& m);
 
   /// add() in two halves, so a caller can compress on many threads and
   /// append in an order of its choosing (the build appends in row-major
@@ -161,14 +161,14 @@ class PackWriter {
   };
   /// The checks, the encoding and the compression of add(), in the calling
   /// thread. Changes nothing in the writer; any thread, any time before
-  /// finish(). The error is add()'s message (Problem::message).
+  /// finish(). The problems are add()'s.
   Result<Record> compress(const module::Module& m) const;
   /// The rest of add(), under the lock: appends the record at the end of
   /// the pack and fills its entry. Same errors and poisoning as add().
-  std::string append(Record r);
+  Status append(Record r);
   /// Fails if any module was not added. Otherwise writes the index, fsyncs
   /// both files, renames them into place and fsyncs the directory.
-  std::string finish();
+  Status finish();
   SizeStats stats() const;
   /// CRC-32 and size of each file, valid after finish() (for the manifest).
   std::uint32_t packCrc() const;
@@ -210,8 +210,8 @@ class PackReader {
   /// read into `out`, reusing its vectors' capacity and per-thread record
   /// and decompression buffers: a loader thread that reads module after
   /// module allocates nothing once its buffers have grown to the largest
-  /// module. On failure returns false and sets `problem` (as read's).
-  bool readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out, Problem& problem) const;
+  /// module. On failure returns read's problem.
+  Status readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const;
   int packFd() const;
   std::string packPath() const;
   std::string indexPath() const;
@@ -227,17 +227,17 @@ class PackReader {
 /// placement within the pack (after the header, no overlaps, no bytes
 /// outside every record), every record's CRCs, every module's decode and
 /// its kx, kz and level count. Each problem names the file and offset; at
-/// most 20 problems of each kind are listed. Empty when the pack is sound.
+/// most 20 problems of each kind are listed. Ok when the pack is sound.
 /// Progress: "checking pack", per record.
-std::vector<Problem> validatePack(const std::string& directory, const Work& work = {});
+Status validatePack(const std::string& directory, const Work& work = {});
 
 /// Zstd helpers (exposed for tests and benchmarks). compress returns one
 /// frame with the content size recorded, or an empty vector if zstd fails
 /// (out of memory). Both keep one zstd context per thread.
 std::vector<std::byte> compress(std::span<const std::byte> raw, int level);
-/// Fails when the frame is corrupt or does not decompress to `rawBytes`.
-/// Never allocates more than `rawBytes` for the output.
-bool decompress(std::span<const std::byte> packed, std::uint32_t rawBytes,
-                std::vector<std::byte>& out, std::string& error);
+/// Fails when the frame is corrupt or does not decompress to `rawBytes`
+/// (the problem names no file). Never allocates more than `rawBytes` for
+/// `out`, whose capacity is reused.
+Status decompress(std::span<const std::byte> packed, std::uint32_t rawBytes, std::vector<std::byte>& out);
 
 }  // namespace sandtable::pack
