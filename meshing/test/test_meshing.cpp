@@ -16,6 +16,7 @@
 #include "sandtable/meshing/heights.h"
 #include "sandtable/meshing/lattice.h"
 #include "sandtable/meshing/skirts.h"
+#include "sandtable/testing/fixtures.h"
 
 namespace sandtable::meshing {
 namespace {
@@ -32,22 +33,8 @@ std::shared_ptr<const grid::GridFile> makeGrid(const std::string& name, std::uin
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::string path = (dir / "grid.stg").string();
-  auto gw = grid::GridWriter::create(path, grid::makeHeader(px, pz, kSpacing, 500000.0, 4000000.0));
-  EXPECT_TRUE(gw.ok()) << gw.error();
-  const grid::Header& gh = gw.value()->header();
-  auto b = std::make_unique<grid::BlockData>();
-  for (std::uint32_t bz = 0; bz < gh.blocksZ; ++bz) {
-    for (std::uint32_t bx = 0; bx < gh.blocksX; ++bx) {
-      for (std::uint32_t k = 0; k < grid::kPostsPerBlock; ++k) {
-        const std::uint32_t i = std::min(px - 1, bx * grid::kBlockPosts + k % grid::kBlockPosts);
-        const std::uint32_t j = std::min(pz - 1, bz * grid::kBlockPosts + k / grid::kBlockPosts);
-        b->elevation[k] = f(i, j);
-        b->normalY[k] = grid::toSnorm(1.0f);
-      }
-      EXPECT_TRUE(gw.value()->writeBlock(bx, bz, *b).ok());
-    }
-  }
-  EXPECT_TRUE(gw.value()->finish().ok());
+  const Status written = fixtures::writeGrid(path, px, pz, kSpacing, f);
+  EXPECT_TRUE(written.ok()) << written.error();
   auto g = grid::GridFile::open(path);
   EXPECT_TRUE(g.ok()) << g.error();
   fs::remove_all(dir);  // the mapping stays valid

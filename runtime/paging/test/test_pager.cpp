@@ -26,6 +26,7 @@
 
 #include "sandtable/formats/bytes.h"
 #include "sandtable/paging/pager.h"
+#include "sandtable/testing/fixtures.h"
 
 // Counting allocations: every operator new in the binary goes through here
 // (not under ThreadSanitizer, which has its own allocator hooks).
@@ -82,25 +83,7 @@ module::Module makeModule(std::uint32_t kx, std::uint32_t kz, std::uint32_t squa
         lv.vertices.push_back({float(a * lv.spacing), y, float(b * lv.spacing), float(kx), float(kz)});
       }
     }
-    auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (n + 1) + a; };
-    for (std::uint32_t sz = 0; sz < n; ++sz) {
-      for (std::uint32_t sx = 0; sx < n; ++sx) {
-        const std::uint32_t nw = post(sx, sz), ne = post(sx + 1, sz), sw = post(sx, sz + 1),
-                            se = post(sx + 1, sz + 1);
-        for (const auto& [half, tri] :
-             {std::pair{module::Half::upper, std::array{nw, sw, ne}},
-              std::pair{module::Half::lower, std::array{ne, sw, se}}}) {
-          module::Group g;
-          g.square = sz * n + sx;
-          g.half = half;
-          g.firstIndex = std::uint32_t(lv.indices.size());
-          g.indexCount = 3;
-          lv.indices.insert(lv.indices.end(), tri.begin(), tri.end());
-          lv.groups.push_back(g);
-        }
-      }
-    }
-    lv.maxHeight.assign(std::size_t(n) * n, y);
+    fixtures::addLatticeSkin(lv, n);
     m.levels.push_back(std::move(lv));
   }
   return m;
@@ -144,23 +127,8 @@ TestDb makeDb(const std::string& name, std::uint32_t mx, std::uint32_t mz,
   TestDb db;
   db.dir = tempDir(name);
   const std::uint32_t px = mx * squares + 1, pz = mz * squares + 1;
-  auto gw = grid::GridWriter::create(db.dir + "/grid.stg",
-                                     grid::makeHeader(px, pz, kSpacing, 500000.0, 4000000.0));
-  EXPECT_TRUE(gw.ok()) << gw.error();
-  const grid::Header& gh = gw.value()->header();
-  auto b = std::make_unique<grid::BlockData>();
-  for (std::uint32_t bz = 0; bz < gh.blocksZ; ++bz) {
-    for (std::uint32_t bx = 0; bx < gh.blocksX; ++bx) {
-      for (std::uint32_t k = 0; k < grid::kPostsPerBlock; ++k) {
-        const std::uint32_t i = std::min(px - 1, bx * grid::kBlockPosts + k % grid::kBlockPosts);
-        const std::uint32_t j = std::min(pz - 1, bz * grid::kBlockPosts + k / grid::kBlockPosts);
-        b->elevation[k] = gridElevation(i, j);
-        b->normalY[k] = grid::toSnorm(1.0f);
-      }
-      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *b).message(), "");
-    }
-  }
-  EXPECT_EQ(gw.value()->finish().message(), "");
+  const Status written = fixtures::writeGrid(db.dir + "/grid.stg", px, pz, kSpacing, gridElevation);
+  EXPECT_TRUE(written.ok()) << written.error();
   auto g = grid::GridFile::open(db.dir + "/grid.stg");
   EXPECT_TRUE(g.ok()) << g.error();
   db.grid = g.value();

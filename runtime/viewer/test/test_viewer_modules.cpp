@@ -13,6 +13,7 @@
 #include "sandtable/formats/pack.h"
 #include "sandtable/viewer/flight.h"
 #include "sandtable/render/renderer.h"
+#include "sandtable/testing/fixtures.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -43,29 +44,7 @@ module::Module planarModule(std::uint32_t kx, std::uint32_t kz) {
         lv.vertices.push_back({x, planeY(ox + x, oz + z), z, 0, 0});
       }
     }
-    const auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (n + 1) + a; };
-    for (std::uint32_t sz = 0; sz < n; ++sz) {
-      for (std::uint32_t sx = 0; sx < n; ++sx) {
-        const std::uint32_t nw = post(sx, sz), ne = post(sx + 1, sz), sw = post(sx, sz + 1),
-                            se = post(sx + 1, sz + 1);
-        for (const auto& [half, tri] : {std::pair{module::Half::upper, std::array{nw, sw, ne}},
-                                        std::pair{module::Half::lower, std::array{ne, sw, se}}}) {
-          module::Group g;
-          g.square = sz * n + sx;
-          g.half = half;
-          g.firstIndex = std::uint32_t(lv.indices.size());
-          g.indexCount = 3;
-          lv.indices.insert(lv.indices.end(), tri.begin(), tri.end());
-          lv.groups.push_back(g);
-        }
-      }
-    }
-    lv.maxHeight.assign(std::size_t(n) * n, 0);
-    for (std::uint32_t q = 0; q < n * n; ++q) {
-      const std::uint32_t a = q % n, b = q / n;
-      lv.maxHeight[q] = std::max({lv.vertices[post(a, b)].y, lv.vertices[post(a + 1, b)].y,
-                                  lv.vertices[post(a, b + 1)].y, lv.vertices[post(a + 1, b + 1)].y});
-    }
+    fixtures::addLatticeSkin(lv, n);
     m.levels.push_back(std::move(lv));
   }
   return m;
@@ -75,23 +54,9 @@ Database planarDatabase(const std::string& dir) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::uint32_t posts = kModules * kSquares + 1;
-  auto gw = grid::GridWriter::create(dir + "/grid.stg",
-                                     grid::makeHeader(posts, posts, kSpacing, kOriginE, kOriginN));
-  EXPECT_TRUE(gw.ok()) << gw.error();
-  const grid::Header& gh = gw.value()->header();
-  auto block = std::make_unique<grid::BlockData>();
-  for (std::uint32_t bz = 0; bz < gh.blocksZ; ++bz) {
-    for (std::uint32_t bx = 0; bx < gh.blocksX; ++bx) {
-      for (std::uint32_t k = 0; k < grid::kPostsPerBlock; ++k) {
-        const std::uint32_t i = bx * grid::kBlockPosts + k % grid::kBlockPosts;
-        const std::uint32_t j = bz * grid::kBlockPosts + k / grid::kBlockPosts;
-        block->elevation[k] = planeY(i * kSpacing, j * kSpacing);
-        block->normalY[k] = grid::toSnorm(1.0f);
-      }
-      EXPECT_EQ(gw.value()->writeBlock(bx, bz, *block).message(), "");
-    }
-  }
-  EXPECT_EQ(gw.value()->finish().message(), "");
+  const Status written = fixtures::writeGrid(dir + "/grid.stg", posts, posts, kSpacing,
+      [](std::uint32_t i, std::uint32_t j) { return planeY(i * kSpacing, j * kSpacing); }, kOriginE, kOriginN);
+  EXPECT_TRUE(written.ok()) << written.error();
   pack::IndexHeader h;
   h.modulesX = h.modulesZ = kModules;
   h.levels = kLevels;
