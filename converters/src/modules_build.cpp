@@ -61,9 +61,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   if (!writer) return writer.problems();
 
   // Modules are built and compressed on every worker and appended in
-  // row-major order: the pack does not depend on thread timing. A few
-  // modules per worker wait to be appended, so a slow one (a town) does
-  // not idle the others.
+  // row-major order: the pack does not depend on thread timing.
   struct Built {
     std::optional<pack::PackWriter::Record> record;  ///< none: skipped or failed
     std::string error;
@@ -75,8 +73,12 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   auto lastReport = std::chrono::steady_clock::now();
   r.levels.assign(std::size_t(o.levels), {});
   if (progress) progress(0.0, "modules");
+  // Records wait in module order to be appended; a town module costs 40x
+  // the median, so the window must hold many modules per worker or the
+  // other workers idle behind it (a few MB of compressed records).
+  constexpr std::size_t kInFlightPerWorker = 32;
   jobs::orderedPipeline<Built>(
-      r.modules, o.threads, 4 * std::size_t(jobs::threadCount(o.threads)),
+      r.modules, o.threads, kInFlightPerWorker * std::size_t(jobs::threadCount(o.threads)),
       [&](std::size_t k) {
         Built b;
         if (stop || cancelRequested()) return b;
