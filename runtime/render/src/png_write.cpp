@@ -1,4 +1,5 @@
 #include <png.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <memory>
@@ -50,10 +51,22 @@ Status writePng(const std::string& path, const Image& img) {
   }
   std::vector<png_bytep> rows(img.height);
   for (std::uint32_t y = 0; y < img.height; ++y) rows[y] = rgb.data() + std::size_t(y) * img.width * 3;
-  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
-  if (!f) return fail("cannot create " + path + " (is its directory writable?)");
-  if (!encode(f.get(), img, rows)) return fail("libpng failed writing " + path);
-  if (std::fflush(f.get()) != 0) return fail("write failed for " + path + " (is the disk full?)");
+  // Written beside the target and renamed over it, so a reader (a video
+  // encoder, a script watching the directory) never sees half a frame.
+  // Not writeFileAtomic: its fsync per frame would cost more than the frame.
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(tmp.c_str(), "wb"));
+  if (!f) return fail("cannot create " + tmp + " (is its directory writable?)");
+  const bool encoded = encode(f.get(), img, rows);
+  const bool closed = std::fclose(f.release()) == 0;
+  if (!encoded || !closed) {
+    std::remove(tmp.c_str());
+    return fail((encoded ? "write failed for " : "libpng failed writing ") + tmp + " (is the disk full?)");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    return fail("cannot rename " + tmp + " to " + path);
+  }
   return {};
 }
 
