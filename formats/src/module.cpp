@@ -7,9 +7,12 @@
 #include <cstring>
 
 #include "sandtable/formats/bytes.h"
+#include "module_internal.h"
 
 namespace sandtable::module {
 namespace {
+
+using namespace detail;
 
 std::uint64_t squareCount(const Level& l) { return std::uint64_t(l.squaresX) * l.squaresZ; }
 
@@ -27,75 +30,7 @@ std::uint64_t levelBytes(const Level& l, bool u32Indices) {
          std::uint64_t(kGroupBytes) * l.groups.size();
 }
 
-// ---------------------------------------------------------------- planes
-
-/// Writes n values of W bytes (W = 1, 2 or 4; get(i) gives the bits) as W
-/// byte planes: byte 0 of every value, then byte 1, ... Returns the end.
-template <unsigned W, typename Get>
-std::byte* putPlane(std::byte* p, std::size_t n, Get get) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t u = get(i);
-    for (unsigned b = 0; b < W; ++b) p[b * n + i] = static_cast<std::byte>(u >> (8 * b));
-  }
-  return p + W * n;
-}
-
-/// Reads n values of W bytes from W byte planes: set(i, bits).
-template <unsigned W, typename Set>
-void getPlane(const std::byte* p, std::size_t n, Set set) {
-  const auto* q = reinterpret_cast<const std::uint8_t*>(p);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint32_t u = q[i];
-    if constexpr (W >= 2) u |= std::uint32_t(q[n + i]) << 8;
-    if constexpr (W == 4) {
-      u |= std::uint32_t(q[2 * n + i]) << 16 | std::uint32_t(q[3 * n + i]) << 24;
-    }
-    set(i, u);
-  }
-}
-
-template <unsigned W>
-constexpr std::uint32_t kMask = W == 4 ? 0xffffffffu : (1u << (8 * W)) - 1;
-
-/// zigzag(v - prev) in W bytes, the difference wrapping modulo 2^(8W).
-template <unsigned W>
-std::uint32_t zigzagDelta(std::uint32_t v, std::uint32_t prev) {
-  const std::uint32_t d = (v - prev) & kMask<W>;
-  const std::uint32_t sign = ((d >> (8 * W - 1)) & 1) ? kMask<W> : 0u;
-  return ((d << 1) & kMask<W>) ^ sign;
-}
-
-/// Inverse of zigzagDelta: the value that follows `prev`.
-template <unsigned W>
-std::uint32_t unzigzagDelta(std::uint32_t z, std::uint32_t prev) {
-  const std::uint32_t d = (z >> 1) ^ ((z & 1) ? kMask<W> : 0u);
-  return (prev + d) & kMask<W>;
-}
-
-/// Writes a delta-coded plane of W-byte values.
-template <unsigned W, typename Get>
-std::byte* putDeltaPlane(std::byte* p, std::size_t n, Get get) {
-  return putPlane<W>(p, n, [&](std::size_t i) {
-    return zigzagDelta<W>(get(i), i == 0 ? 0u : static_cast<std::uint32_t>(get(i - 1)));
-  });
-}
-
-/// Reads a delta-coded plane of W-byte values into out[0..n).
-template <unsigned W>
-void getDeltaPlane(const std::byte* p, std::size_t n, std::uint32_t* out) {
-  std::uint32_t prev = 0;
-  getPlane<W>(p, n,
-              [&](std::size_t i, std::uint32_t z) { out[i] = prev = unzigzagDelta<W>(z, prev); });
-}
-
 std::uint32_t floatBits(float f) { return std::bit_cast<std::uint32_t>(f); }
-
-/// Sort key of a group: (priority, square, half, material), half <= 2.
-std::uint64_t groupKey(std::uint8_t priority, std::uint32_t square, std::uint8_t half,
-                       std::uint16_t material) {
-  return std::uint64_t(priority) << 50 | std::uint64_t(square) << 18 | std::uint64_t(half) << 16 |
-         material;
-}
 
 std::string str(std::uint64_t v) { return std::to_string(v); }
 
@@ -135,6 +70,10 @@ Status checkEncodable(const Module& m) {
     if (next != l.indices.size()) {
       return fail(where + " groups cover " + str(next) + " of its " + str(l.indices.size()) + " indices");
     }
+    if (!l.normals.empty() && l.normals.size() != l.vertices.size()) {
+      return fail(where + " has " + str(l.normals.size()) + " normals for " + str(l.vertices.size()) +
+                  " vertices (one per vertex, or none)");
+    }
   }
   return {};
 }
@@ -145,8 +84,9 @@ std::uint64_t encodedBytes(const Module& m) {
   return n;
 }
 
-std::vector<std::byte> encode(const Module& m) {
-  assert(checkEncodable(m).ok());
+namespace {
+
+std::vector<std::byte> encodeV1(const Module& m) {
   std::vector<bool> wide(m.levels.size());
   std::uint64_t total = kHeaderBytes;
   for (std::size_t li = 0; li < m.levels.size(); ++li) {
@@ -201,6 +141,21 @@ std::vector<std::byte> encode(const Module& m) {
   storeLE<std::uint32_t>(h + field::payloadCrc, crc32(std::span(out).subspan(kHeaderBytes)));
   storeLE<std::uint32_t>(h + field::headerCrc, crc32(std::span(out).first(field::headerCrc)));
   return out;
+}
+
+}  // namespace
+
+std::vector<std::byte> encode(const Module& m, const EncodeOptions& options) {
+  assert(checkEncodable(m).ok());
+  return options.version == kVersion ? encodeV1(m) : detail::encodeV2(m, options.heightStep);
+}
+
+std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
+  if (bytes.size() < field::version + 4) return 0;
+  const auto version = loadLE<std::uint32_t>(bytes.data() + field::version);
+  if (version == kVersion && std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) == 0) return version;
+  if (version == kVersion2 && std::memcmp(bytes.data(), kMagic2.data(), kMagic2.size()) == 0) return version;
+  return 0;
 }
 
 // ---------------------------------------------------------------- decode
@@ -391,14 +346,20 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
                                   " bytes, the input ends at byte " + str(bytes.size()));
   }
   const std::byte* h = bytes.data();
-  if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size()) != 0) {
-    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\")");
+  // "SANDMOD" then the version's digit; the version field must agree.
+  if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size() - 1) != 0 ||
+      (h[7] != std::byte{'1'} && h[7] != std::byte{'2'})) {
+    return fail(field::magic,
+                "bad magic: not a sandtable load module (expected \"SANDMOD1\" or \"SANDMOD2\")");
   }
   const auto version = loadLE<std::uint32_t>(h + field::version);
-  if (version != kVersion) {
+  if (version != kVersion && version != kVersion2) {
     return fail(field::version, "version " + str(version) +
-                                    " is not supported (this reader knows version " +
-                                    str(kVersion) + ")");
+                                    " is not supported (this reader knows versions 1 and 2)");
+  }
+  if (std::uint32_t(h[7]) - '0' != version) {
+    return fail(field::version, "version " + str(version) + " does not match the magic's \"SANDMOD" +
+                                    char(h[7]) + "\"");
   }
   const auto storedHeaderCrc = loadLE<std::uint32_t>(h + field::headerCrc);
   const auto headerCrc = crc32(bytes.first(field::headerCrc));
@@ -410,7 +371,7 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
     return fail(field::headerBytes, "header size must be " + str(kHeaderBytes));
   }
   if (loadLE<std::uint32_t>(h + field::flags) != 0) {
-    return fail(field::flags, "flags must be 0 in version 1");
+    return fail(field::flags, "flags must be 0 in version " + str(version));
   }
   const auto levelCount = loadLE<std::uint32_t>(h + field::levelCount);
   if (levelCount < 1 || levelCount > kMaxLevels) {
@@ -437,7 +398,14 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
   const LevelDecoder levels(bytes, file, baseOffset);
   std::size_t pos = kHeaderBytes;
   for (std::uint32_t li = 0; li < levelCount; ++li) {
-    if (Status level = levels.decode(li, pos, m.levels[li]); !level) return level;
+    Level& l = m.levels[li];
+    if (version == kVersion) {
+      if (Status level = levels.decode(li, pos, l); !level) return level;
+      l.normals.clear();  // version 1 has none
+      l.heightStep = 0;
+    } else if (Status level = detail::decodeLevelV2(bytes, file, baseOffset, li, pos, l); !level) {
+      return level;
+    }
   }
   if (pos != bytes.size()) {
     return fail(pos, str(bytes.size() - pos) + " bytes follow the last level");

@@ -257,7 +257,7 @@ class ModuleRun {
   std::string at_;  ///< "module (kx,kz) level l"
   Axis xs_, zs_;
   std::vector<float> heights_;  ///< lattice elevations, row-major (zs x xs)
-  double tolY_ = 0, ulpXZ_ = 0;
+  double tolY_ = 0, ulpXZ_ = 0, quantY_ = 0;
   std::vector<double> skinArea_;       ///< [2 * square + half]
   std::vector<float> highest_;         ///< highest skin/decal vertex per square
   std::vector<std::uint8_t> used_;     ///< per vertex: 1 skin, 2 decal
@@ -381,7 +381,9 @@ class ModuleRun {
       }
     }
     ulpXZ_ = ulpOf(std::max(f_.width, f_.height));
-    tolY_ = kCheckTolerance + ulpOf(maxAbs + (depthOk ? double(lv.skirtDepth) : 0.0));
+    // A quantised level (module v2) moves every height by up to half its step.
+    quantY_ = lv.heightStep > 0 ? 0.5 * lv.heightStep + ulpOf(maxAbs) : 0.0;
+    tolY_ = kCheckTolerance + ulpOf(maxAbs + (depthOk ? double(lv.skirtDepth) : 0.0)) + quantY_;
     skinArea_.assign(2 * squares, 0.0);
     highest_.assign(squares, -std::numeric_limits<float>::infinity());
     used_.assign(lv.vertices.size(), 0);
@@ -732,7 +734,7 @@ class ModuleRun {
       const long a = xs_.line(p.x, f_.tolXZ), b = zs_.line(p.z, f_.tolXZ);
       if (a < 0 || b < 0) continue;
       const float e = height(std::size_t(a), std::size_t(b));
-      if (p.y != e && r_.want(kPost)) {
+      if (p.y != e && !(std::fabs(double(p.y) - e) <= quantY_) && r_.want(kPost)) {
         r_.add(offset_, at_ + " vertex " + str(v) + " at lattice post (" + str(a) + "," + str(b) +
                             ") = grid post (" + str(xs_.posts[std::size_t(a)]) + "," +
                             str(zs_.posts[std::size_t(b)]) + ") has y " + g9(p.y) +

@@ -6,7 +6,9 @@
 #include <bit>
 #include <cstdlib>
 #include <cstring>
+#include <cmath>
 #include <functional>
+#include <limits>
 #include <new>
 
 #include "module_samples.h"
@@ -44,6 +46,9 @@ void operator delete[](void* p, const std::nothrow_t&) noexcept { ::operator del
 
 namespace sandtable::module {
 namespace {
+
+/// The version 1 bytes these tests pin (encode defaults to version 2).
+std::vector<std::byte> encodeV1(const Module& m) { return encode(m, EncodeOptions{.version = kVersion}); }
 
 std::string hex(std::span<const std::byte> b) {
   static const char* d = "0123456789abcdef";
@@ -140,7 +145,7 @@ TEST(Module, layoutConstantsArePinned) {
 // Golden bytes of version 1. If this fails, the format changed: bump
 // kVersion, keep a reader for version 1, and add a new golden test.
 TEST(Module, version1GoldenBytes) {
-  const auto bytes = encode(samples::tiny());
+  const auto bytes = encodeV1(samples::tiny());
   ASSERT_EQ(bytes.size(), 48u + 36u + 80u + 4u + 12u + 24u);
   // Header: magic "SANDMOD1", version 1, header 48, kx 1, kz 2, 1 level,
   // flags 0, total 204, payload CRC 0x364fe54f, header CRC 0x64b78655.
@@ -206,7 +211,7 @@ TEST(Module, version1GoldenBytes) {
             "0000"
             "0000");
   // A slightly larger module (8 x 8 squares, 2 levels, skirts, a road).
-  EXPECT_EQ(crcHex(crc32(encode(samples::realistic(3, 4, 8, 2)))), "0x49959341");
+  EXPECT_EQ(crcHex(crc32(encodeV1(samples::realistic(3, 4, 8, 2)))), "0x49959341");
 }
 
 TEST(Module, roundTripsEveryField) {
@@ -218,12 +223,12 @@ TEST(Module, roundTripsEveryField) {
   m.levels[2].maxHeight[0] = -1e30f;
   m.levels[3].skirtDepth = 0;
   ASSERT_EQ(checkEncodable(m).message(), "");
-  const auto bytes = encode(m);
+  const auto bytes = encodeV1(m);
   EXPECT_EQ(bytes.size(), encodedBytes(m));
   auto back = decode(bytes, "m.bin");
   ASSERT_TRUE(back.ok()) << back.error();
   expectEqual(m, back.value());
-  EXPECT_EQ(encode(back.value()), bytes);
+  EXPECT_EQ(encodeV1(back.value()), bytes);
   // Realistic content: every level decodes with groups in draw order.
   EXPECT_EQ(back->levels.size(), 4u);
   EXPECT_EQ(back->levels[0].squaresX, 32u);
@@ -234,17 +239,17 @@ TEST(Module, roundTripsEveryField) {
 TEST(Module, decodeIntoReusesAModuleAndMatchesDecode) {
   const Module big = samples::realistic(5, 7), small = samples::realistic(2, 3);  // two different modules
   Module reused;
-  Status st = decodeInto(encode(big), "big.bin", 0, reused);
+  Status st = decodeInto(encodeV1(big), "big.bin", 0, reused);
   ASSERT_TRUE(st.ok()) << st.error();
   expectEqual(big, reused);
   const std::size_t capacity = reused.levels[0].vertices.capacity();
   // Another module into the same storage: every field replaced.
-  st = decodeInto(encode(small), "small.bin", 0, reused);
+  st = decodeInto(encodeV1(small), "small.bin", 0, reused);
   ASSERT_TRUE(st.ok()) << st.error();
   expectEqual(small, reused);
   EXPECT_GE(reused.levels[0].vertices.capacity(), capacity);  // never shrinks: no reallocation for smaller
   // Failures set the problem as decode's do.
-  auto bytes = encode(small);
+  auto bytes = encodeV1(small);
   bytes[bytes.size() / 2] ^= std::byte{1};
   st = decodeInto(bytes, "bad.bin", 100, reused);
   EXPECT_FALSE(st.ok());
@@ -252,7 +257,7 @@ TEST(Module, decodeIntoReusesAModuleAndMatchesDecode) {
 }
 
 TEST(Module, decodeRecomputesFirstIndexAsTheRunningSum) {
-  const auto bytes = encode(samples::tiny());
+  const auto bytes = encodeV1(samples::tiny());
   auto m = decode(bytes, "tiny");
   ASSERT_TRUE(m.ok()) << m.error();
   const auto& g = m->levels[0].groups;
@@ -276,7 +281,7 @@ Module wideModule(std::uint32_t vertices) {
 TEST(Module, switchesToU32IndicesAbove65536Vertices) {
   for (const std::uint32_t n : {65536u, 65537u}) {
     const Module m = wideModule(n);
-    const auto bytes = encode(m);
+    const auto bytes = encodeV1(m);
     const auto flags = loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField::flags);
     const unsigned width = n > kMaxU16Vertices ? 4 : 2;
     EXPECT_EQ(flags, n > kMaxU16Vertices ? kLevelFlagU32Indices : 0u) << n;
@@ -288,7 +293,7 @@ TEST(Module, switchesToU32IndicesAbove65536Vertices) {
   // A reader accepts u32 indices for a small level too (writers never
   // produce them, but they are well-formed).
   Module m = wideModule(5);
-  auto bytes = encode(m);
+  auto bytes = encodeV1(m);
   const Level0 at(m.levels[0]);
   std::vector<std::byte> wide(bytes.begin(),
                               bytes.begin() + static_cast<std::ptrdiff_t>(at.indices));
@@ -305,7 +310,7 @@ TEST(Module, switchesToU32IndicesAbove65536Vertices) {
 }
 
 TEST(Module, everyTruncatedPrefixFailsNamingItsOffset) {
-  const auto bytes = encode(samples::realistic(1, 1, 4, 2));
+  const auto bytes = encodeV1(samples::realistic(1, 1, 4, 2));
   for (std::size_t n = 0; n < bytes.size(); ++n) {
     auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
     ASSERT_FALSE(m.ok()) << "prefix " << n;
@@ -319,7 +324,7 @@ TEST(Module, everyTruncatedPrefixFailsNamingItsOffset) {
 }
 
 TEST(Module, everyFlippedByteIsDetected) {
-  auto bytes = encode(samples::realistic(2, 3, 4, 2));
+  auto bytes = encodeV1(samples::realistic(2, 3, 4, 2));
   for (std::size_t off = 0; off < bytes.size(); ++off) {
     bytes[off] ^= std::byte{0x20};
     EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
@@ -348,7 +353,7 @@ TEST(Module, hostileBytesAreRejectedWithTheirMessage) {
   };
   const Hostile cases[] = {
       {"version", u32(field::version, 2), field::version,
-       "module: version 2 is not supported (this reader knows version 1)"},
+       "module: version 2 does not match the magic's \"SANDMOD1\""},
       {"header size", u32(field::headerBytes, 64), field::headerBytes,
        "module: header size must be 48"},
       {"flags", u32(field::flags, 1), field::flags, "module: flags must be 0 in version 1"},
@@ -397,7 +402,7 @@ TEST(Module, hostileBytesAreRejectedWithTheirMessage) {
        "bytes after the level header, only 120 remain"},
   };
   for (const Hostile& c : cases) {
-    auto bytes = encode(good);
+    auto bytes = encodeV1(good);
     c.mutate(bytes, at);
     reseal(bytes);
     gLargestAllocation = 0;
@@ -456,20 +461,20 @@ TEST(Module, malformedContentIsRejectedWithItsMessage) {
     Module m = samples::tiny();
     c.mutate(m.levels[0]);
     ASSERT_EQ(checkEncodable(m).message(), "") << c.name;
-    auto r = decode(encode(m), "bad.bin", 7);
+    auto r = decode(encodeV1(m), "bad.bin", 7);
     ASSERT_FALSE(r.ok()) << c.name;
     EXPECT_EQ(r.problems().front().message, c.message) << c.name;
     EXPECT_EQ(r.problems().front().offset, 7 + c.offset(Level0(m.levels[0]))) << c.name;
   }
   // Counts that the bytes hold but the groups do not add up to.
   Module m = samples::tiny();
-  auto bytes = encode(m);
+  auto bytes = encodeV1(m);
   const Level0 at(m.levels[0]);
   storeLE<std::uint8_t>(bytes.data() + at.groupCount + 1, 6);  // group 1 (byte plane 0): 6 indices
   reseal(bytes);
   EXPECT_EQ(decode(bytes, "b").problems().front().message,
             "module: level 0 group 1 indices 3..8 run past the level's 6 indices");
-  bytes = encode(m);
+  bytes = encodeV1(m);
   storeLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField::indexCount, 7);
   std::vector<std::byte> longer(bytes.begin(),
                                 bytes.begin() + static_cast<std::ptrdiff_t>(at.groupSquare));
@@ -487,21 +492,21 @@ TEST(Module, groupsWithEqualKeysMayFollowEachOther) {
   Module m = samples::tiny();
   m.levels[0].groups[1].half = Half::upper;
   m.levels[0].groups[1].material = 3;  // same key as group 0
-  auto back = decode(encode(m), "equal");
+  auto back = decode(encodeV1(m), "equal");
   ASSERT_TRUE(back.ok()) << back.error();
   EXPECT_EQ(back->levels[0].groups[1].firstIndex, 3u);
 }
 
 TEST(Module, checksumsAndMagicAreChecked) {
-  auto bytes = encode(samples::tiny());
+  auto bytes = encodeV1(samples::tiny());
   bytes[0] = std::byte{'X'};
   EXPECT_EQ(decode(bytes, "m").error(),
-            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\")");
-  bytes = encode(samples::tiny());
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" or \"SANDMOD2\")");
+  bytes = encodeV1(samples::tiny());
   bytes[field::kx] ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
   EXPECT_NE(decode(bytes, "m").error().find("module: header checksum mismatch"), std::string::npos);
-  bytes = encode(samples::tiny());
+  bytes = encodeV1(samples::tiny());
   bytes.back() ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::payloadCrc);
   EXPECT_NE(decode(bytes, "m").error().find("payload checksum mismatch"), std::string::npos);
@@ -527,6 +532,351 @@ TEST(Module, checkEncodableFindsWhatTheBytesCannotSay) {
   EXPECT_EQ(checkEncodable(m).message(), "module: 0 levels; a module holds 1 to 16");
   m.levels.assign(17, samples::tiny().levels[0]);
   EXPECT_EQ(checkEncodable(m).message(), "module: 17 levels; a module holds 1 to 16");
+}
+
+
+// ------------------------------------------------------------- version 2
+
+/// The golden version 2 module: one 32 m square whose four vertices are the
+/// lattice (skin texture offset 0), 1 cm heights, normals, one group run.
+Module tinyV2() {
+  Module m;
+  m.kx = 1;
+  m.kz = 2;
+  Level l;
+  l.spacing = 32;
+  l.squaresX = 1;
+  l.squaresZ = 1;
+  l.skirtDepth = 5;
+  l.vertices = {{0, 10, 0, 0, 0}, {32, 10.25f, 0, 0.5f, 0}, {0, 10.5f, 32, 0, 0.5f}, {32, 11, 32, 0.5f, 0.5f}};
+  l.indices = {0, 2, 1, 1, 2, 3};
+  l.groups = {{0, Half::upper, kPrioritySkin, 3, 0, 3}, {0, Half::lower, kPrioritySkin, 3, 3, 3}};
+  l.maxHeight = {11};
+  // u, v as snorm16: (0,0), (64,0), (0,-64), (64,-64).
+  l.normals = {0x00000000u, 0x00000040u, 0xffc00000u, 0xffc00040u};
+  m.levels.push_back(l);
+  return m;
+}
+
+/// |a - b| within half a quantisation step plus float rounding.
+bool withinStep(float a, float b, double step) {
+  return std::fabs(double(a) - double(b)) <= 0.5 * step + 1e-6 * std::max(1.0, std::fabs(double(b)));
+}
+
+/// Decoded v2 against the original: x, z, s, t, indices, groups and normals
+/// exact; y and maxHeight within the step.
+void expectNear(const Module& a, const Module& b, double step) {
+  ASSERT_EQ(a.levels.size(), b.levels.size());
+  for (std::size_t li = 0; li < a.levels.size(); ++li) {
+    const Level& x = a.levels[li];
+    const Level& y = b.levels[li];
+    EXPECT_EQ(x.spacing, y.spacing);
+    EXPECT_EQ(x.squaresX, y.squaresX);
+    EXPECT_EQ(x.squaresZ, y.squaresZ);
+    ASSERT_EQ(x.vertices.size(), y.vertices.size());
+    for (std::size_t k = 0; k < x.vertices.size(); ++k) {
+      const Vertex& u = x.vertices[k];
+      const Vertex& v = y.vertices[k];
+      ASSERT_TRUE(sameBits(u.x, v.x) && sameBits(u.z, v.z) && sameBits(u.s, v.s) && sameBits(u.t, v.t))
+          << "level " << li << " vertex " << k;
+      ASSERT_TRUE(withinStep(u.y, v.y, step)) << "level " << li << " vertex " << k << ": " << u.y << " vs " << v.y;
+    }
+    EXPECT_EQ(x.indices, y.indices);
+    EXPECT_EQ(x.normals, y.normals);
+    ASSERT_EQ(x.groups.size(), y.groups.size());
+    for (std::size_t g = 0; g < x.groups.size(); ++g) {
+      const Group& p = x.groups[g];
+      const Group& q = y.groups[g];
+      ASSERT_TRUE(p.square == q.square && p.half == q.half && p.priority == q.priority &&
+                  p.material == q.material && p.firstIndex == q.firstIndex && p.indexCount == q.indexCount)
+          << "level " << li << " group " << g;
+    }
+    ASSERT_EQ(x.maxHeight.size(), y.maxHeight.size());
+    for (std::size_t k = 0; k < x.maxHeight.size(); ++k) EXPECT_TRUE(withinStep(x.maxHeight[k], y.maxHeight[k], step));
+  }
+}
+
+/// The sample with a normal per vertex (a smooth, made-up field).
+Module withNormals(Module m) {
+  for (Level& l : m.levels) {
+    l.normals.clear();
+    for (const Vertex& v : l.vertices) {
+      l.normals.push_back(octEncode(float(0.1 * std::sin(v.x / 50.0)), 1.0f, float(0.1 * std::cos(v.z / 70.0))));
+    }
+  }
+  return m;
+}
+
+TEST(ModuleV2, layoutConstantsArePinned) {
+  EXPECT_EQ(kLevelHeaderBytes2, 104u);
+  EXPECT_EQ(levelField2::runCount, 36u);
+  EXPECT_EQ(levelField2::heightStep, 40u);
+  EXPECT_EQ(levelField2::heightBase, 48u);
+  EXPECT_EQ(levelField2::skinS0, 72u);
+  EXPECT_EQ(levelField2::normalShift, 88u);
+  EXPECT_EQ(levelField2::runBytes, 100u);
+}
+
+// Golden bytes of version 2, computed by hand (the comments give each
+// value); the CRCs come from zlib over the expected bytes.
+TEST(ModuleV2, version2GoldenBytes) {
+  const auto bytes = encode(tinyV2());
+  const std::string level =
+      "0000000000004040"  // spacing 32.0
+      "01000000"          // squaresX 1
+      "01000000"          // squaresZ 1
+      "0000a040"          // skirt depth 5.0
+      "07000000"          // flags: lattice | derived maxHeight | normals
+      "04000000"          // 4 vertices
+      "06000000"          // 6 indices
+      "02000000"          // 2 groups
+      "01000000"          // in 1 run
+      "7b14ae47e17a843f"  // height step 0.01
+      "e803000000000000"  // height base 1000 (10.00 m / 0.01)
+      "0000000000004040"  // lastX 32.0
+      "0000000000004040"  // lastZ 32.0
+      "0000000000000000"  // skin S0 0
+      "0000000000000000"  // skin T0 0
+      "06000000"          // normal shift 6 (every component a multiple of 64)
+      "00000000"          // no other vertices: empty vertex stream
+      "0b000000"          // index stream 11 bytes
+      "05000000"          // runs 5 bytes
+      // Heights: codes 0, 25, 50, 100; predictions 0, 0 (west), 0 (north),
+      // 25 + 50 - 0; residuals 0, 25, 50, 25; zigzag 0, 50, 100, 50; four
+      // byte planes.
+      "00326432"
+      "00000000"
+      "00000000"
+      "00000000"
+      // Normals u >> 6: 0, 1, 0, 1: residuals 0, 1, 0, 0 -> zigzag 0 2 0 0.
+      "00020000"
+      "00000000"
+      // v >> 6: 0, 0, -1, -1: residuals 0, 0, -1, 0 -> zigzag 0 0 1 0.
+      "00000100"
+      "00000000"
+      // meshopt index sequence: header 0xd0 | version, then per index
+      // ((zigzag(delta) << 1) | baseline 0): 0, +2, -1, 0, +1, +1, and the
+      // 4-byte zero tail.
+      "d?00080200040400000000"
+      // One run: start slot delta 0, priority 1, material 3, 3 indices, 2 groups.
+      "0001030302";
+  // The index codec's version nibble is the library's default; read it.
+  ASSERT_GT(bytes.size(), 48u + 104u + 32u);
+  const int nibble = std::to_integer<int>(bytes[48 + 104 + 32]) & 15;
+  std::string want = level;
+  want.replace(want.find('?'), 1, 1, "0123456789abcdef"[nibble]);
+  ASSERT_EQ(bytes.size(), 48u + want.size() / 2);
+  EXPECT_EQ(hex(std::span(bytes).subspan(48)), want);
+  EXPECT_LE(nibble, 1);
+  // Header: "SANDMOD2", version 2, 48, kx 1, kz 2, 1 level, flags 0, total 200.
+  EXPECT_EQ(hex(std::span(bytes).first(40)),
+            "53414e444d4f4432"
+            "02000000"
+            "30000000"
+            "01000000"
+            "02000000"
+            "01000000"
+            "00000000"
+            "c800000000000000");
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::payloadCrc), crc32(std::span(bytes).subspan(48)));
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::headerCrc), crc32(std::span(bytes).first(44)));
+  auto back = decode(bytes, "golden");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectNear(back.value(), tinyV2(), kDefaultHeightStep);
+  EXPECT_EQ(back->levels[0].heightStep, kDefaultHeightStep);
+  EXPECT_EQ(back->levels[0].maxHeight, std::vector<float>{11.0f});
+}
+
+TEST(ModuleV2, roundTripsWithinTheStepAndReencodesIdentically) {
+  for (const Module& m : {samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7)), samples::tiny()}) {
+    for (const double step : {0.01, 0.25}) {
+      const auto bytes = encode(m, {.version = 2, .heightStep = step});
+      EXPECT_EQ(encodedVersion(bytes), 2u);
+      auto back = decode(bytes, "v2");
+      ASSERT_TRUE(back.ok()) << back.error();
+      expectNear(back.value(), m, step);
+      // Quantising quantised heights changes nothing.
+      EXPECT_EQ(encode(back.value(), {.version = 2, .heightStep = step}), bytes);
+      Module reused = samples::realistic(9, 9, 16, 3);
+      ASSERT_TRUE(decodeInto(bytes, "v2", 0, reused).ok());
+      expectNear(reused, m, step);
+    }
+  }
+}
+
+TEST(ModuleV2, exactHeightsWhenAskedOrWhenAHeightIsNotFinite) {
+  Module m = samples::realistic(3, 4, 8, 2);
+  auto back = decode(encode(m, {.version = 2, .heightStep = 0}), "exact");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectEqual(back.value(), m);  // bit for bit, y included
+  EXPECT_EQ(back->levels[0].heightStep, 0.0);
+  m.levels[1].vertices[5].y = std::numeric_limits<float>::infinity();
+  const auto bytes = encode(m);
+  back = decode(bytes, "inf");
+  ASSERT_TRUE(back.ok()) << back.error();
+  EXPECT_EQ(back->levels[1].vertices[5].y, std::numeric_limits<float>::infinity());
+  EXPECT_EQ(back->levels[1].heightStep, 0.0);
+  EXPECT_EQ(back->levels[0].heightStep, kDefaultHeightStep);
+}
+
+TEST(ModuleV2, lossyOnlyInHeightsAndUsesTheLattice) {
+  const Module m = samples::realistic(5, 7);
+  const auto v2 = encode(m);
+  const auto v1 = encodeV1(m);
+  // The lattice and group runs are in use: much smaller than version 1.
+  std::uint32_t flags = loadLE<std::uint32_t>(v2.data() + kHeaderBytes + levelField2::flags);
+  EXPECT_EQ(flags & (kLevel2Lattice | kLevel2DerivedMaxHeight), kLevel2Lattice | kLevel2DerivedMaxHeight);
+  EXPECT_LT(loadLE<std::uint32_t>(v2.data() + kHeaderBytes + levelField2::runCount),
+            m.levels[0].groups.size() / 2);
+  EXPECT_LT(v2.size() * 2, v1.size());
+  // A lattice vertex moved off its post is stored explicitly, exactly.
+  Module off = m;
+  off.levels[0].vertices[3].x += 0.5f;
+  const auto bytes = encode(off);
+  flags = loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField2::flags);
+  EXPECT_EQ(flags & kLevel2Lattice, 0u);
+  auto back = decode(bytes, "off");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectNear(back.value(), off, kDefaultHeightStep);
+}
+
+TEST(ModuleV2, octahedralNormalsRoundTripAgainstTheUnitVector) {
+  std::uint64_t seed = 12345;
+  auto next = [&] {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    return double(seed >> 11) * 0x1p-53 * 2.0 - 1.0;
+  };
+  EXPECT_EQ(octEncode(0, 1, 0), 0u);
+  EXPECT_EQ(octEncode(0, 0, 0), 0u);
+  const auto up = octDecode(0);
+  EXPECT_EQ(up[1], 1.0f);
+  for (int i = 0; i < 2000; ++i) {
+    double x = next(), y = next(), z = next();
+    const double n = std::sqrt(x * x + y * y + z * z);
+    if (n < 1e-3) continue;
+    x /= n, y /= n, z /= n;
+    const auto d = octDecode(octEncode(float(x), float(y), float(z)));
+    // snorm16 on the octahedron: well under 1e-3 rad anywhere.
+    const double dot = d[0] * x + d[1] * y + d[2] * z;
+    EXPECT_GT(dot, std::cos(1e-3)) << x << " " << y << " " << z;
+    EXPECT_NEAR(d[0] * d[0] + d[1] * d[1] + d[2] * d[2], 1.0, 1e-5);
+  }
+}
+
+TEST(ModuleV2, version1StillDecodesAndConvertsLosslesslyExceptHeights) {
+  const Module m = samples::realistic(2, 3, 8, 3);
+  auto one = decode(encodeV1(m), "v1");
+  ASSERT_TRUE(one.ok()) << one.error();
+  expectEqual(one.value(), m);
+  EXPECT_EQ(encodedVersion(encodeV1(m)), 1u);
+  auto two = decode(encode(one.value()), "v2");
+  ASSERT_TRUE(two.ok()) << two.error();
+  expectNear(two.value(), m, kDefaultHeightStep);
+}
+
+TEST(ModuleV2, everyTruncatedPrefixFailsNamingItsOffset) {
+  const auto bytes = encode(withNormals(samples::realistic(1, 1, 4, 2)));
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+    ASSERT_FALSE(m.ok()) << "prefix " << n;
+    const Problem& p = m.problems().front();
+    EXPECT_EQ(p.file, "cut.bin");
+    EXPECT_EQ(p.offset, 1000 + n) << p.message;
+    EXPECT_EQ(p.message.rfind("module: ", 0), 0u) << p.message;
+    EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
+  }
+}
+
+TEST(ModuleV2, everyFlippedByteIsDetected) {
+  auto bytes = encode(samples::realistic(2, 3, 4, 2));
+  for (std::size_t off = 0; off < bytes.size(); ++off) {
+    bytes[off] ^= std::byte{0x20};
+    EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+    bytes[off] ^= std::byte{0x20};
+  }
+}
+
+TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
+  const auto good = encode(withNormals(samples::realistic(1, 2, 4, 1)));
+  const std::size_t lh = kHeaderBytes;
+  struct Case {
+    std::size_t field;
+    std::uint32_t value;
+    std::size_t offset;
+    const char* starts;
+  };
+  const Case cases[] = {
+      {levelField2::vertexCount, 0xffffffffu, lh + levelField2::vertexStreamBytes, "module: level 0 vertex stream of"},
+      {levelField2::indexCount, 0xffffffffu, lh + levelField2::indexStreamBytes, "module: level 0 index stream of"},
+      {levelField2::groupCount, 0xffffffffu, lh + levelField2::groupCount, "module: level 0 4294967295 groups in"},
+      {levelField2::runCount, 0xffffffffu, lh + levelField2::groupCount, "module: level 0 "},
+      {levelField2::vertexStreamBytes, 0xffffff00u, lh + levelField2::vertexStreamBytes, "module: level 0: 25 lattice posts"},
+      {levelField2::runBytes, 0x7fffffffu, lh + levelField2::vertexStreamBytes, "module: level 0: 25 lattice posts"},
+      {levelField2::squaresX, 65536, lh + levelField2::vertexStreamBytes, "module: level 0: 327685 lattice posts"},
+      {levelField2::flags, 16, lh + levelField2::flags, "module: level 0 flags 23 has bits other than 0..3 set"},
+      {levelField2::normalShift, 16, lh + levelField2::normalShift, "module: level 0 normal shift 16 is above 15"},
+  };
+  for (const Case& c : cases) {
+    auto bytes = good;
+    if (c.field == levelField2::flags) {
+      storeLE<std::uint32_t>(bytes.data() + lh + c.field, loadLE<std::uint32_t>(bytes.data() + lh + c.field) | c.value);
+    } else {
+      storeLE<std::uint32_t>(bytes.data() + lh + c.field, c.value);
+    }
+    reseal(bytes);
+    gLargestAllocation = 0;
+    auto m = decode(bytes, "h.bin", 0);
+    ASSERT_FALSE(m.ok()) << c.field;
+    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.field;
+    const Problem& p = m.problems().front();
+    EXPECT_EQ(p.message.rfind(c.starts, 0), 0u) << p.message;
+    EXPECT_EQ(p.offset, c.offset) << p.message;
+    EXPECT_EQ(p.file, "h.bin");
+  }
+}
+
+// Fuzz-style: random byte mutations of valid v2 modules with the CRCs
+// re-sealed, so they reach every structural check. Fixed seed; each input
+// must decode or fail with a "module: " problem inside the input, never
+// crash or allocate beyond a bound (64x the input plus the lattice).
+TEST(ModuleV2, randomMutationsNeverCrashOrOverAllocate) {
+  const std::vector<std::vector<std::byte>> seeds = {encode(tinyV2()), encode(withNormals(samples::realistic(1, 2, 8, 2))),
+                                                     encode(samples::realistic(4, 1, 4, 3))};
+  std::uint64_t state = 0x5eed;
+  auto next = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return std::uint32_t(state >> 33);
+  };
+  int failures = 0;
+  for (int round = 0; round < 3000; ++round) {
+    auto bytes = seeds[std::size_t(round) % seeds.size()];
+    const int edits = 1 + int(next() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const std::size_t at = kHeaderBytes + next() % (bytes.size() - kHeaderBytes);
+      switch (next() % 3) {
+        case 0: bytes[at] ^= std::byte(1u << (next() % 8)); break;
+        case 1: bytes[at] = std::byte(next()); break;
+        default: bytes[at] = std::byte{0xff}; break;
+      }
+    }
+    reseal(bytes);
+    gLargestAllocation = 0;
+    auto m = decode(bytes, "fuzz.bin", 0);
+    EXPECT_LT(gLargestAllocation.load(), 64 * bytes.size() + (std::size_t(1) << 20)) << "round " << round;
+    if (!m.ok()) {
+      ++failures;
+      const Problem& p = m.problems().front();
+      EXPECT_EQ(p.message.rfind("module: ", 0), 0u) << p.message;
+      EXPECT_LE(p.offset, bytes.size()) << p.message;
+    }
+  }
+  EXPECT_GT(failures, 100);  // the mutations do reach the checks
+}
+
+TEST(ModuleV2, checkEncodableRefusesNormalsOfTheWrongCount) {
+  Module m = tinyV2();
+  m.levels[0].normals.pop_back();
+  EXPECT_EQ(checkEncodable(m).message(), "module: level 0 has 3 normals for 4 vertices (one per vertex, or none)");
 }
 
 }  // namespace

@@ -35,6 +35,12 @@ namespace sandtable::module {
 
 inline constexpr std::array<char, 8> kMagic = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '1'};
 inline constexpr std::uint32_t kVersion = 1;
+/// Version 2 (docs/FORMAT.md §9.7): the same 48-byte module header with
+/// this magic and version 2; levels in the layout of "version 2" below.
+inline constexpr std::array<char, 8> kMagic2 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '2'};
+inline constexpr std::uint32_t kVersion2 = 2;
+/// Default height quantisation step of version 2, metres (1 cm).
+inline constexpr double kDefaultHeightStep = 0.01;
 
 // ------------------------------------------------------------------ layout
 // Shared by encode, decode, the tests and docs (docs/FORMAT.md, "module").
@@ -84,6 +90,57 @@ inline constexpr std::size_t spacing = 0, squaresX = 8, squaresZ = 12, skirtDept
 }
 static_assert(levelField::groupCount + 4 == kLevelHeaderBytes, "level header layout");
 static_assert(kVertexBytes == 20 && kGroupBytes == 12, "plane widths");
+
+// ------------------------------------------------------- layout, version 2
+// Version 2 stores what the grid implies, not what it repeats (issue 11;
+// docs/FORMAT.md §9.7 byte by byte). A level is a 104-byte level header and
+//
+//   lattice heights   u32[P] shuffled: zigzag residual of the parallelogram
+//                     predictor over the (X+1) x (Z+1) posts (flag lattice)
+//   lattice normals   u16[P] u, then u16[P] v, shuffled, same predictor,
+//                     values >> normalShift (flags lattice and normals)
+//   maxHeight         f32[S] shuffled (absent with flag derivedMaxHeight)
+//   vertex stream     meshopt_encodeVertexBuffer of the E = V - P other
+//                     vertices: u32 x bits, y code, z bits, s bits, t bits
+//                     [, normal] (24 bytes with normals, else 20)
+//   index stream      meshopt_encodeIndexSequence of the I indices
+//   group runs        LEB128 runs (below)
+//
+// Lattice vertices are vertices 0 .. P-1, the posts row-major, as the
+// builder writes them: their x, z, s, t follow from spacing, lastX/lastZ
+// and skinS0/skinT0 in the level header; only y (and the normal) is stored.
+// The encoder uses the lattice only when every one of those values comes
+// back bit for bit, so x, z, s and t are lossless in every case.
+// Heights: y code q - heightBase with q = round(y / heightStep) (signed,
+// on the whole database's 1 cm lattice, so neighbours decode the same
+// edge heights); decoded y = float(double(heightBase + code) * step), at
+// most step / 2 + half a float ulp of |y| from the original. A level with
+// a non-finite y (or too wide a range) stores float bits (flag exact).
+// maxHeight is recomputed from the decoded vertices where it was the
+// highest skin and decal vertex of each square (flag derivedMaxHeight).
+// Group runs: consecutive groups with one priority, material and index
+// count whose squares step (sq, upper) -> (sq, lower) -> (sq+1, upper), or
+// (sq, skirt) -> (sq+1, skirt), are one run.
+
+inline constexpr std::uint32_t kLevelHeaderBytes2 = 104;
+inline constexpr std::uint32_t kLevel2Lattice = 1;           ///< vertices 0..P-1 are the lattice posts
+inline constexpr std::uint32_t kLevel2DerivedMaxHeight = 2;  ///< maxHeight is not stored
+inline constexpr std::uint32_t kLevel2Normals = 4;           ///< Level::normals are stored
+inline constexpr std::uint32_t kLevel2ExactHeights = 8;      ///< y codes are float bits
+inline constexpr std::uint32_t kLevel2KnownFlags = 15;
+
+/// Byte offsets of the version 2 level header fields, from the level's start.
+namespace levelField2 {
+inline constexpr std::size_t spacing = 0, squaresX = 8, squaresZ = 12, skirtDepth = 16, flags = 20,
+                             vertexCount = 24, indexCount = 28, groupCount = 32, runCount = 36,
+                             heightStep = 40, heightBase = 48, lastX = 56, lastZ = 64, skinS0 = 72,
+                             skinT0 = 80, normalShift = 88, vertexStreamBytes = 92,
+                             indexStreamBytes = 96, runBytes = 100;
+}
+static_assert(levelField2::runBytes + 4 == kLevelHeaderBytes2, "version 2 level header layout");
+/// A meshopt vertex stream never expands more than this (v0 codec: 2 header
+/// bits per 16 bytes of one byte lane); decode refuses larger claims.
+inline constexpr std::uint64_t kMaxVertexStreamExpansion = 64;
 
 /// Which part of a grid square a group of triangles belongs to.
 enum class Half : std::uint8_t {
@@ -142,7 +199,23 @@ struct Level {
   /// Highest vertex y in each square (skin and decals), row-major.
   std::vector<float> maxHeight;
   float skirtDepth = 0;  ///< how far skirts hang below the edge vertices, metres
+  /// Per vertex, octahedral unit normal (octEncode): empty = absent (always
+  /// so from version 1, which has no place for them).
+  std::vector<std::uint32_t> normals;
+  /// Height quantisation step the level was decoded with, metres: every y
+  /// is within heightStep / 2 (plus half a float ulp) of what was encoded.
+  /// 0 = exact (version 1, or a version 2 level stored exact). Not encoded
+  /// from here: encode takes EncodeOptions::heightStep.
+  double heightStep = 0;
 };
+
+/// Octahedral normal (seed: none; Cigolle et al. 2014), folded about y (up):
+/// u = x / (|x|+|y|+|z|), v = z / (...), reflected for y < 0; each as snorm16
+/// (round(c * 32767)), u in bits 0..15, v in bits 16..31. An upward normal
+/// is 0. The input need not be unit length; (0,0,0) encodes as up.
+std::uint32_t octEncode(float x, float y, float z);
+/// Inverse of octEncode, unit length (x, y, z).
+std::array<float, 3> octDecode(std::uint32_t packed);
 
 struct Module {
   std::uint32_t kx = 0;  ///< column of the module, from the west edge
@@ -159,14 +232,26 @@ struct Module {
 /// checked by decode.
 Status checkEncodable(const Module& m);
 
-/// Exact size of encode(m) in bytes.
+/// Exact size of encode(m, {.version = 1}) in bytes; a version 2 encoding
+/// is smaller for every module a builder makes (it is an upper bound used
+/// to refuse oversized modules before encoding).
 std::uint64_t encodedBytes(const Module& m);
+
+struct EncodeOptions {
+  std::uint32_t version = kVersion2;       ///< 1 or 2
+  double heightStep = kDefaultHeightStep;  ///< version 2 only; <= 0 stores exact float heights
+};
 
 /// Uncompressed bytes of a module (little-endian, layout above and in
 /// docs/FORMAT.md). Deterministic. Asserts checkEncodable(m).ok() in debug
 /// builds; in release builds it still writes a well-formed container (a
-/// short maxHeight is padded with 0, firstIndex is ignored).
-std::vector<std::byte> encode(const Module& m);
+/// short maxHeight is padded with 0, firstIndex is ignored). Version 1 has
+/// no normals (they are dropped); version 2 quantises heights (above).
+std::vector<std::byte> encode(const Module& m, const EncodeOptions& options = {});
+
+/// The format version of encoded bytes (1 or 2), from the magic and the
+/// version field; 0 when they are neither (decode says why).
+std::uint32_t encodedVersion(std::span<const std::byte> bytes);
 
 /// Decodes and checks structure: both CRCs, counts within the bytes, indices
 /// within the vertices, groups within the indices and in (priority, square,

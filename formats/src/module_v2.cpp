@@ -1,0 +1,660 @@
+// Load modules, version 2 (module.h "layout, version 2"; docs/FORMAT.md
+// §9.7): lattice vertices carry only a height code, heights are quantised,
+// normals octahedral, everything else goes through meshoptimizer's codecs.
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "module_internal.h"
+#include "sandtable/formats/bytes.h"
+
+namespace sandtable::module {
+
+// ------------------------------------------------------------ octahedral
+
+namespace {
+
+float signNotZero(float v) { return v < 0.0f ? -1.0f : 1.0f; }
+
+std::uint32_t snorm16(float c) {
+  const long q = std::lround(std::clamp(c, -1.0f, 1.0f) * 32767.0f);
+  return std::uint32_t(std::uint16_t(std::int16_t(q)));
+}
+
+float unsnorm16(std::uint32_t bits) {
+  return std::max(float(std::int16_t(std::uint16_t(bits))) / 32767.0f, -1.0f);
+}
+
+}  // namespace
+
+std::uint32_t octEncode(float x, float y, float z) {
+  const float n = std::fabs(x) + std::fabs(y) + std::fabs(z);
+  if (!(n > 0.0f) || !std::isfinite(n)) return 0;  // no direction: up
+  float u = x / n, v = z / n;
+  if (y < 0.0f) {  // fold the lower hemisphere onto the corners
+    const float fu = (1.0f - std::fabs(v)) * signNotZero(u);
+    const float fv = (1.0f - std::fabs(u)) * signNotZero(v);
+    u = fu, v = fv;
+  }
+  return snorm16(u) | snorm16(v) << 16;
+}
+
+std::array<float, 3> octDecode(std::uint32_t packed) {
+  float u = unsnorm16(packed & 0xffffu), v = unsnorm16(packed >> 16);
+  const float y = 1.0f - std::fabs(u) - std::fabs(v);
+  if (y < 0.0f) {
+    const float fu = (1.0f - std::fabs(v)) * signNotZero(u);
+    const float fv = (1.0f - std::fabs(u)) * signNotZero(v);
+    u = fu, v = fv;
+  }
+  const float len = std::sqrt(u * u + y * y + v * v);
+  return {u / len, y / len, v / len};
+}
+
+namespace detail {
+namespace {
+
+std::string str(std::uint64_t v) { return std::to_string(v); }
+std::uint32_t bits(float f) { return std::bit_cast<std::uint32_t>(f); }
+
+std::uint32_t zigzag32(std::uint32_t d) { return (d << 1) ^ ((d >> 31) ? 0xffffffffu : 0u); }
+std::uint32_t unzigzag32(std::uint32_t z) { return (z >> 1) ^ ((z & 1) ? 0xffffffffu : 0u); }
+std::uint32_t zigzag16(std::uint32_t d) {
+  d &= 0xffffu;
+  return ((d << 1) & 0xffffu) ^ ((d >> 15) ? 0xffffu : 0u);
+}
+std::uint32_t unzigzag16(std::uint32_t z) { return ((z >> 1) ^ ((z & 1) ? 0xffffu : 0u)) & 0xffffu; }
+
+/// Parallelogram prediction of post (a, b) of a (nx+1)-wide row-major
+/// lattice from its west, north and north-west neighbours, modulo 2^32
+/// (callers mask to 16 bits for normals): exact on planes, so smooth
+/// terrain leaves small residuals.
+template <typename Get>
+std::uint32_t predict(std::size_t a, std::size_t b, std::size_t w, Get get) {
+  if (a > 0 && b > 0) return get(b * w + a - 1) + get((b - 1) * w + a) - get((b - 1) * w + a - 1);
+  if (a > 0) return get(b * w + a - 1);
+  if (b > 0) return get((b - 1) * w + a);
+  return 0;
+}
+
+// ---------------------------------------------------------------- LEB128
+
+void putVarint(std::vector<std::byte>& out, std::uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(std::byte(std::uint8_t(v) | 0x80));
+    v >>= 7;
+  }
+  out.push_back(std::byte(std::uint8_t(v)));
+}
+
+/// Reads a LEB128 value of at most 10 bytes from [p, end); false when it
+/// runs past the end or overflows 64 bits.
+bool getVarint(const std::byte*& p, const std::byte* end, std::uint64_t& v) {
+  v = 0;
+  for (unsigned shift = 0; shift < 64 && p < end; shift += 7) {
+    const auto b = std::uint8_t(*p++);
+    if (shift == 63 && b > 1) return false;
+    v |= std::uint64_t(b & 0x7f) << shift;
+    if (!(b & 0x80)) return true;
+  }
+  return false;
+}
+
+std::uint64_t zigzag64(std::int64_t d) { return (std::uint64_t(d) << 1) ^ std::uint64_t(d >> 63); }
+std::int64_t unzigzag64(std::uint64_t z) { return std::int64_t(z >> 1) ^ -std::int64_t(z & 1); }
+
+/// Group position for runs: square * 4 + half.
+std::uint64_t slotOf(std::uint32_t square, std::uint8_t half) { return std::uint64_t(square) * 4 + half; }
+/// The slot that follows `slot` inside a run.
+std::uint64_t nextSlot(std::uint64_t slot) {
+  const std::uint64_t half = slot & 3;
+  if (half == 0) return slot + 1;      // upper -> lower of the same square
+  if (half == 1) return slot + 3;      // lower -> upper of the next square
+  return slot + 4;                     // skirt -> skirt of the next square
+}
+
+// ---------------------------------------------------------------- encode
+
+/// Module-local x of lattice column a (the builder's (post - i0) * spacing,
+/// the last column clamped to the level's edge).
+double latticeCoord(std::uint32_t a, std::uint32_t n, double spacing, double last) {
+  return a < n ? double(a) * spacing : last;
+}
+
+/// An offset o with float((o + coord(k)) / repeat) == tex(k) for every k in
+/// [0, n], searched near tex(0) * repeat (coord(0) is 0): the builder's
+/// exact offset is not in the module, but any offset that reproduces every
+/// value will do. False when none of the candidates does.
+template <typename Coord, typename Tex>
+bool findSkinOffset(std::uint32_t n, Coord coord, Tex tex, double& offset) {
+  const float t0 = tex(0);
+  if (!std::isfinite(t0)) return false;
+  const double centre = double(t0) * kSkinTextureRepeat;
+  const double ulp = double(std::nextafter(std::fabs(t0), std::numeric_limits<float>::infinity()) - std::fabs(t0)) *
+                     kSkinTextureRepeat;
+  for (int k = 0; k <= 32; ++k) {
+    const int step = (k % 2 == 0) ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...
+    const double o = centre + step * ulp / 16.0;
+    bool ok = true;
+    for (std::uint32_t a = 0; a <= n && ok; ++a) {
+      ok = bits(float((o + coord(a)) / kSkinTextureRepeat)) == bits(tex(a));
+    }
+    if (ok) {
+      offset = o;
+      return true;
+    }
+  }
+  return false;
+}
+
+struct Plan {
+  std::uint32_t flags = 0;
+  std::uint64_t posts = 0;  ///< P
+  double step = 0;
+  std::int64_t base = 0;
+  double lastX = 0, lastZ = 0, s0 = 0, t0 = 0;
+  std::uint32_t shift = 0;
+};
+
+Plan plan(const Level& l, double heightStep) {
+  Plan p;
+  const std::uint32_t nx = l.squaresX, nz = l.squaresZ;
+  const std::size_t w = std::size_t(nx) + 1;
+  const std::uint64_t posts = std::uint64_t(w) * (std::uint64_t(nz) + 1);
+  const auto& v = l.vertices;
+  if (posts <= v.size()) {
+    p.lastX = double(v[nx].x);
+    p.lastZ = double(v[std::size_t(nz) * w].z);
+    bool ok = true;
+    for (std::uint32_t b = 0; b <= nz && ok; ++b) {
+      const float z = float(latticeCoord(b, nz, l.spacing, p.lastZ));
+      for (std::uint32_t a = 0; a <= nx && ok; ++a) {
+        const Vertex& q = v[b * w + a];
+        ok = bits(q.x) == bits(float(latticeCoord(a, nx, l.spacing, p.lastX))) && bits(q.z) == bits(z);
+      }
+    }
+    ok = ok && findSkinOffset(
+                   nx, [&](std::uint32_t a) { return latticeCoord(a, nx, l.spacing, p.lastX); },
+                   [&](std::uint32_t a) { return v[a].s; }, p.s0);
+    ok = ok && findSkinOffset(
+                   nz, [&](std::uint32_t b) { return latticeCoord(b, nz, l.spacing, p.lastZ); },
+                   [&](std::uint32_t b) { return v[b * w].t; }, p.t0);
+    for (std::uint32_t b = 0; b <= nz && ok; ++b) {
+      const float t = float((p.t0 + latticeCoord(b, nz, l.spacing, p.lastZ)) / kSkinTextureRepeat);
+      for (std::uint32_t a = 0; a <= nx && ok; ++a) {
+        const Vertex& q = v[b * w + a];
+        ok = bits(q.t) == bits(t) &&
+             bits(q.s) == bits(float((p.s0 + latticeCoord(a, nx, l.spacing, p.lastX)) / kSkinTextureRepeat));
+      }
+    }
+    if (ok) p.flags |= kLevel2Lattice, p.posts = posts;
+  }
+  if (!p.posts) p.lastX = p.lastZ = p.s0 = p.t0 = 0;  // not used: written as 0
+
+  // Heights: quantised unless a value is not finite or the range too wide.
+  bool exact = !(heightStep > 0) || !std::isfinite(heightStep);
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(), hi = std::numeric_limits<std::int64_t>::min();
+  for (std::size_t i = 0; i < v.size() && !exact; ++i) {
+    const double q = std::nearbyint(double(v[i].y) / heightStep);
+    if (!(std::fabs(q) < 0x1p52)) {
+      exact = true;
+      break;
+    }
+    lo = std::min(lo, std::int64_t(q));
+    hi = std::max(hi, std::int64_t(q));
+  }
+  if (!exact && !v.empty() && std::uint64_t(hi - lo) > 0xffffffffu) exact = true;
+  if (exact) {
+    p.flags |= kLevel2ExactHeights;
+  } else {
+    p.step = heightStep;
+    p.base = v.empty() ? 0 : lo;
+  }
+
+  // maxHeight follows from the vertices where it is what computeMaxHeights
+  // gives (the builder's rule); only the lattice bounds the squares.
+  if (p.posts && l.maxHeight.size() == std::uint64_t(nx) * nz) {
+    std::vector<float> top(l.maxHeight.size(), -std::numeric_limits<float>::infinity());
+    bool ok = true;
+    for (const Group& g : l.groups) {
+      if (g.half == Half::skirt) continue;
+      if (g.square >= top.size() || std::uint64_t(g.firstIndex) + g.indexCount > l.indices.size()) {
+        ok = false;
+        break;
+      }
+      float& t = top[g.square];
+      for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount && ok; ++k) {
+        ok = l.indices[k] < v.size();
+        if (ok) t = std::max(t, v[l.indices[k]].y);
+      }
+    }
+    for (std::size_t k = 0; k < top.size() && ok; ++k) ok = bits(top[k]) == bits(l.maxHeight[k]);
+    if (ok) p.flags |= kLevel2DerivedMaxHeight;
+  }
+
+  if (!l.normals.empty() && l.normals.size() == v.size()) {
+    p.flags |= kLevel2Normals;
+    // The builder may round normals; the low bits every lattice normal
+    // leaves zero are not stored.
+    std::uint32_t any = 0;
+    for (std::uint64_t k = 0; k < p.posts; ++k) any |= l.normals[k] | l.normals[k] >> 16;
+    p.shift = std::min<std::uint32_t>(15, any & 0xffffu ? std::uint32_t(std::countr_zero(any & 0xffffu)) : 15);
+  }
+  return p;
+}
+
+std::uint32_t heightCode(const Plan& p, float y) {
+  if (p.flags & kLevel2ExactHeights) return bits(y);
+  return std::uint32_t(std::int64_t(std::nearbyint(double(y) / p.step)) - p.base);
+}
+
+void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out) {
+  const Plan p = plan(l, heightStep);
+  const auto& v = l.vertices;
+  const std::size_t P = std::size_t(p.posts), V = v.size(), E = V - P;
+  const std::size_t w = std::size_t(l.squaresX) + 1;
+  const bool normals = p.flags & kLevel2Normals;
+
+  // Vertex and index streams first (their sizes go in the header).
+  const std::size_t stride = normals ? 24 : 20;
+  std::vector<std::uint32_t> raw(E * stride / 4);
+  for (std::size_t i = 0; i < E; ++i) {
+    const Vertex& q = v[P + i];
+    std::uint32_t* r = raw.data() + i * stride / 4;
+    r[0] = bits(q.x), r[1] = heightCode(p, q.y), r[2] = bits(q.z), r[3] = bits(q.s), r[4] = bits(q.t);
+    if (normals) r[5] = l.normals[P + i];
+  }
+  std::vector<unsigned char> vstream;
+  if (E > 0) {
+    vstream.resize(meshopt_encodeVertexBufferBound(E, stride));
+    vstream.resize(meshopt_encodeVertexBuffer(vstream.data(), vstream.size(), raw.data(), E, stride));
+  }
+  std::vector<unsigned char> istream;
+  if (!l.indices.empty()) {
+    istream.resize(meshopt_encodeIndexSequenceBound(l.indices.size(), V));
+    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), l.indices.data(), l.indices.size()));
+  }
+  std::vector<std::byte> runs;
+  std::uint32_t runCount = 0;
+  {
+    std::uint64_t prev = 0;
+    for (std::size_t g = 0; g < l.groups.size();) {
+      const Group& a = l.groups[g];
+      const std::uint64_t start = slotOf(a.square, std::uint8_t(a.half));
+      std::size_t n = 1;
+      std::uint64_t slot = start;
+      while (g + n < l.groups.size()) {
+        const Group& b = l.groups[g + n];
+        if (b.priority != a.priority || b.material != a.material || b.indexCount != a.indexCount ||
+            slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot)) {
+          break;
+        }
+        slot = nextSlot(slot);
+        ++n;
+      }
+      putVarint(runs, zigzag64(std::int64_t(start - prev)));
+      putVarint(runs, a.priority);
+      putVarint(runs, a.material);
+      putVarint(runs, a.indexCount);
+      putVarint(runs, n);
+      prev = slot;
+      g += n;
+      ++runCount;
+    }
+  }
+
+  const std::size_t S = std::size_t(l.squaresX) * l.squaresZ;
+  const std::size_t size = kLevelHeaderBytes2 + 4 * P + (normals ? 4 * P : 0) +
+                           ((p.flags & kLevel2DerivedMaxHeight) ? 0 : 4 * S) + vstream.size() + istream.size() +
+                           runs.size();
+  const std::size_t at = out.size();
+  out.resize(at + size, std::byte{0});
+  std::byte* h = out.data() + at;
+  storeLE<double>(h + levelField2::spacing, l.spacing);
+  storeLE<std::uint32_t>(h + levelField2::squaresX, l.squaresX);
+  storeLE<std::uint32_t>(h + levelField2::squaresZ, l.squaresZ);
+  storeLE<float>(h + levelField2::skirtDepth, l.skirtDepth);
+  storeLE<std::uint32_t>(h + levelField2::flags, p.flags);
+  storeLE<std::uint32_t>(h + levelField2::vertexCount, std::uint32_t(V));
+  storeLE<std::uint32_t>(h + levelField2::indexCount, std::uint32_t(l.indices.size()));
+  storeLE<std::uint32_t>(h + levelField2::groupCount, std::uint32_t(l.groups.size()));
+  storeLE<std::uint32_t>(h + levelField2::runCount, runCount);
+  storeLE<double>(h + levelField2::heightStep, p.step);
+  storeLE<std::int64_t>(h + levelField2::heightBase, p.base);
+  storeLE<double>(h + levelField2::lastX, p.lastX);
+  storeLE<double>(h + levelField2::lastZ, p.lastZ);
+  storeLE<double>(h + levelField2::skinS0, p.s0);
+  storeLE<double>(h + levelField2::skinT0, p.t0);
+  storeLE<std::uint32_t>(h + levelField2::normalShift, p.shift);
+  storeLE<std::uint32_t>(h + levelField2::vertexStreamBytes, std::uint32_t(vstream.size()));
+  storeLE<std::uint32_t>(h + levelField2::indexStreamBytes, std::uint32_t(istream.size()));
+  storeLE<std::uint32_t>(h + levelField2::runBytes, std::uint32_t(runs.size()));
+  std::byte* q = h + kLevelHeaderBytes2;
+  if (P > 0) {
+    std::vector<std::uint32_t> code(P);
+    for (std::size_t k = 0; k < P; ++k) code[k] = heightCode(p, v[k].y);
+    const auto get = [&](std::size_t k) { return code[k]; };
+    q = putPlane<4>(q, P, [&](std::size_t k) {
+      return zigzag32(code[k] - predict(k % w, k / w, w, get));
+    });
+    if (normals) {
+      for (int half = 0; half < 2; ++half) {
+        const auto comp = [&](std::size_t k) {
+          const auto c = std::int16_t(std::uint16_t(l.normals[k] >> (16 * half)));
+          return std::uint32_t(std::uint16_t(std::int16_t(c >> p.shift)));
+        };
+        q = putPlane<2>(q, P, [&](std::size_t k) { return zigzag16(comp(k) - predict(k % w, k / w, w, comp)); });
+      }
+    }
+  }
+  if (!(p.flags & kLevel2DerivedMaxHeight)) {
+    // Rounded like the vertices (monotone), so it stays >= every decoded
+    // vertex of its square.
+    const auto round = [&](float y) {
+      if ((p.flags & kLevel2ExactHeights) || !std::isfinite(y) || !(std::fabs(double(y) / p.step) < 0x1p52)) return y;
+      return float(double(std::int64_t(std::nearbyint(double(y) / p.step))) * p.step);
+    };
+    q = putPlane<4>(q, S, [&](std::size_t k) { return k < l.maxHeight.size() ? bits(round(l.maxHeight[k])) : 0u; });
+  }
+  if (!vstream.empty()) std::memcpy(q, vstream.data(), vstream.size());
+  q += vstream.size();
+  if (!istream.empty()) std::memcpy(q, istream.data(), istream.size());
+  q += istream.size();
+  if (!runs.empty()) std::memcpy(q, runs.data(), runs.size());
+  q += runs.size();
+  assert(q == out.data() + out.size());
+}
+
+}  // namespace
+
+std::vector<std::byte> encodeV2(const Module& m, double heightStep) {
+  std::vector<std::byte> out(kHeaderBytes, std::byte{0});
+  for (const Level& l : m.levels) encodeLevel(l, heightStep, out);
+  std::byte* const h = out.data();
+  std::memcpy(h + field::magic, kMagic2.data(), kMagic2.size());
+  storeLE<std::uint32_t>(h + field::version, kVersion2);
+  storeLE<std::uint32_t>(h + field::headerBytes, kHeaderBytes);
+  storeLE<std::uint32_t>(h + field::kx, m.kx);
+  storeLE<std::uint32_t>(h + field::kz, m.kz);
+  storeLE<std::uint32_t>(h + field::levelCount, static_cast<std::uint32_t>(m.levels.size()));
+  storeLE<std::uint32_t>(h + field::flags, 0);
+  storeLE<std::uint64_t>(h + field::totalBytes, out.size());
+  storeLE<std::uint32_t>(h + field::payloadCrc, crc32(std::span(out).subspan(kHeaderBytes)));
+  storeLE<std::uint32_t>(h + field::headerCrc, crc32(std::span(out).first(field::headerCrc)));
+  return out;
+}
+
+// ---------------------------------------------------------------- decode
+
+namespace {
+/// Scratch for the meshopt vertex stream, per thread: a loader decoding
+/// module after module allocates nothing once warm.
+thread_local std::vector<std::uint32_t> tScratch;
+thread_local std::vector<std::uint32_t> tComponent;
+}  // namespace
+
+Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
+                     std::size_t li, std::size_t& pos, Level& l) {
+  const std::string lv = "level " + str(li);
+  auto fail = [&](std::uint64_t off, const std::string& msg) {
+    return Status(Problem{file, base + off, "module: " + lv + msg});
+  };
+  const std::size_t left = bytes.size() - pos;
+  if (left < kLevelHeaderBytes2) {
+    return fail(pos, ": truncated: the level header needs " + str(kLevelHeaderBytes2) + " bytes, only " +
+                         str(left) + " remain");
+  }
+  const std::byte* h = bytes.data() + pos;
+  l.spacing = loadLE<double>(h + levelField2::spacing);
+  l.squaresX = loadLE<std::uint32_t>(h + levelField2::squaresX);
+  l.squaresZ = loadLE<std::uint32_t>(h + levelField2::squaresZ);
+  l.skirtDepth = loadLE<float>(h + levelField2::skirtDepth);
+  const auto flags = loadLE<std::uint32_t>(h + levelField2::flags);
+  const auto nv = loadLE<std::uint32_t>(h + levelField2::vertexCount);
+  const auto ni = loadLE<std::uint32_t>(h + levelField2::indexCount);
+  const auto ng = loadLE<std::uint32_t>(h + levelField2::groupCount);
+  const auto nr = loadLE<std::uint32_t>(h + levelField2::runCount);
+  const auto step = loadLE<double>(h + levelField2::heightStep);
+  const auto hbase = loadLE<std::int64_t>(h + levelField2::heightBase);
+  const auto lastX = loadLE<double>(h + levelField2::lastX), lastZ = loadLE<double>(h + levelField2::lastZ);
+  const auto s0 = loadLE<double>(h + levelField2::skinS0), t0 = loadLE<double>(h + levelField2::skinT0);
+  const auto shift = loadLE<std::uint32_t>(h + levelField2::normalShift);
+  const auto vBytes = loadLE<std::uint32_t>(h + levelField2::vertexStreamBytes);
+  const auto iBytes = loadLE<std::uint32_t>(h + levelField2::indexStreamBytes);
+  const auto rBytes = loadLE<std::uint32_t>(h + levelField2::runBytes);
+  if (!(std::isfinite(l.spacing) && l.spacing > 0)) {
+    return fail(pos + levelField2::spacing,
+                " spacing " + std::to_string(l.spacing) + " is not a finite positive number");
+  }
+  for (const std::size_t f : {levelField2::squaresX, levelField2::squaresZ}) {
+    const std::uint32_t n = loadLE<std::uint32_t>(h + f);
+    if (n < 1 || n > kMaxSquaresPerAxis) {
+      return fail(pos + f, " squares " + str(l.squaresX) + " x " + str(l.squaresZ) +
+                               " are out of range (1 to 65536 each)");
+    }
+  }
+  if (!(std::isfinite(l.skirtDepth) && l.skirtDepth >= 0)) {
+    return fail(pos + levelField2::skirtDepth,
+                " skirt depth " + std::to_string(l.skirtDepth) + " is not a finite number >= 0");
+  }
+  if ((flags & ~kLevel2KnownFlags) != 0) {
+    return fail(pos + levelField2::flags, " flags " + str(flags) + " has bits other than 0..3 set");
+  }
+  const bool lattice = flags & kLevel2Lattice, derived = flags & kLevel2DerivedMaxHeight,
+             normals = flags & kLevel2Normals, exact = flags & kLevel2ExactHeights;
+  if (derived && !lattice) {
+    return fail(pos + levelField2::flags, " flags " + str(flags) +
+                                              ": a derived maxHeight (bit 1) needs the lattice (bit 0)");
+  }
+  if (exact ? step != 0.0 : !(std::isfinite(step) && step > 0)) {
+    return fail(pos + levelField2::heightStep, " height step " + std::to_string(step) +
+                                                   (exact ? " must be 0 with exact heights"
+                                                          : " is not a finite positive number"));
+  }
+  if (lattice && !(std::isfinite(lastX) && std::isfinite(lastZ) && std::isfinite(s0) && std::isfinite(t0))) {
+    return fail(pos + levelField2::lastX, " lattice lastX, lastZ, skinS0 or skinT0 is not finite");
+  }
+  if (shift > 15) return fail(pos + levelField2::normalShift, " normal shift " + str(shift) + " is above 15");
+  const std::uint64_t squares = std::uint64_t(l.squaresX) * l.squaresZ;
+  const std::uint64_t posts = lattice ? (std::uint64_t(l.squaresX) + 1) * (std::uint64_t(l.squaresZ) + 1) : 0;
+  const std::uint64_t need = 4 * posts + (normals ? 4 * posts : 0) + (derived ? 0 : 4 * squares) +
+                             std::uint64_t(vBytes) + iBytes + rBytes;
+  if (need > left - kLevelHeaderBytes2) {
+    return fail(pos + levelField2::vertexStreamBytes,
+                ": " + str(posts) + " lattice posts, " + str(squares) + " squares and streams of " + str(vBytes) +
+                    " + " + str(iBytes) + " + " + str(rBytes) + " bytes need " + str(need) +
+                    " bytes after the level header, only " + str(left - kLevelHeaderBytes2) + " remain");
+  }
+  if (posts > nv) {
+    return fail(pos + levelField2::vertexCount,
+                " has " + str(nv) + " vertices, fewer than its " + str(posts) + " lattice posts");
+  }
+  // Every count is now bounded by the bytes: the lattice by its planes, the
+  // other vertices by the stream's largest expansion, indices by one byte
+  // each, groups by 3 indices each, runs by 5 bytes each.
+  const std::uint64_t E = nv - posts;
+  const std::uint64_t stride = normals ? 24 : 20;
+  if (E * stride > kMaxVertexStreamExpansion * vBytes || (E == 0) != (vBytes == 0)) {
+    return fail(pos + levelField2::vertexStreamBytes,
+                " vertex stream of " + str(vBytes) + " bytes cannot hold " + str(E) + " vertices of " +
+                    str(stride) + " bytes");
+  }
+  if (ni > iBytes || (ni == 0) != (iBytes == 0)) {
+    return fail(pos + levelField2::indexStreamBytes,
+                " index stream of " + str(iBytes) + " bytes cannot hold " + str(ni) + " indices");
+  }
+  if (std::uint64_t(ng) * 3 > ni || std::uint64_t(nr) * 5 > rBytes || nr > ng || (ng == 0) != (nr == 0)) {
+    return fail(pos + levelField2::groupCount, " " + str(ng) + " groups in " + str(nr) + " runs of " +
+                                                   str(rBytes) + " bytes do not fit its " + str(ni) +
+                                                   " indices");
+  }
+
+  const std::byte* b = bytes.data();
+  std::size_t p = pos + kLevelHeaderBytes2;
+  l.vertices.resize(nv);
+  Vertex* v = l.vertices.data();
+  if (normals) l.normals.resize(nv);
+  else l.normals.clear();
+  l.heightStep = exact ? 0.0 : step;
+  const auto height = [&](std::uint32_t code) {
+    return exact ? std::bit_cast<float>(code) : float(double(hbase + std::int64_t(code)) * step);
+  };
+  const std::size_t P = std::size_t(posts), w = std::size_t(l.squaresX) + 1;
+  if (P > 0) {
+    // Codes first (in y's bits), then positions and heights.
+    getPlane<4>(b + p, P, [&](std::size_t k, std::uint32_t z) {
+      const auto get = [v](std::size_t j) { return std::bit_cast<std::uint32_t>(v[j].y); };
+      v[k].y = std::bit_cast<float>(unzigzag32(z) + predict(k % w, k / w, w, get));
+    });
+    p += 4 * P;
+    for (std::size_t j = 0, k = 0; j <= l.squaresZ; ++j) {
+      const double zd = latticeCoord(std::uint32_t(j), l.squaresZ, l.spacing, lastZ);
+      const float z = float(zd), t = float((t0 + zd) / kSkinTextureRepeat);
+      for (std::size_t a = 0; a <= l.squaresX; ++a, ++k) {
+        const double xd = latticeCoord(std::uint32_t(a), l.squaresX, l.spacing, lastX);
+        v[k] = {float(xd), height(std::bit_cast<std::uint32_t>(v[k].y)), z,
+                float((s0 + xd) / kSkinTextureRepeat), t};
+      }
+    }
+    if (normals) {
+      // u into the normals, v into scratch (16-bit shifted components,
+      // predicted like the heights), then widened and packed.
+      std::uint32_t* nrm = l.normals.data();
+      tComponent.resize(P);
+      std::uint32_t* vv = tComponent.data();
+      for (std::uint32_t* dst : {nrm, vv}) {
+        getPlane<2>(b + p, P, [&](std::size_t k, std::uint32_t z) {
+          const auto get = [dst](std::size_t j) { return dst[j]; };
+          dst[k] = (unzigzag16(z) + predict(k % w, k / w, w, get)) & 0xffffu;
+        });
+        p += 2 * P;
+      }
+      const auto widen = [shift](std::uint32_t c) {
+        return std::uint32_t(std::uint16_t(std::int32_t(std::int16_t(std::uint16_t(c))) * (1 << shift)));
+      };
+      for (std::size_t k = 0; k < P; ++k) nrm[k] = widen(nrm[k]) | widen(vv[k]) << 16;
+    }
+  }
+  const std::size_t maxHeightPlane = p;
+  l.maxHeight.resize(std::size_t(squares));
+  if (!derived) {
+    float* mh = l.maxHeight.data();
+    getPlane<4>(b + p, std::size_t(squares),
+                [mh](std::size_t i, std::uint32_t u) { mh[i] = std::bit_cast<float>(u); });
+    p += 4 * std::size_t(squares);
+  }
+  if (E > 0) {
+    tScratch.resize(std::size_t(E * stride / 4));
+    if (meshopt_decodeVertexBuffer(tScratch.data(), std::size_t(E), std::size_t(stride),
+                                   reinterpret_cast<const unsigned char*>(b + p), vBytes) != 0) {
+      return fail(p, " vertex stream (" + str(vBytes) + " bytes, " + str(E) + " vertices) does not decode");
+    }
+    for (std::size_t i = 0; i < E; ++i) {
+      const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
+      v[P + i] = {std::bit_cast<float>(r[0]), height(r[1]), std::bit_cast<float>(r[2]), std::bit_cast<float>(r[3]),
+                  std::bit_cast<float>(r[4])};
+      if (normals) l.normals[P + i] = r[5];
+    }
+  }
+  p += vBytes;
+  const std::size_t indexStream = p;
+  l.indices.resize(ni);
+  if (ni > 0 && meshopt_decodeIndexSequence(l.indices.data(), ni, 4, reinterpret_cast<const unsigned char*>(b + p),
+                                            iBytes) != 0) {
+    return fail(p, " index stream (" + str(iBytes) + " bytes, " + str(ni) + " indices) does not decode");
+  }
+  for (std::uint32_t k = 0; k < ni; ++k) {
+    if (l.indices[k] >= nv) {
+      return fail(indexStream, " index " + str(k) + " is " + str(l.indices[k]) + ", not below the vertex count " +
+                                   str(nv));
+    }
+  }
+  p += iBytes;
+
+  // Groups from runs.
+  l.groups.resize(ng);
+  Group* gr = l.groups.data();
+  const std::byte* r = b + p;
+  const std::byte* const rEnd = r + rBytes;
+  std::uint64_t slot = 0, first = 0, prevKey = 0;
+  std::uint32_t g = 0;
+  for (std::uint32_t run = 0; run < nr; ++run) {
+    const std::size_t at = std::size_t(r - b);
+    std::uint64_t f[5];
+    for (auto& x : f) {
+      if (!getVarint(r, rEnd, x)) {
+        return fail(at, " group run " + str(run) + " is truncated or not LEB128 (the runs end at byte " +
+                            str(p + rBytes) + ")");
+      }
+    }
+    const std::uint64_t start = slot + std::uint64_t(unzigzag64(f[0]));
+    if (f[1] > 0xff || f[2] > 0xffff || f[3] > 0xffffffffu || f[4] == 0 || f[4] > ng - g) {
+      return fail(at, " group run " + str(run) + " (priority " + str(f[1]) + ", material " + str(f[2]) +
+                          ", index count " + str(f[3]) + ", length " + str(f[4]) + ") is out of range (" +
+                          str(ng - g) + " groups left)");
+    }
+    slot = start;
+    for (std::uint64_t k = 0; k < f[4]; ++k, ++g) {
+      if (k > 0) slot = nextSlot(slot);
+      const auto gs = [g] { return " group " + str(g); };
+      const std::uint64_t half = slot & 3, square = slot >> 2;
+      if (half > 2) return fail(at, gs() + " half " + str(half) + " is not 0 (upper), 1 (lower) or 2 (skirt)");
+      if (square >= squares) {
+        return fail(at, gs() + " square " + str(square) + " is not below the level's " + str(squares) + " squares");
+      }
+      const auto count = std::uint32_t(f[3]);
+      if (count == 0 || count % 3 != 0) {
+        return fail(at, gs() + " index count " + str(count) + " is not a positive multiple of 3");
+      }
+      if (first + count > ni) {
+        return fail(at, gs() + " indices " + str(first) + ".." + str(first + count - 1) + " run past the level's " +
+                            str(ni) + " indices");
+      }
+      gr[g].square = std::uint32_t(square);
+      gr[g].half = static_cast<Half>(half);
+      gr[g].priority = std::uint8_t(f[1]);
+      gr[g].material = std::uint16_t(f[2]);
+      gr[g].indexCount = count;
+      gr[g].firstIndex = std::uint32_t(first);
+      const std::uint64_t key = groupKey(gr[g].priority, gr[g].square, std::uint8_t(half), gr[g].material);
+      if (g > 0 && key < prevKey) {
+        return fail(at, gs() + " (priority " + str(gr[g].priority) + ", square " + str(square) + ", half " +
+                            str(half) + ", material " + str(gr[g].material) + ") does not follow group " +
+                            str(g - 1) + " in (priority, square, half, material) order");
+      }
+      prevKey = key;
+      first += count;
+    }
+  }
+  if (g != ng) {
+    return fail(p, " runs give " + str(g) + " groups, the level header says " + str(ng));
+  }
+  if (r != rEnd) {
+    return fail(std::size_t(r - b), " " + str(std::size_t(rEnd - r)) + " bytes follow the last group run");
+  }
+  if (first != ni) {
+    return fail(p, " groups cover " + str(first) + " of the level's " + str(ni) + " indices");
+  }
+  if (derived) {
+    float* mh = l.maxHeight.data();
+    std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());
+    for (std::uint32_t k = 0; k < ng; ++k) {
+      if (gr[k].half == Half::skirt) continue;
+      float& t = mh[gr[k].square];
+      for (std::uint32_t i = gr[k].firstIndex; i < gr[k].firstIndex + gr[k].indexCount; ++i) {
+        t = std::max(t, v[l.indices[i]].y);
+      }
+    }
+  }
+  (void)maxHeightPlane;
+  pos = p + rBytes;
+  return {};
+}
+
+}  // namespace detail
+}  // namespace sandtable::module
