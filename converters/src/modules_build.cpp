@@ -32,6 +32,7 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
         }
         return true;
       });
+  fillNormals(g, squares, out);
   if (totals) {
     for (std::size_t l = 0; l < out.levels.size(); ++l) {
       for (const module::Group& grp : out.levels[l].groups) {
@@ -86,7 +87,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
         const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data());
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
-        auto packed = writer.value()->compress(m);
+        auto packed = compressModule(m, h, o.zstdLevel, {.version = o.moduleVersion, .heightStep = o.heightStep});
         if (packed) b.record = std::move(packed.value());
         else b.error = packed.problems().front().message;
         return b;
@@ -127,6 +128,8 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   r.packCrc = writer.value()->packCrc();
   r.indexCrc = writer.value()->indexCrc();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.moduleVersion = o.moduleVersion;
+  r.heightStep = o.moduleVersion == module::kVersion2 ? o.heightStep : 0.0;
   return r;
 }
 

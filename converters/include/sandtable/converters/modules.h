@@ -19,6 +19,11 @@ struct ModuleOptions {
   int levels = 4;              ///< seed: 4
   int threads = 0;             ///< 0 = all cores
   int zstdLevel = 9;
+  /// Load-module format version written (1 or 2; docs/FORMAT.md §9, §9.7).
+  std::uint32_t moduleVersion = module::kVersion2;
+  /// Version 2 height quantisation step, metres (0: exact float heights).
+  /// Every decoded height is within heightStep / 2 of the built one.
+  double heightStep = module::kDefaultHeightStep;
 };
 
 // moduleSquares and nodeSquares (sandtable/meshing/lattice.h), as the
@@ -42,6 +47,8 @@ struct ModuleReport {
   std::vector<LevelTotals> levels;
   std::uint64_t packBytes = 0, indexBytes = 0;
   std::uint32_t packCrc = 0, indexCrc = 0;
+  std::uint32_t moduleVersion = 0;  ///< as written (ModuleOptions)
+  double heightStep = 0;
 };
 
 /// Builds every module of `grid` into `directory` (modules.pack, modules.idx).
@@ -55,5 +62,43 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
 module::Module buildModule(const grid::GridFile& grid, const Culture& culture,
                            std::uint16_t skirtMaterial, std::uint32_t squares, int levels,
                            std::uint32_t kx, std::uint32_t kz, LevelTotals* totals = nullptr);
+
+/// Fills every level's normals (module::Level::normals, octahedral) from
+/// the grid's post normals, interpolated on the grid triangle under each
+/// vertex as the renderer samples them (docs/FORMAT.md §2 "Normals"),
+/// rounded to kNormalBits significant bits per component so they compress.
+inline constexpr int kNormalBits = 10;
+void fillNormals(const grid::GridFile& grid, std::uint32_t squares, module::Module& m);
+
+/// PackWriter::compress with a chosen encoding (`encode`): the same checks
+/// (kx, kz within the pack, level count, checkEncodable, size, the encoding
+/// decodes), then zstd at `zstdLevel`. Any thread; pass the record to
+/// PackWriter::append. Problems name no file; messages start "pack writer: ".
+Result<pack::PackWriter::Record> compressModule(const module::Module& m, const pack::IndexHeader& header,
+                                                int zstdLevel, const module::EncodeOptions& encode);
+
+struct UpgradeOptions {
+  double heightStep = module::kDefaultHeightStep;  ///< as ModuleOptions::heightStep
+  int zstdLevel = 9;
+};
+
+struct UpgradeReport {
+  bool upgraded = false;     ///< false: the modules already were version 2 (nothing written)
+  std::uint32_t fromVersion = 0;
+  std::uint64_t modules = 0;
+  std::uint64_t packBytesBefore = 0, packBytesAfter = 0;
+  double seconds = 0;
+};
+
+/// Rewrites the load modules of database `directory` as version 2: a new
+/// database is assembled beside it in `DIR.upgrade.<pid>/` (grid and
+/// material table hard-linked or copied, modules re-encoded, manifest
+/// files[] and build.modules updated), fsynced, and swapped with the old
+/// directory in one renameat2(RENAME_EXCHANGE); the old one is then
+/// removed. Interrupted at any point, `directory` is the old database or
+/// the new one, each complete. A database whose modules are already
+/// version 2 is left untouched (upgraded = false). Problems name the file.
+Result<UpgradeReport> upgradeDatabase(const std::string& directory, const UpgradeOptions& options,
+                                      const ProgressFn& progress);
 
 }  // namespace sandtable::convert

@@ -1,0 +1,244 @@
+// Module encoding choices and the v1 -> v2 database upgrade (modules.h):
+// normals from the grid, records encoded as asked, and `sandtable upgrade`.
+#include <fcntl.h>
+#include <stdio.h>  // renameat2, RENAME_EXCHANGE
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "sandtable/converters/modules.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/manifest.h"
+#include "sandtable/formats/materials.h"
+
+namespace sandtable::convert {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// The grid's normal at world (x, z) metres from its north-west post,
+/// interpolated on the SW-NE grid triangle there (the renderer's sampleGrid
+/// rule, runtime/render/src/module_draw.cpp), so a lattice vertex gets its
+/// post's normal exactly.
+std::array<double, 3> gridNormal(const grid::GridFile& g, double x, double z) {
+  const double maxI = double(g.postsX() - 1), maxJ = double(g.postsZ() - 1);
+  const double u = std::clamp(x / g.spacing(), 0.0, maxI), v = std::clamp(z / g.spacing(), 0.0, maxJ);
+  const auto i = std::uint32_t(std::min(std::floor(u), std::max(0.0, maxI - 1)));
+  const auto j = std::uint32_t(std::min(std::floor(v), std::max(0.0, maxJ - 1)));
+  const double fx = u - i, fz = v - j;
+  const std::array<double, 4> w = fx + fz <= 1.0 ? std::array<double, 4>{1.0 - fx - fz, fx, fz, 0.0}
+                                                 : std::array<double, 4>{0.0, 1.0 - fz, 1.0 - fx, fx + fz - 1.0};
+  const std::uint32_t pi[4] = {i, i + 1, i, i + 1}, pj[4] = {j, j, j + 1, j + 1};
+  std::array<double, 3> n{0, 0, 0};
+  for (int k = 0; k < 4; ++k) {
+    if (w[std::size_t(k)] == 0.0) continue;
+    const auto p = g.normal(std::min<std::uint32_t>(pi[k], g.postsX() - 1), std::min<std::uint32_t>(pj[k], g.postsZ() - 1));
+    for (int c = 0; c < 3; ++c) n[std::size_t(c)] += w[std::size_t(k)] * p[std::size_t(c)];
+  }
+  return n;
+}
+
+/// Rounds both snorm16 halves of an octahedral normal to kNormalBits
+/// significant bits (the low 16 - kNormalBits bits zero), so the module
+/// encoder drops them: 2^-9 on the octahedron is under 0.2 degrees.
+std::uint32_t roundNormal(std::uint32_t n) {
+  constexpr int drop = 16 - kNormalBits;
+  const auto r = [](std::uint32_t c) {
+    const long v = std::lround(double(std::int16_t(std::uint16_t(c))) / (1 << drop));
+    return std::uint32_t(std::uint16_t(std::int16_t(std::clamp(v * (1 << drop), -32768L, 32767L - ((1L << drop) - 1)))));
+  };
+  return r(n & 0xffffu) | r(n >> 16) << 16;
+}
+
+}  // namespace
+
+void fillNormals(const grid::GridFile& g, std::uint32_t squares, module::Module& m) {
+  const double x0 = double(m.kx) * squares * g.spacing(), z0 = double(m.kz) * squares * g.spacing();
+  for (module::Level& l : m.levels) {
+    l.normals.resize(l.vertices.size());
+    for (std::size_t k = 0; k < l.vertices.size(); ++k) {
+      const auto n = gridNormal(g, x0 + l.vertices[k].x, z0 + l.vertices[k].z);
+      l.normals[k] = roundNormal(module::octEncode(float(n[0]), float(n[1]), float(n[2])));
+    }
+  }
+}
+
+Result<pack::PackWriter::Record> compressModule(const module::Module& m, const pack::IndexHeader& h, int zstdLevel,
+                                                const module::EncodeOptions& encode) {
+  const std::string name = "pack writer: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) + ")";
+  auto fail = [](const std::string& msg) { return Problem{"", 0, msg}; };
+  if (m.kx >= h.modulesX || m.kz >= h.modulesZ) {
+    return fail(name + " is outside the pack's " + std::to_string(h.modulesX) + " x " + std::to_string(h.modulesZ) +
+                " modules");
+  }
+  if (m.levels.size() != h.levels) {
+    return fail(name + " has " + std::to_string(m.levels.size()) + " levels, the pack holds " +
+                std::to_string(h.levels));
+  }
+  if (encode.version != module::kVersion && encode.version != module::kVersion2) {
+    return fail(name + ": module version " + std::to_string(encode.version) + " is not 1 or 2");
+  }
+  if (const Status e = module::checkEncodable(m); !e) return fail(name + ": " + e.message());
+  // Version 1's exact size bounds version 2's for every built module.
+  if (const std::uint64_t n = module::encodedBytes(m); n > pack::kMaxModuleBytes) {
+    return fail(name + " encodes to " + std::to_string(n) + " bytes, more than the " +
+                std::to_string(pack::kMaxModuleBytes) + " allowed");
+  }
+  const std::vector<std::byte> raw = module::encode(m, encode);
+  if (raw.size() > pack::kMaxModuleBytes) return fail(name + " encodes to more than the allowed size");
+  if (auto back = module::decode(raw, "encoded module"); !back) {
+    const Problem& p = back.problems().front();
+    return fail(name + " is malformed: " + p.message + " (byte " + std::to_string(p.offset) + " of its encoding)");
+  }
+  pack::PackWriter::Record r;
+  r.bytes = pack::compress(raw, zstdLevel);
+  if (r.bytes.empty()) return fail(name + ": zstd compression failed (out of memory?)");
+  if (r.bytes.size() > pack::kMaxModuleBytes) return fail(name + " compresses to more than the allowed size");
+  pack::Entry& e = r.entry;
+  e.compressedBytes = std::uint32_t(r.bytes.size());
+  e.rawBytes = std::uint32_t(raw.size());
+  e.compressedCrc = crc32(r.bytes);
+  e.rawCrc = crc32(raw);
+  e.kx = m.kx;
+  e.kz = m.kz;
+  return r;
+}
+
+// ---------------------------------------------------------------- upgrade
+
+namespace {
+
+Status fsyncPath(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Problem{path, 0, "upgrade: cannot open " + path + " to fsync it"};
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  if (rc != 0) return Problem{path, 0, "upgrade: cannot fsync " + path};
+  return {};
+}
+
+/// Hard link, or a copy where the file system will not link.
+Status linkOrCopy(const std::string& from, const std::string& to) {
+  if (::link(from.c_str(), to.c_str()) == 0) return {};
+  std::error_code ec;
+  fs::copy_file(from, to, ec);
+  if (ec) return Problem{from, 0, "upgrade: cannot link or copy " + from + " to " + to + ": " + ec.message()};
+  return fsyncPath(to);
+}
+
+/// Removes the staging directory unless it was swapped into place.
+class Staging {
+ public:
+  explicit Staging(std::string path) : path_(std::move(path)) {}
+  ~Staging() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+}  // namespace
+
+Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptions& o, const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!(std::isfinite(o.heightStep) && o.heightStep >= 0)) {
+    return Problem{dir, 0, "upgrade: the height step must be a finite number >= 0 (0 keeps exact heights)"};
+  }
+  auto man = manifest::readFromDirectory(dir);
+  if (!man) return man.problems();
+  auto reader = pack::PackReader::open(dir);
+  if (!reader) return reader.problems();
+  const pack::PackReader& in = *reader.value();
+  const pack::IndexHeader header = in.header();
+  UpgradeReport report;
+  report.modules = std::uint64_t(header.modulesX) * header.modulesZ;
+  {
+    auto first = in.readRaw(0, 0);
+    if (!first) return first.problems();
+    report.fromVersion = module::encodedVersion(first.value());
+    if (report.fromVersion == module::kVersion2) {
+      report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      return report;  // already version 2: nothing to do
+    }
+    if (report.fromVersion != module::kVersion) {
+      return Problem{in.packPath(), 0, "upgrade: module (0,0) is not a version 1 or 2 load module"};
+    }
+  }
+  const fs::path target = fs::absolute(dir).lexically_normal();
+  const fs::path base = target.filename().empty() ? target.parent_path() : target;
+  Staging staging(base.string() + ".upgrade." + std::to_string(::getpid()));
+  std::error_code ec;
+  fs::remove_all(staging.path(), ec);
+  if (!fs::create_directory(staging.path(), ec)) {
+    return Problem{staging.path(), 0, "upgrade: cannot create " + staging.path() + ": " + ec.message()};
+  }
+  // Everything but the modules and the manifest carries over unchanged.
+  for (const auto& f : man->files) {
+    if (f.path == pack::kPackFileName || f.path == pack::kIndexFileName) continue;
+    if (Status st = linkOrCopy(base.string() + "/" + f.path, staging.path() + "/" + f.path); !st) return st.problems();
+  }
+  auto writer = pack::PackWriter::create(staging.path(), header, o.zstdLevel);
+  if (!writer) return writer.problems();
+  const module::EncodeOptions encode{.version = module::kVersion2, .heightStep = o.heightStep};
+  module::Module m;
+  std::uint64_t done = 0;
+  // Row-major, as the build appends: the upgraded pack keeps the order.
+  for (std::uint32_t kz = 0; kz < header.modulesZ; ++kz) {
+    for (std::uint32_t kx = 0; kx < header.modulesX; ++kx) {
+      if (cancelRequested()) return Problem{dir, 0, "upgrade: cancelled; the database is unchanged"};
+      if (Status st = in.readInto(kx, kz, m); !st) return st.problems();
+      auto rec = compressModule(m, header, o.zstdLevel, encode);
+      if (!rec) return Problem{dir, 0, "upgrade: " + rec.problems().front().message};
+      if (Status st = writer.value()->append(std::move(rec.value())); !st) {
+        return Problem{dir, 0, "upgrade: " + st.message()};
+      }
+      if (progress && (++done % 256 == 0)) progress(double(done) / double(report.modules), "modules");
+    }
+  }
+  if (Status st = writer.value()->finish(); !st) return Problem{dir, 0, "upgrade: " + st.message()};
+  report.packBytesAfter = writer.value()->packBytes();
+  manifest::Manifest out = man.value();
+  for (auto& f : out.files) {
+    if (f.path == pack::kPackFileName) {
+      report.packBytesBefore = f.bytes;
+      f.bytes = writer.value()->packBytes(), f.crc = writer.value()->packCrc();
+    } else if (f.path == pack::kIndexFileName) {
+      f.bytes = writer.value()->indexBytes(), f.crc = writer.value()->indexCrc();
+    }
+  }
+  if (out.build.contains("modules") && out.build["modules"].is_object()) {
+    out.build["modules"]["format_version"] = module::kVersion2;
+    out.build["modules"]["height_step_m"] = o.heightStep;
+    out.build["modules"]["upgraded_from_version"] = report.fromVersion;
+  }
+  const std::string text = manifest::encode(out);
+  if (Status st = writeFileAtomic(staging.path() + "/" + manifest::kFileName,
+                                  std::as_bytes(std::span(text.data(), text.size())));
+      !st) {
+    return st.problems();
+  }
+  if (Status st = fsyncPath(staging.path()); !st) return st.problems();
+  // One atomic swap: before it the old database is in place, after it the
+  // new one; the staging name then holds the old one, which goes.
+  if (::renameat2(AT_FDCWD, staging.path().c_str(), AT_FDCWD, base.c_str(), RENAME_EXCHANGE) != 0) {
+    return Problem{base.string(), 0,
+                   std::string("upgrade: cannot swap the upgraded database into place (renameat2 RENAME_EXCHANGE: ") +
+                       std::strerror(errno) + "); the database is unchanged"};
+  }
+  fsyncPath(base.parent_path().string());
+  report.upgraded = true;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (progress) progress(1.0, "modules");
+  return report;
+}
+
+}  // namespace sandtable::convert
