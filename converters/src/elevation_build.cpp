@@ -128,6 +128,11 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   if (o.zstdLevel < 1 || o.zstdLevel > 22) {
     return Problem{"ElevationOptions::zstdLevel", 0, "build: ElevationOptions::zstdLevel must be 1..22"};
   }
+  if ((o.moduleVersion != 1 && o.moduleVersion != 2) || !(std::isfinite(o.heightStep) && o.heightStep >= 0)) {
+    return Problem{"ElevationOptions::moduleVersion", 0,
+                   "build: ElevationOptions::moduleVersion must be 1 or 2 and ElevationOptions::heightStep a "
+                   "finite number >= 0"};
+  }
   // OGR would say only that it cannot open a missing file; GDAL's virtual
   // paths (/vsizip/...) and connection strings (PG:...) are OGR's to judge.
   for (const auto& c : o.culture) {
@@ -310,6 +315,8 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   mo.levels = o.levels;
   mo.threads = o.threads;
   mo.zstdLevel = o.zstdLevel;
+  mo.moduleVersion = o.moduleVersion;
+  mo.heightStep = o.heightStep;
   auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, mo, progress);
   if (!r) return r.problems();
   const std::string text = materials::format(c.table);
@@ -339,6 +346,8 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
           {"modules_z", r.modulesZ},
           {"module_squares", r.moduleSquares},
           {"module_size_m", r.moduleSize},
+          {"format_version", r.moduleVersion},
+          {"height_step_m", r.heightStep},
           {"seconds", r.seconds},
           {"modules_per_second", double(r.modules) / std::max(r.seconds, 1e-9)},
           {"bytes", {{"compressed_total", s.totalCompressed}, {"raw_total", s.totalRaw},

@@ -187,6 +187,16 @@ void registerBuild(CLI::App& root, Commands& c) {
   sub->add_flag("--no-modules", [a](std::int64_t) { a->o.modules = false; },
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
+  sub->add_option("--module-version", a->o.moduleVersion,
+                  "Load-module format: 2 (compact: lattice heights, octahedral normals, meshopt streams) or 1 "
+                  "(the original float planes); docs/FORMAT.md section 9")
+      ->default_val(2)
+      ->check(CLI::Range(1, 2));
+  sub->add_option("--height-step", a->o.heightStep,
+                  "Module version 2 height quantisation step in metres; every module height is within half a "
+                  "step of the grid's (0 keeps exact float heights)")
+      ->default_val(0.01)
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--max-scale-error", a->o.maxScaleError,
                   "Reject a CRS whose scale error over the extent exceeds this fraction")
       ->default_val(0.01);

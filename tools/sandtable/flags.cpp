@@ -21,6 +21,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::materials", "--materials"},
     {"ElevationOptions::modules = false", "--no-modules"},
     {"ElevationOptions::zstdLevel", "--zstd-level"},
+    {"ElevationOptions::moduleVersion", "--module-version"},
     {"ElevationOptions::maxScaleError", "--max-scale-error"},
     {"ElevationOptions::seaFromVoids = false", "--no-sea-from-voids"},
     {"ElevationOptions::force", "--force"},

@@ -96,6 +96,7 @@ int main(int argc, char** argv) {
   registerFly(app, commands);
   registerBench(app, commands);
   registerExport(app, commands);
+  registerUpgrade(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
