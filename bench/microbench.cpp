@@ -1,13 +1,15 @@
 // sandtable_microbench: the weighted resampling kernel, grid reads, the
 // geometric module check at several module sizes (with its complexity fit)
-// and decaling per level, per call. Run: build/bench/sandtable_microbench
-// (--benchmark_filter=ModuleCheck, =Decal). Timings live here, not in
-// unit tests.
+// decaling per level, per call, and module decode / read of a built
+// database. Run: build/bench/sandtable_microbench (--benchmark_filter=
+// ModuleCheck, =Decal; SANDTABLE_BENCH_DB=db --benchmark_filter=Module(Decode|ReadInto)).
+// Timings live here, not in unit tests.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -23,6 +25,7 @@
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/materials.h"
 #include "sandtable/formats/module_check.h"
+#include "sandtable/formats/pack.h"
 
 namespace {
 
@@ -334,5 +337,94 @@ void BM_DecalLevelWithPartition(benchmark::State& state) {
 BENCHMARK(BM_DecalLevelWithPartition)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+/// Every module of the database named by $SANDTABLE_BENCH_DB (a built
+/// database; `sandtable build --module-version 1|2`), decompressed once:
+/// the decode benchmarks time module::decodeInto alone on them, and the
+/// read benchmark the reader's whole path (pread from the warm page cache,
+/// CRC, zstd, decode). Skipped without the variable.
+struct BenchDb {
+  std::shared_ptr<const pack::PackReader> reader;
+  std::vector<std::vector<std::byte>> raw;
+  std::uint64_t compressed = 0, rawBytes = 0;
+  std::string error;
+  static const BenchDb& get() {
+    static const BenchDb db = [] {
+      BenchDb d;
+      const char* dir = std::getenv("SANDTABLE_BENCH_DB");
+      if (!dir) {
+        d.error = "set SANDTABLE_BENCH_DB to a database directory";
+        return d;
+      }
+      auto r = pack::PackReader::open(dir);
+      if (!r) {
+        d.error = r.error();
+        return d;
+      }
+      d.reader = r.value();
+      const auto& h = d.reader->header();
+      for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+        for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+          auto raw = d.reader->readRaw(kx, kz);
+          if (!raw) {
+            d.error = raw.error();
+            return d;
+          }
+          d.rawBytes += raw.value().size();
+          d.raw.push_back(std::move(raw.value()));
+        }
+      }
+      return d;
+    }();
+    return db;
+  }
+};
+
+void BM_ModuleDecode(benchmark::State& state) {
+  const BenchDb& db = BenchDb::get();
+  if (!db.error.empty()) {
+    state.SkipWithError(db.error.c_str());
+    return;
+  }
+  module::Module m;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Status st = module::decodeInto(db.raw[k], "bench", 0, m);
+    if (!st) {
+      state.SkipWithError(st.error().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(m);
+    k = (k + 1) % db.raw.size();
+  }
+  state.SetItemsProcessed(state.iterations());
+  state.counters["modules"] = double(db.raw.size());
+  state.counters["raw_bytes_per_module"] = double(db.rawBytes) / double(db.raw.size());
+  state.counters["version"] = double(module::encodedVersion(db.raw.front()));
+}
+BENCHMARK(BM_ModuleDecode)->Unit(benchmark::kMicrosecond);
+
+void BM_ModuleReadInto(benchmark::State& state) {
+  const BenchDb& db = BenchDb::get();
+  if (!db.error.empty()) {
+    state.SkipWithError(db.error.c_str());
+    return;
+  }
+  const auto& h = db.reader->header();
+  module::Module m;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto kx = std::uint32_t(k % h.modulesX), kz = std::uint32_t(k / h.modulesX);
+    const Status st = db.reader->readInto(kx, kz, m);
+    if (!st) {
+      state.SkipWithError(st.error().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(m);
+    k = (k + 1) % db.raw.size();
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_ModuleReadInto)->Unit(benchmark::kMicrosecond);
 
 BENCHMARK_MAIN();
