@@ -94,9 +94,10 @@ class FlightPath {
 };
 
 /// The path inside [m, w - m] x [m, d - m]: straight along the diagonal,
-/// a zigzag of 45-degree legs eastwards, or one lap of the largest circle
-/// short of its start module.
-Result<FlightPath> makePath(const std::string& kind, double w, double d, double m, double edge) {
+/// a zigzag of 45-degree legs eastwards, one lap of the largest circle
+/// short of its start module, or rows back and forth along X `rowGap`
+/// apart.
+Result<FlightPath> makePath(const std::string& kind, double w, double d, double m, double edge, double rowGap) {
   const double uw = w - 2 * m, ud = d - 2 * m;
   if (uw < 4 * edge || ud < 4 * edge) {
     char msg[400];
@@ -108,6 +109,18 @@ Result<FlightPath> makePath(const std::string& kind, double w, double d, double 
     return Problem{"bench paging", 0, msg};
   }
   if (kind == "straight") return FlightPath::polyline({{m, m}, {w - m, d - m}});
+  if (kind == "rows") {
+    // Rows one active area apart: a row's window never reaches the modules
+    // of the row before, so the path still never comes back to a module.
+    std::vector<std::array<double, 2>> v;
+    bool east = true;
+    for (double z = m; z <= d - m; z += rowGap) {
+      v.push_back({east ? m : w - m, z});
+      v.push_back({east ? w - m : m, z});
+      east = !east;
+    }
+    return FlightPath::polyline(std::move(v));
+  }
   if (kind == "zigzag") {
     const double amp = std::min(ud, 50000.0);  // leg's Z extent
     const double z0 = d / 2 - amp / 2;
@@ -306,6 +319,8 @@ runtime::PagerOptions pagerOptions(const PagingBenchOptions& a, const ModeSpec& 
   o.lookAheadScale = mode.lead ? a.lookAhead : 0;
   o.workStealing = mode.lead;  // "seed": the seed's four independent loaders
   o.memoryBudgetBytes = std::uint64_t(a.budgetMb * 1024 * 1024);
+  o.coarseFirst = a.coarseFirst;
+  o.readaheadHints = a.readahead;
   o.log = [&notes](const std::string& m) { notes.say("pager: " + m); };
   return o;
 }
@@ -463,39 +478,64 @@ json stageBreakdown(const PagingBenchOptions& a, const FlightPath& path, std::si
   std::vector<std::byte> record;
   module::Module reuse;
   auto since = [](Clock::time_point t) { return double(std::chrono::nanoseconds(Clock::now() - t).count()); };
+  // A v2 pack: both records of each module, one pread each (their times add up).
+  const bool split = h.version >= pack::kVersion2 && h.coarseLevel > 0;
+  std::uint64_t coarseCompressed = 0;
+  module::Module part;
   for (const auto& [kx, kz] : keys) {
     const pack::Entry e = pk.entry(kx, kz);
     if (e.compressedBytes == 0) continue;
-    record.resize(e.compressedBytes);
-    auto t = Clock::now();
-    if (::pread(pk.packFd(), record.data(), record.size(), off_t(e.offset)) != ssize_t(record.size())) continue;
-    readNs += since(t);
-    t = Clock::now();
-    auto bytes = pk.unpack(kx, kz, record);
-    unpackNs += since(t);
-    if (!bytes) continue;
-    t = Clock::now();
-    auto m = module::decode(bytes.value(), pk.packPath());
-    decodeNs += since(t);
-    if (!m) continue;
-    t = Clock::now();
-    reuse.levels.resize(m->levels.size());
-    for (std::size_t l = 0; l < m->levels.size(); ++l) {
-      reuse.levels[l].vertices.assign(m->levels[l].vertices.begin(), m->levels[l].vertices.end());
-      reuse.levels[l].indices.assign(m->levels[l].indices.begin(), m->levels[l].indices.end());
-      reuse.levels[l].groups.assign(m->levels[l].groups.begin(), m->levels[l].groups.end());
-      reuse.levels[l].maxHeight.assign(m->levels[l].maxHeight.begin(), m->levels[l].maxHeight.end());
+    bool ok = true;
+    reuse.levels.resize(h.levels);
+    for (const pack::Part which : {pack::Part::coarse, pack::Part::fine}) {
+      if (which == pack::Part::fine && !split) break;
+      const pack::Extent x = which == pack::Part::fine ? e.fine : e.coarse();
+      record.resize(x.compressedBytes);
+      auto t = Clock::now();
+      if (::pread(pk.packFd(), record.data(), record.size(), off_t(x.offset)) != ssize_t(record.size())) {
+        ok = false;
+        break;
+      }
+      readNs += since(t);
+      t = Clock::now();
+      auto bytes = pk.unpack(kx, kz, record, which);
+      unpackNs += since(t);
+      if (!bytes) {
+        ok = false;
+        break;
+      }
+      t = Clock::now();
+      auto m = module::decode(bytes.value(), pk.packPath());
+      decodeNs += since(t);
+      if (!m) {
+        ok = false;
+        break;
+      }
+      t = Clock::now();
+      const std::size_t first = which == pack::Part::fine || !split ? 0 : h.coarseLevel;
+      for (std::size_t l = 0; l < m->levels.size() && first + l < reuse.levels.size(); ++l) {
+        module::Level& dst = reuse.levels[first + l];
+        dst.vertices.assign(m->levels[l].vertices.begin(), m->levels[l].vertices.end());
+        dst.indices.assign(m->levels[l].indices.begin(), m->levels[l].indices.end());
+        dst.groups.assign(m->levels[l].groups.begin(), m->levels[l].groups.end());
+        dst.maxHeight.assign(m->levels[l].maxHeight.begin(), m->levels[l].maxHeight.end());
+      }
+      copyNs += since(t);
     }
-    copyNs += since(t);
+    if (!ok) continue;
     ++n;
-    compressed += e.compressedBytes;
-    raw += e.rawBytes;
+    compressed += e.storedBytes();
+    coarseCompressed += e.compressedBytes;
+    raw += e.storedRawBytes();
   }
   if (n == 0) return json::object();
   const double dn = double(n), total = (readNs + unpackNs + decodeNs + copyNs) / dn;
   return {{"modules", n},
           {"cold_cache", !a.warm},
+          {"pack_version", h.version},
+          {"coarse_level", h.coarseLevel},
           {"compressed_kb_mean", double(compressed) / dn / 1024},
+          {"coarse_record_kb_mean", double(coarseCompressed) / dn / 1024},
           {"raw_kb_mean", double(raw) / dn / 1024},
           {"pread_us", readNs / dn / 1000},
           {"unpack_us", unpackNs / dn / 1000},
@@ -720,6 +760,12 @@ json reportJson(const PagingBenchOptions& a, const pack::IndexHeader& h, const F
             {"loaders", a.loaders},
             {"max_lead_strips", a.maxLeadStrips},
             {"look_ahead_scale", a.lookAhead},
+            {"coarse_first", a.coarseFirst},
+            {"readahead", a.readahead},
+            {"pack_version", h.version},
+            {"pack_coarse_level", h.coarseLevel},
+            {"pack_order", h.version >= pack::kVersion2 ? (h.order == pack::PackOrder::morton ? "morton" : "row-major")
+                                                         : "append (v1)"},
             {"cpus", std::thread::hardware_concurrency()},
             {"modes", modes}};
   j["ratios"] = ratios(modes);
@@ -749,7 +795,10 @@ Result<PagingBenchReport> runPagingBench(const PagingBenchOptions& options, cons
   }  // closed: a mapped grid would keep its pages in the cache
   const double w = h.modulesX * h.moduleSize, d = h.modulesZ * h.moduleSize;
   const double margin = a.viewDistance + (a.maxLeadStrips + 2) * h.moduleSize;
-  auto path = makePath(a.path, w, d, margin, h.moduleSize);
+  // Rows: the active area's side (2R + 1 modules, R = ceil((vd + h) / e),
+  // docs/PAGER.md section 1) plus one module.
+  const double rowGap = (2 * std::ceil((a.viewDistance + 100) / h.moduleSize) + 2) * h.moduleSize;
+  auto path = makePath(a.path, w, d, margin, h.moduleSize, rowGap);
   if (!path) return path.problems();
 
   const json stages = stageBreakdown(a, path.value(), 400);

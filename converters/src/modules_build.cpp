@@ -58,7 +58,9 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   h.levels = std::uint32_t(o.levels);
   h.moduleSquares = r.moduleSquares;
   h.moduleSize = r.moduleSize;
-  auto writer = pack::PackWriter::create(directory, h, o.zstdLevel);
+  // Pack v2: a coarse and a fine record per module, coarse records first,
+  // in Morton order, so the pager reads coarse versions in small runs.
+  auto writer = pack::PackWriter::create(directory, h, o.zstdLevel, pack::PackLayout::split(h.levels));
   if (!writer) return writer.problems();
 
   // Modules are built and compressed on every worker and appended in

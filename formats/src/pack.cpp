@@ -31,7 +31,7 @@ std::string moduleName(std::uint32_t kx, std::uint32_t kz) {
 }
 
 std::uint64_t entryOffset(const IndexHeader& h, std::uint32_t kx, std::uint32_t kz) {
-  return kIndexHeaderBytes + std::uint64_t(kEntryBytes) * (std::uint64_t(kz) * h.modulesX + kx);
+  return kIndexHeaderBytes + std::uint64_t(h.entryBytes()) * (std::uint64_t(kz) * h.modulesX + kx);
 }
 
 // ---------------------------------------------------------------- file I/O
@@ -123,39 +123,76 @@ ZSTD_DCtx* threadDCtx() {
 
 // ---------------------------------------------------------------- shared checks
 
+/// The name of a record in messages: "module (kx,kz)" for the first record
+/// (v1's whole module, v2's coarse record: v1's messages stand) and
+/// "fine module (kx,kz)" for a v2 fine record.
+std::string partName(std::uint32_t kx, std::uint32_t kz, Part part) {
+  return (part == Part::fine ? "fine " : "") + moduleName(kx, kz);
+}
+
+Extent extentOf(const Entry& e, Part part) { return part == Part::fine ? e.fine : e.coarse(); }
+
+/// Offset in modules.idx of a field of entry (kx, kz) (the first record's
+/// fields are at the same place in both versions).
+std::uint64_t fieldAt(const IndexHeader& h, std::uint32_t kx, std::uint32_t kz, std::size_t field) {
+  return entryOffset(h, kx, kz) + field;
+}
+
+/// Checks the sizes and placement of one record of an entry.
+Status checkExtent(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part,
+                   const std::string& indexPath) {
+  const bool fine = part == Part::fine;
+  const std::string name = partName(kx, kz, part);
+  const std::size_t sizeField = fine ? entryFieldV2::fineCompressedBytes : entryField::compressedBytes;
+  const std::size_t offsetField = fine ? entryFieldV2::fineOffset : entryField::offset;
+  if (x.compressedBytes == 0) {
+    return Problem{indexPath, fieldAt(h, kx, kz, sizeField),
+                   fine ? "pack index: " + moduleName(kx, kz) + " has a coarse record but no fine record (coarse level " +
+                              str(h.coarseLevel) + " needs one)"
+                        : "pack index: " + name + " is missing (its entry has no record)"};
+  }
+  if (x.compressedBytes > kMaxModuleBytes || x.rawBytes == 0 || x.rawBytes > kMaxModuleBytes) {
+    return Problem{indexPath, fieldAt(h, kx, kz, sizeField),
+                   "pack index: " + name + " sizes (" + str(x.compressedBytes) + " compressed, " +
+                       str(x.rawBytes) + " raw) are out of range (1 to " + str(kMaxModuleBytes) + " bytes)"};
+  }
+  if (x.offset < kPackHeaderBytes || x.offset > h.packBytes || x.compressedBytes > h.packBytes - x.offset) {
+    return Problem{indexPath, fieldAt(h, kx, kz, offsetField),
+                   "pack index: " + name + " record at bytes " + str(x.offset) + ".." +
+                       str(x.offset + x.compressedBytes - 1) + " is not within the records of modules.pack (bytes " +
+                       str(kPackHeaderBytes) + ".." + str(h.packBytes - 1) + ")"};
+  }
+  return {};
+}
+
 /// Checks an entry against the index header, with no I/O. The problems
-/// are in modules.idx; `placed` (when given) says whether the record lies
-/// within the pack and has sane sizes, so that it can be read.
+/// are in modules.idx; `placed` (when given) says whether its records lie
+/// within the pack and have sane sizes, so that they can be read.
 Status checkEntry(const IndexHeader& h, const Entry& e, std::uint32_t kx, std::uint32_t kz,
                   const std::string& indexPath, bool* placed = nullptr) {
   Status out;
   if (placed) *placed = false;
-  const std::uint64_t at = entryOffset(h, kx, kz);
   const std::string name = moduleName(kx, kz);
   if (e.kx != kx || e.kz != kz) {
-    out.add({indexPath, at + entryField::kx,
-                   "pack index: the entry of " + name + " names " + moduleName(e.kx, e.kz)});
+    out.add({indexPath, fieldAt(h, kx, kz, h.version >= kVersion2 ? entryFieldV2::kx : entryField::kx),
+             "pack index: the entry of " + name + " names " + moduleName(e.kx, e.kz)});
   }
-  if (e.compressedBytes == 0) {
-    out.add({indexPath, at + entryField::compressedBytes,
-                   "pack index: " + name + " is missing (its entry has no record)"});
+  if (const Status c = checkExtent(h, e.coarse(), kx, kz, Part::coarse, indexPath); !c) {
+    out.merge(c);
     return out;
   }
-  if (e.compressedBytes > kMaxModuleBytes || e.rawBytes == 0 || e.rawBytes > kMaxModuleBytes) {
-    out.add({indexPath, at + entryField::compressedBytes,
-                   "pack index: " + name + " sizes (" + str(e.compressedBytes) + " compressed, " +
-                       str(e.rawBytes) + " raw) are out of range (1 to " + str(kMaxModuleBytes) +
-                       " bytes)"});
-    return out;
-  }
-  if (e.offset < kPackHeaderBytes || e.offset > h.packBytes ||
-      e.compressedBytes > h.packBytes - e.offset) {
-    out.add({indexPath, at + entryField::offset,
-                   "pack index: " + name + " record at bytes " + str(e.offset) + ".." +
-                       str(e.offset + e.compressedBytes - 1) +
-                       " is not within the records of modules.pack (bytes " +
-                       str(kPackHeaderBytes) + ".." + str(h.packBytes - 1) + ")"});
-    return out;
+  if (h.version >= kVersion2) {
+    if (h.coarseLevel == 0) {
+      if (e.fine.offset != 0 || e.fine.compressedBytes != 0 || e.fine.rawBytes != 0 || e.fine.compressedCrc != 0 ||
+          e.fine.rawCrc != 0) {
+        out.add({indexPath, fieldAt(h, kx, kz, entryFieldV2::fineOffset),
+                 "pack index: " + name + " has a fine record, but coarse level 0 leaves none"});
+        return out;
+      }
+    } else if (const Status f = checkExtent(h, e.fine, kx, kz, Part::fine, indexPath); !f) {
+      out.merge(f);
+      return out;
+    }
   }
   if (placed) *placed = true;
   return out;
@@ -163,10 +200,10 @@ Status checkEntry(const IndexHeader& h, const Entry& e, std::uint32_t kx, std::u
 
 /// Checks a record's CRC, decompresses it and checks the raw size and (with
 /// `checkRawCrc`) the raw CRC.
-Result<std::vector<std::byte>> unpackRecord(const Entry& e, std::uint32_t kx, std::uint32_t kz,
+Result<std::vector<std::byte>> unpackRecord(const Extent& e, std::uint32_t kx, std::uint32_t kz, Part part,
                                             std::span<const std::byte> record,
                                             const std::string& packPath, bool checkRawCrc) {
-  const std::string name = moduleName(kx, kz);
+  const std::string name = partName(kx, kz, part);
   auto fail = [&](const std::string& msg) {
     return Result<std::vector<std::byte>>(Problem{packPath, e.offset, "pack: " + name + msg});
   };
@@ -192,11 +229,32 @@ Result<std::vector<std::byte>> unpackRecord(const Entry& e, std::uint32_t kx, st
   return raw;
 }
 
-/// Decodes a module's raw bytes and checks it against its entry and index.
-Result<module::Module> decodeRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
-                                    std::uint32_t kz, std::span<const std::byte> raw,
+/// Levels a record of `part` holds: v1 every level; v2 coarse
+/// levels - coarseLevel, fine coarseLevel.
+std::uint32_t partLevels(const IndexHeader& h, Part part) {
+  if (h.version < kVersion2) return h.levels;
+  return part == Part::fine ? h.coarseLevel : h.levels - h.coarseLevel;
+}
+
+/// Checks a decoded record's kx, kz and level count.
+std::string checkDecoded(const IndexHeader& h, const module::Module& m, std::uint32_t kx, std::uint32_t kz,
+                         Part part) {
+  if (m.kx != kx || m.kz != kz) return ": the record holds " + moduleName(m.kx, m.kz);
+  if (m.levels.size() != partLevels(h, part)) {
+    return " has " + str(m.levels.size()) + " levels, the index says " + str(partLevels(h, part)) +
+           (h.version >= kVersion2 ? std::string(part == Part::fine ? " (levels 0.." : " (levels ") +
+                                         (part == Part::fine ? str(h.coarseLevel) + ")"
+                                                             : str(h.coarseLevel) + ".." + str(h.levels) + ")")
+                                   : "");
+  }
+  return "";
+}
+
+/// Decodes a record's raw bytes and checks it against its entry and index.
+Result<module::Module> decodeRecord(const IndexHeader& h, const Extent& e, std::uint32_t kx,
+                                    std::uint32_t kz, Part part, std::span<const std::byte> raw,
                                     const std::string& packPath) {
-  const std::string name = moduleName(kx, kz);
+  const std::string name = partName(kx, kz, part);
   auto m = module::decode(raw, packPath, 0);
   if (!m) {
     const Problem& p = m.problems().front();
@@ -207,10 +265,8 @@ Result<module::Module> decodeRecord(const IndexHeader& h, const Entry& e, std::u
     return Problem{packPath, e.offset,
                    "pack: the record of " + name + " holds " + moduleName(m->kx, m->kz)};
   }
-  if (m->levels.size() != h.levels) {
-    return Problem{packPath, e.offset,
-                   "pack: " + name + " has " + str(m->levels.size()) + " levels, the index says " +
-                       str(h.levels)};
+  if (const std::string bad = checkDecoded(h, m.value(), kx, kz, part); !bad.empty()) {
+    return Problem{packPath, e.offset, "pack: " + name + bad};
   }
   return m;
 }
@@ -250,7 +306,12 @@ int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
                          (size < h->packBytes ? ": truncated" : ": trailing bytes") +
                          "; rebuild the database"});
     }
-    if (headerOk) {
+    const auto version = loadLE<std::uint32_t>(head.data() + packField::version);
+    if (headerOk && version != h->version) {
+      out.add({packPath, packField::version,
+               "pack: version " + str(version) + " differs from the index's version " + str(h->version) +
+                   ": modules.pack and modules.idx are not from the same build"});
+    } else if (headerOk) {
       const std::uint32_t c = crc32(head);
       if (c != h->packHeaderCrc) {
         out.add({packPath, packField::headerCrc,
@@ -265,7 +326,7 @@ int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
 
 Status checkTableCrc(const IndexHeader& h, std::span<const std::byte> index, const std::string& indexPath) {
   const std::uint32_t c = crc32(
-      index.subspan(kIndexHeaderBytes, static_cast<std::size_t>(kEntryBytes * h.entryCount())));
+      index.subspan(kIndexHeaderBytes, static_cast<std::size_t>(std::uint64_t(h.entryBytes()) * h.entryCount())));
   if (c == h.tableCrc) return {};
   return Problem{indexPath, kIndexHeaderBytes,
                  "pack index: entry table checksum mismatch (stored " + crcHex(h.tableCrc) + ", computed " +
@@ -276,11 +337,11 @@ Status checkTableCrc(const IndexHeader& h, std::span<const std::byte> index, con
 
 // ---------------------------------------------------------------- headers
 
-std::vector<std::byte> encodePackHeader() {
+std::vector<std::byte> encodePackHeader(std::uint32_t version) {
   std::vector<std::byte> b(kPackHeaderBytes, std::byte{0});
   std::byte* p = b.data();
   std::memcpy(p + packField::magic, kPackMagic.data(), kPackMagic.size());
-  storeLE<std::uint32_t>(p + packField::version, kVersion);
+  storeLE<std::uint32_t>(p + packField::version, version);
   storeLE<std::uint32_t>(p + packField::headerBytes, kPackHeaderBytes);
   storeLE<std::uint32_t>(p + packField::flags, 0);
   storeLE<std::uint32_t>(p + packField::codec, kCodecZstd);
@@ -300,9 +361,9 @@ Status checkPackHeader(std::span<const std::byte> bytes, const std::string& file
     return fail(packField::magic, "bad magic: not a sandtable pack file (expected \"SANDPACK\")");
   }
   const auto version = loadLE<std::uint32_t>(p + packField::version);
-  if (version != kVersion) {
+  if (version < kVersion1 || version > kVersion) {
     return fail(packField::version, "version " + str(version) +
-                                        " is not supported (this reader knows version " +
+                                        " is not supported (this reader knows versions 1 to " +
                                         str(kVersion) + "); use a matching sandtable");
   }
   const auto stored = loadLE<std::uint32_t>(p + packField::headerCrc);
@@ -316,7 +377,7 @@ Status checkPackHeader(std::span<const std::byte> bytes, const std::string& file
     return fail(packField::headerBytes, "header size must be " + str(kPackHeaderBytes));
   }
   if (loadLE<std::uint32_t>(p + packField::flags) != 0) {
-    return fail(packField::flags, "flags must be 0 in version 1");
+    return fail(packField::flags, "flags must be 0 in versions 1 and 2");
   }
   const auto codec = loadLE<std::uint32_t>(p + packField::codec);
   if (codec != kCodecZstd) {
@@ -338,10 +399,14 @@ std::vector<std::byte> encodeIndexHeader(const IndexHeader& h) {
   storeLE<double>(p + indexField::moduleSize, h.moduleSize);
   storeLE<std::uint64_t>(p + indexField::packBytes, h.packBytes);
   storeLE<std::uint32_t>(p + indexField::packHeaderCrc, h.packHeaderCrc);
-  storeLE<std::uint32_t>(p + indexField::entryBytes, kEntryBytes);
+  storeLE<std::uint32_t>(p + indexField::entryBytes, h.entryBytes());
   storeLE<std::uint64_t>(p + indexField::entryCount, h.entryCount());
   storeLE<std::uint64_t>(p + indexField::tableOffset, kIndexHeaderBytes);
   storeLE<std::uint32_t>(p + indexField::tableCrc, h.tableCrc);
+  if (h.version >= kVersion2) {
+    storeLE<std::uint32_t>(p + indexField::coarseLevel, h.coarseLevel);
+    storeLE<std::uint32_t>(p + indexField::order, static_cast<std::uint32_t>(h.order));
+  }
   storeLE<std::uint32_t>(p + indexField::headerCrc,
                          crc32(std::span(page).first(indexField::headerCrc)));
   return page;
@@ -363,9 +428,9 @@ Result<IndexHeader> decodeIndexHeader(std::span<const std::byte> bytes, const st
   }
   IndexHeader h;
   h.version = loadLE<std::uint32_t>(p + indexField::version);
-  if (h.version != kVersion) {
+  if (h.version < kVersion1 || h.version > kVersion) {
     return fail(indexField::version, "version " + str(h.version) +
-                                         " is not supported (this reader knows version " +
+                                         " is not supported (this reader knows versions 1 to " +
                                          str(kVersion) + "); use a matching sandtable");
   }
   const auto stored = loadLE<std::uint32_t>(p + indexField::headerCrc);
@@ -414,8 +479,20 @@ Result<IndexHeader> decodeIndexHeader(std::span<const std::byte> bytes, const st
                                            " is smaller than the pack header (" +
                                            str(kPackHeaderBytes) + " bytes)");
   }
-  if (entryBytes != kEntryBytes) {
-    return fail(indexField::entryBytes, "entry size must be " + str(kEntryBytes));
+  if (h.version >= kVersion2) {
+    h.coarseLevel = loadLE<std::uint32_t>(p + indexField::coarseLevel);
+    const auto order = loadLE<std::uint32_t>(p + indexField::order);
+    if (h.coarseLevel >= h.levels) {
+      return fail(indexField::coarseLevel, "coarse level " + str(h.coarseLevel) + " is out of range (0 to " +
+                                               str(h.levels - 1) + " for " + str(h.levels) + " levels)");
+    }
+    if (order >= kPackOrderCount) {
+      return fail(indexField::order, "record order " + str(order) + " is not known (0 = row-major, 1 = Morton)");
+    }
+    h.order = static_cast<PackOrder>(order);
+  }
+  if (entryBytes != h.entryBytes()) {
+    return fail(indexField::entryBytes, "entry size must be " + str(h.entryBytes()) + " in version " + str(h.version));
   }
   if (entryCount != h.entryCount()) {
     return fail(indexField::entryCount, "entry count " + str(entryCount) + " is not " +
@@ -433,20 +510,31 @@ Result<IndexHeader> decodeIndexHeader(std::span<const std::byte> bytes, const st
   return h;
 }
 
-void encodeEntry(const Entry& e, std::span<std::byte> out) {
-  assert(out.size() >= kEntryBytes);
+void encodeEntry(const Entry& e, std::span<std::byte> out, std::uint32_t version) {
+  assert(out.size() >= entryBytesOf(version));
   std::byte* p = out.data();
   storeLE<std::uint64_t>(p + entryField::offset, e.offset);
   storeLE<std::uint32_t>(p + entryField::compressedBytes, e.compressedBytes);
   storeLE<std::uint32_t>(p + entryField::rawBytes, e.rawBytes);
   storeLE<std::uint32_t>(p + entryField::compressedCrc, e.compressedCrc);
   storeLE<std::uint32_t>(p + entryField::rawCrc, e.rawCrc);
-  storeLE<std::uint32_t>(p + entryField::kx, e.kx);
-  storeLE<std::uint32_t>(p + entryField::kz, e.kz);
+  if (version < kVersion2) {
+    storeLE<std::uint32_t>(p + entryField::kx, e.kx);
+    storeLE<std::uint32_t>(p + entryField::kz, e.kz);
+    return;
+  }
+  storeLE<std::uint64_t>(p + entryFieldV2::fineOffset, e.fine.offset);
+  storeLE<std::uint32_t>(p + entryFieldV2::fineCompressedBytes, e.fine.compressedBytes);
+  storeLE<std::uint32_t>(p + entryFieldV2::fineRawBytes, e.fine.rawBytes);
+  storeLE<std::uint32_t>(p + entryFieldV2::fineCompressedCrc, e.fine.compressedCrc);
+  storeLE<std::uint32_t>(p + entryFieldV2::fineRawCrc, e.fine.rawCrc);
+  storeLE<std::uint32_t>(p + entryFieldV2::kx, e.kx);
+  storeLE<std::uint32_t>(p + entryFieldV2::kz, e.kz);
+  storeLE<std::uint64_t>(p + entryFieldV2::reserved, 0);
 }
 
-Entry decodeEntry(std::span<const std::byte> in) {
-  assert(in.size() >= kEntryBytes);
+Entry decodeEntry(std::span<const std::byte> in, std::uint32_t version) {
+  assert(in.size() >= entryBytesOf(version));
   const std::byte* p = in.data();
   Entry e;
   e.offset = loadLE<std::uint64_t>(p + entryField::offset);
@@ -454,9 +542,42 @@ Entry decodeEntry(std::span<const std::byte> in) {
   e.rawBytes = loadLE<std::uint32_t>(p + entryField::rawBytes);
   e.compressedCrc = loadLE<std::uint32_t>(p + entryField::compressedCrc);
   e.rawCrc = loadLE<std::uint32_t>(p + entryField::rawCrc);
-  e.kx = loadLE<std::uint32_t>(p + entryField::kx);
-  e.kz = loadLE<std::uint32_t>(p + entryField::kz);
+  if (version < kVersion2) {
+    e.kx = loadLE<std::uint32_t>(p + entryField::kx);
+    e.kz = loadLE<std::uint32_t>(p + entryField::kz);
+    return e;
+  }
+  e.fine.offset = loadLE<std::uint64_t>(p + entryFieldV2::fineOffset);
+  e.fine.compressedBytes = loadLE<std::uint32_t>(p + entryFieldV2::fineCompressedBytes);
+  e.fine.rawBytes = loadLE<std::uint32_t>(p + entryFieldV2::fineRawBytes);
+  e.fine.compressedCrc = loadLE<std::uint32_t>(p + entryFieldV2::fineCompressedCrc);
+  e.fine.rawCrc = loadLE<std::uint32_t>(p + entryFieldV2::fineRawCrc);
+  e.kx = loadLE<std::uint32_t>(p + entryFieldV2::kx);
+  e.kz = loadLE<std::uint32_t>(p + entryFieldV2::kz);
   return e;
+}
+
+namespace {
+/// Spreads the 16 bits of v to the even bits of the result.
+std::uint32_t spreadBits(std::uint32_t v) {
+  v &= 0xffffu;
+  v = (v | (v << 8)) & 0x00ff00ffu;
+  v = (v | (v << 4)) & 0x0f0f0f0fu;
+  v = (v | (v << 2)) & 0x33333333u;
+  v = (v | (v << 1)) & 0x55555555u;
+  return v;
+}
+}  // namespace
+
+std::vector<std::uint32_t> moduleOrder(std::uint32_t modulesX, std::uint32_t modulesZ, PackOrder order) {
+  std::vector<std::uint32_t> out(std::size_t(modulesX) * modulesZ);
+  for (std::size_t k = 0; k < out.size(); ++k) out[k] = static_cast<std::uint32_t>(k);
+  if (order == PackOrder::morton) {
+    // Morton codes of a 65536 x 65536 grid fit in 32 bits; ties cannot occur.
+    auto code = [&](std::uint32_t k) { return spreadBits(k % modulesX) | (spreadBits(k / modulesX) << 1); };
+    std::sort(out.begin(), out.end(), [&](std::uint32_t a, std::uint32_t b) { return code(a) < code(b); });
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------- zstd
@@ -490,7 +611,11 @@ Status decompress(std::span<const std::byte> packed, std::uint32_t rawBytes, std
 
 struct PackWriter::State {
   std::string directory, packPath, indexPath, packTmp, indexTmp;
+  std::string spillTmp;  ///< v2: records in append order, copied into the pack by finish()
   int fd = -1;
+  int spillFd = -1;
+  std::uint64_t spillEnd = 0;
+  PackLayout layout;
   int level = kDefaultZstdLevel;
   IndexHeader header;
   mutable std::mutex mutex;
@@ -504,6 +629,10 @@ struct PackWriter::State {
 
   ~State() {
     if (fd >= 0) ::close(fd);
+    if (spillFd >= 0) {
+      ::close(spillFd);
+      ::unlink(spillTmp.c_str());
+    }
     if (!finished) {
       ::unlink(packTmp.c_str());
       ::unlink(indexTmp.c_str());
@@ -515,7 +644,8 @@ PackWriter::PackWriter(std::unique_ptr<State> s) : state_(std::move(s)) {}
 PackWriter::~PackWriter() = default;
 
 Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& directory,
-                                                       const IndexHeader& header, int zstdLevel) {
+                                                       const IndexHeader& header, int zstdLevel,
+                                                       const PackLayout& layout) {
   auto fail = [&](const std::string& msg) {
     return Result<std::unique_ptr<PackWriter>>(Problem{directory, 0, "pack writer: " + msg});
   };
@@ -538,8 +668,17 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
     return fail("zstd level " + std::to_string(zstdLevel) + " is out of range (" +
                 std::to_string(ZSTD_minCLevel()) + " to " + std::to_string(ZSTD_maxCLevel()) + ")");
   }
+  if (layout.version < kVersion1 || layout.version > kVersion) {
+    return fail("version " + str(layout.version) + " is not supported (1 to " + str(kVersion) + ")");
+  }
+  if (layout.version >= kVersion2 && layout.coarseLevel >= header.levels) {
+    return fail("coarse level " + str(layout.coarseLevel) + " is out of range (0 to " + str(header.levels - 1) +
+                " for " + str(header.levels) + " levels)");
+  }
+  if (static_cast<std::uint32_t>(layout.order) >= kPackOrderCount) return fail("unknown record order");
   auto s = std::make_unique<State>();
   s->directory = directory;
+  s->layout = layout;
   s->packPath = join(directory, kPackFileName);
   s->indexPath = join(directory, kIndexFileName);
   const std::string pid = std::to_string(::getpid());
@@ -547,11 +686,18 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
   s->indexTmp = s->indexPath + ".tmp." + pid;
   s->level = zstdLevel;
   s->header = header;
-  s->header.version = kVersion;
+  s->header.version = layout.version;
+  s->header.coarseLevel = layout.version >= kVersion2 ? layout.coarseLevel : 0;
+  s->header.order = layout.version >= kVersion2 ? layout.order : PackOrder::rowMajor;
   s->entries.resize(static_cast<std::size_t>(header.entryCount()));
   s->fd = ::open(s->packTmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (s->fd < 0) return fail("cannot create " + s->packTmp + ": " + std::strerror(errno));
-  const auto head = encodePackHeader();
+  if (layout.version >= kVersion2) {
+    s->spillTmp = s->packPath + ".spill.tmp." + pid;
+    s->spillFd = ::open(s->spillTmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (s->spillFd < 0) return fail("cannot create " + s->spillTmp + ": " + std::strerror(errno));
+  }
+  const auto head = encodePackHeader(layout.version);
   if (const Status w = pwriteAll(s->fd, head.data(), head.size(), 0); !w) {
     return fail("cannot write " + s->packTmp + ": " + w.message());
   }
@@ -566,6 +712,36 @@ Status PackWriter::add(const module::Module& m) {
   return append(std::move(r.value()));
 }
 
+namespace {
+
+/// Checks, encodes and compresses one record's module (the whole module,
+/// or the levels of one v2 part); fills the extent's sizes and CRCs.
+std::string compressPart(const module::Module& m, int level, const std::string& name, std::vector<std::byte>& out,
+                         Extent& x) {
+  if (const Status e = module::checkEncodable(m); !e) return name + ": " + e.message();
+  if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
+    return name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) + " allowed";
+  }
+  const std::vector<std::byte> raw = module::encode(m);
+  // Decoding our own encoding checks everything checkEncodable leaves out
+  // (index ranges, group order, squares), so a pack never holds a module
+  // that its reader would refuse.
+  if (auto back = module::decode(raw, "encoded module"); !back) {
+    const Problem& p = back.problems().front();
+    return name + " is malformed: " + p.message + " (byte " + str(p.offset) + " of its encoding)";
+  }
+  out = sandtable::pack::compress(raw, level);
+  if (out.empty()) return name + ": zstd compression failed (out of memory?)";
+  if (out.size() > kMaxModuleBytes) return name + " compresses to more than the allowed size";
+  x.compressedBytes = static_cast<std::uint32_t>(out.size());
+  x.rawBytes = static_cast<std::uint32_t>(raw.size());
+  x.compressedCrc = crc32(out);
+  x.rawCrc = crc32(raw);
+  return "";
+}
+
+}  // namespace
+
 Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   const State& s = *state_;
   const std::string name = "pack writer: " + moduleName(m.kx, m.kz);
@@ -579,30 +755,37 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
     return fail(name + " has " + str(m.levels.size()) + " levels, the pack holds " +
                 str(s.header.levels));
   }
-  if (const Status e = module::checkEncodable(m); !e) return fail(name + ": " + e.message());
-  if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
-    return fail(name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) +
-                " allowed");
-  }
-  const std::vector<std::byte> raw = module::encode(m);
-  // Decoding our own encoding checks everything checkEncodable leaves out
-  // (index ranges, group order, squares), so a pack never holds a module
-  // that its reader would refuse.
-  if (auto back = module::decode(raw, "encoded module"); !back) {
-    const Problem& p = back.problems().front();
-    return fail(name + " is malformed: " + p.message + " (byte " + str(p.offset) + " of its encoding)");
-  }
   Record r;
-  r.bytes = sandtable::pack::compress(raw, s.level);
-  if (r.bytes.empty()) return fail(name + ": zstd compression failed (out of memory?)");
-  if (r.bytes.size() > kMaxModuleBytes) return fail(name + " compresses to more than the allowed size");
   Entry& e = r.entry;
-  e.compressedBytes = static_cast<std::uint32_t>(r.bytes.size());
-  e.rawBytes = static_cast<std::uint32_t>(raw.size());
-  e.compressedCrc = crc32(r.bytes);
-  e.rawCrc = crc32(raw);
   e.kx = m.kx;
   e.kz = m.kz;
+  if (s.header.version < kVersion2) {
+    Extent x;
+    if (std::string bad = compressPart(m, s.level, name, r.bytes, x); !bad.empty()) return fail(bad);
+    e.compressedBytes = x.compressedBytes;
+    e.rawBytes = x.rawBytes;
+    e.compressedCrc = x.compressedCrc;
+    e.rawCrc = x.rawCrc;
+    return r;
+  }
+  // v2: each part is a module of its own levels (module::encode knows no
+  // level numbers; the index's coarseLevel gives them back).
+  const auto split = m.levels.begin() + std::ptrdiff_t(s.header.coarseLevel);
+  const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end())};
+  Extent c;
+  if (std::string bad = compressPart(coarse, s.level, name + " (coarse record)", r.bytes, c); !bad.empty()) {
+    return fail(bad);
+  }
+  e.compressedBytes = c.compressedBytes;
+  e.rawBytes = c.rawBytes;
+  e.compressedCrc = c.compressedCrc;
+  e.rawCrc = c.rawCrc;
+  if (s.header.coarseLevel > 0) {
+    const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split)};
+    if (std::string bad = compressPart(fine, s.level, name + " (fine record)", r.fineBytes, e.fine); !bad.empty()) {
+      return fail(bad);
+    }
+  }
   return r;
 }
 
@@ -613,21 +796,80 @@ Status PackWriter::append(Record r) {
   const std::lock_guard lock(s.mutex);
   if (s.finished) return fail("pack writer: add() after finish()");
   if (!s.failed) return s.failed;
-  if (e.kx >= s.header.modulesX || e.kz >= s.header.modulesZ || e.compressedBytes != r.bytes.size()) {
+  const bool v2 = s.header.version >= kVersion2;
+  const bool needFine = v2 && s.header.coarseLevel > 0;
+  if (e.kx >= s.header.modulesX || e.kz >= s.header.modulesZ || e.compressedBytes != r.bytes.size() ||
+      e.fine.compressedBytes != r.fineBytes.size() || (needFine != !r.fineBytes.empty())) {
     return fail("pack writer: append() of a record that compress() did not make");
   }
   Entry& slot = s.entries[std::size_t(e.kz) * s.header.modulesX + e.kx];
   if (slot.compressedBytes != 0) return fail("pack writer: " + moduleName(e.kx, e.kz) + " was added twice");
-  e.offset = s.end;
-  if (const Status w = pwriteAll(s.fd, r.bytes.data(), r.bytes.size(), s.end); !w) {
-    s.failed = fail("pack writer: cannot write " + s.packTmp + ": " + w.message() + " (is the disk full?)");
-    return s.failed;
+  if (!v2) {
+    e.offset = s.end;
+    if (const Status w = pwriteAll(s.fd, r.bytes.data(), r.bytes.size(), s.end); !w) {
+      s.failed = fail("pack writer: cannot write " + s.packTmp + ": " + w.message() + " (is the disk full?)");
+      return s.failed;
+    }
+    s.end += r.bytes.size();
+    s.crc = crc32(r.bytes, s.crc);
+    slot = e;
+    return {};
   }
-  s.end += r.bytes.size();
-  s.crc = crc32(r.bytes, s.crc);
+  // v2: spill both records; until finish() the offsets are in the spill file.
+  e.offset = s.spillEnd;
+  e.fine.offset = s.spillEnd + r.bytes.size();
+  for (const auto* bytes : {&r.bytes, &r.fineBytes}) {
+    if (const Status w = pwriteAll(s.spillFd, bytes->data(), bytes->size(), s.spillEnd); !w) {
+      s.failed = fail("pack writer: cannot write " + s.spillTmp + ": " + w.message() + " (is the disk full?)");
+      return s.failed;
+    }
+    s.spillEnd += bytes->size();
+  }
   slot = e;
   return {};
 }
+
+namespace {
+
+/// Copies the records of `entries` (offsets in the spill file) into the
+/// pack at `end` in the order given, coarse records of every module first,
+/// then fine records, and points each entry at its place in the pack.
+/// Extends the pack's running CRC. Returns the error, or "".
+std::string copySpilled(int spillFd, int packFd, std::vector<Entry>& entries, const std::vector<std::uint32_t>& order,
+                        std::uint64_t& end, std::uint32_t& crc) {
+  std::vector<std::byte> buf;
+  constexpr std::size_t kBatch = 4u << 20;  // write in batches of a few MB: few syscalls
+  std::vector<std::byte> out;
+  out.reserve(kBatch + kMaxModuleBytes / 64);
+  std::uint64_t outAt = end;
+  auto flush = [&]() -> std::string {
+    if (out.empty()) return "";
+    if (const Status w = pwriteAll(packFd, out.data(), out.size(), outAt); !w) return w.message();
+    crc = crc32(out, crc);
+    outAt += out.size();
+    out.clear();
+    return "";
+  };
+  for (const Part part : {Part::coarse, Part::fine}) {
+    for (const std::uint32_t k : order) {
+      Entry& e = entries[k];
+      std::uint64_t& offset = part == Part::fine ? e.fine.offset : e.offset;
+      const std::uint32_t n = part == Part::fine ? e.fine.compressedBytes : e.compressedBytes;
+      if (n == 0) continue;
+      buf.resize(n);
+      if (const Status r = preadAll(spillFd, buf.data(), n, offset); !r) return "cannot read the spill file: " + r.message();
+      offset = end;
+      end += n;
+      out.insert(out.end(), buf.begin(), buf.end());
+      if (out.size() >= kBatch) {
+        if (std::string bad = flush(); !bad.empty()) return bad;
+      }
+    }
+  }
+  return flush();
+}
+
+}  // namespace
 
 Status PackWriter::finish() {
   State& s = *state_;
@@ -646,19 +888,30 @@ Status PackWriter::finish() {
     return fail("pack writer: " + str(missing) + " of " + str(s.entries.size()) +
                 " modules were not added (the first is " + moduleName(kx, kz) + ")");
   }
+  auto failWith = [&](const std::string& what) {
+    s.failed = fail("pack writer: " + what);
+    return s.failed;
+  };
+  if (s.spillFd >= 0) {
+    const auto order = moduleOrder(s.header.modulesX, s.header.modulesZ, s.header.order);
+    if (std::string bad = copySpilled(s.spillFd, s.fd, s.entries, order, s.end, s.crc); !bad.empty()) {
+      return failWith("cannot write " + s.packTmp + ": " + bad + " (is the disk full?)");
+    }
+    ::close(s.spillFd);
+    s.spillFd = -1;
+    ::unlink(s.spillTmp.c_str());
+  }
   std::vector<std::byte> index(static_cast<std::size_t>(s.header.indexBytes()), std::byte{0});
+  const std::uint32_t entryBytes = s.header.entryBytes();
   for (std::size_t k = 0; k < s.entries.size(); ++k) {
-    encodeEntry(s.entries[k], std::span(index).subspan(kIndexHeaderBytes + kEntryBytes * k));
+    encodeEntry(s.entries[k], std::span(index).subspan(kIndexHeaderBytes + std::size_t(entryBytes) * k),
+                s.header.version);
   }
   s.header.packBytes = s.end;
   s.header.tableCrc = crc32(std::span(index).subspan(kIndexHeaderBytes));
   const auto head = encodeIndexHeader(s.header);
   std::copy(head.begin(), head.end(), index.begin());
 
-  auto failWith = [&](const std::string& what) {
-    s.failed = fail("pack writer: " + what);
-    return s.failed;
-  };
   if (::fsync(s.fd) != 0)
     return failWith("cannot flush " + s.packTmp + ": " + std::strerror(errno));
   FdGuard idx{::open(s.indexTmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)};
@@ -692,9 +945,9 @@ SizeStats PackWriter::stats() const {
   sizes.reserve(s.entries.size());
   for (const Entry& e : s.entries) {
     if (e.compressedBytes == 0) continue;
-    sizes.push_back(e.compressedBytes);
-    st.totalCompressed += e.compressedBytes;
-    st.totalRaw += e.rawBytes;
+    sizes.push_back(static_cast<std::uint32_t>(e.storedBytes()));  // both records: at most 2 x 64 MiB
+    st.totalCompressed += e.storedBytes();
+    st.totalRaw += e.storedRawBytes();
   }
   st.count = sizes.size();
   if (sizes.empty()) return st;
@@ -763,80 +1016,125 @@ std::string PackReader::indexPath() const { return state_->indexPath; }
 Entry PackReader::entry(std::uint32_t kx, std::uint32_t kz) const {
   const IndexHeader& h = state_->header;
   assert(kx < h.modulesX && kz < h.modulesZ);
-  return decodeEntry(state_->index.bytes().subspan(entryOffset(h, kx, kz), kEntryBytes));
+  return decodeEntry(state_->index.bytes().subspan(entryOffset(h, kx, kz), h.entryBytes()), h.version);
 }
 
+std::uint32_t PackReader::coarseLevel() const { return state_->header.coarseLevel; }
+
 Result<std::vector<std::byte>> PackReader::unpack(std::uint32_t kx, std::uint32_t kz,
-                                                  std::span<const std::byte> record) const {
+                                                  std::span<const std::byte> record, Part part) const {
   const Entry e = entry(kx, kz);
   if (const Status checked = checkEntry(state_->header, e, kx, kz, state_->indexPath); !checked) {
     return checked.problems();
   }
-  return unpackRecord(e, kx, kz, record, state_->packPath, true);
+  if (part == Part::fine && partLevels(state_->header, Part::fine) == 0) {
+    return Problem{state_->indexPath, 0, "pack: " + moduleName(kx, kz) + " has no fine record (version " +
+                                             str(state_->header.version) + ", coarse level " +
+                                             str(state_->header.coarseLevel) + ")"};
+  }
+  return unpackRecord(extentOf(e, part), kx, kz, part, record, state_->packPath, true);
 }
 
 namespace {
 
-/// One pread of the record of (kx, kz), checked and decompressed.
+/// One pread of a record of (kx, kz), checked and decompressed.
 Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
-                                          std::uint32_t kz, int fd, const std::string& packPath,
+                                          std::uint32_t kz, Part part, int fd, const std::string& packPath,
                                           const std::string& indexPath, bool checkRawCrc) {
   if (const Status checked = checkEntry(h, e, kx, kz, indexPath); !checked) return checked.problems();
-  thread_local std::vector<std::byte> record;  // reused: no allocation per read
-  record.resize(e.compressedBytes);
-  if (const Status read = preadAll(fd, record.data(), record.size(), e.offset); !read) {
-    return Problem{packPath, e.offset,
-                   "pack: cannot read the record of " + moduleName(kx, kz) + ": " + read.message()};
+  if (partLevels(h, part) == 0) {
+    return Problem{indexPath, 0, "pack: " + moduleName(kx, kz) + " has no fine record (version " + str(h.version) +
+                                     ", coarse level " + str(h.coarseLevel) + ")"};
   }
-  return unpackRecord(e, kx, kz, record, packPath, checkRawCrc);
+  const Extent x = extentOf(e, part);
+  thread_local std::vector<std::byte> record;  // reused: no allocation per read
+  record.resize(x.compressedBytes);
+  if (const Status read = preadAll(fd, record.data(), record.size(), x.offset); !read) {
+    return Problem{packPath, x.offset,
+                   "pack: cannot read the record of " + partName(kx, kz, part) + ": " + read.message()};
+  }
+  return unpackRecord(x, kx, kz, part, record, packPath, checkRawCrc);
+}
+
+/// Reads one record of (kx, kz) and decodes it into `out` (the part's
+/// levels only), reusing per-thread buffers and out's capacity.
+Status readPartInto(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part, int fd,
+                    const std::string& packPath, module::Module& out) {
+  const std::string name = partName(kx, kz, part);
+  thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
+  record.resize(x.compressedBytes);
+  auto fail = [&](const std::string& msg) { return Status(Problem{packPath, x.offset, "pack: " + name + msg}); };
+  if (const Status read = preadAll(fd, record.data(), record.size(), x.offset); !read) {
+    return fail(": cannot read the record: " + read.message());
+  }
+  if (const std::uint32_t c = crc32(record); c != x.compressedCrc) {
+    return fail(" record checksum mismatch (stored " + crcHex(x.compressedCrc) + ", computed " + crcHex(c) +
+                "): the pack is corrupt; rebuild the database");
+  }
+  if (const Status z = decompress(record, x.rawBytes, raw); !z) {
+    return fail(" record does not decompress: " + z.message());
+  }
+  if (const Status d = module::decodeInto(raw, packPath, 0, out); !d) {
+    const Problem& p = d.problems().front();
+    return fail(", decompressed byte " + str(p.offset) + ": " + p.message);
+  }
+  if (const std::string bad = checkDecoded(h, out, kx, kz, part); !bad.empty()) return fail(bad);
+  return {};
+}
+
+/// Moves the levels of a decoded part into `out` at level `first` by
+/// swapping vectors, so both keep their capacity from read to read.
+void placeLevels(module::Module& part, std::uint32_t first, std::uint32_t levels, module::Module& out) {
+  out.kx = part.kx;
+  out.kz = part.kz;
+  if (out.levels.size() != levels) out.levels.resize(levels);
+  for (std::size_t l = 0; l < part.levels.size(); ++l) std::swap(part.levels[l], out.levels[first + l]);
 }
 
 }  // namespace
 
-Result<std::vector<std::byte>> PackReader::readRaw(std::uint32_t kx, std::uint32_t kz) const {
+Result<std::vector<std::byte>> PackReader::readRaw(std::uint32_t kx, std::uint32_t kz, Part part) const {
   const State& s = *state_;
-  return readRecord(s.header, entry(kx, kz), kx, kz, s.pack.fd, s.packPath, s.indexPath, true);
+  return readRecord(s.header, entry(kx, kz), kx, kz, part, s.pack.fd, s.packPath, s.indexPath, true);
 }
 
 Result<module::Module> PackReader::read(std::uint32_t kx, std::uint32_t kz) const {
+  module::Module m;
+  if (Status r = readInto(kx, kz, m); !r) return r.problems();
+  return m;
+}
+
+Status PackReader::readCoarseInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const {
   const State& s = *state_;
   const Entry e = entry(kx, kz);
-  // The raw CRC is left to module::decode, whose header and payload CRCs
-  // cover the same bytes: the raw bytes are checksummed once, not twice.
-  auto raw = readRecord(s.header, e, kx, kz, s.pack.fd, s.packPath, s.indexPath, false);
-  if (!raw) return raw.problems();
-  return decodeRecord(s.header, e, kx, kz, raw.value(), s.packPath);
+  if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) return checked.problems().front();
+  if (s.header.version < kVersion2) {
+    // The whole module decodes straight into `out`.
+    return readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.pack.fd, s.packPath, out);
+  }
+  thread_local module::Module part;  // its vectors trade places with out's: no allocation once warm
+  if (Status r = readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.pack.fd, s.packPath, part); !r) return r;
+  placeLevels(part, s.header.coarseLevel, s.header.levels, out);
+  return {};
+}
+
+Status PackReader::readFineInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const {
+  const State& s = *state_;
+  if (partLevels(s.header, Part::fine) == 0 || s.header.version < kVersion2) {
+    if (out.levels.size() != s.header.levels) out.levels.resize(s.header.levels);
+    return {};
+  }
+  const Entry e = entry(kx, kz);
+  if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) return checked.problems().front();
+  thread_local module::Module part;
+  if (Status r = readPartInto(s.header, e.fine, kx, kz, Part::fine, s.pack.fd, s.packPath, part); !r) return r;
+  placeLevels(part, 0, s.header.levels, out);
+  return {};
 }
 
 Status PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const {
-  const State& s = *state_;
-  const Entry e = entry(kx, kz);
-  const std::string name = moduleName(kx, kz);
-  if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) {
-    return checked.problems().front();
-  }
-  thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
-  record.resize(e.compressedBytes);
-  auto fail = [&](const std::string& msg) { return Status(Problem{s.packPath, e.offset, "pack: " + name + msg}); };
-  if (const Status read = preadAll(s.pack.fd, record.data(), record.size(), e.offset); !read) {
-    return fail(": cannot read the record: " + read.message());
-  }
-  if (const std::uint32_t c = crc32(record); c != e.compressedCrc) {
-    return fail(" record checksum mismatch (stored " + crcHex(e.compressedCrc) + ", computed " + crcHex(c) +
-                "): the pack is corrupt; rebuild the database");
-  }
-  if (const Status z = decompress(record, e.rawBytes, raw); !z) {
-    return fail(" record does not decompress: " + z.message());
-  }
-  if (const Status d = module::decodeInto(raw, s.packPath, 0, out); !d) {
-    const Problem& p = d.problems().front();
-    return fail(", decompressed byte " + str(p.offset) + ": " + p.message);
-  }
-  if (out.kx != kx || out.kz != kz) return fail(": the record holds " + moduleName(out.kx, out.kz));
-  if (out.levels.size() != s.header.levels) {
-    return fail(" has " + str(out.levels.size()) + " levels, the index says " + str(s.header.levels));
-  }
-  return {};
+  if (Status c = readCoarseInto(kx, kz, out); !c) return c;
+  return readFineInto(kx, kz, out);
 }
 
 // ---------------------------------------------------------------- validate
@@ -873,8 +1171,9 @@ class Report {
 };
 
 struct Placed {
-  Entry entry;
+  Extent entry;  ///< the record's extent
   std::uint32_t kx = 0, kz = 0;
+  Part part = Part::coarse;
 };
 
 }  // namespace
@@ -908,10 +1207,12 @@ Status validatePack(const std::string& directory, const Work& work) {
   }
   r.add("index", checkTableCrc(h, all, indexPath));
   // Reserved header bytes: the CRCs cover them, so only a writer that
-  // resealed the CRC can put anything there; v1 writes zeros.
-  for (std::size_t k = indexField::reserved; k < indexField::headerCrc; ++k) {
+  // resealed the CRC can put anything there; v1 and v2 write zeros.
+  const std::size_t reservedFrom = h.version >= kVersion2 ? indexField::reservedV2 : indexField::reserved;
+  for (std::size_t k = reservedFrom; k < indexField::headerCrc; ++k) {
     if (all[k] != std::byte{0}) {
-      r.add("index", Problem{indexPath, k, "pack index: header reserved bytes 76..123 are not zero"});
+      r.add("index", Problem{indexPath, k, "pack index: header reserved bytes " + str(reservedFrom) +
+                                               "..123 are not zero"});
       break;
     }
   }
@@ -931,10 +1232,19 @@ Status validatePack(const std::string& directory, const Work& work) {
   std::vector<Placed> placed;
   for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
     for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
-      const Entry e = decodeEntry(all.subspan(entryOffset(h, kx, kz), kEntryBytes));
+      const Entry e = decodeEntry(all.subspan(entryOffset(h, kx, kz), h.entryBytes()), h.version);
       bool ok = false;
       r.add("entry", checkEntry(h, e, kx, kz, indexPath, &ok));
-      if (ok) placed.push_back({e, kx, kz});
+      if (h.version >= kVersion2) {
+        const std::uint64_t at = entryOffset(h, kx, kz) + entryFieldV2::reserved;
+        if (loadLE<std::uint64_t>(all.data() + at) != 0) {
+          r.add("entry", Problem{indexPath, at, "pack index: the entry of " + moduleName(kx, kz) +
+                                                    " has reserved bytes 56..63 that are not zero"});
+        }
+      }
+      if (!ok) continue;
+      placed.push_back({e.coarse(), kx, kz, Part::coarse});
+      if (partLevels(h, Part::fine) > 0) placed.push_back({e.fine, kx, kz, Part::fine});
     }
   }
   std::sort(placed.begin(), placed.end(),
@@ -946,9 +1256,9 @@ Status validatePack(const std::string& directory, const Work& work) {
     if (begin < covered && last) {
       r.add("overlap",
             Problem{indexPath, entryOffset(h, p.kx, p.kz),
-                    "pack index: the record of " + moduleName(p.kx, p.kz) + " (bytes " +
+                    "pack index: the record of " + partName(p.kx, p.kz, p.part) + " (bytes " +
                         str(begin) + ".." + str(end - 1) + ") overlaps the record of " +
-                        moduleName(last->kx, last->kz) + " (bytes " + str(last->entry.offset) +
+                        partName(last->kx, last->kz, last->part) + " (bytes " + str(last->entry.offset) +
                         ".." + str(last->entry.offset + last->entry.compressedBytes - 1) + ")"});
     } else if (begin > covered) {
       r.add("gap", Problem{packPath, covered,
@@ -983,15 +1293,15 @@ Status validatePack(const std::string& directory, const Work& work) {
     if (const Status read = preadAll(pack.fd, record.data(), record.size(), p.entry.offset); !read) {
       r.add("record",
             Problem{packPath, p.entry.offset,
-                    "pack: cannot read the record of " + moduleName(p.kx, p.kz) + ": " + read.message()});
+                    "pack: cannot read the record of " + partName(p.kx, p.kz, p.part) + ": " + read.message()});
       continue;
     }
-    auto raw = unpackRecord(p.entry, p.kx, p.kz, record, packPath, true);
+    auto raw = unpackRecord(p.entry, p.kx, p.kz, p.part, record, packPath, true);
     if (!raw) {
       r.add("record", Status(raw.problems()));
       continue;
     }
-    auto m = decodeRecord(h, p.entry, p.kx, p.kz, raw.value(), packPath);
+    auto m = decodeRecord(h, p.entry, p.kx, p.kz, p.part, raw.value(), packPath);
     if (!m) r.add("module", Status(m.problems()));
   }
   work.report(1.0, "checking pack");

@@ -1,4 +1,4 @@
-// Pack files v1: golden headers, round trips, determinism, threads, the
+// Pack files v1 (the default PackLayout; v2 is in test_pack_v2.cpp): golden headers, round trips, determinism, threads, the
 // writer's temporaries, truncation and flipped bytes of either file, and a
 // table of structural faults each with its message.
 #include <gtest/gtest.h>
@@ -202,7 +202,7 @@ TEST(Pack, version1GoldenHeaders) {
   EXPECT_TRUE(
       std::all_of(page.begin() + 128, page.end(), [](std::byte b) { return b == std::byte{0}; }));
   std::vector<std::byte> entry(kEntryBytes);
-  encodeEntry({0x1122334455667788ull, 100, 200, 0xdeadbeef, 0xcafef00d, 7, 9}, entry);
+  encodeEntry({0x1122334455667788ull, 100, 200, 0xdeadbeef, 0xcafef00d, 7, 9, {}}, entry);
   EXPECT_EQ(hex(entry),
             "8877665544332211"
             "64000000"
@@ -691,7 +691,7 @@ TEST(Pack, hostileIndexHeaderFieldsAreRejected) {
     const char* expected;
   };
   const Case cases[] = {
-      {indexField::version, 2, 4, "pack index: version 2 is not supported"},
+      {indexField::version, 3, 4, "pack index: version 3 is not supported"},
       {indexField::headerBytes, 128, 4, "pack index: header size must be 4096"},
       {indexField::modulesX, 0, 4, "pack index: module counts 0 x 2 are out of range"},
       {indexField::modulesZ, 70000, 4, "pack index: module counts 2 x 70000 are out of range"},

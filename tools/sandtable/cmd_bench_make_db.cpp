@@ -15,6 +15,8 @@ constexpr const char* kCmd = "bench make-db";
 struct Args {
   bench::MakeDbOptions o;
   bool json = false;
+  std::string repackFrom;  ///< rewrite this database's pack instead of building
+  std::string packLayout = "v2-morton";
 };
 
 const FlagMap kFlags = {{"MakeDbOptions::output", "-o"},          {"MakeDbOptions::sizeKm", "--size-km"},
@@ -45,6 +47,16 @@ int run(const Args& a) {
   notes.progress = [&](double f, const std::string& stage) {
     if (progress) progress->update(f, stage);
   };
+  if (!a.repackFrom.empty()) {
+    const pack::PackLayout layout = a.packLayout == "v1"         ? pack::PackLayout{}
+                                    : a.packLayout == "v2-rows" ? pack::PackLayout::split(std::uint32_t(a.o.levels), pack::PackOrder::rowMajor)
+                                                                : pack::PackLayout::split(std::uint32_t(a.o.levels));
+    auto rp = bench::repackBenchDatabase(a.repackFrom, a.o.output, layout, a.o.threads, a.o.zstdLevel, a.o.force, notes);
+    progress.reset();
+    if (!rp) return reportBenchProblems(kCmd, rp.problems(), kFlags);
+    std::printf("%s\n", rp->dump(2).c_str());
+    return kOk;
+  }
   auto r = bench::makeBenchDatabase(a.o, notes);
   progress.reset();
   if (!r) return reportBenchProblems(kCmd, r.problems(), kFlags);
@@ -80,6 +92,12 @@ void registerBenchMakeDb(CLI::App& bench, Commands& c) {
   sub->add_flag("--force", o.force, "Replace OUTPUT if it exists");
   sub->add_flag("--keep-inputs", o.keepInputs, "Keep the synth inputs in OUTPUT.synth");
   sub->add_flag("--json", a->json, "Print one JSON object (no progress)");
+  sub->add_option("--repack-from", a->repackFrom,
+                  "Instead of building: link DIR's files into OUTPUT and rewrite its pack in --pack-layout "
+                  "(compares pack layouts on the same modules; --levels must match DIR's)");
+  sub->add_option("--pack-layout", a->packLayout, "Pack layout of --repack-from")
+      ->default_val("v2-morton")
+      ->check(CLI::IsMember({"v1", "v2-morton", "v2-rows"}));
   c.add(sub, [a] { return run(*a); });
 }
 

@@ -34,7 +34,9 @@ const FlagMap kFlags = {{"PagingBenchOptions::database", "DB"},
                         {"PagingBenchOptions::lookAhead", "--look-ahead"},
                         {"PagingBenchOptions::halfAngle", "--half-angle"},
                         {"PagingBenchOptions::budgetMb", "--budget-mb"},
-                        {"PagingBenchOptions::warm", "--warm"}};
+                        {"PagingBenchOptions::warm", "--warm"},
+                        {"PagingBenchOptions::coarseFirst", "--no-coarse-first"},
+                        {"PagingBenchOptions::readahead", "--no-readahead"}};
 
 void printHuman(const json& j) {
   std::printf("bench paging: %s, %s path, view distance %.0f m, %s, median of %d\n",
@@ -106,7 +108,7 @@ void registerBenchPaging(CLI::App& bench, Commands& c) {
       ->delimiter(',')
       ->default_str("2000,5000,10000,20000,50000,100000,200000,300000");
   sub->add_flag("--ramp", o.ramp, "One flight per mode with the speed rising geometrically through the list");
-  sub->add_option("--path", o.path, "Flight path")->default_val("straight")->check(CLI::IsMember({"straight", "zigzag", "circle"}));
+  sub->add_option("--path", o.path, "Flight path")->default_val("straight")->check(CLI::IsMember({"straight", "zigzag", "circle", "rows"}));
   sub->add_option("--seconds", o.seconds, "Seconds per speed (capped by what the path allows)")
       ->default_val(8)
       ->check(CLI::Range(0.5, 600.0));
@@ -127,6 +129,9 @@ void registerBenchPaging(CLI::App& bench, Commands& c) {
       ->check(CLI::Range(1.0, 89.0));
   sub->add_option("--budget-mb", o.budgetMb, "Pager memory budget, MiB")->default_val(2048)->check(CLI::PositiveNumber);
   sub->add_flag("--warm", o.warm, "Keep the page cache (skip the cold-cache drop)");
+  sub->add_flag("!--no-coarse-first", o.coarseFirst,
+                "Read a v2 pack's modules whole, as for v1 (default: coarse records first, fine ones after)");
+  sub->add_flag("!--no-readahead", o.readahead, "No posix_fadvise WILLNEED hints for the strips the loaders take");
   sub->add_flag("--json", a->json, "Print one JSON object");
   sub->add_option("--plot", o.plots, "Write holes and degraded frames against speed, FILE.png or FILE.svg (repeatable)")
       ->take_all()

@@ -190,8 +190,17 @@ struct ReadOutcome {
   bool missing = false;
 };
 
-/// One read from the source into loaderModule(), timed and counted.
-ReadOutcome readModule(Impl& im, ModuleKey k) {
+/// The finest level a fresh load publishes at once: the source's coarse
+/// level when coarse-first applies, else 0 (one read of every level).
+std::uint32_t firstReadLevel(const Impl& im) {
+  if (!im.options.coarseFirst || !im.source) return 0;
+  return std::min(im.source->coarseLevel(), im.levels - 1);
+}
+
+/// One read from the source into loaderModule(), timed and counted: the
+/// coarse part only with `coarseOnly` (and a source that splits), else the
+/// whole module.
+ReadOutcome readModule(Impl& im, ModuleKey k, bool coarseOnly = false) {
   ReadOutcome out;
   const ModuleInfo info = im.source->info(k.kx, k.kz);
   if (info.storedBytes > 0 && im.options.simulatedReadSeconds > 0) {
@@ -199,10 +208,13 @@ ReadOutcome readModule(Impl& im, ModuleKey k) {
   }
   out.generation = im.source->generation(k.kx, k.kz);
   const std::int64_t t0 = nowNs();
-  const Result<std::uint64_t> r = im.source->read(k.kx, k.kz, loaderModule());
+  const bool split = coarseOnly && firstReadLevel(im) > 0;
+  const Result<std::uint64_t> r =
+      split ? im.source->readCoarse(k.kx, k.kz, loaderModule()) : im.source->read(k.kx, k.kz, loaderModule());
   if (info.storedBytes > 0) {
     im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
-    im.count.bytesRead.fetch_add(info.storedBytes, std::memory_order_relaxed);
+    im.count.bytesRead.fetch_add(split ? info.storedBytes - info.fineBytes : info.storedBytes,
+                                 std::memory_order_relaxed);
   }
   if (r.ok()) {
     out.generation = r.value();
@@ -246,11 +258,13 @@ struct PublishTimer {
   PublishTimer& operator=(const PublishTimer&) = delete;
 };
 
-void publishFinerLevels(Impl& im, Slot& s, const module::Module& m);
+void publishFinerLevels(Impl& im, Slot& s, const module::Module& m, std::uint32_t from, std::uint32_t to);
 
 /// Reads module p.key into slot s (whose `write` the caller holds) and
-/// publishes it, coarse level first, unless it is resident already.
-void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
+/// publishes it, coarse level first, unless it is resident already. With
+/// coarse-first, only the coarse levels are read and published; returns
+/// true when the fine levels are still to be loaded (loadFine).
+bool loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   const ModuleKey k = unpackKey(p.key);
   // Claim the slot. The seq_cst CAS stops new readers from being admitted
   // to the old occupant; the seq_cst load of `readers` after it then sees
@@ -262,7 +276,7 @@ void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
       const bool stale = wordState(w) == SlotState::resident &&
                          s.data[wordBuffer(w)].generation < im.source->generation(k.kx, k.kz);
       if (!stale) im.count.duplicates.fetch_add(1, std::memory_order_relaxed);
-      return;  // a stale one is a change notice: loadModule reloads it
+      return false;  // a stale one is a change notice: loadModule reloads it
     }
     gen = (wordGen(w) + 1) & kGenMask;
     if (s.word.compare_exchange_weak(w, makeWord(p.key, SlotState::loading, gen),
@@ -285,7 +299,8 @@ void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   const bool bad = knownBad(im, p.key, sourceGen);
   ReadOutcome read;
   read.generation = sourceGen;
-  if (!bad) read = readModule(im, k);
+  const std::uint32_t firstLevel = firstReadLevel(im);
+  if (!bad) read = readModule(im, k, true);
   const module::Module& loaded = loaderModule();
   const std::string& failure = read.failure;
   const bool missing = read.missing;
@@ -295,7 +310,7 @@ void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
     std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
     s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::empty, gen + 1),
                                    std::memory_order_seq_cst);
-    return;
+    return false;
   }
 
   // The coarsest level first (or a placeholder).
@@ -339,13 +354,58 @@ void loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
                                       std::memory_order_seq_cst)) {
     im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);  // freed meanwhile
-    return;
+    return false;
   }
   recordLatency(im, p);
   ld.published.fetch_add(1, std::memory_order_relaxed);
   if (!placeholder) im.count.loaded.fetch_add(1, std::memory_order_relaxed);
   if (im.options.onResident) im.options.onResident(ld.index, k, placeholder);
-  if (!placeholder) publishFinerLevels(im, s, loaded);
+  if (placeholder) return false;
+  publishFinerLevels(im, s, loaded, coarse, firstLevel);
+  return firstLevel > 0 && s.finest[0].load(std::memory_order_relaxed) == firstLevel;
+}
+
+/// Coarse-first: reads the fine levels of module p.key, whose coarse
+/// levels a loadFresh published into buffer 0, and publishes them finest
+/// last. Nothing to do when the module left the slot, is a placeholder, was
+/// reloaded (buffer 1 holds every level) or is fine already.
+void loadFine(Impl& im, const Pending& p) {
+  const ModuleKey k = unpackKey(p.key);
+  if (!im.window.load().window.contains(k.kx, k.kz)) {
+    im.count.cancelledQueued.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  Slot& s = im.slotFor(k.kx, k.kz);
+  const std::unique_lock lock(s.write);
+  const std::uint32_t first = firstReadLevel(im);
+  const std::uint64_t w = s.word.load(std::memory_order_seq_cst);
+  ResidentModule& d = s.data[0];
+  if (first == 0 || wordKey(w) != p.key || wordState(w) != SlotState::resident || wordBuffer(w) != 0 ||
+      d.placeholder || s.finest[0].load(std::memory_order_relaxed) != first ||
+      d.generation != im.source->generation(k.kx, k.kz)) {
+    return;
+  }
+  // Holding `write`, no loader can claim the slot. A free may still empty
+  // it meanwhile; the levels below `finest` written here are read by no
+  // reader either way (docs/PAGER.md, section 4).
+  const ModuleInfo info = im.source->info(k.kx, k.kz);
+  const std::int64_t t0 = nowNs();
+  const Status r = im.source->readFine(k.kx, k.kz, loaderModule());
+  im.readNs.fetch_add(std::uint64_t(nowNs() - t0), std::memory_order_relaxed);
+  im.count.bytesRead.fetch_add(info.fineBytes, std::memory_order_relaxed);
+  if (!r) {
+    im.count.fineFailed.fetch_add(1, std::memory_order_relaxed);
+    im.log(r.message() + " (the coarse levels stay drawn)");
+    return;
+  }
+  const std::uint64_t now = s.word.load(std::memory_order_seq_cst);
+  if (now != w || !im.window.load().window.contains(k.kx, k.kz)) {
+    im.count.cancelledInFlight.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  const PublishTimer timer(im);
+  publishFinerLevels(im, s, loaderModule(), first, 0);
+  im.count.fineLoaded.fetch_add(1, std::memory_order_relaxed);
 }
 
 void reloadWhileStale(Impl& im, Loader& ld, Slot& s, std::uint32_t key);
@@ -360,20 +420,33 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
     return;
   }
   Slot& s = im.slotFor(k.kx, k.kz);
-  const std::unique_lock lock(s.write);  // loaders only; readers never take it
-  loadFresh(im, ld, s, p);
-  reloadWhileStale(im, ld, s, p.key);
+  bool fine = false;
+  {
+    const std::unique_lock lock(s.write);  // loaders only; readers never take it
+    fine = loadFresh(im, ld, s, p);
+    reloadWhileStale(im, ld, s, p.key);
+  }
+  if (!fine) return;
+  // The fine levels wait behind every coarse load of this loader (takeNearest).
+  {
+    const std::lock_guard pl(ld.pendingMutex);
+    if (ld.pending.size() < ld.pending.capacity()) {
+      im.outstanding.fetch_add(1);
+      ld.pending.push_back({p.key, p.refill, 1, p.requestNs});
+      ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+      return;
+    }
+  }
+  loadFine(im, {p.key, p.refill, 1, p.requestNs});  // no room to queue it: read it now
 }
 
-/// Publishes m's finer levels into buffer 0 of a slot whose coarsest level
-/// is published, finest last.
-void publishFinerLevels(Impl& im, Slot& s, const module::Module& m) {
-  const std::uint32_t coarse = im.levels - 1;
-
+/// Publishes m's levels from-1 down to `to` into buffer 0 of a slot whose
+/// level `from` is published, finest last.
+void publishFinerLevels(Impl& im, Slot& s, const module::Module& m, std::uint32_t from, std::uint32_t to) {
   // Each finer level is published by a release store of `finest`: readers
   // admitted meanwhile use only levels >= the finest they loaded, which
   // this loop no longer writes.
-  for (std::uint32_t l = coarse; l-- > 0;) {
+  for (std::uint32_t l = from; l-- > to;) {
     if (!copyWithinBudget(im, s, m.levels[l], l)) {
       im.count.budgetTrimmedLevels.fetch_add(l + 1, std::memory_order_relaxed);
       if (!im.loggedBudget.exchange(true)) {
@@ -490,10 +563,20 @@ void resync(Impl& im, Loader& ld) {
   for (std::int64_t z = w.z0; z < w.z1 && ld.pending.size() < ld.pending.capacity(); ++z) {
     for (std::int64_t x = w.x0; x < w.x1 && ld.pending.size() < ld.pending.capacity(); ++x) {
       const std::uint32_t key = packKey(std::uint32_t(x), std::uint32_t(z));
-      const std::uint64_t word = im.slotFor(std::uint32_t(x), std::uint32_t(z)).word.load();
-      if (wordKey(word) == key && wordState(word) != SlotState::empty) continue;
+      const Slot& s = im.slotFor(std::uint32_t(x), std::uint32_t(z));
+      const std::uint64_t word = s.word.load();
+      std::uint8_t fine = 0;
+      if (wordKey(word) == key && wordState(word) != SlotState::empty) {
+        // Resident with only its coarse levels: its fine job may be what was lost.
+        const std::uint32_t first = firstReadLevel(im);
+        if (first == 0 || wordState(word) != SlotState::resident || wordBuffer(word) != 0 ||
+            s.finest[0].load() != first) {
+          continue;
+        }
+        fine = 1;
+      }
       im.outstanding.fetch_add(1);
-      ld.pending.push_back({key, 1, now});
+      ld.pending.push_back({key, 1, fine, now});
     }
   }
 }
@@ -516,7 +599,9 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
       continue;
     }
     const double dx = (k.kx + 0.5) * e - ws.eyeX, dz = (k.kz + 0.5) * e - ws.eyeZ;
-    const double d = dx * dx + dz * dz;
+    // Coarse-first: every coarse load before any fine one (a fine job sorts
+    // beyond any distance in the window).
+    const double d = dx * dx + dz * dz + (ld.pending[i].fine ? 1e30 : 0.0);
     if (!best || d < bestD) {
       best = ld.pending[i];
       bestD = d;
@@ -542,7 +627,7 @@ void drainQueue(Impl& im, Loader& ld) {
       im.outstanding.fetch_sub(1);
       ld.resync.store(true);
     } else {
-      ld.pending.push_back({r.key, r.refill, r.requestNs});
+      ld.pending.push_back({r.key, r.refill, 0, r.requestNs});
     }
   }
 }
@@ -559,13 +644,13 @@ void collectFaults(Impl& im, Loader& ld) {
     const std::int64_t t = s.demandNs.load(std::memory_order_relaxed);
     const auto key = std::uint32_t(v & 0xffffffffu);
     const bool queued = std::any_of(ld.pending.begin(), ld.pending.end(),
-                                    [&](const Pending& q) { return q.key == key; });
+                                    [&](const Pending& q) { return q.key == key && !q.fine; });
     if (v == 0 || queued) {
       im.outstanding.fetch_sub(1);
       continue;
     }
     im.count.requested.fetch_add(1, std::memory_order_relaxed);
-    ld.pending.push_back({key, 0, t});
+    ld.pending.push_back({key, 0, 0, t});
   }
 }
 
@@ -603,19 +688,31 @@ void loaderLoop(Impl& im, Loader& ld) {
     const std::uint32_t seen = ld.signal.load(std::memory_order_acquire);
     if (im.stopping.load(std::memory_order_acquire)) break;
     std::optional<Pending> p;
+    thread_local std::vector<ModuleKey> fresh;  // the loads just taken: hinted outside the lock
+    fresh.clear();
     {
       const std::lock_guard lock(ld.pendingMutex);
+      const std::size_t before = ld.pending.size();
       if (demand) {
         collectFaults(im, ld);
       } else {
         drainQueue(im, ld);
         if (ld.resync.exchange(false)) resync(im, ld);
       }
+      if (im.options.readaheadHints) {
+        for (std::size_t i = before; i < ld.pending.size(); ++i) {
+          if (!ld.pending[i].fine) fresh.push_back(unpackKey(ld.pending[i].key));
+        }
+      }
       noteBacklog(im, ld);
       if (!ld.pending.empty()) {
         p = takeNearest(im, ld);
         ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
       }
+    }
+    if (!fresh.empty()) {
+      hintStrip(im, fresh);
+      im.count.readaheadHints.fetch_add(1, std::memory_order_relaxed);
     }
     bool stolen = false;
     if (!p && stealing) {
@@ -624,7 +721,11 @@ void loaderLoop(Impl& im, Loader& ld) {
     }
     if (p) {
       if (stolen) im.count.stolen.fetch_add(1, std::memory_order_relaxed);
-      loadModule(im, ld, *p);
+      if (p->fine) {
+        loadFine(im, *p);
+      } else {
+        loadModule(im, ld, *p);
+      }
       im.outstanding.fetch_sub(1);
       continue;
     }
@@ -833,7 +934,8 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
       auto ld = std::make_unique<Loader>();
       ld->index = i;
       ld->queue = std::make_unique<SpscQueue>(nextPow2(std::max<std::size_t>(64, 4 * im->slotCount)));
-      ld->pending.reserve(2 * std::size_t(im->slotCount) + 16);
+      // Room for a load and a fine job of every slot.
+      ld->pending.reserve(3 * std::size_t(im->slotCount) + 16);
       im->loaders.push_back(std::move(ld));
     }
     Impl& ref = *im;

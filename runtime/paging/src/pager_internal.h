@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <thread>
 #include <unordered_map>
 #include <vector>
@@ -164,6 +165,7 @@ void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, st
 struct Pending {
   std::uint32_t key = 0;
   std::uint8_t refill = 0;
+  std::uint8_t fine = 0;  ///< coarse-first: the fine levels of a module whose coarse ones are published
   std::int64_t requestNs = 0;
 };
 
@@ -255,5 +257,10 @@ struct Pager::Impl {
 
 /// The prefetch loop of mmap mode (pager_prefetch.cpp).
 void runPrefetcher(Pager::Impl& impl);
+
+/// Readahead for a loader (pager_prefetch.cpp): tells the source that the
+/// modules just taken from the queue (a strip, or part of a refill) will be
+/// read, coarse and fine records.
+void hintStrip(Pager::Impl& impl, std::span<const ModuleKey> keys);
 
 }  // namespace sandtable::runtime

@@ -1,7 +1,8 @@
-// NPSStealth mode (seed chapter V.H): no load modules; a prefetch thread
-// keeps the memory-mapped grid blocks of the active area, and first of all
-// its leading edge, resident by advising and touching their pages, then
-// sleeps longer the slower the viewer moves.
+// Prefetch. NPSStealth mode (seed chapter V.H): no load modules; a
+// prefetch thread keeps the memory-mapped grid blocks of the active area,
+// and first of all its leading edge, resident by advising and touching
+// their pages, then sleeps longer the slower the viewer moves. Module
+// modes: readahead hints for the strip a loader has just taken.
 #include <sys/mman.h>
 #include <sys/resource.h>
 
@@ -28,6 +29,14 @@ void faults(long& minor, long& major) {
 }
 
 }  // namespace
+
+void hintStrip(Pager::Impl& im, std::span<const ModuleKey> keys) {
+  // The coarse records and the fine ones: the loader reads every coarse
+  // record of its pending list first, so by the time it reaches a fine one
+  // the disk has had the whole strip's coarse reads to fetch it. (A pack
+  // v2 in Morton order holds the strip's records in a few runs each.)
+  if (im.source) im.source->willNeed(keys, true);
+}
 
 void runPrefetcher(Pager::Impl& im) {
   using namespace pager_detail;

@@ -123,7 +123,7 @@ class RemoveTempDirs : public ::testing::Environment {
     ::testing::AddGlobalTestEnvironment(new RemoveTempDirs);
 
 TestDb makeDb(const std::string& name, std::uint32_t mx, std::uint32_t mz,
-              std::uint32_t squares = kSquares, std::uint32_t levels = 3) {
+              std::uint32_t squares = kSquares, std::uint32_t levels = 3, const pack::PackLayout& layout = {}) {
   TestDb db;
   db.dir = tempDir(name);
   const std::uint32_t px = mx * squares + 1, pz = mz * squares + 1;
@@ -139,7 +139,7 @@ TestDb makeDb(const std::string& name, std::uint32_t mx, std::uint32_t mz,
   h.levels = levels;
   h.moduleSquares = squares;
   h.moduleSize = squares * kSpacing;
-  auto pw = pack::PackWriter::create(db.dir, h, 1);
+  auto pw = pack::PackWriter::create(db.dir, h, 1, layout);
   EXPECT_TRUE(pw.ok()) << pw.error();
   for (std::uint32_t kz = 0; kz < mz; ++kz) {
     for (std::uint32_t kx = 0; kx < mx; ++kx) {
@@ -722,8 +722,8 @@ TEST(Pager, memoryStaysFlatOverALongFlight) {
 }
 
 #if SANDTABLE_COUNT_ALLOCATIONS
-TEST(Pager, nothingIsAllocatedInSteadyState) {
-  const TestDb db = makeDb("alloc", 40, 40);
+void expectNoSteadyStateAllocations(const pack::PackLayout& layout) {
+  const TestDb db = makeDb("alloc", 40, 40, kSquares, 3, layout);
   PagerOptions o = baseOptions();
   o.lookAheadScale = 2;
   auto p = openPager(db, o);
@@ -758,7 +758,180 @@ TEST(Pager, nothingIsAllocatedInSteadyState) {
   // (PackReader::readInto), whose capacity the warm-up flight grew.
   EXPECT_EQ(gAllocations.load() - global0, 0u) << "allocations on any thread over " << loads << " loads";
 }
+}
+
+TEST(Pager, nothingIsAllocatedInSteadyState) { expectNoSteadyStateAllocations({}); }
+
+// Coarse-first with a v2 pack: two reads per module (the coarse record,
+// then the fine one) and the capacity-swapping readers still allocate
+// nothing once warm.
+TEST(Pager, nothingIsAllocatedInSteadyStateCoarseFirst) { expectNoSteadyStateAllocations(pack::PackLayout::split(3)); }
 #endif
+
+/// A pack source that logs every coarse and fine read, in order, and holds
+/// the first read until released (so a test can queue a whole refill first).
+class LoggingSource final : public ModuleSource {
+ public:
+  explicit LoggingSource(std::shared_ptr<const pack::PackReader> p) : pack_(std::move(p)) {}
+  const pack::IndexHeader& header() const override { return pack_.header(); }
+  ModuleInfo info(std::uint32_t kx, std::uint32_t kz) const override { return pack_.info(kx, kz); }
+  std::uint64_t generation(std::uint32_t, std::uint32_t) const override { return 0; }
+  Result<std::uint64_t> read(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    note('w', kx, kz);
+    return pack_.read(kx, kz, into);
+  }
+  std::uint32_t coarseLevel() const override { return pack_.coarseLevel(); }
+  Result<std::uint64_t> readCoarse(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    note('c', kx, kz);
+    while (!released.load()) std::this_thread::yield();
+    return pack_.readCoarse(kx, kz, into);
+  }
+  Status readFine(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    note('f', kx, kz);
+    return pack_.readFine(kx, kz, into);
+  }
+  void willNeed(std::span<const ModuleKey> keys, bool fine) const override {
+    hinted.fetch_add(keys.size());
+    pack_.willNeed(keys, fine);
+  }
+  bool missing(std::uint32_t kx, std::uint32_t kz) const override { return pack_.missing(kx, kz); }
+  std::uint64_t changes() const override { return 0; }
+  std::uint64_t changedSince(std::uint64_t since, std::vector<ModuleKey>&) const override { return since; }
+
+  std::vector<std::tuple<char, std::uint32_t, std::uint32_t>> log() const {
+    const std::lock_guard lock(mu_);
+    return log_;
+  }
+  mutable std::atomic<bool> released{false};
+  mutable std::atomic<std::uint64_t> hinted{0};
+
+ private:
+  void note(char what, std::uint32_t kx, std::uint32_t kz) const {
+    const std::lock_guard lock(mu_);
+    log_.emplace_back(what, kx, kz);
+  }
+  PackSource pack_;
+  mutable std::mutex mu_;
+  mutable std::vector<std::tuple<char, std::uint32_t, std::uint32_t>> log_;
+};
+
+// A refill from a v2 pack on one loader: every coarse record is read,
+// nearest first, before any fine record, the fine ones follow nearest
+// first, and in the end every module is resident at every level with the
+// right vertices (tagged with its kx, kz). Readahead hints covered the
+// refill. The loader's first read waits until update() has queued the
+// whole refill, so the order does not depend on timing.
+TEST(Pager, coarseFirstReadsEveryCoarseRecordBeforeAnyFineOne) {
+  const TestDb db = makeDb("coarse-first", 20, 20, kSquares, 3, pack::PackLayout::split(3));
+  ASSERT_EQ(db.pack->coarseLevel(), 1u);
+  auto src = std::make_shared<LoggingSource>(db.pack);
+  PagerOptions o = baseOptions();
+  o.loaderThreads = 1;
+  o.workStealing = false;
+  auto opened = Pager::open(db.grid, src, o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  // preallocate read the median module whole ('w'): left out below.
+  const std::size_t skip = src->log().size();
+  const double x = 10500, z = 10500;
+  p.update(x, z, 0, 0, 0);
+  src->released.store(true);
+  ASSERT_TRUE(p.waitIdle(30));
+  const auto all = src->log();
+  const std::vector<std::tuple<char, std::uint32_t, std::uint32_t>> log(all.begin() + std::ptrdiff_t(skip), all.end());
+  const std::size_t n = std::size_t(p.window().count());
+  ASSERT_EQ(n, 81u);  // R = 4 at 3 km
+  ASSERT_EQ(log.size(), 2 * n);
+  auto dist = [&](std::uint32_t kx, std::uint32_t kz) {
+    return std::hypot((kx + 0.5) * kEdge - x, (kz + 0.5) * kEdge - z);
+  };
+  std::set<std::pair<std::uint32_t, std::uint32_t>> coarse, fine;
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    const auto [what, kx, kz] = log[i];
+    EXPECT_EQ(what, i < n ? 'c' : 'f') << "read " << i;
+    (i < n ? coarse : fine).insert({kx, kz});
+    if (i > 0 && i != n) {
+      const auto [w0, px, pz] = log[i - 1];
+      EXPECT_LE(dist(px, pz), dist(kx, kz) + 1e-9) << "read " << i << " is not nearest first";
+    }
+  }
+  EXPECT_EQ(coarse.size(), n);
+  EXPECT_EQ(coarse, fine);
+  for (const auto& [kx, kz] : coarse) {
+    const ResidentRef r = p.resident(kx, kz, 0);
+    ASSERT_TRUE(r) << kx << "," << kz;
+    EXPECT_EQ(r.finestLevel(), 0u);
+    for (std::uint32_t l = 0; l < 3; ++l) {
+      ASSERT_FALSE(r.level(l).vertices.empty());
+      EXPECT_EQ(r.level(l).vertices.front().s, float(kx));
+      EXPECT_EQ(r.level(l).vertices.back().t, float(kz));
+      EXPECT_EQ(r.level(l).squaresX, kSquares >> l);  // each level at its own number
+    }
+  }
+  const PagerMetrics m = p.metrics();
+  EXPECT_EQ(m.loaded, n);
+  EXPECT_EQ(m.fineLoaded, n);
+  EXPECT_EQ(m.fineFailed, 0u);
+  std::uint64_t bytes = 0;
+  for (const auto& [kx, kz] : coarse) bytes += db.pack->entry(kx, kz).storedBytes();
+  EXPECT_EQ(m.bytesRead, bytes);
+  EXPECT_GE(m.readaheadHints, 1u);
+  EXPECT_EQ(src->hinted.load(), n);
+}
+
+// The same pack with coarseFirst off reads each module whole, once.
+TEST(Pager, coarseFirstOffReadsWholeModules) {
+  const TestDb db = makeDb("coarse-off", 20, 20, kSquares, 3, pack::PackLayout::split(3));
+  auto src = std::make_shared<LoggingSource>(db.pack);
+  src->released.store(true);
+  PagerOptions o = baseOptions();
+  o.coarseFirst = false;
+  auto opened = Pager::open(db.grid, src, o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  p.update(10500, 10500, 0, 0, 0);
+  ASSERT_TRUE(p.waitIdle(30));
+  for (const auto& [what, kx, kz] : src->log()) EXPECT_EQ(what, 'w') << kx << "," << kz;
+  EXPECT_EQ(p.metrics().fineLoaded, 0u);
+  const ResidentRef r = p.resident(10, 10, 0);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r.finestLevel(), 0u);
+}
+
+// A damaged fine record: the module stays drawn at its coarse levels, the
+// failure is counted and logged, and nothing is a hole.
+TEST(Pager, aCorruptFineRecordLeavesTheCoarseLevels) {
+  const TestDb db = makeDb("fine-bad", 20, 20, kSquares, 3, pack::PackLayout::split(3));
+  const pack::Entry e = db.pack->entry(10, 10);
+  auto bytes = readAll(db.dir + "/modules.pack");
+  bytes[e.fine.offset + e.fine.compressedBytes / 2] ^= std::byte{0x5a};
+  writeAll(db.dir + "/modules.pack", bytes);
+  auto pr = pack::PackReader::open(db.dir);
+  ASSERT_TRUE(pr.ok()) << pr.error();
+  std::vector<std::string> logged;
+  std::mutex mu;
+  PagerOptions o = baseOptions();
+  o.log = [&](const std::string& m) {
+    const std::lock_guard lock(mu);
+    logged.push_back(m);
+  };
+  auto opened = Pager::open(db.grid, pr.value(), o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  p.update(10500, 10500, 0, 0, 0);
+  ASSERT_TRUE(p.waitIdle(30));
+  const ResidentRef r = p.resident(10, 10, 0);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r.finestLevel(), 1u);
+  EXPECT_TRUE(r.coarser());
+  EXPECT_FALSE(r.placeholder());
+  EXPECT_EQ(p.metrics().fineFailed, 1u);
+  EXPECT_EQ(p.metrics().holesInWindow, 0u);
+  const std::lock_guard lock(mu);
+  ASSERT_EQ(logged.size(), 1u);
+  EXPECT_NE(logged[0].find("fine module (10,10) record checksum mismatch"), std::string::npos) << logged[0];
+  EXPECT_NE(logged[0].find("the coarse levels stay drawn"), std::string::npos) << logged[0];
+}
 
 TEST(Pager, windowFollowsTheViewDistanceBothWays) {
   TestDb db = makeDb("grow", 40, 40);
@@ -1085,7 +1258,7 @@ class GenerationSource final : public ModuleSource {
   explicit GenerationSource(const pack::IndexHeader& h)
       : header_(h), generations_(std::size_t(h.modulesX) * h.modulesZ) {}
   const pack::IndexHeader& header() const override { return header_; }
-  ModuleInfo info(std::uint32_t, std::uint32_t) const override { return {1000, 1000}; }
+  ModuleInfo info(std::uint32_t, std::uint32_t) const override { return {1000, 1000, 0}; }
   std::uint64_t generation(std::uint32_t kx, std::uint32_t kz) const override {
     return generations_[index(kx, kz)].load();
   }

@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <string>
 
+#include "sandtable/formats/pack.h"
+
 #include <nlohmann/json.hpp>
 
 #include "sandtable/base/result.h"
@@ -56,5 +58,16 @@ struct MakeDbReport {
 /// starting "synth: " or "build: " and holding the converter's
 /// "file @offset: message" (Problem::file empty).
 Result<MakeDbReport> makeBenchDatabase(const MakeDbOptions& options, const Notes& notes = {});
+
+/// The same database with its pack rewritten in another layout (pack v1,
+/// or v2 in Morton or row-major order), so that layouts are compared on the
+/// same modules without building twice: every other file is hard-linked
+/// from `from` (copied where links fail), every module is read and added to
+/// a PackWriter of `layout` on `threads` threads, and the manifest's entries
+/// for the two pack files get their new sizes and CRCs. Refuses an existing
+/// `to` without `force`. Returns the new pack's size statistics as JSON.
+Result<nlohmann::json> repackBenchDatabase(const std::string& from, const std::string& to,
+                                           const pack::PackLayout& layout, int threads, int zstdLevel, bool force,
+                                           const Notes& notes = {});
 
 }  // namespace sandtable::bench

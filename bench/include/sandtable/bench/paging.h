@@ -33,7 +33,9 @@ struct PagingBenchOptions {
   /// One flight per mode with the speed rising geometrically through
   /// `speedsKmh`, instead of one flight per speed.
   bool ramp = false;
-  /// Flight path: "straight", "zigzag" or "circle".
+  /// Flight path: "straight", "zigzag", "circle" or "rows" (back and forth
+  /// along X, rows a window's width apart: the longest path that never
+  /// comes back to a module it left).
   std::string path = "straight";
   /// Files to plot holes and degraded frames against speed into, each
   /// ending in .png or .svg.
@@ -57,6 +59,10 @@ struct PagingBenchOptions {
   double budgetMb = 2048;
   /// Keep the page cache instead of dropping it before each flight.
   bool warm = false;
+  /// PagerOptions::coarseFirst (a v2 pack's coarse records first).
+  bool coarseFirst = true;
+  /// PagerOptions::readaheadHints.
+  bool readahead = true;
 };
 
 struct PagingBenchReport {

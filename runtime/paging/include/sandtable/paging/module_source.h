@@ -14,6 +14,7 @@
 // must outlive every pager opened on it (the pager holds a shared_ptr).
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,7 @@ struct ModuleKey {
 struct ModuleInfo {
   std::uint64_t storedBytes = 0;  ///< bytes a read fetches (compressed, in the pack); 0: none stored
   std::uint64_t rawBytes = 0;     ///< encoded (uncompressed) size, to size the pool
+  std::uint64_t fineBytes = 0;    ///< of storedBytes, what readFine fetches (0: no separate fine part)
 };
 
 class ModuleSource {
@@ -52,6 +54,23 @@ class ModuleSource {
   /// bytes and the generation are of one version of the module. Problems
   /// name the file and offset as PackReader's do.
   virtual Result<std::uint64_t> read(std::uint32_t kx, std::uint32_t kz, module::Module& into) const = 0;
+  /// Levels coarseLevel() .. levels-1 come in readCoarse, the others in
+  /// readFine. 0 (the default): readCoarse reads every level.
+  virtual std::uint32_t coarseLevel() const { return 0; }
+  /// Reads only the coarse levels (coarseLevel() and coarser) into `into`,
+  /// sized to the layout's level count, each level at its own number; the
+  /// finer levels are left as they were. Same contract as read(). Default:
+  /// read().
+  virtual Result<std::uint64_t> readCoarse(std::uint32_t kx, std::uint32_t kz, module::Module& into) const {
+    return read(kx, kz, into);
+  }
+  /// Reads levels 0 .. coarseLevel()-1 into `into` (the coarse levels left
+  /// as they were) at the generation readCoarse gave. Default: nothing.
+  virtual Status readFine(std::uint32_t /*kx*/, std::uint32_t /*kz*/, module::Module& /*into*/) const { return {}; }
+  /// A hint that these modules' coarse parts (and with `fine` their fine
+  /// parts) will be read soon, so the source can start the I/O. Must not
+  /// block for long; any thread. Default: nothing.
+  virtual void willNeed(std::span<const ModuleKey> /*keys*/, bool /*fine*/) const {}
   /// After a failed read: true when the module is missing (nothing is
   /// stored for it), false when what is stored is damaged.
   virtual bool missing(std::uint32_t kx, std::uint32_t kz) const = 0;
@@ -67,7 +86,8 @@ class ModuleSource {
 };
 
 /// Today's modules.pack as a source: generation 0 for every module, no
-/// changes. read() is PackReader::readInto (one pread, CRC, zstd, decode).
+/// changes. read() is PackReader::readInto (per record: one pread, CRC,
+/// zstd, decode); readCoarse/readFine read one record of a v2 pack each.
 class PackSource final : public ModuleSource {
  public:
   explicit PackSource(std::shared_ptr<const pack::PackReader> pack);
@@ -80,6 +100,13 @@ class PackSource final : public ModuleSource {
   /// No record in the index, or a record that lies (partly) beyond the end
   /// of modules.pack now (a truncated pack).
   bool missing(std::uint32_t kx, std::uint32_t kz) const override;
+  std::uint32_t coarseLevel() const override { return pack_->coarseLevel(); }
+  Result<std::uint64_t> readCoarse(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override;
+  Status readFine(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override;
+  /// posix_fadvise(WILLNEED) over the records, sorted by offset and merged
+  /// where they lie within 64 KB of each other (pack v2 in Morton order
+  /// puts a strip's coarse records in a few runs).
+  void willNeed(std::span<const ModuleKey> keys, bool fine) const override;
   std::uint64_t changes() const override { return 0; }
   std::uint64_t changedSince(std::uint64_t since, std::vector<ModuleKey>&) const override { return since; }
 

@@ -244,6 +244,18 @@ struct PagerOptions {
   /// pending module of the busiest loader, so a fast viewer's leading strips
   /// are read by every loader rather than by one (beyond the seed).
   bool workStealing = true;
+  /// Predictive and demand, with a source that splits modules (pack v2,
+  /// ModuleSource::coarseLevel() > 0): a load reads and publishes only the
+  /// coarse levels, and the fine levels follow as a separate, lower
+  /// priority job: a loader takes every pending coarse load, nearest first,
+  /// before any fine one (docs/PAGER.md, section 5). false: one read of the
+  /// whole module, as for a v1 pack.
+  bool coarseFirst = true;
+  /// Before a loader starts on the loads it has just taken from its queue
+  /// (a strip), it tells the source which records it will read
+  /// (ModuleSource::willNeed: posix_fadvise WILLNEED for the pack), coarse
+  /// and fine, so the disk works ahead of the reads.
+  bool readaheadHints = true;
   /// Latency estimate before the first measurement, seconds.
   double initialLatencySeconds = 0.05;
   /// Reserve every slot at open for the largest module of the pack (as far
@@ -346,6 +358,9 @@ struct PagerCountersOf {
   T demandFaults{};
   T stolen{};  ///< modules loaded by a loader other than their direction's
   T reloaded{};  ///< resident modules replaced by a newer generation from the source
+  T fineLoaded{};   ///< coarse-first: fine records read and published after the coarse ones
+  T fineFailed{};   ///< coarse-first: fine records that failed to read (the coarse levels stay)
+  T readaheadHints{};  ///< willNeed calls made (one per strip taken from a queue)
   // mmap mode
   T prefetchPasses{};
   T prefetchBlocks{};
@@ -359,7 +374,7 @@ struct PagerCountersOf {
     return std::tie(updates, boxCrossings, refills, requested, loaded, freed, duplicates, cancelledQueued,
                     cancelledInFlight, placeholders, missingModules, corruptModules, budgetRefusals,
                     budgetTrimmedLevels, reclaimedBytes, bytesRead, readerWaits, queueOverflows, residentQueries,
-                    residentMisses, demandFaults, stolen, reloaded, prefetchPasses, prefetchBlocks, prefetchPages,
+                    residentMisses, demandFaults, stolen, reloaded, fineLoaded, fineFailed, readaheadHints, prefetchPasses, prefetchBlocks, prefetchPages,
                     prefetchMajorFaults, prefetchMinorFaults);
   }
   auto fields() const { return const_cast<PagerCountersOf&>(*this).fields(); }
