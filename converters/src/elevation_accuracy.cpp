@@ -12,17 +12,6 @@
 namespace sandtable::convert::detail {
 namespace {
 
-/// Elevation of the drawn triangles at grid coordinates (u, v) in posts,
-/// inside the grid: each square split along its SW-NE diagonal (FORMAT.md §2).
-double triangleElevation(const std::vector<float>& g, std::uint32_t w, std::uint32_t h, double u, double v) {
-  const auto i = static_cast<std::uint32_t>(std::min(std::floor(u), double(w - 2)));
-  const auto j = static_cast<std::uint32_t>(std::min(std::floor(v), double(h - 2)));
-  const double fx = u - i, fz = v - j;
-  const std::size_t k = std::size_t(j) * w + i;
-  const double nw = g[k], ne = g[k + 1], sw = g[k + w], se = g[k + w + 1];
-  return fx + fz <= 1.0 ? nw + fx * (ne - nw) + fz * (sw - nw) : se + (1.0 - fx) * (sw - se) + (1.0 - fz) * (ne - se);
-}
-
 /// The source post box (column, row; inclusive) that the grid covers.
 bool sourceBox(const Frame& f, OGRCoordinateTransformation& toSource, const std::array<double, 6>& geo, int W,
                int H, int box[4]) {
@@ -50,20 +39,20 @@ bool sourceBox(const Frame& f, OGRCoordinateTransformation& toSource, const std:
 
 }  // namespace
 
-Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid) {
-  SourceAccuracy out;
+Status AccuracySampler::prepare(const std::string& vrtPath, const Frame& f) {
+  *this = {};
+  w_ = f.postsX, h_ = f.postsZ;
+  wkt_ = f.crs.wkt;
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
   if (!ds || !ds->GetSpatialRef()) return stageError("accuracy: cannot open the mosaic");
   std::array<double, 6> geo{};
   ds->GetGeoTransform(geo.data());
-  OGRSpatialReference src(*ds->GetSpatialRef()), dst, wgs;
+  OGRSpatialReference src(*ds->GetSpatialRef()), dst;
   dst.importFromWkt(f.crs.wkt.c_str());
-  wgs.SetWellKnownGeogCS("WGS84");
-  for (auto* s : {&src, &dst, &wgs}) s->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  for (auto* s : {&src, &dst}) s->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   std::unique_ptr<OGRCoordinateTransformation> toSource(OGRCreateCoordinateTransformation(&dst, &src));
   std::unique_ptr<OGRCoordinateTransformation> toTarget(OGRCreateCoordinateTransformation(&src, &dst));
-  std::unique_ptr<OGRCoordinateTransformation> toLonLat(OGRCreateCoordinateTransformation(&dst, &wgs));
-  if (!toSource || !toTarget || !toLonLat) return stageError("accuracy: PROJ cannot transform between the mosaic and the grid");
+  if (!toSource || !toTarget) return stageError("accuracy: PROJ cannot transform between the mosaic and the grid");
   GDALRasterBand& band = *ds->GetRasterBand(1);
   int box[4] = {0, 0, -1, -1};
   if (!sourceBox(f, *toSource, geo, band.GetXSize(), band.GetYSize(), box)) return stageError("accuracy: PROJ failed");
@@ -85,29 +74,64 @@ Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& 
       z.push_back(v);
     }
   }
-  if (x.empty()) return out;
+  if (x.empty()) return {};
   if (!toTarget->Transform(static_cast<int>(x.size()), x.data(), y.data())) return stageError("accuracy: PROJ failed");
-  double sum = 0, sum2 = 0, worstE = 0, worstN = 0;
   for (std::size_t k = 0; k < x.size(); ++k) {
     const double u = (x[k] - f.originEasting) / f.spacing, v = (f.originNorthing - y[k]) / f.spacing;
     if (!(u >= 0 && v >= 0 && u <= f.postsX - 1 && v <= f.postsZ - 1)) continue;
-    const double e = triangleElevation(grid, f.postsX, f.postsZ, u, v) - z[k];
+    posts_.push_back({u, v, z[k], x[k], y[k]});
+  }
+  byRow_.resize(posts_.size());
+  for (std::size_t k = 0; k < byRow_.size(); ++k) byRow_[k] = k;
+  std::stable_sort(byRow_.begin(), byRow_.end(), [&](std::size_t a, std::size_t b) {
+    return std::min(std::floor(posts_[a].v), double(h_ - 2)) < std::min(std::floor(posts_[b].v), double(h_ - 2));
+  });
+  err_.assign(posts_.size(), NAN);
+  return {};
+}
+
+double AccuracySampler::error(std::uint32_t i, double fx, double fz, const float* r0, const float* r1,
+                              const Post& p) const {
+  // Each square split along its SW-NE diagonal (FORMAT.md §2).
+  const double nw = r0[i], ne = r0[i + 1], sw = r1[i], se = r1[i + 1];
+  const double t = fx + fz <= 1.0 ? nw + fx * (ne - nw) + fz * (sw - nw)
+                                  : se + (1.0 - fx) * (sw - se) + (1.0 - fz) * (ne - se);
+  return t - p.z;
+}
+
+SourceAccuracy AccuracySampler::finish() const {
+  SourceAccuracy out;
+  double sum = 0, sum2 = 0, worstE = 0, worstN = 0;
+  for (std::size_t k = 0; k < posts_.size(); ++k) {
+    const double e = err_[k];
+    if (std::isnan(e)) continue;  // no band covered it (cannot happen when every row was added)
     sum += e;
     sum2 += e * e;
     ++out.samples;
     if (std::fabs(e) >= out.maxAbs) {
       out.maxAbs = std::fabs(e);
       out.worstError = e;
-      out.worstSource = z[k];
-      worstE = x[k], worstN = y[k];
+      out.worstSource = posts_[k].z;
+      worstE = posts_[k].e, worstN = posts_[k].n;
     }
   }
   if (out.samples == 0) return out;
   out.mean = sum / double(out.samples);
   out.rmse = std::sqrt(sum2 / double(out.samples));
-  toLonLat->Transform(1, &worstE, &worstN);
-  out.worstLonLat = {worstE, worstN};
+  OGRSpatialReference dst, wgs;
+  dst.importFromWkt(wkt_.c_str());
+  wgs.SetWellKnownGeogCS("WGS84");
+  for (auto* s : {&dst, &wgs}) s->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> toLonLat(OGRCreateCoordinateTransformation(&dst, &wgs));
+  if (toLonLat && toLonLat->Transform(1, &worstE, &worstN)) out.worstLonLat = {worstE, worstN};
   return out;
+}
+
+Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid) {
+  AccuracySampler s;
+  if (Status st = s.prepare(vrtPath, f); !st) return st.problems();
+  s.add(0, f.postsZ, [&](std::uint32_t j) { return grid.data() + std::size_t(std::min(j, f.postsZ - 1)) * f.postsX; });
+  return s.finish();
 }
 
 }  // namespace sandtable::convert::detail

@@ -158,19 +158,30 @@ inline std::int16_t snorm(float v) {
   return static_cast<std::int16_t>(t);
 }
 
+/// Grid rows held in memory: row `first` at `data`, and their classes
+/// (null: every post valid).
+struct GridRows {
+  const float* data = nullptr;
+  const std::uint8_t* cls = nullptr;
+  long first = 0;
+  std::size_t w = 0;
+  const float* row(long j) const { return data + std::size_t(j - first) * w; }
+  const std::uint8_t* classes(long j) const { return cls ? cls + std::size_t(j - first) * w : nullptr; }
+};
+
 /// One block of the grid file. Posts beyond the grid's edge repeat the
-/// edge posts, so every block is complete and plausible.
-void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& cls, const Frame& f,
-               std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
+/// edge posts, so every block is complete and plausible. Needs the rows of
+/// the block and one more on each side (clamped to the grid).
+void fillBlock(const GridRows& g, const Frame& f, std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
   const double inv2s = 1.0 / (2.0 * f.spacing);
   const long W = long(f.postsX), H = long(f.postsZ);
   for (std::uint32_t lz = 0; lz < grid::kBlockPosts; ++lz) {
     const long j = std::min<long>(bz * grid::kBlockPosts + lz, H - 1);
     // Rows j - 1, j, j + 1, clamped to the grid.
-    const float* up = g.data() + std::size_t(std::max(j - 1, 0L)) * W;
-    const float* mid = g.data() + std::size_t(j) * W;
-    const float* down = g.data() + std::size_t(std::min(j + 1, H - 1)) * W;
-    const std::uint8_t* was = cls.data() + std::size_t(j) * W;
+    const float* up = g.row(std::max(j - 1, 0L));
+    const float* mid = g.row(j);
+    const float* down = g.row(std::min(j + 1, H - 1));
+    const std::uint8_t* was = g.classes(j);
     const double zEdge = (j == 0 || j == H - 1 ? 2.0 : 1.0);
     for (std::uint32_t lx = 0; lx < grid::kBlockPosts; ++lx) {
       const long i = std::min<long>(bx * grid::kBlockPosts + lx, W - 1);
@@ -185,9 +196,10 @@ void fillBlock(const std::vector<float>& g, const std::vector<std::uint8_t>& cls
       b.normalX[k] = snorm(static_cast<float>(-dx / len));
       b.normalY[k] = snorm(static_cast<float>(1.0 / len));
       b.normalZ[k] = snorm(static_cast<float>(-dz / len));
-      b.material[k] = was[i] == detail::kSeaPost    ? kWater
-                      : was[i] == detail::kVoidPost ? kFilledVoid
-                                                    : (h <= 0.0f ? kWater : kGround);
+      const std::uint8_t c = was ? was[i] : std::uint8_t(detail::kValidPost);
+      b.material[k] = c == detail::kSeaPost    ? kWater
+                      : c == detail::kVoidPost ? kFilledVoid
+                                               : (h <= 0.0f ? kWater : kGround);
     }
   }
 }
@@ -198,31 +210,100 @@ struct WrittenGrid {
   std::uint32_t crc = 0;
 };
 
+/// Writes block rows [bz0, bz1) from `g`, in parallel.
+Status writeBlockRows(grid::GridWriter& writer, const Frame& f, const GridRows& g, std::uint32_t bz0,
+                      std::uint32_t bz1, int threads, const ProgressFn& progress) {
+  const grid::Header& h = writer.header();
+  const std::size_t n = std::size_t(bz1 - bz0) * h.blocksX;
+  std::uint64_t done = 0;
+  std::mutex mutex;
+  std::string firstError;
+  jobs::Scratch<grid::BlockData> blocks;
+  jobs::parallelFor(n, threads, [&](std::size_t k) {
+    if (cancelRequested()) return;
+    const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = bz0 + static_cast<std::uint32_t>(k / h.blocksX);
+    const std::string err = blocks.use([&](grid::BlockData& block) {
+      fillBlock(g, f, bx, bz, block);
+      return writer.writeBlock(bx, bz, block).message();
+    });
+    std::lock_guard lock(mutex);
+    if (!err.empty() && firstError.empty()) firstError = err;
+    const std::uint64_t d = ++done;
+    if (progress && (d % 64 == 0 || d == n)) {
+      progress((double(bz0) * h.blocksX + double(d)) / double(h.blockCount()), "writing grid");
+    }
+  });
+  if (cancelRequested()) return Problem{"", 0, "build: cancelled"};
+  if (!firstError.empty()) return Problem{"", 0, firstError};
+  return {};
+}
+
 Result<WrittenGrid> writeGrid(const std::string& path, const Frame& f, const std::vector<float>& g,
                               const std::vector<std::uint8_t>& cls, int threads, const ProgressFn& progress) {
   const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
   auto writer = grid::GridWriter::create(path, h);
   if (!writer) return writer.problems();
-  std::uint64_t done = 0;
-  std::mutex mutex;
-  std::string firstError;
-  jobs::Scratch<grid::BlockData> blocks;
-  jobs::parallelFor(h.blockCount(), threads, [&](std::size_t k) {
-    if (cancelRequested()) return;
-    const auto bx = static_cast<std::uint32_t>(k % h.blocksX), bz = static_cast<std::uint32_t>(k / h.blocksX);
-    const std::string err = blocks.use([&](grid::BlockData& block) {
-      fillBlock(g, cls, f, bx, bz, block);
-      return writer.value()->writeBlock(bx, bz, block).message();
-    });
-    std::lock_guard lock(mutex);
-    if (!err.empty() && firstError.empty()) firstError = err;
-    const std::uint64_t d = ++done;
-    if (progress && (d % 64 == 0 || d == h.blockCount())) progress(double(d) / double(h.blockCount()), "writing grid");
-  });
-  if (cancelRequested()) return Problem{path, 0, "build: cancelled"};
-  if (!firstError.empty()) return Problem{path, 0, firstError};
+  const GridRows rows{g.data(), cls.data(), 0, f.postsX};
+  if (Status st = writeBlockRows(*writer.value(), f, rows, 0, h.blocksZ, threads, progress); !st) {
+    return Problem{path, 0, st.message()};
+  }
   if (Status st = writer.value()->finish(); !st) return st.problems();
   return WrittenGrid{writer.value()->header(), writer.value()->fileCrc()};
+}
+
+/// pwrite / pread of a whole range (they may move fewer bytes).
+bool writeAt(int fd, const void* data, std::size_t n, std::uint64_t offset) {
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::pwrite(fd, p, n, off_t(offset));
+    if (w <= 0) return false;
+    p += w, n -= std::size_t(w), offset += std::uint64_t(w);
+  }
+  return true;
+}
+bool readAt(int fd, void* data, std::size_t n, std::uint64_t offset) {
+  char* p = static_cast<char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::pread(fd, p, n, off_t(offset));
+    if (r <= 0) return false;
+    p += r, n -= std::size_t(r), offset += std::uint64_t(r);
+  }
+  return true;
+}
+
+/// A scratch file removed when it goes out of scope.
+class ScratchFile {
+ public:
+  explicit ScratchFile(std::string path) : path_(std::move(path)) {
+    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  }
+  ~ScratchFile() {
+    if (fd_ >= 0) ::close(fd_);
+    ::unlink(path_.c_str());
+  }
+  ScratchFile(const ScratchFile&) = delete;
+  ScratchFile& operator=(const ScratchFile&) = delete;
+  int fd() const { return fd_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
+/// Rows per band: whole 64-row strips, as many as the budget allows, at
+/// least one strip; the grid's height when it all fits.
+std::uint32_t planBandRows(std::uint64_t budget, const Frame& f, const detail::BandCost& c) {
+  const double avail = double(budget) - c.fixed;
+  std::uint64_t rows = avail > 0 && c.perRow > 0 ? static_cast<std::uint64_t>(avail / c.perRow) : 0;
+  rows = std::max<std::uint64_t>(rows / kMinBandRows * kMinBandRows, kMinBandRows);
+  return rows >= f.postsZ ? f.postsZ : static_cast<std::uint32_t>(rows);
+}
+
+/// Progress of band b of n: a stage's fraction within its band.
+ProgressFn bandProgress(const ProgressFn& p, std::uint32_t b, std::uint32_t n) {
+  if (!p) return {};
+  return [p, b, n](double fr, const std::string& stage) { p((double(b) + fr) / double(n), stage); };
 }
 
 Status fsyncDirectory(const std::string& dir) {
@@ -416,39 +497,118 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   // The stages' problems carry only a message; the build names its output.
   auto atOutput = [&](const auto& st) { return Problem{o.output, 0, st.message()}; };
   if (Status st = detail::buildMosaic(sources.value(), vrt); !st) return atOutput(st);
-  std::vector<float> g;
   const KernelChoice kernel = chooseKernel(o.resample, o.fit, f.spacing, detail::nativeSpacingMetres(sources.value()));
-  const auto tr = std::chrono::steady_clock::now();
-  const Status resampled = kernel.resample == "weighted"
-                              ? detail::resampleWeighted(vrt, f, o.threads, g, progress)
-                              : detail::resampleGdal(vrt, f, kernel.resample, o.threads, g, progress);
-  if (!resampled) return atOutput(resampled);
-  if (kernel.fit == "triangles") {
-    if (Status st = detail::fitTriangles(vrt, f, o.threads, g, progress); !st) return atOutput(st);
-  }
-  const double resampleSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
-  std::vector<std::uint8_t> cls(g.size());  // detail::PostClass per post
-  jobs::parallelRanges(g.size(), o.threads, std::size_t(1) << 16, [&](std::size_t b, std::size_t e) {
-    for (std::size_t k = b; k < e; ++k) cls[k] = std::isnan(g[k]) ? detail::kVoidPost : detail::kValidPost;
-  });
-  const std::uint64_t seaPosts = o.seaFromVoids ? detail::markSea(f, g, cls) : 0;
-  auto voids = detail::fillVoids(f, g, progress);
-  if (!voids) return voids.problems();
-  const auto measured = detail::measureAccuracy(vrt, f, g);
-  if (!measured) return atOutput(measured);
-  const SourceAccuracy accuracy = measured.value();
-  fs::remove(vrt, ec);
-
+  const bool triangles = kernel.fit == "triangles";
+  const detail::BandCost cost = detail::bandCost(vrt, f, kernel);
+  const std::uint32_t bandRows = planBandRows(o.memoryBudgetBytes, f, cost);
+  const std::uint32_t bands = (f.postsZ + bandRows - 1) / bandRows;
+  const std::size_t W = f.postsX;
   const std::string gridPath = partial.path() + "/" + manifest::kGridFileName;
-  auto header = writeGrid(gridPath, f, g, cls, o.threads, progress);
-  if (!header) return header.problems();
-  g = {};
+  const auto tr = std::chrono::steady_clock::now();
+  auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
+  double resampleSeconds = 0;
+  std::vector<float> g;  // the whole grid, when it is held at once
+  std::optional<WrittenGrid> written;
+  std::uint64_t seaPosts = 0, voidsFilled = 0;
+  SourceAccuracy accuracy;
+  bool banded = bands > 1;
+  if (banded) {
+    // Pass 1: resample (and fit) band by band into a scratch file of raw
+    // posts; the fit's halo rows are resampled again by the next band.
+    ScratchFile raw(partial.path() + "/resampled.f32");
+    if (raw.fd() < 0) return Problem{o.output, 0, "build: cannot create " + raw.path()};
+    std::vector<float> buf;
+    std::uint64_t voids = 0;
+    for (std::uint32_t b = 0; b < bands; ++b) {
+      const std::uint32_t a = b * bandRows, e = std::min(f.postsZ, a + bandRows);
+      const std::uint32_t ea = triangles ? (a >= detail::kFitHalo ? a - detail::kFitHalo : 0) : a;
+      const std::uint32_t ee = triangles ? std::min(f.postsZ, e + detail::kFitHalo) : e;
+      buf.resize(std::size_t(ee - ea) * W);
+      const ProgressFn bp = bandProgress(progress, b, bands);
+      if (Status st = detail::resampleRows(vrt, f, kernel.resample, ea, ee, o.threads, buf.data(), bp); !st) {
+        return atOutput(st);
+      }
+      if (triangles) {
+        if (Status st = detail::fitTriangles(vrt, f, ea, ee, o.threads, buf.data(), bp); !st) return atOutput(st);
+      }
+      const float* rows = buf.data() + std::size_t(a - ea) * W;
+      const std::size_t n = std::size_t(e - a) * W;
+      voids += static_cast<std::uint64_t>(std::count_if(rows, rows + n, [](float v) { return std::isnan(v); }));
+      if (!writeAt(raw.fd(), rows, n * sizeof(float), std::uint64_t(a) * W * sizeof(float))) {
+        return Problem{o.output, 0, "build: cannot write " + raw.path()};
+      }
+    }
+    resampleSeconds = since(tr);
+    if (voids > 0) {
+      // Sea and void fill look at the whole grid: hold it after all.
+      banded = false;
+      g.resize(W * f.postsZ);
+      if (!readAt(raw.fd(), g.data(), g.size() * sizeof(float), 0)) {
+        return Problem{o.output, 0, "build: cannot read " + raw.path()};
+      }
+    } else {
+      // Pass 2: each band with a row more on each side (the normals), into
+      // its block rows and the accuracy sample.
+      const grid::Header h = grid::makeHeader(f.postsX, f.postsZ, f.spacing, f.originEasting, f.originNorthing);
+      auto writer = grid::GridWriter::create(gridPath, h);
+      if (!writer) return writer.problems();
+      detail::AccuracySampler sampler;
+      if (Status st = sampler.prepare(vrt, f); !st) return atOutput(st);
+      for (std::uint32_t b = 0; b < bands; ++b) {
+        const std::uint32_t a = b * bandRows, e = std::min(f.postsZ, a + bandRows);
+        const std::uint32_t ra = a > 0 ? a - 1 : 0, re = std::min(f.postsZ, e + 1);
+        buf.resize(std::size_t(re - ra) * W);
+        if (!readAt(raw.fd(), buf.data(), buf.size() * sizeof(float), std::uint64_t(ra) * W * sizeof(float))) {
+          return Problem{o.output, 0, "build: cannot read " + raw.path()};
+        }
+        const GridRows rows{buf.data(), nullptr, long(ra), W};
+        const std::uint32_t bz0 = a / grid::kBlockPosts, bz1 = (e + grid::kBlockPosts - 1) / grid::kBlockPosts;
+        if (Status st = writeBlockRows(*writer.value(), f, rows, bz0, bz1, o.threads, progress); !st) {
+          return Problem{gridPath, 0, st.message()};
+        }
+        sampler.add(a, e, [&](std::uint32_t j) { return rows.row(long(j)); });
+      }
+      if (Status st = writer.value()->finish(); !st) return st.problems();
+      written = WrittenGrid{writer.value()->header(), writer.value()->fileCrc()};
+      accuracy = sampler.finish();
+    }
+  } else {
+    g.assign(W * f.postsZ, NAN);
+    if (Status st = detail::resampleRows(vrt, f, kernel.resample, 0, f.postsZ, o.threads, g.data(), progress); !st) {
+      return atOutput(st);
+    }
+    if (triangles) {
+      if (Status st = detail::fitTriangles(vrt, f, 0, f.postsZ, o.threads, g.data(), progress); !st) {
+        return atOutput(st);
+      }
+    }
+    resampleSeconds = since(tr);
+  }
+  if (!written) {
+    std::vector<std::uint8_t> cls(g.size());  // detail::PostClass per post
+    jobs::parallelRanges(g.size(), o.threads, std::size_t(1) << 16, [&](std::size_t b, std::size_t e) {
+      for (std::size_t k = b; k < e; ++k) cls[k] = std::isnan(g[k]) ? detail::kVoidPost : detail::kValidPost;
+    });
+    seaPosts = o.seaFromVoids ? detail::markSea(f, g, cls) : 0;
+    auto voids = detail::fillVoids(f, g, progress);
+    if (!voids) return voids.problems();
+    voidsFilled = voids.value();
+    const auto measured = detail::measureAccuracy(vrt, f, g);
+    if (!measured) return atOutput(measured);
+    accuracy = measured.value();
+    auto w = writeGrid(gridPath, f, g, cls, o.threads, progress);
+    if (!w) return w.problems();
+    written = w.value();
+    g = {};
+  }
+  fs::remove(vrt, ec);
+  const WrittenGrid& header = *written;
 
   ElevationReport report;
-  report.manifest = makeManifest(o, f, header.value().header, sources.value());
+  report.manifest = makeManifest(o, f, header.header, sources.value());
   // The CRC of what was written, from the writer's block CRCs: re-reading
   // the file would only check the page cache.
-  report.manifest.files.push_back({manifest::kGridFileName, header.value().header.fileBytes, header.value().crc});
+  report.manifest.files.push_back({manifest::kGridFileName, header.header.fileBytes, header.crc});
   std::optional<ModuleReport> modules;
   if (o.modules) {
     auto built = writeModules(o, gridPath, partial.path(), culture.value(), report, progress);
@@ -456,11 +616,15 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
     modules = built.value();
   }
   report.posts = std::uint64_t(f.postsX) * f.postsZ;
-  report.voidsFilled = voids.value();
+  report.voidsFilled = voidsFilled;
   report.seaPosts = seaPosts;
   report.kernel = kernel;
   report.accuracy = accuracy;
   report.resampleSeconds = resampleSeconds;
+  report.bandRows = bandRows;
+  report.bands = bands;
+  report.banded = banded;
+  report.bandBytes = static_cast<std::uint64_t>(cost.fixed + cost.perRow * bandRows);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
   report.manifest.build = {
@@ -471,6 +635,8 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
       {"sea_posts", report.seaPosts}, {"sea_from_voids", o.seaFromVoids},
       {"posts", report.posts},       {"seconds", report.seconds},
       {"resample_seconds", resampleSeconds}, {"posts_per_second", report.postsPerSecond},
+      {"memory", {{"budget_bytes", o.memoryBudgetBytes}, {"band_rows", bandRows}, {"bands", bands},
+                  {"banded", banded}, {"band_bytes_estimate", report.bandBytes}}},
       {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
       {"accuracy", accuracyJson(accuracy)},
       {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m, or sea from voids)"}, {"2", "filled void"}}}};

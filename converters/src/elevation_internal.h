@@ -1,5 +1,6 @@
 #pragma once
 // Internal pieces of the elevation build, shared between its source files.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -64,17 +65,35 @@ inline Problem stageError(std::string message) { return {"", 0, std::move(messag
 /// to `vrtPath`. Voids are told apart by nodata or the valid range.
 Status buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath);
 
-/// Resamples the mosaic into `out` (postsX * postsZ, row-major from the
-/// north-west; NaN = void).
-Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
-                        const ProgressFn& progress);
-Status resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
-                    std::vector<float>& out, const ProgressFn& progress);
+/// Resamples grid rows [j0, j1) of the frame (global row numbers; j0 a
+/// multiple of kMinBandRows) into `out`, (j1 - j0) * postsX floats,
+/// row-major, NaN = void, with `kernel` (weighted | bilinear | cubic |
+/// average). weighted and bilinear give every post the same bytes whatever
+/// the range: their lattice strips are fixed 64-row strips of the grid.
+/// cubic and average run GDALWarp on the range, whose chunking (and so the
+/// last bits of a post) can depend on the range.
+Status resampleRows(const std::string& vrtPath, const Frame& f, const std::string& kernel, std::uint32_t j0,
+                    std::uint32_t j1, int threads, float* out, const ProgressFn& progress);
 
-/// Refines the posts so the terrain triangles are the least-squares fit of
-/// the source's bilinear surface (not point samples of it).
-Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
-                    const ProgressFn& progress);
+/// Refines posts [j0, j1) (`grid`, (j1 - j0) * postsX floats, the point
+/// samples of those rows) so the terrain triangles are the least-squares
+/// fit of the source's bilinear surface (not point samples of it). A post
+/// depends only on the rows within kFitReach of it: on a range cut out of
+/// a bigger grid, the rows that far from a cut (and not at the grid's
+/// edge) are those of the whole grid's fit, byte for byte.
+Status fitTriangles(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                    float* grid, const ProgressFn& progress);
+/// Rows on each side of a band that its fit needs (a whole 64-row strip:
+/// the fit's reach is 12 rows, 10 Jacobi sweeps plus the right-hand side).
+inline constexpr std::uint32_t kFitHalo = 64;
+
+/// Memory a band costs, from the frame's source footprint: bytes per grid
+/// row (output, source image rows, fit arrays) and bytes per band whatever
+/// its height (the source image's pad rows, the fit's halo).
+struct BandCost {
+  double perRow = 0, fixed = 0;
+};
+BandCost bandCost(const std::string& vrtPath, const Frame& f, const KernelChoice& kernel);
 
 /// What a post was after resampling: the void map behind materials 1 and 2.
 enum PostClass : std::uint8_t { kValidPost = 0, kVoidPost = 1, kSeaPost = 2 };
@@ -93,6 +112,51 @@ std::uint64_t markSea(const Frame& f, std::vector<float>& grid, std::vector<std:
 /// kAccuracyPosts posts over the grid, those inside the grid kept.
 inline constexpr double kAccuracyPosts = 8192;
 Result<SourceAccuracy> measureAccuracy(const std::string& vrtPath, const Frame& f, const std::vector<float>& grid);
+
+/// measureAccuracy band by band: prepare() reads the source posts, add()
+/// evaluates those over grid squares in rows [j0, j1) (row(j) is grid row
+/// j, for j0 <= j <= j1), finish() sums them in source order, so the
+/// result does not depend on the bands.
+class AccuracySampler {
+ public:
+  Status prepare(const std::string& vrtPath, const Frame& f);
+  template <typename RowFn>
+  void add(std::uint32_t j0, std::uint32_t j1, RowFn row);
+  SourceAccuracy finish() const;
+
+ private:
+  struct Post {
+    double u = 0, v = 0;  ///< grid coordinates in posts
+    double z = 0;         ///< source elevation
+    double e = 0, n = 0;  ///< target easting, northing
+  };
+  double error(std::uint32_t i, double fx, double fz, const float* r0, const float* r1, const Post& p) const;
+  std::vector<Post> posts_;
+  std::vector<std::size_t> byRow_;  ///< posts_ indices sorted by square row
+  std::vector<double> err_;         ///< grid minus source; NaN until added
+  std::uint32_t w_ = 0, h_ = 0;
+  std::string wkt_;
+};
+
+template <typename RowFn>
+void AccuracySampler::add(std::uint32_t j0, std::uint32_t j1, RowFn row) {
+  // Binary search for the first post whose square row is >= j0.
+  auto squareRow = [&](std::size_t k) {
+    return static_cast<std::uint32_t>(std::min(std::floor(posts_[k].v), double(h_ - 2)));
+  };
+  std::size_t a = 0, b = byRow_.size();
+  while (a < b) {
+    const std::size_t m = (a + b) / 2;
+    if (squareRow(byRow_[m]) < j0) a = m + 1; else b = m;
+  }
+  for (std::size_t q = a; q < byRow_.size(); ++q) {
+    const Post& p = posts_[byRow_[q]];
+    const std::uint32_t j = squareRow(byRow_[q]);
+    if (j >= j1) break;
+    const auto i = static_cast<std::uint32_t>(std::min(std::floor(p.u), double(w_ - 2)));
+    err_[byRow_[q]] = error(i, p.u - i, p.v - j, row(j), row(j + 1), p);
+  }
+}
 
 /// Fills NaN posts by interpolation (GDALFillNodata); returns how many.
 Result<std::uint64_t> fillVoids(const Frame& f, std::vector<float>& grid, const ProgressFn& progress);

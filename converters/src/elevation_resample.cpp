@@ -541,9 +541,11 @@ bool readSourceRect(GDALRasterBand& b, int x, int y, int w, int h, std::vector<f
 }
 
 /// Fills `image` with the mosaic's posts over the source positions of the
-/// frame's posts, padded by `pad` posts; leaves it empty (the strips then
-/// read the VRT) when the VRT is not plain or the image would be too big.
-void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, int threads, SourceImage& image) {
+/// posts of grid rows [j0, j1), padded by `pad` posts; leaves it empty (the
+/// strips then read the VRT) when the VRT is not plain or the image would be
+/// too big.
+void buildSourceImage(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, double pad,
+                      int threads, SourceImage& image) {
   image = {};
   MosaicReader m;
   if (!m.open(vrtPath, f).empty()) return;
@@ -555,10 +557,11 @@ void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, in
     x.push_back(f.originEasting + i * f.spacing);
     y.push_back(f.originNorthing - j * f.spacing);
   };
-  for (std::uint32_t i = 0; i < f.postsX; i += 8) add(i, 0), add(i, f.postsZ - 1);
-  for (std::uint32_t j = 0; j < f.postsZ; j += 8) add(0, j), add(f.postsX - 1, j);
-  add(f.postsX - 1, 0);
-  add(f.postsX - 1, f.postsZ - 1);
+  for (std::uint32_t i = 0; i < f.postsX; i += 8) add(i, j0), add(i, j1 - 1);
+  for (std::uint32_t j = j0; j < j1; j += 8) add(0, j), add(f.postsX - 1, j);
+  add(f.postsX - 1, j0);
+  add(f.postsX - 1, j1 - 1);
+  add(0, j1 - 1);
   if (!m.toSource->Transform(static_cast<int>(x.size()), x.data(), y.data())) return;
   double xMin = INFINITY, xMax = -INFINITY, yMin = INFINITY, yMax = -INFINITY;
   for (std::size_t k = 0; k < x.size(); ++k) {
@@ -637,7 +640,7 @@ void buildSourceImage(const std::string& vrtPath, const Frame& f, double pad, in
 std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, double radius,
                           GDALRasterBand& band, OGRCoordinateTransformation& ct,
                           const std::array<double, 6>& g, Lattice& L, Window& win, const SourceImage& image,
-                          float* out) {
+                          float* out, std::uint32_t rowBase) {
   if (!L.build(f, jBegin, jEnd, ct, g)) return "resample: PROJ failed to transform target posts to the sources";
   PostMap probe{};
   if (!mapPost(L, 0, 0, 0, jBegin, f.spacing, radius, probe)) return "resample: degenerate transform";
@@ -660,14 +663,14 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
           positionAt(L, c, r, i + 1, j, q.px, q.py);
           double a, b;
           estimatePair(win, p, q, radius, a, b);
-          out[std::size_t(j) * f.postsX + i] = static_cast<float>(a);
-          out[std::size_t(j) * f.postsX + i + 1] = static_cast<float>(b);
+          out[std::size_t(j - rowBase) * f.postsX + i] = static_cast<float>(a);
+          out[std::size_t(j - rowBase) * f.postsX + i + 1] = static_cast<float>(b);
         }
 #endif
         for (; i <= iLast; ++i) {
           PostMap p = cell;
           positionAt(L, c, r, i, j, p.px, p.py);
-          out[std::size_t(j) * f.postsX + i] = static_cast<float>(estimatePost(win, p, radius));
+          out[std::size_t(j - rowBase) * f.postsX + i] = static_cast<float>(estimatePost(win, p, radius));
         }
       }
     }
@@ -677,36 +680,25 @@ std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jE
 
 }  // namespace
 
-Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& out,
-                        const ProgressFn& progress) {
-  out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
-  constexpr std::uint32_t kStripRows = 64;
-  const std::uint32_t strips = (f.postsZ + kStripRows - 1) / kStripRows;
+namespace {
+
+/// A worker's state for resampling 64-row strips (jobs::Scratch).
+struct StripState {
+  WorkerMosaic mosaic;
+  Lattice L;
+  Window win;
+};
+constexpr std::uint32_t kStripRows = kMinBandRows;
+
+/// Runs fn(state, sj0, sj1) on every 64-row strip of grid rows [j0, j1) in
+/// parallel; the first error wins.
+template <typename Fn>
+Status forEachStrip(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                    const ProgressFn& progress, Fn fn) {
+  const std::uint32_t strips = (j1 - j0 + kStripRows - 1) / kStripRows;
   std::uint32_t done = 0;
   std::mutex mutex;
   std::string firstError;
-  // Seed Figure 13 uses one grid size; never less than a source cell's
-  // diagonal, so every target post sees the source posts around it.
-  double sourceDiagonal = 0, minPostMetres = 0;
-  {
-    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
-    if (!ds) return stageError("resample: cannot open the mosaic: " + lastGdalError());
-    std::array<double, 6> g{};
-    ds->GetGeoTransform(g.data());
-    const bool geographic = ds->GetSpatialRef() && ds->GetSpatialRef()->IsGeographic();
-    const double lat = 0.5 * (f.cornersLonLat[0][1] + f.cornersLonLat[2][1]);
-    const auto m = postMetres(g, geographic, lat);
-    sourceDiagonal = std::hypot(m[0], m[1]);
-    minPostMetres = std::min(m[0], m[1]);
-  }
-  const double radius = std::max(f.spacing, sourceDiagonal * 1.01);
-  SourceImage image;
-  if (minPostMetres > 0) buildSourceImage(vrtPath, f, 2 * radius / minPostMetres + 16, threads, image);
-  struct StripState {
-    WorkerMosaic mosaic;
-    Lattice L;
-    Window win;
-  };
   jobs::Scratch<StripState> states;
   jobs::parallelFor(strips, threads, [&](std::size_t s) {
     if (cancelRequested()) return;
@@ -720,9 +712,8 @@ Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads,
         opened = false;
         return e;
       }
-      MosaicReader& m = st.mosaic.m;
-      const std::uint32_t j0 = std::uint32_t(s) * kStripRows, j1 = std::min(f.postsZ, j0 + kStripRows);
-      return resampleStrip(f, j0, j1, radius, m.band(), *m.toSource, m.geo, st.L, st.win, image, out.data());
+      const std::uint32_t a = j0 + std::uint32_t(s) * kStripRows, b = std::min(j1, a + kStripRows);
+      return fn(st, a, b);
     });
     std::lock_guard lock(mutex);
     if (!err.empty() && firstError.empty()) firstError = err;
@@ -734,6 +725,172 @@ Status resampleWeighted(const std::string& vrtPath, const Frame& f, int threads,
   if (!firstError.empty()) return stageError(firstError);
   return {};
 }
+
+/// The weighted kernel's radius: the target spacing, never less than a
+/// source cell's diagonal (so every target post sees the source posts
+/// around it); and the smaller source post size in metres.
+Result<std::array<double, 2>> weightedRadius(const std::string& vrtPath, const Frame& f) {
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(vrtPath.c_str(), GDAL_OF_RASTER));
+  if (!ds) return stageError("resample: cannot open the mosaic: " + lastGdalError());
+  std::array<double, 6> g{};
+  ds->GetGeoTransform(g.data());
+  const bool geographic = ds->GetSpatialRef() && ds->GetSpatialRef()->IsGeographic();
+  const double lat = 0.5 * (f.cornersLonLat[0][1] + f.cornersLonLat[2][1]);
+  const auto m = postMetres(g, geographic, lat);
+  return std::array<double, 2>{std::max(f.spacing, std::hypot(m[0], m[1]) * 1.01), std::min(m[0], m[1])};
+}
+
+Status weightedRows(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                    float* out, const ProgressFn& progress) {
+  auto r = weightedRadius(vrtPath, f);
+  if (!r) return r.problems();
+  const double radius = r.value()[0], minPostMetres = r.value()[1];
+  SourceImage image;
+  if (minPostMetres > 0) buildSourceImage(vrtPath, f, j0, j1, 2 * radius / minPostMetres + 16, threads, image);
+  return forEachStrip(vrtPath, f, j0, j1, threads, progress, [&](StripState& st, std::uint32_t a, std::uint32_t b) {
+    MosaicReader& m = st.mosaic.m;
+    return resampleStrip(f, a, b, radius, m.band(), *m.toSource, m.geo, st.L, st.win, image, out, j0);
+  });
+}
+
+/// Target posts per source post along the mosaic's x and y over the whole
+/// frame (the bounding box of its corners' source positions), as
+/// GDALWarpOperation computes a chunk's scale; and those spans in posts.
+struct FrameScale {
+  double sx = 1, sy = 1, spanX = 0, spanY = 0;
+};
+
+bool frameScale(const Frame& f, OGRCoordinateTransformation& toSource, const std::array<double, 6>& geo,
+                FrameScale& out) {
+  double x[4] = {f.originEasting, f.originEasting + (f.postsX - 1) * f.spacing, f.originEasting,
+                 f.originEasting + (f.postsX - 1) * f.spacing};
+  double y[4] = {f.originNorthing, f.originNorthing, f.originNorthing - (f.postsZ - 1) * f.spacing,
+                 f.originNorthing - (f.postsZ - 1) * f.spacing};
+  if (!toSource.Transform(4, x, y)) return false;
+  out.spanX = (std::max({x[0], x[1], x[2], x[3]}) - std::min({x[0], x[1], x[2], x[3]})) / std::fabs(geo[1]);
+  out.spanY = (std::max({y[0], y[1], y[2], y[3]}) - std::min({y[0], y[1], y[2], y[3]})) / std::fabs(geo[5]);
+  out.sx = f.postsX / (out.spanX + 1);
+  out.sy = f.postsZ / (out.spanY + 1);
+  return std::isfinite(out.sx + out.sy) && out.sx > 0 && out.sy > 0;
+}
+
+/// GDAL's bilinear kernel (gdalwarpkernel.cpp), over source posts in a
+/// Window. At a scale of 0.95 or more on both axes it is the four-post
+/// interpolation (GWKBilinearResample4Sample); below, GDAL widens the tent
+/// by 1 / scale on the axes below 1 (GWKResample), so a coarser target
+/// averages the posts it covers. Either way voids and posts off the mosaic
+/// drop out and the weights of the rest are renormalised, as GDAL does with
+/// a nodata mask.
+struct BilinearKernel {
+  double sx = 1, sy = 1;  ///< the tent's scale per axis (1 = not widened)
+  int rx = 1, ry = 1;     ///< taps each side
+  bool four = true;
+  int W = 0, H = 0;       ///< the mosaic's size in posts
+
+  BilinearKernel(const FrameScale& s, int width, int height) : W(width), H(height) {
+    four = s.sx >= 0.95 && s.sy >= 0.95;
+    sx = std::min(1.0, s.sx), sy = std::min(1.0, s.sy);
+    rx = static_cast<int>(std::ceil(1.0 / sx)), ry = static_cast<int>(std::ceil(1.0 / sy));
+  }
+  /// Posts the kernel reaches beyond its centre post, for window padding.
+  int reach() const { return std::max(rx, ry) + 1; }
+
+  static double tent(double t) {
+    t = std::fabs(t);
+    return t <= 1.0 ? 1.0 - t : 0.0;
+  }
+
+  /// At post coordinates (px, py) (post k's centre at k): NaN when no post
+  /// with weight is valid, or when the position is off the mosaic.
+  double at(const Window& win, double px, double py) const {
+    // GDAL's pixel coordinates put post k's centre at k + 0.5; a target
+    // pixel whose source position is off the raster is not computed.
+    if (!(px >= -0.5 && py >= -0.5 && px < W - 0.5 && py < H - 0.5)) return NAN;
+    const int ix = static_cast<int>(std::floor(px)), iy = static_cast<int>(std::floor(py));
+    const double dx = px - ix, dy = py - iy;
+    const int xa = win.x0, xb = win.x0 + win.w, ya = win.y0, yb = win.y0 + win.h;  // [a, b)
+    if (four) {
+      double acc = 0, div = 0;
+      const double wx[2] = {1.0 - dx, dx}, wy[2] = {1.0 - dy, dy};
+      for (int j = 0; j < 2; ++j) {
+        const int y = iy + j;
+        if (y < ya || y >= yb) continue;
+        const float* row = win.row(y);
+        for (int i = 0; i < 2; ++i) {
+          const int x = ix + i;
+          if (x < xa || x >= xb) continue;
+          const float v = row[x];
+          if (std::isnan(v)) continue;
+          const double m = wx[i] * wy[j];
+          div += m;
+          acc += v * m;
+        }
+      }
+      if (div < 0.00001) return NAN;
+      return div == 1.0 ? acc : acc / div;
+    }
+    double acc = 0, weight = 0;
+    for (int j = -ry; j <= ry; ++j) {
+      const int y = iy + j;
+      if (y < ya || y >= yb) continue;
+      const double w1 = tent((j - dy) * sy);
+      if (w1 == 0.0) continue;
+      const float* row = win.row(y);
+      double accRow = 0, weightRow = 0;
+      for (int i = -rx; i <= rx; ++i) {
+        const int x = ix + i;
+        if (x < xa || x >= xb) continue;
+        const float v = row[x];
+        if (std::isnan(v)) continue;
+        const double w2 = tent((i - dx) * sx);
+        accRow += v * w2;
+        weightRow += w2;
+      }
+      acc += accRow * w1;
+      weight += weightRow * w1;
+    }
+    if (weight < 0.000001) return NAN;
+    return (weight < 0.99999 || weight > 1.00001) ? acc / weight : acc;
+  }
+};
+
+/// Bilinear over GDAL-read source posts (the shared source image, or the
+/// VRT window by window), at source positions from the same lattice of
+/// exact PROJ transforms the weighted kernel uses (docs/ARCHITECTURE.md,
+/// stage 6, gives its error against exact transforms).
+Status bilinearRows(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                    float* out, const ProgressFn& progress) {
+  MosaicReader m;
+  if (std::string e = m.open(vrtPath, f); !e.empty()) return stageError(e);
+  FrameScale scale;
+  if (!frameScale(f, *m.toSource, m.geo, scale)) return stageError("resample: PROJ failed to transform the frame");
+  const BilinearKernel kernel(scale, m.band().GetXSize(), m.band().GetYSize());
+  SourceImage image;
+  buildSourceImage(vrtPath, f, j0, j1, kernel.reach() + 16, threads, image);
+  return forEachStrip(vrtPath, f, j0, j1, threads, progress, [&](StripState& st, std::uint32_t a, std::uint32_t b) {
+    MosaicReader& mr = st.mosaic.m;
+    Lattice& L = st.L;
+    if (!L.build(f, a, b, *mr.toSource, mr.geo)) return std::string("resample: PROJ failed to transform target posts to the sources");
+    if (std::string e = readWindow(mr.band(), L, kernel.reach() + 2, st.win, &image); !e.empty()) return e;
+    for (std::uint32_t r = 0; r + 1 < L.rows; ++r) {
+      const std::uint32_t jLast = (r + 2 == L.rows) ? L.rj[r + 1] : L.rj[r + 1] - 1;
+      for (std::uint32_t j = L.rj[r]; j <= jLast; ++j) {
+        float* row = out + std::size_t(j - j0) * f.postsX;
+        for (std::uint32_t c = 0; c + 1 < L.cols; ++c) {
+          const std::uint32_t iLast = (c + 2 == L.cols) ? L.ci[c + 1] : L.ci[c + 1] - 1;
+          for (std::uint32_t i = L.ci[c]; i <= iLast; ++i) {
+            double px, py;
+            positionAt(L, c, r, i, j, px, py);
+            row[i] = static_cast<float>(kernel.at(st.win, px, py));
+          }
+        }
+      }
+    }
+    return std::string();
+  });
+}
+
+}  // namespace
 
 namespace {
 
@@ -799,7 +956,7 @@ void rowPositions(const Lattice& L, const Frame& f, std::uint32_t j, std::uint32
 
 std::string fitStrip(const Frame& f, std::uint32_t j0, std::uint32_t j1, GDALRasterBand& band,
                      OGRCoordinateTransformation& ct, const std::array<double, 6>& g, const SquareRule& rule,
-                     FitSystem& sys) {
+                     FitSystem& sys, std::uint32_t rowBase) {
   Lattice L;
   Window win;
   if (!L.build(f, j0, j1 + 1, ct, g)) return "fit: PROJ failed to transform target posts to the sources";
@@ -831,8 +988,9 @@ std::string fitStrip(const Frame& f, std::uint32_t j0, std::uint32_t j1, GDALRas
     std::swap(pyA, pyB);
   }
   std::lock_guard lock(sys.mutex);
-  for (std::size_t k = 0; k < local.size(); ++k) sys.b[std::size_t(j0) * f.postsX + k] += local[k];
-  std::copy(inc.begin(), inc.end(), sys.included.begin() + std::ptrdiff_t(std::size_t(j0) * (f.postsX - 1)));
+  for (std::size_t k = 0; k < local.size(); ++k) sys.b[std::size_t(j0 - rowBase) * f.postsX + k] += local[k];
+  std::copy(inc.begin(), inc.end(),
+            sys.included.begin() + std::ptrdiff_t(std::size_t(j0 - rowBase) * (f.postsX - 1)));
   return {};
 }
 
@@ -866,17 +1024,20 @@ void parallelRows(std::uint32_t rows, int threads, Fn fn) {
 
 }  // namespace
 
-Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std::vector<float>& grid,
-                    const ProgressFn& progress) {
+Status fitTriangles(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                    float* grid, const ProgressFn& progress) {
   const SquareRule rule;
   FitSystem sys;
   sys.w = f.postsX;
-  sys.h = f.postsZ;
-  sys.b.assign(grid.size(), 0.0);
-  sys.included.assign(std::size_t(f.postsX - 1) * (f.postsZ - 1), 0);
-  constexpr std::uint32_t kStripRows = 64;
-  const std::uint32_t squareRows = f.postsZ - 1;
-  const std::uint32_t strips = (squareRows + kStripRows - 1) / kStripRows;
+  sys.h = j1 - j0;
+  const std::size_t posts = std::size_t(sys.w) * sys.h;
+  if (sys.h < 2) return {};
+  sys.b.assign(posts, 0.0);
+  sys.included.assign(std::size_t(f.postsX - 1) * (sys.h - 1), 0);
+  // Strips of 64 square rows from j0 (a multiple of 64), so a strip's
+  // lattice is the whole grid's whatever the range.
+  const std::uint32_t squareEnd = j1 - 1;
+  const std::uint32_t strips = (squareEnd - j0 + kStripRows - 1) / kStripRows;
   std::uint32_t done = 0;
   std::string firstError;
   std::mutex errMutex;
@@ -889,8 +1050,8 @@ Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std
         opened = false;
         return err;
       }
-      const std::uint32_t j0 = std::uint32_t(s) * kStripRows, j1 = std::min(squareRows, j0 + kStripRows);
-      return fitStrip(f, j0, j1, w.m.band(), *w.m.toSource, w.m.geo, rule, sys);
+      const std::uint32_t a = j0 + std::uint32_t(s) * kStripRows, b = std::min(squareEnd, a + kStripRows);
+      return fitStrip(f, a, b, w.m.band(), *w.m.toSource, w.m.geo, rule, sys, j0);
     });
     std::lock_guard lock(errMutex);
     if (!e.empty() && firstError.empty()) firstError = e;
@@ -900,8 +1061,8 @@ Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std
   if (!firstError.empty()) return stageError(firstError);
 
   // Start from the point samples; a post no included square touches keeps its sample.
-  std::vector<double> z(grid.size()), next2(grid.size());
-  parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
+  std::vector<double> z(posts), next2(posts);
+  parallelRows(sys.h, threads, [&](std::uint32_t j) {
     for (std::uint32_t i = 0; i < f.postsX; ++i) {
       const std::size_t k = std::size_t(j) * f.postsX + i;
       double mz, diag;
@@ -914,7 +1075,7 @@ Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std
     }
   });
   for (int it = 0; it < kFitIterations; ++it) {
-    parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
+    parallelRows(sys.h, threads, [&](std::uint32_t j) {
       for (std::uint32_t i = 0; i < f.postsX; ++i) {
         const std::size_t k = std::size_t(j) * f.postsX + i;
         double mz, diag;
@@ -925,7 +1086,7 @@ Status fitTriangles(const std::string& vrtPath, const Frame& f, int threads, std
     std::swap(z, next2);
     if (progress) progress(0.5 + 0.5 * (it + 1) / kFitIterations, "fitting triangles");
   }
-  parallelRows(f.postsZ, threads, [&](std::uint32_t j) {
+  parallelRows(sys.h, threads, [&](std::uint32_t j) {
     for (std::uint32_t i = 0; i < f.postsX; ++i) {
       const std::size_t k = std::size_t(j) * f.postsX + i;
       double mz, diag;
@@ -978,24 +1139,19 @@ namespace {
 /// (GDAL widens its kernels by the scale), as GDALWarpOperation computes it.
 bool imageCoversKernel(const std::string& vrtPath, const Frame& f) {
   MosaicReader m;
-  if (!m.open(vrtPath, f).empty()) return false;
-  double x[4] = {f.originEasting, f.originEasting + (f.postsX - 1) * f.spacing, f.originEasting,
-                 f.originEasting + (f.postsX - 1) * f.spacing};
-  double y[4] = {f.originNorthing, f.originNorthing, f.originNorthing - (f.postsZ - 1) * f.spacing,
-                 f.originNorthing - (f.postsZ - 1) * f.spacing};
-  if (!m.toSource->Transform(4, x, y)) return false;
-  const double spanX = (std::max({x[0], x[1], x[2], x[3]}) - std::min({x[0], x[1], x[2], x[3]})) / std::fabs(m.geo[1]);
-  const double spanY = (std::max({y[0], y[1], y[2], y[3]}) - std::min({y[0], y[1], y[2], y[3]})) / std::fabs(m.geo[5]);
-  return f.postsX / (spanX + 1) >= 0.125 && f.postsZ / (spanY + 1) >= 0.125;
+  FrameScale s;
+  if (!m.open(vrtPath, f).empty() || !frameScale(f, *m.toSource, m.geo, s)) return false;
+  return s.sx >= 0.125 && s.sy >= 0.125;
 }
 
 /// GDALWarp's source: the shared source image (read block by block, in
 /// parallel) as a MEM dataset in the mosaic's frame, so GDAL's own kernels
 /// warp from memory instead of copying DTED's one-column blocks through the
 /// VRT pixel by pixel (a quarter of the build's CPU). Null: use the VRT.
-GDALDataset* imageDataset(const std::string& vrtPath, const Frame& f, int threads, SourceImage& image) {
+GDALDataset* imageDataset(const std::string& vrtPath, const Frame& f, std::uint32_t j0, std::uint32_t j1, int threads,
+                          SourceImage& image) {
   if (!imageCoversKernel(vrtPath, f)) return nullptr;
-  buildSourceImage(vrtPath, f, 16, threads, image);
+  buildSourceImage(vrtPath, f, j0, j1, 16, threads, image);
   MosaicReader m;
   if (!image.v || !m.open(vrtPath, f).empty()) return nullptr;
   GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
@@ -1017,16 +1173,17 @@ GDALDataset* imageDataset(const std::string& vrtPath, const Frame& f, int thread
   return ds;
 }
 
-}  // namespace
-
-Status resampleGdal(const std::string& vrtPath, const Frame& f, const std::string& kernel, int threads,
-                    std::vector<float>& out, const ProgressFn& progress) {
-  out.assign(std::size_t(f.postsX) * f.postsZ, NAN);
-  GDALDataset* dst = wrapBuffer(out.data(), GDT_Float32, f.postsX, f.postsZ, f);
+/// GDALWarp with `kernel` onto grid rows [j0, j1).
+Status gdalRows(const std::string& vrtPath, const Frame& f, const std::string& kernel, std::uint32_t j0,
+                std::uint32_t j1, int threads, float* out, const ProgressFn& progress) {
+  std::fill(out, out + std::size_t(f.postsX) * (j1 - j0), NAN);
+  Frame band = f;  // only GDAL sees this origin; our lattices keep the grid's
+  band.originNorthing = f.originNorthing - j0 * f.spacing;
+  GDALDataset* dst = wrapBuffer(out, GDT_Float32, f.postsX, j1 - j0, band);
   if (!dst) return stageError("resample: cannot create the in-memory target: " + lastGdalError());
   dst->GetRasterBand(1)->SetNoDataValue(NAN);
   SourceImage image;  // must outlive the MEM dataset that aliases it
-  GDALDatasetH src = imageDataset(vrtPath, f, threads, image);
+  GDALDatasetH src = imageDataset(vrtPath, f, j0, j1, threads, image);
   if (!src) src = GDALOpen(vrtPath.c_str(), GA_ReadOnly);
   if (!src) {
     GDALClose(dst);
@@ -1045,10 +1202,51 @@ Status resampleGdal(const std::string& vrtPath, const Frame& f, const std::strin
   GDALClose(dst);  // does not free `out`: the band only aliases it
   if (cancelRequested()) return stageError("build: cancelled");
   if (!res) return stageError("resample: GDAL warp failed: " + lastGdalError());
-  for (float& v : out) {
-    if (!(v >= kMinValid && v <= kMaxValid)) v = NAN;
+  return {};
+}
+
+}  // namespace
+
+Status resampleRows(const std::string& vrtPath, const Frame& f, const std::string& kernel, std::uint32_t j0,
+                    std::uint32_t j1, int threads, float* out, const ProgressFn& progress) {
+  const std::size_t n = std::size_t(f.postsX) * (j1 - j0);
+  Status st = kernel == "weighted"   ? weightedRows(vrtPath, f, j0, j1, threads, out, progress)
+              : kernel == "bilinear" ? bilinearRows(vrtPath, f, j0, j1, threads, out, progress)
+                                     : gdalRows(vrtPath, f, kernel, j0, j1, threads, out, progress);
+  if (!st) return st;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!(out[k] >= kMinValid && out[k] <= kMaxValid)) out[k] = NAN;
   }
   return {};
+}
+
+BandCost bandCost(const std::string& vrtPath, const Frame& f, const KernelChoice& kernel) {
+  BandCost c;
+  const double w = f.postsX;
+  c.perRow = 4 * w;  // the band's posts
+  MosaicReader m;
+  FrameScale scale;
+  if (m.open(vrtPath, f).empty() && frameScale(f, *m.toSource, m.geo, scale)) {
+    // The source image: its rows per grid row, each the footprint's width,
+    // plus its pad rows (at most kernel reach + 16, or the weighted radius).
+    const double srcW = scale.spanX + 64;
+    c.perRow += 4 * srcW * (scale.spanY + 1) / f.postsZ;
+    double pad = 64;
+    if (kernel.resample == "weighted") {
+      if (auto r = weightedRadius(vrtPath, f); r && r.value()[1] > 0) pad = 2 * r.value()[0] / r.value()[1] + 18;
+    }
+    c.fixed += 4 * srcW * 2 * pad;
+  }
+  if (kernel.resample != "weighted" && kernel.resample != "bilinear") c.perRow += 4 * w;  // GDALWarp's chunk buffers
+  if (kernel.fit == "triangles") {
+    // b, z, next (doubles) and the included squares, over the band and its halo.
+    c.perRow += 25 * w;
+    c.fixed += (4 + 25) * w * 2 * kFitHalo;
+  }
+  // Writing: one row more each side, the class bytes, a block per worker.
+  c.perRow += 1 * w;
+  c.fixed += 8 * w + double(jobs::threadCount(0)) * sizeof(grid::BlockData) * 2;
+  return c;
 }
 
 namespace {

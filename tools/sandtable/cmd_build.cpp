@@ -201,6 +201,12 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "Reject a CRS whose scale error over the extent exceeds this fraction")
       ->default_val(0.01);
   sub->add_option("--threads", a->o.threads, "Worker threads (0 = all cores)")->default_val(0);
+  sub->add_option("--memory-budget", a->o.memoryBudgetBytes,
+                  "Peak memory of the elevation stage, e.g. 512M or 2G (K, M, G = 1024-based): the grid is "
+                  "resampled and written in row bands that fit it (at least 64 rows); a grid with voids left "
+                  "after resampling is still held whole")
+      ->transform(CLI::AsSizeValue(false))
+      ->default_str("1G");
   sub->add_flag("--force", a->o.force, "Replace an existing output directory (only once the new one is complete)");
   sub->add_flag("--json", a->json, "Print the build report as JSON");
   c.add(sub, [a] { return runBuild(*a); });

@@ -37,6 +37,12 @@ struct BuildEstimate {
 };
 inline constexpr double kSlowBuildSeconds = 60.0;
 
+/// ElevationOptions::memoryBudgetBytes by default: 1 GiB.
+inline constexpr std::uint64_t kDefaultMemoryBudget = std::uint64_t(1) << 30;
+/// Bands are whole 64-row strips (the resampling lattice's strips), so a
+/// band's posts are the same bytes whatever the band height.
+inline constexpr std::uint32_t kMinBandRows = 64;
+
 struct ElevationOptions {
   std::vector<std::string> sources;  ///< files, directories or globs
   std::string output;                ///< database directory to create
@@ -69,6 +75,13 @@ struct ElevationOptions {
   /// material water. Other voids are filled by interpolation.
   bool seaFromVoids = true;
   int threads = 0;             ///< 0 = all cores
+  /// Peak memory of the elevation stage (resampling, triangle fit, grid
+  /// writing): the grid is resampled and written in row bands sized to fit
+  /// it, so the stage's memory does not grow with the grid (the band never
+  /// goes below kMinBandRows rows). A grid with voids left after resampling
+  /// still needs the whole grid at once (sea and void fill are global):
+  /// then the budget is exceeded, and the report says so (banded = false).
+  std::uint64_t memoryBudgetBytes = kDefaultMemoryBudget;
   /// Called once with the estimate, before resampling starts. May be empty.
   std::function<void(const BuildEstimate&)> onEstimate;
 };
@@ -121,6 +134,10 @@ struct ElevationReport {
   double seconds = 0;
   double resampleSeconds = 0;
   double postsPerSecond = 0;
+  std::uint32_t bandRows = 0;     ///< rows per band (the grid's height when one band)
+  std::uint32_t bands = 0;        ///< bands resampled
+  bool banded = false;            ///< false: the whole grid was held at once (one band, or voids)
+  std::uint64_t bandBytes = 0;    ///< the stage's estimated peak for one band
   manifest::Manifest manifest;
 };
 
