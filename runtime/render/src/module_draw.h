@@ -1,27 +1,49 @@
 #pragma once
-// Drawing load modules on the render thread: a cache of one buffer per
-// resident (module, level), vertices then u32 indices, built from the
-// pager's decoded levels the first time a frame lists them and released
-// when the pager frees or replaces the module (its generation changes, or
-// it leaves the pager's window). Private to the renderer; every call on the
-// render thread.
+// Drawing load modules on the render thread. Private to the renderer;
+// every call on the render thread. Design: docs/VIEWER.md, "Module draws".
+//
+// Memory. Every resident (module, level) is one Entry: its vertices and
+// its u32 indices (relative to its first vertex) sub-allocated from one
+// persistent, coherent, mapped GL buffer (GpuArena: a first-fit free list
+// that coalesces, grown by doubling with a GPU copy that keeps every
+// offset). An upload is a memcpy into the mapping; a released block is
+// reused only once the GPU has passed a fence set after its last frame.
+// Entries are built from the pager's decoded levels the first time a
+// frame lists them (within RenderSettings::uploadBudgetBytes a frame) and
+// released when the pager frees or replaces the module.
+//
+// Draws. Each pass is one glMultiDrawElementsIndirect: one command per
+// node range (NodeDraw) and block, written into a mapped ring of command
+// buffers; the node's module offset and morph factor are a per-draw
+// vertex attribute (divisor 1, the command's baseInstance). No GL state
+// changes between nodes and no per-frame allocation (scratch vectors keep
+// their capacity).
 //
 // Shading::smooth: indexed triangles; a module vertex is copied only where
 // triangles of different colours meet. Its normal and water weight are the
 // grid's, interpolated at the vertex (so every level, skirt and cut piece
 // is lit like the grid mesh), computed once per upload. Shading::flat (the
 // seed's look): three vertices per triangle with its face normal and its
-// half's colour, indexed 0, 1, 2, ...
+// half's colour.
 //
 // Decals (docs/CULTURE.md, section 9): the skin (priority 1) of every
 // module is drawn first with depth writes; then each decal priority in
 // ascending order, depth writes off, depth test GEQUAL (reversed Z) and a
 // polygon offset growing with the priority, so a decal wins against its
 // own coplanar skin but not against terrain in front of it.
+//
+// Seams (docs/VIEWER.md, "Seams"): skirts face out of their node and the
+// terrain pass culls back faces (CCW front); skirts and the plain lattice
+// under culture-cut squares are drawn after the skin with a polygon offset
+// away from the eye, so they show only through cracks and pinholes.
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
+#include <array>
+#include <bitset>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -44,6 +66,54 @@ struct GpuVertex {
 };
 static_assert(sizeof(GpuVertex) == 32, "vertex layout is shared with the shader");
 
+/// One persistent, coherent, write-mapped GL buffer, sub-allocated in
+/// blocks of kUnit bytes (first fit, coalescing free list). Released
+/// blocks wait behind a fence until the GPU can no longer read them.
+class GpuArena {
+ public:
+  static constexpr std::uint64_t kUnit = 32;  ///< a GpuVertex: vertex blocks start on a vertex
+  GpuArena() = default;
+  ~GpuArena();
+  GpuArena(const GpuArena&) = delete;
+  GpuArena& operator=(const GpuArena&) = delete;
+
+  /// Byte offset of a block of at least `bytes`; grows the buffer (a new
+  /// GL name: rebind) when no free block fits.
+  std::uint64_t allocate(std::uint64_t bytes);
+  /// Gives a block back once the GPU has finished the frames drawn so far.
+  void release(std::uint64_t offset, std::uint64_t bytes);
+  /// Marks the end of a frame: blocks released before it become free once
+  /// its fence has passed (checked without waiting).
+  void endFrame();
+  std::uint8_t* data() { return map_; }
+  GLuint buffer() const { return buffer_; }
+  std::uint64_t capacity() const { return capacity_; }
+
+ private:
+  void grow(std::uint64_t atLeast);
+  void recycle();
+  GLuint buffer_ = 0;
+  std::uint8_t* map_ = nullptr;
+  std::uint64_t capacity_ = 0;
+  std::map<std::uint64_t, std::uint64_t> free_;  ///< offset -> bytes
+  struct Pending {
+    std::uint64_t offset, bytes;
+  };
+  std::vector<Pending> released_;  ///< this frame's, not yet fenced
+  struct Fenced {
+    GLsync fence;
+    std::vector<Pending> blocks;
+  };
+  std::vector<Fenced> fenced_;
+};
+
+/// A plain indexed grid drawn with the module program (Renderer::measureIndexedGrid).
+struct PlainGridRun {
+  std::uint64_t triangles = 0;
+  std::uint32_t draws = 0;
+  std::vector<double> frameMs;
+};
+
 class ModuleRenderer {
  public:
   ModuleRenderer() = default;
@@ -54,51 +124,112 @@ class ModuleRenderer {
   /// Compiles the program and makes the road texture.
   Status create(const RenderSettings& s);
   /// One frame, in the renderer's pass order: prepare() uploads what is
-  /// missing, drawTerrain() the skin and its underlay (terrain pass),
+  /// missing (within the budget) and builds the frame's draw commands,
+  /// drawTerrain() the skin, then skirts and underlay (terrain pass),
   /// drawDecals() the decal priorities and the modules' own object
   /// polygons (decals pass), finishFrame() releases what the pager let go.
   void prepare(const DisplayBuffer& buf, RenderStats& stats);
-  void drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
-  void drawDecals(const DisplayBuffer& buf);
+  void drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void drawDecals(const DisplayBuffer& buf, RenderStats& stats);
   void finishFrame(const DisplayBuffer& buf, RenderStats& stats);
 
+  /// Draws `frames` frames of a plain grid of squares x squares (one
+  /// vertex per post, two triangles a square, nodes of nodeSquares squares
+  /// as in a module) seen by `camera`, through the same program, buffers
+  /// and draw path as the modules; times each frame to the GPU's finish.
+  /// `beginFrame` binds and clears the target before each frame.
+  PlainGridRun drawPlainGrid(const Camera& camera, std::uint32_t squares, double spacing,
+                             std::uint32_t nodeSquares, std::uint32_t frames,
+                             const std::function<void()>& beginFrame);
+
  private:
+  /// Pseudo priorities of blocks that are not module priorities.
+  static constexpr std::uint8_t kSkirtPriority = 254;
+  static constexpr std::uint8_t kUnderlayPriority = 255;
   /// The triangles of one priority, bucketed by quadtree node: node m's
-  /// indices are [start[m], start[m + 1]) (Morton order, lod.h).
-  /// Lowest and highest vertex a node's indices use (for glDrawRangeElements).
-  using NodeRange = std::pair<std::uint32_t, std::uint32_t>;
+  /// indices are [start[m], start[m + 1]) (Morton order, lod.h), relative
+  /// to the entry's first index.
   struct Block {
     std::uint8_t priority = 1;
-    std::vector<GLint> start;
-    std::vector<NodeRange> range;  ///< per node
+    std::vector<std::uint32_t> start;
   };
   struct Entry {
     std::uint64_t generation = 0;
-    GLuint vbo = 0;                ///< vertices, then indices from indexOffset
-    std::uint64_t indexOffset = 0; ///< bytes
-    std::vector<Block> blocks;  ///< ascending priority; the underlay last
+    bool resident = false;
+    std::uint64_t vertexOffset = 0, vertexBytes = 0;  ///< arena block of the vertices
+    std::uint64_t indexOffset = 0, indexBytes = 0;    ///< arena block of the indices
+    std::vector<Block> blocks;  ///< ascending priority
+    std::bitset<256> priorities;
     std::uint64_t lastFrame = 0;
     std::uint64_t bytes = 0;
   };
-  /// Range priority of the lattice underlay (not a module priority).
-  static constexpr std::uint8_t kUnderlayPriority = 255;
-  Entry& entryFor(const ModuleDraw& d, std::uint32_t level, std::uint64_t frame, RenderStats& stats);
-  void upload(const ModuleDraw& d, std::uint32_t level, Entry& e);
+  /// glMultiDrawElementsIndirect's command.
+  struct Command {
+    GLuint count, instanceCount, firstIndex;
+    GLint baseVertex;
+    GLuint baseInstance;
+  };
+  /// The per-draw attribute: module offset (x, z) from the buffer origin, morph.
+  struct DrawData {
+    float ox, oz, morph, pad;
+  };
+  /// One node range as drawn this frame (after the upload budget's fallback).
+  struct Drawn {
+    const Entry* entry;
+    std::uint32_t level, first, last;
+    float morph;
+    std::uint32_t module;
+  };
+
+  Entry* ready(std::uint64_t key);
+  void upload(const ModuleDraw& d, std::uint32_t level, Entry& e, RenderStats& stats);
+  void storeEntry(Entry& e, const std::vector<GpuVertex>& vertices, const std::vector<std::uint32_t>& indices);
+  void freeEntry(Entry& e);
   void release(RenderStats& stats, const DisplayBuffer& buf);
-  void drawPriority(const DisplayBuffer& buf, std::uint8_t lo, std::uint8_t hi,
-                    const std::vector<Entry*>& entries);
+  void resolveModule(const DisplayBuffer& buf, std::size_t first, std::size_t last, RenderStats& stats);
+  void buildCommands(const DisplayBuffer& buf);
+  void multiDraw(std::size_t list, RenderStats& stats);
+  void bindArena();
 
   void createRoadTexture();
 
   RenderSettings settings_;
   GlProgram program_;
   GLuint vao_ = 0, roadTexture_ = 0;
-  GLint uOffset_ = -1, uMorph_ = -1;  ///< set per node: looked up once
-  std::vector<Entry*> entries_;  ///< this frame's, one per buf.nodes entry
+  GpuArena arena_;
+  GLuint boundArena_ = 0;
+  /// Command and per-draw rings: kRing frames of room, each frame's slice
+  /// fenced, grown when a frame needs more.
+  static constexpr std::uint32_t kRing = 3;
+  GLuint commandBuffer_ = 0, drawBuffer_ = 0;
+  Command* commandMap_ = nullptr;
+  DrawData* drawMap_ = nullptr;
+  std::uint64_t ringCommands_ = 0, ringDraws_ = 0;  ///< per slice
+  std::uint32_t ringSlot_ = 0;
+  std::array<GLsync, kRing> ringFence_{};
+  void ensureRing(std::uint64_t commands, std::uint64_t draws);
+
   std::unordered_map<std::uint64_t, Entry> cache_;
   std::uint64_t gpuBytes_ = 0;
   std::uint32_t nodeSquares_ = 4;
   double moduleSize_ = 0;  ///< metres along a module edge (DisplayBuffer::moduleSize)
+
+  // Per-frame scratch (capacity kept).
+  std::vector<Drawn> drawn_;
+  struct Span {
+    std::uint32_t level;
+    std::uint64_t f, t;  ///< finest-grid Morton range
+    float morph;
+    bool fallback;
+  };
+  std::vector<Span> spans_;
+  std::vector<DrawData> drawData_;
+  /// Command lists: [0] skin, [1] skirts and underlay, [2 + p] decal
+  /// priority p (2..98), [101] objects (99..253).
+  static constexpr std::size_t kLists = 102;
+  std::array<std::vector<Command>, kLists> lists_;
+  std::array<std::uint64_t, kLists> listOffset_{};  ///< bytes into the command buffer
+  std::bitset<256> framePriorities_;
 };
 
 }  // namespace sandtable::runtime::detail

@@ -309,13 +309,13 @@ struct Renderer::Impl {
       case RenderPass::terrain:
         if (buf.moduleMode) {
           modules->prepare(buf, stats);
-          modules->drawTerrain(buf, vp);
+          modules->drawTerrain(buf, vp, stats);
         } else {
           drawMesh(buf);
         }
         break;
       case RenderPass::decals:
-        if (buf.moduleMode) modules->drawDecals(buf);
+        if (buf.moduleMode) modules->drawDecals(buf, stats);
         break;
       case RenderPass::models:
         if (models) {
@@ -534,6 +534,28 @@ Status Renderer::present() {
   Status st;
   window->withSurface([&](std::uint32_t w, std::uint32_t h) { st = m.presentLocked(w, h); });
   return st;
+}
+
+IndexedGridRate Renderer::measureIndexedGrid(const Camera& camera, std::uint32_t squares, double spacing,
+                                             std::uint32_t nodeSquares, std::uint32_t frames) {
+  Impl& m = *impl_;
+  const detail::PlainGridRun run =
+      m.modules->drawPlainGrid(camera, squares, spacing, nodeSquares, frames, [&] { m.beginFrame(); });
+  IndexedGridRate r;
+  r.triangles = run.triangles;
+  r.draws = run.draws;
+  r.frames = std::uint32_t(run.frameMs.size());
+  if (run.frameMs.empty()) return r;
+  std::vector<double> ms = run.frameMs;
+  std::sort(ms.begin(), ms.end());
+  const auto at = [&](double q) { return ms[std::min(ms.size() - 1, std::size_t(q * double(ms.size() - 1) + 0.5))]; };
+  r.p50Ms = at(0.5);
+  r.p99Ms = at(0.99);
+  double sum = 0;
+  for (const double v : ms) sum += v;
+  r.meanMs = sum / double(ms.size());
+  r.trianglesPerSecond = r.p50Ms > 0 ? double(r.triangles) / (r.p50Ms / 1000.0) : 0;
+  return r;
 }
 
 void Renderer::setModelsPass(std::unique_ptr<ModelsPass> pass) { impl_->models = std::move(pass); }

@@ -78,6 +78,9 @@ inline constexpr double kHeightCodeOffset = 1000.0;
 /// The height a ColourMode::height frame holds at (x, y); nullopt: no terrain.
 std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t y);
 
+/// RenderSettings::uploadBudgetBytes by default: 1 MiB a frame.
+inline constexpr std::uint64_t kDefaultUploadBudgetBytes = 1ull << 20;
+
 struct RenderSettings {
   std::uint32_t width = 1280, height = 720;
   Rgb background{0x87, 0xCE, 0xEB};  ///< sky at the horizon and fog colour
@@ -102,6 +105,12 @@ struct RenderSettings {
   /// Module mode, smooth shading: normals and water come from the grid at
   /// each module vertex (computed once per upload). Null: up and no water.
   std::shared_ptr<const grid::GridFile> grid;
+  /// Module mode: bytes of (module, level) buffers built and uploaded per
+  /// frame, so that a jump does not make one long frame; 0: no limit.
+  /// Levels over the budget wait for a later frame (at least one goes up
+  /// each frame) and are drawn meanwhile from a coarser resident level;
+  /// every module's coarsest level goes up at once, whatever the budget.
+  std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
 };
 
 /// What the render thread did for the last frame (module mode).
@@ -109,8 +118,25 @@ struct RenderStats {
   std::uint32_t uploads = 0;        ///< (module, level) buffers built this frame
   std::uint32_t released = 0;       ///< buffers released this frame
   std::uint32_t cachedLevels = 0;   ///< (module, level) buffers held on the GPU
-  std::uint64_t gpuBytes = 0;       ///< their vertex bytes
+  std::uint64_t gpuBytes = 0;       ///< their vertex and index bytes
   double uploadMs = 0;              ///< building and uploading them
+  std::uint64_t uploadBytes = 0;    ///< bytes uploaded this frame
+  std::uint32_t uploadsDeferred = 0;  ///< levels left for a later frame by the budget
+  std::uint32_t nodesFallback = 0;  ///< node runs drawn coarser: their level not uploaded yet
+  std::uint32_t underlayMissing = 0;  ///< cut squares with a lattice post missing (no underlay)
+  std::uint32_t draws = 0;          ///< draw commands (one per node range and block)
+  std::uint32_t drawCalls = 0;      ///< GL multi-draw calls that issued them
+  std::uint64_t trianglesDrawn = 0; ///< triangles in those commands
+};
+
+/// Renderer::measureIndexedGrid: llvmpipe's (or the GPU's) own rate on a
+/// plain indexed grid through the module program and draw path.
+struct IndexedGridRate {
+  std::uint64_t triangles = 0;  ///< per frame
+  std::uint32_t draws = 0;      ///< per frame (one per node)
+  std::uint32_t frames = 0;
+  double p50Ms = 0, p99Ms = 0, meanMs = 0;
+  double trianglesPerSecond = 0;  ///< triangles / p50
 };
 
 /// The passes of one frame, in order (the class comment says what each draws).
@@ -164,6 +190,14 @@ class Renderer {
   /// Shows the frame in the window the renderer was created on, scaled to
   /// fit (letterboxed), by a blit on the GPU, and swaps.
   Status present();
+
+  /// Draws `frames` frames of a plain indexed grid of squares x squares
+  /// (one vertex per post, nodes of nodeSquares squares, one draw each)
+  /// centred under `camera`, through the module program and draw path,
+  /// clear and terrain pass only, each timed to the GPU's finish. The
+  /// frame's target is left undefined.
+  IndexedGridRate measureIndexedGrid(const Camera& camera, std::uint32_t squares, double spacing,
+                                     std::uint32_t nodeSquares, std::uint32_t frames);
 
   /// Sets the models pass (null: the slot stays empty).
   void setModelsPass(std::unique_ptr<ModelsPass> pass);
