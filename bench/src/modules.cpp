@@ -3,6 +3,7 @@
 // Builds alternate and repeat; medians are reported.
 #include "sandtable/bench/modules.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <array>
@@ -23,6 +24,7 @@ using Clock = std::chrono::steady_clock;
 
 struct Run {
   double seconds = 0;
+  double cpuSeconds = 0;  ///< user + system time of the process during the build
   double moduleSeconds = 0;
   std::uint64_t modules = 0;
   nlohmann::json build;  ///< the manifest's build object
@@ -34,6 +36,12 @@ std::array<double, 4> boundsOf(const fs::path& synthJson) {
   const auto& b = j.at("bounds");
   return {b.at("west").get<double>(), b.at("south").get<double>(), b.at("east").get<double>(),
           b.at("north").get<double>()};
+}
+
+double processCpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
 /// One in-process build, as `sandtable build` runs it.
@@ -50,10 +58,12 @@ Result<Run> build(const ModulesBenchOptions& a, const fs::path& in, bool full, c
   o.modules = full;
   if (full) o.culture = {(in / "culture.gpkg").string()};
   const auto t0 = Clock::now();
+  const double c0 = processCpuSeconds();
   auto r = convert::buildElevation(o, nullptr);
   if (!r) return r.problems();
   Run run;
   run.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  run.cpuSeconds = processCpuSeconds() - c0;
   run.moduleSeconds = r->moduleSeconds;
   run.modules = r->modules;
   run.build = r->manifest.build;
@@ -63,9 +73,21 @@ Result<Run> build(const ModulesBenchOptions& a, const fs::path& in, bool full, c
 
 ModulesBenchReport summarize(const ModulesBenchOptions& a, const std::vector<Run>& full,
                              const std::vector<Run>& elev) {
-  std::vector<double> f, e, m;
-  for (const auto& r : full) f.push_back(r.seconds), m.push_back(r.moduleSeconds);
-  for (const auto& r : elev) e.push_back(r.seconds);
+  std::vector<double> f, e, m, fc, ec, load;
+  for (const auto& r : full) {
+    f.push_back(r.seconds), m.push_back(r.moduleSeconds), fc.push_back(r.cpuSeconds);
+    load.push_back(r.build["culture"].value("load_seconds", 0.0));
+  }
+  for (const auto& r : elev) e.push_back(r.seconds), ec.push_back(r.cpuSeconds);
+  // The module stage's profile: per stage, the median over the full runs.
+  nlohmann::json stages = nlohmann::json::object();
+  if (full.back().build["modules"].contains("stage_cpu_seconds")) {
+    for (const auto& [key, v] : full.back().build["modules"]["stage_cpu_seconds"].items()) {
+      std::vector<double> xs;
+      for (const auto& r : full) xs.push_back(r.build["modules"]["stage_cpu_seconds"].value(key, 0.0));
+      stages[key] = stats::median(xs);
+    }
+  }
   const Run& last = full.back();
   ModulesBenchReport rep;
   rep.fullBuildSeconds = stats::median(f);
@@ -86,7 +108,14 @@ ModulesBenchReport summarize(const ModulesBenchOptions& a, const std::vector<Run
                       {"per_level", last.build["modules"]["per_level"]},
                       {"culture_features", last.build["culture"]["features_read"]},
                       {"full_runs_s", f},
-                      {"elevation_runs_s", e}};
+                      {"elevation_runs_s", e},
+                      // CPU time (user + system, all threads): what a machine
+                      // shared with other work does not inflate.
+                      {"full_cpu_s", stats::median(fc)},
+                      {"elevation_only_cpu_s", stats::median(ec)},
+                      {"full_over_elevation_cpu", stats::median(fc) / stats::median(ec)},
+                      {"culture_load_s", stats::median(load)},
+                      {"module_stage_cpu_s", stages}};
   double roadKm = 0;
   for (const auto& [name, k] : last.build["culture"]["classes"].items()) roadKm += k["length_km"].get<double>();
   j["line_km"] = roadKm;
@@ -96,7 +125,11 @@ ModulesBenchReport summarize(const ModulesBenchOptions& a, const std::vector<Run
 
 Result<ModulesBenchReport> runIn(const ModulesBenchOptions& a, const Notes& notes, const fs::path& work) {
   fs::path in = a.input;
-  if (in.empty()) {
+  ModulesBenchOptions named = a;
+  if (!in.empty()) {
+    std::ifstream f(in / "synth.json");
+    named.sizeKm = nlohmann::json::parse(f).value("size_km", a.sizeKm);  // the report names the square's size
+  } else {
     in = work / "synth";
     notes.say("synthesizing a " + std::to_string(int(a.sizeKm)) + " km square (not timed)");
     convert::SynthOptions so;
@@ -116,7 +149,7 @@ Result<ModulesBenchReport> runIn(const ModulesBenchOptions& a, const Notes& note
       (isFull ? full : elev).push_back(r.value());
     }
   }
-  return summarize(a, full, elev);
+  return summarize(named, full, elev);
 }
 
 }  // namespace

@@ -69,8 +69,27 @@ constexpr std::uint16_t kOutside = 0xFFFE;  // label of the unbounded face (skin
 Point toPoint(Vec2 p) { return Point(p.x, p.z); }
 /// Rounded from the exact value: the lazy kernel's own approximation of a
 /// constructed point depends on which predicates happened to force it, so
-/// rounding it would make the output vary from run to run.
-Vec2 toVec(const Point& p) { return {CGAL::to_double(CGAL::exact(p.x())), CGAL::to_double(CGAL::exact(p.y()))}; }
+/// rounding it would make the output vary from run to run. But when the
+/// approximation is one double ([v, v]: every input point, and every
+/// constructed one whose interval collapsed), the exact value is that
+/// double, so the exact rounding is known without computing it. Forcing
+/// the exact value (GMP rationals, a call_once per point) was 40 % of the
+/// module partition's time (docs/CULTURE.md, "Profile").
+///
+/// pointInterval: sets v when the interval is one double, which is then
+/// the exact value (0 as +0, as the exact 0 rounds).
+bool pointInterval(const CGAL::Interval_nt<false>& a, double& v) {
+  if (a.inf() != a.sup()) return false;
+  v = a.inf() == 0 ? 0.0 : a.inf();
+  return true;
+}
+Vec2 toVec(const Point& p) {
+  const auto& a = CGAL::approx(p);
+  double x = 0, z = 0;
+  if (pointInterval(a.x(), x) && pointInterval(a.y(), z)) return {x, z};
+  const auto& e = CGAL::exact(p);
+  return {CGAL::to_double(e.x()), CGAL::to_double(e.y())};
+}
 
 /// Adds the edges of `ring` with delta +1 per traversal, for slot `slot`.
 void addRing(const Ring& ring, std::uint16_t slot, std::vector<Traits::Curve_2>& curves) {
@@ -445,7 +464,8 @@ std::vector<Ring> unionRings(const std::vector<Ring>& rings) {
   return out;
 }
 
-std::vector<LayerGeometry> buildCell(const CellInput& in) {
+std::vector<LayerGeometry> buildCell(const CellInput& in, CellTimes* times) {
+  const double t0 = threadCpuSeconds();
   std::vector<Traits::Curve_2> curves;
   for (const CellRing& r : in.rings) addRing(r.pts, r.slot, curves);
   const Ring rect = {{in.rect.x0, in.rect.z0}, {in.rect.x1, in.rect.z0}, {in.rect.x1, in.rect.z1}, {in.rect.x0, in.rect.z1}};
@@ -456,6 +476,7 @@ std::vector<LayerGeometry> buildCell(const CellInput& in) {
   CGAL::insert(arr, curves.begin(), curves.end());
   const FaceWindings fw = windFaces(arr, in.slots.size());
   const std::size_t nf = fw.faces.size();
+  const double t1 = threadCpuSeconds();
 
   std::vector<LayerGeometry> layers;
   // The skin: the highest-rank area class with winding != 0, else default.
@@ -528,6 +549,7 @@ std::vector<LayerGeometry> buildCell(const CellInput& in) {
     }
     layers.push_back(std::move(g));
   }
+  if (times) times->arrangement = t1 - t0, times->pieces = threadCpuSeconds() - t1;
   return layers;
 }
 

@@ -940,7 +940,7 @@ std::string cacheKey(double a, double b, const Box& r) {
 
 }  // namespace
 
-std::shared_ptr<const ModuleCell> CultureImpl::cellFor(const LevelLattice& lat) const {
+std::shared_ptr<const ModuleCell> CultureImpl::cellFor(const LevelLattice& lat, bool* built) const {
   const Box rect{lat.xs.front(), lat.zs.front(), lat.xs.back(), lat.zs.back()};
   const std::string key = cacheKey(lat.moduleX, lat.moduleZ, rect);
   std::unique_lock lock(cacheMutex_);
@@ -955,6 +955,7 @@ std::shared_ptr<const ModuleCell> CultureImpl::cellFor(const LevelLattice& lat) 
   }
   cache_.push_front({key, {}});
   const auto mine = cache_.begin();
+  if (built) *built = true;
   lock.unlock();
   std::shared_ptr<const ModuleCell> cell = computeCell(lat.moduleX, lat.moduleZ, rect);
   lock.lock();
@@ -968,6 +969,7 @@ std::shared_ptr<const ModuleCell> CultureImpl::cellFor(const LevelLattice& lat) 
 }
 
 std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz, const Box& rect) const {
+  const double t0 = threadCpuSeconds();
   auto cell = std::make_shared<ModuleCell>();
   cell->moduleX = mx, cell->moduleZ = mz, cell->rect = rect;
   const Box world{mx + rect.x0, mz + rect.z0, mx + rect.x1, mz + rect.z1};
@@ -1034,9 +1036,10 @@ std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz,
     }
   }
   std::vector<LayerGeometry> geo;
+  cell->gatherSeconds = threadCpuSeconds() - t0;
   if (!in.rings.empty() && !cancelled && !cancelRequested()) {
     try {
-      geo = buildCell(in);
+      geo = buildCell(in, &cell->times);
     } catch (const std::exception&) {
       geo.clear();
       cell->failures = 1;
@@ -1086,8 +1089,19 @@ std::shared_ptr<const ModuleCell> CultureImpl::computeCell(double mx, double mz,
 DecalStats CultureImpl::decalLevel(const LevelLattice& lat, module::Level& out) const {
   assert(lat.xs.size() >= 2 && lat.zs.size() >= 2 && lat.heights.size() == lat.xs.size() * lat.zs.size());
   if (lat.xs.size() < 2 || lat.zs.size() < 2 || lat.heights.size() != lat.xs.size() * lat.zs.size()) return {};
-  const std::shared_ptr<const ModuleCell> cell = cellFor(lat);
-  return LevelWork(*this, *cell, lat, out).run();
+  const double t0 = threadCpuSeconds();
+  bool built = false;
+  const std::shared_ptr<const ModuleCell> cell = cellFor(lat, &built);
+  const double t1 = threadCpuSeconds();
+  DecalStats st = LevelWork(*this, *cell, lat, out).run();
+  st.cutSeconds = threadCpuSeconds() - t1;
+  if (built) {
+    st.partitionSeconds = t1 - t0;
+    st.gatherSeconds = cell->gatherSeconds;
+    st.arrangementSeconds = cell->times.arrangement;
+    st.piecesSeconds = cell->times.pieces;
+  }
+  return st;
 }
 
 }  // namespace culture

@@ -173,7 +173,12 @@ struct LayerGeometry {
 /// by rank, then per layer a constrained triangulation of the label
 /// boundaries merged into convex pieces (Hertel-Mehlhorn). Throws
 /// std::exception on CGAL failure. Layer 0 is the skin.
-std::vector<LayerGeometry> buildCell(const CellInput& in);
+/// CPU seconds of buildCell's two parts (threadCpuSeconds).
+struct CellTimes {
+  double arrangement = 0;  ///< arrangement and face windings
+  double pieces = 0;       ///< constraints, triangulation, convex merge, rounding
+};
+std::vector<LayerGeometry> buildCell(const CellInput& in, CellTimes* times = nullptr);
 
 // ------------------------------------------------------------ loaded data
 
@@ -210,6 +215,8 @@ struct ModuleCell {
   };
   std::vector<Layer> layers;  ///< [0] skin; decals by (priority, class id)
   std::uint64_t failures = 0;  ///< 1 when CGAL failed and the module fell back to default skin
+  double gatherSeconds = 0;    ///< CPU seconds building it: candidates clipped to the module
+  CellTimes times;             ///< and buildCell
 };
 
 /// The Culture implementation: immutable after load except for the cache
@@ -234,7 +241,8 @@ class CultureImpl final : public Culture {
   void buildIndex();
 
   /// The partition of the module the lattice belongs to (cached).
-  std::shared_ptr<const ModuleCell> cellFor(const LevelLattice& lattice) const;
+  /// `built` (may be null) is set when this call computed it.
+  std::shared_ptr<const ModuleCell> cellFor(const LevelLattice& lattice, bool* built = nullptr) const;
 
  private:
   std::shared_ptr<const ModuleCell> computeCell(double moduleX, double moduleZ, const Box& rect) const;

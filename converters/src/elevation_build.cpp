@@ -435,7 +435,11 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
                      {"min", s.minCompressed}, {"median", s.medianCompressed},
                      {"p95", s.p95Compressed}, {"max", s.maxCompressed},
                      {"mean", s.count ? double(s.totalCompressed) / double(s.count) : 0.0}}},
-          {"per_level", levels}};
+          {"per_level", levels},
+          {"stage_cpu_seconds", {{"terrain", r.stages.terrain}, {"culture_partition", r.stages.partition},
+                                 {"culture_gather", r.stages.gather}, {"culture_arrangement", r.stages.arrangement},
+                                 {"culture_pieces", r.stages.pieces}, {"culture_cut", r.stages.cut},
+                                 {"compress", r.stages.compress}, {"write", r.stages.write}}}};
 }
 
 nlohmann::json accuracyJson(const SourceAccuracy& a) {
@@ -468,6 +472,7 @@ nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
           {"lines_coarsened", st.coarsened},
           {"max_line_vertices", CultureOptions{}.maxLineVertices},
           {"warnings", st.warnings},
+          {"load_seconds", st.seconds},
           {"messages", st.messages},
           {"classes", classes}};
 }

@@ -17,13 +17,27 @@
 
 namespace sandtable::convert {
 
+StageSeconds& StageSeconds::operator+=(const StageSeconds& o) {
+  terrain += o.terrain, partition += o.partition, gather += o.gather, arrangement += o.arrangement;
+  pieces += o.pieces, cut += o.cut, compress += o.compress, write += o.write;
+  return *this;
+}
+
 module::Module buildModule(const grid::GridFile& g, const Culture& culture, std::uint16_t skirtMaterial,
                            std::uint32_t squares, int levels, std::uint32_t kx, std::uint32_t kz,
-                           LevelTotals* totals) {
+                           LevelTotals* totals, StageSeconds* stages) {
+  const double t0 = threadCpuSeconds();
+  double cultureSeconds = 0;
   module::Module out = meshing::assembleModule(
       g, squares, levels, kx, kz, skirtMaterial, [&](int l, const LevelLattice& lat, module::Level& level) {
         if (cancelRequested()) return false;  // the caller discards a cancelled module
         const DecalStats ds = culture.decalLevel(lat, level);
+        if (stages) {
+          stages->partition += ds.partitionSeconds, stages->gather += ds.gatherSeconds;
+          stages->arrangement += ds.arrangementSeconds, stages->pieces += ds.piecesSeconds;
+          stages->cut += ds.cutSeconds;
+          cultureSeconds += ds.partitionSeconds + ds.cutSeconds;
+        }
         if (totals) {
           LevelTotals& t = totals[l];
           t.triangles += ds.triangles;
@@ -33,6 +47,7 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
         return true;
       });
   fillNormals(g, squares, out);
+  if (stages) stages->terrain += threadCpuSeconds() - t0 - cultureSeconds;
   if (totals) {
     for (std::size_t l = 0; l < out.levels.size(); ++l) {
       for (const module::Group& grp : out.levels[l].groups) {
@@ -69,6 +84,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
     std::optional<pack::PackWriter::Record> record;  ///< none: skipped or failed
     std::string error;
     std::vector<LevelTotals> totals;
+    StageSeconds stages;
   };
   std::atomic<bool> stop{false};
   std::string error;
@@ -87,16 +103,22 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         if (stop || cancelRequested()) return b;
         b.totals.assign(std::size_t(o.levels), {});
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
-        const module::Module m = buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data());
+        const module::Module m =
+            buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
+        const double tc = threadCpuSeconds();
         auto packed = compressModule(m, h, o.zstdLevel, {.version = o.moduleVersion, .heightStep = o.heightStep});
+        b.stages.compress = threadCpuSeconds() - tc;
         if (packed) b.record = std::move(packed.value());
         else b.error = packed.problems().front().message;
         return b;
       },
       [&](std::size_t, Built&& b) {
         if (stop) return;
+        const double tw = threadCpuSeconds();
         if (b.record) b.error = writer.value()->append(std::move(*b.record)).message();
+        b.stages.write = threadCpuSeconds() - tw;
+        r.stages += b.stages;
         if (!b.error.empty()) {
           error = b.error;  // the first in module order
           stop = true;

@@ -360,6 +360,30 @@ TEST(Culture, straightRoadAreaIsLengthTimesWidth) {
   EXPECT_NEAR(c->stats().perClass.at("secondary").lengthKm, want / 10 / 1000, 1e-9);
 }
 
+TEST(Culture, partitionIsBuiltOncePerModuleAndTimedByStage) {
+  // The profile's stage timers (docs/CULTURE.md, section 13): the first
+  // level of a module builds its partition and counts it, with its parts
+  // inside the whole; the other levels reuse it and count none; a second
+  // module builds its own.
+  Scratch s("stages");
+  const auto t = sampleTable();
+  auto c = loadScene(s, {line("\"highway\": \"secondary\", \"width\": \"10\"", {{150, 300}, {1850, 620}})}, t,
+                     2000, 1000);
+  ASSERT_TRUE(c);
+  for (double mx : {0.0, 1000.0}) {
+    const Decaled d = decalModule(*c, mx, 0, 4, hills, 2000, 1000);
+    const DecalStats& first = d.stats[0];
+    EXPECT_GT(first.partitionSeconds, 0.0) << mx;
+    EXPECT_GT(first.arrangementSeconds, 0.0) << mx;
+    EXPECT_LE(first.gatherSeconds + first.arrangementSeconds + first.piecesSeconds, first.partitionSeconds) << mx;
+    for (int l = 0; l < 4; ++l) EXPECT_GT(d.stats[l].cutSeconds, 0.0) << mx << " level " << l;
+    for (int l = 1; l < 4; ++l) {
+      EXPECT_EQ(d.stats[l].partitionSeconds, 0.0) << mx << " level " << l;
+      EXPECT_EQ(d.stats[l].arrangementSeconds, 0.0) << mx << " level " << l;
+    }
+  }
+}
+
 TEST(Culture, roadAcrossModuleBoundariesKeepsItsAreaAtEveryLevel) {
   Scratch s("across");
   const auto t = sampleTable();

@@ -42,7 +42,11 @@ struct ModulesBenchReport {
   /// What `sandtable bench modules --json` prints: size_km, spacing_m,
   /// repeat, full_build_s, elevation_only_s, full_over_elevation,
   /// module_stage_s, modules, modules_per_second, module_bytes, per_level,
-  /// culture_features, full_runs_s, elevation_runs_s, line_km.
+  /// culture_features, full_runs_s, elevation_runs_s, line_km; and, for a
+  /// machine shared with other work, full_cpu_s, elevation_only_cpu_s,
+  /// full_over_elevation_cpu (process user + system time, medians),
+  /// culture_load_s, and module_stage_cpu_s (the module stage's CPU seconds
+  /// per stage, medians: convert::StageSeconds).
   nlohmann::json json;
 };
 

@@ -19,6 +19,8 @@
 // (triangles no boundary crosses are single triangles). Every output
 // vertex lies in its triangle's plane; vertices closer than the merge
 // tolerance (seed: 0.1 m) are merged without leaving the triangle's edges.
+#include <time.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -110,7 +112,24 @@ struct DecalStats {
   /// decals), or a triangle's cut skin did not tile it (it keeps one skin
   /// triangle).
   std::uint64_t failures = 0;
+  /// CPU seconds of the calling thread (threadCpuSeconds) spent in this
+  /// call, by stage, for the build's profile (docs/CULTURE.md, "Profile").
+  /// The partition is built by the first call for a module; a call that
+  /// waited for another thread's partition counts none of it.
+  double partitionSeconds = 0;    ///< the module's partition, all of it:
+  double gatherSeconds = 0;       ///<   candidate features clipped to the module
+  double arrangementSeconds = 0;  ///<   the CGAL arrangement and its face windings
+  double piecesSeconds = 0;       ///<   label boundaries, constrained triangulation, convex pieces
+  double cutSeconds = 0;          ///< cutting to this level's triangles, merging, writing
 };
+
+/// CPU time of the calling thread, seconds (CLOCK_THREAD_CPUTIME_ID): stage
+/// timers that a machine shared with other work does not inflate.
+inline double threadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
 
 /// One module level's lattice (sandtable/meshing/lattice.h): the decaler's
 /// input.

@@ -38,6 +38,21 @@ struct LevelTotals {
   std::uint64_t skirtTriangles = 0;
 };
 
+/// CPU seconds of the module stage by stage, summed over its workers
+/// (threadCpuSeconds, so a busy machine does not inflate them): the
+/// build's profile (docs/CULTURE.md, "Profile").
+struct StageSeconds {
+  double terrain = 0;      ///< lattices, skirts, highest vertices: all but the culture
+  double partition = 0;    ///< culture: each module's partition (once per module), of which
+  double gather = 0;       ///<   candidate features clipped to the module,
+  double arrangement = 0;  ///<   the CGAL arrangement and face windings,
+  double pieces = 0;       ///<   label boundaries, triangulation and convex pieces
+  double cut = 0;          ///< culture: cutting to every level's triangles, merging, writing
+  double compress = 0;     ///< encoding, checking the encoding, zstd, CRCs
+  double write = 0;        ///< appending to the pack (one thread)
+  StageSeconds& operator+=(const StageSeconds& o);
+};
+
 struct ModuleReport {
   std::uint32_t modulesX = 0, modulesZ = 0, moduleSquares = 0;
   double moduleSize = 0;  ///< actual edge in metres
@@ -49,6 +64,7 @@ struct ModuleReport {
   std::uint32_t packCrc = 0, indexCrc = 0;
   std::uint32_t moduleVersion = 0;  ///< as written (ModuleOptions)
   double heightStep = 0;
+  StageSeconds stages;
 };
 
 /// Builds every module of `grid` into `directory` (modules.pack, modules.idx).
@@ -61,7 +77,8 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
 /// Builds one module (exposed for tests and benchmarks).
 module::Module buildModule(const grid::GridFile& grid, const Culture& culture,
                            std::uint16_t skirtMaterial, std::uint32_t squares, int levels,
-                           std::uint32_t kx, std::uint32_t kz, LevelTotals* totals = nullptr);
+                           std::uint32_t kx, std::uint32_t kz, LevelTotals* totals = nullptr,
+                           StageSeconds* stages = nullptr);
 
 /// Fills every level's normals (module::Level::normals, octahedral) from
 /// the grid's post normals, interpolated on the grid triangle under each
