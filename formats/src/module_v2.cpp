@@ -120,6 +120,9 @@ std::uint64_t nextSlot(std::uint64_t slot) {
 
 // ---------------------------------------------------------------- encode
 
+/// Bits of the skin texture coordinate at module-local x (or z) from offset o.
+std::uint32_t skinBits(double o, float x) { return bits(float((o + double(x)) / kSkinTextureRepeat)); }
+
 /// Module-local x of lattice column a (the builder's (post - i0) * spacing,
 /// the last column clamped to the level's edge).
 double latticeCoord(std::uint32_t a, std::uint32_t n, double spacing, double last) {
@@ -266,7 +269,11 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
   for (std::size_t i = 0; i < E; ++i) {
     const Vertex& q = v[P + i];
     std::uint32_t* r = raw.data() + i * stride / 4;
-    r[0] = bits(q.x), r[1] = heightCode(p, q.y), r[2] = bits(q.z), r[3] = bits(q.s), r[4] = bits(q.t);
+    r[0] = bits(q.x), r[1] = heightCode(p, q.y), r[2] = bits(q.z);
+    // With the lattice, s and t are stored XOR the skin texture of x and z:
+    // 0 for every skin vertex, whatever they are for decals (lossless).
+    r[3] = bits(q.s) ^ (P ? skinBits(p.s0, q.x) : 0u);
+    r[4] = bits(q.t) ^ (P ? skinBits(p.t0, q.z) : 0u);
     if (normals) r[5] = l.normals[P + i];
   }
   std::vector<unsigned char> vstream;
@@ -556,8 +563,9 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     }
     for (std::size_t i = 0; i < E; ++i) {
       const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
-      v[P + i] = {std::bit_cast<float>(r[0]), height(r[1]), std::bit_cast<float>(r[2]), std::bit_cast<float>(r[3]),
-                  std::bit_cast<float>(r[4])};
+      const float x = std::bit_cast<float>(r[0]), z = std::bit_cast<float>(r[2]);
+      v[P + i] = {x, height(r[1]), z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
+                  std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
       if (normals) l.normals[P + i] = r[5];
     }
   }
