@@ -46,7 +46,6 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
         }
         return true;
       });
-  fillNormals(g, squares, out);
   if (stages) stages->terrain += threadCpuSeconds() - t0 - cultureSeconds;
   if (totals) {
     for (std::size_t l = 0; l < out.levels.size(); ++l) {
@@ -103,8 +102,9 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         if (stop || cancelRequested()) return b;
         b.totals.assign(std::size_t(o.levels), {});
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
-        const module::Module m =
+        module::Module m =
             buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
+        if (o.moduleVersion == module::kVersion2) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
         auto packed = compressModule(m, h, o.zstdLevel, {.version = o.moduleVersion, .heightStep = o.heightStep});

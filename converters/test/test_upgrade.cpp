@@ -34,12 +34,12 @@ struct Scratch {
   }
 };
 
-/// A 3 km synth area with culture, built at 31.25 m (the figure).
+/// A 2 km synth area with culture, built at 31.25 m (the figure).
 std::string buildDb(const Scratch& s, const std::string& name, std::uint32_t version) {
   if (!fs::exists(s.dir / "synth")) {
     convert::SynthOptions so;
     so.outDir = (s.dir / "synth").string();
-    so.sizeKm = 3;
+    so.sizeKm = 2;
     so.dted1 = false;
     so.dem = false;
     EXPECT_TRUE(convert::synthesize(so));

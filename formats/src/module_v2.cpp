@@ -120,6 +120,47 @@ std::uint64_t nextSlot(std::uint64_t slot) {
 
 // ---------------------------------------------------------------- encode
 
+/// Sentinel of kXZExponentField: stream x and z are float bits.
+constexpr std::int32_t kXZFloatBits = 0x7fff;
+/// i16 at level offset 90, the upper half of the u32 that module.h names
+/// levelField2::normalShift (u16 normal shift, i16 x/z exponent; kept out of
+/// module.h so the layout change recompiles one file; docs/FORMAT.md §9.7.2).
+constexpr std::size_t kXZExponentField = 90;
+
+/// The largest e such that every stream x and z is an integer multiple of
+/// 2^e that fits in 31 bits (the decaler snaps points to the float spacing
+/// at the module's largest coordinate, so e is about -14 at 1 km); else
+/// kXZFloatBits. Lossless either way; integers delta-code far better than
+/// float bits in meshopt's vertex codec.
+std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from) {
+  int e = 1000;
+  double hi = 0;
+  for (std::size_t i = from; i < v.size(); ++i) {
+    for (const float c : {v[i].x, v[i].z}) {
+      if (!std::isfinite(c) || (c == 0.0f && std::signbit(c))) return kXZFloatBits;
+      if (c == 0.0f) continue;
+      int ex = 0;
+      const double frac = std::frexp(double(c), &ex);
+      const auto m = std::uint32_t(std::ldexp(std::fabs(frac), 24));
+      e = std::min(e, ex - 24 + std::countr_zero(m));
+      hi = std::max(hi, std::fabs(double(c)));
+    }
+  }
+  if (e == 1000) return 0;  // all zero
+  if (e < -149 || std::ldexp(hi, -e) >= 0x1p31) return kXZFloatBits;
+  return e;
+}
+
+std::uint32_t xzCode(std::int32_t e, float c) {
+  return e == kXZFloatBits ? bits(c) : std::uint32_t(std::int32_t(std::ldexp(double(c), -e)));
+}
+float xzValue(std::int32_t e, std::uint32_t code) {
+  return e == kXZFloatBits ? std::bit_cast<float>(code) : float(std::ldexp(double(std::int32_t(code)), e));
+}
+
+/// Bits of the skin texture coordinate at module-local x (or z) from offset o.
+std::uint32_t skinBits(double o, float x) { return bits(float((o + double(x)) / kSkinTextureRepeat)); }
+
 /// Module-local x of lattice column a (the builder's (post - i0) * spacing,
 /// the last column clamped to the level's edge).
 double latticeCoord(std::uint32_t a, std::uint32_t n, double spacing, double last) {
@@ -159,6 +200,7 @@ struct Plan {
   std::int64_t base = 0;
   double lastX = 0, lastZ = 0, s0 = 0, t0 = 0;
   std::uint32_t shift = 0;
+  std::int32_t xzExp = kXZFloatBits;  ///< stream x, z stored as integers times 2^xzExp
 };
 
 Plan plan(const Level& l, double heightStep) {
@@ -237,6 +279,7 @@ Plan plan(const Level& l, double heightStep) {
     if (ok) p.flags |= kLevel2DerivedMaxHeight;
   }
 
+  p.xzExp = xzExponent(v, std::size_t(p.posts));
   if (!l.normals.empty() && l.normals.size() == v.size()) {
     p.flags |= kLevel2Normals;
     // The builder may round normals; the low bits every lattice normal
@@ -266,7 +309,11 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
   for (std::size_t i = 0; i < E; ++i) {
     const Vertex& q = v[P + i];
     std::uint32_t* r = raw.data() + i * stride / 4;
-    r[0] = bits(q.x), r[1] = heightCode(p, q.y), r[2] = bits(q.z), r[3] = bits(q.s), r[4] = bits(q.t);
+    r[0] = xzCode(p.xzExp, q.x), r[1] = heightCode(p, q.y), r[2] = xzCode(p.xzExp, q.z);
+    // With the lattice, s and t are stored XOR the skin texture of x and z:
+    // 0 for every skin vertex, whatever they are for decals (lossless).
+    r[3] = bits(q.s) ^ (P ? skinBits(p.s0, q.x) : 0u);
+    r[4] = bits(q.t) ^ (P ? skinBits(p.t0, q.z) : 0u);
     if (normals) r[5] = l.normals[P + i];
   }
   std::vector<unsigned char> vstream;
@@ -330,7 +377,8 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
   storeLE<double>(h + levelField2::lastZ, p.lastZ);
   storeLE<double>(h + levelField2::skinS0, p.s0);
   storeLE<double>(h + levelField2::skinT0, p.t0);
-  storeLE<std::uint32_t>(h + levelField2::normalShift, p.shift);
+  storeLE<std::uint16_t>(h + levelField2::normalShift, std::uint16_t(p.shift));
+  storeLE<std::int16_t>(h + kXZExponentField, std::int16_t(p.xzExp));
   storeLE<std::uint32_t>(h + levelField2::vertexStreamBytes, std::uint32_t(vstream.size()));
   storeLE<std::uint32_t>(h + levelField2::indexStreamBytes, std::uint32_t(istream.size()));
   storeLE<std::uint32_t>(h + levelField2::runBytes, std::uint32_t(runs.size()));
@@ -423,7 +471,8 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   const auto hbase = loadLE<std::int64_t>(h + levelField2::heightBase);
   const auto lastX = loadLE<double>(h + levelField2::lastX), lastZ = loadLE<double>(h + levelField2::lastZ);
   const auto s0 = loadLE<double>(h + levelField2::skinS0), t0 = loadLE<double>(h + levelField2::skinT0);
-  const auto shift = loadLE<std::uint32_t>(h + levelField2::normalShift);
+  const std::uint32_t shift = loadLE<std::uint16_t>(h + levelField2::normalShift);
+  const std::int32_t xzExp = loadLE<std::int16_t>(h + kXZExponentField);
   const auto vBytes = loadLE<std::uint32_t>(h + levelField2::vertexStreamBytes);
   const auto iBytes = loadLE<std::uint32_t>(h + levelField2::indexStreamBytes);
   const auto rBytes = loadLE<std::uint32_t>(h + levelField2::runBytes);
@@ -460,6 +509,10 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     return fail(pos + levelField2::lastX, " lattice lastX, lastZ, skinS0 or skinT0 is not finite");
   }
   if (shift > 15) return fail(pos + levelField2::normalShift, " normal shift " + str(shift) + " is above 15");
+  if (xzExp != kXZFloatBits && (xzExp < -149 || xzExp > 127)) {
+    return fail(pos + kXZExponentField,
+                " x, z exponent " + std::to_string(xzExp) + " is neither -149..127 nor 32767 (float bits)");
+  }
   const std::uint64_t squares = std::uint64_t(l.squaresX) * l.squaresZ;
   const std::uint64_t posts = lattice ? (std::uint64_t(l.squaresX) + 1) * (std::uint64_t(l.squaresZ) + 1) : 0;
   const std::uint64_t need = 4 * posts + (normals ? 4 * posts : 0) + (derived ? 0 : 4 * squares) +
@@ -556,8 +609,9 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     }
     for (std::size_t i = 0; i < E; ++i) {
       const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
-      v[P + i] = {std::bit_cast<float>(r[0]), height(r[1]), std::bit_cast<float>(r[2]), std::bit_cast<float>(r[3]),
-                  std::bit_cast<float>(r[4])};
+      const float x = xzValue(xzExp, r[0]), z = xzValue(xzExp, r[2]);
+      v[P + i] = {x, height(r[1]), z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
+                  std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
       if (normals) l.normals[P + i] = r[5];
     }
   }

@@ -637,7 +637,8 @@ TEST(ModuleV2, version2GoldenBytes) {
       "0000000000004040"  // lastZ 32.0
       "0000000000000000"  // skin S0 0
       "0000000000000000"  // skin T0 0
-      "06000000"          // normal shift 6 (every component a multiple of 64)
+      "0600"              // normal shift 6 (every component a multiple of 64)
+      "0000"              // x, z exponent: no stream vertices, all zero -> 0
       "00000000"          // no other vertices: empty vertex stream
       "0b000000"          // index stream 11 bytes
       "05000000"          // runs 5 bytes
@@ -799,6 +800,7 @@ TEST(ModuleV2, everyFlippedByteIsDetected) {
 TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
   const auto good = encode(withNormals(samples::realistic(1, 2, 4, 1)));
   const std::size_t lh = kHeaderBytes;
+  const std::size_t kXZExponentField = 90;  // i16 beside the u16 normal shift (FORMAT.md §9.7.2)
   struct Case {
     std::size_t field;
     std::uint32_t value;
@@ -815,6 +817,7 @@ TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
       {levelField2::squaresX, 65536, lh + levelField2::vertexStreamBytes, "module: level 0: 327685 lattice posts"},
       {levelField2::flags, 16, lh + levelField2::flags, "module: level 0 flags 23 has bits other than 0..3 set"},
       {levelField2::normalShift, 16, lh + levelField2::normalShift, "module: level 0 normal shift 16 is above 15"},
+      {kXZExponentField, 0x7ff0, lh + kXZExponentField, "module: level 0 x, z exponent 32752 is neither"},
   };
   for (const Case& c : cases) {
     auto bytes = good;
