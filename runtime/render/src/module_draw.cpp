@@ -327,7 +327,7 @@ struct UploadScratch {
   std::vector<std::vector<const module::Group*>> byNode;
   std::vector<std::vector<std::uint32_t>> squaresByNode;
   std::vector<std::uint32_t> colour, skinTriangles;
-  std::vector<std::uint8_t> seen;
+  std::vector<float> area;
 };
 
 UploadScratch& scratch() {
@@ -669,16 +669,26 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   // with a post missing gets no underlay.
   const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
   const std::size_t squares = std::size_t(nx) * nz;
+  // A pinhole shows the underlay, so each half takes the colour of the
+  // material covering most of its area (the first group would often be
+  // the uncovered class, and speckle a forest with tint).
   sc.colour.assign(2 * squares, packColour(fallback.upper, SurfaceKind::colour));
-  sc.seen.assign(2 * squares, 0);
+  sc.area.assign(2 * squares, -1.0f);
   sc.skinTriangles.assign(squares, 0);
   for (const module::Group& g : level.groups) {
     if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt || g.square >= squares) continue;
     sc.skinTriangles[g.square] += g.indexCount / 3;
+    float area = 0;
+    for (std::uint32_t t = 0; t + 2 < g.indexCount; t += 3) {
+      const auto& a = level.vertices[level.indices[g.firstIndex + t]];
+      const auto& b = level.vertices[level.indices[g.firstIndex + t + 1]];
+      const auto& c = level.vertices[level.indices[g.firstIndex + t + 2]];
+      area += std::abs((b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z));
+    }
     const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
-    if (!sc.seen[k]) {
+    if (area > sc.area[k]) {
       sc.colour[k] = colourOf(g);
-      sc.seen[k] = 1;
+      sc.area[k] = area;
     }
   }
   sc.squaresByNode.resize(nodes);
