@@ -270,6 +270,54 @@ TEST_F(ViewerLook, HeightFramesOfModulesAtFullLodMatchTheGridMeshAndTheGrid) {
   }
 }
 
+TEST_F(ViewerLook, UploadBudgetSpreadsTheFirstFrameAndNeverLeavesAHole) {
+  // A still eye over Monaco with a budget far below what the view needs:
+  // the first frames draw coarser stand-ins (never the magenta clear
+  // colour), and once every level is up the frame is the very height
+  // frame of an unlimited flight.
+  auto db = openDatabase(monaco_);
+  ASSERT_TRUE(db.ok()) << db.error();
+  const View v{"monaco budget", 7.40, 43.705, 1500, 20, -35, 8000};
+  const Shot want = shoot(db.value(), v, TerrainMode::modules, ColourMode::height);
+  FlightOptions o = want.o;
+  o.pager.sync = false;  // sync lifts the budget
+  o.render.uploadBudgetBytes = 128 * 1024;
+  o.output.frames = 60;
+  o.view.clearColour = {0xFF, 0x00, 0xFF};
+  std::vector<Image> frames;
+  runtime::FlightHooks hooks(o);
+  hooks.onFrame = [&](std::uint32_t, const Image& i) { frames.push_back(i); };
+  auto r = runtime::fly(db.value(), o, &hooks);
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(frames.size(), 60u);
+  EXPECT_GT(r->frames.front().uploadsDeferred, 0u);
+  EXPECT_GT(r->frames.front().nodesFallback, 0u);
+  std::uint64_t deferredFrames = 0;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const auto& f = r->frames[k];
+    deferredFrames += f.uploadsDeferred > 0;
+    std::uint64_t holes = 0;
+    for (std::uint32_t y = 0; y < frames[k].height; ++y) {
+      for (std::uint32_t x = 0; x < frames[k].width; ++x) holes += !runtime::heightAt(frames[k], x, y).has_value();
+    }
+    EXPECT_EQ(holes, 0u) << "frame " << k;
+  }
+  std::printf("[ budget   ] %llu of 60 frames left uploads for later; frame 0: %u deferred, %u runs drawn coarser\n",
+              (unsigned long long)deferredFrames, r->frames.front().uploadsDeferred, r->frames.front().nodesFallback);
+  EXPECT_GT(deferredFrames, 1u);
+  ASSERT_EQ(r->frames.back().uploadsDeferred, 0u);
+  ASSERT_EQ(r->frames.back().nodesFallback, 0u);
+  const Image& last = frames.back();
+  std::uint64_t differ = 0;
+  for (std::uint32_t y = 0; y < last.height; ++y) {
+    for (std::uint32_t x = 0; x < last.width; ++x) {
+      const auto a = runtime::heightAt(last, x, y), b = runtime::heightAt(want.img, x, y);
+      differ += a.has_value() != b.has_value() || (a && std::abs(*a - *b) > 2 * kQuantum);
+    }
+  }
+  EXPECT_EQ(differ, 0u);
+}
+
 /// Blue-ish: the water colour lit (docs/VIEWER.md, "Colours").
 bool isWater(runtime::Rgb c) { return c.b > c.r + 40 && c.b > c.g + 15; }
 

@@ -1,8 +1,10 @@
 // bench render: one flight from the database centre, drawn with each
-// terrain configuration in turn (rings, sse, full; mesh too where it helps
-// to compare), headless. Reports fps and frame-time percentiles; the first
-// frames (uploads, shader compiles) are left out of the figures and
-// reported apart.
+// terrain configuration in turn (rings, sse, full, sse1-20km; mesh too
+// where it helps to compare), headless, between two runs of the plain
+// indexed grid that gives the renderer's own rate. Reports fps,
+// frame-time percentiles, triangles, draws and triangles per second
+// against the grid's; the first frames (uploads, shader compiles) are left
+// out of the figures and reported apart.
 #include "sandtable/bench/render.h"
 
 #include <algorithm>
@@ -18,13 +20,19 @@ struct Case {
   std::string name;
   runtime::TerrainMode mode;
   runtime::LodMode lod;
+  double pixelError, viewDistance;
 };
 
-RenderCase figuresOf(const std::string& name, const runtime::FlightReport& r, std::uint32_t warmup) {
+/// The view distance and pixel error of the "sse1-20km" case (issue 11's target).
+constexpr double kFarViewDistance = 20000, kFarPixelError = 1;
+
+RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_t warmup) {
   RenderCase f;
-  f.name = name;
+  f.name = c.name;
+  f.pixelError = c.lod == runtime::LodMode::sse ? c.pixelError : 0;
+  f.viewDistance = c.viewDistance;
   std::vector<double> ms;
-  double sum = 0, tris = 0;
+  double sum = 0, tris = 0, draws = 0;
   for (const auto& fr : r.frames) {
     if (fr.frame < warmup) {
       f.warmupMs += fr.frameMs;
@@ -32,7 +40,10 @@ RenderCase figuresOf(const std::string& name, const runtime::FlightReport& r, st
     }
     ms.push_back(fr.frameMs);
     sum += fr.frameMs;
-    tris += double(fr.triangles);
+    // Module frames count what the GPU was given; the mesh has no commands.
+    tris += double(c.mode == runtime::TerrainMode::mesh ? fr.triangles : fr.trianglesDrawn);
+    draws += double(fr.draws);
+    f.uploadsDeferred += fr.uploadsDeferred;
     f.maxErrorPx = std::max(f.maxErrorPx, fr.maxErrorPx);
   }
   f.frames = std::uint32_t(ms.size());
@@ -42,7 +53,29 @@ RenderCase figuresOf(const std::string& name, const runtime::FlightReport& r, st
   f.p50 = stats::percentile(ms, 0.5);
   f.p99 = stats::percentile(ms, 0.99);
   f.triangles = tris / double(ms.size());
+  f.draws = draws / double(ms.size());
+  f.trianglesPerSecond = f.mean > 0 ? f.triangles / (f.mean / 1000.0) : 0;
   return f;
+}
+
+/// The plain grid under an eye posed as the flights' first frame, reaching
+/// as far as the farthest case: the renderer's own indexed rate.
+Result<runtime::IndexedGridRate> gridRate(const RenderBenchOptions& a) {
+  runtime::RenderSettings s;
+  s.width = a.width;
+  s.height = a.height;
+  s.uploadBudgetBytes = 0;
+  auto renderer = runtime::Renderer::create(s);
+  if (!renderer) return renderer.problems();
+  runtime::Camera cam;
+  cam.y = a.heightAgl;
+  cam.headingDeg = a.headingDeg;
+  cam.pitchDeg = a.pitchDeg;
+  cam.aspect = double(a.width) / double(a.height);
+  cam.viewDistance = std::max(a.viewDistance, kFarViewDistance);
+  const std::uint32_t squares = std::max<std::uint32_t>(a.gridSquares, 16);
+  const double spacing = 2.0 * cam.viewDistance / squares;
+  return renderer.value()->measureIndexedGrid(cam, squares, spacing, 16, std::max<std::uint32_t>(a.gridFrames, 1));
 }
 
 runtime::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& a) {
@@ -57,6 +90,7 @@ runtime::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& 
   base.view.viewDistance = a.viewDistance;
   base.render.lod.pixelError = a.pixelError;
   base.render.lod.rings = a.rings;
+  base.render.uploadBudgetBytes = a.uploadBudgetBytes;
   const auto& gh = db.grid->header();
   base.motion.easting = gh.originEasting + gh.spacing * (gh.postsX - 1) / 2.0;
   base.motion.northing = gh.originNorthing - gh.spacing * (gh.postsZ - 1) / 2.0;
@@ -71,11 +105,19 @@ nlohmann::json toJson(const RenderBenchOptions& a, const RenderBenchReport& r) {
   j["warmup_frames"] = a.warmup;
   j["view_distance"] = a.viewDistance;
   j["pixel_error"] = a.pixelError;
+  j["upload_budget_bytes"] = a.uploadBudgetBytes;
+  j["grid"] = {{"triangles", r.gridBefore.triangles},
+               {"draws", r.gridBefore.draws},
+               {"frame_ms_p50_before", r.gridBefore.p50Ms},
+               {"frame_ms_p50_after", r.gridAfter.p50Ms},
+               {"triangles_per_s", r.gridRate}};
   for (const auto& f : r.cases) {
-    j["cases"].push_back({{"name", f.name}, {"fps", f.fps}, {"frame_ms_p50", f.p50},
-                          {"frame_ms_p99", f.p99}, {"frame_ms_mean", f.mean},
-                          {"triangles_mean", f.triangles}, {"warmup_ms", f.warmupMs},
-                          {"max_error_px", f.maxErrorPx}});
+    j["cases"].push_back({{"name", f.name}, {"pixel_error", f.pixelError}, {"view_distance", f.viewDistance},
+                          {"fps", f.fps}, {"frame_ms_p50", f.p50}, {"frame_ms_p99", f.p99},
+                          {"frame_ms_mean", f.mean}, {"triangles_mean", f.triangles},
+                          {"draws_mean", f.draws}, {"triangles_per_s", f.trianglesPerSecond},
+                          {"of_grid_rate", f.ofGridRate}, {"uploads_deferred", f.uploadsDeferred},
+                          {"warmup_ms", f.warmupMs}, {"max_error_px", f.maxErrorPx}});
   }
   return j;
 }
@@ -88,20 +130,34 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
                                          "rebuild it with ElevationOptions::modules = true"};
   }
   const runtime::FlightOptions base = baseFlight(db, a);
-  std::vector<Case> cases = {{"rings", runtime::TerrainMode::modules, runtime::LodMode::rings},
-                             {"sse", runtime::TerrainMode::modules, runtime::LodMode::sse},
-                             {"full", runtime::TerrainMode::modules, runtime::LodMode::full}};
-  if (a.mesh) cases.push_back({"mesh", runtime::TerrainMode::mesh, runtime::LodMode::full});
+  using runtime::LodMode;
+  using runtime::TerrainMode;
+  const double vd = a.viewDistance, px = a.pixelError;
+  std::vector<Case> cases = {{"rings", TerrainMode::modules, LodMode::rings, px, vd},
+                             {"sse", TerrainMode::modules, LodMode::sse, px, vd},
+                             {"full", TerrainMode::modules, LodMode::full, px, vd},
+                             {"sse1-20km", TerrainMode::modules, LodMode::sse, kFarPixelError, kFarViewDistance}};
+  if (a.mesh) cases.push_back({"mesh", TerrainMode::mesh, LodMode::full, px, vd});
   RenderBenchReport report;
+  auto before = gridRate(a);
+  if (!before) return before.problems();
+  report.gridBefore = before.value();
   for (const Case& c : cases) {
     runtime::FlightOptions o = base;
     o.render.mode = c.mode;
     o.render.lod.mode = c.lod;
+    o.render.lod.pixelError = c.pixelError;
+    o.view.viewDistance = c.viewDistance;
     auto r = runtime::fly(db, o);
     if (!r) return r.problems();
     report.renderer = r->summary.rendererDetail;
-    report.cases.push_back(figuresOf(c.name, r.value(), a.warmup));
+    report.cases.push_back(figuresOf(c, r.value(), a.warmup));
   }
+  auto after = gridRate(a);
+  if (!after) return after.problems();
+  report.gridAfter = after.value();
+  report.gridRate = 0.5 * (report.gridBefore.trianglesPerSecond + report.gridAfter.trianglesPerSecond);
+  for (auto& f : report.cases) f.ofGridRate = report.gridRate > 0 ? f.trianglesPerSecond / report.gridRate : 0;
   report.json = toJson(a, report);
   return report;
 }

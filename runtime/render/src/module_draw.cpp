@@ -327,7 +327,7 @@ struct UploadScratch {
   std::vector<std::vector<const module::Group*>> byNode;
   std::vector<std::vector<std::uint32_t>> squaresByNode;
   std::vector<std::uint32_t> colour, skinTriangles;
-  std::vector<std::uint8_t> seen;
+  std::vector<float> area;
 };
 
 UploadScratch& scratch() {
@@ -630,14 +630,67 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   // Groups are sorted by priority: each priority is one run of groups,
   // emitted node by node so that any quadtree node is one index range.
   // The skin's skirts go to a block of their own (kSkirtPriority).
+  const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
+  const std::size_t squares = std::size_t(nx) * nz;
+  // Each grid half's main colour: the material covering most of its area.
+  // A pinhole shows the underlay and a crack shows a skirt, so both take
+  // it (the first group would often be the uncovered class, and a skirt's
+  // own material is the uncovered class: either speckled a forest with tint).
+  sc.colour.assign(2 * squares, packColour(fallback.upper, SurfaceKind::colour));
+  sc.area.assign(2 * squares, -1.0f);
+  sc.skinTriangles.assign(squares, 0);
+  for (const module::Group& g : level.groups) {
+    if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt || g.square >= squares) continue;
+    sc.skinTriangles[g.square] += g.indexCount / 3;
+    float area = 0;
+    for (std::uint32_t t = 0; t + 2 < g.indexCount; t += 3) {
+      const auto& a = level.vertices[level.indices[g.firstIndex + t]];
+      const auto& b = level.vertices[level.indices[g.firstIndex + t + 1]];
+      const auto& c = level.vertices[level.indices[g.firstIndex + t + 2]];
+      area += std::abs((b.x - a.x) * (c.z - a.z) - (c.x - a.x) * (b.z - a.z));
+    }
+    const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
+    if (area > sc.area[k]) {
+      sc.colour[k] = colourOf(g);
+      sc.area[k] = area;
+    }
+  }
+  // A skirt triangle takes the colour of the grid half just inside its
+  // node, beside the triangle's middle.
+  const auto skirtColour = [&](const std::uint32_t* k, const Facing& f) {
+    const auto& a = level.vertices[k[0]];
+    const auto& b = level.vertices[k[1]];
+    const auto& c = level.vertices[k[2]];
+    double x = (a.x + b.x + c.x) / 3.0, z = (a.z + b.z + c.z) / 3.0;
+    const double dx = f.cx - x, dz = f.cz - z, len = std::hypot(dx, dz);
+    const double step = 0.25 * level.spacing;
+    if (len > 0) {
+      x += step * dx / len;
+      z += step * dz / len;
+    }
+    if (nx == 0 || nz == 0 || !(level.spacing > 0)) return packColour({}, SurfaceKind::tint);
+    const double u = x / level.spacing, v = z / level.spacing;
+    const auto sx = std::uint32_t(std::clamp(std::floor(u), 0.0, double(nx - 1)));
+    const auto sz = std::uint32_t(std::clamp(std::floor(v), 0.0, double(nz - 1)));
+    const bool lower = (u - sx) + (v - sz) > 1.0;
+    const std::size_t k2 = 2 * (std::size_t(sz) * nx + sx) + lower;
+    return sc.area[k2] >= 0 ? sc.colour[k2] : packColour({}, SurfaceKind::tint);
+  };
   const auto emitBlock = [&](std::uint8_t priority) {
     Block b{priority, std::vector<std::uint32_t>(nodes + 1, 0)};
     for (std::size_t n = 0; n < nodes; ++n) {
       b.start[n] = std::uint32_t(builder.indexCount());
       builder.beginNode(std::uint32_t(n));
       for (const module::Group* g : sc.byNode[n]) {
-        builder.triangles(level.indices.data() + g->firstIndex, g->indexCount, colourOf(*g),
-                          g->half == module::Half::skirt, facingOf(*g));
+        const std::uint32_t* idx = level.indices.data() + g->firstIndex;
+        if (g->half != module::Half::skirt) {
+          builder.triangles(idx, g->indexCount, colourOf(*g), false, facingOf(*g));
+          continue;
+        }
+        const Facing f = facingOf(*g);
+        for (std::uint32_t t = 0; t + 2 < g->indexCount; t += 3) {
+          builder.triangles(idx + t, 3, skirtColour(idx + t, f), true, f);
+        }
       }
     }
     b.start[nodes] = std::uint32_t(builder.indexCount());
@@ -667,20 +720,6 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   // leave pinholes, and the lattice beneath fills them. Uncut squares are
   // the lattice already. Posts are found by position (PostMap); a square
   // with a post missing gets no underlay.
-  const std::uint32_t nx = level.squaresX, nz = level.squaresZ;
-  const std::size_t squares = std::size_t(nx) * nz;
-  sc.colour.assign(2 * squares, packColour(fallback.upper, SurfaceKind::colour));
-  sc.seen.assign(2 * squares, 0);
-  sc.skinTriangles.assign(squares, 0);
-  for (const module::Group& g : level.groups) {
-    if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt || g.square >= squares) continue;
-    sc.skinTriangles[g.square] += g.indexCount / 3;
-    const std::size_t k = 2 * std::size_t(g.square) + (g.half == module::Half::lower);
-    if (!sc.seen[k]) {
-      sc.colour[k] = colourOf(g);
-      sc.seen[k] = 1;
-    }
-  }
   sc.squaresByNode.resize(nodes);
   for (auto& v : sc.squaresByNode) v.clear();
   bool anyCut = false;

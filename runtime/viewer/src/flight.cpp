@@ -430,6 +430,11 @@ struct FlightRun {
       s.released = rs.released;
       s.cachedLevels = rs.cachedLevels;
       s.gpuBytes = rs.gpuBytes;
+      s.uploadBytes = rs.uploadBytes;
+      s.uploadsDeferred = rs.uploadsDeferred;
+      s.nodesFallback = rs.nodesFallback;
+      s.draws = rs.draws;
+      s.trianglesDrawn = rs.trianglesDrawn;
       handoff.pushFree(slot);
       if (!drawn) return stop(drawn);
       const auto now = Clock::now();
@@ -524,6 +529,8 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.shading = o.render.shading;
   rs.colour = o.render.colour;
   rs.waterMaterials = o.render.waterMaterials;
+  // Synchronous frames are complete frames: nothing waits for a later one.
+  rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
 }
 

@@ -1,9 +1,13 @@
 #pragma once
 // The viewer's frame rate (`sandtable bench render`): one flight from the
 // database centre, drawn with each terrain configuration in turn (rings,
-// sse, full; the full-resolution mesh too when asked), headless. Reports
-// fps and frame-time percentiles; the first frames (uploads, shader
-// compiles) are left out of the figures and reported apart.
+// sse, full, sse1-20km: 1 px at a 20 km view distance; the full-resolution
+// mesh too when asked), headless. Reports fps, frame-time percentiles,
+// the triangles and draws the GPU was given, and the triangles per second
+// reached against the renderer's own rate on a plain indexed grid,
+// measured in the same run (before and after the flights) through the
+// same program and draw path. The first frames (uploads, shader compiles)
+// are left out of the figures and reported apart.
 //
 // Thread safety: one benchmark at a time per process (it owns the GL
 // context while it flies).
@@ -15,6 +19,7 @@
 
 #include "sandtable/base/result.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/render/renderer.h"
 
 namespace sandtable::bench {
 
@@ -40,25 +45,41 @@ struct RenderBenchOptions {
   std::vector<double> rings;
   /// Also a case with the full-resolution grid mesh.
   bool mesh = false;
+  /// GPU upload bytes per frame (RenderOptions::uploadBudgetBytes); 0: none.
+  std::uint64_t uploadBudgetBytes = runtime::kDefaultUploadBudgetBytes;
+  /// The plain grid: squares a side (nodes of 16 squares), frames timed.
+  std::uint32_t gridSquares = 512;
+  std::uint32_t gridFrames = 20;
 };
 
 /// The figures of one case, over the frames after the warm-up.
 struct RenderCase {
-  std::string name;  ///< "rings", "sse", "full" or "mesh"
+  std::string name;  ///< "rings", "sse", "full", "sse1-20km" or "mesh"
+  double pixelError = 0, viewDistance = 0;     ///< what the case drew with
   double fps = 0, p50 = 0, p99 = 0, mean = 0;  ///< frame ms, except fps
-  double triangles = 0;                        ///< mean per frame
-  double warmupMs = 0;                         ///< the warm-up frames' total
+  double triangles = 0;  ///< mean per frame: what the GPU was given (mesh: the strips')
+  double draws = 0;      ///< mean draw commands per frame (modules)
+  double trianglesPerSecond = 0;  ///< triangles / mean frame time
+  double ofGridRate = 0;          ///< trianglesPerSecond / the plain grid's rate
+  double warmupMs = 0;            ///< the warm-up frames' total
   double maxErrorPx = 0;
+  std::uint64_t uploadsDeferred = 0;  ///< in the measured frames, by the upload budget
   std::uint32_t frames = 0;
 };
 
 struct RenderBenchReport {
   std::string renderer;  ///< the GL renderer's description
+  /// The plain indexed grid, before and after the flights.
+  runtime::IndexedGridRate gridBefore, gridAfter;
+  double gridRate = 0;  ///< mean of the two, triangles per second
   std::vector<RenderCase> cases;
   /// What `sandtable bench render --json` prints: renderer, size ("WxH"),
-  /// frames, warmup_frames, view_distance, pixel_error, cases [{name, fps,
-  /// frame_ms_p50, frame_ms_p99, frame_ms_mean, triangles_mean,
-  /// warmup_ms, max_error_px}].
+  /// frames, warmup_frames, view_distance, pixel_error,
+  /// upload_budget_bytes, grid {triangles, draws, frame_ms_p50_before,
+  /// frame_ms_p50_after, triangles_per_s}, cases [{name, pixel_error,
+  /// view_distance, fps, frame_ms_p50, frame_ms_p99, frame_ms_mean,
+  /// triangles_mean, draws_mean, triangles_per_s, of_grid_rate,
+  /// uploads_deferred, warmup_ms, max_error_px}].
   nlohmann::json json;
 };
 

@@ -115,6 +115,9 @@ struct RenderOptions {
   ColourMode colour = ColourMode::natural;
   /// Grid material indices drawn as water (docs/FORMAT.md 4.7).
   std::vector<std::uint8_t> waterMaterials{1};
+  /// GPU upload bytes per frame (RenderSettings::uploadBudgetBytes); 0: no
+  /// limit. PagerSettings::sync lifts it: every frame is then complete.
+  std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).
@@ -224,6 +227,11 @@ struct FrameStats {
   std::uint64_t pagerPoolBytes = 0;
   std::uint32_t uploads = 0, released = 0, cachedLevels = 0;  ///< GPU (module, level) buffers
   std::uint64_t gpuBytes = 0;
+  std::uint64_t uploadBytes = 0;       ///< uploaded this frame
+  std::uint32_t uploadsDeferred = 0;   ///< levels left to later frames by the upload budget
+  std::uint32_t nodesFallback = 0;     ///< node runs drawn coarser meanwhile
+  std::uint32_t draws = 0;             ///< draw commands (node ranges x blocks)
+  std::uint64_t trianglesDrawn = 0;    ///< triangles the GPU was given
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;
