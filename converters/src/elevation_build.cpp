@@ -398,6 +398,7 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   mo.zstdLevel = o.zstdLevel;
   mo.moduleVersion = o.moduleVersion;
   mo.heightStep = o.heightStep;
+  mo.normals = o.moduleNormals;
   auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, mo, progress);
   if (!r) return r.problems();
   const std::string text = materials::format(c.table);
@@ -429,6 +430,7 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
           {"module_size_m", r.moduleSize},
           {"format_version", r.moduleVersion},
           {"height_step_m", r.heightStep},
+          {"normals", o.moduleNormals && r.moduleVersion == 2},
           {"seconds", r.seconds},
           {"modules_per_second", double(r.modules) / std::max(r.seconds, 1e-9)},
           {"bytes", {{"compressed_total", s.totalCompressed}, {"raw_total", s.totalRaw},

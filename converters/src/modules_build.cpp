@@ -104,7 +104,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
         module::Module m =
             buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
-        if (o.moduleVersion == module::kVersion2) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
+        if (o.moduleVersion == module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
         auto packed = compressModule(m, h, o.zstdLevel, {.version = o.moduleVersion, .heightStep = o.heightStep});

@@ -50,6 +50,7 @@ std::string buildDb(const Scratch& s, const std::string& name, std::uint32_t ver
   o.output = (s.dir / name).string();
   o.spacing = 31.25;
   o.moduleVersion = version;
+  o.moduleNormals = version == 2;  // off by default; the v2 test checks them
   auto r = convert::buildElevation(o, {});
   EXPECT_TRUE(r) << (r ? "" : r.error());
   return o.output;

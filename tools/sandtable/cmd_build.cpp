@@ -188,7 +188,7 @@ void registerBuild(CLI::App& root, Commands& c) {
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--module-version", a->o.moduleVersion,
-                  "Load-module format: 2 (compact: lattice heights, octahedral normals, meshopt streams) or 1 "
+                  "Load-module format: 2 (compact: lattice heights, meshopt streams, optional normals) or 1 "
                   "(the original float planes); docs/FORMAT.md section 9")
       ->default_val(2)
       ->check(CLI::Range(1, 2));
@@ -197,6 +197,9 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "step of the grid's (0 keeps exact float heights)")
       ->default_val(0.01)
       ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--module-normals", a->o.moduleNormals,
+                "Module version 2: also store per-vertex octahedral normals (about 30% more bytes; the "
+                "viewer samples the grid's normals, so it does not need them)");
   sub->add_option("--max-scale-error", a->o.maxScaleError,
                   "Reject a CRS whose scale error over the extent exceeds this fraction")
       ->default_val(0.01);

@@ -22,6 +22,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::modules = false", "--no-modules"},
     {"ElevationOptions::zstdLevel", "--zstd-level"},
     {"ElevationOptions::moduleVersion", "--module-version"},
+    {"ElevationOptions::moduleNormals", "--module-normals"},
     {"ElevationOptions::maxScaleError", "--max-scale-error"},
     {"ElevationOptions::seaFromVoids = false", "--no-sea-from-voids"},
     {"ElevationOptions::force", "--force"},

@@ -67,6 +67,7 @@ struct ElevationOptions {
   int zstdLevel = 9;           ///< module compression level
   std::uint32_t moduleVersion = 2;  ///< load-module format version (1 or 2; ModuleOptions)
   double heightStep = 0.01;    ///< version 2 height step, metres (0: exact; ModuleOptions)
+  bool moduleNormals = false;  ///< version 2: store octahedral normals (ModuleOptions::normals)
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent
   bool force = false;          ///< replace an existing output directory
   /// Voids connected to the grid's edge (through voids and posts at or

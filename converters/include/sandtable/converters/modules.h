@@ -24,6 +24,10 @@ struct ModuleOptions {
   /// Version 2 height quantisation step, metres (0: exact float heights).
   /// Every decoded height is within heightStep / 2 of the built one.
   double heightStep = module::kDefaultHeightStep;
+  /// Version 2: store per-vertex octahedral normals. Off by default because
+  /// they cost about 30% of the pack and the renderer samples the grid's
+  /// normals itself (docs/FORMAT.md §9.7).
+  bool normals = false;
 };
 
 // moduleSquares and nodeSquares (sandtable/meshing/lattice.h), as the
