@@ -229,10 +229,11 @@ Result<std::vector<std::byte>> unpackRecord(const Extent& e, std::uint32_t kx, s
   return raw;
 }
 
-/// Levels a record of `part` holds: v1 every level; v2 coarse
+/// Levels a record of `part` holds: v1 every level (coarse) and none
+/// (fine); v2 coarse
 /// levels - coarseLevel, fine coarseLevel.
 std::uint32_t partLevels(const IndexHeader& h, Part part) {
-  if (h.version < kVersion2) return h.levels;
+  if (h.version < kVersion2) return part == Part::fine ? 0 : h.levels;
   return part == Part::fine ? h.coarseLevel : h.levels - h.coarseLevel;
 }
 
@@ -306,7 +307,8 @@ int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
                          (size < h->packBytes ? ": truncated" : ": trailing bytes") +
                          "; rebuild the database"});
     }
-    const auto version = loadLE<std::uint32_t>(head.data() + packField::version);
+    // headerOk: the header is 64 bytes, so its version can be read.
+    const std::uint32_t version = headerOk ? loadLE<std::uint32_t>(head.data() + packField::version) : 0;
     if (headerOk && version != h->version) {
       out.add({packPath, packField::version,
                "pack: version " + str(version) + " differs from the index's version " + str(h->version) +
@@ -817,7 +819,7 @@ Status PackWriter::append(Record r) {
   }
   // v2: spill both records; until finish() the offsets are in the spill file.
   e.offset = s.spillEnd;
-  e.fine.offset = s.spillEnd + r.bytes.size();
+  e.fine.offset = r.fineBytes.empty() ? 0 : s.spillEnd + r.bytes.size();  // no fine record: all zero
   for (const auto* bytes : {&r.bytes, &r.fineBytes}) {
     if (const Status w = pwriteAll(s.spillFd, bytes->data(), bytes->size(), s.spillEnd); !w) {
       s.failed = fail("pack writer: cannot write " + s.spillTmp + ": " + w.message() + " (is the disk full?)");
