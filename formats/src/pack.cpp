@@ -142,23 +142,25 @@ std::uint64_t fieldAt(const IndexHeader& h, std::uint32_t kx, std::uint32_t kz, 
 Status checkExtent(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part,
                    const std::string& indexPath) {
   const bool fine = part == Part::fine;
-  const std::string name = partName(kx, kz, part);
+  // Built only for a problem: a fine name does not fit the small-string
+  // buffer, and a sound read must not allocate.
+  auto name = [&] { return partName(kx, kz, part); };
   const std::size_t sizeField = fine ? entryFieldV2::fineCompressedBytes : entryField::compressedBytes;
   const std::size_t offsetField = fine ? entryFieldV2::fineOffset : entryField::offset;
   if (x.compressedBytes == 0) {
     return Problem{indexPath, fieldAt(h, kx, kz, sizeField),
                    fine ? "pack index: " + moduleName(kx, kz) + " has a coarse record but no fine record (coarse level " +
                               str(h.coarseLevel) + " needs one)"
-                        : "pack index: " + name + " is missing (its entry has no record)"};
+                        : "pack index: " + name() + " is missing (its entry has no record)"};
   }
   if (x.compressedBytes > kMaxModuleBytes || x.rawBytes == 0 || x.rawBytes > kMaxModuleBytes) {
     return Problem{indexPath, fieldAt(h, kx, kz, sizeField),
-                   "pack index: " + name + " sizes (" + str(x.compressedBytes) + " compressed, " +
+                   "pack index: " + name() + " sizes (" + str(x.compressedBytes) + " compressed, " +
                        str(x.rawBytes) + " raw) are out of range (1 to " + str(kMaxModuleBytes) + " bytes)"};
   }
   if (x.offset < kPackHeaderBytes || x.offset > h.packBytes || x.compressedBytes > h.packBytes - x.offset) {
     return Problem{indexPath, fieldAt(h, kx, kz, offsetField),
-                   "pack index: " + name + " record at bytes " + str(x.offset) + ".." +
+                   "pack index: " + name() + " record at bytes " + str(x.offset) + ".." +
                        str(x.offset + x.compressedBytes - 1) + " is not within the records of modules.pack (bytes " +
                        str(kPackHeaderBytes) + ".." + str(h.packBytes - 1) + ")"};
   }
@@ -229,10 +231,11 @@ Result<std::vector<std::byte>> unpackRecord(const Extent& e, std::uint32_t kx, s
   return raw;
 }
 
-/// Levels a record of `part` holds: v1 every level; v2 coarse
+/// Levels a record of `part` holds: v1 every level (coarse) and none
+/// (fine); v2 coarse
 /// levels - coarseLevel, fine coarseLevel.
 std::uint32_t partLevels(const IndexHeader& h, Part part) {
-  if (h.version < kVersion2) return h.levels;
+  if (h.version < kVersion2) return part == Part::fine ? 0 : h.levels;
   return part == Part::fine ? h.coarseLevel : h.levels - h.coarseLevel;
 }
 
@@ -306,7 +309,8 @@ int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
                          (size < h->packBytes ? ": truncated" : ": trailing bytes") +
                          "; rebuild the database"});
     }
-    const auto version = loadLE<std::uint32_t>(head.data() + packField::version);
+    // headerOk: the header is 64 bytes, so its version can be read.
+    const std::uint32_t version = headerOk ? loadLE<std::uint32_t>(head.data() + packField::version) : 0;
     if (headerOk && version != h->version) {
       out.add({packPath, packField::version,
                "pack: version " + str(version) + " differs from the index's version " + str(h->version) +
@@ -817,7 +821,7 @@ Status PackWriter::append(Record r) {
   }
   // v2: spill both records; until finish() the offsets are in the spill file.
   e.offset = s.spillEnd;
-  e.fine.offset = s.spillEnd + r.bytes.size();
+  e.fine.offset = r.fineBytes.empty() ? 0 : s.spillEnd + r.bytes.size();  // no fine record: all zero
   for (const auto* bytes : {&r.bytes, &r.fineBytes}) {
     if (const Status w = pwriteAll(s.spillFd, bytes->data(), bytes->size(), s.spillEnd); !w) {
       s.failed = fail("pack writer: cannot write " + s.spillTmp + ": " + w.message() + " (is the disk full?)");
@@ -1060,10 +1064,13 @@ Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, 
 /// levels only), reusing per-thread buffers and out's capacity.
 Status readPartInto(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part, int fd,
                     const std::string& packPath, module::Module& out) {
-  const std::string name = partName(kx, kz, part);
   thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
   record.resize(x.compressedBytes);
-  auto fail = [&](const std::string& msg) { return Status(Problem{packPath, x.offset, "pack: " + name + msg}); };
+  // The name only on failure: "fine module (kx,kz)" is too long for the
+  // small-string buffer, and a sound read must not allocate.
+  auto fail = [&](const std::string& msg) {
+    return Status(Problem{packPath, x.offset, "pack: " + partName(kx, kz, part) + msg});
+  };
   if (const Status read = preadAll(fd, record.data(), record.size(), x.offset); !read) {
     return fail(": cannot read the record: " + read.message());
   }

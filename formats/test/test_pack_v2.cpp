@@ -303,6 +303,7 @@ TEST(PackV2, rowMajorOrderAndCoarseLevelZero) {
   }
   EXPECT_EQ(r.value()->entry(0, 0).fine.offset, at);
   fs::remove_all(dir);
+  fs::create_directories(dir);
 
   // Coarse level 0: the coarse record is the whole module, no fine record.
   writePack(dir, h, PackLayout{kVersion2, 0, PackOrder::morton});
@@ -416,7 +417,7 @@ TEST(PackV2, hostileFieldsGiveTheirMessages) {
        "pack index: fine module (1,0) sizes", false},
       {"fine beyond", e10 + entryFieldV2::fineOffset, packBytes, 8, e10 + entryFieldV2::fineOffset,
        "pack index: fine module (1,0) record at bytes " + std::to_string(packBytes), false},
-      {"fine over coarse", e10 + entryFieldV2::fineOffset, first.offset, 8, e10 + entryFieldV2::fineOffset,
+      {"fine over coarse", e10 + entryFieldV2::fineOffset, first.offset, 8, e10,  // overlaps: at the entry
        "overlaps the record of", false},
       {"kx", e10 + entryFieldV2::kx, 0, 4, e10 + entryFieldV2::kx, "pack index: the entry of module (1,0) names module (0,0)",
        false},

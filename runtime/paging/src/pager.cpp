@@ -588,6 +588,7 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
   const double e = im.geometry.moduleSize;
   std::optional<Pending> best;
   double bestD = 0;
+  bool bestFine = false;
   std::size_t bestI = 0;
   for (std::size_t i = 0; i < ld.pending.size();) {
     const ModuleKey k = unpackKey(ld.pending[i].key);
@@ -599,12 +600,14 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
       continue;
     }
     const double dx = (k.kx + 0.5) * e - ws.eyeX, dz = (k.kz + 0.5) * e - ws.eyeZ;
-    // Coarse-first: every coarse load before any fine one (a fine job sorts
-    // beyond any distance in the window).
-    const double d = dx * dx + dz * dz + (ld.pending[i].fine ? 1e30 : 0.0);
-    if (!best || d < bestD) {
+    // Coarse-first: every coarse load before any fine one, each kind
+    // nearest first.
+    const double d = dx * dx + dz * dz;
+    const bool fine = ld.pending[i].fine != 0;
+    if (!best || fine < bestFine || (fine == bestFine && d < bestD)) {
       best = ld.pending[i];
       bestD = d;
+      bestFine = fine;
       bestI = i;
     }
     ++i;

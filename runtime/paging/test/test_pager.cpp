@@ -758,7 +758,6 @@ void expectNoSteadyStateAllocations(const pack::PackLayout& layout) {
   // (PackReader::readInto), whose capacity the warm-up flight grew.
   EXPECT_EQ(gAllocations.load() - global0, 0u) << "allocations on any thread over " << loads << " loads";
 }
-}
 
 TEST(Pager, nothingIsAllocatedInSteadyState) { expectNoSteadyStateAllocations({}); }
 

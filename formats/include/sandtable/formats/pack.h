@@ -110,7 +110,7 @@ inline constexpr std::uint32_t kPackOrderCount = 2;
 
 /// Index header fields (decoded).
 struct IndexHeader {
-  std::uint32_t version = kVersion;
+  std::uint32_t version = kVersion1;  ///< PackWriter sets it from its PackLayout
   std::uint32_t modulesX = 0;       ///< 1..65536
   std::uint32_t modulesZ = 0;       ///< 1..65536
   std::uint32_t levels = 0;         ///< levels in every module, 1..16
