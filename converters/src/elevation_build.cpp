@@ -430,7 +430,7 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
           {"module_size_m", r.moduleSize},
           {"format_version", r.moduleVersion},
           {"height_step_m", r.heightStep},
-          {"normals", o.moduleNormals && r.moduleVersion == 2},
+          {"normals", r.normals},
           {"seconds", r.seconds},
           {"modules_per_second", double(r.modules) / std::max(r.seconds, 1e-9)},
           {"bytes", {{"compressed_total", s.totalCompressed}, {"raw_total", s.totalRaw},

@@ -154,6 +154,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   r.moduleVersion = o.moduleVersion;
   r.heightStep = o.moduleVersion == module::kVersion2 ? o.heightStep : 0.0;
+  r.normals = o.moduleVersion == module::kVersion2 && o.normals;
   return r;
 }
 

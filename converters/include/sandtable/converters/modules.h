@@ -68,6 +68,7 @@ struct ModuleReport {
   std::uint32_t packCrc = 0, indexCrc = 0;
   std::uint32_t moduleVersion = 0;  ///< as written (ModuleOptions)
   double heightStep = 0;
+  bool normals = false;  ///< version 2 levels carry octahedral normals
   StageSeconds stages;
 };
 
