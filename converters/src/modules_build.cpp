@@ -74,7 +74,9 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   h.moduleSize = r.moduleSize;
   // Pack v2: a coarse and a fine record per module, coarse records first,
   // in Morton order, so the pager reads coarse versions in small runs.
-  auto writer = pack::PackWriter::create(directory, h, o.zstdLevel, pack::PackLayout::split(h.levels));
+  pack::PackLayout layout = pack::PackLayout::split(h.levels);
+  layout.encode = {.version = o.moduleVersion, .heightStep = o.heightStep};
+  auto writer = pack::PackWriter::create(directory, h, o.zstdLevel, layout);
   if (!writer) return writer.problems();
 
   // Modules are built and compressed on every worker and appended in
@@ -107,7 +109,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         if (o.moduleVersion == module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
-        auto packed = compressModule(m, h, o.zstdLevel, {.version = o.moduleVersion, .heightStep = o.heightStep});
+        auto packed = writer.value()->compress(m);
         b.stages.compress = threadCpuSeconds() - tc;
         if (packed) b.record = std::move(packed.value());
         else b.error = packed.problems().front().message;

@@ -69,47 +69,6 @@ void fillNormals(const grid::GridFile& g, std::uint32_t squares, module::Module&
   }
 }
 
-Result<pack::PackWriter::Record> compressModule(const module::Module& m, const pack::IndexHeader& h, int zstdLevel,
-                                                const module::EncodeOptions& encode) {
-  const std::string name = "pack writer: module (" + std::to_string(m.kx) + "," + std::to_string(m.kz) + ")";
-  auto fail = [](const std::string& msg) { return Problem{"", 0, msg}; };
-  if (m.kx >= h.modulesX || m.kz >= h.modulesZ) {
-    return fail(name + " is outside the pack's " + std::to_string(h.modulesX) + " x " + std::to_string(h.modulesZ) +
-                " modules");
-  }
-  if (m.levels.size() != h.levels) {
-    return fail(name + " has " + std::to_string(m.levels.size()) + " levels, the pack holds " +
-                std::to_string(h.levels));
-  }
-  if (encode.version != module::kVersion && encode.version != module::kVersion2) {
-    return fail(name + ": module version " + std::to_string(encode.version) + " is not 1 or 2");
-  }
-  if (const Status e = module::checkEncodable(m); !e) return fail(name + ": " + e.message());
-  // Version 1's exact size bounds version 2's for every built module.
-  if (const std::uint64_t n = module::encodedBytes(m); n > pack::kMaxModuleBytes) {
-    return fail(name + " encodes to " + std::to_string(n) + " bytes, more than the " +
-                std::to_string(pack::kMaxModuleBytes) + " allowed");
-  }
-  const std::vector<std::byte> raw = module::encode(m, encode);
-  if (raw.size() > pack::kMaxModuleBytes) return fail(name + " encodes to more than the allowed size");
-  if (auto back = module::decode(raw, "encoded module"); !back) {
-    const Problem& p = back.problems().front();
-    return fail(name + " is malformed: " + p.message + " (byte " + std::to_string(p.offset) + " of its encoding)");
-  }
-  pack::PackWriter::Record r;
-  r.bytes = pack::compress(raw, zstdLevel);
-  if (r.bytes.empty()) return fail(name + ": zstd compression failed (out of memory?)");
-  if (r.bytes.size() > pack::kMaxModuleBytes) return fail(name + " compresses to more than the allowed size");
-  pack::Entry& e = r.entry;
-  e.compressedBytes = std::uint32_t(r.bytes.size());
-  e.rawBytes = std::uint32_t(raw.size());
-  e.compressedCrc = crc32(r.bytes);
-  e.rawCrc = crc32(raw);
-  e.kx = m.kx;
-  e.kz = m.kz;
-  return r;
-}
-
 // ---------------------------------------------------------------- upgrade
 
 namespace {
@@ -186,17 +145,19 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
     if (f.path == pack::kPackFileName || f.path == pack::kIndexFileName) continue;
     if (Status st = linkOrCopy(base.string() + "/" + f.path, staging.path() + "/" + f.path); !st) return st.problems();
   }
-  auto writer = pack::PackWriter::create(staging.path(), header, o.zstdLevel);
+  // The upgraded pack is version 2 as well: coarse records first (docs/FORMAT.md §10).
+  pack::PackLayout layout = pack::PackLayout::split(header.levels);
+  layout.encode = {.version = module::kVersion2, .heightStep = o.heightStep};
+  auto writer = pack::PackWriter::create(staging.path(), header, o.zstdLevel, layout);
   if (!writer) return writer.problems();
-  const module::EncodeOptions encode{.version = module::kVersion2, .heightStep = o.heightStep};
   module::Module m;
   std::uint64_t done = 0;
-  // Row-major, as the build appends: the upgraded pack keeps the order.
+  // Row-major reads; the writer puts the records in the layout's order.
   for (std::uint32_t kz = 0; kz < header.modulesZ; ++kz) {
     for (std::uint32_t kx = 0; kx < header.modulesX; ++kx) {
       if (cancelRequested()) return Problem{dir, 0, "upgrade: cancelled; the database is unchanged"};
       if (Status st = in.readInto(kx, kz, m); !st) return st.problems();
-      auto rec = compressModule(m, header, o.zstdLevel, encode);
+      auto rec = writer.value()->compress(m);
       if (!rec) return Problem{dir, 0, "upgrade: " + rec.problems().front().message};
       if (Status st = writer.value()->append(std::move(rec.value())); !st) {
         return Problem{dir, 0, "upgrade: " + st.message()};

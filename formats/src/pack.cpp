@@ -680,6 +680,9 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
                 " for " + str(header.levels) + " levels)");
   }
   if (static_cast<std::uint32_t>(layout.order) >= kPackOrderCount) return fail("unknown record order");
+  if (layout.encode.version != module::kVersion && layout.encode.version != module::kVersion2) {
+    return fail("module version " + str(layout.encode.version) + " is not 1 or 2");
+  }
   auto s = std::make_unique<State>();
   s->directory = directory;
   s->layout = layout;
@@ -720,13 +723,13 @@ namespace {
 
 /// Checks, encodes and compresses one record's module (the whole module,
 /// or the levels of one v2 part); fills the extent's sizes and CRCs.
-std::string compressPart(const module::Module& m, int level, const std::string& name, std::vector<std::byte>& out,
-                         Extent& x) {
+std::string compressPart(const module::Module& m, int level, const module::EncodeOptions& encode,
+                         const std::string& name, std::vector<std::byte>& out, Extent& x) {
   if (const Status e = module::checkEncodable(m); !e) return name + ": " + e.message();
   if (const std::uint64_t n = module::encodedBytes(m); n > kMaxModuleBytes) {
     return name + " encodes to " + str(n) + " bytes, more than the " + str(kMaxModuleBytes) + " allowed";
   }
-  const std::vector<std::byte> raw = module::encode(m);
+  const std::vector<std::byte> raw = module::encode(m, encode);
   // Decoding our own encoding checks everything checkEncodable leaves out
   // (index ranges, group order, squares), so a pack never holds a module
   // that its reader would refuse.
@@ -765,7 +768,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   e.kz = m.kz;
   if (s.header.version < kVersion2) {
     Extent x;
-    if (std::string bad = compressPart(m, s.level, name, r.bytes, x); !bad.empty()) return fail(bad);
+    if (std::string bad = compressPart(m, s.level, s.layout.encode, name, r.bytes, x); !bad.empty()) return fail(bad);
     e.compressedBytes = x.compressedBytes;
     e.rawBytes = x.rawBytes;
     e.compressedCrc = x.compressedCrc;
@@ -777,7 +780,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   const auto split = m.levels.begin() + std::ptrdiff_t(s.header.coarseLevel);
   const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end())};
   Extent c;
-  if (std::string bad = compressPart(coarse, s.level, name + " (coarse record)", r.bytes, c); !bad.empty()) {
+  if (std::string bad = compressPart(coarse, s.level, s.layout.encode, name + " (coarse record)", r.bytes, c); !bad.empty()) {
     return fail(bad);
   }
   e.compressedBytes = c.compressedBytes;
@@ -786,7 +789,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   e.rawCrc = c.rawCrc;
   if (s.header.coarseLevel > 0) {
     const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split)};
-    if (std::string bad = compressPart(fine, s.level, name + " (fine record)", r.fineBytes, e.fine); !bad.empty()) {
+    if (std::string bad = compressPart(fine, s.level, s.layout.encode, name + " (fine record)", r.fineBytes, e.fine); !bad.empty()) {
       return fail(bad);
     }
   }

@@ -195,7 +195,7 @@ void registerBuild(CLI::App& root, Commands& c) {
   sub->add_option("--height-step", a->o.heightStep,
                   "Module version 2 height quantisation step in metres; every module height is within half a "
                   "step of the grid's (0 keeps exact float heights)")
-      ->default_val(0.01)
+      ->default_val(0.0)
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--module-normals", a->o.moduleNormals,
                 "Module version 2: also store per-vertex octahedral normals (about 30% more bytes; the "

@@ -58,7 +58,7 @@ void registerUpgrade(CLI::App& root, Commands& c) {
   sub->add_option("--height-step", a->o.heightStep,
                   "Height quantisation step in metres; every module height stays within half a step "
                   "(0 keeps exact float heights)")
-      ->default_val(0.01)
+      ->default_val(0.0)
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")
       ->default_val(9)

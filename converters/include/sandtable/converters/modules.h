@@ -23,7 +23,7 @@ struct ModuleOptions {
   std::uint32_t moduleVersion = module::kVersion2;
   /// Version 2 height quantisation step, metres (0: exact float heights).
   /// Every decoded height is within heightStep / 2 of the built one.
-  double heightStep = module::kDefaultHeightStep;
+  double heightStep = kBuildHeightStep;
   /// Version 2: store per-vertex octahedral normals. Off by default because
   /// they cost about 30% of the pack and the renderer samples the grid's
   /// normals itself (docs/FORMAT.md §9.7).
@@ -92,15 +92,8 @@ module::Module buildModule(const grid::GridFile& grid, const Culture& culture,
 inline constexpr int kNormalBits = 10;
 void fillNormals(const grid::GridFile& grid, std::uint32_t squares, module::Module& m);
 
-/// PackWriter::compress with a chosen encoding (`encode`): the same checks
-/// (kx, kz within the pack, level count, checkEncodable, size, the encoding
-/// decodes), then zstd at `zstdLevel`. Any thread; pass the record to
-/// PackWriter::append. Problems name no file; messages start "pack writer: ".
-Result<pack::PackWriter::Record> compressModule(const module::Module& m, const pack::IndexHeader& header,
-                                                int zstdLevel, const module::EncodeOptions& encode);
-
 struct UpgradeOptions {
-  double heightStep = module::kDefaultHeightStep;  ///< as ModuleOptions::heightStep
+  double heightStep = kBuildHeightStep;  ///< as ModuleOptions::heightStep
   int zstdLevel = 9;
 };
 

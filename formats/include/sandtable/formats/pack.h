@@ -202,11 +202,14 @@ struct PackLayout {
   /// v2: levels >= coarseLevel go in the coarse record (< levels).
   std::uint32_t coarseLevel = 0;
   PackOrder order = PackOrder::rowMajor;  ///< v2 only
+  /// How every record's module is encoded (docs/FORMAT.md §9, §9.7): the
+  /// module version and height step, independent of the pack version.
+  module::EncodeOptions encode = {};
   /// Version 2 with the documented default split: levels >= levels / 2 in
   /// the coarse record (levels 2 and 3 of 4: 1/16 + 1/64 of the level-0
   /// lattice), records in Morton order.
   static PackLayout split(std::uint32_t levels, PackOrder order = PackOrder::morton) {
-    return {kVersion2, levels / 2, order};
+    return {kVersion2, levels / 2, order, {}};
   }
 };
 
