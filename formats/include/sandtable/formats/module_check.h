@@ -3,7 +3,8 @@
 // from (docs/VALIDATE.md): every skin and decal triangle lies in
 // its grid triangle and in that triangle's plane, the skin tiles each grid
 // triangle exactly, lattice vertices carry the grid's elevations bit for
-// bit, skirts hang along every module edge at least as deep as the worst
+// bit (within heightStep / 2 on a version 2 level with quantised heights),
+// skirts hang along every module edge at least as deep as the worst
 // crack between levels, maxHeight is the highest vertex of its square, and
 // neighbouring modules share their edge vertices at every level.
 //
