@@ -128,9 +128,9 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   if (o.zstdLevel < 1 || o.zstdLevel > 22) {
     return Problem{"ElevationOptions::zstdLevel", 0, "build: ElevationOptions::zstdLevel must be 1..22"};
   }
-  if ((o.moduleVersion != 1 && o.moduleVersion != 2) || !(std::isfinite(o.heightStep) && o.heightStep >= 0)) {
+  if (o.moduleVersion < 1 || o.moduleVersion > module::kNewestVersion || !(std::isfinite(o.heightStep) && o.heightStep >= 0)) {
     return Problem{"ElevationOptions::moduleVersion", 0,
-                   "build: ElevationOptions::moduleVersion must be 1 or 2 and ElevationOptions::heightStep a "
+                   "build: ElevationOptions::moduleVersion must be 1, 2 or 3 and ElevationOptions::heightStep a "
                    "finite number >= 0"};
   }
   // OGR would say only that it cannot open a missing file; GDAL's virtual

@@ -106,7 +106,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
         module::Module m =
             buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
-        if (o.moduleVersion == module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
+        if (o.moduleVersion >= module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
         auto packed = writer.value()->compress(m);
@@ -155,8 +155,8 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   r.indexCrc = writer.value()->indexCrc();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   r.moduleVersion = o.moduleVersion;
-  r.heightStep = o.moduleVersion == module::kVersion2 ? o.heightStep : 0.0;
-  r.normals = o.moduleVersion == module::kVersion2 && o.normals;
+  r.heightStep = o.moduleVersion >= module::kVersion2 ? o.heightStep : 0.0;
+  r.normals = o.moduleVersion >= module::kVersion2 && o.normals;
   return r;
 }
 

@@ -124,12 +124,12 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
     auto first = in.readRaw(0, 0);
     if (!first) return first.problems();
     report.fromVersion = module::encodedVersion(first.value());
-    if (report.fromVersion == module::kVersion2) {
+    if (report.fromVersion == module::kNewestVersion) {
       report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      return report;  // already version 2: nothing to do
+      return report;  // already the newest version: nothing to do
     }
-    if (report.fromVersion != module::kVersion) {
-      return Problem{in.packPath(), 0, "upgrade: module (0,0) is not a version 1 or 2 load module"};
+    if (report.fromVersion != module::kVersion && report.fromVersion != module::kVersion2) {
+      return Problem{in.packPath(), 0, "upgrade: module (0,0) is not a version 1, 2 or 3 load module"};
     }
   }
   const fs::path target = fs::absolute(dir).lexically_normal();
@@ -147,7 +147,7 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
   }
   // The upgraded pack is version 2 as well: coarse records first (docs/FORMAT.md §10).
   pack::PackLayout layout = pack::PackLayout::split(header.levels);
-  layout.encode = {.version = module::kVersion2, .heightStep = o.heightStep};
+  layout.encode = {.version = module::kNewestVersion, .heightStep = o.heightStep};
   auto writer = pack::PackWriter::create(staging.path(), header, o.zstdLevel, layout);
   if (!writer) return writer.problems();
   module::Module m;
@@ -177,7 +177,7 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
     }
   }
   if (out.build.contains("modules") && out.build["modules"].is_object()) {
-    out.build["modules"]["format_version"] = module::kVersion2;
+    out.build["modules"]["format_version"] = module::kNewestVersion;
     out.build["modules"]["height_step_m"] = o.heightStep;
     out.build["modules"]["upgraded_from_version"] = report.fromVersion;
   }

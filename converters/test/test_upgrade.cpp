@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <vector>
 
@@ -97,10 +98,10 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   }
   auto man = manifest::readFromDirectory(db);
   ASSERT_TRUE(man);
-  EXPECT_EQ(man->build["modules"]["format_version"], 2);
+  EXPECT_EQ(man->build["modules"]["format_version"], 3);
 
   const auto after = readAll(db, version);
-  EXPECT_EQ(version, 2u);
+  EXPECT_EQ(version, 3u);
   ASSERT_EQ(after.size(), before.size());
   const double tol = 0.5 * module::kDefaultHeightStep + 1e-4;
   for (std::size_t k = 0; k < before.size(); ++k) {
@@ -131,11 +132,11 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   auto again = convert::upgradeDatabase(db, {}, {});
   ASSERT_TRUE(again) << again.error();
   EXPECT_FALSE(again->upgraded);
-  EXPECT_EQ(again->fromVersion, 2u);
+  EXPECT_EQ(again->fromVersion, 3u);
   EXPECT_EQ(fs::last_write_time(fs::path(db) / pack::kPackFileName), packTime);
 }
 
-TEST(Upgrade, BuiltVersion2DatabaseValidatesAndCarriesNormals) {
+TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion3) {
   Scratch s("v2");
   const std::string db = buildDb(s, "db", 2);
   const Status valid = convert::validateDatabaseWithCrs(db);
@@ -151,6 +152,28 @@ TEST(Upgrade, BuiltVersion2DatabaseValidatesAndCarriesNormals) {
         const auto d = module::octDecode(n);
         EXPECT_GT(d[1], 0.0f);  // grid normals point up
       }
+    }
+  }
+  // Version 2 upgrades to version 3 losslessly (exact heights): the same
+  // modules, normals included, and it still validates.
+  auto r = convert::upgradeDatabase(db, {}, {});
+  ASSERT_TRUE(r) << r.error();
+  EXPECT_TRUE(r->upgraded);
+  EXPECT_EQ(r->fromVersion, 2u);
+  EXPECT_LT(r->packBytesAfter, r->packBytesBefore);
+  const Status upgraded = convert::validateDatabaseWithCrs(db);
+  EXPECT_TRUE(upgraded.ok()) << upgraded.message();
+  const auto after = readAll(db, version);
+  EXPECT_EQ(version, 3u);
+  ASSERT_EQ(after.size(), mods.size());
+  for (std::size_t k = 0; k < mods.size(); ++k) {
+    for (std::size_t l = 0; l < mods[k].levels.size(); ++l) {
+      const auto& a = mods[k].levels[l];
+      const auto& b = after[k].levels[l];
+      ASSERT_EQ(a.vertices.size(), b.vertices.size());
+      EXPECT_EQ(std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(module::Vertex)), 0);
+      EXPECT_EQ(a.normals, b.normals);
+      EXPECT_EQ(a.indices, b.indices);
     }
   }
 }

@@ -147,7 +147,7 @@ std::vector<std::byte> encodeV1(const Module& m) {
 
 std::vector<std::byte> encode(const Module& m, const EncodeOptions& options) {
   assert(checkEncodable(m).ok());
-  return options.version == kVersion ? encodeV1(m) : detail::encodeV2(m, options.heightStep);
+  return options.version == kVersion ? encodeV1(m) : detail::encodeV2(m, options.heightStep, options.version);
 }
 
 std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
@@ -155,6 +155,7 @@ std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
   const auto version = loadLE<std::uint32_t>(bytes.data() + field::version);
   if (version == kVersion && std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) == 0) return version;
   if (version == kVersion2 && std::memcmp(bytes.data(), kMagic2.data(), kMagic2.size()) == 0) return version;
+  if (version == kVersion3 && std::memcmp(bytes.data(), kMagic3.data(), kMagic3.size()) == 0) return version;
   return 0;
 }
 
@@ -348,14 +349,14 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
   const std::byte* h = bytes.data();
   // "SANDMOD" then the version's digit; the version field must agree.
   if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size() - 1) != 0 ||
-      (h[7] != std::byte{'1'} && h[7] != std::byte{'2'})) {
+      (h[7] != std::byte{'1'} && h[7] != std::byte{'2'} && h[7] != std::byte{'3'})) {
     return fail(field::magic,
-                "bad magic: not a sandtable load module (expected \"SANDMOD1\" or \"SANDMOD2\")");
+                "bad magic: not a sandtable load module (expected \"SANDMOD1\", \"SANDMOD2\" or \"SANDMOD3\")");
   }
   const auto version = loadLE<std::uint32_t>(h + field::version);
-  if (version != kVersion && version != kVersion2) {
+  if (version != kVersion && version != kVersion2 && version != kVersion3) {
     return fail(field::version, "version " + str(version) +
-                                    " is not supported (this reader knows versions 1 and 2)");
+                                    " is not supported (this reader knows versions 1, 2 and 3)");
   }
   if (std::uint32_t(h[7]) - '0' != version) {
     return fail(field::version, "version " + str(version) + " does not match the magic's \"SANDMOD" +
@@ -403,7 +404,7 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
       if (Status level = levels.decode(li, pos, l); !level) return level;
       l.normals.clear();  // version 1 has none
       l.heightStep = 0;
-    } else if (Status level = detail::decodeLevelV2(bytes, file, baseOffset, li, pos, l); !level) {
+    } else if (Status level = detail::decodeLevelV2(bytes, file, baseOffset, li, pos, l, version); !level) {
       return level;
     }
   }

@@ -80,10 +80,10 @@ inline std::uint64_t groupKey(std::uint8_t priority, std::uint32_t square, std::
          material;
 }
 
-/// Version 2 codec (module_v2.cpp): the whole module, and one level at `pos`
-/// (advanced past it). Problems as decode's.
-std::vector<std::byte> encodeV2(const Module& m, double heightStep);
+/// Version 2 and 3 codec (module_v2.cpp): the whole module, and one level
+/// at `pos` (advanced past it). Problems as decode's.
+std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_t version);
 Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
-                     std::size_t li, std::size_t& pos, Level& l);
+                     std::size_t li, std::size_t& pos, Level& l, std::uint32_t version);
 
 }  // namespace sandtable::module::detail

@@ -132,10 +132,10 @@ constexpr std::size_t kXZExponentField = 90;
 /// at the module's largest coordinate, so e is about -14 at 1 km); else
 /// kXZFloatBits. Lossless either way; integers delta-code far better than
 /// float bits in meshopt's vertex codec.
-std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from) {
+std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from, std::size_t to) {
   int e = 1000;
   double hi = 0;
-  for (std::size_t i = from; i < v.size(); ++i) {
+  for (std::size_t i = from; i < to; ++i) {
     for (const float c : {v[i].x, v[i].z}) {
       if (!std::isfinite(c) || (c == 0.0f && std::signbit(c))) return kXZFloatBits;
       if (c == 0.0f) continue;
@@ -193,6 +193,98 @@ bool findSkinOffset(std::uint32_t n, Coord coord, Tex tex, double& offset) {
   return false;
 }
 
+// ------------------------------------------------------- version 3 rules
+
+/// Skirt vertices, indices and groups that implicit skirts add to a level of
+/// sx x sz squares with nodes of `node` squares (meshing::addSkirts).
+struct SkirtCounts {
+  std::uint64_t vertices = 0, indices = 0, groups = 0;
+};
+
+SkirtCounts skirtCounts(std::uint64_t sx, std::uint64_t sz, std::uint64_t node) {
+  const std::uint64_t nx = (sx + node - 1) / node, nz = (sz + node - 1) / node;
+  return {2 * nz * (sx + nx) + 2 * nx * (sz + nz), 12 * (nz * sx + nx * sz), nx * nz};
+}
+
+/// The skirts meshing::addSkirts hangs below a lattice whose posts are
+/// vertices 0 .. (sx+1)(sz+1)-1 of `v`: bottom vertices written from
+/// v[base], and per node (row-major) its group square and 12 * side
+/// squares indices. The order is the builder's, so that an encoder can
+/// compare bit for bit and a decoder rebuild the same level.
+struct SkirtSink {
+  Vertex* vertices;                   ///< room for SkirtCounts::vertices
+  std::uint32_t* normals;             ///< null, or per vertex like `vertices`
+  std::uint32_t* indices;             ///< room for SkirtCounts::indices
+  std::uint32_t* squares;             ///< room for SkirtCounts::groups
+  std::uint32_t* counts;              ///< index count per group
+};
+
+void makeSkirts(const Vertex* v, const std::uint32_t* normals, std::uint32_t sx, std::uint32_t sz,
+                std::uint32_t node, float depth, std::uint32_t base, SkirtSink out) {
+  const std::size_t w = std::size_t(sx) + 1;
+  std::uint32_t next = base;
+  std::size_t vi = 0, ii = 0, gi = 0;
+  const auto side = [&](std::size_t a0, std::size_t b0, std::size_t a1, std::size_t b1) {
+    const std::size_t n = std::max(a1 - a0, b1 - b0);
+    const std::uint32_t first = next;
+    for (std::size_t k = 0; k <= n; ++k) {
+      const std::size_t top = (b0 == b1 ? b0 : b0 + k) * w + (a0 == a1 ? a0 : a0 + k);
+      Vertex b = v[top];
+      b.y -= depth;
+      b.s = b.t = 0;
+      out.vertices[vi] = b;
+      if (out.normals) out.normals[vi] = normals[top];
+      ++vi, ++next;
+      if (k == 0) continue;
+      const auto a = std::uint32_t(top - (b0 == b1 ? 1 : w)), c = std::uint32_t(top);
+      const std::uint32_t ab = first + std::uint32_t(k) - 1, cb = first + std::uint32_t(k);
+      const std::uint32_t tri[6] = {a, ab, c, c, ab, cb};
+      std::memcpy(out.indices + ii, tri, sizeof tri);
+      ii += 6;
+    }
+  };
+  for (std::size_t nz = 0; nz < sz; nz += node) {
+    for (std::size_t nx = 0; nx < sx; nx += node) {
+      const std::size_t ax = nx, bx = std::min<std::size_t>(nx + node, sx), az = nz,
+                        bz = std::min<std::size_t>(nz + node, sz);
+      const std::size_t start = ii;
+      side(ax, az, bx, az);  // north
+      side(ax, bz, bx, bz);  // south
+      side(ax, az, ax, bz);  // west
+      side(bx, az, bx, bz);  // east
+      out.squares[gi] = std::uint32_t(nz * sx + nx);
+      out.counts[gi] = std::uint32_t(ii - start);
+      ++gi;
+    }
+  }
+}
+
+/// The lattice square (column or row) holding coordinate c: the nominal
+/// spacing decides, clamped to 0 .. n-1 (the last square may be narrower).
+std::size_t cellOf(float c, double spacing, std::uint32_t n) {
+  const double f = double(c) / spacing;
+  if (!(f > 0)) return 0;
+  if (f >= double(n)) return n - 1;
+  return std::size_t(f);
+}
+
+/// Height of the lattice triangle's plane (module.h "Grid triangles") at
+/// (x, z), from the lattice posts' decoded x, z and `height(k)`. IEEE double
+/// with no contraction (this file is built with -ffp-contract=off), so that
+/// encoder and decoder agree bit for bit on every machine.
+template <typename Height>
+float planeY(const Vertex* lat, std::uint32_t sx, std::uint32_t sz, double spacing, float x, float z,
+             Height height) {
+  const std::size_t w = std::size_t(sx) + 1, a = cellOf(x, spacing, sx), b = cellOf(z, spacing, sz);
+  const std::size_t nw = b * w + a, ne = nw + 1, sw = nw + w, se = sw + 1;
+  const double u = (double(x) - lat[nw].x) / (double(lat[ne].x) - lat[nw].x);
+  const double t = (double(z) - lat[nw].z) / (double(lat[sw].z) - lat[nw].z);
+  const double hnw = height(nw), hne = height(ne), hsw = height(sw), hse = height(se);
+  const double y = u + t <= 1.0 ? hnw + u * (hne - hnw) + t * (hsw - hnw)
+                                : hse + (1.0 - u) * (hsw - hse) + (1.0 - t) * (hne - hse);
+  return float(y);
+}
+
 struct Plan {
   std::uint32_t flags = 0;
   std::uint64_t posts = 0;  ///< P
@@ -201,6 +293,9 @@ struct Plan {
   double lastX = 0, lastZ = 0, s0 = 0, t0 = 0;
   std::uint32_t shift = 0;
   std::int32_t xzExp = kXZFloatBits;  ///< stream x, z stored as integers times 2^xzExp
+  std::uint32_t node = 0;             ///< v3 implicit skirts: node squares (else 0)
+  std::uint16_t skirtMaterial = 0;
+  SkirtCounts skirts;                 ///< what the implicit skirts stand for (else 0)
 };
 
 Plan plan(const Level& l, double heightStep) {
@@ -279,7 +374,7 @@ Plan plan(const Level& l, double heightStep) {
     if (ok) p.flags |= kLevel2DerivedMaxHeight;
   }
 
-  p.xzExp = xzExponent(v, std::size_t(p.posts));
+  p.xzExp = xzExponent(v, std::size_t(p.posts), v.size());
   if (!l.normals.empty() && l.normals.size() == v.size()) {
     p.flags |= kLevel2Normals;
     // The builder may round normals; the low bits every lattice normal
@@ -291,17 +386,111 @@ Plan plan(const Level& l, double heightStep) {
   return p;
 }
 
+
+/// Whether the level's skirts are exactly makeSkirts' (the lattice in use,
+/// every skirt group one material and priority 1, their bottom vertices
+/// the level's last): then sets the plan's node, material and counts.
+void planSkirts(const Level& l, Plan& p) {
+  if (!p.posts) return;
+  std::vector<const Group*> skirt;
+  for (const Group& g : l.groups) {
+    if (g.half == Half::skirt) skirt.push_back(&g);
+  }
+  if (skirt.empty()) return;
+  const std::uint32_t sx = l.squaresX, sz = l.squaresZ;
+  // The node follows from the first two groups' squares (one node per row
+  // or column when there is a single group).
+  std::uint32_t node = std::max(sx, sz);
+  if (skirt.size() > 1) {
+    const std::uint32_t a = skirt[0]->square, b = skirt[1]->square;
+    node = b / sx == a / sx ? b - a : b / sx - a / sx;
+  }
+  if (node == 0) return;
+  const SkirtCounts c = skirtCounts(sx, sz, node);
+  const std::size_t V = l.vertices.size();
+  if (c.groups != skirt.size() || c.vertices > V - p.posts) return;
+  const bool normals = !l.normals.empty();
+  std::vector<Vertex> vs(c.vertices);
+  std::vector<std::uint32_t> ns(normals ? c.vertices : 0), is(c.indices), squares(c.groups), counts(c.groups);
+  const auto base = std::uint32_t(V - c.vertices);
+  makeSkirts(l.vertices.data(), normals ? l.normals.data() : nullptr, sx, sz, node, l.skirtDepth, base,
+             {vs.data(), normals ? ns.data() : nullptr, is.data(), squares.data(), counts.data()});
+  for (std::size_t k = 0; k < c.vertices; ++k) {
+    const Vertex& a = vs[k];
+    const Vertex& b = l.vertices[base + k];
+    if (bits(a.x) != bits(b.x) || bits(a.y) != bits(b.y) || bits(a.z) != bits(b.z) || bits(a.s) != bits(b.s) ||
+        bits(a.t) != bits(b.t) || (normals && ns[k] != l.normals[base + k])) {
+      return;
+    }
+  }
+  std::size_t at = 0;
+  for (std::size_t g = 0; g < skirt.size(); ++g) {
+    const Group& k = *skirt[g];
+    if (k.priority != kPrioritySkin || k.material != skirt[0]->material || k.square != squares[g] ||
+        k.indexCount != counts[g] || std::uint64_t(k.firstIndex) + k.indexCount > l.indices.size() ||
+        !std::equal(is.begin() + std::ptrdiff_t(at), is.begin() + std::ptrdiff_t(at + counts[g]),
+                    l.indices.begin() + k.firstIndex)) {
+      return;
+    }
+    at += counts[g];
+  }
+  p.flags |= kLevel3ImplicitSkirts;
+  p.node = node;
+  p.skirtMaterial = skirt[0]->material;
+  p.skirts = c;
+}
+
 std::uint32_t heightCode(const Plan& p, float y) {
   if (p.flags & kLevel2ExactHeights) return bits(y);
   return std::uint32_t(std::int64_t(std::nearbyint(double(y) / p.step)) - p.base);
 }
 
-void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out) {
-  const Plan p = plan(l, heightStep);
+/// Decoded y of a height code.
+float heightValue(const Plan& p, std::uint32_t code) {
+  if (p.flags & kLevel2ExactHeights) return std::bit_cast<float>(code);
+  return float(double(p.base + std::int64_t(code)) * p.step);
+}
+
+/// The code of a predicted height: its bits, or its step count (0 where
+/// the prediction has none).
+std::uint32_t predictedCode(bool exact, double step, std::int64_t base, float y) {
+  if (exact) return bits(y);
+  const double q = double(y) / step;
+  if (!(std::fabs(q) < 0x1p52)) return 0;
+  return std::uint32_t(std::int64_t(std::nearbyint(q)) - base);
+}
+
+void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::vector<std::byte>& out) {
+  Plan p = plan(l, heightStep);
+  if (version >= kVersion3 && p.posts) {
+    p.flags |= kLevel3PlaneHeights;
+    planSkirts(l, p);
+    p.xzExp = xzExponent(l.vertices, std::size_t(p.posts), l.vertices.size() - std::size_t(p.skirts.vertices));
+  }
   const auto& v = l.vertices;
-  const std::size_t P = std::size_t(p.posts), V = v.size(), E = V - P;
+  const std::size_t P = std::size_t(p.posts), V = v.size(), E = V - P - std::size_t(p.skirts.vertices);
   const std::size_t w = std::size_t(l.squaresX) + 1;
   const bool normals = p.flags & kLevel2Normals;
+  const bool implicitSkirts = p.flags & kLevel3ImplicitSkirts;
+  // The groups and indices stored: all but implicit skirts.
+  std::vector<Group> keptGroups;
+  std::vector<std::uint32_t> keptIndices;
+  if (implicitSkirts) {
+    keptGroups.reserve(l.groups.size() - std::size_t(p.skirts.groups));
+    keptIndices.reserve(l.indices.size() - std::size_t(p.skirts.indices));
+    for (const Group& g : l.groups) {
+      if (g.half == Half::skirt) continue;
+      keptGroups.push_back(g);
+      keptIndices.insert(keptIndices.end(), l.indices.begin() + g.firstIndex,
+                         l.indices.begin() + g.firstIndex + g.indexCount);
+    }
+  }
+  const std::vector<Group>& groups = implicitSkirts ? keptGroups : l.groups;
+  const std::vector<std::uint32_t>& indices = implicitSkirts ? keptIndices : l.indices;
+  std::vector<float> latticeY(P);  // as decoded
+  for (std::size_t k = 0; k < P; ++k) latticeY[k] = heightValue(p, heightCode(p, v[k].y));
+  const bool plane = p.flags & kLevel3PlaneHeights;
+  const bool exact = p.flags & kLevel2ExactHeights;
 
   // Vertex and index streams first (their sizes go in the header).
   const std::size_t stride = normals ? 24 : 20;
@@ -310,6 +499,12 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
     const Vertex& q = v[P + i];
     std::uint32_t* r = raw.data() + i * stride / 4;
     r[0] = xzCode(p.xzExp, q.x), r[1] = heightCode(p, q.y), r[2] = xzCode(p.xzExp, q.z);
+    if (plane) {
+      const float x = xzValue(p.xzExp, r[0]), z = xzValue(p.xzExp, r[2]);
+      const float y = planeY(v.data(), l.squaresX, l.squaresZ, l.spacing, x, z,
+                             [&](std::size_t k) { return double(latticeY[k]); });
+      r[1] -= predictedCode(exact, p.step, p.base, y);
+    }
     // With the lattice, s and t are stored XOR the skin texture of x and z:
     // 0 for every skin vertex, whatever they are for decals (lossless).
     r[3] = bits(q.s) ^ (P ? skinBits(p.s0, q.x) : 0u);
@@ -322,21 +517,21 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
     vstream.resize(meshopt_encodeVertexBuffer(vstream.data(), vstream.size(), raw.data(), E, stride));
   }
   std::vector<unsigned char> istream;
-  if (!l.indices.empty()) {
-    istream.resize(meshopt_encodeIndexSequenceBound(l.indices.size(), V));
-    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), l.indices.data(), l.indices.size()));
+  if (!indices.empty()) {
+    istream.resize(meshopt_encodeIndexSequenceBound(indices.size(), V));
+    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), indices.data(), indices.size()));
   }
   std::vector<std::byte> runs;
   std::uint32_t runCount = 0;
   {
     std::uint64_t prev = 0;
-    for (std::size_t g = 0; g < l.groups.size();) {
-      const Group& a = l.groups[g];
+    for (std::size_t g = 0; g < groups.size();) {
+      const Group& a = groups[g];
       const std::uint64_t start = slotOf(a.square, std::uint8_t(a.half));
       std::size_t n = 1;
       std::uint64_t slot = start;
-      while (g + n < l.groups.size()) {
-        const Group& b = l.groups[g + n];
+      while (g + n < groups.size()) {
+        const Group& b = groups[g + n];
         if (b.priority != a.priority || b.material != a.material || b.indexCount != a.indexCount ||
             slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot)) {
           break;
@@ -356,7 +551,8 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
   }
 
   const std::size_t S = std::size_t(l.squaresX) * l.squaresZ;
-  const std::size_t size = kLevelHeaderBytes2 + 4 * P + (normals ? 4 * P : 0) +
+  const std::uint32_t headerBytes = version >= kVersion3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
+  const std::size_t size = headerBytes + 4 * P + (normals ? 4 * P : 0) +
                            ((p.flags & kLevel2DerivedMaxHeight) ? 0 : 4 * S) + vstream.size() + istream.size() +
                            runs.size();
   const std::size_t at = out.size();
@@ -382,7 +578,11 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
   storeLE<std::uint32_t>(h + levelField2::vertexStreamBytes, std::uint32_t(vstream.size()));
   storeLE<std::uint32_t>(h + levelField2::indexStreamBytes, std::uint32_t(istream.size()));
   storeLE<std::uint32_t>(h + levelField2::runBytes, std::uint32_t(runs.size()));
-  std::byte* q = h + kLevelHeaderBytes2;
+  if (version >= kVersion3) {
+    storeLE<std::uint32_t>(h + levelField3::skirtNode, p.node);
+    storeLE<std::uint16_t>(h + levelField3::skirtMaterial, p.skirtMaterial);
+  }
+  std::byte* q = h + headerBytes;
   if (P > 0) {
     std::vector<std::uint32_t> code(P);
     for (std::size_t k = 0; k < P; ++k) code[k] = heightCode(p, v[k].y);
@@ -420,12 +620,13 @@ void encodeLevel(const Level& l, double heightStep, std::vector<std::byte>& out)
 
 }  // namespace
 
-std::vector<std::byte> encodeV2(const Module& m, double heightStep) {
+std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_t version) {
   std::vector<std::byte> out(kHeaderBytes, std::byte{0});
-  for (const Level& l : m.levels) encodeLevel(l, heightStep, out);
+  for (const Level& l : m.levels) encodeLevel(l, heightStep, version, out);
   std::byte* const h = out.data();
-  std::memcpy(h + field::magic, kMagic2.data(), kMagic2.size());
-  storeLE<std::uint32_t>(h + field::version, kVersion2);
+  const auto& magic = version >= kVersion3 ? kMagic3 : kMagic2;
+  std::memcpy(h + field::magic, magic.data(), magic.size());
+  storeLE<std::uint32_t>(h + field::version, version >= kVersion3 ? kVersion3 : kVersion2);
   storeLE<std::uint32_t>(h + field::headerBytes, kHeaderBytes);
   storeLE<std::uint32_t>(h + field::kx, m.kx);
   storeLE<std::uint32_t>(h + field::kz, m.kz);
@@ -444,17 +645,56 @@ namespace {
 /// module after module allocates nothing once warm.
 thread_local std::vector<std::uint32_t> tScratch;
 thread_local std::vector<std::uint32_t> tComponent;
+/// Stored indices and groups of a level with implicit skirts, and the
+/// skirts' own, before they are merged into the level's order.
+thread_local std::vector<std::uint32_t> tIndices, tSkirtIndices, tSkirtSquares, tSkirtCounts;
+thread_local std::vector<Group> tGroups;
+
+/// Merges the stored groups (indices in `stored`) with the skirt groups
+/// (squares and counts, indices in skirtIdx) into the level's groups and
+/// indices, in (priority, square, half, material) order, the stored group
+/// first among equal keys.
+void mergeSkirts(const std::vector<Group>& stored, std::size_t storedCount, const std::uint32_t* storedIdx,
+                 std::size_t skirtGroups, std::uint16_t material, Level& l) {
+  const std::uint32_t* skirtIdx = tSkirtIndices.data();
+  Group* out = l.groups.data();
+  std::uint32_t* idx = l.indices.data();
+  std::size_t a = 0, b = 0, g = 0, at = 0, skirtAt = 0;
+  while (a < storedCount || b < skirtGroups) {
+    const std::uint64_t skirtKey =
+        b < skirtGroups ? groupKey(kPrioritySkin, tSkirtSquares[b], std::uint8_t(Half::skirt), material) : 0;
+    const bool takeStored =
+        a < storedCount && (b == skirtGroups || groupKey(stored[a].priority, stored[a].square,
+                                                         std::uint8_t(stored[a].half), stored[a].material) <= skirtKey);
+    Group x;
+    const std::uint32_t* src;
+    if (takeStored) {
+      x = stored[a++];
+      src = storedIdx + x.firstIndex;
+    } else {
+      x = {tSkirtSquares[b], Half::skirt, kPrioritySkin, material, 0, tSkirtCounts[b]};
+      src = skirtIdx + skirtAt;
+      skirtAt += tSkirtCounts[b++];
+    }
+    std::memcpy(idx + at, src, sizeof(std::uint32_t) * x.indexCount);
+    x.firstIndex = std::uint32_t(at);
+    at += x.indexCount;
+    out[g++] = x;
+  }
+}
 }  // namespace
 
 Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
-                     std::size_t li, std::size_t& pos, Level& l) {
+                     std::size_t li, std::size_t& pos, Level& l, std::uint32_t version) {
+  const bool v3 = version >= kVersion3;
+  const std::uint32_t headerBytes = v3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
   const std::string lv = "level " + str(li);
   auto fail = [&](std::uint64_t off, const std::string& msg) {
     return Status(Problem{file, base + off, "module: " + lv + msg});
   };
   const std::size_t left = bytes.size() - pos;
-  if (left < kLevelHeaderBytes2) {
-    return fail(pos, ": truncated: the level header needs " + str(kLevelHeaderBytes2) + " bytes, only " +
+  if (left < headerBytes) {
+    return fail(pos, ": truncated: the level header needs " + str(headerBytes) + " bytes, only " +
                          str(left) + " remain");
   }
   const std::byte* h = bytes.data() + pos;
@@ -476,6 +716,8 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   const auto vBytes = loadLE<std::uint32_t>(h + levelField2::vertexStreamBytes);
   const auto iBytes = loadLE<std::uint32_t>(h + levelField2::indexStreamBytes);
   const auto rBytes = loadLE<std::uint32_t>(h + levelField2::runBytes);
+  const std::uint32_t node = v3 ? loadLE<std::uint32_t>(h + levelField3::skirtNode) : 0;
+  const std::uint16_t skirtMaterial = v3 ? loadLE<std::uint16_t>(h + levelField3::skirtMaterial) : 0;
   if (!(std::isfinite(l.spacing) && l.spacing > 0)) {
     return fail(pos + levelField2::spacing,
                 " spacing " + std::to_string(l.spacing) + " is not a finite positive number");
@@ -491,14 +733,26 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     return fail(pos + levelField2::skirtDepth,
                 " skirt depth " + std::to_string(l.skirtDepth) + " is not a finite number >= 0");
   }
-  if ((flags & ~kLevel2KnownFlags) != 0) {
-    return fail(pos + levelField2::flags, " flags " + str(flags) + " has bits other than 0..3 set");
+  if ((flags & ~(v3 ? kLevel3KnownFlags : kLevel2KnownFlags)) != 0) {
+    return fail(pos + levelField2::flags,
+                " flags " + str(flags) + " has bits other than 0.." + (v3 ? "5" : "3") + " set");
   }
   const bool lattice = flags & kLevel2Lattice, derived = flags & kLevel2DerivedMaxHeight,
-             normals = flags & kLevel2Normals, exact = flags & kLevel2ExactHeights;
-  if (derived && !lattice) {
-    return fail(pos + levelField2::flags, " flags " + str(flags) +
-                                              ": a derived maxHeight (bit 1) needs the lattice (bit 0)");
+             normals = flags & kLevel2Normals, exact = flags & kLevel2ExactHeights,
+             implicitSkirts = flags & kLevel3ImplicitSkirts, plane = flags & kLevel3PlaneHeights;
+  if ((derived || implicitSkirts || plane) && !lattice) {
+    return fail(pos + levelField2::flags,
+                " flags " + str(flags) + ": a derived maxHeight (bit 1), implicit skirts (bit 4) and plane "
+                                         "heights (bit 5) need the lattice (bit 0)");
+  }
+  if (v3 && (implicitSkirts ? node < 1 || node > kMaxSquaresPerAxis : node != 0)) {
+    return fail(pos + levelField3::skirtNode,
+                " skirt node " + str(node) +
+                    (implicitSkirts ? " is out of range (1 to 65536)" : " must be 0 without implicit skirts"));
+  }
+  if (v3 && ((!implicitSkirts && skirtMaterial != 0) || loadLE<std::uint16_t>(h + levelField3::reserved) != 0)) {
+    return fail(pos + levelField3::skirtMaterial,
+                " skirt material and reserved bytes must be 0 (the material without implicit skirts)");
   }
   if (exact ? step != 0.0 : !(std::isfinite(step) && step > 0)) {
     return fail(pos + levelField2::heightStep, " height step " + std::to_string(step) +
@@ -517,38 +771,46 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   const std::uint64_t posts = lattice ? (std::uint64_t(l.squaresX) + 1) * (std::uint64_t(l.squaresZ) + 1) : 0;
   const std::uint64_t need = 4 * posts + (normals ? 4 * posts : 0) + (derived ? 0 : 4 * squares) +
                              std::uint64_t(vBytes) + iBytes + rBytes;
-  if (need > left - kLevelHeaderBytes2) {
+  if (need > left - headerBytes) {
     return fail(pos + levelField2::vertexStreamBytes,
                 ": " + str(posts) + " lattice posts, " + str(squares) + " squares and streams of " + str(vBytes) +
                     " + " + str(iBytes) + " + " + str(rBytes) + " bytes need " + str(need) +
-                    " bytes after the level header, only " + str(left - kLevelHeaderBytes2) + " remain");
+                    " bytes after the level header, only " + str(left - headerBytes) + " remain");
   }
-  if (posts > nv) {
-    return fail(pos + levelField2::vertexCount,
-                " has " + str(nv) + " vertices, fewer than its " + str(posts) + " lattice posts");
+  // Implicit skirts are bounded by the lattice (at most 8 vertices and 24
+  // indices a post), which the bytes bound.
+  const SkirtCounts sk = implicitSkirts ? skirtCounts(l.squaresX, l.squaresZ, node) : SkirtCounts{};
+  if (posts + sk.vertices > nv) {
+    return fail(pos + levelField2::vertexCount, " has " + str(nv) + " vertices, fewer than its " + str(posts) +
+                                                    " lattice posts and " + str(sk.vertices) + " skirt vertices");
   }
+  if (sk.indices > ni || sk.groups > ng) {
+    return fail(pos + levelField2::indexCount, " has " + str(ni) + " indices in " + str(ng) + " groups, fewer than its " +
+                                                   str(sk.indices) + " skirt indices in " + str(sk.groups) + " groups");
+  }
+  const std::uint32_t niS = ni - std::uint32_t(sk.indices), ngS = ng - std::uint32_t(sk.groups);
   // Every count is now bounded by the bytes: the lattice by its planes, the
   // other vertices by the stream's largest expansion, indices by one byte
   // each, groups by 3 indices each, runs by 5 bytes each.
-  const std::uint64_t E = nv - posts;
+  const std::uint64_t E = nv - posts - sk.vertices;
   const std::uint64_t stride = normals ? 24 : 20;
   if (E * stride > kMaxVertexStreamExpansion * vBytes || (E == 0) != (vBytes == 0)) {
     return fail(pos + levelField2::vertexStreamBytes,
                 " vertex stream of " + str(vBytes) + " bytes cannot hold " + str(E) + " vertices of " +
                     str(stride) + " bytes");
   }
-  if (ni > iBytes || (ni == 0) != (iBytes == 0)) {
+  if (niS > iBytes || (niS == 0) != (iBytes == 0)) {
     return fail(pos + levelField2::indexStreamBytes,
-                " index stream of " + str(iBytes) + " bytes cannot hold " + str(ni) + " indices");
+                " index stream of " + str(iBytes) + " bytes cannot hold " + str(niS) + " indices");
   }
-  if (std::uint64_t(ng) * 3 > ni || std::uint64_t(nr) * 5 > rBytes || nr > ng || (ng == 0) != (nr == 0)) {
-    return fail(pos + levelField2::groupCount, " " + str(ng) + " groups in " + str(nr) + " runs of " +
-                                                   str(rBytes) + " bytes do not fit its " + str(ni) +
-                                                   " indices");
+  if (std::uint64_t(ngS) * 3 > niS || std::uint64_t(nr) * 5 > rBytes || nr > ngS || (ngS == 0) != (nr == 0)) {
+    return fail(pos + levelField2::groupCount, " " + str(ngS) + " stored groups in " + str(nr) + " runs of " +
+                                                   str(rBytes) + " bytes do not fit its " + str(niS) +
+                                                   " stored indices");
   }
 
   const std::byte* b = bytes.data();
-  std::size_t p = pos + kLevelHeaderBytes2;
+  std::size_t p = pos + headerBytes;
   l.vertices.resize(nv);
   Vertex* v = l.vertices.data();
   if (normals) l.normals.resize(nv);
@@ -607,32 +869,48 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                                    reinterpret_cast<const unsigned char*>(b + p), vBytes) != 0) {
       return fail(p, " vertex stream (" + str(vBytes) + " bytes, " + str(E) + " vertices) does not decode");
     }
+    const auto latticeY = [v](std::size_t k) { return double(v[k].y); };
     for (std::size_t i = 0; i < E; ++i) {
       const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
       const float x = xzValue(xzExp, r[0]), z = xzValue(xzExp, r[2]);
-      v[P + i] = {x, height(r[1]), z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
+      std::uint32_t code = r[1];
+      if (plane) code += predictedCode(exact, step, hbase, planeY(v, l.squaresX, l.squaresZ, l.spacing, x, z, latticeY));
+      v[P + i] = {x, height(code), z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
                   std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
       if (normals) l.normals[P + i] = r[5];
     }
   }
   p += vBytes;
-  const std::size_t indexStream = p;
-  l.indices.resize(ni);
-  if (ni > 0 && meshopt_decodeIndexSequence(l.indices.data(), ni, 4, reinterpret_cast<const unsigned char*>(b + p),
-                                            iBytes) != 0) {
-    return fail(p, " index stream (" + str(iBytes) + " bytes, " + str(ni) + " indices) does not decode");
+  if (implicitSkirts) {
+    tSkirtIndices.resize(std::size_t(sk.indices));
+    tSkirtSquares.resize(std::size_t(sk.groups));
+    tSkirtCounts.resize(std::size_t(sk.groups));
+    makeSkirts(v, normals ? l.normals.data() : nullptr, l.squaresX, l.squaresZ, node, l.skirtDepth,
+               std::uint32_t(P + E),
+               {v + P + E, normals ? l.normals.data() + P + E : nullptr, tSkirtIndices.data(), tSkirtSquares.data(),
+                tSkirtCounts.data()});
   }
-  for (std::uint32_t k = 0; k < ni; ++k) {
-    if (l.indices[k] >= nv) {
-      return fail(indexStream, " index " + str(k) + " is " + str(l.indices[k]) + ", not below the vertex count " +
-                                   str(nv));
+  const std::size_t indexStream = p;
+  // Stored indices and groups go straight into the level unless skirts
+  // are merged in afterwards.
+  std::vector<std::uint32_t>& storedIndices = implicitSkirts ? tIndices : l.indices;
+  std::vector<Group>& storedGroups = implicitSkirts ? tGroups : l.groups;
+  storedIndices.resize(niS);
+  if (niS > 0 && meshopt_decodeIndexSequence(storedIndices.data(), niS, 4,
+                                             reinterpret_cast<const unsigned char*>(b + p), iBytes) != 0) {
+    return fail(p, " index stream (" + str(iBytes) + " bytes, " + str(niS) + " indices) does not decode");
+  }
+  for (std::uint32_t k = 0; k < niS; ++k) {
+    if (storedIndices[k] >= nv) {
+      return fail(indexStream, " index " + str(k) + " is " + str(storedIndices[k]) +
+                                   ", not below the vertex count " + str(nv));
     }
   }
   p += iBytes;
 
   // Groups from runs.
-  l.groups.resize(ng);
-  Group* gr = l.groups.data();
+  storedGroups.resize(ngS);
+  Group* gr = storedGroups.data();
   const std::byte* r = b + p;
   const std::byte* const rEnd = r + rBytes;
   std::uint64_t slot = 0, first = 0, prevKey = 0;
@@ -647,10 +925,10 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       }
     }
     const std::uint64_t start = slot + std::uint64_t(unzigzag64(f[0]));
-    if (f[1] > 0xff || f[2] > 0xffff || f[3] > 0xffffffffu || f[4] == 0 || f[4] > ng - g) {
+    if (f[1] > 0xff || f[2] > 0xffff || f[3] > 0xffffffffu || f[4] == 0 || f[4] > ngS - g) {
       return fail(at, " group run " + str(run) + " (priority " + str(f[1]) + ", material " + str(f[2]) +
                           ", index count " + str(f[3]) + ", length " + str(f[4]) + ") is out of range (" +
-                          str(ng - g) + " groups left)");
+                          str(ngS - g) + " groups left)");
     }
     slot = start;
     for (std::uint64_t k = 0; k < f[4]; ++k, ++g) {
@@ -665,9 +943,9 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       if (count == 0 || count % 3 != 0) {
         return fail(at, gs() + " index count " + str(count) + " is not a positive multiple of 3");
       }
-      if (first + count > ni) {
+      if (first + count > niS) {
         return fail(at, gs() + " indices " + str(first) + ".." + str(first + count - 1) + " run past the level's " +
-                            str(ni) + " indices");
+                            str(niS) + " stored indices");
       }
       gr[g].square = std::uint32_t(square);
       gr[g].half = static_cast<Half>(half);
@@ -685,14 +963,20 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       first += count;
     }
   }
-  if (g != ng) {
-    return fail(p, " runs give " + str(g) + " groups, the level header says " + str(ng));
+  if (g != ngS) {
+    return fail(p, " runs give " + str(g) + " groups, the level header says " + str(ngS) + " are stored");
   }
   if (r != rEnd) {
     return fail(std::size_t(r - b), " " + str(std::size_t(rEnd - r)) + " bytes follow the last group run");
   }
-  if (first != ni) {
-    return fail(p, " groups cover " + str(first) + " of the level's " + str(ni) + " indices");
+  if (first != niS) {
+    return fail(p, " groups cover " + str(first) + " of the level's " + str(niS) + " stored indices");
+  }
+  if (implicitSkirts) {
+    l.groups.resize(ng);
+    l.indices.resize(ni);
+    mergeSkirts(tGroups, ngS, tIndices.data(), std::size_t(sk.groups), skirtMaterial, l);
+    gr = l.groups.data();
   }
   if (derived) {
     float* mh = l.maxHeight.data();

@@ -680,8 +680,8 @@ Result<std::unique_ptr<PackWriter>> PackWriter::create(const std::string& direct
                 " for " + str(header.levels) + " levels)");
   }
   if (static_cast<std::uint32_t>(layout.order) >= kPackOrderCount) return fail("unknown record order");
-  if (layout.encode.version != module::kVersion && layout.encode.version != module::kVersion2) {
-    return fail("module version " + str(layout.encode.version) + " is not 1 or 2");
+  if (layout.encode.version < module::kVersion || layout.encode.version > module::kNewestVersion) {
+    return fail("module version " + str(layout.encode.version) + " is not 1, 2 or 3");
   }
   auto s = std::make_unique<State>();
   s->directory = directory;

@@ -501,7 +501,8 @@ TEST(Module, checksumsAndMagicAreChecked) {
   auto bytes = encodeV1(samples::tiny());
   bytes[0] = std::byte{'X'};
   EXPECT_EQ(decode(bytes, "m").error(),
-            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" or \"SANDMOD2\")");
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\", \"SANDMOD2\" or "
+            "\"SANDMOD3\")");
   bytes = encodeV1(samples::tiny());
   bytes[field::kx] ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
@@ -555,6 +556,31 @@ Module tinyV2() {
   // u, v as snorm16: (0,0), (64,0), (0,-64), (64,-64).
   l.normals = {0x00000000u, 0x00000040u, 0xffc00000u, 0xffc00040u};
   m.levels.push_back(l);
+  return m;
+}
+
+/// tinyV2 with the skirt meshing::addSkirts hangs below it (one node of one
+/// square, sides north, south, west, east; bottom vertices 5 m down with
+/// s = t = 0 and the top's normal), in material 7: version 3 stores none
+/// of it.
+Module tinyV3() {
+  Module m = tinyV2();
+  Level& l = m.levels[0];
+  const std::uint32_t sides[4][2] = {{0, 1}, {2, 3}, {0, 2}, {1, 3}};
+  std::vector<std::uint32_t> skirt;
+  for (const auto& side : sides) {
+    const auto first = std::uint32_t(l.vertices.size());
+    for (const std::uint32_t top : side) {
+      Vertex b = l.vertices[top];
+      b.y -= l.skirtDepth;
+      b.s = b.t = 0;
+      l.vertices.push_back(b);
+      l.normals.push_back(l.normals[top]);
+    }
+    skirt.insert(skirt.end(), {side[0], first, side[1], side[1], first, first + 1});
+  }
+  l.indices.insert(l.indices.end(), skirt.begin(), skirt.end());
+  l.groups.push_back({0, Half::skirt, kPrioritySkin, 7, 6, 24});
   return m;
 }
 
@@ -620,7 +646,7 @@ TEST(ModuleV2, layoutConstantsArePinned) {
 // Golden bytes of version 2, computed by hand (the comments give each
 // value); the CRCs come from zlib over the expected bytes.
 TEST(ModuleV2, version2GoldenBytes) {
-  const auto bytes = encode(tinyV2());
+  const auto bytes = encode(tinyV2(), {.version = 2});
   const std::string level =
       "0000000000004040"  // spacing 32.0
       "01000000"          // squaresX 1
@@ -722,7 +748,7 @@ TEST(ModuleV2, exactHeightsWhenAskedOrWhenAHeightIsNotFinite) {
 
 TEST(ModuleV2, lossyOnlyInHeightsAndUsesTheLattice) {
   const Module m = samples::realistic(5, 7);
-  const auto v2 = encode(m);
+  const auto v2 = encode(m, {.version = 2});
   const auto v1 = encodeV1(m);
   // The lattice and group runs are in use: much smaller than version 1.
   std::uint32_t flags = loadLE<std::uint32_t>(v2.data() + kHeaderBytes + levelField2::flags);
@@ -798,7 +824,7 @@ TEST(ModuleV2, everyFlippedByteIsDetected) {
 }
 
 TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
-  const auto good = encode(withNormals(samples::realistic(1, 2, 4, 1)));
+  const auto good = encode(withNormals(samples::realistic(1, 2, 4, 1)), {.version = 2});
   const std::size_t lh = kHeaderBytes;
   const std::size_t kXZExponentField = 90;  // i16 beside the u16 normal shift (FORMAT.md §9.7.2)
   struct Case {
@@ -810,7 +836,7 @@ TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
   const Case cases[] = {
       {levelField2::vertexCount, 0xffffffffu, lh + levelField2::vertexStreamBytes, "module: level 0 vertex stream of"},
       {levelField2::indexCount, 0xffffffffu, lh + levelField2::indexStreamBytes, "module: level 0 index stream of"},
-      {levelField2::groupCount, 0xffffffffu, lh + levelField2::groupCount, "module: level 0 4294967295 groups in"},
+      {levelField2::groupCount, 0xffffffffu, lh + levelField2::groupCount, "module: level 0 4294967295 stored groups in"},
       {levelField2::runCount, 0xffffffffu, lh + levelField2::groupCount, "module: level 0 "},
       {levelField2::vertexStreamBytes, 0xffffff00u, lh + levelField2::vertexStreamBytes, "module: level 0: 25 lattice posts"},
       {levelField2::runBytes, 0x7fffffffu, lh + levelField2::vertexStreamBytes, "module: level 0: 25 lattice posts"},
@@ -843,8 +869,10 @@ TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
 // must decode or fail with a "module: " problem inside the input, never
 // crash or allocate beyond a bound (64x the input plus the lattice).
 TEST(ModuleV2, randomMutationsNeverCrashOrOverAllocate) {
-  const std::vector<std::vector<std::byte>> seeds = {encode(tinyV2()), encode(withNormals(samples::realistic(1, 2, 8, 2))),
-                                                     encode(samples::realistic(4, 1, 4, 3))};
+  const std::vector<std::vector<std::byte>> seeds = {
+      encode(tinyV2(), {.version = 2}), encode(withNormals(samples::realistic(1, 2, 8, 2)), {.version = 2}),
+      encode(samples::realistic(4, 1, 4, 3), {.version = 2}), encode(tinyV3()), encode(tinyV3(), {.heightStep = 0}),
+      encode(withNormals(samples::realistic(1, 2, 8, 2)))};
   std::uint64_t state = 0x5eed;
   auto next = [&] {
     state = state * 6364136223846793005ull + 1442695040888963407ull;
@@ -880,6 +908,244 @@ TEST(ModuleV2, checkEncodableRefusesNormalsOfTheWrongCount) {
   Module m = tinyV2();
   m.levels[0].normals.pop_back();
   EXPECT_EQ(checkEncodable(m).message(), "module: level 0 has 3 normals for 4 vertices (one per vertex, or none)");
+}
+
+// ------------------------------------------------------------- version 3
+
+TEST(ModuleV3, layoutConstantsArePinned) {
+  EXPECT_EQ(kLevelHeaderBytes3, 112u);
+  EXPECT_EQ(levelField3::skirtNode, 104u);
+  EXPECT_EQ(levelField3::skirtMaterial, 108u);
+  EXPECT_EQ(levelField3::reserved, 110u);
+  EXPECT_EQ(kLevel3ImplicitSkirts, 16u);
+  EXPECT_EQ(kLevel3PlaneHeights, 32u);
+  EXPECT_EQ(kNewestVersion, 3u);
+}
+
+// Golden bytes of version 3 by hand: tinyV2's level with its skirt, which
+// the 8 more header bytes stand for. The payload is the version 2
+// golden's but for the height base (no vertex is stored, so the plane
+// prediction has nothing to predict).
+TEST(ModuleV3, version3GoldenBytes) {
+  const auto bytes = encode(tinyV3());
+  const std::string header =
+      "0000000000004040"  // spacing 32.0
+      "01000000"          // squaresX 1
+      "01000000"          // squaresZ 1
+      "0000a040"          // skirt depth 5.0
+      "37000000"          // flags: lattice | derived maxHeight | normals | implicit skirts | plane heights
+      "0c000000"          // 12 vertices: 4 posts and 8 skirt bottoms
+      "1e000000"          // 30 indices: 6 skin, 24 skirt
+      "03000000"          // 3 groups: upper, lower, skirt
+      "01000000"          // 1 stored run
+      "7b14ae47e17a843f"  // height step 0.01
+      "f401000000000000"  // height base 500: the lowest vertex is a skirt bottom, 5.00 m
+      "0000000000004040"  // lastX 32.0
+      "0000000000004040"  // lastZ 32.0
+      "0000000000000000"  // skin S0 0
+      "0000000000000000"  // skin T0 0
+      "0600"              // normal shift 6
+      "0000"              // x, z exponent 0 (no stream vertices)
+      "00000000"          // empty vertex stream
+      "0b000000"          // index stream 11 bytes
+      "05000000"          // runs 5 bytes
+      "01000000"          // skirt node: 1 square
+      "0700"              // skirt material 7
+      "0000";             // reserved
+  ASSERT_EQ(bytes.size(), 48u + 112u + 48u);
+  EXPECT_EQ(hex(std::span(bytes).subspan(48, 112)), header);
+  // Codes 500, 525, 550, 600: residuals 500, 25, 50, 25, zigzag 1000 (0x3e8),
+  // 50, 100, 50 in four byte planes; then the version 2 golden's normals,
+  // index stream and run.
+  const auto v2 = encode(tinyV2(), {.version = 2});
+  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 112, 16)), "e8326432030000000000000000000000");
+  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 112 + 16)), hex(std::span(v2).subspan(48 + 104 + 16)));
+  // "SANDMOD3", version 3, 48, kx 1, kz 2, 1 level, flags 0, total 208.
+  EXPECT_EQ(hex(std::span(bytes).first(40)),
+            "53414e444d4f4433"
+            "03000000"
+            "30000000"
+            "01000000"
+            "02000000"
+            "01000000"
+            "00000000"
+            "d000000000000000");
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::payloadCrc), crc32(std::span(bytes).subspan(48)));
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::headerCrc), crc32(std::span(bytes).first(44)));
+  EXPECT_EQ(encodedVersion(bytes), 3u);
+  auto back = decode(bytes, "golden");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectNear(back.value(), tinyV3(), kDefaultHeightStep);
+  // The rebuilt skirt hangs 5 m below the decoded posts.
+  const Level& l = back->levels[0];
+  EXPECT_EQ(l.vertices[4].y, l.vertices[0].y - 5.0f);
+  EXPECT_EQ(l.vertices[11].y, l.vertices[3].y - 5.0f);
+}
+
+TEST(ModuleV3, exactHeightsRoundTripBitForBitWithAndWithoutImplicitSkirts) {
+  for (const Module& m : {tinyV3(), samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7)),
+                          samples::tiny()}) {
+    const auto bytes = encode(m, {.heightStep = 0});
+    EXPECT_EQ(encodedVersion(bytes), 3u);
+    auto back = decode(bytes, "v3");
+    ASSERT_TRUE(back.ok()) << back.error();
+    expectEqual(back.value(), m);
+    EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
+    Module reused = samples::realistic(9, 9, 16, 3);
+    ASSERT_TRUE(decodeInto(bytes, "v3", 0, reused).ok());
+    expectEqual(reused, m);
+  }
+}
+
+TEST(ModuleV3, quantisedHeightsStayWithinTheStepAndReencodeIdentically) {
+  for (const Module& m : {tinyV3(), samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7))}) {
+    for (const double step : {0.01, 0.25}) {
+      const auto bytes = encode(m, {.heightStep = step});
+      auto back = decode(bytes, "v3");
+      ASSERT_TRUE(back.ok()) << back.error();
+      expectNear(back.value(), m, step);
+      EXPECT_EQ(encode(back.value(), {.heightStep = step}), bytes);
+    }
+  }
+}
+
+TEST(ModuleV3, skirtsThatAreNotTheBuildersAreStoredAsTheyAre) {
+  // The sample's skirts run per edge square, not per node: stored.
+  const auto sample = encode(samples::realistic(5, 7));
+  EXPECT_EQ(loadLE<std::uint32_t>(sample.data() + kHeaderBytes + levelField2::flags) & kLevel3ImplicitSkirts, 0u);
+  EXPECT_EQ(loadLE<std::uint32_t>(sample.data() + kHeaderBytes + levelField3::skirtNode), 0u);
+  // A bottom vertex off by one ulp, one with a texture coordinate, a
+  // changed index: each keeps the skirt explicit, and each decodes exactly.
+  std::vector<Module> changed(3, tinyV3());
+  changed[0].levels[0].vertices[6].y = std::nextafter(changed[0].levels[0].vertices[6].y, 0.0f);
+  changed[1].levels[0].vertices[9].s = 0.5f;
+  std::swap(changed[2].levels[0].indices[7], changed[2].levels[0].indices[8]);
+  for (const Module& m : changed) {
+    const auto bytes = encode(m, {.heightStep = 0});
+    const auto flags = loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField2::flags);
+    EXPECT_EQ(flags & kLevel3ImplicitSkirts, 0u);
+    EXPECT_NE(flags & kLevel3PlaneHeights, 0u);
+    auto back = decode(bytes, "explicit");
+    ASSERT_TRUE(back.ok()) << back.error();
+    expectEqual(back.value(), m);
+  }
+  // Implicit skirts and plane heights make the tiny module's level 0 no
+  // larger than version 2 without its skirt.
+  EXPECT_EQ(encode(tinyV3()).size(), encode(tinyV2(), {.version = 2}).size() + 8);
+}
+
+TEST(ModuleV3, planeHeightsPredictCultureVerticesOnTheirTriangle) {
+  // Vertices scattered over the upper triangle at the plane's height store
+  // zero residuals: their stream is smaller than the same vertices off the
+  // plane by varying amounts, and both decode exactly.
+  auto withVertices = [](bool off) {
+    Module m = tinyV2();
+    Level& l = m.levels[0];
+    l.normals.clear();
+    for (int k = 0; k < 64; ++k) {
+      const double u = double(k % 8) / 16, v = double(k / 8) / 16;  // u + v < 1
+      const float x = float(32 * u), z = float(32 * v);
+      const double y = 10 + u * 0.25 + v * 0.5 + (off ? double((k * 37) % 11) * 0.37 : 0.0);
+      l.vertices.push_back({x, float(y), z, x / 64, z / 64});
+    }
+    return m;
+  };
+  const auto onPlane = encode(withVertices(false), {.heightStep = 0});
+  const auto above = encode(withVertices(true), {.heightStep = 0});
+  const std::size_t stream = kHeaderBytes + levelField2::vertexStreamBytes;
+  EXPECT_LT(loadLE<std::uint32_t>(onPlane.data() + stream), loadLE<std::uint32_t>(above.data() + stream));
+  for (const auto& bytes : {onPlane, above}) {
+    auto back = decode(bytes, "plane");
+    ASSERT_TRUE(back.ok()) << back.error();
+  }
+  expectEqual(decode(onPlane, "plane").value(), withVertices(false));
+  expectEqual(decode(above, "plane").value(), withVertices(true));
+}
+
+TEST(ModuleV3, everyTruncatedPrefixFailsNamingItsOffset) {
+  for (const auto& bytes : {encode(tinyV3()), encode(samples::realistic(1, 1, 4, 2))}) {
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+      ASSERT_FALSE(m.ok()) << "prefix " << n;
+      const Problem& p = m.problems().front();
+      EXPECT_EQ(p.file, "cut.bin");
+      EXPECT_EQ(p.offset, 1000 + n) << p.message;
+      EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
+    }
+  }
+}
+
+TEST(ModuleV3, everyFlippedByteIsDetected) {
+  for (auto bytes : {encode(tinyV3()), encode(samples::realistic(2, 3, 4, 2))}) {
+    for (std::size_t off = 0; off < bytes.size(); ++off) {
+      bytes[off] ^= std::byte{0x20};
+      EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+      bytes[off] ^= std::byte{0x20};
+    }
+  }
+}
+
+TEST(ModuleV3, hostileSkirtFieldsAreRefusedBeforeAllocating) {
+  const auto good = encode(tinyV3());
+  const std::size_t lh = kHeaderBytes;
+  struct Case {
+    std::size_t field;
+    unsigned width;
+    std::uint32_t value;
+    std::size_t offset;
+    const char* message;
+  };
+  const Case cases[] = {
+      {levelField3::skirtNode, 4, 0, lh + levelField3::skirtNode,
+       "module: level 0 skirt node 0 is out of range (1 to 65536)"},
+      {levelField3::skirtNode, 4, 65537, lh + levelField3::skirtNode,
+       "module: level 0 skirt node 65537 is out of range (1 to 65536)"},
+      {levelField3::reserved, 2, 1, lh + levelField3::skirtMaterial,
+       "module: level 0 skirt material and reserved bytes must be 0 (the material without implicit skirts)"},
+      {levelField2::vertexCount, 4, 11, lh + levelField2::vertexCount,
+       "module: level 0 has 11 vertices, fewer than its 4 lattice posts and 8 skirt vertices"},
+      {levelField2::indexCount, 4, 23, lh + levelField2::indexCount,
+       "module: level 0 has 23 indices in 3 groups, fewer than its 24 skirt indices in 1 groups"},
+      {levelField2::flags, 4, 0x77, lh + levelField2::flags, "module: level 0 flags 119 has bits other than 0..5 set"},
+      {levelField2::flags, 4, 0x36, lh + levelField2::flags,
+       "module: level 0 flags 54: a derived maxHeight (bit 1), implicit skirts (bit 4) and plane heights (bit 5) "
+       "need the lattice (bit 0)"},
+  };
+  for (const Case& c : cases) {
+    auto bytes = good;
+    if (c.width == 2) {
+      storeLE<std::uint16_t>(bytes.data() + lh + c.field, std::uint16_t(c.value));
+    } else {
+      storeLE<std::uint32_t>(bytes.data() + lh + c.field, c.value);
+    }
+    reseal(bytes);
+    gLargestAllocation = 0;
+    auto m = decode(bytes, "h.bin", 0);
+    ASSERT_FALSE(m.ok()) << c.message;
+    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.message;
+    EXPECT_EQ(m.problems().front().message, c.message);
+    EXPECT_EQ(m.problems().front().offset, c.offset) << c.message;
+  }
+  // A node with no implicit skirts, or a material: refused as well.
+  auto bytes = encode(samples::realistic(1, 1, 4, 1));
+  storeLE<std::uint32_t>(bytes.data() + lh + levelField3::skirtNode, 4);
+  reseal(bytes);
+  EXPECT_EQ(decode(bytes, "n").problems().front().message,
+            "module: level 0 skirt node 4 must be 0 without implicit skirts");
+}
+
+TEST(ModuleV3, versions1And2StillDecodeAndUpgradeToVersion3) {
+  const Module m = samples::realistic(2, 3, 8, 3);
+  for (const std::uint32_t version : {1u, 2u}) {
+    const auto old = encode(m, {.version = version, .heightStep = 0});
+    EXPECT_EQ(encodedVersion(old), version);
+    auto back = decode(old, "old");
+    ASSERT_TRUE(back.ok()) << back.error();
+    expectEqual(back.value(), m);
+    auto three = decode(encode(back.value(), {.heightStep = 0}), "v3");
+    ASSERT_TRUE(three.ok()) << three.error();
+    expectEqual(three.value(), m);
+  }
 }
 
 }  // namespace

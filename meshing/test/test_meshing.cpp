@@ -6,12 +6,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <limits>
 #include <map>
 #include <set>
 
+#include "sandtable/formats/bytes.h"
 #include "sandtable/meshing/assemble.h"
 #include "sandtable/meshing/heights.h"
 #include "sandtable/meshing/lattice.h"
@@ -275,6 +277,10 @@ TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
   const module::Module m = assembleModule(*g, 16, 3, 1, 1, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
     EXPECT_EQ(l, calls++);
     plainSkin(lat, 2, out);
+    for (module::Vertex& v : out.vertices) {  // the skin texture rule (module.h), offsets 0
+      v.s = float(double(v.x) / module::kSkinTextureRepeat);
+      v.t = float(double(v.z) / module::kSkinTextureRepeat);
+    }
     return true;
   });
   ASSERT_EQ(m.levels.size(), 3u);
@@ -298,6 +304,30 @@ TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
   const auto bytes = module::encode(m);
   auto back = module::decode(bytes, "assembled");
   ASSERT_TRUE(back.ok()) << back.error();
+  // Version 3 stores none of the skirts and rebuilds them bit for bit,
+  // narrow last squares (this window reaches the grid's east edge) included.
+  const auto v3 = module::encode(m, {.heightStep = 0});
+  auto exact = module::decode(v3, "assembled v3");
+  ASSERT_TRUE(exact.ok()) << exact.error();
+  for (std::size_t l = 0; l < m.levels.size(); ++l) {
+    const module::Level& x = m.levels[l];
+    const module::Level& y = exact->levels[l];
+    EXPECT_EQ(x.indices, y.indices) << l;
+    ASSERT_EQ(x.vertices.size(), y.vertices.size()) << l;
+    for (std::size_t k = 0; k < x.vertices.size(); ++k) {
+      EXPECT_EQ(std::memcmp(&x.vertices[k], &y.vertices[k], sizeof(module::Vertex)), 0) << l << " " << k;
+    }
+    ASSERT_EQ(x.groups.size(), y.groups.size());
+    for (std::size_t k = 0; k < x.groups.size(); ++k) {
+      EXPECT_TRUE(x.groups[k].square == y.groups[k].square && x.groups[k].half == y.groups[k].half &&
+                  x.groups[k].material == y.groups[k].material && x.groups[k].firstIndex == y.groups[k].firstIndex)
+          << l << " " << k;
+    }
+  }
+  EXPECT_NE(loadLE<std::uint32_t>(v3.data() + module::kHeaderBytes + module::levelField2::flags) &
+                module::kLevel3ImplicitSkirts,
+            0u);
+  EXPECT_LT(v3.size(), module::encode(m, {.version = 2, .heightStep = 0}).size());
   // A skin that stops leaves the later levels empty.
   const module::Module stopped = assembleModule(*g, 16, 3, 0, 0, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
     if (l == 1) return false;

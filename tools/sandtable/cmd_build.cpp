@@ -188,17 +188,18 @@ void registerBuild(CLI::App& root, Commands& c) {
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--module-version", a->o.moduleVersion,
-                  "Load-module format: 2 (compact: lattice heights, meshopt streams, optional normals) or 1 "
+                  "Load-module format: 3 (compact: lattice heights, implicit skirts, plane-predicted heights, "
+                  "meshopt streams, optional normals), 2 (the same without implicit skirts and plane heights) or 1 "
                   "(the original float planes); docs/FORMAT.md section 9")
-      ->default_val(2)
-      ->check(CLI::Range(1, 2));
+      ->default_val(3)
+      ->check(CLI::Range(1, 3));
   sub->add_option("--height-step", a->o.heightStep,
-                  "Module version 2 height quantisation step in metres; every module height is within half a "
+                  "Module version 2 and 3 height quantisation step in metres; every module height is within half a "
                   "step of the grid's (0 keeps exact float heights)")
       ->default_val(0.0)
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--module-normals", a->o.moduleNormals,
-                "Module version 2: also store per-vertex octahedral normals (about 30% more bytes; the "
+                "Module versions 2 and 3: also store per-vertex octahedral normals (about 30% more bytes; the "
                 "viewer samples the grid's normals, so it does not need them)");
   sub->add_option("--max-scale-error", a->o.maxScaleError,
                   "Reject a CRS whose scale error over the extent exceeds this fraction")

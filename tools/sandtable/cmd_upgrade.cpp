@@ -1,4 +1,4 @@
-// sandtable upgrade: rewrite a database's load modules as version 2.
+// sandtable upgrade: rewrite a database's load modules in the newest format version (3).
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -36,10 +36,10 @@ int runUpgrade(const UpgradeArgs& a) {
     return kOk;
   }
   if (!u.upgraded) {
-    std::printf("%s: load modules are already version 2; nothing to do\n", a.dir.c_str());
+    std::printf("%s: load modules are already version 3; nothing to do\n", a.dir.c_str());
     return kOk;
   }
-  std::printf("upgraded %s: %llu modules, version %u -> 2 (height step %g m), pack %.1f MB -> %.1f MB, %.2f s\n",
+  std::printf("upgraded %s: %llu modules, version %u -> 3 (height step %g m), pack %.1f MB -> %.1f MB, %.2f s\n",
               a.dir.c_str(), static_cast<unsigned long long>(u.modules), u.fromVersion, a.o.heightStep,
               double(u.packBytesBefore) / 1e6, double(u.packBytesAfter) / 1e6, u.seconds);
   return kOk;
@@ -49,11 +49,11 @@ int runUpgrade(const UpgradeArgs& a) {
 
 void registerUpgrade(CLI::App& root, Commands& c) {
   auto a = std::make_shared<UpgradeArgs>();
-  auto* sub = root.add_subcommand("upgrade", "Rewrite a database's load modules in format version 2");
+  auto* sub = root.add_subcommand("upgrade", "Rewrite a database's load modules in format version 3");
   sub->footer(
       "Example:\n  sandtable upgrade db\n"
       "The new modules, index and manifest are assembled beside DB and swapped in with one atomic rename;\n"
-      "an interrupted upgrade leaves the old database in place. A version 2 database is left as it is.");
+      "an interrupted upgrade leaves the old database in place. A version 3 database is left as it is.");
   sub->add_option("database", a->dir, "Database directory to upgrade")->required();
   sub->add_option("--height-step", a->o.heightStep,
                   "Height quantisation step in metres; every module height stays within half a step "

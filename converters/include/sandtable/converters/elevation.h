@@ -74,7 +74,7 @@ struct ElevationOptions {
   std::string materials;       ///< material table; "" = the built-in default (samples/materials.txt)
   bool modules = true;         ///< false: grid only (no load modules)
   int zstdLevel = 9;           ///< module compression level
-  std::uint32_t moduleVersion = 2;  ///< load-module format version (1 or 2; ModuleOptions)
+  std::uint32_t moduleVersion = 3;  ///< load-module format version (1, 2 or 3; ModuleOptions)
   double heightStep = kBuildHeightStep;  ///< version 2 height step, metres (0: exact; ModuleOptions)
   bool moduleNormals = false;  ///< version 2: store octahedral normals (ModuleOptions::normals)
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent

@@ -20,7 +20,7 @@ struct ModuleOptions {
   int threads = 0;             ///< 0 = all cores
   int zstdLevel = 9;
   /// Load-module format version written (1 or 2; docs/FORMAT.md §9, §9.7).
-  std::uint32_t moduleVersion = module::kVersion2;
+  std::uint32_t moduleVersion = module::kNewestVersion;
   /// Version 2 height quantisation step, metres (0: exact float heights).
   /// Every decoded height is within heightStep / 2 of the built one.
   double heightStep = kBuildHeightStep;
@@ -98,21 +98,21 @@ struct UpgradeOptions {
 };
 
 struct UpgradeReport {
-  bool upgraded = false;     ///< false: the modules already were version 2 (nothing written)
+  bool upgraded = false;     ///< false: the modules already were the newest version, 3 (nothing written)
   std::uint32_t fromVersion = 0;
   std::uint64_t modules = 0;
   std::uint64_t packBytesBefore = 0, packBytesAfter = 0;
   double seconds = 0;
 };
 
-/// Rewrites the load modules of database `directory` as version 2: a new
+/// Rewrites the load modules of database `directory` in the newest version (3): a new
 /// database is assembled beside it in `DIR.upgrade.<pid>/` (grid and
 /// material table hard-linked or copied, modules re-encoded, manifest
 /// files[] and build.modules updated), fsynced, and swapped with the old
 /// directory in one renameat2(RENAME_EXCHANGE); the old one is then
 /// removed. Interrupted at any point, `directory` is the old database or
 /// the new one, each complete. A database whose modules are already
-/// version 2 is left untouched (upgraded = false). Problems name the file.
+/// version 3 is left untouched (upgraded = false). Problems name the file.
 Result<UpgradeReport> upgradeDatabase(const std::string& directory, const UpgradeOptions& options,
                                       const ProgressFn& progress);
 

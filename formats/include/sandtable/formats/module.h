@@ -39,6 +39,12 @@ inline constexpr std::uint32_t kVersion = 1;
 /// this magic and version 2; levels in the layout of "version 2" below.
 inline constexpr std::array<char, 8> kMagic2 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '2'};
 inline constexpr std::uint32_t kVersion2 = 2;
+/// Version 3 (docs/FORMAT.md §9.8): version 2 with a 112-byte level header
+/// whose skirts and heights follow from the lattice (flags below).
+inline constexpr std::array<char, 8> kMagic3 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '3'};
+inline constexpr std::uint32_t kVersion3 = 3;
+/// The version writers produce by default.
+inline constexpr std::uint32_t kNewestVersion = kVersion3;
 /// Default height quantisation step of version 2, metres (1 cm).
 inline constexpr double kDefaultHeightStep = 0.01;
 
@@ -128,6 +134,27 @@ inline constexpr std::uint32_t kLevel2DerivedMaxHeight = 2;  ///< maxHeight is n
 inline constexpr std::uint32_t kLevel2Normals = 4;           ///< Level::normals are stored
 inline constexpr std::uint32_t kLevel2ExactHeights = 8;      ///< y codes are float bits
 inline constexpr std::uint32_t kLevel2KnownFlags = 15;
+
+// ------------------------------------------------------- layout, version 3
+// Version 3 is version 2 with eight more level header bytes (skirt node and
+// material) and two more flags, both lossless and checked bit for bit by the
+// encoder, which leaves a flag clear wherever its rule does not reproduce
+// the level exactly:
+//  - implicit skirts: the skirt groups, their indices and their bottom
+//    vertices are what meshing::addSkirts makes from the lattice (one group
+//    per node of skirtNode squares, sides north, south, west, east, bottom
+//    vertices y - skirtDepth with s = t = 0, appended after the others);
+//    none of them is stored;
+//  - plane heights: the y code of every other vertex is stored as the
+//    difference from the code of the lattice triangle's plane at its x, z.
+inline constexpr std::uint32_t kLevelHeaderBytes3 = 112;
+inline constexpr std::uint32_t kLevel3ImplicitSkirts = 16;
+inline constexpr std::uint32_t kLevel3PlaneHeights = 32;
+inline constexpr std::uint32_t kLevel3KnownFlags = 63;
+namespace levelField3 {
+inline constexpr std::size_t skirtNode = 104, skirtMaterial = 108, reserved = 110;
+}
+static_assert(levelField3::reserved + 2 == kLevelHeaderBytes3, "version 3 level header layout");
 
 /// Byte offsets of the version 2 level header fields, from the level's start.
 namespace levelField2 {
@@ -238,8 +265,8 @@ Status checkEncodable(const Module& m);
 std::uint64_t encodedBytes(const Module& m);
 
 struct EncodeOptions {
-  std::uint32_t version = kVersion2;       ///< 1 or 2
-  double heightStep = kDefaultHeightStep;  ///< version 2 only; <= 0 stores exact float heights
+  std::uint32_t version = kNewestVersion;  ///< 1, 2 or 3
+  double heightStep = kDefaultHeightStep;  ///< versions 2 and 3; <= 0 stores exact float heights
 };
 
 /// Uncompressed bytes of a module (little-endian, layout above and in
@@ -249,7 +276,7 @@ struct EncodeOptions {
 /// no normals (they are dropped); version 2 quantises heights (above).
 std::vector<std::byte> encode(const Module& m, const EncodeOptions& options = {});
 
-/// The format version of encoded bytes (1 or 2), from the magic and the
+/// The format version of encoded bytes (1, 2 or 3), from the magic and the
 /// version field; 0 when they are neither (decode says why).
 std::uint32_t encodedVersion(std::span<const std::byte> bytes);
 
