@@ -339,13 +339,14 @@ BENCHMARK(BM_DecalLevelWithPartition)->Unit(benchmark::kMillisecond);
 }  // namespace
 
 /// Every module of the database named by $SANDTABLE_BENCH_DB (a built
-/// database; `sandtable build --module-version 1|2`), decompressed once:
-/// the decode benchmarks time module::decodeInto alone on them, and the
-/// read benchmark the reader's whole path (pread from the warm page cache,
-/// CRC, zstd, decode). Skipped without the variable.
+/// database; `sandtable build --module-version 1|2|3`), decompressed once:
+/// the decode benchmark times module::decodeInto alone on each module's
+/// records (both of a version 2 pack: coarse and fine), and the read
+/// benchmark the reader's whole path (pread from the warm page cache, CRC,
+/// zstd, decode) of the whole module. Skipped without the variable.
 struct BenchDb {
   std::shared_ptr<const pack::PackReader> reader;
-  std::vector<std::vector<std::byte>> raw;
+  std::vector<std::vector<std::byte>> raw;  ///< per module: its coarse record, then its fine one if any
   std::uint64_t compressed = 0, rawBytes = 0;
   std::string error;
   static const BenchDb& get() {
@@ -365,13 +366,16 @@ struct BenchDb {
       const auto& h = d.reader->header();
       for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
         for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
-          auto raw = d.reader->readRaw(kx, kz);
-          if (!raw) {
-            d.error = raw.error();
-            return d;
+          for (const pack::Part part : {pack::Part::coarse, pack::Part::fine}) {
+            if (part == pack::Part::fine && d.reader->coarseLevel() == 0) continue;
+            auto raw = d.reader->readRaw(kx, kz, part);
+            if (!raw) {
+              d.error = raw.error();
+              return d;
+            }
+            d.rawBytes += raw.value().size();
+            d.raw.push_back(std::move(raw.value()));
           }
-          d.rawBytes += raw.value().size();
-          d.raw.push_back(std::move(raw.value()));
         }
       }
       return d;
@@ -386,20 +390,25 @@ void BM_ModuleDecode(benchmark::State& state) {
     state.SkipWithError(db.error.c_str());
     return;
   }
-  module::Module m;
+  // One iteration decodes one whole module: all of its records.
+  const std::size_t records = db.reader->coarseLevel() == 0 ? 1 : 2;
+  const std::size_t modules = db.raw.size() / records;
+  std::array<module::Module, 2> m;
   std::size_t k = 0;
   for (auto _ : state) {
-    const Status st = module::decodeInto(db.raw[k], "bench", 0, m);
-    if (!st) {
-      state.SkipWithError(st.error().c_str());
-      return;
+    for (std::size_t r = 0; r < records; ++r) {
+      const Status st = module::decodeInto(db.raw[k * records + r], "bench", 0, m[r]);
+      if (!st) {
+        state.SkipWithError(st.error().c_str());
+        return;
+      }
+      benchmark::DoNotOptimize(m[r]);
     }
-    benchmark::DoNotOptimize(m);
-    k = (k + 1) % db.raw.size();
+    k = (k + 1) % modules;
   }
   state.SetItemsProcessed(state.iterations());
-  state.counters["modules"] = double(db.raw.size());
-  state.counters["raw_bytes_per_module"] = double(db.rawBytes) / double(db.raw.size());
+  state.counters["modules"] = double(modules);
+  state.counters["raw_bytes_per_module"] = double(db.rawBytes) / double(modules);
   state.counters["version"] = double(module::encodedVersion(db.raw.front()));
 }
 BENCHMARK(BM_ModuleDecode)->Unit(benchmark::kMicrosecond);
@@ -421,7 +430,7 @@ void BM_ModuleReadInto(benchmark::State& state) {
       return;
     }
     benchmark::DoNotOptimize(m);
-    k = (k + 1) % db.raw.size();
+    k = (k + 1) % (std::size_t(h.modulesX) * h.modulesZ);
   }
   state.SetItemsProcessed(state.iterations());
 }

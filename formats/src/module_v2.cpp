@@ -110,6 +110,8 @@ std::int64_t unzigzag64(std::uint64_t z) { return std::int64_t(z >> 1) ^ -std::i
 
 /// Group position for runs: square * 4 + half.
 std::uint64_t slotOf(std::uint32_t square, std::uint8_t half) { return std::uint64_t(square) * 4 + half; }
+/// The slot of grid triangle h = 2 * square + half (half 0 or 1).
+std::uint64_t halfSlot(std::uint64_t h) { return (h >> 1) * 4 + (h & 1); }
 /// The slot that follows `slot` inside a run.
 std::uint64_t nextSlot(std::uint64_t slot) {
   const std::uint64_t half = slot & 3;
@@ -283,6 +285,18 @@ float planeY(const Vertex* lat, std::uint32_t sx, std::uint32_t sz, double spaci
   const double y = u + t <= 1.0 ? hnw + u * (hne - hnw) + t * (hsw - hnw)
                                 : hse + (1.0 - u) * (hsw - hse) + (1.0 - t) * (hne - hse);
   return float(y);
+}
+
+/// The lattice vertices of grid triangle (square, half) in the builder's
+/// order: upper (NW, SW, NE), lower (NE, SW, SE) (module.h "Grid
+/// triangles"). False for a skirt half or a square outside the level.
+bool latticeTriangle(std::uint32_t square, std::uint8_t half, std::uint32_t sx, std::uint32_t sz,
+                     std::uint32_t out[3]) {
+  if (half > 1 || square >= std::uint64_t(sx) * sz) return false;
+  const std::uint32_t w = sx + 1, nw = (square / sx) * w + square % sx, ne = nw + 1, sw = nw + w, se = sw + 1;
+  if (half == 0) out[0] = nw, out[1] = sw, out[2] = ne;
+  else out[0] = ne, out[1] = sw, out[2] = se;
+  return true;
 }
 
 struct Plan {
@@ -516,10 +530,29 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
     vstream.resize(meshopt_encodeVertexBufferBound(E, stride));
     vstream.resize(meshopt_encodeVertexBuffer(vstream.data(), vstream.size(), raw.data(), E, stride));
   }
+  // Version 3: a group that is one grid triangle of the lattice, in the
+  // builder's vertex order, stores no indices (its run says so).
+  std::vector<std::uint8_t> plain(groups.size(), 0);
+  std::vector<std::uint32_t> streamIdx;
+  const bool v3 = version >= kVersion3;
+  if (v3 && P > 0) {
+    streamIdx.reserve(indices.size());
+    std::size_t at = 0;
+    for (std::size_t g = 0; g < groups.size(); ++g) {
+      const Group& k = groups[g];
+      std::uint32_t tri[3];
+      plain[g] = k.indexCount == 3 && latticeTriangle(k.square, std::uint8_t(k.half), l.squaresX, l.squaresZ, tri) &&
+                 std::equal(tri, tri + 3, indices.begin() + std::ptrdiff_t(at));
+      if (!plain[g]) streamIdx.insert(streamIdx.end(), indices.begin() + std::ptrdiff_t(at),
+                                      indices.begin() + std::ptrdiff_t(at + k.indexCount));
+      at += k.indexCount;
+    }
+  }
+  const std::vector<std::uint32_t>& stream = v3 && P > 0 ? streamIdx : indices;
   std::vector<unsigned char> istream;
-  if (!indices.empty()) {
-    istream.resize(meshopt_encodeIndexSequenceBound(indices.size(), V));
-    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), indices.data(), indices.size()));
+  if (!stream.empty()) {
+    istream.resize(meshopt_encodeIndexSequenceBound(stream.size(), V));
+    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), stream.data(), stream.size()));
   }
   std::vector<std::byte> runs;
   std::uint32_t runCount = 0;
@@ -533,7 +566,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
       while (g + n < groups.size()) {
         const Group& b = groups[g + n];
         if (b.priority != a.priority || b.material != a.material || b.indexCount != a.indexCount ||
-            slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot)) {
+            slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot) || plain[g + n] != plain[g]) {
           break;
         }
         slot = nextSlot(slot);
@@ -543,7 +576,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
       putVarint(runs, a.priority);
       putVarint(runs, a.material);
       putVarint(runs, a.indexCount);
-      putVarint(runs, n);
+      putVarint(runs, v3 ? std::uint64_t(n) << 1 | plain[g] : n);
       prev = slot;
       g += n;
       ++runCount;
@@ -581,6 +614,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   if (version >= kVersion3) {
     storeLE<std::uint32_t>(h + levelField3::skirtNode, p.node);
     storeLE<std::uint16_t>(h + levelField3::skirtMaterial, p.skirtMaterial);
+    storeLE<std::uint32_t>(h + levelField3::streamIndices, std::uint32_t(stream.size()));
   }
   std::byte* q = h + headerBytes;
   if (P > 0) {
@@ -649,38 +683,109 @@ thread_local std::vector<std::uint32_t> tComponent;
 /// skirts' own, before they are merged into the level's order.
 thread_local std::vector<std::uint32_t> tIndices, tSkirtIndices, tSkirtSquares, tSkirtCounts;
 thread_local std::vector<Group> tGroups;
+thread_local std::vector<float> tColumns;  ///< lattice column x and s
+/// A run of lattice groups: its first stored group and length.
+struct LatticeRun {
+  std::uint32_t first, count;
+};
+thread_local std::vector<LatticeRun> tLatticeRuns;
+thread_local std::vector<std::uint32_t> tFull;  ///< stored indices with the lattice runs' filled in
+
+/// The stored groups' indices in group order into `out`: a lattice run's
+/// from its grid triangles, the others' in turn from the index stream.
+void fillLatticeRuns(const Group* gr, std::size_t ng, const std::uint32_t* stream, std::uint32_t sx, std::uint32_t sz,
+                     std::uint32_t* out) {
+  std::size_t g = 0;
+  const auto copyUpTo = [&](std::size_t end) {
+    for (; g < end; ++g) {
+      std::memcpy(out + gr[g].firstIndex, stream, sizeof(std::uint32_t) * gr[g].indexCount);
+      stream += gr[g].indexCount;
+    }
+  };
+  const std::uint32_t w = sx + 1;
+  for (const LatticeRun& run : tLatticeRuns) {
+    copyUpTo(run.first);
+    // A run walks the squares in order: one division per run, not per group.
+    std::uint32_t col = gr[g].square % sx, nw = (gr[g].square / sx) * w + col;
+    std::uint32_t square = gr[g].square;
+    for (; g < std::size_t(run.first) + run.count; ++g) {
+      while (square < gr[g].square) {  // the next square, wrapping to the next row
+        ++square, ++nw;
+        if (++col == sx) col = 0, ++nw;
+      }
+      std::uint32_t* o = out + gr[g].firstIndex;
+      if (gr[g].half == Half::upper) o[0] = nw, o[1] = nw + w, o[2] = nw + 1;
+      else o[0] = nw + 1, o[1] = nw + w, o[2] = nw + w + 1;
+    }
+  }
+  (void)sz;
+  copyUpTo(ng);
+}
+
+/// The largest of n values (0 for none). Apart from the decoder's body,
+/// whose lambdas capture its locals by reference, so that the loop keeps
+/// its operands in registers and vectorises.
+std::uint32_t largestOf(const std::uint32_t* v, std::size_t n) {
+  std::uint32_t m = 0;
+  for (std::size_t k = 0; k < n; ++k) m = v[k] > m ? v[k] : m;
+  return m;
+}
+
+/// The highest y over the indices of every non-skirt group, per square
+/// (derived maxHeight; -infinity where a square has none).
+void derivedMaxHeights(const Vertex* v, const std::uint32_t* idx, const Group* gr, std::size_t ng, float* mh,
+                       std::size_t squares) {
+  std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());
+  for (std::size_t k = 0; k < ng; ++k) {
+    if (gr[k].half == Half::skirt) continue;
+    float t = mh[gr[k].square];
+    const std::uint32_t* i = idx + gr[k].firstIndex;
+    const std::uint32_t* const end = i + gr[k].indexCount;
+    for (; i < end; ++i) t = std::max(t, v[*i].y);
+    mh[gr[k].square] = t;
+  }
+}
 
 /// Merges the stored groups (indices in `stored`) with the skirt groups
-/// (squares and counts, indices in skirtIdx) into the level's groups and
-/// indices, in (priority, square, half, material) order, the stored group
-/// first among equal keys.
+/// (squares and counts, indices in tSkirtIndices) into the level's groups
+/// and indices, in (priority, square, half, material) order, the stored
+/// group first among equal keys. Stored groups between two skirt groups
+/// are one stretch: their indices are contiguous, so each stretch is one
+/// copy and its groups shift by one offset.
 void mergeSkirts(const std::vector<Group>& stored, std::size_t storedCount, const std::uint32_t* storedIdx,
                  std::size_t skirtGroups, std::uint16_t material, Level& l) {
   const std::uint32_t* skirtIdx = tSkirtIndices.data();
   Group* out = l.groups.data();
   std::uint32_t* idx = l.indices.data();
-  std::size_t a = 0, b = 0, g = 0, at = 0, skirtAt = 0;
-  while (a < storedCount || b < skirtGroups) {
-    const std::uint64_t skirtKey =
-        b < skirtGroups ? groupKey(kPrioritySkin, tSkirtSquares[b], std::uint8_t(Half::skirt), material) : 0;
-    const bool takeStored =
-        a < storedCount && (b == skirtGroups || groupKey(stored[a].priority, stored[a].square,
-                                                         std::uint8_t(stored[a].half), stored[a].material) <= skirtKey);
-    Group x;
-    const std::uint32_t* src;
-    if (takeStored) {
-      x = stored[a++];
-      src = storedIdx + x.firstIndex;
-    } else {
-      x = {tSkirtSquares[b], Half::skirt, kPrioritySkin, material, 0, tSkirtCounts[b]};
-      src = skirtIdx + skirtAt;
-      skirtAt += tSkirtCounts[b++];
+  std::size_t a = 0, g = 0, at = 0, skirtAt = 0;
+  const auto stretch = [&](std::size_t end) {
+    if (end == a) return;
+    const std::uint32_t from = stored[a].firstIndex;
+    const std::uint32_t n = stored[end - 1].firstIndex + stored[end - 1].indexCount - from;
+    std::memcpy(idx + at, storedIdx + from, sizeof(std::uint32_t) * n);
+    const auto shift = std::uint32_t(at) - from;  // mod 2^32
+    for (; a < end; ++a, ++g) {
+      out[g] = stored[a];
+      out[g].firstIndex += shift;
     }
-    std::memcpy(idx + at, src, sizeof(std::uint32_t) * x.indexCount);
-    x.firstIndex = std::uint32_t(at);
-    at += x.indexCount;
-    out[g++] = x;
+    at += n;
+  };
+  for (std::size_t b = 0; b < skirtGroups; ++b) {
+    const std::uint64_t key = groupKey(kPrioritySkin, tSkirtSquares[b], std::uint8_t(Half::skirt), material);
+    std::size_t end = a;
+    while (end < storedCount &&
+           groupKey(stored[end].priority, stored[end].square, std::uint8_t(stored[end].half), stored[end].material) <=
+               key) {
+      ++end;
+    }
+    stretch(end);
+    const std::uint32_t n = tSkirtCounts[b];
+    std::memcpy(idx + at, skirtIdx + skirtAt, sizeof(std::uint32_t) * n);
+    out[g++] = {tSkirtSquares[b], Half::skirt, kPrioritySkin, material, std::uint32_t(at), n};
+    at += n;
+    skirtAt += n;
   }
+  stretch(storedCount);
 }
 }  // namespace
 
@@ -688,9 +793,8 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                      std::size_t li, std::size_t& pos, Level& l, std::uint32_t version) {
   const bool v3 = version >= kVersion3;
   const std::uint32_t headerBytes = v3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
-  const std::string lv = "level " + str(li);
   auto fail = [&](std::uint64_t off, const std::string& msg) {
-    return Status(Problem{file, base + off, "module: " + lv + msg});
+    return Status(Problem{file, base + off, "module: level " + str(li) + msg});
   };
   const std::size_t left = bytes.size() - pos;
   if (left < headerBytes) {
@@ -789,6 +893,13 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                                                    str(sk.indices) + " skirt indices in " + str(sk.groups) + " groups");
   }
   const std::uint32_t niS = ni - std::uint32_t(sk.indices), ngS = ng - std::uint32_t(sk.groups);
+  // Version 3 lattice runs leave their indices out of the stream.
+  const std::uint32_t niStream = v3 ? loadLE<std::uint32_t>(h + levelField3::streamIndices) : niS;
+  if (niStream > niS || (niStream != niS && !lattice)) {
+    return fail(pos + levelField3::streamIndices,
+                " index stream count " + str(niStream) + " is above the " + str(niS) +
+                    " stored indices, or below them without the lattice (bit 0)");
+  }
   // Every count is now bounded by the bytes: the lattice by its planes, the
   // other vertices by the stream's largest expansion, indices by one byte
   // each, groups by 3 indices each, runs by 5 bytes each.
@@ -799,9 +910,9 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                 " vertex stream of " + str(vBytes) + " bytes cannot hold " + str(E) + " vertices of " +
                     str(stride) + " bytes");
   }
-  if (niS > iBytes || (niS == 0) != (iBytes == 0)) {
+  if (niStream > iBytes || (niStream == 0) != (iBytes == 0)) {
     return fail(pos + levelField2::indexStreamBytes,
-                " index stream of " + str(iBytes) + " bytes cannot hold " + str(niS) + " indices");
+                " index stream of " + str(iBytes) + " bytes cannot hold " + str(niStream) + " indices");
   }
   if (std::uint64_t(ngS) * 3 > niS || std::uint64_t(nr) * 5 > rBytes || nr > ngS || (ngS == 0) != (nr == 0)) {
     return fail(pos + levelField2::groupCount, " " + str(ngS) + " stored groups in " + str(nr) + " runs of " +
@@ -827,13 +938,19 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       v[k].y = std::bit_cast<float>(unzigzag32(z) + predict(k % w, k / w, w, get));
     });
     p += 4 * P;
+    // Each column's x and s once, then row by row.
+    tColumns.resize(2 * w);
+    float* const colX = tColumns.data();
+    float* const colS = colX + w;
+    for (std::size_t a = 0; a < w; ++a) {
+      const double xd = latticeCoord(std::uint32_t(a), l.squaresX, l.spacing, lastX);
+      colX[a] = float(xd), colS[a] = float((s0 + xd) / kSkinTextureRepeat);
+    }
     for (std::size_t j = 0, k = 0; j <= l.squaresZ; ++j) {
       const double zd = latticeCoord(std::uint32_t(j), l.squaresZ, l.spacing, lastZ);
       const float z = float(zd), t = float((t0 + zd) / kSkinTextureRepeat);
-      for (std::size_t a = 0; a <= l.squaresX; ++a, ++k) {
-        const double xd = latticeCoord(std::uint32_t(a), l.squaresX, l.spacing, lastX);
-        v[k] = {float(xd), height(std::bit_cast<std::uint32_t>(v[k].y)), z,
-                float((s0 + xd) / kSkinTextureRepeat), t};
+      for (std::size_t a = 0; a < w; ++a, ++k) {
+        v[k] = {colX[a], height(std::bit_cast<std::uint32_t>(v[k].y)), z, colS[a], t};
       }
     }
     if (normals) {
@@ -891,16 +1008,20 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                 tSkirtCounts.data()});
   }
   const std::size_t indexStream = p;
-  // Stored indices and groups go straight into the level unless skirts
-  // are merged in afterwards.
-  std::vector<std::uint32_t>& storedIndices = implicitSkirts ? tIndices : l.indices;
+  // Stream indices and stored groups go straight into the level unless
+  // lattice runs or skirts are filled in afterwards.
+  const bool latticeRuns = niStream != niS;
+  std::vector<std::uint32_t>& storedIndices = implicitSkirts || latticeRuns ? tIndices : l.indices;
   std::vector<Group>& storedGroups = implicitSkirts ? tGroups : l.groups;
-  storedIndices.resize(niS);
-  if (niS > 0 && meshopt_decodeIndexSequence(storedIndices.data(), niS, 4,
-                                             reinterpret_cast<const unsigned char*>(b + p), iBytes) != 0) {
-    return fail(p, " index stream (" + str(iBytes) + " bytes, " + str(niS) + " indices) does not decode");
+  storedIndices.resize(niStream);
+  if (niStream > 0 && meshopt_decodeIndexSequence(storedIndices.data(), niStream, 4,
+                                                  reinterpret_cast<const unsigned char*>(b + p), iBytes) != 0) {
+    return fail(p, " index stream (" + str(iBytes) + " bytes, " + str(niStream) + " indices) does not decode");
   }
-  for (std::uint32_t k = 0; k < niS; ++k) {
+  // The largest index first (a loop the compiler vectorises), the
+  // offender only when there is one.
+  const std::uint32_t largest = largestOf(storedIndices.data(), niStream);
+  for (std::uint32_t k = 0; largest >= nv && k < niStream; ++k) {
     if (storedIndices[k] >= nv) {
       return fail(indexStream, " index " + str(k) + " is " + str(storedIndices[k]) +
                                    ", not below the vertex count " + str(nv));
@@ -913,8 +1034,9 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   Group* gr = storedGroups.data();
   const std::byte* r = b + p;
   const std::byte* const rEnd = r + rBytes;
-  std::uint64_t slot = 0, first = 0, prevKey = 0;
+  std::uint64_t slot = 0, first = 0, prevKey = 0, latticeGroups = 0;
   std::uint32_t g = 0;
+  tLatticeRuns.clear();
   for (std::uint32_t run = 0; run < nr; ++run) {
     const std::size_t at = std::size_t(r - b);
     std::uint64_t f[5];
@@ -925,12 +1047,42 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       }
     }
     const std::uint64_t start = slot + std::uint64_t(unzigzag64(f[0]));
+    // Version 3: bit 0 of the length marks a lattice run.
+    const bool latticeRun = v3 && (f[4] & 1);
+    if (v3) f[4] >>= 1;
+    if (latticeRun && (!lattice || (start & 3) > 1 || f[3] != 3)) {
+      return fail(at, " group run " + str(run) + " is a lattice run (length bit 0) but the level has no lattice, "
+                                                  "it starts on a skirt or its index count " + str(f[3]) + " is not 3");
+    }
     if (f[1] > 0xff || f[2] > 0xffff || f[3] > 0xffffffffu || f[4] == 0 || f[4] > ngS - g) {
       return fail(at, " group run " + str(run) + " (priority " + str(f[1]) + ", material " + str(f[2]) +
                           ", index count " + str(f[3]) + ", length " + str(f[4]) + ") is out of range (" +
                           str(ngS - g) + " groups left)");
     }
     slot = start;
+    if (latticeRun) {
+      tLatticeRuns.push_back({g, std::uint32_t(f[4])});
+      latticeGroups += f[4];
+    }
+    // A run whose every group is sound needs its first and last checked
+    // only: squares and keys rise through it.
+    const auto count = std::uint32_t(f[3]);
+    const std::uint64_t n = f[4];
+    const std::uint64_t startHalf = start & 3;
+    const std::uint64_t last = startHalf == 2 ? start + 4 * (n - 1) : halfSlot(2 * (start >> 2) + startHalf + n - 1);
+    const std::uint64_t firstKey = groupKey(std::uint8_t(f[1]), std::uint32_t(start >> 2), std::uint8_t(startHalf),
+                                            std::uint16_t(f[2]));
+    if (startHalf <= 2 && (start >> 2) < squares && (last >> 2) < squares && count > 0 && count % 3 == 0 &&
+        count <= niS - first && n <= (niS - first) / count && (g == 0 || firstKey >= prevKey)) {
+      for (std::uint64_t k = 0; k < n; ++k, ++g) {
+        if (k > 0) slot = nextSlot(slot);
+        gr[g] = {std::uint32_t(slot >> 2), static_cast<Half>(slot & 3), std::uint8_t(f[1]), std::uint16_t(f[2]),
+                 std::uint32_t(first), count};
+        first += count;
+      }
+      prevKey = groupKey(std::uint8_t(f[1]), std::uint32_t(slot >> 2), std::uint8_t(slot & 3), std::uint16_t(f[2]));
+      continue;
+    }
     for (std::uint64_t k = 0; k < f[4]; ++k, ++g) {
       if (k > 0) slot = nextSlot(slot);
       const auto gs = [g] { return " group " + str(g); };
@@ -939,7 +1091,6 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       if (square >= squares) {
         return fail(at, gs() + " square " + str(square) + " is not below the level's " + str(squares) + " squares");
       }
-      const auto count = std::uint32_t(f[3]);
       if (count == 0 || count % 3 != 0) {
         return fail(at, gs() + " index count " + str(count) + " is not a positive multiple of 3");
       }
@@ -966,28 +1117,29 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   if (g != ngS) {
     return fail(p, " runs give " + str(g) + " groups, the level header says " + str(ngS) + " are stored");
   }
+  if (niS - 3 * latticeGroups != niStream) {
+    return fail(p, " runs take " + str(niS - 3 * latticeGroups) + " indices from the index stream, which holds " +
+                       str(niStream));
+  }
   if (r != rEnd) {
     return fail(std::size_t(r - b), " " + str(std::size_t(rEnd - r)) + " bytes follow the last group run");
   }
   if (first != niS) {
     return fail(p, " groups cover " + str(first) + " of the level's " + str(niS) + " stored indices");
   }
+  if (latticeRuns) {
+    std::vector<std::uint32_t>& full = implicitSkirts ? tFull : l.indices;
+    full.resize(niS);
+    fillLatticeRuns(gr, ngS, tIndices.data(), l.squaresX, l.squaresZ, full.data());
+  }
   if (implicitSkirts) {
     l.groups.resize(ng);
     l.indices.resize(ni);
-    mergeSkirts(tGroups, ngS, tIndices.data(), std::size_t(sk.groups), skirtMaterial, l);
+    mergeSkirts(tGroups, ngS, (latticeRuns ? tFull : tIndices).data(), std::size_t(sk.groups), skirtMaterial, l);
     gr = l.groups.data();
   }
   if (derived) {
-    float* mh = l.maxHeight.data();
-    std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());
-    for (std::uint32_t k = 0; k < ng; ++k) {
-      if (gr[k].half == Half::skirt) continue;
-      float& t = mh[gr[k].square];
-      for (std::uint32_t i = gr[k].firstIndex; i < gr[k].firstIndex + gr[k].indexCount; ++i) {
-        t = std::max(t, v[l.indices[i]].y);
-      }
-    }
+    derivedMaxHeights(v, l.indices.data(), gr, ng, l.maxHeight.data(), std::size_t(squares));
   }
   (void)maxHeightPlane;
   pos = p + rBytes;

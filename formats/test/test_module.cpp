@@ -913,10 +913,11 @@ TEST(ModuleV2, checkEncodableRefusesNormalsOfTheWrongCount) {
 // ------------------------------------------------------------- version 3
 
 TEST(ModuleV3, layoutConstantsArePinned) {
-  EXPECT_EQ(kLevelHeaderBytes3, 112u);
+  EXPECT_EQ(kLevelHeaderBytes3, 116u);
   EXPECT_EQ(levelField3::skirtNode, 104u);
   EXPECT_EQ(levelField3::skirtMaterial, 108u);
   EXPECT_EQ(levelField3::reserved, 110u);
+  EXPECT_EQ(levelField3::streamIndices, 112u);
   EXPECT_EQ(kLevel3ImplicitSkirts, 16u);
   EXPECT_EQ(kLevel3PlaneHeights, 32u);
   EXPECT_EQ(kNewestVersion, 3u);
@@ -947,20 +948,23 @@ TEST(ModuleV3, version3GoldenBytes) {
       "0600"              // normal shift 6
       "0000"              // x, z exponent 0 (no stream vertices)
       "00000000"          // empty vertex stream
-      "0b000000"          // index stream 11 bytes
+      "00000000"          // empty index stream: both triangles are the lattice's
       "05000000"          // runs 5 bytes
       "01000000"          // skirt node: 1 square
       "0700"              // skirt material 7
-      "0000";             // reserved
-  ASSERT_EQ(bytes.size(), 48u + 112u + 48u);
-  EXPECT_EQ(hex(std::span(bytes).subspan(48, 112)), header);
+      "0000"              // reserved
+      "00000000";         // no index in the stream
+  ASSERT_EQ(bytes.size(), 48u + 116u + 37u);
+  EXPECT_EQ(hex(std::span(bytes).subspan(48, 116)), header);
   // Codes 500, 525, 550, 600: residuals 500, 25, 50, 25, zigzag 1000 (0x3e8),
-  // 50, 100, 50 in four byte planes; then the version 2 golden's normals,
-  // index stream and run.
+  // 50, 100, 50 in four byte planes; then the version 2 golden's normals;
+  // then one lattice run: start 0, priority 1, material 3, 3 indices, length
+  // 2 << 1 | 1 (lattice).
   const auto v2 = encode(tinyV2(), {.version = 2});
-  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 112, 16)), "e8326432030000000000000000000000");
-  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 112 + 16)), hex(std::span(v2).subspan(48 + 104 + 16)));
-  // "SANDMOD3", version 3, 48, kx 1, kz 2, 1 level, flags 0, total 208.
+  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 116, 16)), "e8326432030000000000000000000000");
+  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 116 + 16, 16)), hex(std::span(v2).subspan(48 + 104 + 16, 16)));
+  EXPECT_EQ(hex(std::span(bytes).subspan(48 + 116 + 32)), "0001030305");
+  // "SANDMOD3", version 3, 48, kx 1, kz 2, 1 level, flags 0, total 201.
   EXPECT_EQ(hex(std::span(bytes).first(40)),
             "53414e444d4f4433"
             "03000000"
@@ -969,7 +973,7 @@ TEST(ModuleV3, version3GoldenBytes) {
             "02000000"
             "01000000"
             "00000000"
-            "d000000000000000");
+            "c900000000000000");
   EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::payloadCrc), crc32(std::span(bytes).subspan(48)));
   EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + field::headerCrc), crc32(std::span(bytes).first(44)));
   EXPECT_EQ(encodedVersion(bytes), 3u);
@@ -1029,9 +1033,10 @@ TEST(ModuleV3, skirtsThatAreNotTheBuildersAreStoredAsTheyAre) {
     ASSERT_TRUE(back.ok()) << back.error();
     expectEqual(back.value(), m);
   }
-  // Implicit skirts and plane heights make the tiny module's level 0 no
-  // larger than version 2 without its skirt.
-  EXPECT_EQ(encode(tinyV3()).size(), encode(tinyV2(), {.version = 2}).size() + 8);
+  // With implicit skirts and a lattice run, the tiny module with its skirt
+  // takes one byte more than version 2 without it (12 more header bytes,
+  // 11 fewer index stream bytes).
+  EXPECT_EQ(encode(tinyV3()).size(), encode(tinyV2(), {.version = 2}).size() + 1);
 }
 
 TEST(ModuleV3, planeHeightsPredictCultureVerticesOnTheirTriangle) {
@@ -1107,6 +1112,11 @@ TEST(ModuleV3, hostileSkirtFieldsAreRefusedBeforeAllocating) {
       {levelField2::indexCount, 4, 23, lh + levelField2::indexCount,
        "module: level 0 has 23 indices in 3 groups, fewer than its 24 skirt indices in 1 groups"},
       {levelField2::flags, 4, 0x77, lh + levelField2::flags, "module: level 0 flags 119 has bits other than 0..5 set"},
+      {levelField3::streamIndices, 4, 7, lh + levelField3::streamIndices,
+       "module: level 0 index stream count 7 is above the 6 stored indices, or below them without the lattice "
+       "(bit 0)"},
+      {levelField3::streamIndices, 4, 3, lh + levelField2::indexStreamBytes,
+       "module: level 0 index stream of 0 bytes cannot hold 3 indices"},
       {levelField2::flags, 4, 0x36, lh + levelField2::flags,
        "module: level 0 flags 54: a derived maxHeight (bit 1), implicit skirts (bit 4) and plane heights (bit 5) "
        "need the lattice (bit 0)"},

@@ -136,8 +136,8 @@ inline constexpr std::uint32_t kLevel2ExactHeights = 8;      ///< y codes are fl
 inline constexpr std::uint32_t kLevel2KnownFlags = 15;
 
 // ------------------------------------------------------- layout, version 3
-// Version 3 is version 2 with eight more level header bytes (skirt node and
-// material) and two more flags, both lossless and checked bit for bit by the
+// Version 3 is version 2 with twelve more level header bytes (skirt node,
+// material, stream index count) and three more rules, all lossless and checked bit for bit by the
 // encoder, which leaves a flag clear wherever its rule does not reproduce
 // the level exactly:
 //  - implicit skirts: the skirt groups, their indices and their bottom
@@ -146,15 +146,19 @@ inline constexpr std::uint32_t kLevel2KnownFlags = 15;
 //    vertices y - skirtDepth with s = t = 0, appended after the others);
 //    none of them is stored;
 //  - plane heights: the y code of every other vertex is stored as the
-//    difference from the code of the lattice triangle's plane at its x, z.
-inline constexpr std::uint32_t kLevelHeaderBytes3 = 112;
+//    difference from the code of the lattice triangle's plane at its x, z;
+//  - lattice runs (no flag: bit 0 of a run's length field): a run of
+//    groups that are each one grid triangle of the lattice, (NW, SW, NE)
+//    upper or (NE, SW, SE) lower, stores no indices.
+// streamIndices counts the indices the index stream holds.
+inline constexpr std::uint32_t kLevelHeaderBytes3 = 116;
 inline constexpr std::uint32_t kLevel3ImplicitSkirts = 16;
 inline constexpr std::uint32_t kLevel3PlaneHeights = 32;
 inline constexpr std::uint32_t kLevel3KnownFlags = 63;
 namespace levelField3 {
-inline constexpr std::size_t skirtNode = 104, skirtMaterial = 108, reserved = 110;
+inline constexpr std::size_t skirtNode = 104, skirtMaterial = 108, reserved = 110, streamIndices = 112;
 }
-static_assert(levelField3::reserved + 2 == kLevelHeaderBytes3, "version 3 level header layout");
+static_assert(levelField3::streamIndices + 4 == kLevelHeaderBytes3, "version 3 level header layout");
 
 /// Byte offsets of the version 2 level header fields, from the level's start.
 namespace levelField2 {
