@@ -160,4 +160,11 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   return r;
 }
 
+nlohmann::json sizeStatsJson(const pack::SizeStats& s) {
+  return {{"compressed_total", s.totalCompressed}, {"raw_total", s.totalRaw},
+          {"min", s.minCompressed},                {"median", s.medianCompressed},
+          {"p95", s.p95Compressed},                {"max", s.maxCompressed},
+          {"mean", s.count ? double(s.totalCompressed) / double(s.count) : 0.0}};
+}
+
 }  // namespace sandtable::convert

@@ -180,6 +180,7 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
     out.build["modules"]["format_version"] = module::kNewestVersion;
     out.build["modules"]["height_step_m"] = o.heightStep;
     out.build["modules"]["upgraded_from_version"] = report.fromVersion;
+    out.build["modules"]["bytes"] = sizeStatsJson(writer.value()->stats());  // the new records' sizes
   }
   const std::string text = manifest::encode(out);
   if (Status st = writeFileAtomic(staging.path() + "/" + manifest::kFileName,

@@ -99,6 +99,9 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   auto man = manifest::readFromDirectory(db);
   ASSERT_TRUE(man);
   EXPECT_EQ(man->build["modules"]["format_version"], 3);
+  // The record sizes are the new modules', not the build's.
+  EXPECT_LT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter);
+  EXPECT_GT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter / 2);
 
   const auto after = readAll(db, version);
   EXPECT_EQ(version, 3u);

@@ -28,7 +28,7 @@ int runUpgrade(const UpgradeArgs& a) {
   const auto& u = r.value();
   if (a.json) {
     const nlohmann::json j = {{"database", a.dir},          {"upgraded", u.upgraded},
-                              {"from_version", u.fromVersion}, {"to_version", 2},
+                              {"from_version", u.fromVersion}, {"to_version", module::kNewestVersion},
                               {"modules", u.modules},       {"pack_bytes_before", u.packBytesBefore},
                               {"pack_bytes_after", u.packBytesAfter}, {"height_step_m", a.o.heightStep},
                               {"seconds", u.seconds}};

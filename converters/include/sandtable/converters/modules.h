@@ -12,6 +12,8 @@
 #include "sandtable/formats/pack.h"
 #include "sandtable/meshing/lattice.h"
 
+#include <nlohmann/json.hpp>
+
 namespace sandtable::convert {
 
 struct ModuleOptions {
@@ -75,6 +77,10 @@ struct ModuleReport {
 /// Builds every module of `grid` into `directory` (modules.pack, modules.idx).
 /// Workers take modules in row order, so memory stays bounded by one module
 /// per worker plus the index (32 bytes per module) whatever the database size.
+/// A pack's record sizes as the manifest's `build.modules.bytes` object
+/// (docs/FORMAT.md §5.5): totals, min, median, p95, max and mean.
+nlohmann::json sizeStatsJson(const pack::SizeStats& s);
+
 Result<ModuleReport> buildModules(const std::string& directory, const grid::GridFile& grid,
                                   const Culture& culture, std::uint16_t skirtMaterial,
                                   const ModuleOptions& options, const ProgressFn& progress);
