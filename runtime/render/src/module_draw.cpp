@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <limits>
 #include <optional>
 
 #include "sandtable/scene/camera_math.h"
@@ -22,7 +23,8 @@ constexpr double kPostTolerance = 1e-3;
 /// The arena's first size; it doubles when full.
 constexpr std::uint64_t kArenaInitialBytes = 8ull << 20;
 
-const char* kVertexShader = R"(#version 450 core
+// Appended to detail::shadingVertexGlsl().
+const char* kVertexMain = R"(
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in float aMorphDelta;
 layout(location = 2) in vec4 aColour;
@@ -32,34 +34,39 @@ layout(location = 4) in vec2 aTexCoord;
 // from the buffer origin, and the node's morph factor.
 layout(location = 5) in vec4 aDraw;
 uniform mat4 uViewProjection;
+uniform vec3 uEye;
 out vec4 vColour;
-out vec3 vNormal;
-out vec3 vPosition;
+out vec3 vTint;
+out float vLight;
+out float vFog;
+out float vHeight;
 out vec2 vTexCoord;
 void main() {
   vec3 p = aPosition + vec3(aDraw.x, 0.0, aDraw.y);
   p.y += aDraw.z * aMorphDelta;
   gl_Position = uViewProjection * vec4(p, 1.0);
   vColour = aColour;
-  vNormal = aNormal.xyz;
-  vPosition = p;
+  vTint = elevationTint(p.y);
+  vLight = sunLight(aNormal.xyz);
+  vFog = fogWeight(distance(p, uEye));
+  vHeight = p.y;
   vTexCoord = aTexCoord;
 }
 )";
 
-// Appended to detail::shadingGlsl(). The kind is the same at all three
-// corners of a triangle, so its interpolated value is exact.
+// Appended to detail::shadingFragmentGlsl(). The kind is the same at all
+// three corners of a triangle, so its interpolated value is exact.
 const char* kFragmentMain = R"(
 in vec4 vColour;
-in vec3 vNormal;
-in vec3 vPosition;
+in vec3 vTint;
+in float vLight;
+in float vFog;
+in float vHeight;
 in vec2 vTexCoord;
-uniform vec3 uEye;
 out vec4 fragColor;
 void main() {
   int kind = int(vColour.a * 3.0 + 0.5);
-  fragColor = shadeSurface(kind, vColour.rgb, vTexCoord, vPosition.y, vNormal,
-                           distance(vPosition, uEye));
+  fragColor = shadeSurface(kind, vColour.rgb, vTexCoord, vHeight, vTint, vLight, vFog);
 }
 )";
 
@@ -75,6 +82,11 @@ std::uint32_t packColour(Rgb c, SurfaceKind kind) {
 }
 
 SurfaceKind kindOf(std::uint32_t rgba) { return SurfaceKind(rgba >> 24); }
+
+/// Drawn with the road texture (shadingFragmentGlsl).
+bool isRoad(std::uint32_t rgba) {
+  return kindOf(rgba) == SurfaceKind::road || kindOf(rgba) == SurfaceKind::marked;
+}
 
 std::uint32_t packNormal(const Eigen::Vector3f& n) {
   const auto q = [](float v) {
@@ -215,8 +227,11 @@ struct Facing {
 /// Reused from upload to upload: its vectors keep their capacity.
 class LevelBuilder {
  public:
-  void reset(const module::Level& level, const std::vector<float>& delta, bool flat) {
+  /// `y`: each source vertex's height as uploaded (the level's, with
+  /// skirt feet raised by tightenSkirtFeet).
+  void reset(const module::Level& level, const std::vector<float>& y, const std::vector<float>& delta, bool flat) {
     level_ = &level;
+    y_ = &y;
     delta_ = &delta;
     flat_ = flat;
     firstCopy_.assign(level.vertices.size(), UINT32_MAX);
@@ -289,7 +304,7 @@ class LevelBuilder {
  private:
   GpuVertex vertex(std::uint32_t k, std::uint32_t rgba, std::uint32_t normal) const {
     const auto& v = level_->vertices[k];
-    return {v.x, v.y, v.z, (*delta_)[k], rgba, normal, v.s, v.t};
+    return {v.x, (*y_)[k], v.z, (*delta_)[k], rgba, normal, v.s, v.t};
   }
 
   /// The copy of source vertex k in colour `rgba` in this node, made on first use.
@@ -309,6 +324,7 @@ class LevelBuilder {
   std::uint8_t water(std::uint32_t k) const { return water_.empty() ? 0 : water_[k]; }
 
   const module::Level* level_ = nullptr;
+  const std::vector<float>* y_ = nullptr;
   const std::vector<float>* delta_ = nullptr;
   bool flat_ = false;
   std::vector<std::uint32_t> normal_;
@@ -323,7 +339,9 @@ class LevelBuilder {
 struct UploadScratch {
   LevelBuilder builder;
   PostMap posts, coarserPosts;
-  std::vector<float> delta;
+  std::vector<PostMap> levelPosts;  ///< every level's, for tightenSkirtFeet
+  std::vector<float> y, delta;
+  std::vector<std::uint8_t> isFoot;
   std::vector<std::vector<const module::Group*>> byNode;
   std::vector<std::vector<std::uint32_t>> squaresByNode;
   std::vector<std::uint32_t> colour, skinTriangles;
@@ -348,6 +366,59 @@ std::array<std::uint8_t, 4> roadTexel(double u, double v, std::uint32_t hash) {
   if (std::abs(u - 0.5) < 0.02 && v < 0.45) mark = 1;             // centre dash
   const auto byte = [](double x) { return std::uint8_t(std::lround(std::clamp(x, 0.0, 1.0) * 255.0)); };
   return {byte(shade), byte(shade), byte(shade), byte(mark * (0.85 + 0.15 * noise))};
+}
+
+/// How far a tightened skirt foot hangs below the lowest surface of any
+/// level at its edge, metres (the converter's margin, meshing/skirts.h).
+constexpr double kSkirtFootMargin = 1.0;
+
+/// Raises each skirt foot of level `levelIndex` from the module-wide
+/// depth the file stores (the worst over every node line of the module)
+/// to the depth its own stretch of edge needs (docs/VIEWER.md, "Seams"):
+/// the margin plus the most that this level's surface lies above the
+/// lowest surface of any level, sampled at the finest posts within one
+/// spacing of the foot along both lattice directions. Every level's edge
+/// is straight between the finest posts, a morphed edge lies between two
+/// levels' surfaces, and the foot line between two feet lies at least the
+/// smaller of their depths below this level's edge, so it stays under
+/// every neighbour's edge. Needs every level: where one is not resident
+/// (the pager publishes finer levels later) or a post is missing, the
+/// stored foot stays. `isFoot[k]` marks the feet; `y` holds the level's
+/// heights and gets the raised ones.
+void tightenSkirtFeet(const ResidentModule& m, std::uint32_t levelIndex, std::uint32_t finest,
+                      const std::vector<std::uint8_t>& isFoot, std::vector<PostMap>& posts, std::vector<float>& y) {
+  if (finest != 0 || m.levels.empty() || !(m.levels[0].spacing > 0)) return;
+  posts.resize(m.levels.size());
+  for (std::size_t l = 0; l < m.levels.size(); ++l) posts[l].build(m.levels[l]);
+  const module::Level& level = m.levels[levelIndex];
+  const PostMap& own = posts[levelIndex];
+  const double s0 = m.levels[0].spacing;
+  const int n = std::max(1, int(std::lround(level.spacing / s0)));
+  // This level's height above the lowest level at (x, z); nullopt where a post is missing.
+  const auto excess = [&](double x, double z) -> std::optional<double> {
+    const auto top = own.heightAt(x, z);
+    if (!top) return std::nullopt;
+    double lowest = *top;
+    for (const PostMap& p : posts) {
+      const auto h = p.heightAt(x, z);
+      if (!h) return std::nullopt;
+      lowest = std::min(lowest, *h);
+    }
+    return *top - lowest;
+  };
+  for (std::size_t k = 0; k < level.vertices.size(); ++k) {
+    if (!isFoot[k]) continue;
+    const auto& v = level.vertices[k];
+    const auto top = own.heightAt(v.x, v.z);
+    double worst = 0;
+    bool known = top.has_value();
+    for (int i = -n; i <= n && known; ++i) {
+      const auto a = excess(v.x + i * s0, v.z), b = excess(v.x, v.z + i * s0);
+      known = a && b;
+      if (known) worst = std::max({worst, *a, *b});
+    }
+    if (known) y[k] = std::max(v.y, float(*top - worst - kSkirtFootMargin));
+  }
 }
 
 }  // namespace
@@ -497,10 +568,14 @@ void ModuleRenderer::createRoadTexture() {
 
 Status ModuleRenderer::create(const RenderSettings& s) {
   settings_ = s;
-  auto program = GlProgram::build("module", kVertexShader, shadingGlsl() + kFragmentMain);
-  if (!program) return program.problems();
-  program_ = std::move(program.value());
-  setShadingUniforms(program_, s);
+  for (const bool roads : {true, false}) {
+    auto program = GlProgram::build(roads ? "module" : "module (no roads)", shadingVertexGlsl() + kVertexMain,
+                                    shadingFragmentGlsl(roads) + kFragmentMain);
+    if (!program) return program.problems();
+    GlProgram& p = roads ? program_ : plainProgram_;
+    p = std::move(program.value());
+    setShadingUniforms(p, s);
+  }
   glCreateVertexArrays(1, &vao_);
   const auto attrib = [&](GLuint index, GLint size, GLenum type, GLboolean norm, GLuint offset, GLuint binding) {
     glEnableVertexArrayAttrib(vao_, index);
@@ -583,19 +658,21 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   // lowest surface of every level there, so a skirt from a morphed edge
   // down to its unmoved foot still covers any neighbour's edge.
   sc.delta.assign(level.vertices.size(), 0.0f);
-  if (coarser) {
-    sc.coarserPosts.build(*coarser);
-    for (std::size_t k = 0; k < level.vertices.size(); ++k) {
-      const auto& v = level.vertices[k];
-      const auto yc = sc.coarserPosts.heightAt(v.x, v.z);
-      const auto yl = sc.posts.heightAt(v.x, v.z);
-      const bool skirtFoot = yl && v.y < *yl - 0.01;
-      if (yc && yl && !skirtFoot) sc.delta[k] = float(*yc - *yl);
-    }
+  sc.y.resize(level.vertices.size());
+  sc.isFoot.assign(level.vertices.size(), 0);
+  if (coarser) sc.coarserPosts.build(*coarser);
+  for (std::size_t k = 0; k < level.vertices.size(); ++k) {
+    const auto& v = level.vertices[k];
+    sc.y[k] = v.y;
+    const auto yl = sc.posts.heightAt(v.x, v.z);
+    sc.isFoot[k] = yl && v.y < *yl - 0.01;
+    if (!coarser || !yl || sc.isFoot[k]) continue;
+    if (const auto yc = sc.coarserPosts.heightAt(v.x, v.z)) sc.delta[k] = float(*yc - *yl);
   }
+  tightenSkirtFeet(m, levelIndex, d.ref.finestLevel(), sc.isFoot, sc.levelPosts, sc.y);
   const bool flat = settings_.shading == Shading::flat;
   LevelBuilder& builder = sc.builder;
-  builder.reset(level, sc.delta, flat);
+  builder.reset(level, sc.y, sc.delta, flat);
   if (!flat && settings_.grid) {
     builder.sampleGrid(*settings_.grid, settings_.waterMaterials, d.kx * moduleSize_, d.kz * moduleSize_);
   }
@@ -684,12 +761,16 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
       for (const module::Group* g : sc.byNode[n]) {
         const std::uint32_t* idx = level.indices.data() + g->firstIndex;
         if (g->half != module::Half::skirt) {
-          builder.triangles(idx, g->indexCount, colourOf(*g), false, facingOf(*g));
+          const std::uint32_t rgba = colourOf(*g);
+          b.roads |= isRoad(rgba);
+          builder.triangles(idx, g->indexCount, rgba, false, facingOf(*g));
           continue;
         }
         const Facing f = facingOf(*g);
         for (std::uint32_t t = 0; t + 2 < g->indexCount; t += 3) {
-          builder.triangles(idx + t, 3, skirtColour(idx + t, f), true, f);
+          const std::uint32_t rgba = skirtColour(idx + t, f);
+          b.roads |= isRoad(rgba);
+          builder.triangles(idx + t, 3, rgba, true, f);
         }
       }
     }
@@ -744,7 +825,9 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
         const std::uint32_t tris[2][3] = {{nw, sw, ne}, {ne, sw, se}};
         // Flat: lit straight up, as the seed's pinhole filler was.
         for (int h = 0; h < 2; ++h) {
-          builder.triangles(tris[h], 3, sc.colour[2 * std::size_t(q) + h], true, Facing{Facing::up, 0, 0});
+          const std::uint32_t rgba = sc.colour[2 * std::size_t(q) + h];
+          b.roads |= isRoad(rgba);
+          builder.triangles(tris[h], 3, rgba, true, Facing{Facing::up, 0, 0});
         }
       }
     }
@@ -888,6 +971,7 @@ void ModuleRenderer::buildCommands(const DisplayBuffer& buf) {
   for (auto& l : lists_) l.clear();
   drawData_.clear();
   framePriorities_.reset();
+  roadLists_.reset();
   for (const Drawn& dr : drawn_) {
     const ModuleDraw& d = buf.modules[dr.module];
     const auto instance = GLuint(drawData_.size());
@@ -902,7 +986,9 @@ void ModuleRenderer::buildCommands(const DisplayBuffer& buf) {
       const std::uint32_t first = b.start[std::min<std::size_t>(dr.first, n)];
       const std::uint32_t last = b.start[std::min<std::size_t>(dr.last, n)];
       if (last <= first) continue;
-      lists_[listOf(b.priority)].push_back({last - first, 1, firstIndex + first, baseVertex, instance});
+      const std::size_t list = listOf(b.priority);
+      lists_[list].push_back({last - first, 1, firstIndex + first, baseVertex, instance});
+      if (b.roads) roadLists_.set(list);
     }
   }
   std::uint64_t total = 0;
@@ -939,6 +1025,11 @@ void ModuleRenderer::bindArena() {
 void ModuleRenderer::multiDraw(std::size_t list, RenderStats& stats) {
   const auto& l = lists_[list];
   if (l.empty()) return;
+  const GlProgram* p = roadLists_[list] ? &program_ : &plainProgram_;
+  if (p != used_) {
+    p->use();
+    used_ = p;
+  }
   glMultiDrawElementsIndirect(GL_TRIANGLES, GL_UNSIGNED_INT, reinterpret_cast<const void*>(listOffset_[list]),
                               GLsizei(l.size()), 0);
   ++stats.drawCalls;
@@ -948,12 +1039,14 @@ void ModuleRenderer::multiDraw(std::size_t list, RenderStats& stats) {
 
 void ModuleRenderer::drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                                  RenderStats& stats) {
-  program_.use();
+  for (GlProgram* p : {&program_, &plainProgram_}) {
+    p->setMatrix4("uViewProjection", viewProjection.data());
+    setFrameShading(*p, buf);
+  }
+  used_ = nullptr;
   glBindVertexArray(vao_);
   bindArena();
   glBindTextureUnit(0, roadTexture_);
-  program_.setMatrix4("uViewProjection", viewProjection.data());
-  setFrameShading(program_, buf);
   // Ground faces up and skirts face out of their node (module_draw.h):
   // back faces are never the nearest surface that matters.
   glEnable(GL_CULL_FACE);

@@ -19,6 +19,12 @@
 // changes between nodes and no per-frame allocation (scratch vectors keep
 // their capacity).
 //
+// Programs: the tint, light and fog are per vertex (terrain_shading.h);
+// the module program is built with and without the road texture, and a
+// list takes the textured one only when one of its blocks has a road
+// triangle (Block::roads): llvmpipe pays for a texture fetch at every
+// fragment of a program that may sample it.
+//
 // Shading::smooth: indexed triangles; a module vertex is copied only where
 // triangles of different colours meet. Its normal and water weight are the
 // grid's, interpolated at the vertex (so every level, skirt and cut piece
@@ -35,7 +41,9 @@
 // Seams (docs/VIEWER.md, "Seams"): skirts face out of their node and the
 // terrain pass culls back faces (CCW front); skirts and the plain lattice
 // under culture-cut squares are drawn after the skin with a polygon offset
-// away from the eye, so they show only through cracks and pinholes.
+// away from the eye, so they show only through cracks and pinholes. Skirt
+// feet are raised at upload from the file's module-wide depth to what
+// their own stretch of edge needs, when every level is resident.
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
@@ -152,6 +160,7 @@ class ModuleRenderer {
   struct Block {
     std::uint8_t priority = 1;
     std::vector<std::uint32_t> start;
+    bool roads = false;  ///< some triangle has a road kind: drawn with program_
   };
   struct Entry {
     std::uint64_t generation = 0;
@@ -194,7 +203,10 @@ class ModuleRenderer {
   void createRoadTexture();
 
   RenderSettings settings_;
-  GlProgram program_;
+  /// program_ samples the road texture; plainProgram_, for the lists with
+  /// no road triangle this frame (roadLists_), does not.
+  GlProgram program_, plainProgram_;
+  const GlProgram* used_ = nullptr;  ///< bound since drawTerrain()
   GLuint vao_ = 0, roadTexture_ = 0;
   GpuArena arena_;
   GLuint boundArena_ = 0;
@@ -230,6 +242,7 @@ class ModuleRenderer {
   std::array<std::vector<Command>, kLists> lists_;
   std::array<std::uint64_t, kLists> listOffset_{};  ///< bytes into the command buffer
   std::bitset<256> framePriorities_;
+  std::bitset<kLists> roadLists_;
 };
 
 }  // namespace sandtable::runtime::detail

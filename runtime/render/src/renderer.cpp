@@ -20,41 +20,46 @@ namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
-const char* kTerrainVertexShader = R"(#version 450 core
+// Appended to detail::shadingVertexGlsl().
+const char* kTerrainVertexMain = R"(
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in float aWater;
 uniform mat4 uViewProjection;
 uniform vec3 uEye;
-out vec3 vNormal;
 out vec3 vPosition;
 out float vWater;
+out vec3 vTint;
+out float vLight;
+out float vFog;
 void main() {
   gl_Position = uViewProjection * vec4(aPosition, 1.0);
-  vNormal = aNormal;
   vPosition = aPosition;
   vWater = aWater;
+  vTint = elevationTint(aPosition.y);
+  vLight = sunLight(aNormal);
+  vFog = fogWeight(distance(aPosition, uEye));
 }
 )";
 
-// Appended to detail::shadingGlsl(): the grid has no culture, so every
-// point is water or tinted. Flat shading takes the triangle's own normal
-// from the screen-space derivatives of the position.
+// Appended to detail::shadingFragmentGlsl(): the grid has no culture, so
+// every point is water or tinted. Flat shading lights each triangle with
+// its own normal, from the screen-space derivatives of the position.
 const char* kTerrainFragmentMain = R"(
-in vec3 vNormal;
 in vec3 vPosition;
 in float vWater;
-uniform vec3 uEye;
+in vec3 vTint;
+in float vLight;
+in float vFog;
 uniform bool uFlat;
 out vec4 fragColor;
 void main() {
-  vec3 n = vNormal;
+  float light = vLight;
   if (uFlat) {
-    n = cross(dFdx(vPosition), dFdy(vPosition));
-    if (n.y < 0.0) n = -n;
+    vec3 n = cross(dFdx(vPosition), dFdy(vPosition));
+    light = sunLight(n.y < 0.0 ? -n : n);
   }
-  fragColor = shadeSurface(0, vec3(vWater, 0.0, 0.0), vec2(0.0), vPosition.y, n,
-                           distance(vPosition, uEye));
+  fragColor = shadeSurface(0, vec3(vWater, 0.0, 0.0), vec2(0.0), vPosition.y, vTint, light, vFog);
 }
 )";
 
@@ -224,7 +229,8 @@ struct Renderer::Impl {
   }
 
   Status createPrograms() {
-    auto terrain = GlProgram::build("terrain", kTerrainVertexShader, detail::shadingGlsl() + kTerrainFragmentMain);
+    auto terrain = GlProgram::build("terrain", detail::shadingVertexGlsl() + kTerrainVertexMain,
+                                    detail::shadingFragmentGlsl(false) + kTerrainFragmentMain);
     if (!terrain) return terrain.problems();
     terrainProgram = std::move(terrain.value());
     auto sky = GlProgram::build("sky", kFullScreenVertexGlsl, kSkyFragmentShader);

@@ -1,7 +1,7 @@
 #pragma once
 // The colour rules both terrain programs share (grid mesh and load
-// modules), as one GLSL block, so the two modes draw the same ground the
-// same way (docs/VIEWER.md, "Colours"). Private to the renderer.
+// modules), as GLSL for each stage, so the two modes draw the same ground
+// the same way (docs/VIEWER.md, "Colours"). Private to the renderer.
 //
 // A surface point gets, in this order:
 //   - its material class colour where culture covers it (modules only);
@@ -9,6 +9,9 @@
 //     weight, interpolated between posts, is at least one half);
 //   - else the elevation tint: a fixed ramp in metres above the datum.
 // Then it is lit by the fixed sun (ambient 0.40 + 0.60 diffuse) and fogged.
+// The tint, the light and the fog weight are the vertex stage's,
+// interpolated; the choice among them (culture, water, tint) and the road
+// texture are per fragment, so coastlines and road markings stay sharp.
 //
 // `--colour height` replaces all of it: the fragment writes its world
 // height as a 24-bit code in RGB (renderer.h, kHeightCode*).
@@ -49,18 +52,27 @@ inline constexpr std::array<TintStop, 7> kTintRamp = {{
 }};
 inline constexpr std::uint32_t kWaterRgb = 0x3A6EA5;  ///< the default table's water class
 
-/// The shared GLSL after the ramp's constants (shadingGlsl()).
-inline constexpr const char* kShadingGlsl = R"(
+/// The GLSL both stages share, after the ramp's constants.
+inline constexpr const char* kShadingCommonGlsl = R"(
 uniform vec3 uSun;
 uniform vec3 uFogColor;
 uniform float uFogDensity;
 uniform float uFogStart;
 uniform bool uFog;
 uniform bool uHeightMode;
-uniform sampler2D uRoad;
 
-const vec3 kMarking = vec3(0.92, 0.92, 0.90);
+// Ambient 0.40 plus 0.60 diffuse from the fixed sun.
+float sunLight(vec3 normal) {
+  return 0.40 + 0.60 * max(dot(normalize(normal), uSun), 0.0);
+}
+)";
 
+/// The vertex stage's part: the tint, the light and the fog, which vary
+/// slowly across a triangle, are computed once per vertex and
+/// interpolated (Gouraud), so the fragment stage does one select, one
+/// multiply and one mix (docs/VIEWER.md, "Colours": on llvmpipe the
+/// per-fragment ramp, normalize and exp were a third of a frame).
+inline constexpr const char* kShadingVertexGlsl = R"(
 vec3 elevationTint(float h) {
   vec3 c = kTint[0];
   for (int k = 1; k < kStops; ++k) {
@@ -68,6 +80,20 @@ vec3 elevationTint(float h) {
   }
   return c;
 }
+
+// Fog weight of the surface colour at `dist` metres from the eye: 1 clear.
+float fogWeight(float dist) {
+  if (!uFog) return 1.0;
+  float k = uFogDensity * max(dist - uFogStart, 0.0);
+  return exp(-k * k);
+}
+)";
+
+/// The fragment stage's part.
+inline constexpr const char* kShadingFragmentGlsl = R"(
+uniform sampler2D uRoad;
+
+const vec3 kMarking = vec3(0.92, 0.92, 0.90);
 
 // 24-bit fixed point: code = round((h + 1000) * 256), RGB = code's bytes,
 // high first; code 0 (the clear colour) is no terrain.
@@ -80,33 +106,30 @@ vec4 heightCode(float h) {
 }
 
 // kind: 0 tint (rgb.r = water weight), 1 road, 2 marked road, 3 colour.
-vec4 shadeSurface(int kind, vec3 rgb, vec2 st, float h, vec3 normal, float dist) {
+// tint, light and fog: the vertex stage's, interpolated.
+vec4 shadeSurface(int kind, vec3 rgb, vec2 st, float h, vec3 tint, float light, float fog) {
   if (uHeightMode) return heightCode(h);
   vec3 base;
   if (kind == 0) {
-    base = rgb.r >= 0.5 ? kWater : elevationTint(h);
+    base = rgb.r >= 0.5 ? kWater : tint;
   } else if (kind == 3) {
     base = rgb;
   } else {
+#ifdef SANDTABLE_ROAD_TEXTURE
     vec4 t = texture(uRoad, vec2(st.y, st.x));
     base = rgb * t.rgb;
     if (kind == 2) base = mix(base, kMarking, t.a);
+#else
+    base = rgb;  // not drawn: a list with road triangles takes the program with the texture
+#endif
   }
-  vec3 n = normalize(normal);
-  vec3 color = base * (0.40 + 0.60 * max(dot(n, uSun), 0.0));
-  if (uFog) {
-    float k = uFogDensity * max(dist - uFogStart, 0.0);
-    color = mix(uFogColor, color, exp(-k * k));
-  }
-  return vec4(color, 1.0);
+  return vec4(mix(uFogColor, base * light, fog), 1.0);
 }
 )";
 
 /// "#version 450 core", the ramp as GLSL constants (from kTintRamp, so the
-/// table above is the one definition) and kShadingGlsl. The programs add
-/// their inputs and a main() that calls shadeSurface(). Uniforms: uSun,
-/// uFogColor, uFogDensity, uFogStart, uFog, uHeightMode, uRoad (unit 0).
-inline std::string shadingGlsl() {
+/// table above is the one definition) and kShadingCommonGlsl.
+inline std::string shadingHeaderGlsl() {
   std::string at, tint;
   char buf[96];
   for (const TintStop& s : kTintRamp) {
@@ -121,7 +144,21 @@ inline std::string shadingGlsl() {
   const std::string water = buf;
   const std::string n = std::to_string(kTintRamp.size());
   return "#version 450 core\nconst int kStops = " + n + ";\nconst float kAt[kStops] = float[](" + at +
-         ");\nconst vec3 kTint[kStops] = vec3[](" + tint + ");\n" + water + kShadingGlsl;
+         ");\nconst vec3 kTint[kStops] = vec3[](" + tint + ");\n" + water + kShadingCommonGlsl;
+}
+
+/// The vertex stage's shared GLSL: the programs add their inputs and a
+/// main() that passes elevationTint(), sunLight() and fogWeight() on.
+inline std::string shadingVertexGlsl() { return shadingHeaderGlsl() + kShadingVertexGlsl; }
+
+/// The fragment stage's shared GLSL: the programs add a main() that calls
+/// shadeSurface(). Uniforms of both: uSun, uFogColor, uFogDensity,
+/// uFogStart, uFog, uHeightMode, uRoad (unit 0). Without `roadTexture`
+/// road kinds get their class colour untextured: llvmpipe runs both sides
+/// of a branch, so a program that samples the road texture pays for it
+/// at every fragment, roads or not.
+inline std::string shadingFragmentGlsl(bool roadTexture) {
+  return shadingHeaderGlsl() + (roadTexture ? "#define SANDTABLE_ROAD_TEXTURE\n" : "") + kShadingFragmentGlsl;
 }
 
 /// Direction towards the fixed sun: azimuth 200 degrees (south-south-west,
