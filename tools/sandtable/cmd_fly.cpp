@@ -60,6 +60,7 @@ struct FlyArgs {
   std::string rings;
   double pixelError = 2.0;
   bool noMorph = false;
+  bool nodeMorph = false;
   double fogDensity = 0;
   bool pagerSync = false;
   double memoryBudgetMb = 1024;
@@ -256,6 +257,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   }
   o.render.lod.pixelError = a.pixelError;
   o.render.lod.morph = !a.noMorph;
+  o.render.lod.shareMorph = !a.nodeMorph;
   o.view.fogDensity = a.fogDensity;
   o.pager.sync = a.pagerSync;
   o.pager.budgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
@@ -508,6 +510,9 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--pixel-error", args->pixelError, "--lod sse: largest projected error, pixels")
       ->capture_default_str()->check(CLI::PositiveNumber);
   sub->add_flag("--no-morph", args->noMorph, "Switch levels without geomorphing");
+  sub->add_flag("--node-morph", args->nodeMorph,
+                "--lod sse: each node keeps its own morph factor (no pop at a level switch; "
+                "more draws and skirts than one factor per module and level)");
   sub->add_option("--fog-density", args->fogDensity,
                   "Fog density per metre; sets the view distance to the fog's obscuration distance")
       ->check(CLI::NonNegativeNumber);

@@ -753,29 +753,46 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
     const std::size_t k2 = 2 * (std::size_t(sz) * nx + sx) + lower;
     return sc.area[k2] >= 0 ? sc.colour[k2] : packColour({}, SurfaceKind::tint);
   };
+  // The skirt block is bucketed by node and side (Block::sides): range
+  // 4 n + s holds node n's skirts on side s (kSide*), so a frame can draw
+  // only the sides whose neighbour is drawn differently.
+  const auto sideOf = [&](const std::uint32_t* k, const Facing& f) {
+    const auto& a = level.vertices[k[0]];
+    const auto& b = level.vertices[k[1]];
+    const auto& c = level.vertices[k[2]];
+    const float dx = (a.x + b.x + c.x) / 3 - f.cx, dz = (a.z + b.z + c.z) / 3 - f.cz;
+    if (std::abs(dx) >= std::abs(dz)) return dx < 0 ? kSideWest : kSideEast;
+    return dz < 0 ? kSideNorth : kSideSouth;
+  };
   const auto emitBlock = [&](std::uint8_t priority) {
-    Block b{priority, std::vector<std::uint32_t>(nodes + 1, 0)};
+    const bool sides = priority == kSkirtPriority;
+    const std::size_t ranges = sides ? 4 * nodes : nodes;
+    Block b{priority, std::vector<std::uint32_t>(ranges + 1, 0)};
+    b.sides = sides;
     for (std::size_t n = 0; n < nodes; ++n) {
-      b.start[n] = std::uint32_t(builder.indexCount());
       builder.beginNode(std::uint32_t(n));
-      for (const module::Group* g : sc.byNode[n]) {
-        const std::uint32_t* idx = level.indices.data() + g->firstIndex;
-        if (g->half != module::Half::skirt) {
-          const std::uint32_t rgba = colourOf(*g);
-          b.roads |= isRoad(rgba);
-          builder.triangles(idx, g->indexCount, rgba, false, facingOf(*g));
-          continue;
-        }
-        const Facing f = facingOf(*g);
-        for (std::uint32_t t = 0; t + 2 < g->indexCount; t += 3) {
-          const std::uint32_t rgba = skirtColour(idx + t, f);
-          b.roads |= isRoad(rgba);
-          builder.triangles(idx + t, 3, rgba, true, f);
+      for (std::uint32_t side = 0; side < (sides ? 4u : 1u); ++side) {
+        b.start[sides ? 4 * n + side : n] = std::uint32_t(builder.indexCount());
+        for (const module::Group* g : sc.byNode[n]) {
+          const std::uint32_t* idx = level.indices.data() + g->firstIndex;
+          if (g->half != module::Half::skirt) {
+            const std::uint32_t rgba = colourOf(*g);
+            b.roads |= isRoad(rgba);
+            builder.triangles(idx, g->indexCount, rgba, false, facingOf(*g));
+            continue;
+          }
+          const Facing f = facingOf(*g);
+          for (std::uint32_t t = 0; t + 2 < g->indexCount; t += 3) {
+            if (sides && sideOf(idx + t, f) != side) continue;
+            const std::uint32_t rgba = skirtColour(idx + t, f);
+            b.roads |= isRoad(rgba);
+            builder.triangles(idx + t, 3, rgba, true, f);
+          }
         }
       }
     }
-    b.start[nodes] = std::uint32_t(builder.indexCount());
-    if (b.start[nodes] > b.start[0]) {
+    b.start[ranges] = std::uint32_t(builder.indexCount());
+    if (b.start[ranges] > b.start[0]) {
       e.priorities.set(priority);
       e.blocks.push_back(std::move(b));
     }
@@ -863,11 +880,34 @@ void ModuleRenderer::release(RenderStats& stats, const DisplayBuffer& buf) {
   }
 }
 
+namespace {
+
+/// Node (a, b) of a Morton index (lod.h's mortonIndex inverted).
+std::pair<std::uint32_t, std::uint32_t> mortonCell(std::uint32_t m) {
+  std::uint32_t a = 0, b = 0;
+  for (std::uint32_t bit = 0; bit < 16; ++bit) {
+    a |= ((m >> (2 * bit)) & 1u) << bit;
+    b |= ((m >> (2 * bit + 1)) & 1u) << bit;
+  }
+  return {a, b};
+}
+
+/// Command list of a block priority (ModuleRenderer::lists_).
+std::size_t listOf(std::uint8_t priority) {
+  if (priority == module::kPrioritySkin) return 0;
+  if (priority >= 254) return 1;  // skirts, underlay
+  if (priority < module::kPriorityObject) return 2 + priority;
+  return 101;
+}
+
+}  // namespace
+
 void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   const auto t0 = std::chrono::steady_clock::now();
   nodeSquares_ = buf.nodeSquares;
   moduleSize_ = buf.moduleSize;
   drawn_.clear();
+  cells_.clear();
   const std::uint64_t budget = settings_.uploadBudgetBytes;
   std::uint64_t spent = 0;
   // Uploads go nearest first (nodes are grouped by module, nearest module
@@ -948,24 +988,67 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
     }
     spans_.resize(out);
   }
+  // What covers each node of the finest level: where a skirt is needed.
+  const std::uint32_t side0 = nodesPerSide(0, levels);
+  const auto cells = std::uint32_t(cells_.size());
+  cells_.resize(cells_.size() + std::size_t(side0) * side0);
+  for (const Span& sp : spans_) {
+    for (std::uint64_t m = sp.f; m < sp.t; ++m) {
+      const auto [x, z] = mortonCell(std::uint32_t(m));
+      if (x < side0 && z < side0) cells_[cells + std::size_t(z) * side0 + x] = {sp.level, sp.morph};
+    }
+  }
   for (const Span& sp : spans_) {
     const std::uint32_t s = 2 * sp.level;
     drawn_.push_back({entryAt(sp.level), sp.level, std::uint32_t(sp.f >> s), std::uint32_t(sp.t >> s), sp.morph,
-                      buf.nodes[i0].module});
+                      buf.nodes[i0].module, cells, side0});
   }
 }
 
-namespace {
-
-/// Command list of a block priority (ModuleRenderer::lists_).
-std::size_t listOf(std::uint8_t priority) {
-  if (priority == module::kPrioritySkin) return 0;
-  if (priority >= 254) return 1;  // skirts, underlay
-  if (priority < module::kPriorityObject) return 2 + priority;
-  return 101;
+bool ModuleRenderer::skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint32_t side) const {
+  const auto [a, b] = mortonCell(node);
+  const std::uint32_t scale = 1u << dr.level, n = dr.side0;
+  // The finest-level cells just across the side, from x0/z0 along the other axis.
+  std::int64_t x = std::int64_t(a) * scale, z = std::int64_t(b) * scale;
+  std::int64_t dx = 0, dz = 0;
+  if (side == kSideNorth) --z, dx = 1;
+  if (side == kSideSouth) z += scale, dx = 1;
+  if (side == kSideWest) --x, dz = 1;
+  if (side == kSideEast) x += scale, dz = 1;
+  for (std::uint32_t k = 0; k < scale; ++k, x += dx, z += dz) {
+    if (x < 0 || z < 0 || x >= n || z >= n) return true;  // another module's
+    const Cell& c = cells_[dr.cells + std::size_t(z) * n + std::size_t(x)];
+    if (c.level != dr.level || c.morph != dr.morph) return true;
+  }
+  return false;
 }
 
-}  // namespace
+void ModuleRenderer::appendSkirts(const Drawn& dr, const Block& b, GLuint firstIndex, GLint baseVertex,
+                                  GLuint instance) {
+  auto& list = lists_[listOf(b.priority)];
+  const std::size_t ranges = b.start.size() - 1;
+  bool open = false;  // the last command can still grow
+  for (std::uint32_t node = dr.first; node < dr.last; ++node) {
+    for (std::uint32_t side = 0; side < 4; ++side) {
+      const std::size_t r = std::size_t(node) * 4 + side;
+      if (r >= ranges) return;
+      const std::uint32_t first = b.start[r], last = b.start[r + 1];
+      if (last <= first) continue;
+      if (!skirtNeeded(dr, node, side)) {
+        open = false;
+        continue;
+      }
+      if (open && list.back().firstIndex + list.back().count == firstIndex + first) {
+        list.back().count += last - first;
+      } else {
+        list.push_back({last - first, 1, firstIndex + first, baseVertex, instance});
+      }
+      open = true;
+    }
+  }
+  if (b.roads) roadLists_.set(listOf(b.priority));
+}
+
 
 void ModuleRenderer::buildCommands(const DisplayBuffer& buf) {
   for (auto& l : lists_) l.clear();
@@ -982,6 +1065,10 @@ void ModuleRenderer::buildCommands(const DisplayBuffer& buf) {
     const auto baseVertex = GLint(e.vertexOffset / sizeof(GpuVertex));
     const auto firstIndex = GLuint(e.indexOffset / sizeof(std::uint32_t));
     for (const Block& b : e.blocks) {
+      if (b.sides) {
+        appendSkirts(dr, b, firstIndex, baseVertex, instance);
+        continue;
+      }
       const std::size_t n = b.start.size() - 1;
       const std::uint32_t first = b.start[std::min<std::size_t>(dr.first, n)];
       const std::uint32_t last = b.start[std::min<std::size_t>(dr.last, n)];

@@ -161,7 +161,11 @@ class ModuleRenderer {
     std::uint8_t priority = 1;
     std::vector<std::uint32_t> start;
     bool roads = false;  ///< some triangle has a road kind: drawn with program_
+    /// The skirts: start[4 m + s] for node m's side s (kSide*) instead of start[m].
+    bool sides = false;
   };
+  /// Node sides, towards -z, +z, -x, +x (module-local).
+  static constexpr std::uint32_t kSideNorth = 0, kSideSouth = 1, kSideWest = 2, kSideEast = 3;
   struct Entry {
     std::uint64_t generation = 0;
     bool resident = false;
@@ -188,6 +192,12 @@ class ModuleRenderer {
     std::uint32_t level, first, last;
     float morph;
     std::uint32_t module;
+    std::uint32_t cells = 0, side0 = 0;  ///< its module's finest-level Cells in cells_, and their side
+  };
+  /// What a frame draws over one node of a module's finest level.
+  struct Cell {
+    std::uint32_t level = UINT32_MAX;  ///< none
+    float morph = 0;
   };
 
   Entry* ready(std::uint64_t key);
@@ -197,6 +207,12 @@ class ModuleRenderer {
   void release(RenderStats& stats, const DisplayBuffer& buf);
   void resolveModule(const DisplayBuffer& buf, std::size_t first, std::size_t last, RenderStats& stats);
   void buildCommands(const DisplayBuffer& buf);
+  /// The skirt on `side` of node `node` (dr's level) can show: a neighbour
+  /// across it is another module's, not drawn, or drawn at another level
+  /// or morph. Same level and morph share the edge exactly: no crack.
+  bool skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint32_t side) const;
+  /// The commands of a Block::sides block for dr: the needed sides, runs merged.
+  void appendSkirts(const Drawn& dr, const Block& b, GLuint firstIndex, GLint baseVertex, GLuint instance);
   void multiDraw(std::size_t list, RenderStats& stats);
   void bindArena();
 
@@ -228,6 +244,7 @@ class ModuleRenderer {
 
   // Per-frame scratch (capacity kept).
   std::vector<Drawn> drawn_;
+  std::vector<Cell> cells_;  ///< per drawn module, side0 x side0 (Drawn::cells)
   struct Span {
     std::uint32_t level;
     std::uint64_t f, t;  ///< finest-grid Morton range

@@ -77,6 +77,37 @@ const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
   return info;
 }
 
+namespace {
+
+/// LodOptions::shareMorph over one module's runs nodes[from..]: each level
+/// takes its smallest morph (a smaller factor only lowers the error, so
+/// the bound holds), then runs that now touch merge (visit emits them in
+/// Morton order).
+void shareMorph(std::vector<NodeDraw>& nodes, std::size_t from) {
+  std::array<float, module::kMaxLevels> least;
+  least.fill(1.0f);
+  for (std::size_t k = from; k < nodes.size(); ++k) {
+    float& m = least[std::min<std::size_t>(nodes[k].level, module::kMaxLevels - 1)];
+    m = std::min(m, nodes[k].morph);
+  }
+  std::size_t out = from;
+  for (std::size_t k = from; k < nodes.size(); ++k) {
+    NodeDraw n = nodes[k];
+    n.morph = least[std::min<std::size_t>(n.level, module::kMaxLevels - 1)];
+    if (out > from) {
+      NodeDraw& p = nodes[out - 1];
+      if (p.level == n.level && p.last == n.first) {
+        p.last = n.last;
+        continue;
+      }
+    }
+    nodes[out++] = n;
+  }
+  nodes.resize(out);
+}
+
+}  // namespace
+
 void ModuleScene::emit(const Walk& w, std::uint32_t level, std::uint32_t depth, std::uint32_t a,
                        std::uint32_t b, float morph) {
   DisplayBuffer& out = *w.out;
@@ -226,6 +257,9 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
     const std::size_t before = out.nodes.size();
     const std::uint32_t culled = out.scene.nodesCulled;
     visit(w, 0, 0, 0);
+    if (settings_.lod.mode == LodMode::sse && settings_.lod.morph && settings_.lod.shareMorph) {
+      shareMorph(out.nodes, before);
+    }
     if (out.nodes.size() == before) {
       // Nothing of it in view: give the guard back now.
       out.modules.pop_back();

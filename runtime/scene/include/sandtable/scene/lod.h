@@ -22,7 +22,10 @@
 // Geomorphing: every vertex of level l moves towards the surface of level
 // l + 1 by a factor m that is constant over the node, so each morphed
 // triangle stays planar and decals stay exactly on the skin; m reaches 1
-// exactly where the node switches to l + 1, so nothing pops.
+// exactly where the node switches to l + 1, so nothing pops. With
+// LodOptions::shareMorph (sse), one module's nodes of one level share the
+// smallest of their factors: the error bound still holds, and a switch
+// pops by at most the pixel budget.
 //
 // Thread safety: pure functions and plain values.
 #include <cstdint>
@@ -49,6 +52,12 @@ struct LodOptions {
   std::vector<double> rings;
   double pixelError = 2.0;  ///< sse: largest projected error, pixels
   bool morph = true;        ///< geomorph towards the next coarser level
+  /// sse: every drawn node of one module and level takes the smallest
+  /// morph among them, so same-level neighbours share their edges (no
+  /// crack, no skirt drawn between them) and merge into long draws; a node
+  /// switching level then pops by at most pixelError (docs/VIEWER.md,
+  /// "Level of detail").
+  bool shareMorph = true;
 };
 
 /// Quadtree nodes per side at `level` of a module with `levels` levels.
