@@ -113,6 +113,7 @@ struct LodCase {
   std::vector<double> rings;
   double pixelError;
   bool morph;
+  bool shareMorph = true;
 };
 
 std::vector<LodCase> lodCases() {
@@ -121,6 +122,7 @@ std::vector<LodCase> lodCases() {
           {"rings tight", LodMode::rings, {400, 800, 1600}, 2, true},
           {"rings tight no morph", LodMode::rings, {400, 800, 1600}, 2, false},
           {"sse 1 px", LodMode::sse, {}, 1, true},
+          {"sse 1 px node morph", LodMode::sse, {}, 1, true, false},
           {"sse 16 px", LodMode::sse, {}, 16, true},
           {"sse 16 px no morph", LodMode::sse, {}, 16, false},
           {"full", LodMode::full, {}, 2, false}};
@@ -145,7 +147,7 @@ TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
       o.motion.headingDeg = v.heading;
       o.motion.pitchDeg = v.pitch;
       o.view.viewDistance = 6000;
-      o.render.lod = {c.mode, c.rings, c.pixelError, c.morph};
+      o.render.lod = {c.mode, c.rings, c.pixelError, c.morph, c.shareMorph};
       auto [img, s] = frame(monaco_, o, v.lon, v.lat, std::string(c.name) + " " + v.name);
       ASSERT_EQ(img.width, 320u);
       EXPECT_GT(s.modulesDrawn, 0u) << c.name << ", " << v.name;
@@ -194,6 +196,33 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
   full.view.viewDistance = 6000;
   full.render.lod.mode = LodMode::full;
   EXPECT_EQ(frame(monaco_, full, 7.39, 43.73).second.triangles, triangles.front());
+}
+
+// One morph per module and level lets same-level neighbours share their
+// edges: the renderer then leaves out the skirts between them and the
+// selection merges their runs, with no crack opening.
+TEST_F(Viewer, SharedMorphDrawsFewerTrianglesAndCommandsWithNoCracks) {
+  std::uint64_t drawn[2] = {}, draws[2] = {};
+  for (const bool share : {false, true}) {
+    FlightOptions o;
+    o.view.width = 320;
+    o.view.height = 180;
+    o.motion.heightAgl = 80;
+    o.motion.headingDeg = 20;
+    o.motion.pitchDeg = -6;
+    o.view.viewDistance = 6000;
+    o.render.lod = {LodMode::sse, {}, 1, true, share};
+    auto [img, s] = frame(monaco_, o, 7.415, 43.725, share ? "shared morph" : "node morph");
+    EXPECT_EQ(cracks(img), 0u) << "share " << share;
+    EXPECT_LE(s.maxErrorPx, 1 + 1e-6) << "share " << share;
+    drawn[share] = s.trianglesDrawn;
+    draws[share] = s.draws;
+  }
+  std::printf("[ morph    ] node: %llu triangles in %llu commands; shared: %llu in %llu\n",
+              (unsigned long long)drawn[0], (unsigned long long)draws[0], (unsigned long long)drawn[1],
+              (unsigned long long)draws[1]);
+  EXPECT_LT(drawn[1], drawn[0]);
+  EXPECT_LT(draws[1], draws[0]);
 }
 
 TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
