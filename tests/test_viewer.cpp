@@ -165,20 +165,30 @@ TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
   }
 }
 
+/// A 320 x 180 view at 6 km view distance, `agl` metres above the ground,
+/// looking along `heading` with `pitch`, drawn with `lod`.
+FlightOptions smallView(double agl, double heading, double pitch, const runtime::LodOptions& lod) {
+  FlightOptions o;
+  o.view.width = 320;
+  o.view.height = 180;
+  o.motion.heightAgl = agl;
+  o.motion.headingDeg = heading;
+  o.motion.pitchDeg = pitch;
+  o.view.viewDistance = 6000;
+  o.render.lod = lod;
+  return o;
+}
+
+/// 80 m over Monaco's harbour looking along the coast (7.415, 43.725).
+FlightOptions lowOverMonaco(const runtime::LodOptions& lod) { return smallView(80, 20, -6, lod); }
+
 TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
   // Table 8: 0-6000 all fine, then two, three and four bins.
   const std::vector<std::vector<double>> bins = {
       {6000}, {3000, 6000}, {2000, 4000, 6000}, {1500, 3000, 4500, 6000}};
   std::vector<std::uint64_t> triangles;
   for (const auto& b : bins) {
-    FlightOptions o;
-    o.view.width = 320;
-    o.view.height = 180;
-    o.motion.heightAgl = 150;
-    o.motion.headingDeg = 70;
-    o.motion.pitchDeg = -5;
-    o.view.viewDistance = 6000;
-    o.render.lod = {LodMode::rings, b, 2, false};
+    const FlightOptions o = smallView(150, 70, -5, {LodMode::rings, b, 2, false});
     auto [img, s] = frame(monaco_, o, 7.39, 43.73);
     EXPECT_EQ(cracks(img), 0u);
     triangles.push_back(s.triangles);
@@ -187,14 +197,9 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
     EXPECT_LT(triangles[k], triangles[k - 1]) << "bins " << k + 1;
   }
   // One bin out to the view distance is what the finest level draws.
-  FlightOptions full;
-  full.view.width = 320;
-  full.view.height = 180;
-  full.motion.heightAgl = 150;
-  full.motion.headingDeg = 70;
-  full.motion.pitchDeg = -5;
-  full.view.viewDistance = 6000;
-  full.render.lod.mode = LodMode::full;
+  runtime::LodOptions fullLod;
+  fullLod.mode = LodMode::full;
+  const FlightOptions full = smallView(150, 70, -5, fullLod);
   EXPECT_EQ(frame(monaco_, full, 7.39, 43.73).second.triangles, triangles.front());
 }
 
@@ -204,14 +209,7 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
 TEST_F(Viewer, SharedMorphDrawsFewerTrianglesAndCommandsWithNoCracks) {
   std::uint64_t drawn[2] = {}, draws[2] = {};
   for (const bool share : {false, true}) {
-    FlightOptions o;
-    o.view.width = 320;
-    o.view.height = 180;
-    o.motion.heightAgl = 80;
-    o.motion.headingDeg = 20;
-    o.motion.pitchDeg = -6;
-    o.view.viewDistance = 6000;
-    o.render.lod = {LodMode::sse, {}, 1, true, share};
+    const FlightOptions o = lowOverMonaco({LodMode::sse, {}, 1, true, share});
     auto [img, s] = frame(monaco_, o, 7.415, 43.725, share ? "shared morph" : "node morph");
     EXPECT_EQ(cracks(img), 0u) << "share " << share;
     EXPECT_LE(s.maxErrorPx, 1 + 1e-6) << "share " << share;
@@ -229,14 +227,7 @@ TEST_F(Viewer, ScreenSpaceErrorStaysWithinThePixelsRequested) {
   std::uint64_t previous = 0;
   for (const double px : {8.0, 4.0, 2.0, 1.0, 0.5}) {
     for (const bool morph : {false, true}) {
-      FlightOptions o;
-      o.view.width = 320;
-      o.view.height = 180;
-      o.motion.heightAgl = 80;
-      o.motion.headingDeg = 20;
-      o.motion.pitchDeg = -6;
-      o.view.viewDistance = 6000;
-      o.render.lod = {LodMode::sse, {}, px, morph};
+      const FlightOptions o = lowOverMonaco({LodMode::sse, {}, px, morph});
       auto [img, s] = frame(monaco_, o, 7.415, 43.725, "sse " + std::to_string(px) + (morph ? " morph" : ""));
       // The morph factor is the largest the budget allows: equal up to rounding.
       EXPECT_LE(s.maxErrorPx, px * (1 + 1e-6)) << px << " px, morph " << morph;
