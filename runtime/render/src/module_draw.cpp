@@ -771,8 +771,8 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
     b.sides = sides;
     for (std::size_t n = 0; n < nodes; ++n) {
       builder.beginNode(std::uint32_t(n));
-      for (std::uint32_t side = 0; side < (sides ? 4u : 1u); ++side) {
-        b.start[sides ? 4 * n + side : n] = std::uint32_t(builder.indexCount());
+      for (std::uint32_t nodeSide = 0; nodeSide < (sides ? 4u : 1u); ++nodeSide) {
+        b.start[sides ? 4 * n + nodeSide : n] = std::uint32_t(builder.indexCount());
         for (const module::Group* g : sc.byNode[n]) {
           const std::uint32_t* idx = level.indices.data() + g->firstIndex;
           if (g->half != module::Half::skirt) {
@@ -783,7 +783,7 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
           }
           const Facing f = facingOf(*g);
           for (std::uint32_t t = 0; t + 2 < g->indexCount; t += 3) {
-            if (sides && sideOf(idx + t, f) != side) continue;
+            if (sides && sideOf(idx + t, f) != nodeSide) continue;
             const std::uint32_t rgba = skirtColour(idx + t, f);
             b.roads |= isRoad(rgba);
             builder.triangles(idx + t, 3, rgba, true, f);
