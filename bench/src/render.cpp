@@ -90,6 +90,7 @@ runtime::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& 
   base.view.viewDistance = a.viewDistance;
   base.render.lod.pixelError = a.pixelError;
   base.render.lod.rings = a.rings;
+  base.render.lod.shareMorph = !a.nodeMorph;
   base.render.uploadBudgetBytes = a.uploadBudgetBytes;
   const auto& gh = db.grid->header();
   base.motion.easting = gh.originEasting + gh.spacing * (gh.postsX - 1) / 2.0;
@@ -106,6 +107,7 @@ nlohmann::json toJson(const RenderBenchOptions& a, const RenderBenchReport& r) {
   j["view_distance"] = a.viewDistance;
   j["pixel_error"] = a.pixelError;
   j["upload_budget_bytes"] = a.uploadBudgetBytes;
+  j["node_morph"] = a.nodeMorph;
   j["grid"] = {{"triangles", r.gridBefore.triangles},
                {"draws", r.gridBefore.draws},
                {"frame_ms_p50_before", r.gridBefore.p50Ms},

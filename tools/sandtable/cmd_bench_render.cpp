@@ -116,6 +116,7 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
       ->capture_default_str()->check(CLI::PositiveNumber);
   sub->add_option("--rings", args->rings, "rings case: bin edges M,M,... (default Table 8 scaled)");
   sub->add_flag("--mesh", o.mesh, "Also the first flight's full-resolution grid mesh");
+  sub->add_flag("--node-morph", o.nodeMorph, "sse cases: one morph factor per node, as fly --node-morph");
   sub->add_option("--upload-budget", o.uploadBudgetBytes, "GPU upload bytes per frame (0: no limit)")
       ->capture_default_str();
   sub->add_option("--grid-squares", o.gridSquares, "Plain indexed grid: squares a side")

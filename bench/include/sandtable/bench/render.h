@@ -45,6 +45,8 @@ struct RenderBenchOptions {
   std::vector<double> rings;
   /// Also a case with the full-resolution grid mesh.
   bool mesh = false;
+  /// The sse cases keep one morph factor per node (LodOptions::shareMorph off).
+  bool nodeMorph = false;
   /// GPU upload bytes per frame (RenderOptions::uploadBudgetBytes); 0: none.
   std::uint64_t uploadBudgetBytes = runtime::kDefaultUploadBudgetBytes;
   /// The plain grid: squares a side (nodes of 16 squares), frames timed.
