@@ -338,8 +338,9 @@ class LevelBuilder {
 /// Scratch shared by every upload on the render thread.
 struct UploadScratch {
   LevelBuilder builder;
-  PostMap posts, coarserPosts;
-  std::vector<PostMap> levelPosts;  ///< every level's, for tightenSkirtFeet
+  /// Per level, built for the levels an upload reads: this one and the
+  /// next coarser, or every level when tightenSkirtFeet can run.
+  std::vector<PostMap> posts;
   std::vector<float> y, delta;
   std::vector<std::uint8_t> isFoot;
   std::vector<std::vector<const module::Group*>> byNode;
@@ -381,15 +382,13 @@ constexpr double kSkirtFootMargin = 1.0;
 /// is straight between the finest posts, a morphed edge lies between two
 /// levels' surfaces, and the foot line between two feet lies at least the
 /// smaller of their depths below this level's edge, so it stays under
-/// every neighbour's edge. Needs every level: where one is not resident
-/// (the pager publishes finer levels later) or a post is missing, the
-/// stored foot stays. `isFoot[k]` marks the feet; `y` holds the level's
-/// heights and gets the raised ones.
-void tightenSkirtFeet(const ResidentModule& m, std::uint32_t levelIndex, std::uint32_t finest,
-                      const std::vector<std::uint8_t>& isFoot, std::vector<PostMap>& posts, std::vector<float>& y) {
-  if (finest != 0 || m.levels.empty() || !(m.levels[0].spacing > 0)) return;
-  posts.resize(m.levels.size());
-  for (std::size_t l = 0; l < m.levels.size(); ++l) posts[l].build(m.levels[l]);
+/// every neighbour's edge. Needs every level resident (the caller's
+/// check: the pager publishes finer levels later) and `posts` built for
+/// each; where a post is missing the stored foot stays. `isFoot[k]` marks
+/// the feet; `y` holds the level's heights and gets the raised ones.
+void tightenSkirtFeet(const ResidentModule& m, std::uint32_t levelIndex, const std::vector<std::uint8_t>& isFoot,
+                      const std::vector<PostMap>& posts, std::vector<float>& y) {
+  if (m.levels.empty() || !(m.levels[0].spacing > 0)) return;
   const module::Level& level = m.levels[levelIndex];
   const PostMap& own = posts[levelIndex];
   const double s0 = m.levels[0].spacing;
@@ -652,7 +651,13 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   const ResidentModule& m = d.ref.module();
   const auto levels = std::uint32_t(m.levels.size());
   const module::Level* coarser = levelIndex + 1 < levels ? &m.levels[levelIndex + 1] : nullptr;
-  sc.posts.build(level);
+  // Levels finer than the finest resident may be written meanwhile: only
+  // read them once every level is resident.
+  const std::uint32_t finest = d.ref.finestLevel();
+  sc.posts.resize(levels);
+  const std::uint32_t lo = finest == 0 ? 0 : levelIndex, hi = finest == 0 ? levels : std::min(levels, levelIndex + 2);
+  for (std::uint32_t l = lo; l < hi; ++l) sc.posts[l].build(m.levels[l]);
+  const PostMap& posts = sc.posts[levelIndex];
   // Per source vertex: how far the next level's surface lies above this
   // one's at the same (x, z). Skirt feet do not move: they hang below the
   // lowest surface of every level there, so a skirt from a morphed edge
@@ -660,16 +665,15 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
   sc.delta.assign(level.vertices.size(), 0.0f);
   sc.y.resize(level.vertices.size());
   sc.isFoot.assign(level.vertices.size(), 0);
-  if (coarser) sc.coarserPosts.build(*coarser);
   for (std::size_t k = 0; k < level.vertices.size(); ++k) {
     const auto& v = level.vertices[k];
     sc.y[k] = v.y;
-    const auto yl = sc.posts.heightAt(v.x, v.z);
+    const auto yl = posts.heightAt(v.x, v.z);
     sc.isFoot[k] = yl && v.y < *yl - 0.01;
     if (!coarser || !yl || sc.isFoot[k]) continue;
-    if (const auto yc = sc.coarserPosts.heightAt(v.x, v.z)) sc.delta[k] = float(*yc - *yl);
+    if (const auto yc = sc.posts[levelIndex + 1].heightAt(v.x, v.z)) sc.delta[k] = float(*yc - *yl);
   }
-  tightenSkirtFeet(m, levelIndex, d.ref.finestLevel(), sc.isFoot, sc.levelPosts, sc.y);
+  if (finest == 0) tightenSkirtFeet(m, levelIndex, sc.isFoot, sc.posts, sc.y);
   const bool flat = settings_.shading == Shading::flat;
   LevelBuilder& builder = sc.builder;
   builder.reset(level, sc.y, sc.delta, flat);
@@ -833,8 +837,8 @@ void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry
       builder.beginNode(std::uint32_t(n));
       for (const std::uint32_t q : sc.squaresByNode[n]) {
         const std::uint32_t c = q % nx, r = q / nx;
-        const std::uint32_t nw = sc.posts.at(c, r), ne = sc.posts.at(c + 1, r);
-        const std::uint32_t sw = sc.posts.at(c, r + 1), se = sc.posts.at(c + 1, r + 1);
+        const std::uint32_t nw = posts.at(c, r), ne = posts.at(c + 1, r);
+        const std::uint32_t sw = posts.at(c, r + 1), se = posts.at(c + 1, r + 1);
         if (nw == UINT32_MAX || ne == UINT32_MAX || sw == UINT32_MAX || se == UINT32_MAX) {
           ++stats.underlayMissing;
           continue;
