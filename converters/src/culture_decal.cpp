@@ -30,6 +30,7 @@ using module::Vertex;
 
 constexpr double kSkinRepeat = 64.0;   ///< metres per repeat of a skin texture
 constexpr double kSkinWrap = 4096.0;   ///< skin s, t offsets reduced modulo this (a multiple of the repeat)
+constexpr double kDecalTextureSteps = 256;  ///< decal s and t are multiples of 1 / this
 constexpr double kAreaEps = 1e-9;      ///< twice the area (m^2) below which a triangle is degenerate
 constexpr double kTouchEps = 1e-7;     ///< metres: a boundary this close to a triangle edge does not cut it
 
@@ -246,6 +247,18 @@ class LevelWork {
     // Spacing of floats at the largest coordinate.
     quantum_ = maxCoord > 0 ? std::ldexp(1.0, std::ilogb(maxCoord) - 23) : 0;
     auto multiple = [&](double v) { return quantum_ > 0 && std::fmod(v, quantum_) == 0; };
+    // Vertices on a coarser step of whole powers of two give the module
+    // format small integer x and z codes (FORMAT.md 9.8) instead of float
+    // mantissas that do not compress. Only where every lattice line is on
+    // that step, so that edge points stay exactly on their edge.
+    const double step = culture.options.vertexStep;
+    if (step > quantum_ && quantum_ > 0) {
+      const double floatQuantum = quantum_;
+      quantum_ = step;
+      stepped_ = std::all_of(lat.xs.begin(), lat.xs.end(), multiple) &&
+                 std::all_of(lat.zs.begin(), lat.zs.end(), multiple);
+      if (!stepped_) quantum_ = floatQuantum;
+    }
     gridMultiple_ = std::all_of(lat.xs.begin(), lat.xs.end(), multiple) &&
                     std::all_of(lat.zs.begin(), lat.zs.end(), multiple);
     skinS0_ = wrap(lat.moduleX);
@@ -455,11 +468,11 @@ class LevelWork {
       ++stats_.skinPolygons;
       for (std::size_t l = 1; l < nl; ++l) {
         if (modes_[l] != Mode::whole) continue;
-        const std::uint32_t base = std::uint32_t(out_.vertices.size());
+        const std::uint32_t base = std::uint32_t(decalVertices_.size());
         for (int k = 0; k < 3; ++k) {
           Vertex v{float(t.c[k].x), lat_.heights[t.cv[k]], float(t.c[k].z), 0, 0};
           roadST(l, t.c[k], v.s, v.t);
-          out_.vertices.push_back(v);
+          decalVertices_.push_back(v);
         }
         Run run{std::uint32_t(sq), std::uint8_t(half), std::uint32_t(runIndices_[l].size()), 3};
         triangle(runIndices_[l], base, base + 1, base + 2);
@@ -509,15 +522,38 @@ class LevelWork {
   }
 
   static Vec2 round(Vec2 p) { return {toFloat(p.x), toFloat(p.z)}; }
+  double roundStep(double v) const { return std::round(v / quantum_) * quantum_; }
+
+  /// p as written: on the vertex step where the level has one, else
+  /// rounded to float. Edge points keep their edge's coordinate (a
+  /// multiple of the step); an inner point that the step would carry
+  /// across the diagonal goes onto it (the step's points on the diagonal
+  /// are exact) and becomes a diagonal point.
+  CP placed(CP p, const Tri& t) const {
+    if (!stepped_ || (p.on == 0 && !t.exactDiag)) {
+      p.p = round(p.p);
+      return p;
+    }
+    if (p.on & kDiag) {
+      p.p = round(p.p);  // diagPoint put it on the step already
+      return p;
+    }
+    const Vec2 q{roundStep(p.p.x), roundStep(p.p.z)};
+    if (p.on == 0 && !t.insideDiag(t.f(q))) {
+      const double dx = t.x1 - t.x0;
+      p.p = round(t.diagPoint(std::clamp((q.x - t.x0) / dx, 0.0, 1.0)));
+      p.on = kDiag;
+      return p;
+    }
+    p.p = round(q);
+    return p;
+  }
   double area2(const OutTri& o) const {
     return cross(points_[o.b].p - points_[o.a].p, points_[o.c].p - points_[o.a].p);
   }
 
-  /// Adds a point of the last polygon, rounded to float.
-  void addPoint(CP p) {
-    p.p = round(p.p);
-    flat_.push_back({p, polys_.size() - 1});
-  }
+  /// Adds a point of the last polygon, as written (placed()).
+  void addPoint(CP p, const Tri& t) { flat_.push_back({placed(p, t), polys_.size() - 1}); }
 
   /// Polygons of layers [first, end) in the triangle, points unified.
   void gather(std::size_t sq, const Tri& t, std::size_t first, std::size_t end) {
@@ -526,7 +562,7 @@ class LevelWork {
     for (std::size_t l = first; l < end; ++l) {
       if (modes_[l] == Mode::whole) {
         polys_.push_back({std::uint32_t(l), labels_[l], {}});
-        for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]});
+        for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]}, t);
         continue;
       }
       if (modes_[l] != Mode::cut) continue;
@@ -540,13 +576,13 @@ class LevelWork {
         if (clipped_.empty()) continue;
         any = true;
         polys_.push_back({std::uint32_t(l), piece.label, {}});
-        for (const CP& p : clipped_) addPoint(p);
+        for (const CP& p : clipped_) addPoint(p, t);
       }
       if (!any && l == 0) {
         // No skin piece reached the triangle (never expected): the label
         // at its centroid covers it.
         polys_.push_back({0, labelAt(0, sq, (1.0 / 3.0) * (t.c[0] + t.c[1] + t.c[2])), {}});
-        for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]});
+        for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]}, t);
       }
     }
     // Points are rounded to float (what is written) as they are added;
@@ -829,12 +865,12 @@ class LevelWork {
         int n = 0;
         for (std::uint32_t id : {o.a, o.b, o.c}) {
           if (vertexOf_[id] == UINT32_MAX) {
-            vertexOf_[id] = std::uint32_t(out_.vertices.size());
+            vertexOf_[id] = std::uint32_t(decalVertices_.size());
             const SnapPoint& s = points_[id];
             const int corner = cornerAt(t, s);
             Vertex v{float(s.p.x), corner >= 0 ? lat_.heights[t.cv[corner]] : float(t.height(s.p)), float(s.p.z), 0, 0};
             roadST(l, s.p, v.s, v.t);
-            out_.vertices.push_back(v);
+            decalVertices_.push_back(v);
           }
           idx[n++] = vertexOf_[id];
         }
@@ -845,9 +881,14 @@ class LevelWork {
     }
   }
 
-  /// Decal groups after all skin: per priority, square, half, class.
+  /// Decal groups after all skin: per priority, square, half, class. Their
+  /// vertices follow all skin vertices, so the module format can store
+  /// their texture coordinates apart from the skin's derived ones.
   void flushDecals() {
     const std::size_t nl = cell_.layers.size();
+    const auto base = std::uint32_t(out_.vertices.size());
+    out_.vertices.insert(out_.vertices.end(), decalVertices_.begin(), decalVertices_.end());
+    decalVertices_.clear();
     std::size_t l = 1;
     while (l < nl) {
       std::size_t end = l;
@@ -860,8 +901,7 @@ class LevelWork {
             if (c >= runs_[k].size() || runs_[k][c].sq != sq || runs_[k][c].half != half) continue;
             const Run& r = runs_[k][c++];
             beginGroup(sq, half, cell_.layers[k].priority, cell_.layers[k].geo.classId);
-            out_.indices.insert(out_.indices.end(), runIndices_[k].begin() + r.first,
-                                runIndices_[k].begin() + r.first + r.count);
+            for (std::uint32_t i = r.first; i < r.first + r.count; ++i) out_.indices.push_back(base + runIndices_[k][i]);
             endGroup();
           }
         }
@@ -899,8 +939,10 @@ class LevelWork {
     const double len = length(d);
     const Vec2 left = len > 0 ? Vec2{d.z / len, -d.x / len} : Vec2{0, 0};  // the driver's left
     const double off = dot(p - seg->a, left);
-    s = float((seg->along + along) / seg->width);
-    t = float(std::clamp(0.5 - off / seg->width, 0.0, 1.0));
+    // On a step of 1/256 of the width (under 4 cm on a 10 m road), which
+    // the module format stores as small integers.
+    s = float(std::round((seg->along + along) / seg->width * kDecalTextureSteps) / kDecalTextureSteps);
+    t = float(std::round(std::clamp(0.5 - off / seg->width, 0.0, 1.0) * kDecalTextureSteps) / kDecalTextureSteps);
   }
 
   const CultureImpl& culture_;
@@ -911,12 +953,14 @@ class LevelWork {
   double tol_ = 0.1;
   double quantum_ = 0;
   bool gridMultiple_ = false;
+  bool stepped_ = false;  ///< vertices on CultureOptions::vertexStep
   double skinS0_ = 0, skinT0_ = 0;
   DecalStats stats_;
   std::vector<LevelLayer> layers_;
   std::vector<CentreIndex> centre_;
   std::vector<std::vector<Run>> runs_;
-  std::vector<std::vector<std::uint32_t>> runIndices_;
+  std::vector<std::vector<std::uint32_t>> runIndices_;  ///< into decalVertices_
+  std::vector<Vertex> decalVertices_;                   ///< appended after all skin
   // Scratch, reused across grid triangles.
   std::vector<Mode> modes_;
   std::vector<std::uint16_t> labels_;

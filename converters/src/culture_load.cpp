@@ -846,6 +846,10 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
   if (!(options.mergeTolerance >= 0) || options.mergeTolerance > 10) {
     return Problem{"culture", 0, "culture: the merge tolerance must be 0..10 m"};
   }
+  if (const double st = options.vertexStep;
+      st != 0 && !(st >= std::ldexp(1.0, -20) && st <= 1 && std::ldexp(1.0, std::ilogb(st)) == st)) {
+    return Problem{"culture", 0, "culture: vertexStep must be 0 or a power of two from 2^-20 to 1 m"};
+  }
   if (!table.find(table.defaultArea)) {
     return Problem{"culture", 0, "culture: the material table's default-area class is not defined"};
   }

@@ -130,7 +130,7 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   }
   if (o.moduleVersion < 1 || o.moduleVersion > module::kNewestVersion || !(std::isfinite(o.heightStep) && o.heightStep >= 0)) {
     return Problem{"ElevationOptions::moduleVersion", 0,
-                   "build: ElevationOptions::moduleVersion must be 1, 2 or 3 and ElevationOptions::heightStep a "
+                   "build: ElevationOptions::moduleVersion must be 1 to 4 and ElevationOptions::heightStep a "
                    "finite number >= 0"};
   }
   // OGR would say only that it cannot open a missing file; GDAL's virtual

@@ -36,7 +36,7 @@ struct Scratch {
 };
 
 /// A 2 km synth area with culture, built at 31.25 m (the figure).
-std::string buildDb(const Scratch& s, const std::string& name, std::uint32_t version) {
+std::string buildDb(const Scratch& s, const std::string& name, std::uint32_t version, double heightStep) {
   if (!fs::exists(s.dir / "synth")) {
     convert::SynthOptions so;
     so.outDir = (s.dir / "synth").string();
@@ -51,6 +51,7 @@ std::string buildDb(const Scratch& s, const std::string& name, std::uint32_t ver
   o.output = (s.dir / name).string();
   o.spacing = 31.25;
   o.moduleVersion = version;
+  o.heightStep = heightStep;
   o.moduleNormals = version == 2;  // off by default; the v2 test checks them
   auto r = convert::buildElevation(o, {});
   EXPECT_TRUE(r) << (r ? "" : r.error());
@@ -78,7 +79,7 @@ std::vector<module::Module> readAll(const std::string& dir, std::uint32_t& versi
 
 TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   Scratch s("v1");
-  const std::string db = buildDb(s, "db", 1);
+  const std::string db = buildDb(s, "db", 1, 0);
   ASSERT_TRUE(convert::validateDatabaseWithCrs(db).ok());
   std::uint32_t version = 0;
   const auto before = readAll(db, version);
@@ -98,15 +99,16 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   }
   auto man = manifest::readFromDirectory(db);
   ASSERT_TRUE(man);
-  EXPECT_EQ(man->build["modules"]["format_version"], 3);
+  EXPECT_EQ(man->build["modules"]["format_version"], 4);
   // The record sizes are the new modules', not the build's.
   EXPECT_LT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter);
   EXPECT_GT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter / 2);
 
   const auto after = readAll(db, version);
-  EXPECT_EQ(version, 3u);
+  EXPECT_EQ(version, 4u);
   ASSERT_EQ(after.size(), before.size());
-  const double tol = 0.5 * module::kDefaultHeightStep + 1e-4;
+  // Half a step, plus the rounding of the plane and of the offset to f32.
+  const auto tol = [](float y) { return 0.5 * module::kDefaultHeightStep + 2.0 * (std::nextafter(std::fabs(y), INFINITY) - std::fabs(y)); };
   for (std::size_t k = 0; k < before.size(); ++k) {
     ASSERT_EQ(after[k].levels.size(), before[k].levels.size());
     for (std::size_t l = 0; l < before[k].levels.size(); ++l) {
@@ -118,7 +120,7 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
         ASSERT_EQ(a.vertices[v].z, b.vertices[v].z);
         ASSERT_EQ(a.vertices[v].s, b.vertices[v].s);
         ASSERT_EQ(a.vertices[v].t, b.vertices[v].t);
-        ASSERT_LE(std::fabs(double(a.vertices[v].y) - b.vertices[v].y), tol) << "module " << k << " level " << l;
+        ASSERT_LE(std::fabs(double(a.vertices[v].y) - b.vertices[v].y), tol(a.vertices[v].y)) << "module " << k << " level " << l;
       }
       EXPECT_EQ(a.indices, b.indices);
       ASSERT_EQ(a.groups.size(), b.groups.size());
@@ -135,13 +137,13 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   auto again = convert::upgradeDatabase(db, {}, {});
   ASSERT_TRUE(again) << again.error();
   EXPECT_FALSE(again->upgraded);
-  EXPECT_EQ(again->fromVersion, 3u);
+  EXPECT_EQ(again->fromVersion, 4u);
   EXPECT_EQ(fs::last_write_time(fs::path(db) / pack::kPackFileName), packTime);
 }
 
-TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion3) {
+TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion4) {
   Scratch s("v2");
-  const std::string db = buildDb(s, "db", 2);
+  const std::string db = buildDb(s, "db", 2, 0);
   const Status valid = convert::validateDatabaseWithCrs(db);
   EXPECT_TRUE(valid.ok()) << valid.message();
   std::uint32_t version = 0;
@@ -157,9 +159,9 @@ TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion3)
       }
     }
   }
-  // Version 2 upgrades to version 3 losslessly (exact heights): the same
-  // modules, normals included, and it still validates.
-  auto r = convert::upgradeDatabase(db, {}, {});
+  // Version 2 upgrades to version 4 losslessly with exact heights: the
+  // same modules, normals included, and it still validates.
+  auto r = convert::upgradeDatabase(db, {.heightStep = 0}, {});
   ASSERT_TRUE(r) << r.error();
   EXPECT_TRUE(r->upgraded);
   EXPECT_EQ(r->fromVersion, 2u);
@@ -167,7 +169,7 @@ TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion3)
   const Status upgraded = convert::validateDatabaseWithCrs(db);
   EXPECT_TRUE(upgraded.ok()) << upgraded.message();
   const auto after = readAll(db, version);
-  EXPECT_EQ(version, 3u);
+  EXPECT_EQ(version, 4u);
   ASSERT_EQ(after.size(), mods.size());
   for (std::size_t k = 0; k < mods.size(); ++k) {
     for (std::size_t l = 0; l < mods[k].levels.size(); ++l) {
@@ -179,6 +181,23 @@ TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion3)
       EXPECT_EQ(a.indices, b.indices);
     }
   }
+}
+
+// A version 2 database with quantised heights (culture vertices up to
+// half a step off their plane) upgrades to quantised version 4 and still
+// validates: version 4 puts them back on the decoded plane.
+TEST(Upgrade, QuantisedVersion2DatabaseUpgradesToVersion4AndValidates) {
+  Scratch s("v2q");
+  const std::string db = buildDb(s, "db", 2, 0.01);
+  ASSERT_TRUE(convert::validateDatabaseWithCrs(db).ok());
+  auto r = convert::upgradeDatabase(db, {}, {});
+  ASSERT_TRUE(r) << r.error();
+  EXPECT_TRUE(r->upgraded);
+  const Status upgraded = convert::validateDatabaseWithCrs(db);
+  EXPECT_TRUE(upgraded.ok()) << upgraded.message();
+  std::uint32_t version = 0;
+  EXPECT_FALSE(readAll(db, version).empty());
+  EXPECT_EQ(version, 4u);
 }
 
 }  // namespace

@@ -156,6 +156,7 @@ std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
   if (version == kVersion && std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) == 0) return version;
   if (version == kVersion2 && std::memcmp(bytes.data(), kMagic2.data(), kMagic2.size()) == 0) return version;
   if (version == kVersion3 && std::memcmp(bytes.data(), kMagic3.data(), kMagic3.size()) == 0) return version;
+  if (version == kVersion4 && std::memcmp(bytes.data(), kMagic4.data(), kMagic4.size()) == 0) return version;
   return 0;
 }
 
@@ -349,14 +350,13 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
   const std::byte* h = bytes.data();
   // "SANDMOD" then the version's digit; the version field must agree.
   if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size() - 1) != 0 ||
-      (h[7] != std::byte{'1'} && h[7] != std::byte{'2'} && h[7] != std::byte{'3'})) {
-    return fail(field::magic,
-                "bad magic: not a sandtable load module (expected \"SANDMOD1\", \"SANDMOD2\" or \"SANDMOD3\")");
+      h[7] < std::byte{'1'} || h[7] > std::byte{'4'}) {
+    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD4\")");
   }
   const auto version = loadLE<std::uint32_t>(h + field::version);
-  if (version != kVersion && version != kVersion2 && version != kVersion3) {
+  if (version < kVersion || version > kVersion4) {
     return fail(field::version, "version " + str(version) +
-                                    " is not supported (this reader knows versions 1, 2 and 3)");
+                                    " is not supported (this reader knows versions 1 to 4)");
   }
   if (std::uint32_t(h[7]) - '0' != version) {
     return fail(field::version, "version " + str(version) + " does not match the magic's \"SANDMOD" +

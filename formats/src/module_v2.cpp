@@ -124,6 +124,8 @@ std::uint64_t nextSlot(std::uint64_t slot) {
 
 /// Sentinel of kXZExponentField: stream x and z are float bits.
 constexpr std::int32_t kXZFloatBits = 0x7fff;
+/// Version 3 and later: lattice-run groups a level may have per square.
+constexpr std::uint64_t kMaxLatticeGroupsPerSquare = 2;
 /// i16 at level offset 90, the upper half of the u32 that module.h names
 /// levelField2::normalShift (u16 normal shift, i16 x/z exponent; kept out of
 /// module.h so the layout change recompiles one file; docs/FORMAT.md §9.7.2).
@@ -134,11 +136,12 @@ constexpr std::size_t kXZExponentField = 90;
 /// at the module's largest coordinate, so e is about -14 at 1 km); else
 /// kXZFloatBits. Lossless either way; integers delta-code far better than
 /// float bits in meshopt's vertex codec.
-std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from, std::size_t to) {
+template <typename Pair>
+std::int32_t integerExponent(std::size_t from, std::size_t to, Pair pair) {
   int e = 1000;
   double hi = 0;
   for (std::size_t i = from; i < to; ++i) {
-    for (const float c : {v[i].x, v[i].z}) {
+    for (const float c : pair(i)) {
       if (!std::isfinite(c) || (c == 0.0f && std::signbit(c))) return kXZFloatBits;
       if (c == 0.0f) continue;
       int ex = 0;
@@ -151,6 +154,13 @@ std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from, std::siz
   if (e == 1000) return 0;  // all zero
   if (e < -149 || std::ldexp(hi, -e) >= 0x1p31) return kXZFloatBits;
   return e;
+}
+std::int32_t xzExponent(const std::vector<Vertex>& v, std::size_t from, std::size_t to) {
+  return integerExponent(from, to, [&v](std::size_t i) { return std::array<float, 2>{v[i].x, v[i].z}; });
+}
+/// Version 4: the same for the s and t of the raw-texture vertices.
+std::int32_t stExponent(const std::vector<Vertex>& v, std::size_t from, std::size_t to) {
+  return integerExponent(from, to, [&v](std::size_t i) { return std::array<float, 2>{v[i].s, v[i].t}; });
 }
 
 std::uint32_t xzCode(std::int32_t e, float c) {
@@ -307,6 +317,8 @@ struct Plan {
   double lastX = 0, lastZ = 0, s0 = 0, t0 = 0;
   std::uint32_t shift = 0;
   std::int32_t xzExp = kXZFloatBits;  ///< stream x, z stored as integers times 2^xzExp
+  std::uint32_t rawTexture = 0;       ///< v4: trailing stream vertices with s, t stored apart
+  std::int32_t stExp = kXZFloatBits;  ///< v4: their s, t as integers times 2^stExp
   std::uint32_t node = 0;             ///< v3 implicit skirts: node squares (else 0)
   std::uint16_t skirtMaterial = 0;
   SkirtCounts skirts;                 ///< what the implicit skirts stand for (else 0)
@@ -474,6 +486,41 @@ std::uint32_t predictedCode(bool exact, double step, std::int64_t base, float y)
   return std::uint32_t(std::int64_t(std::nearbyint(q)) - base);
 }
 
+/// Version 4 height code of a stream vertex: whole steps from the plane's
+/// height p (decoded as f32(p + code * step), exactly p for code 0). A
+/// vertex less than one step from the plane goes onto it: culture is built
+/// on the plane, and a vertex that an earlier quantisation moved off it
+/// (a version 2 or 3 module being upgraded) would otherwise stay a step off.
+std::uint32_t planeOffset(double step, float p, float y) {
+  const double k = (double(y) - double(p)) / step;
+  return std::fabs(k) < 1.0 ? 0u : std::uint32_t(std::int32_t(std::nearbyint(k)));
+}
+
+/// Version 4 rules the level allows: plane offsets wherever heights are
+/// quantised and every offset fits in 31 bits; the raw-texture suffix is
+/// the longest run of trailing stream vertices whose texture does not
+/// follow the skin's.
+void planVersion4(const Level& l, std::size_t E, Plan& p) {
+  const std::size_t P = std::size_t(p.posts);
+  if ((p.flags & kLevel3PlaneHeights) && !(p.flags & kLevel2ExactHeights)) {
+    // Planes lie within the lattice's height range, so no offset exceeds
+    // the range of all the level's heights.
+    double lo = 0, hi = 0;
+    for (std::size_t i = 0; i < P + E; ++i) {
+      lo = std::min(lo, double(l.vertices[i].y)), hi = std::max(hi, double(l.vertices[i].y));
+    }
+    if ((hi - lo) / p.step < 0x1p30) p.flags |= kLevel4PlaneOffsets;
+  }
+  std::size_t d = 0;
+  while (d < E) {
+    const Vertex& q = l.vertices[P + E - 1 - d];
+    if (bits(q.s) == skinBits(p.s0, q.x) && bits(q.t) == skinBits(p.t0, q.z)) break;
+    ++d;
+  }
+  p.rawTexture = std::uint32_t(d);
+  p.stExp = stExponent(l.vertices, P + E - d, P + E);
+}
+
 void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::vector<std::byte>& out) {
   Plan p = plan(l, heightStep);
   if (version >= kVersion3 && p.posts) {
@@ -483,6 +530,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   }
   const auto& v = l.vertices;
   const std::size_t P = std::size_t(p.posts), V = v.size(), E = V - P - std::size_t(p.skirts.vertices);
+  if (version >= kVersion4 && P > 0) planVersion4(l, E, p);
   const std::size_t w = std::size_t(l.squaresX) + 1;
   const bool normals = p.flags & kLevel2Normals;
   const bool implicitSkirts = p.flags & kLevel3ImplicitSkirts;
@@ -517,12 +565,17 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
       const float x = xzValue(p.xzExp, r[0]), z = xzValue(p.xzExp, r[2]);
       const float y = planeY(v.data(), l.squaresX, l.squaresZ, l.spacing, x, z,
                              [&](std::size_t k) { return double(latticeY[k]); });
-      r[1] -= predictedCode(exact, p.step, p.base, y);
+      if (p.flags & kLevel4PlaneOffsets) r[1] = planeOffset(p.step, y, q.y);
+      else r[1] -= predictedCode(exact, p.step, p.base, y);
     }
-    // With the lattice, s and t are stored XOR the skin texture of x and z:
-    // 0 for every skin vertex, whatever they are for decals (lossless).
-    r[3] = bits(q.s) ^ (P ? skinBits(p.s0, q.x) : 0u);
-    r[4] = bits(q.t) ^ (P ? skinBits(p.t0, q.z) : 0u);
+    if (i >= E - p.rawTexture) {
+      r[3] = xzCode(p.stExp, q.s), r[4] = xzCode(p.stExp, q.t);
+    } else {
+      // With the lattice, s and t are stored XOR the skin texture of x
+      // and z: 0 for every skin vertex (lossless for any).
+      r[3] = bits(q.s) ^ (P ? skinBits(p.s0, q.x) : 0u);
+      r[4] = bits(q.t) ^ (P ? skinBits(p.t0, q.z) : 0u);
+    }
     if (normals) r[5] = l.normals[P + i];
   }
   std::vector<unsigned char> vstream;
@@ -546,6 +599,13 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
       if (!plain[g]) streamIdx.insert(streamIdx.end(), indices.begin() + std::ptrdiff_t(at),
                                       indices.begin() + std::ptrdiff_t(at + k.indexCount));
       at += k.indexCount;
+    }
+    // Readers allow at most two lattice groups a square (kMaxLatticeGroupsPerSquare),
+    // which bounds what they allocate; past that every index is stored.
+    const std::size_t latticeGroups = std::size_t(std::count(plain.begin(), plain.end(), std::uint8_t{1}));
+    if (latticeGroups > kMaxLatticeGroupsPerSquare * std::size_t(l.squaresX) * l.squaresZ) {
+      std::fill(plain.begin(), plain.end(), std::uint8_t{0});
+      streamIdx = indices;
     }
   }
   const std::vector<std::uint32_t>& stream = v3 && P > 0 ? streamIdx : indices;
@@ -584,7 +644,9 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   }
 
   const std::size_t S = std::size_t(l.squaresX) * l.squaresZ;
-  const std::uint32_t headerBytes = version >= kVersion3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
+  const std::uint32_t headerBytes = version >= kVersion4   ? kLevelHeaderBytes4
+                                    : version >= kVersion3 ? kLevelHeaderBytes3
+                                                           : kLevelHeaderBytes2;
   const std::size_t size = headerBytes + 4 * P + (normals ? 4 * P : 0) +
                            ((p.flags & kLevel2DerivedMaxHeight) ? 0 : 4 * S) + vstream.size() + istream.size() +
                            runs.size();
@@ -615,6 +677,10 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
     storeLE<std::uint32_t>(h + levelField3::skirtNode, p.node);
     storeLE<std::uint16_t>(h + levelField3::skirtMaterial, p.skirtMaterial);
     storeLE<std::uint32_t>(h + levelField3::streamIndices, std::uint32_t(stream.size()));
+  }
+  if (version >= kVersion4) {
+    storeLE<std::uint32_t>(h + levelField4::rawTextureVertices, p.rawTexture);
+    storeLE<std::int16_t>(h + levelField4::stExponent, std::int16_t(p.stExp));
   }
   std::byte* q = h + headerBytes;
   if (P > 0) {
@@ -658,9 +724,10 @@ std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_
   std::vector<std::byte> out(kHeaderBytes, std::byte{0});
   for (const Level& l : m.levels) encodeLevel(l, heightStep, version, out);
   std::byte* const h = out.data();
-  const auto& magic = version >= kVersion3 ? kMagic3 : kMagic2;
+  const std::uint32_t v = std::clamp(version, kVersion2, kVersion4);
+  const auto& magic = v == kVersion4 ? kMagic4 : v == kVersion3 ? kMagic3 : kMagic2;
   std::memcpy(h + field::magic, magic.data(), magic.size());
-  storeLE<std::uint32_t>(h + field::version, version >= kVersion3 ? kVersion3 : kVersion2);
+  storeLE<std::uint32_t>(h + field::version, v);
   storeLE<std::uint32_t>(h + field::headerBytes, kHeaderBytes);
   storeLE<std::uint32_t>(h + field::kx, m.kx);
   storeLE<std::uint32_t>(h + field::kz, m.kz);
@@ -791,8 +858,8 @@ void mergeSkirts(const std::vector<Group>& stored, std::size_t storedCount, cons
 
 Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
                      std::size_t li, std::size_t& pos, Level& l, std::uint32_t version) {
-  const bool v3 = version >= kVersion3;
-  const std::uint32_t headerBytes = v3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
+  const bool v3 = version >= kVersion3, v4 = version >= kVersion4;
+  const std::uint32_t headerBytes = v4 ? kLevelHeaderBytes4 : v3 ? kLevelHeaderBytes3 : kLevelHeaderBytes2;
   auto fail = [&](std::uint64_t off, const std::string& msg) {
     return Status(Problem{file, base + off, "module: level " + str(li) + msg});
   };
@@ -822,6 +889,8 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
   const auto rBytes = loadLE<std::uint32_t>(h + levelField2::runBytes);
   const std::uint32_t node = v3 ? loadLE<std::uint32_t>(h + levelField3::skirtNode) : 0;
   const std::uint16_t skirtMaterial = v3 ? loadLE<std::uint16_t>(h + levelField3::skirtMaterial) : 0;
+  const std::uint32_t rawTexture = v4 ? loadLE<std::uint32_t>(h + levelField4::rawTextureVertices) : 0;
+  const std::int32_t stExp = v4 ? loadLE<std::int16_t>(h + levelField4::stExponent) : kXZFloatBits;
   if (!(std::isfinite(l.spacing) && l.spacing > 0)) {
     return fail(pos + levelField2::spacing,
                 " spacing " + std::to_string(l.spacing) + " is not a finite positive number");
@@ -837,13 +906,27 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     return fail(pos + levelField2::skirtDepth,
                 " skirt depth " + std::to_string(l.skirtDepth) + " is not a finite number >= 0");
   }
-  if ((flags & ~(v3 ? kLevel3KnownFlags : kLevel2KnownFlags)) != 0) {
+  if ((flags & ~(v4 ? kLevel4KnownFlags : v3 ? kLevel3KnownFlags : kLevel2KnownFlags)) != 0) {
     return fail(pos + levelField2::flags,
-                " flags " + str(flags) + " has bits other than 0.." + (v3 ? "5" : "3") + " set");
+                " flags " + str(flags) + " has bits other than 0.." + (v4 ? "6" : v3 ? "5" : "3") + " set");
   }
   const bool lattice = flags & kLevel2Lattice, derived = flags & kLevel2DerivedMaxHeight,
              normals = flags & kLevel2Normals, exact = flags & kLevel2ExactHeights,
-             implicitSkirts = flags & kLevel3ImplicitSkirts, plane = flags & kLevel3PlaneHeights;
+             implicitSkirts = flags & kLevel3ImplicitSkirts, plane = flags & kLevel3PlaneHeights,
+             offsets = flags & kLevel4PlaneOffsets;
+  if (offsets && (!plane || exact)) {
+    return fail(pos + levelField2::flags, " flags " + str(flags) +
+                                              ": plane offsets (bit 6) need plane heights (bit 5) and "
+                                              "quantised heights (bit 3 clear)");
+  }
+  if (v4 && ((rawTexture != 0 && !lattice) || loadLE<std::uint16_t>(h + levelField4::reserved) != 0)) {
+    return fail(pos + levelField4::rawTextureVertices,
+                " raw-texture vertices need the lattice (bit 0), and the reserved bytes must be 0");
+  }
+  if (stExp != kXZFloatBits && (stExp < -149 || stExp > 127)) {
+    return fail(pos + levelField4::stExponent,
+                " s, t exponent " + std::to_string(stExp) + " is neither -149..127 nor 32767 (float bits)");
+  }
   if ((derived || implicitSkirts || plane) && !lattice) {
     return fail(pos + levelField2::flags,
                 " flags " + str(flags) + ": a derived maxHeight (bit 1), implicit skirts (bit 4) and plane "
@@ -900,6 +983,14 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
                 " index stream count " + str(niStream) + " is above the " + str(niS) +
                     " stored indices, or below them without the lattice (bit 0)");
   }
+  // Lattice runs store no indices, so their groups are bounded by the
+  // grid instead: at most two a square (the lattice plane bounds squares).
+  if (std::uint64_t(niS) - niStream > 3 * kMaxLatticeGroupsPerSquare * squares) {
+    return fail(pos + levelField2::indexCount,
+                " has " + str(niS) + " stored indices, more than the " + str(niStream) +
+                    " of the index stream and 3 for each of two lattice groups a square (" + str(squares) +
+                    " squares)");
+  }
   // Every count is now bounded by the bytes: the lattice by its planes, the
   // other vertices by the stream's largest expansion, indices by one byte
   // each, groups by 3 indices each, runs by 5 bytes each.
@@ -909,6 +1000,10 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     return fail(pos + levelField2::vertexStreamBytes,
                 " vertex stream of " + str(vBytes) + " bytes cannot hold " + str(E) + " vertices of " +
                     str(stride) + " bytes");
+  }
+  if (rawTexture > E) {
+    return fail(pos + levelField4::rawTextureVertices,
+                " has " + str(rawTexture) + " raw-texture vertices, more than its " + str(E) + " stream vertices");
   }
   if (niStream > iBytes || (niStream == 0) != (iBytes == 0)) {
     return fail(pos + levelField2::indexStreamBytes,
@@ -987,13 +1082,25 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
       return fail(p, " vertex stream (" + str(vBytes) + " bytes, " + str(E) + " vertices) does not decode");
     }
     const auto latticeY = [v](std::size_t k) { return double(v[k].y); };
+    const std::size_t firstRaw = std::size_t(E - rawTexture);
     for (std::size_t i = 0; i < E; ++i) {
       const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
       const float x = xzValue(xzExp, r[0]), z = xzValue(xzExp, r[2]);
-      std::uint32_t code = r[1];
-      if (plane) code += predictedCode(exact, step, hbase, planeY(v, l.squaresX, l.squaresZ, l.spacing, x, z, latticeY));
-      v[P + i] = {x, height(code), z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
-                  std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
+      float y = 0;
+      if (offsets) {
+        y = planeY(v, l.squaresX, l.squaresZ, l.spacing, x, z, latticeY);
+        if (r[1] != 0) y = float(double(y) + double(std::int32_t(r[1])) * step);
+      } else {
+        std::uint32_t code = r[1];
+        if (plane) code += predictedCode(exact, step, hbase, planeY(v, l.squaresX, l.squaresZ, l.spacing, x, z, latticeY));
+        y = height(code);
+      }
+      if (i >= firstRaw) {
+        v[P + i] = {x, y, z, xzValue(stExp, r[3]), xzValue(stExp, r[4])};
+      } else {
+        v[P + i] = {x, y, z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
+                    std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
+      }
       if (normals) l.normals[P + i] = r[5];
     }
   }

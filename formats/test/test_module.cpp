@@ -1,6 +1,7 @@
 // Load module v1: golden bytes, round trips, index width, truncation,
 // hostile counts (with an allocation watch) and flipped bytes.
 #include <gtest/gtest.h>
+#include <meshoptimizer.h>
 
 #include <atomic>
 #include <bit>
@@ -501,8 +502,7 @@ TEST(Module, checksumsAndMagicAreChecked) {
   auto bytes = encodeV1(samples::tiny());
   bytes[0] = std::byte{'X'};
   EXPECT_EQ(decode(bytes, "m").error(),
-            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\", \"SANDMOD2\" or "
-            "\"SANDMOD3\")");
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD4\")");
   bytes = encodeV1(samples::tiny());
   bytes[field::kx] ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
@@ -563,9 +563,15 @@ Module tinyV2() {
 /// square, sides north, south, west, east; bottom vertices 5 m down with
 /// s = t = 0 and the top's normal), in material 7: version 3 stores none
 /// of it.
+void hangSkirt(Level& l);
+
 Module tinyV3() {
   Module m = tinyV2();
-  Level& l = m.levels[0];
+  hangSkirt(m.levels[0]);
+  return m;
+}
+
+void hangSkirt(Level& l) {
   const std::uint32_t sides[4][2] = {{0, 1}, {2, 3}, {0, 2}, {1, 3}};
   std::vector<std::uint32_t> skirt;
   for (const auto& side : sides) {
@@ -580,7 +586,21 @@ Module tinyV3() {
     skirt.insert(skirt.end(), {side[0], first, side[1], side[1], first, first + 1});
   }
   l.indices.insert(l.indices.end(), skirt.begin(), skirt.end());
-  l.groups.push_back({0, Half::skirt, kPrioritySkin, 7, 6, 24});
+  l.groups.push_back({0, Half::skirt, kPrioritySkin, 7, std::uint32_t(l.indices.size() - 24), 24});
+}
+
+/// tinyV3 with a decal triangle on the upper grid triangle (priority 2,
+/// material 9), on the plane of its posts, with texture on quarters: what
+/// version 4 stores as plane offsets and raw integer texture.
+Module tinyV4() {
+  Module m = tinyV2();
+  Level& l = m.levels[0];
+  // Upper plane: y = 10 + 0.25 x / 32 + 0.5 z / 32.
+  l.vertices.insert(l.vertices.end(), {{8, 10.1875f, 8, 0.5f, 0}, {16, 10.25f, 8, 0.75f, 0}, {8, 10.3125f, 16, 0.5f, 1}});
+  l.normals.insert(l.normals.end(), 3, 0u);
+  hangSkirt(l);
+  l.indices.insert(l.indices.end(), {4, 6, 5});
+  l.groups.push_back({0, Half::upper, 2, 9, 30, 3});
   return m;
 }
 
@@ -871,7 +891,7 @@ TEST(ModuleV2, hostileCountsAreRefusedBeforeAllocating) {
 TEST(ModuleV2, randomMutationsNeverCrashOrOverAllocate) {
   const std::vector<std::vector<std::byte>> seeds = {
       encode(tinyV2(), {.version = 2}), encode(withNormals(samples::realistic(1, 2, 8, 2)), {.version = 2}),
-      encode(samples::realistic(4, 1, 4, 3), {.version = 2}), encode(tinyV3()), encode(tinyV3(), {.heightStep = 0}),
+      encode(samples::realistic(4, 1, 4, 3), {.version = 2}), encode(tinyV3(), {.version = 3}), encode(tinyV3(), {.heightStep = 0}), encode(tinyV4()),
       encode(withNormals(samples::realistic(1, 2, 8, 2)))};
   std::uint64_t state = 0x5eed;
   auto next = [&] {
@@ -920,7 +940,6 @@ TEST(ModuleV3, layoutConstantsArePinned) {
   EXPECT_EQ(levelField3::streamIndices, 112u);
   EXPECT_EQ(kLevel3ImplicitSkirts, 16u);
   EXPECT_EQ(kLevel3PlaneHeights, 32u);
-  EXPECT_EQ(kNewestVersion, 3u);
 }
 
 // Golden bytes of version 3 by hand: tinyV2's level with its skirt, which
@@ -928,7 +947,7 @@ TEST(ModuleV3, layoutConstantsArePinned) {
 // golden's but for the height base (no vertex is stored, so the plane
 // prediction has nothing to predict).
 TEST(ModuleV3, version3GoldenBytes) {
-  const auto bytes = encode(tinyV3());
+  const auto bytes = encode(tinyV3(), {.version = 3});
   const std::string header =
       "0000000000004040"  // spacing 32.0
       "01000000"          // squaresX 1
@@ -989,12 +1008,12 @@ TEST(ModuleV3, version3GoldenBytes) {
 TEST(ModuleV3, exactHeightsRoundTripBitForBitWithAndWithoutImplicitSkirts) {
   for (const Module& m : {tinyV3(), samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7)),
                           samples::tiny()}) {
-    const auto bytes = encode(m, {.heightStep = 0});
+    const auto bytes = encode(m, {.version = 3, .heightStep = 0});
     EXPECT_EQ(encodedVersion(bytes), 3u);
     auto back = decode(bytes, "v3");
     ASSERT_TRUE(back.ok()) << back.error();
     expectEqual(back.value(), m);
-    EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
+    EXPECT_EQ(encode(back.value(), {.version = 3, .heightStep = 0}), bytes);
     Module reused = samples::realistic(9, 9, 16, 3);
     ASSERT_TRUE(decodeInto(bytes, "v3", 0, reused).ok());
     expectEqual(reused, m);
@@ -1004,18 +1023,18 @@ TEST(ModuleV3, exactHeightsRoundTripBitForBitWithAndWithoutImplicitSkirts) {
 TEST(ModuleV3, quantisedHeightsStayWithinTheStepAndReencodeIdentically) {
   for (const Module& m : {tinyV3(), samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7))}) {
     for (const double step : {0.01, 0.25}) {
-      const auto bytes = encode(m, {.heightStep = step});
+      const auto bytes = encode(m, {.version = 3, .heightStep = step});
       auto back = decode(bytes, "v3");
       ASSERT_TRUE(back.ok()) << back.error();
       expectNear(back.value(), m, step);
-      EXPECT_EQ(encode(back.value(), {.heightStep = step}), bytes);
+      EXPECT_EQ(encode(back.value(), {.version = 3, .heightStep = step}), bytes);
     }
   }
 }
 
 TEST(ModuleV3, skirtsThatAreNotTheBuildersAreStoredAsTheyAre) {
   // The sample's skirts run per edge square, not per node: stored.
-  const auto sample = encode(samples::realistic(5, 7));
+  const auto sample = encode(samples::realistic(5, 7), {.version = 3});
   EXPECT_EQ(loadLE<std::uint32_t>(sample.data() + kHeaderBytes + levelField2::flags) & kLevel3ImplicitSkirts, 0u);
   EXPECT_EQ(loadLE<std::uint32_t>(sample.data() + kHeaderBytes + levelField3::skirtNode), 0u);
   // A bottom vertex off by one ulp, one with a texture coordinate, a
@@ -1025,7 +1044,7 @@ TEST(ModuleV3, skirtsThatAreNotTheBuildersAreStoredAsTheyAre) {
   changed[1].levels[0].vertices[9].s = 0.5f;
   std::swap(changed[2].levels[0].indices[7], changed[2].levels[0].indices[8]);
   for (const Module& m : changed) {
-    const auto bytes = encode(m, {.heightStep = 0});
+    const auto bytes = encode(m, {.version = 3, .heightStep = 0});
     const auto flags = loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField2::flags);
     EXPECT_EQ(flags & kLevel3ImplicitSkirts, 0u);
     EXPECT_NE(flags & kLevel3PlaneHeights, 0u);
@@ -1036,7 +1055,7 @@ TEST(ModuleV3, skirtsThatAreNotTheBuildersAreStoredAsTheyAre) {
   // With implicit skirts and a lattice run, the tiny module with its skirt
   // takes one byte more than version 2 without it (12 more header bytes,
   // 11 fewer index stream bytes).
-  EXPECT_EQ(encode(tinyV3()).size(), encode(tinyV2(), {.version = 2}).size() + 1);
+  EXPECT_EQ(encode(tinyV3(), {.version = 3}).size(), encode(tinyV2(), {.version = 2}).size() + 1);
 }
 
 TEST(ModuleV3, planeHeightsPredictCultureVerticesOnTheirTriangle) {
@@ -1055,8 +1074,8 @@ TEST(ModuleV3, planeHeightsPredictCultureVerticesOnTheirTriangle) {
     }
     return m;
   };
-  const auto onPlane = encode(withVertices(false), {.heightStep = 0});
-  const auto above = encode(withVertices(true), {.heightStep = 0});
+  const auto onPlane = encode(withVertices(false), {.version = 3, .heightStep = 0});
+  const auto above = encode(withVertices(true), {.version = 3, .heightStep = 0});
   const std::size_t stream = kHeaderBytes + levelField2::vertexStreamBytes;
   EXPECT_LT(loadLE<std::uint32_t>(onPlane.data() + stream), loadLE<std::uint32_t>(above.data() + stream));
   for (const auto& bytes : {onPlane, above}) {
@@ -1068,7 +1087,7 @@ TEST(ModuleV3, planeHeightsPredictCultureVerticesOnTheirTriangle) {
 }
 
 TEST(ModuleV3, everyTruncatedPrefixFailsNamingItsOffset) {
-  for (const auto& bytes : {encode(tinyV3()), encode(samples::realistic(1, 1, 4, 2))}) {
+  for (const auto& bytes : {encode(tinyV3(), {.version = 3}), encode(samples::realistic(1, 1, 4, 2), {.version = 3})}) {
     for (std::size_t n = 0; n < bytes.size(); ++n) {
       auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
       ASSERT_FALSE(m.ok()) << "prefix " << n;
@@ -1081,7 +1100,7 @@ TEST(ModuleV3, everyTruncatedPrefixFailsNamingItsOffset) {
 }
 
 TEST(ModuleV3, everyFlippedByteIsDetected) {
-  for (auto bytes : {encode(tinyV3()), encode(samples::realistic(2, 3, 4, 2))}) {
+  for (auto bytes : {encode(tinyV3(), {.version = 3}), encode(samples::realistic(2, 3, 4, 2), {.version = 3})}) {
     for (std::size_t off = 0; off < bytes.size(); ++off) {
       bytes[off] ^= std::byte{0x20};
       EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
@@ -1090,17 +1109,38 @@ TEST(ModuleV3, everyFlippedByteIsDetected) {
   }
 }
 
+/// One level header field of the first level set to a hostile value.
+struct HostileField {
+  std::size_t field;
+  unsigned width;
+  std::uint32_t value;
+  std::size_t offset;
+  const char* message;
+};
+
+/// good with the field set (CRCs resealed) is refused with the message and
+/// offset, before any large allocation.
+void expectRefused(const std::vector<std::byte>& good, const HostileField& c) {
+  auto bytes = good;
+  std::byte* at = bytes.data() + kHeaderBytes + c.field;
+  if (c.width == 2) {
+    storeLE<std::uint16_t>(at, std::uint16_t(c.value));
+  } else {
+    storeLE<std::uint32_t>(at, c.value);
+  }
+  reseal(bytes);
+  gLargestAllocation = 0;
+  auto m = decode(bytes, "h.bin", 0);
+  ASSERT_FALSE(m.ok()) << c.message;
+  EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.message;
+  EXPECT_EQ(m.problems().front().message, c.message);
+  EXPECT_EQ(m.problems().front().offset, c.offset) << c.message;
+}
+
 TEST(ModuleV3, hostileSkirtFieldsAreRefusedBeforeAllocating) {
-  const auto good = encode(tinyV3());
+  const auto good = encode(tinyV3(), {.version = 3});
   const std::size_t lh = kHeaderBytes;
-  struct Case {
-    std::size_t field;
-    unsigned width;
-    std::uint32_t value;
-    std::size_t offset;
-    const char* message;
-  };
-  const Case cases[] = {
+  const HostileField cases[] = {
       {levelField3::skirtNode, 4, 0, lh + levelField3::skirtNode,
        "module: level 0 skirt node 0 is out of range (1 to 65536)"},
       {levelField3::skirtNode, 4, 65537, lh + levelField3::skirtNode,
@@ -1121,23 +1161,9 @@ TEST(ModuleV3, hostileSkirtFieldsAreRefusedBeforeAllocating) {
        "module: level 0 flags 54: a derived maxHeight (bit 1), implicit skirts (bit 4) and plane heights (bit 5) "
        "need the lattice (bit 0)"},
   };
-  for (const Case& c : cases) {
-    auto bytes = good;
-    if (c.width == 2) {
-      storeLE<std::uint16_t>(bytes.data() + lh + c.field, std::uint16_t(c.value));
-    } else {
-      storeLE<std::uint32_t>(bytes.data() + lh + c.field, c.value);
-    }
-    reseal(bytes);
-    gLargestAllocation = 0;
-    auto m = decode(bytes, "h.bin", 0);
-    ASSERT_FALSE(m.ok()) << c.message;
-    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.message;
-    EXPECT_EQ(m.problems().front().message, c.message);
-    EXPECT_EQ(m.problems().front().offset, c.offset) << c.message;
-  }
+  for (const HostileField& c : cases) expectRefused(good, c);
   // A node with no implicit skirts, or a material: refused as well.
-  auto bytes = encode(samples::realistic(1, 1, 4, 1));
+  auto bytes = encode(samples::realistic(1, 1, 4, 1), {.version = 3});
   storeLE<std::uint32_t>(bytes.data() + lh + levelField3::skirtNode, 4);
   reseal(bytes);
   EXPECT_EQ(decode(bytes, "n").problems().front().message,
@@ -1156,6 +1182,125 @@ TEST(ModuleV3, versions1And2StillDecodeAndUpgradeToVersion3) {
     ASSERT_TRUE(three.ok()) << three.error();
     expectEqual(three.value(), m);
   }
+}
+
+// ------------------------------------------------------------- version 4
+
+TEST(ModuleV4, layoutConstantsArePinned) {
+  EXPECT_EQ(kLevelHeaderBytes4, 124u);
+  EXPECT_EQ(levelField4::rawTextureVertices, 116u);
+  EXPECT_EQ(levelField4::stExponent, 120u);
+  EXPECT_EQ(levelField4::reserved, 122u);
+  EXPECT_EQ(kLevel4PlaneOffsets, 64u);
+  EXPECT_EQ(kNewestVersion, 4u);
+}
+
+// The header by hand; the vertex stream read back with meshopt's own
+// decoder and compared with codes worked out by hand.
+TEST(ModuleV4, version4GoldenBytes) {
+  const auto bytes = encode(tinyV4());
+  EXPECT_EQ(hex(std::span(bytes).first(16)), "53414e444d4f44340400000030000000");  // "SANDMOD4", 4, 48
+  EXPECT_EQ(encodedVersion(bytes), 4u);
+  const std::byte* h = bytes.data() + kHeaderBytes;
+  EXPECT_EQ(hex(std::span(bytes).subspan(kHeaderBytes + 20, 16)),
+            "77000000"   // flags: lattice | derived | normals | skirts | plane | plane offsets
+            "0f000000"   // 15 vertices: 4 posts, 3 decal, 8 skirt bottoms
+            "21000000"   // 33 indices
+            "04000000");  // 4 groups
+  EXPECT_EQ(hex(std::span(bytes).subspan(kHeaderBytes + 90, 2)), "0300");  // x, z exponent 3: 8 and 16 are 1 and 2 eights
+  EXPECT_EQ(hex(std::span(bytes).subspan(kHeaderBytes + 116, 8)),
+            "03000000"  // the 3 decal vertices store raw texture
+            "feff"      // s, t exponent -2 (quarters)
+            "0000");    // reserved
+  const auto vb = loadLE<std::uint32_t>(h + levelField2::vertexStreamBytes);
+  // The stream follows the lattice heights (16 bytes) and normals (16).
+  std::vector<std::uint32_t> raw(3 * 6);
+  ASSERT_EQ(meshopt_decodeVertexBuffer(raw.data(), 3, 24,
+                                       reinterpret_cast<const unsigned char*>(h + kLevelHeaderBytes4 + 32), vb),
+            0);
+  // x, height offset (0: on the plane), z, s, t codes; normal 0.
+  const std::vector<std::uint32_t> want = {1, 0, 1, 2, 0, 0, 2, 0, 1, 3, 0, 0, 1, 0, 2, 2, 4, 0};
+  EXPECT_EQ(raw, want);
+  auto back = decode(bytes, "golden");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectNear(back.value(), tinyV4(), kDefaultHeightStep);
+}
+
+// Version 3 re-quantised a culture vertex's height; version 4 puts it on
+// the plane of the decoded posts, the plane the lattice triangle draws.
+TEST(ModuleV4, quantisedCultureHeightsStayOnTheDecodedPlane) {
+  const Module m = tinyV4();
+  for (const double step : {0.01, 0.25}) {
+    auto v4 = decode(encode(m, {.heightStep = step}), "v4");
+    auto v3 = decode(encode(m, {.version = 3, .heightStep = step}), "v3");
+    ASSERT_TRUE(v4.ok() && v3.ok());
+    expectNear(v4.value(), m, step);
+    const auto& p = v4->levels[0].vertices;
+    const double hnw = p[0].y, hne = p[1].y, hsw = p[2].y;  // decoded posts
+    double v3Off = 0;
+    for (int k = 4; k < 7; ++k) {
+      const Vertex& q = p[std::size_t(k)];
+      const double plane = hnw + (q.x / 32.0) * (hne - hnw) + (q.z / 32.0) * (hsw - hnw);
+      EXPECT_NEAR(q.y, plane, 1e-5) << "step " << step << " vertex " << k;
+      v3Off = std::max(v3Off, std::fabs(v3->levels[0].vertices[std::size_t(k)].y - plane));
+    }
+    if (step == 0.25) {
+      EXPECT_GT(v3Off, 0.01);  // version 3 left them off it
+    }
+    EXPECT_EQ(encode(v4.value(), {.heightStep = step}), encode(m, {.heightStep = step}));
+  }
+}
+
+TEST(ModuleV4, textureThatIsNotOnAStepAndExactHeightsRoundTripBitForBit) {
+  Module m = tinyV4();
+  m.levels[0].vertices[5].t = -0.0f;  // no integer code: float bits
+  m.levels[0].vertices[4].y += 0.003f;  // off the plane
+  for (const Module& x : {m, samples::realistic(3, 4, 8, 2), withNormals(samples::realistic(5, 7))}) {
+    const auto bytes = encode(x, {.heightStep = 0});
+    auto back = decode(bytes, "v4");
+    ASSERT_TRUE(back.ok()) << back.error();
+    expectEqual(back.value(), x);
+    EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
+  }
+  const auto bytes = encode(m, {.heightStep = 0});
+  EXPECT_EQ(loadLE<std::int16_t>(bytes.data() + kHeaderBytes + levelField4::stExponent), 32767);
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField2::flags) & kLevel4PlaneOffsets, 0u);
+}
+
+TEST(ModuleV4, everyTruncatedPrefixAndFlippedByteIsCaught) {
+  for (auto bytes : {encode(tinyV4()), encode(samples::realistic(2, 3, 4, 2))}) {
+    for (std::size_t n = 0; n < bytes.size(); ++n) {
+      auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+      ASSERT_FALSE(m.ok()) << "prefix " << n;
+      EXPECT_EQ(m.problems().front().offset, 1000 + n) << m.problems().front().message;
+      EXPECT_NE(m.problems().front().message.find("truncated"), std::string::npos);
+    }
+    for (std::size_t off = 0; off < bytes.size(); ++off) {
+      bytes[off] ^= std::byte{0x20};
+      EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+      bytes[off] ^= std::byte{0x20};
+    }
+  }
+}
+
+TEST(ModuleV4, hostileFieldsAreRefusedBeforeAllocating) {
+  const auto good = encode(tinyV4());
+  const std::size_t lh = kHeaderBytes;
+  const HostileField cases[] = {
+      {levelField4::rawTextureVertices, 4, 4, lh + levelField4::rawTextureVertices,
+       "module: level 0 has 4 raw-texture vertices, more than its 3 stream vertices"},
+      {levelField4::rawTextureVertices, 4, 0xffffffffu, lh + levelField4::rawTextureVertices,
+       "module: level 0 has 4294967295 raw-texture vertices, more than its 3 stream vertices"},
+      {levelField4::reserved, 2, 1, lh + levelField4::rawTextureVertices,
+       "module: level 0 raw-texture vertices need the lattice (bit 0), and the reserved bytes must be 0"},
+      {levelField4::stExponent, 2, 200, lh + levelField4::stExponent,
+       "module: level 0 s, t exponent 200 is neither -149..127 nor 32767 (float bits)"},
+      {levelField2::flags, 4, 0xf7, lh + levelField2::flags, "module: level 0 flags 247 has bits other than 0..6 set"},
+      {levelField2::flags, 4, 0x57, lh + levelField2::flags,
+       "module: level 0 flags 87: plane offsets (bit 6) need plane heights (bit 5) and quantised heights (bit 3 "
+       "clear)"},
+  };
+  for (const HostileField& c : cases) expectRefused(good, c);
 }
 
 }  // namespace

@@ -188,15 +188,16 @@ void registerBuild(CLI::App& root, Commands& c) {
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--module-version", a->o.moduleVersion,
-                  "Load-module format: 3 (compact: lattice heights, implicit skirts, plane-predicted heights, "
-                  "meshopt streams, optional normals), 2 (the same without implicit skirts and plane heights) or 1 "
-                  "(the original float planes); docs/FORMAT.md section 9")
-      ->default_val(3)
-      ->check(CLI::Range(1, 3));
+                  "Load-module format: 4 (compact: lattice heights, implicit skirts, culture heights on the lattice "
+                  "plane, integer decal texture, meshopt streams, optional normals), 3 (culture heights re-quantised, "
+                  "float decal texture), 2 (the same without implicit skirts and plane heights) or 1 (the original "
+                  "float planes); docs/FORMAT.md section 9")
+      ->default_val(4)
+      ->check(CLI::Range(1, 4));
   sub->add_option("--height-step", a->o.heightStep,
-                  "Module version 2 and 3 height quantisation step in metres; every module height is within half a "
+                  "Module version 2 to 4 height quantisation step in metres; every module height is within half a "
                   "step of the grid's (0 keeps exact float heights)")
-      ->default_val(0.0)
+      ->default_val(convert::kBuildHeightStep)
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--module-normals", a->o.moduleNormals,
                 "Module versions 2 and 3: also store per-vertex octahedral normals (about 30% more bytes; the "

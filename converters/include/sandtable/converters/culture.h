@@ -48,6 +48,13 @@ struct CultureFrame {
 struct CultureOptions {
   std::vector<std::string> sources;  ///< any OGR vector source (files; .osm/.osm.gz/.pbf, .zip too)
   double mergeTolerance = 0.1;       ///< metres (seed: 0.1 m)
+  /// Culture vertices are placed on multiples of this in module
+  /// coordinates (metres; a power of two from 2^-20 to 1, or 0 for float
+  /// precision) wherever the level's lattice lines are on it, so the
+  /// module format stores them as small integers (docs/CULTURE.md,
+  /// "Vertex step"). 2^-7 m = 7.8 mm, under a tenth of the seed's merge
+  /// tolerance (2^-5 moved decal areas by more than 0.1%).
+  double vertexStep = 1.0 / 128.0;
   int threads = 0;                   ///< widening at load; 0 = all cores
   /// Module partitions kept between decalLevel calls (one per module, all
   /// levels share it); 0 = four per hardware thread. Call every level of a

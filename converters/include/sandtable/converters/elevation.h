@@ -11,18 +11,17 @@
 #include <vector>
 
 #include "sandtable/formats/manifest.h"
+#include "sandtable/formats/module.h"
 #include "sandtable/base/result.h"
 
 namespace sandtable::convert {
 
-/// The height step the build and `upgrade` write by default: 0, exact
-/// float heights. Quantised heights (module::kDefaultHeightStep, 1 cm) make
-/// modules about 15% smaller, but move culture vertices that sit on a grid
-/// edge (T-junctions) off it by up to half a step; the viewer's underlay
-/// does not yet cover every crack that opens (ViewerLook's height frames
-/// see a skirt through one pixel at Monaco), so quantising is opt-in
-/// (`--height-step 0.01`).
-inline constexpr double kBuildHeightStep = 0.0;
+/// The height step the build and `upgrade` write by default: 1 cm
+/// (module::kDefaultHeightStep), about 10% off a module. Version 4 stores
+/// culture heights as whole steps from the decoded lattice plane, so a
+/// vertex on a grid edge stays on it (version 3 re-quantised it and opened
+/// cracks); `--height-step 0` keeps exact float heights.
+inline constexpr double kBuildHeightStep = module::kDefaultHeightStep;
 
 /// fraction in [0, 1] and the stage that is running.
 using ProgressFn = std::function<void(double, const std::string&)>;
@@ -74,7 +73,7 @@ struct ElevationOptions {
   std::string materials;       ///< material table; "" = the built-in default (samples/materials.txt)
   bool modules = true;         ///< false: grid only (no load modules)
   int zstdLevel = 9;           ///< module compression level
-  std::uint32_t moduleVersion = 3;  ///< load-module format version (1, 2 or 3; ModuleOptions)
+  std::uint32_t moduleVersion = module::kNewestVersion;  ///< load-module format version (1 to 4; ModuleOptions)
   double heightStep = kBuildHeightStep;  ///< version 2 height step, metres (0: exact; ModuleOptions)
   bool moduleNormals = false;  ///< version 2: store octahedral normals (ModuleOptions::normals)
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent

@@ -104,7 +104,7 @@ struct UpgradeOptions {
 };
 
 struct UpgradeReport {
-  bool upgraded = false;     ///< false: the modules already were the newest version, 3 (nothing written)
+  bool upgraded = false;     ///< false: the modules already were the newest version, 4 (nothing written)
   std::uint32_t fromVersion = 0;
   std::uint64_t modules = 0;
   std::uint64_t packBytesBefore = 0, packBytesAfter = 0;

@@ -43,8 +43,13 @@ inline constexpr std::uint32_t kVersion2 = 2;
 /// whose skirts and heights follow from the lattice (flags below).
 inline constexpr std::array<char, 8> kMagic3 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '3'};
 inline constexpr std::uint32_t kVersion3 = 3;
+/// Version 4 (docs/FORMAT.md §9.9): version 3 with a 124-byte level header;
+/// quantised culture heights are offsets from the lattice plane, and decal
+/// texture coordinates are stored as integers (flags below).
+inline constexpr std::array<char, 8> kMagic4 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '4'};
+inline constexpr std::uint32_t kVersion4 = 4;
 /// The version writers produce by default.
-inline constexpr std::uint32_t kNewestVersion = kVersion3;
+inline constexpr std::uint32_t kNewestVersion = kVersion4;
 /// Default height quantisation step of version 2, metres (1 cm).
 inline constexpr double kDefaultHeightStep = 0.01;
 
@@ -160,6 +165,23 @@ inline constexpr std::size_t skirtNode = 104, skirtMaterial = 108, reserved = 11
 }
 static_assert(levelField3::streamIndices + 4 == kLevelHeaderBytes3, "version 3 level header layout");
 
+// ------------------------------------------------------- layout, version 4
+// Version 4 is version 3 with eight more level header bytes and two rules:
+//  - plane offsets (flag): with quantised heights, the y of every stream
+//    vertex is the lattice plane's height at its x, z plus a whole number
+//    of steps, so a culture vertex on a grid edge stays on the edge the
+//    lattice triangle beside it draws (version 3 re-quantised it);
+//  - raw texture: the last rawTextureVertices stream vertices (the
+//    builder's decals) store s and t as integers n, s = n * 2^stExponent
+//    (32767: their float bits), not XOR the skin texture.
+inline constexpr std::uint32_t kLevelHeaderBytes4 = 124;
+inline constexpr std::uint32_t kLevel4PlaneOffsets = 64;
+inline constexpr std::uint32_t kLevel4KnownFlags = 127;
+namespace levelField4 {
+inline constexpr std::size_t rawTextureVertices = 116, stExponent = 120, reserved = 122;
+}
+static_assert(levelField4::reserved + 2 == kLevelHeaderBytes4, "version 4 level header layout");
+
 /// Byte offsets of the version 2 level header fields, from the level's start.
 namespace levelField2 {
 inline constexpr std::size_t spacing = 0, squaresX = 8, squaresZ = 12, skirtDepth = 16, flags = 20,
@@ -269,8 +291,8 @@ Status checkEncodable(const Module& m);
 std::uint64_t encodedBytes(const Module& m);
 
 struct EncodeOptions {
-  std::uint32_t version = kNewestVersion;  ///< 1, 2 or 3
-  double heightStep = kDefaultHeightStep;  ///< versions 2 and 3; <= 0 stores exact float heights
+  std::uint32_t version = kNewestVersion;  ///< 1, 2, 3 or 4
+  double heightStep = kDefaultHeightStep;  ///< versions 2 to 4; <= 0 stores exact float heights
 };
 
 /// Uncompressed bytes of a module (little-endian, layout above and in
