@@ -169,6 +169,17 @@ std::uint32_t xzCode(std::int32_t e, float c) {
 float xzValue(std::int32_t e, std::uint32_t code) {
   return e == kXZFloatBits ? std::bit_cast<float>(code) : float(std::ldexp(double(std::int32_t(code)), e));
 }
+/// xzValue for one exponent, decoded many times: 2^e is a double and every
+/// i32 times it is exact in double (|code| < 2^31, -149 <= e <= 127), so a
+/// multiply gives ldexp's value without a libm call per coordinate.
+struct XZDecoder {
+  bool floatBits;
+  double scale;
+  explicit XZDecoder(std::int32_t e) : floatBits(e == kXZFloatBits), scale(floatBits ? 1.0 : std::ldexp(1.0, e)) {}
+  float operator()(std::uint32_t code) const {
+    return floatBits ? std::bit_cast<float>(code) : float(double(std::int32_t(code)) * scale);
+  }
+};
 
 /// Bits of the skin texture coordinate at module-local x (or z) from offset o.
 std::uint32_t skinBits(double o, float x) { return bits(float((o + double(x)) / kSkinTextureRepeat)); }
@@ -238,22 +249,23 @@ void makeSkirts(const Vertex* v, const std::uint32_t* normals, std::uint32_t sx,
   std::size_t vi = 0, ii = 0, gi = 0;
   const auto side = [&](std::size_t a0, std::size_t b0, std::size_t a1, std::size_t b1) {
     const std::size_t n = std::max(a1 - a0, b1 - b0);
+    const std::size_t along = b0 == b1 ? 1 : w;  // post stride along the side
     const std::uint32_t first = next;
-    for (std::size_t k = 0; k <= n; ++k) {
-      const std::size_t top = (b0 == b1 ? b0 : b0 + k) * w + (a0 == a1 ? a0 : a0 + k);
-      Vertex b = v[top];
-      b.y -= depth;
-      b.s = b.t = 0;
-      out.vertices[vi] = b;
-      if (out.normals) out.normals[vi] = normals[top];
-      ++vi, ++next;
-      if (k == 0) continue;
-      const auto a = std::uint32_t(top - (b0 == b1 ? 1 : w)), c = std::uint32_t(top);
+    for (std::size_t k = 0, top = b0 * w + a0; k <= n; ++k, top += along) {
+      const Vertex& t = v[top];
+      out.vertices[vi + k] = {t.x, t.y - depth, t.z, 0.0f, 0.0f};
+    }
+    if (out.normals) {
+      for (std::size_t k = 0, top = b0 * w + a0; k <= n; ++k, top += along) out.normals[vi + k] = normals[top];
+    }
+    for (std::size_t k = 1, top = b0 * w + a0 + along; k <= n; ++k, top += along) {
+      const auto a = std::uint32_t(top - along), c = std::uint32_t(top);
       const std::uint32_t ab = first + std::uint32_t(k) - 1, cb = first + std::uint32_t(k);
       const std::uint32_t tri[6] = {a, ab, c, c, ab, cb};
       std::memcpy(out.indices + ii, tri, sizeof tri);
       ii += 6;
     }
+    vi += n + 1, next += std::uint32_t(n + 1);
   };
   for (std::size_t nz = 0; nz < sz; nz += node) {
     for (std::size_t nx = 0; nx < sx; nx += node) {
@@ -269,6 +281,34 @@ void makeSkirts(const Vertex* v, const std::uint32_t* normals, std::uint32_t sx,
       ++gi;
     }
   }
+}
+
+/// The highest y over the indices of every non-skirt group, per square
+/// (derived maxHeight; -infinity where a square has none). The square's
+/// running maximum stays in a register while its groups
+/// follow each other (the usual order), and a group's three heights are
+/// reduced before they meet it, so the loop is not one long chain of
+/// dependent max operations through memory. Encoder and decoder both call
+/// this, so they agree even on the sign of a zero maximum.
+void derivedMaxHeights(const Vertex* v, const std::uint32_t* idx, const Group* gr, std::size_t ng, float* mh,
+                       std::size_t squares) {
+  std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());
+  const auto larger = [](float a, float b) { return a < b ? b : a; };  // std::max's choice
+  std::uint32_t square = 0;
+  float t = -std::numeric_limits<float>::infinity();
+  for (std::size_t k = 0; k < ng; ++k) {
+    if (gr[k].half == Half::skirt) continue;
+    if (gr[k].square != square) {
+      mh[square] = t;
+      square = gr[k].square;
+      t = mh[square];
+    }
+    const std::uint32_t* i = idx + gr[k].firstIndex;
+    const std::uint32_t* const end = i + gr[k].indexCount;
+    for (; i + 3 <= end; i += 3) t = larger(t, larger(larger(v[i[0]].y, v[i[1]].y), v[i[2]].y));
+    for (; i < end; ++i) t = larger(t, v[*i].y);
+  }
+  if (squares > 0) mh[square] = t;
 }
 
 /// The lattice square (column or row) holding coordinate c: the nominal
@@ -292,9 +332,12 @@ float planeY(const Vertex* lat, std::uint32_t sx, std::uint32_t sz, double spaci
   const double u = (double(x) - lat[nw].x) / (double(lat[ne].x) - lat[nw].x);
   const double t = (double(z) - lat[nw].z) / (double(lat[sw].z) - lat[nw].z);
   const double hnw = height(nw), hne = height(ne), hsw = height(sw), hse = height(se);
-  const double y = u + t <= 1.0 ? hnw + u * (hne - hnw) + t * (hsw - hnw)
-                                : hse + (1.0 - u) * (hsw - hse) + (1.0 - t) * (hne - hse);
-  return float(y);
+  // Both halves, then a select: which half a culture vertex lies in is
+  // close to random, and a mispredicted branch cost more than the other
+  // half's arithmetic.
+  const double upper = hnw + u * (hne - hnw) + t * (hsw - hnw);
+  const double lower = hse + (1.0 - u) * (hsw - hse) + (1.0 - t) * (hne - hse);
+  return float(u + t <= 1.0 ? upper : lower);
 }
 
 /// The lattice vertices of grid triangle (square, half) in the builder's
@@ -382,20 +425,14 @@ Plan plan(const Level& l, double heightStep) {
   // maxHeight follows from the vertices where it is what computeMaxHeights
   // gives (the builder's rule); only the lattice bounds the squares.
   if (p.posts && l.maxHeight.size() == std::uint64_t(nx) * nz) {
-    std::vector<float> top(l.maxHeight.size(), -std::numeric_limits<float>::infinity());
     bool ok = true;
     for (const Group& g : l.groups) {
       if (g.half == Half::skirt) continue;
-      if (g.square >= top.size() || std::uint64_t(g.firstIndex) + g.indexCount > l.indices.size()) {
-        ok = false;
-        break;
-      }
-      float& t = top[g.square];
-      for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount && ok; ++k) {
-        ok = l.indices[k] < v.size();
-        if (ok) t = std::max(t, v[l.indices[k]].y);
-      }
+      ok = ok && g.square < l.maxHeight.size() && std::uint64_t(g.firstIndex) + g.indexCount <= l.indices.size();
+      for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount && ok; ++k) ok = l.indices[k] < v.size();
     }
+    std::vector<float> top(l.maxHeight.size());
+    if (ok) derivedMaxHeights(v.data(), l.indices.data(), l.groups.data(), l.groups.size(), top.data(), top.size());
     for (std::size_t k = 0; k < top.size() && ok; ++k) ok = bits(top[k]) == bits(l.maxHeight[k]);
     if (ok) p.flags |= kLevel2DerivedMaxHeight;
   }
@@ -798,21 +835,6 @@ std::uint32_t largestOf(const std::uint32_t* v, std::size_t n) {
   return m;
 }
 
-/// The highest y over the indices of every non-skirt group, per square
-/// (derived maxHeight; -infinity where a square has none).
-void derivedMaxHeights(const Vertex* v, const std::uint32_t* idx, const Group* gr, std::size_t ng, float* mh,
-                       std::size_t squares) {
-  std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());
-  for (std::size_t k = 0; k < ng; ++k) {
-    if (gr[k].half == Half::skirt) continue;
-    float t = mh[gr[k].square];
-    const std::uint32_t* i = idx + gr[k].firstIndex;
-    const std::uint32_t* const end = i + gr[k].indexCount;
-    for (; i < end; ++i) t = std::max(t, v[*i].y);
-    mh[gr[k].square] = t;
-  }
-}
-
 /// Merges the stored groups (indices in `stored`) with the skirt groups
 /// (squares and counts, indices in tSkirtIndices) into the level's groups
 /// and indices, in (priority, square, half, material) order, the stored
@@ -1083,9 +1105,10 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
     }
     const auto latticeY = [v](std::size_t k) { return double(v[k].y); };
     const std::size_t firstRaw = std::size_t(E - rawTexture);
+    const XZDecoder xzOf(xzExp), stOf(stExp);
     for (std::size_t i = 0; i < E; ++i) {
       const std::uint32_t* r = tScratch.data() + i * std::size_t(stride / 4);
-      const float x = xzValue(xzExp, r[0]), z = xzValue(xzExp, r[2]);
+      const float x = xzOf(r[0]), z = xzOf(r[2]);
       float y = 0;
       if (offsets) {
         y = planeY(v, l.squaresX, l.squaresZ, l.spacing, x, z, latticeY);
@@ -1096,7 +1119,7 @@ Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, 
         y = height(code);
       }
       if (i >= firstRaw) {
-        v[P + i] = {x, y, z, xzValue(stExp, r[3]), xzValue(stExp, r[4])};
+        v[P + i] = {x, y, z, stOf(r[3]), stOf(r[4])};
       } else {
         v[P + i] = {x, y, z, std::bit_cast<float>(r[3] ^ (P ? skinBits(s0, x) : 0u)),
                     std::bit_cast<float>(r[4] ^ (P ? skinBits(t0, z) : 0u))};
