@@ -210,6 +210,8 @@ struct Pager::Impl {
   std::vector<ModuleKey> changed;   ///< reused by the poll
   double lastTime = 0;
   bool haveTime = false;
+  double updateInterval = 0;  ///< running mean of the time between updates (main thread)
+  bool haveInterval = false;
 
   pager_detail::SeqWindow window;
   std::atomic<bool> stopping{false};

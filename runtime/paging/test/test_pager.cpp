@@ -487,6 +487,37 @@ TEST(Pager, fillsTheAreaThenPagesStripsAndFreesTheOppositeSide) {
   EXPECT_GT(m.bytesRead, 0u);
 }
 
+// The window moves only at updates, so the lead also covers one update's
+// travel: at 300 km/s and 60 updates a second that is 5 km, where a 1 ms
+// latency alone would ask for one strip.
+TEST(Pager, leadCoversTheLatencyAndOneUpdateOfTravel) {
+  const TestDb db = makeDb("lead", 40, 40);
+  for (const double scale : {2.0, 0.0}) {
+    PagerOptions o = baseOptions();
+    o.lookAheadScale = scale;
+    o.initialLatencySeconds = 0.001;
+    o.maxLeadStrips = 16;
+    // Slow reads: the refill's 81 loads (which leave the latency estimate
+    // alone) come before any lead strip's, so no strip load lands and moves
+    // the estimate before the metrics are taken.
+    o.simulatedReadSeconds = 0.05;
+    auto p = openPager(db, o);
+    ASSERT_TRUE(p);
+    p->update(20500, 20500, 0, 0, 0);
+    for (int k = 1; k <= 120; ++k) p->update(20500, 20500, 300000, 0, k / 60.0);
+    const PagerMetrics m = p->metrics();
+    if (scale > 0) {
+      EXPECT_NEAR(m.leadSeconds, 2 * 0.001 + 1.0 / 60, 1e-9);
+      // ceil(300 km/s * 18.67 ms / 1 km)
+      EXPECT_EQ(m.leadStrips[std::size_t(Direction::east)], 6u);
+    } else {
+      EXPECT_EQ(m.leadSeconds, 0.0);  // 0 still turns prediction off
+      EXPECT_EQ(m.leadStrips[std::size_t(Direction::east)], 0u);
+    }
+    EXPECT_EQ(m.leadStrips[std::size_t(Direction::west)], 0u);
+  }
+}
+
 TEST(Pager, backAndForthInsideTheMarginLoadsNothing) {
   const TestDb db = makeDb("swing", 40, 40);
   PagerOptions o = baseOptions();
