@@ -995,8 +995,9 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
                           : im.options.lookAheadScale * im.latencyEstimate.load(std::memory_order_relaxed) +
                                 im.updateInterval;
   im.leadSeconds.store(lead, std::memory_order_relaxed);
-  const PlanStep& st = im.planner.update(eyeX, eyeZ, velocityX, velocityZ,
-                                         im.options.mode == PagerMode::predictive ? lead : 0.0);
+  const bool predictive = im.options.mode == PagerMode::predictive && lead > 0;
+  const PlanStep& st = im.planner.update(eyeX, eyeZ, velocityX, velocityZ, predictive ? lead : 0.0,
+                                         predictive ? im.updateInterval : 0.0);
   im.window.store({st.after, eyeX, eyeZ, velocityX, velocityZ});
   for (std::size_t d = 0; d < kDirections; ++d) {
     im.leadStrips[d].store(im.planner.lead()[d], std::memory_order_relaxed);

@@ -53,11 +53,11 @@ std::int64_t PagingGeometry::maxRadius() const {
 }
 
 std::uint32_t PagingGeometry::ringX() const {
-  return std::uint32_t(std::min<std::int64_t>(modulesX, maxSide() + maxLeadStrips));
+  return std::uint32_t(std::min<std::int64_t>(modulesX, maxSide() + 2 * std::int64_t(maxLeadStrips)));
 }
 
 std::uint32_t PagingGeometry::ringZ() const {
-  return std::uint32_t(std::min<std::int64_t>(modulesZ, maxSide() + maxLeadStrips));
+  return std::uint32_t(std::min<std::int64_t>(modulesZ, maxSide() + 2 * std::int64_t(maxLeadStrips)));
 }
 
 // ---------------------------------------------------------------- planner
@@ -93,10 +93,10 @@ void StripPlanner::setViewDistance(double metres) {
 }
 
 StripPlanner::StripPlanner(const PagingGeometry& g) : geometry_(g) {
-  const std::size_t side = std::size_t(std::max<std::int64_t>(1, g.maxSide() + g.maxLeadStrips));
+  const std::size_t side = std::size_t(std::max<std::int64_t>(1, g.maxSide() + 2 * std::int64_t(g.maxLeadStrips)));
   for (StripJob& j : step_.jobs) {
-    j.load.reserve(side * (g.maxLeadStrips + 1));
-    j.free.reserve(side * (g.maxLeadStrips + 1));
+    j.load.reserve(side * (2 * std::size_t(g.maxLeadStrips) + 1));
+    j.free.reserve(side * (2 * std::size_t(g.maxLeadStrips) + 1));
   }
 }
 
@@ -113,8 +113,8 @@ MetreBox StripPlanner::boundingBox() const {
           double(cz_ + 1) * e + h};
 }
 
-const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double vz,
-                                     double leadSeconds) {
+const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double vz, double leadSeconds,
+                                     double guardSeconds) {
   const PagingGeometry& g = geometry_;
   const double e = g.moduleSize;
   for (StripJob& j : step_.jobs) {
@@ -157,11 +157,19 @@ const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double
   leadAxis(movedX, vx, Direction::east, Direction::west);
   leadAxis(movedZ, vz, Direction::south, Direction::north);
 
+  // 3. The guard: one update's travel in any direction, beyond what the
+  // hysteresis already covers.
+  const double travel = std::hypot(vx, vz) * guardSeconds - g.hysteresis;
+  const std::uint32_t wantGuard =
+      travel > 0 && std::isfinite(travel) ? std::uint32_t(std::min<double>(g.maxLeadStrips, std::ceil(travel / e - 1e-9)))
+                                          : 0;
+  if (movedX || movedZ) guard_ = wantGuard;
+  else guard_ = std::max(guard_, wantGuard);
+  const auto extent = [&](Direction d) { return std::int64_t(std::max(lead_[std::size_t(d)], guard_)); };
+
   const std::int64_t r = g.radius();
-  const ModuleRect raw{ncx - r - lead_[std::size_t(Direction::west)],
-                       ncz - r - lead_[std::size_t(Direction::north)],
-                       ncx + r + 1 + lead_[std::size_t(Direction::east)],
-                       ncz + r + 1 + lead_[std::size_t(Direction::south)]};
+  const ModuleRect raw{ncx - r - extent(Direction::west), ncz - r - extent(Direction::north),
+                       ncx + r + 1 + extent(Direction::east), ncz + r + 1 + extent(Direction::south)};
   const ModuleRect after = raw.clipped(g.modulesX, g.modulesZ);
   const bool first = !started_;
   started_ = true;
@@ -172,7 +180,7 @@ const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double
   const ModuleRect before = window_;
   window_ = after;
 
-  // 3. What to load and free. A jump that keeps less than half of the
+  // 4. What to load and free. A jump that keeps less than half of the
   // window refills it: every new module, nearest first, dealt round robin
   // so that all four loaders work on the nearest ones at once.
   const ModuleRect kept = before.intersect(after);

@@ -240,7 +240,7 @@ TEST(StripPlanner, geometryFollowsSeedFigure28) {
   PagingGeometry g = geometry40();
   EXPECT_EQ(g.radius(), 4);  // ceil((3000 + 100) / 1000)
   EXPECT_EQ(g.side(), 9);
-  EXPECT_EQ(g.ringX(), 12u);  // side + 3 lead strips
+  EXPECT_EQ(g.ringX(), 15u);  // side + 3 lead strips on one side + 3 guard strips on the other
   g.viewDistance = 2900;
   EXPECT_EQ(g.radius(), 3);  // exactly 3 modules: no rounding up
   g.modulesX = 5;
@@ -346,6 +346,41 @@ TEST(StripPlanner, leadStripsScaleWithSpeedAndOnlyGrowInsideTheBox) {
   EXPECT_EQ(p.lead()[std::size_t(Direction::east)], 0u);
   EXPECT_EQ(p.lead()[std::size_t(Direction::west)], 2u);
   EXPECT_EQ(p.window(), (ModuleRect{13, 16, 24, 25}));
+}
+
+// The window moves only at updates; within one the eye may turn anywhere.
+// At 2500 m/s and one update a second, a 90-degree turn puts the eye 2.5 km
+// down an axis that had no lead: the guard keeps what it then sees resident.
+TEST(StripPlanner, theGuardCoversOneUpdateOfTravelOnEverySide) {
+  StripPlanner slow(geometry40());
+  slow.update(20500, 20500, 50, 0, 0, 1.0);  // 50 m in an update: inside the hysteresis
+  EXPECT_EQ(slow.guard(), 0u);
+  EXPECT_EQ(slow.window(), (ModuleRect{16, 16, 25, 25}));
+
+  StripPlanner fast(geometry40());
+  fast.update(20500, 20500, 2500, 0, 0, 1.0);  // ceil((2500 - 100) / 1000) = 3 strips
+  EXPECT_EQ(fast.guard(), 3u);
+  EXPECT_EQ(fast.window(), (ModuleRect{13, 13, 28, 28}));
+  // The turn south: everything within the view distance of the new eye was
+  // already in the window, where the window without a guard misses row 25.
+  const double eyeX = 20500, eyeZ = 23000;
+  for (std::int64_t z = 0; z < 40; ++z) {
+    for (std::int64_t x = 0; x < 40; ++x) {
+      const double x0 = double(x) * 1000.0, z0 = double(z) * 1000.0;  // the module's nearest point
+      const double dx = std::max({x0 - eyeX, 0.0, eyeX - x0 - 1000.0});
+      const double dz = std::max({z0 - eyeZ, 0.0, eyeZ - z0 - 1000.0});
+      if (std::hypot(dx, dz) < 3000) {
+        EXPECT_TRUE(fast.window().contains(x, z)) << x << ", " << z;
+      }
+    }
+  }
+  EXPECT_FALSE(slow.window().contains(20, 25));
+  // Slower inside the box: the guard is kept; at the next crossing it follows the speed.
+  EXPECT_FALSE(fast.update(20550, 20500, 50, 0, 0, 1.0).changed);
+  EXPECT_EQ(fast.guard(), 3u);
+  fast.update(21200, 20500, 50, 0, 0, 1.0);
+  EXPECT_EQ(fast.guard(), 0u);
+  EXPECT_EQ(fast.window(), (ModuleRect{17, 16, 26, 25}));
 }
 
 TEST(StripPlanner, jumpRefillsNearestFirstAndFreesTheOldArea) {
@@ -1107,7 +1142,7 @@ TEST(Pager, theBudgetIsNeverExceeded) {
   o.memoryBudgetBytes = 1000;
   auto tooSmall = Pager::open(db.grid, db.pack, o);
   ASSERT_FALSE(tooSmall.ok());
-  EXPECT_NE(tooSmall.error().find("pager: the placeholders of 144 slots need"), std::string::npos)
+  EXPECT_NE(tooSmall.error().find("pager: the placeholders of 225 slots need"), std::string::npos)
       << tooSmall.error();
   // Room for the placeholders (measured) and about 30 full modules.
   std::uint64_t placeholderBytes = 0;

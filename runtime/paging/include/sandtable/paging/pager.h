@@ -104,7 +104,8 @@ struct PagingGeometry {
   std::int64_t maxRadius() const;
   std::int64_t maxSide() const { return 2 * maxRadius() + 1; }
   /// Slots of the residency ring along X and Z: the widest window
-  /// (side + maxLeadStrips), but no more than the database.
+  /// (side + maxLeadStrips of lead on one side + as many guard strips on
+  /// the other), but no more than the database.
   std::uint32_t ringX() const;
   std::uint32_t ringZ() const;
 };
@@ -148,7 +149,17 @@ class StripPlanner {
   /// Advances to the eye at (eyeX, eyeZ) moving at (vx, vz) m/s, with the
   /// loaders' lead time. The first call (and any jump that keeps less than
   /// half of the window) is a refill.
-  const PlanStep& update(double eyeX, double eyeZ, double vx, double vz, double leadSeconds);
+  ///
+  /// `guardSeconds` (the time to the next update) adds a guard on every
+  /// side: g = min(maxLeadStrips, ceil((speed * guardSeconds - hysteresis) /
+  /// edge)) strips, 0 below the hysteresis. The window moves only at
+  /// updates, and within one the eye may turn anywhere, so the view must be
+  /// resident up to one update's travel beyond the active area on every
+  /// side, not only ahead. A side's extent is the larger of its lead and
+  /// the guard; the guard follows the lead's rule (exact at a box crossing,
+  /// only growing inside the box).
+  const PlanStep& update(double eyeX, double eyeZ, double vx, double vz, double leadSeconds,
+                         double guardSeconds = 0);
 
   /// Grows or shrinks the active area from the next update on; clamped to
   /// (0, maxViewDistance]. The next update() loads the new ring nearest
@@ -161,6 +172,8 @@ class StripPlanner {
   std::int64_t centreZ() const { return cz_; }
   /// Lead strips on each side, indexed by Direction.
   const std::array<std::uint32_t, kDirections>& lead() const { return lead_; }
+  /// Guard strips on every side (update()'s guardSeconds).
+  std::uint32_t guard() const { return guard_; }
   /// The window, clipped to the database.
   const ModuleRect& window() const { return window_; }
   /// The active area (no lead), clipped.
@@ -173,6 +186,7 @@ class StripPlanner {
   bool started_ = false;
   std::int64_t cx_ = 0, cz_ = 0;
   std::array<std::uint32_t, kDirections> lead_{};
+  std::uint32_t guard_ = 0;
   ModuleRect window_;
   PlanStep step_;
 };
