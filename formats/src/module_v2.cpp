@@ -285,11 +285,11 @@ void makeSkirts(const Vertex* v, const std::uint32_t* normals, std::uint32_t sx,
 
 /// The highest y over the indices of every non-skirt group, per square
 /// (derived maxHeight; -infinity where a square has none). The square's
-/// running maximum stays in a register while its groups
-/// follow each other (the usual order), and a group's three heights are
-/// reduced before they meet it, so the loop is not one long chain of
-/// dependent max operations through memory. Encoder and decoder both call
-/// this, so they agree even on the sign of a zero maximum.
+/// running maximum stays in a register while its groups follow each other
+/// (the usual order), and a group's three heights are reduced before they
+/// meet it, so the loop is not one long chain of dependent max operations
+/// through memory. Encoder and decoder both call this, so they agree even
+/// on the sign of a zero maximum.
 void derivedMaxHeights(const Vertex* v, const std::uint32_t* idx, const Group* gr, std::size_t ng, float* mh,
                        std::size_t squares) {
   std::fill(mh, mh + squares, -std::numeric_limits<float>::infinity());

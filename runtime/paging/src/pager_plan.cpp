@@ -136,11 +136,13 @@ const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double
 
   // 2. Lead strips: exact on an axis whose centre moved, otherwise they may
   // only grow on the side already leading (or on either side from none).
-  auto want = [&](double v) -> std::uint32_t {
-    const double n = v * leadSeconds / e;
+  // Whole strips covering `metres`, at most maxLeadStrips (0 for none).
+  auto strips = [&](double metres) -> std::uint32_t {
+    const double n = metres / e;
     if (!(n > 0)) return 0;
     return std::uint32_t(std::min<double>(g.maxLeadStrips, std::ceil(n - 1e-9)));
   };
+  auto want = [&](double v) { return strips(v * leadSeconds); };
   auto leadAxis = [&](bool moved, double v, Direction plus, Direction minus) {
     const std::uint32_t wantPlus = v > 0 ? want(v) : 0, wantMinus = v < 0 ? want(-v) : 0;
     std::uint32_t& p = lead_[std::size_t(plus)];
@@ -159,10 +161,7 @@ const PlanStep& StripPlanner::update(double eyeX, double eyeZ, double vx, double
 
   // 3. The guard: one update's travel in any direction, beyond what the
   // hysteresis already covers.
-  const double travel = std::hypot(vx, vz) * guardSeconds - g.hysteresis;
-  const std::uint32_t wantGuard =
-      travel > 0 && std::isfinite(travel) ? std::uint32_t(std::min<double>(g.maxLeadStrips, std::ceil(travel / e - 1e-9)))
-                                          : 0;
+  const std::uint32_t wantGuard = strips(std::hypot(vx, vz) * guardSeconds - g.hysteresis);
   if (movedX || movedZ) guard_ = wantGuard;
   else guard_ = std::max(guard_, wantGuard);
   const auto extent = [&](Direction d) { return std::int64_t(std::max(lead_[std::size_t(d)], guard_)); };
