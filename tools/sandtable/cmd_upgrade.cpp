@@ -1,4 +1,4 @@
-// sandtable upgrade: rewrite a database's load modules in the newest format version (3).
+// sandtable upgrade: rewrite a database's load modules in the newest format version.
 #include <cstdio>
 
 #include <nlohmann/json.hpp>
@@ -36,11 +36,12 @@ int runUpgrade(const UpgradeArgs& a) {
     return kOk;
   }
   if (!u.upgraded) {
-    std::printf("%s: load modules are already version 3; nothing to do\n", a.dir.c_str());
+    std::printf("%s: load modules are already version %u; nothing to do\n", a.dir.c_str(), module::kNewestVersion);
     return kOk;
   }
-  std::printf("upgraded %s: %llu modules, version %u -> 3 (height step %g m), pack %.1f MB -> %.1f MB, %.2f s\n",
-              a.dir.c_str(), static_cast<unsigned long long>(u.modules), u.fromVersion, a.o.heightStep,
+  std::printf("upgraded %s: %llu modules, version %u -> %u (height step %g m), pack %.1f MB -> %.1f MB, %.2f s\n",
+              a.dir.c_str(), static_cast<unsigned long long>(u.modules), u.fromVersion, module::kNewestVersion,
+              a.o.heightStep,
               double(u.packBytesBefore) / 1e6, double(u.packBytesAfter) / 1e6, u.seconds);
   return kOk;
 }

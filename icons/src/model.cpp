@@ -1,0 +1,271 @@
+// Model import through assimp, flattening and levels of detail through
+// meshoptimizer. See model.h.
+#include "sandtable/icons/model.h"
+
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+namespace sandtable::icons {
+namespace fs = std::filesystem;
+
+std::size_t Model::vertexCount() const {
+  std::size_t n = 0;
+  for (const Mesh& m : meshes) n += m.vertexCount();
+  return n;
+}
+std::size_t Model::triangleCount() const {
+  std::size_t n = 0;
+  for (const Mesh& m : meshes) n += m.triangleCount();
+  return n;
+}
+std::size_t Level::triangleCount() const {
+  std::size_t n = 0;
+  for (const auto& i : indices) n += i.size() / 3;
+  return n;
+}
+
+namespace {
+
+Problem problem(const std::string& path, const std::string& what) { return Problem{path, 0, "icons: " + what}; }
+
+/// A texture file named by a model: as given (relative to the model's
+/// folder), else the same name in any letter case, else its file name
+/// alone in the model's folder (3DS files from Windows tools often carry
+/// an absolute path or upper case).
+std::string findTexture(const fs::path& modelDir, const std::string& name) {
+  std::error_code ec;
+  std::string n = name;
+  std::replace(n.begin(), n.end(), '\\', '/');
+  const fs::path given = fs::path(n).is_absolute() ? fs::path(n) : modelDir / n;
+  if (fs::is_regular_file(given, ec)) return given.string();
+  auto lower = [](std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return s;
+  };
+  const std::string leaf = lower(fs::path(n).filename().string());
+  for (const fs::path& dir : {given.parent_path(), modelDir}) {
+    for (const auto& e : fs::directory_iterator(dir, ec)) {
+      if (e.is_regular_file(ec) && lower(e.path().filename().string()) == leaf) return e.path().string();
+    }
+  }
+  return {};
+}
+
+Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path& dir, const std::string& path,
+                      Warnings& warnings) {
+  Material m;
+  aiString name;
+  if (am.Get(AI_MATKEY_NAME, name) == AI_SUCCESS) m.name = name.C_Str();
+  aiColor4D c;
+  if (am.Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || am.Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS) {
+    m.baseColour = {c.r, c.g, c.b, c.a};
+  }
+  aiString tex;
+  if (am.GetTexture(aiTextureType_BASE_COLOR, 0, &tex) != AI_SUCCESS &&
+      am.GetTexture(aiTextureType_DIFFUSE, 0, &tex) != AI_SUCCESS) {
+    return m;
+  }
+  m.texture = tex.C_Str();
+  if (scene.GetEmbeddedTexture(tex.C_Str())) {
+    m.textureEmbedded = true;
+    return m;
+  }
+  m.texturePath = findTexture(dir, m.texture);
+  if (m.texturePath.empty()) {
+    warnings.push_back(problem(path, "texture \"" + m.texture + "\" of material \"" + m.name +
+                                         "\" not found beside the model; its base colour is used"));
+  }
+  return m;
+}
+
+/// The model-to-output transform: units, scale and up axis.
+aiMatrix4x4 outputTransform(const aiScene& scene, const ImportOptions& o) {
+  double unit = o.unitMetres;
+  double factor = 0;
+  if (unit <= 0) {
+    // assimp reports UnitScaleFactor in centimetres (FBX's convention).
+    unit = scene.mMetaData && scene.mMetaData->Get("UnitScaleFactor", factor) && factor > 0 ? factor / 100.0 : 1.0;
+  }
+  UpAxis up = o.up;
+  if (up == UpAxis::kFromFile) {
+    int axis = 1;
+    up = scene.mMetaData && scene.mMetaData->Get("UpAxis", axis) && axis == 2 ? UpAxis::kZ : UpAxis::kY;
+  }
+  aiMatrix4x4 s;
+  aiMatrix4x4::Scaling(aiVector3D(static_cast<float>(unit * o.scale)), s);
+  if (up == UpAxis::kZ) {
+    aiMatrix4x4 r;
+    aiMatrix4x4::RotationX(static_cast<float>(-M_PI / 2), r);  // +Z up becomes +Y up
+    return r * s;
+  }
+  return s;
+}
+
+/// Appends `am`, transformed by `t`, as one output mesh.
+Status appendMesh(const aiMesh& am, const aiMatrix4x4& t, const std::string& path, Model& out) {
+  Mesh m;
+  m.material = am.mMaterialIndex;
+  const aiMatrix3x3 nt = aiMatrix3x3(t).Inverse().Transpose();
+  m.positions.reserve(std::size_t(am.mNumVertices) * 3);
+  for (unsigned v = 0; v < am.mNumVertices; ++v) {
+    const aiVector3D p = t * am.mVertices[v];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      return problem(path, "vertex " + std::to_string(v) + " of mesh \"" + am.mName.C_Str() +
+                               "\" is not a finite number; fix or re-export the model");
+    }
+    m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
+    aiVector3D n = am.mNormals ? nt * am.mNormals[v] : aiVector3D(0, 1, 0);
+    const float len = n.Length();
+    n = std::isfinite(len) && len > 0 ? n / len : aiVector3D(0, 1, 0);
+    m.normals.insert(m.normals.end(), {n.x, n.y, n.z});
+    if (am.mTextureCoords[0]) {
+      m.texcoords.insert(m.texcoords.end(), {am.mTextureCoords[0][v].x, am.mTextureCoords[0][v].y});
+    }
+  }
+  // A mirroring transform turns the winding; keep faces front-facing.
+  const bool flip = t.Determinant() < 0;
+  m.indices.reserve(std::size_t(am.mNumFaces) * 3);
+  for (unsigned f = 0; f < am.mNumFaces; ++f) {
+    const aiFace& face = am.mFaces[f];
+    if (face.mNumIndices != 3) continue;  // points and lines: counted as dropped by the caller
+    m.indices.insert(m.indices.end(), {face.mIndices[0], face.mIndices[flip ? 2 : 1], face.mIndices[flip ? 1 : 2]});
+  }
+  if (!m.indices.empty()) out.meshes.push_back(std::move(m));
+  return {};
+}
+
+Status flatten(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, const std::string& path,
+               Model& out) {
+  const aiMatrix4x4 t = parent * node.mTransformation;
+  for (unsigned k = 0; k < node.mNumMeshes; ++k) {
+    const aiMesh* am = scene.mMeshes[node.mMeshes[k]];
+    if (!(am->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+    if (Status st = appendMesh(*am, t, path, out); !st) return st;
+  }
+  for (unsigned c = 0; c < node.mNumChildren; ++c) {
+    if (Status st = flatten(scene, *node.mChildren[c], t, path, out); !st) return st;
+  }
+  return {};
+}
+
+/// Vertex cache order, then vertex fetch order, mesh by mesh.
+void optimise(Mesh& m) {
+  const std::size_t nv = m.vertexCount();
+  meshopt_optimizeVertexCache(m.indices.data(), m.indices.data(), m.indices.size(), nv);
+  std::vector<unsigned> remap(nv);
+  const std::size_t kept = meshopt_optimizeVertexFetchRemap(remap.data(), m.indices.data(), m.indices.size(), nv);
+  meshopt_remapIndexBuffer(m.indices.data(), m.indices.data(), m.indices.size(), remap.data());
+  auto remapStream = [&](std::vector<float>& s, std::size_t width) {
+    if (s.empty()) return;
+    std::vector<float> o(kept * width);
+    meshopt_remapVertexBuffer(o.data(), s.data(), nv, width * sizeof(float), remap.data());
+    s = std::move(o);
+  };
+  remapStream(m.positions, 3);
+  remapStream(m.normals, 3);
+  remapStream(m.texcoords, 2);
+}
+
+Bounds boundsOf(const Model& m) {
+  Bounds b;
+  b.min.fill(std::numeric_limits<float>::infinity());
+  b.max.fill(-std::numeric_limits<float>::infinity());
+  for (const Mesh& mesh : m.meshes) {
+    for (std::size_t v = 0; v < mesh.positions.size(); v += 3) {
+      for (int a = 0; a < 3; ++a) {
+        b.min[a] = std::min(b.min[a], mesh.positions[v + a]);
+        b.max[a] = std::max(b.max[a], mesh.positions[v + a]);
+      }
+    }
+  }
+  return b;
+}
+
+}  // namespace
+
+Result<Model> importModel(const std::string& path, const ImportOptions& o) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return problem(path, "model file not found; check the path");
+  Assimp::Importer importer;
+  // Lines and points go to their own meshes, which are then dropped.
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  // An icon vertex is a position, a normal and one texture coordinate:
+  // without this, tangents and colours that are never drawn would keep
+  // apart vertices that are otherwise the same.
+  importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, aiComponent_TANGENTS_AND_BITANGENTS | aiComponent_COLORS |
+                                                          aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
+                                                          aiComponent_CAMERAS | aiComponent_LIGHTS);
+  const unsigned flags = aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_GenSmoothNormals |
+                         aiProcess_SortByPType |
+                         aiProcess_ValidateDataStructure;  // no FindInvalidData: it drops a NaN mesh unnamed
+  const aiScene* scene = importer.ReadFile(path, flags);
+  if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
+    const std::string why = importer.GetErrorString();
+    return problem(path, "assimp cannot read the model: " + (why.empty() ? std::string("incomplete scene") : why));
+  }
+  Model m;
+  m.source = path;
+  m.sourceMeshes = scene->mNumMeshes;
+  Warnings warnings;
+  const fs::path dir = fs::path(path).parent_path();
+  for (unsigned k = 0; k < scene->mNumMaterials; ++k) {
+    m.materials.push_back(readMaterial(*scene->mMaterials[k], *scene, dir, path, warnings));
+  }
+  if (m.materials.empty()) {
+    Material fallback;
+    fallback.name = "default";
+    m.materials.push_back(fallback);
+  }
+  if (Status st = flatten(*scene, *scene->mRootNode, outputTransform(*scene, o), path, m); !st) {
+    return st.problems();
+  }
+  if (m.meshes.empty()) return problem(path, "the model has no triangles (no faces, or only points and lines)");
+  if (m.triangleCount() > o.maxTriangles) {
+    return problem(path, std::to_string(m.triangleCount()) + " triangles, more than the limit of " +
+                             std::to_string(o.maxTriangles) + " (ImportOptions::maxTriangles); simplify the model");
+  }
+  for (Mesh& mesh : m.meshes) {
+    if (mesh.material >= m.materials.size()) mesh.material = 0;
+    optimise(mesh);
+  }
+  m.bounds = boundsOf(m);
+  Result<Model> r(std::move(m));
+  r.addWarnings(warnings);
+  return r;
+}
+
+std::vector<Level> makeLevels(const Model& m, const std::vector<float>& ratios, float maxError) {
+  std::vector<Level> levels;
+  for (const float ratio : ratios) {
+    Level l;
+    l.ratio = ratio;
+    for (const Mesh& mesh : m.meshes) {
+      std::vector<std::uint32_t> out(mesh.indices.size());
+      std::size_t n = mesh.indices.size();
+      float err = 0;
+      if (ratio < 1) {
+        const auto target = static_cast<std::size_t>(double(mesh.indices.size() / 3) * ratio) * 3;
+        n = meshopt_simplify(out.data(), mesh.indices.data(), mesh.indices.size(), mesh.positions.data(),
+                             mesh.vertexCount(), 3 * sizeof(float), target, maxError, 0, &err);
+        out.resize(n);
+        meshopt_optimizeVertexCache(out.data(), out.data(), n, mesh.vertexCount());
+      } else {
+        out = mesh.indices;
+      }
+      l.error = std::max(l.error, err);
+      l.indices.push_back(std::move(out));
+    }
+    levels.push_back(std::move(l));
+  }
+  return levels;
+}
+
+}  // namespace sandtable::icons
