@@ -15,8 +15,8 @@ packages=(
   libcli11-dev                    # subcommand CLI with --help
   zlib1g-dev                      # CRC-32 (and compression)
   libzstd-dev                     # zstd: load modules compressed in modules.pack
-  libmeshoptimizer-dev            # meshoptimizer: for the load module v2 codecs and simplification (not linked yet)
-  libassimp-dev                   # assimp: for icon model import (glTF, 3DS, OBJ, OFF, ...; not used yet)
+  libmeshoptimizer-dev            # meshoptimizer: load module codecs, icon simplification
+  libassimp-dev                   # assimp: icon model import (glTF, 3DS, OBJ, OFF, ...)
   libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
   libpng-dev                      # PNG frames
   libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test (ffmpeg, for video, stays optional)

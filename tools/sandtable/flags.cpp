@@ -58,6 +58,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"FlySessionSettings::mapScale", "--map-scale"},
     {"FlySessionSettings::path", "--path"},
     {"FlySessionSettings::freeFlight", "--free-flight"},
+    {"ImportOptions::maxTriangles", "--max-triangles"},
     {"FlySessionSettings::map", "--map"},
 };
 

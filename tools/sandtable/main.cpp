@@ -97,6 +97,7 @@ int main(int argc, char** argv) {
   registerBench(app, commands);
   registerExport(app, commands);
   registerUpgrade(app, commands);
+  registerIcons(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

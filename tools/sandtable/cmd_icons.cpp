@@ -1,0 +1,119 @@
+// sandtable icons --model FILE: import one model through assimp, as an icon
+// would be, and say what came out: meshes, vertices, triangles, bounds,
+// textures and the levels of detail.
+#include <cstdio>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "sandtable/icons/model.h"
+
+namespace sandtable::cli {
+namespace {
+
+struct IconsArgs {
+  std::string model;
+  std::string up = "auto";
+  icons::ImportOptions o;
+  bool json = false;
+};
+
+nlohmann::json textures(const icons::Model& m) {
+  nlohmann::json t = nlohmann::json::array();
+  for (const icons::Material& mat : m.materials) {
+    if (mat.texture.empty()) continue;
+    t.push_back({{"material", mat.name},
+                 {"name", mat.texture},
+                 {"path", mat.texturePath},
+                 {"embedded", mat.textureEmbedded},
+                 {"found", mat.textureEmbedded || !mat.texturePath.empty()}});
+  }
+  return t;
+}
+
+nlohmann::json report(const icons::Model& m, const std::vector<icons::Level>& levels, const Warnings& w) {
+  nlohmann::json mats = nlohmann::json::array(), lv = nlohmann::json::array(), warn = nlohmann::json::array();
+  for (const icons::Material& mat : m.materials) mats.push_back({{"name", mat.name}, {"base_colour", mat.baseColour}});
+  for (const icons::Level& l : levels) {
+    lv.push_back({{"ratio", l.ratio}, {"triangles", l.triangleCount()}, {"error", l.error}});
+  }
+  for (const Problem& p : w) warn.push_back(p.message);
+  return {{"model", m.source},
+          {"source_meshes", m.sourceMeshes},
+          {"meshes", m.meshes.size()},
+          {"vertices", m.vertexCount()},
+          {"triangles", m.triangleCount()},
+          {"bounds", {{"min", m.bounds.min}, {"max", m.bounds.max}}},
+          {"materials", mats},
+          {"textures", textures(m)},
+          {"levels", lv},
+          {"warnings", warn}};
+}
+
+void printReport(const icons::Model& m, const std::vector<icons::Level>& levels) {
+  const auto& b = m.bounds;
+  std::printf("model      %s\n", m.source.c_str());
+  std::printf("meshes     %zu with triangles, of %u in the file\n", m.meshes.size(), m.sourceMeshes);
+  std::printf("vertices   %zu\ntriangles  %zu\n", m.vertexCount(), m.triangleCount());
+  std::printf("bounds     x %.3f..%.3f, y %.3f..%.3f, z %.3f..%.3f m (%.3f x %.3f x %.3f m, Y up)\n", b.min[0],
+              b.max[0], b.min[1], b.max[1], b.min[2], b.max[2], b.max[0] - b.min[0], b.max[1] - b.min[1],
+              b.max[2] - b.min[2]);
+  for (const icons::Material& mat : m.materials) {
+    std::printf("material   %s: base colour %.3f %.3f %.3f %.3f", mat.name.c_str(), mat.baseColour[0],
+                mat.baseColour[1], mat.baseColour[2], mat.baseColour[3]);
+    if (mat.textureEmbedded) std::printf(", texture %s (embedded)", mat.texture.c_str());
+    if (!mat.textureEmbedded && !mat.texture.empty()) {
+      std::printf(", texture %s -> %s", mat.texture.c_str(), mat.texturePath.empty() ? "NOT FOUND" : mat.texturePath.c_str());
+    }
+    std::printf("\n");
+  }
+  for (std::size_t k = 0; k < levels.size(); ++k) {
+    std::printf("level %zu    ratio %.2f: %zu triangles (simplifier error %.2f%% of the model's size)\n", k,
+                double(levels[k].ratio), levels[k].triangleCount(), 100.0 * double(levels[k].error));
+  }
+}
+
+int runIcons(IconsArgs& a) {
+  a.o.up = a.up == "y" ? icons::UpAxis::kY : a.up == "z" ? icons::UpAxis::kZ : icons::UpAxis::kFromFile;
+  auto r = icons::importModel(a.model, a.o);
+  for (const Problem& w : r.warnings()) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.str().c_str());
+  if (!r) return reportProblems("icons", r.problems());
+  const auto levels = icons::makeLevels(r.value());
+  if (a.json) {
+    std::printf("%s\n", report(r.value(), levels, r.warnings()).dump(2).c_str());
+  } else {
+    printReport(r.value(), levels);
+  }
+  return kOk;
+}
+
+}  // namespace
+
+void registerIcons(CLI::App& root, Commands& c) {
+  auto a = std::make_shared<IconsArgs>();
+  auto* sub = root.add_subcommand("icons", "Import a model as an icon (assimp) and report what came out");
+  sub->footer(
+      "Example:\n  sandtable icons --model jeep1.3ds --json\n"
+      "Reads any format assimp reads (glTF, 3DS, OBJ, OFF, FBX, Collada, ...), triangulates it, flattens its\n"
+      "nodes, converts it to metres with Y up, and simplifies it into levels of detail (meshoptimizer).\n"
+      "Exit status: 0 imported, 2 the model cannot become an icon (unreadable, no faces, NaN vertices,\n"
+      "over --max-triangles). A texture that is not found is a warning: the material's base colour is used.");
+  sub->add_option("--model", a->model, "The model file to import")->required();
+  sub->add_option("--up", a->up, "The model's up axis as assimp reads it: auto (the file's metadata, else y), y or z")
+      ->check(CLI::IsMember({"auto", "y", "z"}))
+      ->default_val("auto");
+  sub->add_option("--unit-metres", a->o.unitMetres, "Metres per model unit (0: the file's unit metadata, else 1)")
+      ->default_val(0.0)
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--scale", a->o.scale, "Scale applied after the unit conversion")
+      ->default_val(1.0)
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--max-triangles", a->o.maxTriangles, "Most triangles an icon may have")
+      ->default_val(a->o.maxTriangles)
+      ->check(CLI::PositiveNumber);
+  sub->add_flag("--json", a->json, "Print the report as JSON (keys vertices, triangles, bounds, textures, ...)");
+  c.add(sub, [a] { return runIcons(*a); });
+}
+
+}  // namespace sandtable::cli
