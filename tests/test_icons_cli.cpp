@@ -16,7 +16,7 @@ TEST(IconsCli, aRealModelReportsItsCountsBoundsAndTexturesAsJson) {
   const auto r = runCli({"icons", "--model", model, "--json"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  // 3DS face lists of the jeep sum to 2,032 (PROVENANCE.md; the library
+  // 3DS face lists of the jeep sum to 2,032 (../shared/data/PROVENANCE.md; the library
   // test counts the chunks itself).
   EXPECT_EQ(j["triangles"], 2032);
   EXPECT_GT(j["vertices"].get<int>(), 0);
