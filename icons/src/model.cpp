@@ -74,8 +74,16 @@ Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path
     return m;
   }
   m.texture = tex.C_Str();
-  if (scene.GetEmbeddedTexture(tex.C_Str())) {
+  if (const aiTexture* t = scene.GetEmbeddedTexture(tex.C_Str())) {
     m.textureEmbedded = true;
+    // mHeight 0: pcData holds mWidth bytes of a compressed image file.
+    if (t->mHeight == 0 && t->pcData) {
+      const auto* b = reinterpret_cast<const std::byte*>(t->pcData);
+      m.embeddedBytes.assign(b, b + t->mWidth);
+    } else {
+      warnings.push_back(problem(path, "embedded texture \"" + m.texture + "\" of material \"" + m.name +
+                                           "\" is raw texels, which icons do not keep; its base colour is used"));
+    }
     return m;
   }
   m.texturePath = findTexture(dir, m.texture);
@@ -191,6 +199,11 @@ Bounds boundsOf(const Model& m) {
 
 }  // namespace
 
+void optimiseModel(Model& m) {
+  for (Mesh& mesh : m.meshes) optimise(mesh);
+  m.bounds = boundsOf(m);
+}
+
 Result<Model> importModel(const std::string& path, const ImportOptions& o) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) return problem(path, "model file not found; check the path");
@@ -234,9 +247,8 @@ Result<Model> importModel(const std::string& path, const ImportOptions& o) {
   }
   for (Mesh& mesh : m.meshes) {
     if (mesh.material >= m.materials.size()) mesh.material = 0;
-    optimise(mesh);
   }
-  m.bounds = boundsOf(m);
+  optimiseModel(m);
   Result<Model> r(std::move(m));
   r.addWarnings(warnings);
   return r;
@@ -261,6 +273,10 @@ std::vector<Level> makeLevels(const Model& m, const std::vector<float>& ratios, 
         out = mesh.indices;
       }
       l.error = std::max(l.error, err);
+      if (ratio < 1) {
+        const float scale = meshopt_simplifyScale(mesh.positions.data(), mesh.vertexCount(), 3 * sizeof(float));
+        l.errorMetres = std::max(l.errorMetres, err * scale);
+      }
       l.indices.push_back(std::move(out));
     }
     levels.push_back(std::move(l));

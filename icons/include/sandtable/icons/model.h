@@ -7,6 +7,7 @@
 // Thread safety: importModel and makeLevels are reentrant (each call owns
 // its assimp importer); a Model is a value type.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -44,6 +45,9 @@ struct Material {
   std::string texture;        ///< the path as the model names it ("" = none; "*0" = embedded)
   std::string texturePath;    ///< the file found for it ("" = embedded or not found)
   bool textureEmbedded = false;
+  /// The image file's bytes (PNG, JPEG) of an embedded compressed texture;
+  /// empty otherwise.
+  std::vector<std::byte> embeddedBytes;
 };
 
 /// Triangles of one material, in model space (metres, Y up).
@@ -80,10 +84,15 @@ struct Model {
 /// points and lines dropped.
 Result<Model> importModel(const std::string& path, const ImportOptions& o = {});
 
+/// Vertex cache order, then vertex fetch order, for every mesh; then the
+/// bounds. importModel ends with it; procedural models call it too.
+void optimiseModel(Model& m);
+
 /// One level of detail: per mesh of the model, the indices kept.
 struct Level {
   float ratio = 1;                 ///< target fraction of the model's triangles
-  float error = 0;                 ///< meshoptimizer's relative error reached
+  float error = 0;                 ///< meshoptimizer's relative error reached (largest over the meshes)
+  float errorMetres = 0;           ///< that error in metres (relative error times the mesh's extent)
   std::vector<std::vector<std::uint32_t>> indices;  ///< per Model::meshes entry
   std::size_t triangleCount() const;
 };

@@ -1,0 +1,54 @@
+#pragma once
+// From definitions to the icon database: imports every model of every icon
+// (states and components), makes its levels of detail, derives what the
+// definition leaves out (bounds, the bounding cylinder, switch ranges from
+// the screen-space error), embeds the textures, and adds the built-in
+// procedural tree. Rules: docs/ICONS.md.
+//
+// Thread safety: buildPack and the procedural models are reentrant.
+#include <string>
+
+#include "sandtable/base/result.h"
+#include "sandtable/formats/icon_pack.h"
+#include "sandtable/icons/definitions.h"
+#include "sandtable/icons/model.h"
+
+namespace sandtable::icons {
+
+/// The name of the built-in tree icon (the default for forests and
+/// natural=tree, so that a database needs no model files).
+inline constexpr const char* kDefaultTreeName = "tree";
+
+struct PackOptions {
+  /// Switch ranges the definition leaves at 0 come from the screen-space
+  /// error: a level is drawn until the next level's error in metres would
+  /// exceed `pixelError` pixels on a `viewportHeight`-pixel screen with a
+  /// vertical field of view of `fovDegrees`. The last level is drawn until
+  /// the whole icon shrinks to `pixelError` pixels.
+  float pixelError = 1.0f;
+  float fovDegrees = 60.0f;
+  float viewportHeight = 1080.0f;
+  /// meshoptimizer's relative error bound for the simplified levels.
+  float maxError = 0.05f;
+  /// Adds the procedural tree (kDefaultTreeName) unless the definitions
+  /// define an icon of that name.
+  bool addDefaultTree = true;
+  /// Largest texture file embedded; a larger one is a warning and the
+  /// material keeps its base colour.
+  std::uint64_t maxTextureBytes = 64u << 20;
+};
+
+/// Builds the pack. Errors name the definition file and the icon's line
+/// (a model that cannot be imported, a parent that does not exist);
+/// warnings carry the importer's (a texture not found).
+Result<iconpack::Pack> buildPack(const Definitions& defs, const PackOptions& o = {});
+
+/// A pack with the built-in icons only (the procedural tree).
+iconpack::Pack defaultPack(const PackOptions& o = {});
+
+/// The procedural tree: a trunk (an 8-sided prism, 0.25 m radius, brown)
+/// and a crown (two 16-sided cones, 2.5 m radius, green), 8 m tall, its
+/// origin at the foot of the trunk, in metres with Y up.
+Model treeModel();
+
+}  // namespace sandtable::icons

@@ -1,0 +1,343 @@
+// Definitions to icons.pack: import, levels of detail, derived bounds,
+// cylinder and switch ranges, embedded textures (rules: docs/ICONS.md).
+#include "sandtable/icons/icon_build.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <numbers>
+
+#include "sandtable/formats/bytes.h"
+
+namespace sandtable::icons {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The model name that asks for the procedural tree instead of a file.
+constexpr std::string_view kBuiltinTree = "builtin:tree";
+
+std::uint8_t toByte(float v) {
+  return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+}
+
+/// A pack being built: textures shared by every icon, keyed by where they
+/// came from so that two icons using one palette embed it once.
+struct Builder {
+  const Definitions& defs;
+  const PackOptions& o;
+  iconpack::Pack pack;
+  std::map<std::string, std::uint32_t> textureIndex;
+  Warnings warnings;
+
+  Problem at(const IconDef& d, const std::string& what) const {
+    return Problem{defs.file, d.line, "icons: icon '" + d.name + "': " + what};
+  }
+};
+
+/// The texture of `m`, embedded into the pack, or kNoTexture when it has
+/// none or it cannot be read (a warning; the base colour stays).
+std::uint32_t embedTexture(Builder& b, const Model& model, const Material& m) {
+  if (m.texture.empty()) return iconpack::kNoTexture;
+  const std::string key = m.textureEmbedded ? model.source + "#" + m.texture : m.texturePath;
+  if (key.empty()) return iconpack::kNoTexture;  // not found: importModel already warned
+  if (const auto it = b.textureIndex.find(key); it != b.textureIndex.end()) return it->second;
+  iconpack::Texture t;
+  t.name = fs::path(m.texture).filename().string().substr(0, iconpack::kMaxNameBytes);
+  if (m.textureEmbedded) {
+    if (m.embeddedBytes.empty()) return iconpack::kNoTexture;  // raw texels: importModel warned
+    t.bytes = m.embeddedBytes;
+  } else {
+    auto bytes = readSmallFile(m.texturePath, b.o.maxTextureBytes);
+    if (!bytes) {
+      for (Problem p : bytes.problems()) {
+        p.message = "icons: texture skipped, the material keeps its base colour (PackOptions::maxTextureBytes): " +
+                    p.message;
+        b.warnings.push_back(std::move(p));
+      }
+      return iconpack::kNoTexture;
+    }
+    t.bytes = std::move(bytes.value());
+  }
+  const auto index = static_cast<std::uint32_t>(b.pack.textures.size());
+  b.pack.textures.push_back(std::move(t));
+  b.textureIndex.emplace(key, index);
+  return index;
+}
+
+Model scaled(Model m, const ImportOptions& o) {
+  const float s = static_cast<float>((o.unitMetres > 0 ? o.unitMetres : 1.0) * o.scale);
+  for (Mesh& mesh : m.meshes) {
+    for (float& v : mesh.positions) v *= s;
+  }
+  optimiseModel(m);
+  return m;
+}
+
+Result<Model> loadModel(const Builder& b, const IconDef& d, const std::string& file) {
+  if (file == kBuiltinTree) return scaled(treeModel(), d.import);
+  const fs::path p = fs::path(file).is_absolute() ? fs::path(file) : fs::path(b.defs.baseDir) / file;
+  auto m = importModel(p.string(), d.import);
+  if (!m) {
+    std::vector<Problem> ps;
+    for (const Problem& inner : m.problems()) ps.push_back(b.at(d, "model '" + file + "': " + inner.str()));
+    return ps;
+  }
+  return m;
+}
+
+/// One rigid part: the model's meshes with their levels, the model's
+/// materials appended to the icon's.
+iconpack::Part makePart(Builder& b, iconpack::Icon& icon, const Model& model, const std::vector<float>& ratios,
+                        std::vector<float>& levelErrors) {
+  const auto firstMaterial = static_cast<std::uint32_t>(icon.materials.size());
+  for (const Material& m : model.materials) {
+    iconpack::Material pm;
+    for (int c = 0; c < 4; ++c) pm.rgba[c] = toByte(m.baseColour[c]);
+    pm.texture = embedTexture(b, model, m);
+    icon.materials.push_back(pm);
+  }
+  const std::vector<Level> levels = makeLevels(model, ratios, b.o.maxError);
+  for (std::size_t l = 0; l < levels.size(); ++l) levelErrors[l] = std::max(levelErrors[l], levels[l].errorMetres);
+  iconpack::Part part;
+  for (std::size_t k = 0; k < model.meshes.size(); ++k) {
+    const Mesh& src = model.meshes[k];
+    iconpack::Mesh mesh;
+    mesh.material = firstMaterial + src.material;
+    mesh.positions = src.positions;
+    mesh.normals = src.normals;
+    mesh.texcoords = src.texcoords;
+    for (const Level& level : levels) mesh.levels.push_back(level.indices[k]);
+    part.meshes.push_back(std::move(mesh));
+  }
+  return part;
+}
+
+/// The origin of part `i` in the icon's frame: its offset plus its parents'.
+std::array<float, 3> worldOffset(const iconpack::Icon& icon, std::size_t i) {
+  std::array<float, 3> o{0, 0, 0};
+  for (auto k = static_cast<std::int32_t>(i); k != iconpack::kBody; k = icon.parts[std::size_t(k)].parent) {
+    for (int a = 0; a < 3; ++a) o[a] += icon.parts[std::size_t(k)].offset[a];
+  }
+  return o;
+}
+
+/// Bounds and cylinder of the alive state, where the definition leaves them out.
+void deriveExtent(iconpack::Icon& icon, const IconDef& d) {
+  std::array<float, 6> box{INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+  float radius = 0, height = 0;
+  for (std::size_t i = 0; i < icon.parts.size(); ++i) {
+    if (icon.parts[i].state != iconpack::State::alive) continue;
+    const auto off = worldOffset(icon, i);
+    for (const iconpack::Mesh& m : icon.parts[i].meshes) {
+      for (std::size_t v = 0; v + 2 < m.positions.size(); v += 3) {
+        const float p[3] = {m.positions[v] + off[0], m.positions[v + 1] + off[1], m.positions[v + 2] + off[2]};
+        for (int a = 0; a < 3; ++a) {
+          box[a] = std::min(box[a], p[a]);
+          box[a + 3] = std::max(box[a + 3], p[a]);
+        }
+        radius = std::max(radius, std::hypot(p[0], p[2]));
+        height = std::max(height, p[1]);
+      }
+    }
+  }
+  icon.bounds = d.bounds ? *d.bounds : box;
+  icon.cylinderRadius = d.cylinder ? (*d.cylinder)[0] : radius;
+  icon.cylinderHeight = d.cylinder ? (*d.cylinder)[1] : height;
+}
+
+/// Metres of error that cover `o.pixelError` pixels at distance 1 m.
+double metresPerPixelAtOneMetre(const PackOptions& o) {
+  const double halfFov = double(o.fovDegrees) * std::numbers::pi / 360.0;
+  return 2.0 * std::tan(halfFov) * double(o.pixelError) / double(o.viewportHeight);
+}
+
+/// Switch ranges: the definition's where it gives them; else level i is
+/// kept until the next level's error would cover the pixel budget, and the
+/// last until the whole icon does. Then made strictly increasing.
+std::vector<float> switchRanges(const IconDef& d, const iconpack::Icon& icon, const std::vector<float>& errors,
+                                const PackOptions& o) {
+  const std::size_t n = errors.size();
+  const double k = metresPerPixelAtOneMetre(o);
+  const double extent = std::max({icon.bounds[3] - icon.bounds[0], icon.bounds[4] - icon.bounds[1],
+                                  icon.bounds[5] - icon.bounds[2], 0.01f});
+  std::vector<float> ranges(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float given = i < d.levels.size() ? d.levels[i].range : 0.0f;
+    const double metres = i + 1 < n ? double(errors[i + 1]) : extent;
+    ranges[i] = given > 0 ? given : static_cast<float>(metres / k);
+  }
+  // A level whose successor loses nothing (a box simplified) would get
+  // range 0; each range is at least 1 % past the one before it.
+  float floor = 1.0f;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool given = i < d.levels.size() && d.levels[i].range > 0;
+    if (!given) ranges[i] = std::max(ranges[i], floor);
+    floor = std::nextafter(ranges[i] * 1.01f, INFINITY);
+  }
+  return ranges;
+}
+
+Status checkComponents(const Builder& b, const IconDef& d) {
+  for (const ComponentDef& c : d.components) {
+    if (c.state == iconpack::State::dead && d.dead.empty()) {
+      return b.at(d, "component '" + c.name + "' has state=dead but the icon has no 'dead FILE' line");
+    }
+  }
+  return {};
+}
+
+/// Hull and components of one state, appended to the icon's parts.
+Status addState(Builder& b, iconpack::Icon& icon, const IconDef& d, iconpack::State state,
+                const std::string& hullFile, const std::vector<float>& ratios, std::vector<float>& errors) {
+  auto hull = loadModel(b, d, hullFile);
+  if (!hull) return hull.problems();
+  b.warnings.insert(b.warnings.end(), hull.warnings().begin(), hull.warnings().end());
+  std::map<std::string, std::int32_t> index;  // component name -> part index, this state
+  iconpack::Part part = makePart(b, icon, hull.value(), ratios, errors);
+  part.state = state;
+  const auto hullIndex = static_cast<std::int32_t>(icon.parts.size());
+  icon.parts.push_back(std::move(part));
+  for (const ComponentDef& c : d.components) {
+    if (c.state != state) continue;
+    auto model = loadModel(b, d, c.model);
+    if (!model) return model.problems();
+    b.warnings.insert(b.warnings.end(), model.warnings().begin(), model.warnings().end());
+    iconpack::Part comp = makePart(b, icon, model.value(), ratios, errors);
+    comp.name = c.name;
+    comp.state = state;
+    comp.parent = c.parent.empty() ? hullIndex : index.at(c.parent);
+    comp.offset = c.offset;
+    index[c.name] = static_cast<std::int32_t>(icon.parts.size());
+    icon.parts.push_back(std::move(comp));
+  }
+  return {};
+}
+
+Result<iconpack::Icon> buildIcon(Builder& b, const IconDef& d) {
+  if (Status st = checkComponents(b, d); !st) return st.problems();
+  std::vector<float> ratios;
+  for (const LevelDef& l : d.levels) ratios.push_back(l.ratio);
+  if (ratios.empty()) ratios = defaultLevelRatios();
+  iconpack::Icon icon;
+  icon.name = d.name;
+  icon.armed = d.armed;
+  icon.resupply = d.resupply;
+  icon.hasDis = d.dis.has_value();
+  if (d.dis) icon.dis = *d.dis;
+  std::vector<float> errors(ratios.size(), 0.0f);
+  if (Status st = addState(b, icon, d, iconpack::State::alive, d.alive, ratios, errors); !st) return st.problems();
+  if (!d.dead.empty()) {
+    if (Status st = addState(b, icon, d, iconpack::State::dead, d.dead, ratios, errors); !st) return st.problems();
+  }
+  if (icon.materials.size() > 65535) return b.at(d, "more than 65535 materials over its models");
+  deriveExtent(icon, d);
+  icon.ranges = switchRanges(d, icon, errors, b.o);
+  return icon;
+}
+
+IconDef treeDefinition() {
+  IconDef d;
+  d.name = kDefaultTreeName;
+  d.alive = std::string(kBuiltinTree);
+  return d;
+}
+
+/// Builds every icon; the tree is appended unless the definitions have one.
+Result<iconpack::Pack> run(Builder& b) {
+  std::vector<Problem> problems;
+  bool haveTree = false;
+  for (const IconDef& d : b.defs.icons) {
+    haveTree = haveTree || d.name == kDefaultTreeName;
+    auto icon = buildIcon(b, d);
+    if (!icon) {
+      problems.insert(problems.end(), icon.problems().begin(), icon.problems().end());
+      continue;
+    }
+    b.pack.icons.push_back(std::move(icon.value()));
+  }
+  if (!problems.empty()) return problems;
+  if (b.o.addDefaultTree && !haveTree) {
+    auto tree = buildIcon(b, treeDefinition());
+    if (!tree) return tree.problems();
+    b.pack.icons.push_back(std::move(tree.value()));
+  }
+  Result<iconpack::Pack> r(std::move(b.pack));
+  r.addWarnings(b.warnings);
+  return r;
+}
+
+// ---- the procedural tree -------------------------------------------------
+
+/// A cone (or a prism when topRadius equals baseRadius) about the Y axis
+/// with smooth side normals and a flat base cap, appended to `m`.
+void addFrustum(Mesh& m, int sides, float baseY, float topY, float baseRadius, float topRadius) {
+  const float slope = (baseRadius - topRadius) / (topY - baseY);
+  const float len = std::sqrt(1 + slope * slope);
+  auto push = [&](float x, float y, float z, float nx, float ny, float nz) {
+    m.positions.insert(m.positions.end(), {x, y, z});
+    m.normals.insert(m.normals.end(), {nx, ny, nz});
+    return static_cast<std::uint32_t>(m.vertexCount() - 1);
+  };
+  for (int s = 0; s < sides; ++s) {
+    const double a0 = 2 * std::numbers::pi * s / sides, a1 = 2 * std::numbers::pi * (s + 1) / sides;
+    const float c0 = float(std::cos(a0)), s0 = float(std::sin(a0)), c1 = float(std::cos(a1)), s1 = float(std::sin(a1));
+    const float cm = float(std::cos((a0 + a1) / 2)), sm = float(std::sin((a0 + a1) / 2));
+    const std::uint32_t b0 = push(baseRadius * c0, baseY, baseRadius * s0, c0 / len, slope / len, s0 / len);
+    const std::uint32_t b1 = push(baseRadius * c1, baseY, baseRadius * s1, c1 / len, slope / len, s1 / len);
+    // Counter-clockwise seen from outside, so the side faces out.
+    if (topRadius > 0) {
+      const std::uint32_t t0 = push(topRadius * c0, topY, topRadius * s0, c0 / len, slope / len, s0 / len);
+      const std::uint32_t t1 = push(topRadius * c1, topY, topRadius * s1, c1 / len, slope / len, s1 / len);
+      m.indices.insert(m.indices.end(), {b0, t0, b1, b1, t0, t1});
+    } else {
+      // One apex vertex per side, with the side's own normal, keeps the
+      // tip shaded like the side instead of averaging every direction to up.
+      const std::uint32_t apex = push(0, topY, 0, cm / len, slope / len, sm / len);
+      m.indices.insert(m.indices.end(), {b0, apex, b1});
+    }
+    const std::uint32_t centre = push(0, baseY, 0, 0, -1, 0);
+    const std::uint32_t c0v = push(baseRadius * c0, baseY, baseRadius * s0, 0, -1, 0);
+    const std::uint32_t c1v = push(baseRadius * c1, baseY, baseRadius * s1, 0, -1, 0);
+    m.indices.insert(m.indices.end(), {centre, c0v, c1v});
+  }
+}
+
+}  // namespace
+
+Model treeModel() {
+  Model m;
+  m.source = std::string(kBuiltinTree);
+  Material trunk, crown;
+  trunk.name = "trunk";
+  trunk.baseColour = {0.40f, 0.26f, 0.13f, 1.0f};
+  crown.name = "crown";
+  crown.baseColour = {0.13f, 0.39f, 0.13f, 1.0f};
+  m.materials = {trunk, crown};
+  Mesh wood, leaves;
+  wood.material = 0;
+  addFrustum(wood, 8, 0.0f, 3.0f, 0.25f, 0.25f);
+  leaves.material = 1;
+  addFrustum(leaves, 16, 2.0f, 6.0f, 2.5f, 0.0f);
+  addFrustum(leaves, 16, 4.5f, 8.0f, 1.8f, 0.0f);
+  m.meshes = {std::move(wood), std::move(leaves)};
+  m.sourceMeshes = 2;
+  optimiseModel(m);
+  return m;
+}
+
+Result<iconpack::Pack> buildPack(const Definitions& defs, const PackOptions& o) {
+  Builder b{defs, o, {}, {}, {}};
+  return run(b);
+}
+
+iconpack::Pack defaultPack(const PackOptions& o) {
+  const Definitions none;
+  PackOptions withTree = o;
+  withTree.addDefaultTree = true;
+  auto p = buildPack(none, withTree);
+  return p ? std::move(p.value()) : iconpack::Pack{};
+}
+
+}  // namespace sandtable::icons

@@ -1,0 +1,227 @@
+// From definitions to icons.pack on the real models in ../shared/data/models
+// and on the procedural tree: states, components, textures embedded once,
+// bounds and cylinder derived, switch ranges from the screen-space error,
+// and problems that name the definition line.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+
+#include "sandtable/icons/icon_build.h"
+
+namespace fs = std::filesystem;
+using namespace sandtable;
+using namespace sandtable::icons;
+
+namespace {
+
+const std::string kSource = SANDTABLE_SOURCE_DIR;
+const std::string kModels = kSource + "/../shared/data/models";
+
+#define NEED_MODELS()                                                          \
+  do {                                                                         \
+    if (!fs::exists(kModels)) GTEST_SKIP() << "no ../shared/data/models here"; \
+  } while (0)
+
+Result<Definitions> parse(const std::string& text) {
+  return parseDefinitions(std::as_bytes(std::span(text.data(), text.size())), "defs.txt", kModels);
+}
+
+std::vector<std::byte> fileBytes(const std::string& p) {
+  std::ifstream f(p, std::ios::binary);
+  const std::string s((std::istreambuf_iterator<char>(f)), {});
+  const auto* b = reinterpret_cast<const std::byte*>(s.data());
+  return {b, b + s.size()};
+}
+
+const iconpack::Icon* find(const iconpack::Pack& p, const std::string& name) {
+  for (const auto& i : p.icons) {
+    if (i.name == name) return &i;
+  }
+  return nullptr;
+}
+
+/// Every alive vertex in the icon frame, offsets of the parent chain added.
+std::vector<std::array<float, 3>> aliveVertices(const iconpack::Icon& icon) {
+  std::vector<std::array<float, 3>> out;
+  for (std::size_t i = 0; i < icon.parts.size(); ++i) {
+    if (icon.parts[i].state != iconpack::State::alive) continue;
+    std::array<float, 3> off{0, 0, 0};
+    for (std::int32_t k = std::int32_t(i); k >= 0; k = icon.parts[std::size_t(k)].parent) {
+      for (int a = 0; a < 3; ++a) off[a] += icon.parts[std::size_t(k)].offset[a];
+    }
+    for (const auto& m : icon.parts[i].meshes) {
+      for (std::size_t v = 0; v < m.positions.size(); v += 3) {
+        out.push_back({m.positions[v] + off[0], m.positions[v + 1] + off[1], m.positions[v + 2] + off[2]});
+      }
+    }
+  }
+  return out;
+}
+
+TEST(TreeModel, isTheDocumentedTrunkAndCrown) {
+  const Model t = treeModel();
+  ASSERT_EQ(t.meshes.size(), 2u);
+  // Trunk: 8 sides of 2 triangles and a base cap of 8; crown: two cones of
+  // 16 side triangles and 16 cap triangles.
+  EXPECT_EQ(t.meshes[0].triangleCount(), 8u * 3);
+  EXPECT_EQ(t.meshes[1].triangleCount(), 2u * 16 * 2);
+  EXPECT_NEAR(t.bounds.min[1], 0, 1e-6);
+  EXPECT_NEAR(t.bounds.max[1], 8, 1e-6);
+  EXPECT_NEAR(t.bounds.max[0], 2.5, 1e-5);  // a vertex at angle 0
+  EXPECT_NEAR(t.bounds.min[0], -2.5, 1e-5);
+  // Every triangle faces outward: its normal agrees with its vertices' normals.
+  for (const Mesh& m : t.meshes) {
+    for (std::size_t k = 0; k < m.indices.size(); k += 3) {
+      const float* a = &m.positions[3 * m.indices[k]];
+      const float* b = &m.positions[3 * m.indices[k + 1]];
+      const float* c = &m.positions[3 * m.indices[k + 2]];
+      const float u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      const float n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+      const float* vn = &m.normals[3 * m.indices[k]];
+      EXPECT_GT(n[0] * vn[0] + n[1] * vn[1] + n[2] * vn[2], 0) << "triangle " << k / 3;
+    }
+  }
+}
+
+TEST(BuildPack, theDefaultPackHoldsTheTreeAndReadsBack) {
+  const iconpack::Pack p = defaultPack();
+  ASSERT_EQ(p.icons.size(), 1u);
+  const iconpack::Icon& tree = p.icons[0];
+  EXPECT_EQ(tree.name, kDefaultTreeName);
+  EXPECT_EQ(iconpack::triangleCount(tree, 0), 88u);
+  EXPECT_NEAR(tree.cylinderRadius, 2.5, 1e-5);
+  EXPECT_NEAR(tree.cylinderHeight, 8, 1e-6);
+  // The last range: the 8 m tree covers one pixel of 1080 at 60 degrees.
+  const double last = 8.0 * 1080 / (2 * std::tan(std::numbers::pi / 6));
+  EXPECT_NEAR(tree.ranges.back(), last, last * 1e-5);
+  for (std::size_t i = 1; i < tree.ranges.size(); ++i) EXPECT_GT(tree.ranges[i], tree.ranges[i - 1]);
+  auto bytes = iconpack::encode(p);
+  ASSERT_TRUE(bytes) << bytes.error();
+  auto back = iconpack::decode(bytes.value(), "icons.pack");
+  ASSERT_TRUE(back) << back.error();
+  EXPECT_EQ(back.value(), p);
+}
+
+TEST(BuildPack, theSampleFileBuildsWithoutModelFiles) {
+  auto defs = readDefinitions(kSource + "/samples/icons.txt");
+  ASSERT_TRUE(defs) << defs.error();
+  auto p = buildPack(defs.value());
+  ASSERT_TRUE(p) << p.error();
+  ASSERT_EQ(p->icons.size(), 3u);  // its own tree replaces the default one
+  const iconpack::Icon* small = find(p.value(), "tree-small");
+  const iconpack::Icon* tall = find(p.value(), "tree-tall");
+  ASSERT_TRUE(small && tall);
+  EXPECT_FLOAT_EQ(small->cylinderRadius, 1.5f);  // given in the file
+  EXPECT_NEAR(tall->cylinderHeight, 8 * 1.6, 1e-4);  // scaled
+  EXPECT_EQ(tall->ranges, (std::vector<float>{400, 1500, 6000}));
+}
+
+TEST(BuildPack, realModelsWithStatesComponentsAndTextures) {
+  NEED_MODELS();
+  auto defs = readDefinitions(kSource + "/samples/icons-models.txt");
+  ASSERT_TRUE(defs) << defs.error();
+  auto r = buildPack(defs.value());
+  ASSERT_TRUE(r) << r.error();
+  const iconpack::Pack& p = r.value();
+  ASSERT_EQ(p.icons.size(), 5u);  // four, and the default tree
+  ASSERT_TRUE(find(p, kDefaultTreeName));
+
+  // The jeep's JPEG and the Kenney palette PNG, embedded byte for byte,
+  // the palette once although two icons use it (two sets ship one file each).
+  const auto jpeg = fileBytes(kModels + "/assimp/jeep1.jpg");
+  const auto racing = fileBytes(kModels + "/kenney-racing/Textures/colormap.png");
+  int jpegs = 0, palettes = 0;
+  for (const auto& t : p.textures) {
+    jpegs += t.bytes == jpeg;
+    palettes += t.bytes == racing;
+  }
+  EXPECT_EQ(jpegs, 1);
+  EXPECT_EQ(palettes, 1);
+
+  const iconpack::Icon* jeep = find(p, "jeep");
+  ASSERT_TRUE(jeep);
+  EXPECT_TRUE(jeep->armed && jeep->hasDis);
+  EXPECT_EQ(jeep->dis.country, 225);
+  // Hull alive, its rock component, the dead hull.
+  ASSERT_EQ(jeep->parts.size(), 3u);
+  EXPECT_EQ(jeep->parts[1].name, "rock");
+  EXPECT_EQ(jeep->parts[1].parent, 0);
+  EXPECT_FLOAT_EQ(jeep->parts[1].offset[1], 1.2f);
+  EXPECT_EQ(jeep->parts[2].state, iconpack::State::dead);
+  // The alive state's triangles at level 0: the jeep (2032) and the rock (768).
+  EXPECT_EQ(iconpack::triangleCount(*jeep, 0), 2032u + 768u);
+  EXPECT_EQ(iconpack::triangleCount(*jeep, 0, iconpack::State::dead), 768u);
+  for (std::size_t l = 1; l < jeep->ranges.size(); ++l) {
+    EXPECT_LE(iconpack::triangleCount(*jeep, l), iconpack::triangleCount(*jeep, l - 1));
+  }
+  // Bounds and cylinder against the vertices, offsets applied here.
+  const auto verts = aliveVertices(*jeep);
+  std::array<float, 6> box{INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY};
+  float radius = 0;
+  for (const auto& v : verts) {
+    for (int a = 0; a < 3; ++a) box[a] = std::min(box[a], v[a]), box[a + 3] = std::max(box[a + 3], v[a]);
+    radius = std::max(radius, std::sqrt(v[0] * v[0] + v[2] * v[2]));
+  }
+  EXPECT_EQ(jeep->bounds, box);
+  EXPECT_FLOAT_EQ(jeep->cylinderRadius, radius);
+  EXPECT_FLOAT_EQ(jeep->cylinderHeight, box[4]);
+  EXPECT_NEAR(box[5] - box[2], 16.646 * 0.3, 0.01);  // scale 0.3
+
+  // Every icon reads back bit for bit.
+  auto bytes = iconpack::encode(p);
+  ASSERT_TRUE(bytes) << bytes.error();
+  auto back = iconpack::decode(bytes.value(), "icons.pack");
+  ASSERT_TRUE(back) << back.error();
+  EXPECT_EQ(back.value(), p);
+}
+
+TEST(BuildPack, problemsNameTheDefinitionLine) {
+  NEED_MODELS();
+  const std::string text =
+      "sandtable-icons 1\n"
+      "icon good\n  model assimp/fels.3ds\n"
+      "icon missing\n  model assimp/nothing-here.glb\n"
+      "icon wreck\n  model assimp/fels.3ds\n  component t assimp/fels.3ds offset=0,1,0 state=dead\n";
+  auto defs = parse(text);
+  ASSERT_TRUE(defs) << defs.error();
+  auto r = buildPack(defs.value());
+  ASSERT_FALSE(r);
+  ASSERT_EQ(r.problems().size(), 2u);
+  EXPECT_EQ(r.problems()[0].file, "defs.txt");
+  EXPECT_EQ(r.problems()[0].offset, text.find("icon missing"));
+  EXPECT_NE(r.problems()[0].message.find("nothing-here.glb"), std::string::npos);
+  EXPECT_NE(r.problems()[0].message.find("not found"), std::string::npos);
+  EXPECT_EQ(r.problems()[1].offset, text.find("icon wreck"));
+  EXPECT_NE(r.problems()[1].message.find("no 'dead FILE' line"), std::string::npos);
+}
+
+TEST(BuildPack, aFaceLimitInTheDefinitionRefusesTheModel) {
+  NEED_MODELS();
+  auto defs = parse("sandtable-icons 1\nicon w\n  model assimp/WusonOBJ.obj\n  max-triangles 1000\n");
+  ASSERT_TRUE(defs);
+  auto r = buildPack(defs.value());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().find("more than the limit of 1000"), std::string::npos) << r.error();
+}
+
+TEST(BuildPack, givenRangesStayAndAutomaticOnesFollowTheError) {
+  NEED_MODELS();
+  auto defs = parse("sandtable-icons 1\nicon w\n  model assimp/WusonOBJ.obj\n  lod 1 50\n  lod 0.5\n  lod 0.2\n");
+  ASSERT_TRUE(defs);
+  PackOptions coarse;
+  coarse.pixelError = 4;
+  auto fine = buildPack(defs.value()), rough = buildPack(defs.value(), coarse);
+  ASSERT_TRUE(fine && rough);
+  const iconpack::Icon& f = fine->icons[0];
+  const iconpack::Icon& c = rough->icons[0];
+  EXPECT_EQ(f.ranges[0], 50.0f);
+  // Four times the pixel budget: the automatic ranges come four times closer.
+  EXPECT_NEAR(c.ranges[2], f.ranges[2] / 4, f.ranges[2] * 1e-5);
+  EXPECT_GT(f.ranges[1], f.ranges[0]);
+  EXPECT_GT(f.ranges[2], f.ranges[1]);
+}
+
+}  // namespace
