@@ -1,5 +1,7 @@
 // `sandtable icons --model`: the report of a real model, and exit 2 with
-// the file named for models that cannot become icons.
+// the file named for models that cannot become icons. `sandtable icons
+// DEFS`: the sample definition file's icons, and exit 2 with the line named
+// for a bad one.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -51,6 +53,35 @@ TEST(IconsCli, modelsThatCannotBeIconsExit2NamingTheFile) {
   EXPECT_EQ(over.exitCode, 2);
   EXPECT_NE(over.err.find("--max-triangles"), std::string::npos) << over.err;
   EXPECT_EQ(runCli({"icons", "--model", t / "two.obj", "--max-triangles", "2"}).exitCode, 0);
+}
+
+TEST(IconsCli, theSampleDefinitionFileListsItsIconsAsJson) {
+  const auto r = runCli({"icons", std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt", "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(r.err, "");  // no warning from the sample
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["icons"].size(), 3u);
+  EXPECT_EQ(j["icons"][0]["name"], "tree");
+  // The built-in tree: 80 triangles at level 0 (docs/ICONS.md section 4).
+  EXPECT_EQ(j["icons"][0]["levels"][0]["triangles"], 80);
+  EXPECT_EQ(j["icons"][2]["levels"][0]["range_m"], 400.0);
+  EXPECT_GT(j["pack_bytes"].get<int>(), 0);
+}
+
+TEST(IconsCli, aBadDefinitionFileExits2NamingTheLine) {
+  TempDir t("icondefs");
+  spit(t / "defs.txt", "sandtable-icons 1\nicon a\n  model builtin:tree\n  lod 0.5\nicon b\n  model gone.glb\n");
+  const auto bad = runCli({"icons", t / "defs.txt"});
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_NE(bad.err.find("defs.txt @46: icon definitions: the first lod must have ratio 1"), std::string::npos)
+      << bad.err;
+  spit(t / "defs.txt", "sandtable-icons 1\nicon b\n  model gone.glb\n");
+  const auto missing = runCli({"icons", t / "defs.txt", "--json"});
+  EXPECT_EQ(missing.exitCode, 2);
+  EXPECT_NE(missing.err.find("defs.txt @18: icons: icon 'b': model 'gone.glb'"), std::string::npos) << missing.err;
+  EXPECT_NE(missing.err.find("not found"), std::string::npos) << missing.err;
+  EXPECT_EQ(runCli({"icons", t / "defs.txt", "--model", "x.glb"}).exitCode, 2);  // one or the other
+  EXPECT_EQ(runCli({"icons"}).exitCode, 2);
 }
 
 }  // namespace

@@ -179,6 +179,40 @@ std::vector<float> switchRanges(const IconDef& d, const iconpack::Icon& icon, co
   return ranges;
 }
 
+/// A level is worth its memory and its switch only if it has at most this
+/// fraction of the triangles of the level kept before it.
+constexpr double kLevelGain = 0.9;
+
+/// Drops each level that the simplifier could not make at least 10 %
+/// lighter than the level before it (a low-poly model where the error
+/// bound binds); the level before takes over its far range. A warning
+/// names each one.
+void dropFlatLevels(Builder& b, const IconDef& d, iconpack::Icon& icon) {
+  std::vector<std::size_t> keep{0};
+  for (std::size_t l = 1; l < icon.ranges.size(); ++l) {
+    const auto before = iconpack::triangleCount(icon, keep.back()), now = iconpack::triangleCount(icon, l);
+    if (double(now) <= kLevelGain * double(before)) {
+      keep.push_back(l);
+      continue;
+    }
+    b.warnings.push_back(b.at(d, "level " + std::to_string(l) + " dropped: " + std::to_string(now) +
+                                     " triangles is not 10 % fewer than level " + std::to_string(keep.back()) +
+                                     "'s " + std::to_string(before) + " (the simplifier's error bound binds)"));
+    icon.ranges[keep.back()] = icon.ranges[l];
+  }
+  if (keep.size() == icon.ranges.size()) return;
+  std::vector<float> ranges;
+  for (const std::size_t l : keep) ranges.push_back(icon.ranges[l]);
+  icon.ranges = std::move(ranges);
+  for (iconpack::Part& part : icon.parts) {
+    for (iconpack::Mesh& mesh : part.meshes) {
+      std::vector<std::vector<std::uint32_t>> levels;
+      for (const std::size_t l : keep) levels.push_back(std::move(mesh.levels[l]));
+      mesh.levels = std::move(levels);
+    }
+  }
+}
+
 Status checkComponents(const Builder& b, const IconDef& d) {
   for (const ComponentDef& c : d.components) {
     if (c.state == iconpack::State::dead && d.dead.empty()) {
@@ -234,6 +268,7 @@ Result<iconpack::Icon> buildIcon(Builder& b, const IconDef& d) {
   if (icon.materials.size() > 65535) return b.at(d, "more than 65535 materials over its models");
   deriveExtent(icon, d);
   icon.ranges = switchRanges(d, icon, errors, b.o);
+  dropFlatLevels(b, d, icon);
   return icon;
 }
 
@@ -241,6 +276,9 @@ IconDef treeDefinition() {
   IconDef d;
   d.name = kDefaultTreeName;
   d.alive = std::string(kBuiltinTree);
+  // Three levels: a fourth at 1/10 cannot get lighter than 1/4 within the
+  // error bound (80, 40, 24 triangles).
+  d.levels = {{1.0f, 0.0f}, {0.5f, 0.0f}, {0.25f, 0.0f}};
   return d;
 }
 
@@ -270,9 +308,11 @@ Result<iconpack::Pack> run(Builder& b) {
 
 // ---- the procedural tree -------------------------------------------------
 
-/// A cone (or a prism when topRadius equals baseRadius) about the Y axis
-/// with smooth side normals and a flat base cap, appended to `m`.
-void addFrustum(Mesh& m, int sides, float baseY, float topY, float baseRadius, float topRadius) {
+/// A cone or a tube about the Y axis, its vertices shared between
+/// neighbouring triangles so that the simplifier can take sides away.
+/// A cone (topRadius 0) is closed by a base cap over the same ring; a tube
+/// is open at both ends (its foot is in the ground, its top in the crown).
+void addRing(Mesh& m, int sides, float baseY, float topY, float baseRadius, float topRadius) {
   const float slope = (baseRadius - topRadius) / (topY - baseY);
   const float len = std::sqrt(1 + slope * slope);
   auto push = [&](float x, float y, float z, float nx, float ny, float nz) {
@@ -280,27 +320,26 @@ void addFrustum(Mesh& m, int sides, float baseY, float topY, float baseRadius, f
     m.normals.insert(m.normals.end(), {nx, ny, nz});
     return static_cast<std::uint32_t>(m.vertexCount() - 1);
   };
+  const auto first = static_cast<std::uint32_t>(m.vertexCount());
   for (int s = 0; s < sides; ++s) {
-    const double a0 = 2 * std::numbers::pi * s / sides, a1 = 2 * std::numbers::pi * (s + 1) / sides;
-    const float c0 = float(std::cos(a0)), s0 = float(std::sin(a0)), c1 = float(std::cos(a1)), s1 = float(std::sin(a1));
-    const float cm = float(std::cos((a0 + a1) / 2)), sm = float(std::sin((a0 + a1) / 2));
-    const std::uint32_t b0 = push(baseRadius * c0, baseY, baseRadius * s0, c0 / len, slope / len, s0 / len);
-    const std::uint32_t b1 = push(baseRadius * c1, baseY, baseRadius * s1, c1 / len, slope / len, s1 / len);
-    // Counter-clockwise seen from outside, so the side faces out.
-    if (topRadius > 0) {
-      const std::uint32_t t0 = push(topRadius * c0, topY, topRadius * s0, c0 / len, slope / len, s0 / len);
-      const std::uint32_t t1 = push(topRadius * c1, topY, topRadius * s1, c1 / len, slope / len, s1 / len);
-      m.indices.insert(m.indices.end(), {b0, t0, b1, b1, t0, t1});
-    } else {
-      // One apex vertex per side, with the side's own normal, keeps the
-      // tip shaded like the side instead of averaging every direction to up.
-      const std::uint32_t apex = push(0, topY, 0, cm / len, slope / len, sm / len);
-      m.indices.insert(m.indices.end(), {b0, apex, b1});
+    const double a = 2 * std::numbers::pi * s / sides;
+    const float c = float(std::cos(a)), n = float(std::sin(a));
+    push(baseRadius * c, baseY, baseRadius * n, c / len, slope / len, n / len);
+    if (topRadius > 0) push(topRadius * c, topY, topRadius * n, c / len, slope / len, n / len);
+  }
+  const std::uint32_t stride = topRadius > 0 ? 2 : 1;
+  auto base = [&](int s) { return first + stride * std::uint32_t(s % sides); };
+  if (topRadius > 0) {
+    // Counter-clockwise seen from outside, so every side faces out.
+    for (int s = 0; s < sides; ++s) {
+      m.indices.insert(m.indices.end(), {base(s), base(s) + 1, base(s + 1), base(s + 1), base(s) + 1, base(s + 1) + 1});
     }
-    const std::uint32_t centre = push(0, baseY, 0, 0, -1, 0);
-    const std::uint32_t c0v = push(baseRadius * c0, baseY, baseRadius * s0, 0, -1, 0);
-    const std::uint32_t c1v = push(baseRadius * c1, baseY, baseRadius * s1, 0, -1, 0);
-    m.indices.insert(m.indices.end(), {centre, c0v, c1v});
+    return;
+  }
+  const std::uint32_t apex = push(0, topY, 0, 0, 1, 0);
+  const std::uint32_t centre = push(0, baseY, 0, 0, -1, 0);
+  for (int s = 0; s < sides; ++s) {
+    m.indices.insert(m.indices.end(), {base(s), apex, base(s + 1), centre, base(s), base(s + 1)});
   }
 }
 
@@ -317,10 +356,12 @@ Model treeModel() {
   m.materials = {trunk, crown};
   Mesh wood, leaves;
   wood.material = 0;
-  addFrustum(wood, 8, 0.0f, 3.0f, 0.25f, 0.25f);
+  // The trunk reaches 0.5 m into the ground, so that on a slope no gap
+  // opens under its downhill side (seed Figure 24).
+  addRing(wood, 8, -0.5f, 3.0f, 0.25f, 0.25f);
   leaves.material = 1;
-  addFrustum(leaves, 16, 2.0f, 6.0f, 2.5f, 0.0f);
-  addFrustum(leaves, 16, 4.5f, 8.0f, 1.8f, 0.0f);
+  addRing(leaves, 16, 2.0f, 6.0f, 2.5f, 0.0f);
+  addRing(leaves, 16, 4.5f, 8.0f, 1.8f, 0.0f);
   m.meshes = {std::move(wood), std::move(leaves)};
   m.sourceMeshes = 2;
   optimiseModel(m);

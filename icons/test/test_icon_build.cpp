@@ -61,29 +61,44 @@ std::vector<std::array<float, 3>> aliveVertices(const iconpack::Icon& icon) {
   return out;
 }
 
+std::array<float, 3> corner(const Mesh& m, std::uint32_t i) {
+  return {m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]};
+}
+
+/// Twice the area vector of triangle k (its normal, by the winding).
+std::array<double, 3> triangleNormal(const Mesh& m, std::size_t k) {
+  const auto a = corner(m, m.indices[k]), b = corner(m, m.indices[k + 1]), c = corner(m, m.indices[k + 2]);
+  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  return {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+}
+
 TEST(TreeModel, isTheDocumentedTrunkAndCrown) {
   const Model t = treeModel();
   ASSERT_EQ(t.meshes.size(), 2u);
-  // Trunk: 8 sides of 2 triangles and a base cap of 8; crown: two cones of
-  // 16 side triangles and 16 cap triangles.
-  EXPECT_EQ(t.meshes[0].triangleCount(), 8u * 3);
-  EXPECT_EQ(t.meshes[1].triangleCount(), 2u * 16 * 2);
-  EXPECT_NEAR(t.bounds.min[1], 0, 1e-6);
+  const Mesh& trunk = t.meshes[0];
+  const Mesh& crown = t.meshes[1];
+  EXPECT_EQ(trunk.triangleCount(), 8u * 2);       // an open 8-sided tube
+  EXPECT_EQ(crown.triangleCount(), 2u * 16 * 2);  // two 16-sided cones with caps
+  EXPECT_NEAR(t.bounds.min[1], -0.5, 1e-6);
   EXPECT_NEAR(t.bounds.max[1], 8, 1e-6);
   EXPECT_NEAR(t.bounds.max[0], 2.5, 1e-5);  // a vertex at angle 0
   EXPECT_NEAR(t.bounds.min[0], -2.5, 1e-5);
-  // Every triangle faces outward: its normal agrees with its vertices' normals.
-  for (const Mesh& m : t.meshes) {
-    for (std::size_t k = 0; k < m.indices.size(); k += 3) {
-      const float* a = &m.positions[3 * m.indices[k]];
-      const float* b = &m.positions[3 * m.indices[k + 1]];
-      const float* c = &m.positions[3 * m.indices[k + 2]];
-      const float u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-      const float n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-      const float* vn = &m.normals[3 * m.indices[k]];
-      EXPECT_GT(n[0] * vn[0] + n[1] * vn[1] + n[2] * vn[2], 0) << "triangle " << k / 3;
-    }
+  // The trunk's sides face away from its axis.
+  for (std::size_t k = 0; k < trunk.indices.size(); k += 3) {
+    const auto n = triangleNormal(trunk, k);
+    const auto a = corner(trunk, trunk.indices[k]), b = corner(trunk, trunk.indices[k + 1]);
+    EXPECT_GT(n[0] * (a[0] + b[0]) + n[2] * (a[2] + b[2]), 0) << "trunk triangle " << k / 3;
   }
+  // The crown is closed and wound outward: its signed volume (divergence
+  // theorem) is the two 16-gon cones' volume, one third of base times height.
+  double volume = 0;
+  for (std::size_t k = 0; k < crown.indices.size(); k += 3) {
+    const auto a = corner(crown, crown.indices[k]);
+    const auto n = triangleNormal(crown, k);
+    volume += (a[0] * n[0] + a[1] * n[1] + a[2] * n[2]) / 6;
+  }
+  auto cone = [](double r, double h) { return 8 * r * r * std::sin(2 * std::numbers::pi / 16) * h / 3; };
+  EXPECT_NEAR(volume, cone(2.5, 4) + cone(1.8, 3.5), 1e-3);
 }
 
 TEST(BuildPack, theDefaultPackHoldsTheTreeAndReadsBack) {
@@ -91,11 +106,12 @@ TEST(BuildPack, theDefaultPackHoldsTheTreeAndReadsBack) {
   ASSERT_EQ(p.icons.size(), 1u);
   const iconpack::Icon& tree = p.icons[0];
   EXPECT_EQ(tree.name, kDefaultTreeName);
-  EXPECT_EQ(iconpack::triangleCount(tree, 0), 88u);
+  EXPECT_EQ(iconpack::triangleCount(tree, 0), 80u);
   EXPECT_NEAR(tree.cylinderRadius, 2.5, 1e-5);
   EXPECT_NEAR(tree.cylinderHeight, 8, 1e-6);
-  // The last range: the 8 m tree covers one pixel of 1080 at 60 degrees.
-  const double last = 8.0 * 1080 / (2 * std::tan(std::numbers::pi / 6));
+  // The last range: the tree's 8.5 m extent (the trunk's foot included)
+  // covers one pixel of 1080 at 60 degrees.
+  const double last = 8.5 * 1080 / (2 * std::tan(std::numbers::pi / 6));
   EXPECT_NEAR(tree.ranges.back(), last, last * 1e-5);
   for (std::size_t i = 1; i < tree.ranges.size(); ++i) EXPECT_GT(tree.ranges[i], tree.ranges[i - 1]);
   auto bytes = iconpack::encode(p);

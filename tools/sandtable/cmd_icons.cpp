@@ -1,18 +1,24 @@
-// sandtable icons --model FILE: import one model through assimp, as an icon
-// would be, and say what came out: meshes, vertices, triangles, bounds,
-// textures and the levels of detail.
+// sandtable icons DEFS: check an icon definition file and every model it
+// names, and say what the icon database would hold. sandtable icons --model
+// FILE: import one model through assimp, as an icon would be, and say what
+// came out: meshes, vertices, triangles, bounds, textures and the levels of
+// detail.
 #include <cstdio>
 #include <memory>
 
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "icon_report.h"
+#include "sandtable/icons/icon_build.h"
 #include "sandtable/icons/model.h"
 
 namespace sandtable::cli {
 namespace {
 
 struct IconsArgs {
+  std::string defs;
+  icons::PackOptions pack;
   std::string model;
   std::string up = "auto";
   icons::ImportOptions o;
@@ -74,7 +80,36 @@ void printReport(const icons::Model& m, const std::vector<icons::Level>& levels)
   }
 }
 
+int runDefinitions(const IconsArgs& a) {
+  auto defs = icons::readDefinitions(a.defs);
+  if (!defs) return reportProblems("icons", defs.problems());
+  auto pack = icons::buildPack(defs.value(), a.pack);
+  for (const Problem& w : pack.warnings()) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.str().c_str());
+  if (!pack) return reportProblems("icons", pack.problems());
+  auto bytes = iconpack::encode(pack.value());
+  if (!bytes) return reportProblems("icons", bytes.problems());
+  if (a.json) {
+    nlohmann::json warn = nlohmann::json::array();
+    for (const Problem& w : pack.warnings()) warn.push_back(w.str());
+    const nlohmann::json j{{"definitions", a.defs},
+                           {"icons", iconsJson(pack.value())},
+                           {"textures", pack->textures.size()},
+                           {"pack_bytes", bytes->size()},
+                           {"warnings", warn}};
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    printIcons(pack.value());
+    std::printf("%zu icons, %zu textures: icons.pack would be %zu bytes\n", pack->icons.size(), pack->textures.size(),
+                bytes->size());
+  }
+  return kOk;
+}
+
 int runIcons(IconsArgs& a) {
+  if (a.defs.empty() == a.model.empty()) {
+    return usageError("icons", "give a definition file (sandtable icons DEFS) or one model (--model FILE), not both");
+  }
+  if (!a.defs.empty()) return runDefinitions(a);
   a.o.up = a.up == "y" ? icons::UpAxis::kY : a.up == "z" ? icons::UpAxis::kZ : icons::UpAxis::kFromFile;
   auto r = icons::importModel(a.model, a.o);
   for (const Problem& w : r.warnings()) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.str().c_str());
@@ -92,14 +127,23 @@ int runIcons(IconsArgs& a) {
 
 void registerIcons(CLI::App& root, Commands& c) {
   auto a = std::make_shared<IconsArgs>();
-  auto* sub = root.add_subcommand("icons", "Import a model as an icon (assimp) and report what came out");
+  auto* sub = root.add_subcommand("icons", "Check an icon definition file, or import one model as an icon");
   sub->footer(
-      "Example:\n  sandtable icons --model jeep1.3ds --json\n"
-      "Reads any format assimp reads (glTF, 3DS, OBJ, OFF, FBX, Collada, ...), triangulates it, flattens its\n"
+      "Examples:\n  sandtable icons samples/icons.txt\n  sandtable icons --model jeep1.3ds --json\n"
+      "With DEFS: reads the definition file (docs/ICONS.md), imports every model it names, makes the levels\n"
+      "of detail and the switch ranges, and prints per icon its triangles per level, ranges, bounds,\n"
+      "cylinder and textures; nothing is written. The built-in tree is added unless DEFS defines 'tree'.\n"
+      "With --model: reads"
+      " any format assimp reads (glTF, 3DS, OBJ, OFF, FBX, Collada, ...), triangulates it, flattens its\n"
       "nodes, converts it to metres with Y up, and simplifies it into levels of detail (meshoptimizer).\n"
       "Exit status: 0 imported, 2 the model cannot become an icon (unreadable, no faces, NaN vertices,\n"
       "over --max-triangles). A texture that is not found is a warning: the material's base colour is used.");
-  sub->add_option("--model", a->model, "The model file to import")->required();
+  auto* defs = sub->add_option("defs", a->defs, "An icon definition file (sandtable-icons 1)");
+  sub->add_option("--model", a->model, "One model file to import, without a definition file")->excludes(defs);
+  sub->add_option("--pixel-error", a->pack.pixelError,
+                  "Switch ranges the definitions leave out keep each level's error under this many pixels")
+      ->default_val(a->pack.pixelError)
+      ->check(CLI::PositiveNumber);
   sub->add_option("--up", a->up, "The model's up axis as assimp reads it: auto (the file's metadata, else y), y or z")
       ->check(CLI::IsMember({"auto", "y", "z"}))
       ->default_val("auto");
