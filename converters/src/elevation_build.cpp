@@ -20,7 +20,9 @@
 #include "sandtable/converters/modules.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/icon_pack.h"
 #include "sandtable/formats/materials.h"
+#include "sandtable/icons/icon_build.h"
 
 namespace sandtable::convert {
 namespace fs = std::filesystem;
@@ -120,10 +122,10 @@ Result<bool> checkOptions(const ElevationOptions& o) {
     return Problem{"ElevationOptions::moduleSize", 0,
                    "build: ElevationOptions::moduleSize must be positive and ElevationOptions::levels 1..8"};
   }
-  if (!o.modules && (!o.culture.empty() || !o.materials.empty())) {
+  if (!o.modules && (!o.culture.empty() || !o.materials.empty() || !o.icons.empty())) {
     return Problem{"ElevationOptions::culture", 0,
-                   "build: ElevationOptions::culture and ElevationOptions::materials need load modules; drop "
-                   "ElevationOptions::modules = false"};
+                   "build: ElevationOptions::culture, ElevationOptions::materials and ElevationOptions::icons need "
+                   "load modules; drop ElevationOptions::modules = false"};
   }
   if (o.zstdLevel < 1 || o.zstdLevel > 22) {
     return Problem{"ElevationOptions::zstdLevel", 0, "build: ElevationOptions::zstdLevel must be 1..22"};
@@ -143,6 +145,9 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   }
   if (!o.materials.empty() && !fs::exists(o.materials, ec)) {
     return Problem{o.materials, 0, "materials: file not found; check the ElevationOptions::materials path"};
+  }
+  if (!o.icons.empty() && !fs::exists(o.icons, ec)) {
+    return Problem{o.icons, 0, "icons: file not found; check the ElevationOptions::icons path"};
   }
   return true;
 }
@@ -361,11 +366,27 @@ manifest::Manifest makeManifest(const ElevationOptions& o, const Frame& f, const
   return m;
 }
 
-/// The material table and culture of a build with modules (empty without).
+/// The material table, culture and icons of a build with modules (empty
+/// without).
 struct CultureSetup {
   materials::Table table;
   std::shared_ptr<const Culture> culture;
+  iconpack::Pack icons;
+  Warnings iconWarnings;
 };
+
+/// The icon database: the definitions' icons and the built-in tree, or the
+/// tree alone. Built before the grid, so a bad model fails fast.
+Status loadIcons(const ElevationOptions& o, CultureSetup& c) {
+  icons::Definitions none;
+  auto defs = o.icons.empty() ? Result<icons::Definitions>(none) : icons::readDefinitions(o.icons);
+  if (!defs) return defs.problems();
+  auto pack = icons::buildPack(defs.value());
+  if (!pack) return pack.problems();
+  c.iconWarnings = pack.warnings();
+  c.icons = std::move(pack.value());
+  return {};
+}
 
 Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, const ProgressFn& progress) {
   CultureSetup c;
@@ -384,6 +405,7 @@ Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, cons
   auto culture = Culture::load(co, c.table, frame);
   if (!culture) return culture.problems();
   c.culture = culture.value();
+  if (Status st = loadIcons(o, c); !st) return st.problems();
   return c;
 }
 
@@ -406,14 +428,31 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   if (Status st = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !st) {
     return Problem{dir, 0, "build: " + st.message()};
   }
+  auto iconBytes = iconpack::encode(c.icons);
+  if (!iconBytes) return iconBytes.problems();
+  if (Status st = writeFileAtomic(dir + "/" + iconpack::kFileName, iconBytes.value()); !st) {
+    return Problem{dir, 0, "build: " + st.message()};
+  }
   auto& files = report.manifest.files;
   files.push_back({pack::kPackFileName, r->packBytes, r->packCrc});
   files.push_back({pack::kIndexFileName, r->indexBytes, r->indexCrc});
   files.push_back({materials::kFileName, text.size(), crc32(bytes)});
+  files.push_back({iconpack::kFileName, iconBytes->size(), crc32(iconBytes.value())});
   report.manifest.moduleSize = r->moduleSize;
   report.modules = r->modules;
   report.moduleSeconds = r->seconds;
   return r;
+}
+
+nlohmann::json iconsReportJson(const ElevationOptions& o, const CultureSetup& c) {
+  nlohmann::json names = nlohmann::json::array(), warnings = nlohmann::json::array();
+  for (const auto& i : c.icons.icons) names.push_back(i.name);
+  for (const Problem& w : c.iconWarnings) warnings.push_back(w.str());
+  return {{"definitions", o.icons.empty() ? std::string("built-in tree") : o.icons},
+          {"count", c.icons.icons.size()},
+          {"names", names},
+          {"textures", c.icons.textures.size()},
+          {"warnings", warnings}};
 }
 
 nlohmann::json moduleReportJson(const ModuleReport& r) {
@@ -656,6 +695,7 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   if (modules) {
     report.manifest.build["modules"] = moduleReportJson(*modules);
     report.manifest.build["culture"] = cultureReportJson(o, *culture.value().culture);
+    report.manifest.build["icons"] = iconsReportJson(o, culture.value());
   }
 
   const std::string text = manifest::encode(report.manifest);

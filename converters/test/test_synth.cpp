@@ -372,7 +372,8 @@ TEST(Elevation, OptionProblemsNameTheFieldNotAFlag) {
   r = sandtable::convert::buildElevation(o, {});
   ASSERT_FALSE(r);
   EXPECT_EQ(r.problems().front().message,
-            "build: ElevationOptions::culture and ElevationOptions::materials need load modules; drop "
+            "build: ElevationOptions::culture, ElevationOptions::materials and ElevationOptions::icons need load "
+            "modules; drop "
             "ElevationOptions::modules = false");
   EXPECT_FALSE(fs::exists(s.dir / "db"));
 }

@@ -207,7 +207,7 @@ Result<Database> openDatabase(const std::string& directory) {
   if (!m) return m.problems();
   auto g = grid::GridFile::open(directory + "/" + manifest::kGridFileName);
   if (!g) return g.problems();
-  Database db{directory, std::move(m.value()), g.value(), nullptr, std::nullopt};
+  Database db{directory, std::move(m.value()), g.value(), nullptr, std::nullopt, std::nullopt};
   std::vector<Problem> problems;
   checkAgreement(db.manifest, db.grid->header(), db.grid->path(), problems);
   if (lists(db.manifest, pack::kIndexFileName) || lists(db.manifest, pack::kPackFileName)) {
@@ -220,6 +220,11 @@ Result<Database> openDatabase(const std::string& directory) {
     auto t = materials::readFile(directory + "/" + materials::kFileName);
     if (!t) return t.problems();
     db.materials = std::move(t.value());
+  }
+  if (lists(db.manifest, iconpack::kFileName)) {
+    auto icons = iconpack::readFile(directory + "/" + iconpack::kFileName);
+    if (!icons) return icons.problems();
+    db.icons = std::move(icons.value());
   }
   if (!problems.empty()) return problems;
   return db;
@@ -248,7 +253,11 @@ Status validateDatabase(const std::string& directory, const Work& work) {
   auto g = grid::GridFile::open(gridPath);
   if (g) checkAgreement(m.value(), g.value()->header(), gridPath, out);
   checkModules(directory, m.value(), g ? g.value().get() : nullptr, work, out);
-  stopped(directory + "/" + pack::kPackFileName);
+  if (stopped(directory + "/" + pack::kPackFileName)) return out;
+  if (lists(m.value(), iconpack::kFileName)) {
+    const auto icons = iconpack::readFile(directory + "/" + iconpack::kFileName);
+    out.insert(out.end(), icons.problems().begin(), icons.problems().end());
+  }
   return out;
 }
 

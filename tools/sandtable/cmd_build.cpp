@@ -32,6 +32,11 @@ void printModuleSummary(const convert::ElevationReport& r) {
               count("features_landed"), count("features_read"), count("features_outside"), count("warnings"));
   for (const auto& msg : c["messages"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
   printCultureReasons(c, "    ");
+  if (!b.contains("icons")) return;
+  const auto& icons = b["icons"];
+  std::printf("  icons      %zu in icons.pack (%s), %zu textures\n", icons["names"].size(),
+              icons["definitions"].get<std::string>().c_str(), icons["textures"].get<std::size_t>());
+  for (const auto& msg : icons["warnings"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
 }
 
 struct BuildArgs {
@@ -123,6 +128,7 @@ int runBuild(BuildArgs& a) {
     if (r.manifest.build.contains("modules")) {
       j["modules"] = r.manifest.build["modules"];
       j["culture"] = r.manifest.build["culture"];
+      j["icons"] = r.manifest.build["icons"];
     }
     std::printf("%s\n", j.dump(2).c_str());
     return kOk;
@@ -177,6 +183,8 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "OSM .osm/.osm.gz/.pbf)");
   sub->add_option("--materials", a->o.materials,
                   "Material table (default: the built-in samples/materials.txt; format in docs/FORMAT.md)");
+  sub->add_option("--icons", a->o.icons,
+                  "Icon definition file (docs/ICONS.md); icons.pack always holds the built-in tree too");
   sub->add_option("--module-size", a->o.moduleSize,
                   "Load-module edge in metres, rounded to a whole number of coarsest-level posts")
       ->default_val(1000.0);

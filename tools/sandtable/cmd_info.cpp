@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "culture_report.h"
 #include "db_util.h"
+#include "icon_report.h"
 
 namespace sandtable::cli {
 namespace {
@@ -94,6 +95,8 @@ nlohmann::json infoJson(const Database& db) {
   // Culture and module statistics are recorded by the build; null for a grid-only database.
   j["modules"] = field(m.build, "modules");
   j["culture"] = field(m.build, "culture");
+  // The icons of icons.pack; null for a database built before icons.
+  j["icons"] = db.icons ? iconsJson(*db.icons) : nlohmann::json();
   return j;
 }
 
@@ -132,6 +135,17 @@ void printCulture(const nlohmann::json& c) {
   }
 }
 
+void printIconLines(const nlohmann::json& icons) {
+  for (const auto& i : icons) {
+    std::string levels;
+    for (const auto& l : i["levels"]) {
+      levels += (levels.empty() ? "" : ", ") + std::to_string(l["triangles"].get<std::uint64_t>()) + " to " +
+                std::to_string(std::lround(l["range_m"].get<double>())) + " m";
+    }
+    std::printf("icon       %s: %s\n", i["name"].get<std::string>().c_str(), levels.c_str());
+  }
+}
+
 void printHuman(const nlohmann::json& j) {
   std::printf("database   %s\n", j["database"].get<std::string>().c_str());
   std::printf("crs        %s (EPSG %d)\n", j["crs_name"].get<std::string>().c_str(), j["epsg"].get<int>());
@@ -166,6 +180,7 @@ void printHuman(const nlohmann::json& j) {
   }
   if (!j["modules"].is_null()) printModules(j["modules"]);
   if (!j["culture"].is_null()) printCulture(j["culture"]);
+  if (!j["icons"].is_null()) printIconLines(j["icons"]);
 }
 
 }  // namespace

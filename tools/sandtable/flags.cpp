@@ -19,6 +19,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::levels", "--levels"},
     {"ElevationOptions::culture", "--culture"},
     {"ElevationOptions::materials", "--materials"},
+    {"ElevationOptions::icons", "--icons"},
     {"ElevationOptions::modules = false", "--no-modules"},
     {"ElevationOptions::zstdLevel", "--zstd-level"},
     {"ElevationOptions::moduleVersion", "--module-version"},

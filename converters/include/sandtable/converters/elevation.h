@@ -71,6 +71,9 @@ struct ElevationOptions {
   int levels = 4;              ///< seed: 4 levels of detail
   std::vector<std::string> culture;  ///< OGR vector sources decaled onto the modules
   std::string materials;       ///< material table; "" = the built-in default (samples/materials.txt)
+  /// Icon definition file (docs/ICONS.md); "" = the built-in tree only.
+  /// Every build with modules writes icons.pack.
+  std::string icons;
   bool modules = true;         ///< false: grid only (no load modules)
   int zstdLevel = 9;           ///< module compression level
   std::uint32_t moduleVersion = module::kNewestVersion;  ///< load-module format version (1 to 4; ModuleOptions)

@@ -7,6 +7,7 @@
 
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/manifest.h"
+#include "sandtable/formats/icon_pack.h"
 #include "sandtable/formats/materials.h"
 #include "sandtable/formats/pack.h"
 
@@ -23,6 +24,9 @@ struct Database {
   std::shared_ptr<const pack::PackReader> modules;
   /// materials.txt, parsed; empty when the manifest does not list it.
   std::optional<materials::Table> materials;
+  /// icons.pack, decoded; empty when the manifest does not list it
+  /// (databases built before issue 12).
+  std::optional<iconpack::Pack> icons;
 };
 
 /// Opens a database: reads the manifest (schema and checksum), maps the
@@ -34,7 +38,7 @@ Result<Database> openDatabase(const std::string& directory);
 /// Checks everything: manifest schema and checksum, every listed file's
 /// size and CRC-32, files present but not listed, grid contents, and that
 /// the grid header and manifest agree. With load modules also: the pack
-/// (validatePack), the pack index against manifest and grid, materials.txt,
+/// (validatePack), the pack index against manifest and grid, materials.txt, icons.pack (decoded),
 /// and every module's geometry and its edges against its neighbours
 /// (module_check.h; docs/VALIDATE.md), at most a few problems of
 /// each kind per module. Ok when the database is sound.
