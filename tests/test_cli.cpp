@@ -151,12 +151,12 @@ TEST(Cli, optionErrorsNameTheFlagNotTheLibraryField) {
       runCli({"build", "--elevation", tmp / "none.dt1", "--no-modules", "--culture", tmp / "c.gpkg", "-o", tmp / "db",
               "--json"});
   EXPECT_EQ(noModules.exitCode, 2);
-  EXPECT_NE(noModules.err.find("build: --culture, --materials and --icons need load modules; drop --no-modules"),
+  EXPECT_NE(noModules.err.find("build: --culture, --materials, --icons and --objects need load modules; drop --no-modules"),
             std::string::npos)
       << noModules.err;
   const auto j = nlohmann::json::parse(noModules.out);
   EXPECT_EQ(j["errors"][0]["file"], "--culture");
-  EXPECT_EQ(j["error"], "build: --culture, --materials and --icons need load modules; drop --no-modules");
+  EXPECT_EQ(j["error"], "build: --culture, --materials, --icons and --objects need load modules; drop --no-modules");
   const auto synth = runCli({"synth", "-o", tmp / "s", "--size-km", "0"});
   EXPECT_EQ(synth.exitCode, 2);
   EXPECT_NE(synth.err.find("sandtable synth: error: --size-km must be between 1 and 1000 (got 0)"), std::string::npos)

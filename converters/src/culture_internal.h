@@ -225,6 +225,7 @@ class CultureImpl final : public Culture {
  public:
   CultureImpl(const materials::Table& table, const CultureFrame& frame, const CultureOptions& options);
   const CultureStats& stats() const override { return stats_; }
+  const std::vector<PointFeature>& points() const override { return points_; }
   DecalStats decalLevel(const LevelLattice& lattice, module::Level& out) const override;
 
   // Filled by load().
@@ -234,6 +235,7 @@ class CultureImpl final : public Culture {
   CultureStats stats_;
   std::vector<AreaFeature> areas;
   std::vector<LineFeature> lines;
+  std::vector<PointFeature> points_;
   /// Spatial index: features whose box overlaps each index cell.
   double indexCell = 500.0;
   std::uint32_t indexCols = 0, indexRows = 0;

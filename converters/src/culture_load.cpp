@@ -202,6 +202,7 @@ struct Loader {
 
   Result<bool> readSource(const std::string& source);
   void addFeature(const std::string& where, OGRFeatureH f, LayerState& ls);
+  void addPoints(OGRFeatureH f, const OGRGeometry& g, LayerState& ls);
   bool addLine(const std::string& where, const OGRGeometry& g, const materials::Class& cls, double width,
                ClassStats& cs);
   bool addArea(const std::string& where, OGRGeometry& g, const materials::Class& cls, ClassStats& cs);
@@ -230,6 +231,7 @@ Result<bool> Loader::readSource(const std::string& source) {
     // OSM: lines and multipolygons are culture; points, route relations
     // (multilinestrings) and other relations are not.
     if (osm && s.name != "lines" && s.name != "multipolygons") s.skip = true;
+    if (osm && s.name == "points" && !c.table.places.empty()) s.skip = false;  // `place` lines want them
     OGRFeatureDefnH defn = OGR_L_GetLayerDefn(l);
     if (osm) s.otherTags = OGR_FD_GetFieldIndex(defn, "other_tags");
     if (s.skip) return s;
@@ -373,7 +375,7 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
   OGRGeometry* raw = OGRGeometry::FromHandle(OGR_F_GetGeometryRef(f));
   if (!raw || raw->IsEmpty()) return;
   const int kind = kindOf(raw);
-  if (kind == 0) return;  // points are not culture
+  if (kind == 0) return addPoints(f, *raw, ls);  // points are not culture, but may be objects
   ++c.stats_.featuresRead;
   const std::string id = where + " feature " + std::to_string(OGR_F_GetFID(f));
   FeatureView view{f, ls.otherTags};
@@ -430,6 +432,28 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
   }
   const bool kept = kind == 1 ? addLine(id, *g, *cls, m.width, cs) : addArea(id, *g, *cls, cs);
   if (kept) ++c.stats_.featuresLanded;
+}
+
+void Loader::addPoints(OGRFeatureH f, const OGRGeometry& g, LayerState& ls) {
+  if (c.table.places.empty()) return;
+  FeatureView view{f, ls.otherTags};
+  const materials::Place* pl = materials::placeFor(c.table, ls.name, &view, &attributeOf);
+  if (!pl) return;
+  const auto place = std::uint32_t(pl - c.table.places.data());
+  auto one = [&](const OGRPoint& p) {
+    double e = p.getX(), n = p.getY();
+    if (!ls.ct->Transform(1, &e, &n)) return;
+    const Vec2 w = world(e, n);
+    if (!(w.x >= 0 && w.x <= c.frame.widthM && w.z >= 0 && w.z <= c.frame.heightM)) return;
+    c.points_.push_back({w.x, w.z, place});
+    ++c.stats_.pointsPlaced;
+  };
+  const auto t = wkbFlatten(g.getGeometryType());
+  if (t == wkbPoint) {
+    one(*g.toPoint());
+  } else if (t == wkbMultiPoint) {
+    for (const OGRPoint* p : *g.toMultiPoint()) one(*p);
+  }
 }
 
 template <typename Fn>
@@ -874,7 +898,9 @@ Result<std::shared_ptr<const Culture>> Culture::load(const CultureOptions& optio
     if (!r) return r.problems();
     ++loader.sourceIndex;
   }
-  if (!options.sources.empty() && impl->stats_.featuresLanded == 0) return loader.nothingLanded(frame);
+  if (!options.sources.empty() && impl->stats_.featuresLanded == 0 && impl->points_.empty()) {
+    return loader.nothingLanded(frame);
+  }
   markJoins(impl->lines);
   const Status widened = widenAll(impl->lines, options.threads, options.mergeTolerance, loader);
   for (const Problem& w : widened.warnings()) loader.warn(w.message);

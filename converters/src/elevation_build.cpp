@@ -122,10 +122,10 @@ Result<bool> checkOptions(const ElevationOptions& o) {
     return Problem{"ElevationOptions::moduleSize", 0,
                    "build: ElevationOptions::moduleSize must be positive and ElevationOptions::levels 1..8"};
   }
-  if (!o.modules && (!o.culture.empty() || !o.materials.empty() || !o.icons.empty())) {
+  if (!o.modules && (!o.culture.empty() || !o.materials.empty() || !o.icons.empty() || !o.objects.empty())) {
     return Problem{"ElevationOptions::culture", 0,
-                   "build: ElevationOptions::culture, ElevationOptions::materials and ElevationOptions::icons need "
-                   "load modules; drop ElevationOptions::modules = false"};
+                   "build: ElevationOptions::culture, ElevationOptions::materials, ElevationOptions::icons and "
+                   "ElevationOptions::objects need load modules; drop ElevationOptions::modules = false"};
   }
   if (o.zstdLevel < 1 || o.zstdLevel > 22) {
     return Problem{"ElevationOptions::zstdLevel", 0, "build: ElevationOptions::zstdLevel must be 1..22"};
@@ -148,6 +148,9 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   }
   if (!o.icons.empty() && !fs::exists(o.icons, ec)) {
     return Problem{o.icons, 0, "icons: file not found; check the ElevationOptions::icons path"};
+  }
+  for (const auto& f : o.objects) {
+    if (!fs::exists(f, ec)) return Problem{f, 0, "objects: file not found; check the ElevationOptions::objects path"};
   }
   return true;
 }
@@ -373,6 +376,8 @@ struct CultureSetup {
   std::shared_ptr<const Culture> culture;
   iconpack::Pack icons;
   Warnings iconWarnings;
+  ObjectPlan objects;
+  Warnings objectWarnings;
 };
 
 /// The icon database: the definitions' icons and the built-in tree, or the
@@ -406,6 +411,10 @@ Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, cons
   if (!culture) return culture.problems();
   c.culture = culture.value();
   if (Status st = loadIcons(o, c); !st) return st.problems();
+  auto plan = makeObjectPlan(o.objects, frame, c.table, c.culture.get(), c.icons);
+  if (!plan) return plan.problems();
+  c.objectWarnings = plan.warnings();
+  c.objects = std::move(plan.value());
   return c;
 }
 
@@ -421,6 +430,7 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   mo.moduleVersion = o.moduleVersion;
   mo.heightStep = o.heightStep;
   mo.normals = o.moduleNormals;
+  mo.objects = &c.objects;
   auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, mo, progress);
   if (!r) return r.problems();
   const std::string text = materials::format(c.table);
@@ -452,6 +462,30 @@ nlohmann::json iconsReportJson(const ElevationOptions& o, const CultureSetup& c)
           {"count", c.icons.icons.size()},
           {"names", names},
           {"textures", c.icons.textures.size()},
+          {"warnings", warnings}};
+}
+
+/// The name objects_by_class gives an Object::cls.
+std::string objectClassName(const materials::Table& t, std::uint16_t cls) {
+  if (cls == module::kObjectClassExplicit) return "explicit";
+  if (cls >= module::kObjectClassPlace) {
+    const std::size_t k = cls - module::kObjectClassPlace;
+    return k < t.places.size() ? t.places[k].key + "=" + t.places[k].value : "place " + std::to_string(k);
+  }
+  const materials::Class* c = t.find(cls);
+  return c ? c->name : "class " + std::to_string(cls);
+}
+
+nlohmann::json objectsReportJson(const ElevationOptions& o, const CultureSetup& c, const ModuleReport& r) {
+  nlohmann::json byClass = nlohmann::json::object(), warnings = nlohmann::json::array(),
+                 files = nlohmann::json::array();
+  for (const auto& [cls, n] : r.objects.byClass) byClass[objectClassName(c.table, cls)] = n;
+  for (const Problem& w : c.objectWarnings) warnings.push_back(w.str());
+  for (const auto& f : o.objects) files.push_back(f);
+  return {{"count", r.objects.placed},
+          {"by_class", byClass},
+          {"scatter_refused", r.objects.scatterRefused},
+          {"points_files", files},
           {"warnings", warnings}};
 }
 
@@ -696,6 +730,7 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
     report.manifest.build["modules"] = moduleReportJson(*modules);
     report.manifest.build["culture"] = cultureReportJson(o, *culture.value().culture);
     report.manifest.build["icons"] = iconsReportJson(o, culture.value());
+    report.manifest.build["objects"] = objectsReportJson(o, culture.value(), *modules);
   }
 
   const std::string text = manifest::encode(report.manifest);

@@ -86,7 +86,21 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
     std::string error;
     std::vector<LevelTotals> totals;
     StageSeconds stages;
+    ObjectTotals objects;
   };
+  // Each plan point belongs to the module that holds it (the east and
+  // south edges to the last module).
+  std::vector<std::vector<std::uint32_t>> pointsOf;
+  const bool objects = o.objects && !o.objects->empty() && o.moduleVersion >= module::kVersion5;
+  if (objects) {
+    pointsOf.resize(r.modules);
+    for (std::size_t k = 0; k < o.objects->points.size(); ++k) {
+      const auto& p = o.objects->points[k];
+      const auto kx = std::min(std::uint32_t(std::max(0.0, p.x / r.moduleSize)), r.modulesX - 1);
+      const auto kz = std::min(std::uint32_t(std::max(0.0, p.z / r.moduleSize)), r.modulesZ - 1);
+      pointsOf[std::size_t(kz) * r.modulesX + kx].push_back(std::uint32_t(k));
+    }
+  }
   std::atomic<bool> stop{false};
   std::string error;
   std::uint64_t done = 0;
@@ -106,6 +120,9 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
         module::Module m =
             buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
+        if (objects) {
+          placeObjects(*o.objects, pointsOf[k], double(kx) * r.moduleSize, double(kz) * r.moduleSize, m, b.objects);
+        }
         if (o.moduleVersion >= module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
@@ -121,6 +138,9 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         if (b.record) b.error = writer.value()->append(std::move(*b.record)).message();
         b.stages.write = threadCpuSeconds() - tw;
         r.stages += b.stages;
+        r.objects.placed += b.objects.placed;
+        r.objects.scatterRefused += b.objects.scatterRefused;
+        for (const auto& [cls, n] : b.objects.byClass) r.objects.byClass[cls] += n;
         if (!b.error.empty()) {
           error = b.error;  // the first in module order
           stop = true;

@@ -372,8 +372,7 @@ TEST(Elevation, OptionProblemsNameTheFieldNotAFlag) {
   r = sandtable::convert::buildElevation(o, {});
   ASSERT_FALSE(r);
   EXPECT_EQ(r.problems().front().message,
-            "build: ElevationOptions::culture, ElevationOptions::materials and ElevationOptions::icons need load "
-            "modules; drop "
-            "ElevationOptions::modules = false");
+            "build: ElevationOptions::culture, ElevationOptions::materials, ElevationOptions::icons and "
+            "ElevationOptions::objects need load modules; drop ElevationOptions::modules = false");
   EXPECT_FALSE(fs::exists(s.dir / "db"));
 }

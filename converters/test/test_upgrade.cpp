@@ -99,13 +99,13 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   }
   auto man = manifest::readFromDirectory(db);
   ASSERT_TRUE(man);
-  EXPECT_EQ(man->build["modules"]["format_version"], 4);
+  EXPECT_EQ(man->build["modules"]["format_version"], sandtable::module::kNewestVersion);
   // The record sizes are the new modules', not the build's.
   EXPECT_LT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter);
   EXPECT_GT(man->build["modules"]["bytes"]["compressed_total"].get<std::uint64_t>(), r->packBytesAfter / 2);
 
   const auto after = readAll(db, version);
-  EXPECT_EQ(version, 4u);
+  EXPECT_EQ(version, sandtable::module::kNewestVersion);
   ASSERT_EQ(after.size(), before.size());
   // Half a step, plus the rounding of the plane and of the offset to f32.
   const auto tol = [](float y) { return 0.5 * module::kDefaultHeightStep + 2.0 * (std::nextafter(std::fabs(y), INFINITY) - std::fabs(y)); };
@@ -137,7 +137,7 @@ TEST(Upgrade, Version1DatabaseUpgradesValidatesAndKeepsItsModules) {
   auto again = convert::upgradeDatabase(db, {}, {});
   ASSERT_TRUE(again) << again.error();
   EXPECT_FALSE(again->upgraded);
-  EXPECT_EQ(again->fromVersion, 4u);
+  EXPECT_EQ(again->fromVersion, sandtable::module::kNewestVersion);
   EXPECT_EQ(fs::last_write_time(fs::path(db) / pack::kPackFileName), packTime);
 }
 
@@ -169,7 +169,7 @@ TEST(Upgrade, BuiltVersion2DatabaseValidatesCarriesNormalsAndUpgradesToVersion4)
   const Status upgraded = convert::validateDatabaseWithCrs(db);
   EXPECT_TRUE(upgraded.ok()) << upgraded.message();
   const auto after = readAll(db, version);
-  EXPECT_EQ(version, 4u);
+  EXPECT_EQ(version, sandtable::module::kNewestVersion);
   ASSERT_EQ(after.size(), mods.size());
   for (std::size_t k = 0; k < mods.size(); ++k) {
     for (std::size_t l = 0; l < mods[k].levels.size(); ++l) {
@@ -197,7 +197,7 @@ TEST(Upgrade, QuantisedVersion2DatabaseUpgradesToVersion4AndValidates) {
   EXPECT_TRUE(upgraded.ok()) << upgraded.message();
   std::uint32_t version = 0;
   EXPECT_FALSE(readAll(db, version).empty());
-  EXPECT_EQ(version, 4u);
+  EXPECT_EQ(version, sandtable::module::kNewestVersion);
 }
 
 }  // namespace

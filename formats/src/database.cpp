@@ -157,6 +157,10 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
     const pack::IndexHeader& h = r.header();
     module::CheckOptions o;
     o.materials = table ? &*table : nullptr;
+    if (lists(m, iconpack::kFileName)) {
+      // Decoded (and its problems reported) by validateDatabase itself.
+      if (auto icons = iconpack::readFile(dir + "/" + iconpack::kFileName)) o.iconCount = std::uint32_t(icons->icons.size());
+    }
     const module::ModuleChecker checker(*g, h, r.packPath(), o);
     std::vector<module::ModuleEdges> above(h.modulesX), row(h.modulesX);
     std::vector<bool> haveAbove(h.modulesX, false), haveRow(h.modulesX, false);

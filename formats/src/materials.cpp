@@ -192,10 +192,12 @@ class Parser {
     if (tok[0] == "class") return classLine(tok);
     if (tok[0] == "rule") return ruleLine(tok);
     if (tok[0] == "default-area" || tok[0] == "default-line") return defaultLine(tok);
+    if (tok[0] == "scatter") return scatterLine(tok);
+    if (tok[0] == "place") return placeLine(tok);
     if (tok[0] == "sandtable-materials") {
       return fail("the header \"" + std::string(kHeaderLine) + "\" may appear only once");
     }
-    fail("unknown directive " + quoted(tok[0]) + " (known: class, rule, default-area, default-line)");
+    fail("unknown directive " + quoted(tok[0]) + " (known: class, rule, default-area, default-line, scatter, place)");
   }
 
   void classLine(const std::vector<std::string_view>& tok) {
@@ -319,6 +321,72 @@ class Parser {
     ruleRefs_.push_back({offset_, line_, table_.rules.back().className});
   }
 
+  /// icon=, density=, scale=, seed= of a scatter or place line, from tok[from].
+  bool objectOptions(const std::vector<std::string_view>& tok, std::size_t from, bool scatter, std::string& icon,
+                     double* density, Variation& var, std::uint64_t* seed) {
+    for (std::size_t k = from; k < tok.size(); ++k) {
+      const std::size_t eq = tok[k].find('=');
+      const std::string_view key = eq == std::string_view::npos ? tok[k] : tok[k].substr(0, eq);
+      const std::string_view val = eq == std::string_view::npos ? std::string_view() : tok[k].substr(eq + 1);
+      if (key == "icon" && !val.empty()) {
+        icon = std::string(val);
+      } else if (key == "density" && scatter) {
+        if (!parseWidth(val, *density) || *density > 10000) {
+          fail("density must be objects per hectare in (0, 10000], not " + quoted(val));
+          return false;
+        }
+      } else if (key == "scale") {
+        const std::size_t dots = val.find("..");
+        const std::string_view lo = val.substr(0, dots), hi = dots == std::string_view::npos ? lo : val.substr(dots + 2);
+        if (!parseWidth(lo, var.scaleMin) || !parseWidth(hi, var.scaleMax) || var.scaleMax < var.scaleMin ||
+            var.scaleMax > 100) {
+          fail("scale must be S or A..B with 0 < A <= B <= 100, not " + quoted(val));
+          return false;
+        }
+      } else if (key == "seed" && scatter) {
+        if (!parseUnsigned(val, ~std::uint64_t(0) >> 1, *seed)) {
+          fail("seed must be a whole number, not " + quoted(val));
+          return false;
+        }
+      } else {
+        fail("unknown " + std::string(scatter ? "scatter" : "place") + " option " + quoted(tok[k]) + " (known: icon=NAME" +
+             (scatter ? ", density=N, scale=A..B, seed=S)" : ", scale=A..B)"));
+        return false;
+      }
+    }
+    if (icon.empty()) {
+      fail(std::string(scatter ? "scatter" : "place") + " needs icon=NAME, an icon of the --icons definition file");
+      return false;
+    }
+    if (scatter && !(*density > 0)) {
+      fail("scatter needs density=N, objects per hectare");
+      return false;
+    }
+    return true;
+  }
+
+  void scatterLine(const std::vector<std::string_view>& tok) {
+    if (tok.size() < 3) return fail("scatter needs a class and options: scatter CLASS icon=NAME density=N [scale=A..B] [seed=S]");
+    Scatter sc;
+    sc.className = std::string(tok[1]);
+    if (!objectOptions(tok, 2, true, sc.icon, &sc.perHectare, sc.variation, &sc.seed)) return;
+    table_.scatters.push_back(std::move(sc));
+    scatterRefs_.push_back({offset_, line_, table_.scatters.back().className});
+  }
+
+  void placeLine(const std::vector<std::string_view>& tok) {
+    if (tok.size() < 3) return fail("place needs KEY=VALUE and options: place KEY=VALUE icon=NAME [scale=A..B]");
+    const std::size_t eq = tok[1].find('=');
+    if (eq == std::string_view::npos || eq == 0 || eq + 1 == tok[1].size()) {
+      return fail(quoted(tok[1]) + " is not KEY=VALUE (VALUE * matches any non-empty value)");
+    }
+    Place pl;
+    pl.key = std::string(tok[1].substr(0, eq));
+    pl.value = std::string(tok[1].substr(eq + 1));
+    if (!objectOptions(tok, 2, false, pl.icon, nullptr, pl.variation, nullptr)) return;
+    table_.places.push_back(std::move(pl));
+  }
+
   void defaultLine(const std::vector<std::string_view>& tok) {
     const bool area = tok[0] == "default-area";
     if (tok.size() != 2) {
@@ -349,6 +417,13 @@ class Parser {
       } else if (!r.widthField.empty() && c->kind != Kind::line) {
         fail("width-field= applies only to line classes; " + quoted(c->name) + " is an area class");
       }
+    }
+    for (const Pending& r : scatterRefs_) {
+      offset_ = r.offset;
+      line_ = r.line;
+      const Class* c = table_.findByName(r.name);
+      if (!c) fail("scatter names class " + quoted(r.name) + ", which no class line defines");
+      else if (c->kind != Kind::area) fail("scatter needs an area class; " + quoted(c->name) + " is a line class");
     }
     if (defaultArea_.line == 0) {
       offset_ = endOffset;
@@ -387,7 +462,7 @@ class Parser {
   std::size_t line_ = 0;
   Table table_;
   std::vector<std::size_t> classLines_;
-  std::vector<Pending> ruleRefs_;
+  std::vector<Pending> ruleRefs_, scatterRefs_;
   Pending defaultArea_, defaultLine_;
   std::vector<Problem> problems_;
 };
@@ -440,9 +515,27 @@ std::string format(const Table& t) {
     const Class* c = t.find(id);
     return c ? c->name : std::to_string(id);
   };
+  auto variation = [](const Variation& v) {
+    if (v.scaleMin == 1 && v.scaleMax == 1) return std::string();
+    return " scale=" + number(v.scaleMin) + (v.scaleMax == v.scaleMin ? "" : ".." + number(v.scaleMax));
+  };
+  for (const Scatter& sc : t.scatters) {
+    s += "scatter " + sc.className + " icon=" + sc.icon + " density=" + number(sc.perHectare) + variation(sc.variation) +
+         (sc.seed == 1 ? "" : " seed=" + std::to_string(sc.seed)) + "\n";
+  }
+  for (const Place& pl : t.places) s += "place " + pl.key + "=" + pl.value + " icon=" + pl.icon + variation(pl.variation) + "\n";
   s += "default-area " + nameOf(t.defaultArea) + "\n";
   s += "default-line " + (t.defaultLine == kNoClass ? std::string("none") : nameOf(t.defaultLine)) + "\n";
   return s;
+}
+
+const Place* placeFor(const Table& t, const std::string& layer, const void* feature, AttributeFn attr) {
+  for (const Place& pl : t.places) {
+    const auto v = pl.key == "layer" ? std::optional<std::string>(layer) : (attr ? attr(feature, pl.key) : std::nullopt);
+    if (!v || v->empty()) continue;
+    if (pl.value == "*" || equalsNoCase(*v, pl.value)) return &pl;
+  }
+  return nullptr;
 }
 
 Match classify(const Table& t, const std::string& layer, const void* feature, AttributeFn attr, bool isLine) {

@@ -74,6 +74,13 @@ Status checkEncodable(const Module& m) {
       return fail(where + " has " + str(l.normals.size()) + " normals for " + str(l.vertices.size()) +
                   " vertices (one per vertex, or none)");
     }
+    if (l.objectY.size() != m.objects.size()) {
+      return fail(where + " has " + str(l.objectY.size()) + " object elevations for " + str(m.objects.size()) +
+                  " objects (one per object on every level)");
+    }
+  }
+  if (m.objects.size() > kMaxObjects) {
+    return fail("module: " + str(m.objects.size()) + " objects; a module holds at most " + str(kMaxObjects));
   }
   return {};
 }
@@ -81,7 +88,7 @@ Status checkEncodable(const Module& m) {
 std::uint64_t encodedBytes(const Module& m) {
   std::uint64_t n = kHeaderBytes;
   for (const Level& l : m.levels) n += levelBytes(l, needsU32Indices(l));
-  return n;
+  return m.objects.empty() ? n : n + detail::objectsBytes(m);
 }
 
 namespace {
@@ -157,6 +164,7 @@ std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
   if (version == kVersion2 && std::memcmp(bytes.data(), kMagic2.data(), kMagic2.size()) == 0) return version;
   if (version == kVersion3 && std::memcmp(bytes.data(), kMagic3.data(), kMagic3.size()) == 0) return version;
   if (version == kVersion4 && std::memcmp(bytes.data(), kMagic4.data(), kMagic4.size()) == 0) return version;
+  if (version == kVersion5 && std::memcmp(bytes.data(), kMagic5.data(), kMagic5.size()) == 0) return version;
   return 0;
 }
 
@@ -350,13 +358,13 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
   const std::byte* h = bytes.data();
   // "SANDMOD" then the version's digit; the version field must agree.
   if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size() - 1) != 0 ||
-      h[7] < std::byte{'1'} || h[7] > std::byte{'4'}) {
-    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD4\")");
+      h[7] < std::byte{'1'} || h[7] > std::byte{'5'}) {
+    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD5\")");
   }
   const auto version = loadLE<std::uint32_t>(h + field::version);
-  if (version < kVersion || version > kVersion4) {
+  if (version < kVersion || version > kVersion5) {
     return fail(field::version, "version " + str(version) +
-                                    " is not supported (this reader knows versions 1 to 4)");
+                                    " is not supported (this reader knows versions 1 to 5)");
   }
   if (std::uint32_t(h[7]) - '0' != version) {
     return fail(field::version, "version " + str(version) + " does not match the magic's \"SANDMOD" +
@@ -404,12 +412,20 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
       if (Status level = levels.decode(li, pos, l); !level) return level;
       l.normals.clear();  // version 1 has none
       l.heightStep = 0;
-    } else if (Status level = detail::decodeLevelV2(bytes, file, baseOffset, li, pos, l, version); !level) {
+    } else if (Status level = detail::decodeLevelV2(bytes, file, baseOffset, li, pos, l, std::min(version, kVersion4));
+               !level) {
       return level;
     }
   }
+  if (version >= kVersion5) {
+    if (Status objects = detail::decodeObjects(bytes, file, baseOffset, pos, m); !objects) return objects;
+  } else {
+    m.objects.clear();
+    for (Level& l : m.levels) l.objectY.clear();
+  }
   if (pos != bytes.size()) {
-    return fail(pos, str(bytes.size() - pos) + " bytes follow the last level");
+    return fail(pos, str(bytes.size() - pos) + " bytes follow the " +
+                         (version >= kVersion5 ? "objects section" : "last level"));
   }
   return {};
 }

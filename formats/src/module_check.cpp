@@ -30,12 +30,13 @@ enum Kind : std::size_t {
   kSkirtDepth,
   kNeighbour,
   kTexture,
+  kObject,
   kKindCount
 };
 constexpr const char* kKindNames[kKindCount] = {
     "structure", "non-finite",      "material",    "outside-triangle", "off-plane",
     "orientation", "skin-coverage", "lattice-post", "max-height",      "skirt",
-    "skirt-coverage", "skirt-depth", "neighbour-edge", "texture"};
+    "skirt-coverage", "skirt-depth", "neighbour-edge", "texture", "object"};
 
 class Report {
  public:
@@ -405,7 +406,53 @@ class ModuleRun {
                           "'s on the " + sideName(n.side) + " edge at " + alongName(n.side) + " " +
                           m3(n.t) + " (a neighbour drawn at that level would leave a crack)");
     }
+    objects(lv, l);
     if (edges) collectEdges(lv, *edges);
+  }
+
+  // ------------------------------------------------------------ objects
+
+  /// Grid triangle height of this level's lattice at module-local (x, z):
+  /// from the grid's posts, not the module's triangles.
+  double latticeHeight(double x, double z) const {
+    const std::size_t a = xs_.segment(x), b = zs_.segment(z);
+    const double x0 = xs_.local[a], x1 = xs_.local[a + 1], z0 = zs_.local[b], z1 = zs_.local[b + 1];
+    const double u = (x - x0) / (x1 - x0), v = (z - z0) / (z1 - z0);
+    const double nw = height(a, b), ne = height(a + 1, b), sw = height(a, b + 1), se = height(a + 1, b + 1);
+    if (u + v <= 1) return nw + u * (ne - nw) + v * (sw - nw);  // upper: NW, NE, SW
+    return se + (1 - u) * (sw - se) + (1 - v) * (ne - se);       // lower: NE, SE, SW
+  }
+
+  /// Every object stands inside the module, names an icon of icons.pack and
+  /// has its base on this level's surface (seed Figure 87).
+  void objects(const Level& lv, std::size_t l) {
+    if (lv.objectY.size() != m_.objects.size()) {
+      if (r_.want(kObject)) {
+        r_.add(offset_, at_ + " has " + str(lv.objectY.size()) + " object elevations for the module's " +
+                            str(m_.objects.size()) + " objects");
+      }
+      return;
+    }
+    for (std::size_t k = 0; k < m_.objects.size(); ++k) {
+      const Object& o = m_.objects[k];
+      const std::string who = at_ + " object " + str(k);
+      if (l == 0 && o_.iconCount && o.icon >= *o_.iconCount && r_.want(kObject)) {
+        r_.add(offset_, who + " icon " + str(o.icon) + " is not in icons.pack, which holds " + str(*o_.iconCount));
+      }
+      if (!(o.x >= -f_.tolXZ && o.x <= f_.width + f_.tolXZ && o.z >= -f_.tolXZ && o.z <= f_.height + f_.tolXZ)) {
+        if (l == 0 && r_.want(kObject)) {
+          r_.add(offset_, who + " at (" + m3(o.x) + ", " + m3(o.z) + ") lies outside the module's " + m3(f_.width) +
+                              " x " + m3(f_.height) + " m");
+        }
+        continue;
+      }
+      const double want = latticeHeight(o.x, o.z);
+      if (!(std::fabs(double(lv.objectY[k]) - want) <= kCheckObjectTolerance + ulpOf(want)) && r_.want(kObject)) {
+        r_.add(offset_, who + " base y " + g9(lv.objectY[k]) + " is " + m3(double(lv.objectY[k]) - want) +
+                            " m off the level's surface at (" + m3(o.x) + ", " + m3(o.z) + "), " + g9(want) +
+                            " (it would float or sink)");
+      }
+    }
   }
 
   // ------------------------------------------------------------ groups

@@ -86,4 +86,14 @@ std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_
 Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
                      std::size_t li, std::size_t& pos, Level& l, std::uint32_t version);
 
+/// Version 5's objects section (docs/FORMAT.md §9.10), appended to `out`.
+void encodeObjects(const Module& m, std::vector<std::byte>& out);
+/// Bytes encodeObjects appends.
+std::uint64_t objectsBytes(const Module& m);
+/// Reads the objects section at `pos` into m.objects and every level's
+/// objectY, and advances `pos` past it. Refuses counts the bytes cannot
+/// hold before anything is sized.
+Status decodeObjects(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
+                     std::size_t& pos, Module& m);
+
 }  // namespace sandtable::module::detail

@@ -759,10 +759,12 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
 
 std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_t version) {
   std::vector<std::byte> out(kHeaderBytes, std::byte{0});
-  for (const Level& l : m.levels) encodeLevel(l, heightStep, version, out);
+  const std::uint32_t v = std::clamp(version, kVersion2, kVersion5);
+  const std::uint32_t levelVersion = std::min(v, kVersion4);  // version 5's levels are version 4's
+  for (const Level& l : m.levels) encodeLevel(l, heightStep, levelVersion, out);
+  if (v >= kVersion5) encodeObjects(m, out);
   std::byte* const h = out.data();
-  const std::uint32_t v = std::clamp(version, kVersion2, kVersion4);
-  const auto& magic = v == kVersion4 ? kMagic4 : v == kVersion3 ? kMagic3 : kMagic2;
+  const auto& magic = v == kVersion5 ? kMagic5 : v == kVersion4 ? kMagic4 : v == kVersion3 ? kMagic3 : kMagic2;
   std::memcpy(h + field::magic, magic.data(), magic.size());
   storeLE<std::uint32_t>(h + field::version, v);
   storeLE<std::uint32_t>(h + field::headerBytes, kHeaderBytes);

@@ -778,7 +778,8 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   // v2: each part is a module of its own levels (module::encode knows no
   // level numbers; the index's coarseLevel gives them back).
   const auto split = m.levels.begin() + std::ptrdiff_t(s.header.coarseLevel);
-  const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end())};
+  // Both records carry every object, each with its own levels' elevations.
+  const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end()), m.objects};
   Extent c;
   if (std::string bad = compressPart(coarse, s.level, s.layout.encode, name + " (coarse record)", r.bytes, c); !bad.empty()) {
     return fail(bad);
@@ -788,7 +789,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   e.compressedCrc = c.compressedCrc;
   e.rawCrc = c.rawCrc;
   if (s.header.coarseLevel > 0) {
-    const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split)};
+    const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split), m.objects};
     if (std::string bad = compressPart(fine, s.level, s.layout.encode, name + " (fine record)", r.fineBytes, e.fine); !bad.empty()) {
       return fail(bad);
     }
@@ -1099,6 +1100,7 @@ void placeLevels(module::Module& part, std::uint32_t first, std::uint32_t levels
   out.kz = part.kz;
   if (out.levels.size() != levels) out.levels.resize(levels);
   for (std::size_t l = 0; l < part.levels.size(); ++l) std::swap(part.levels[l], out.levels[first + l]);
+  std::swap(part.objects, out.objects);  // the records' lists are the same (validate compares them)
 }
 
 }  // namespace

@@ -151,7 +151,7 @@ TEST(Materials, malformedLinesNameTheirOffsetAndTheFix) {
       {"rule highway=primary road width=w", "unknown rule option \"width=w\" (known: width-field=FIELD)"},
       {"rule landuse=grass grass width-field=width",
        "width-field= applies only to line classes; \"grass\" is an area class"},
-      {"colour grass 00FF00", "unknown directive \"colour\" (known: class, rule, default-area, default-line)"},
+      {"colour grass 00FF00", "unknown directive \"colour\" (known: class, rule, default-area, default-line, scatter, place)"},
       {"sandtable-materials 1", "the header \"sandtable-materials 1\" may appear only once"},
       {"default-area road road", "default-area needs exactly one class name"},
       {"default-area grass", "default-area is given twice (first on line 4)"},

@@ -502,7 +502,7 @@ TEST(Module, checksumsAndMagicAreChecked) {
   auto bytes = encodeV1(samples::tiny());
   bytes[0] = std::byte{'X'};
   EXPECT_EQ(decode(bytes, "m").error(),
-            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD4\")");
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD5\")");
   bytes = encodeV1(samples::tiny());
   bytes[field::kx] ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
@@ -1192,13 +1192,12 @@ TEST(ModuleV4, layoutConstantsArePinned) {
   EXPECT_EQ(levelField4::stExponent, 120u);
   EXPECT_EQ(levelField4::reserved, 122u);
   EXPECT_EQ(kLevel4PlaneOffsets, 64u);
-  EXPECT_EQ(kNewestVersion, 4u);
 }
 
 // The header by hand; the vertex stream read back with meshopt's own
 // decoder and compared with codes worked out by hand.
 TEST(ModuleV4, version4GoldenBytes) {
-  const auto bytes = encode(tinyV4());
+  const auto bytes = encode(tinyV4(), {.version = 4});
   EXPECT_EQ(hex(std::span(bytes).first(16)), "53414e444d4f44340400000030000000");  // "SANDMOD4", 4, 48
   EXPECT_EQ(encodedVersion(bytes), 4u);
   const std::byte* h = bytes.data() + kHeaderBytes;
@@ -1301,6 +1300,201 @@ TEST(ModuleV4, hostileFieldsAreRefusedBeforeAllocating) {
        "clear)"},
   };
   for (const HostileField& c : cases) expectRefused(good, c);
+}
+
+
+// ------------------------------------------------------------- version 5
+
+/// tinyV4 with two objects: a tree (icon 1, class 10) and an explicit one.
+Module tinyV5() {
+  Module m = tinyV4();
+  m.objects = {{1, 10, 8.0f, 4.0f, 0, 1.0f, 0.5f, 6.0f}, {3, kObjectClassExplicit, 24.0f, 28.0f, 16384, 2.5f, 1.25f, 15.0f}};
+  m.levels[0].objectY = {10.1875f, 10.625f};
+  return m;
+}
+
+TEST(ModuleV5, layoutConstantsArePinned) {
+  EXPECT_EQ(kObjectBytes, 26u);
+  EXPECT_EQ(kObjectClassExplicit, 0xffffu);
+  EXPECT_EQ(kNewestVersion, 5u);
+  EXPECT_EQ(headingCode(headingRadians(16384)), 16384u);
+  EXPECT_EQ(headingCode(-1.5707963267948966), 49152u);
+  EXPECT_EQ(headingCode(6.283185307179586), 0u);
+}
+
+// The objects section by hand (worked out in FORMAT.md §9.10): the count,
+// then each field's byte planes; version 4's bytes before it.
+TEST(ModuleV5, version5GoldenBytes) {
+  const auto bytes = encode(tinyV5());
+  const auto v4 = encode(tinyV4(), {.version = 4});
+  EXPECT_EQ(hex(std::span(bytes).first(16)), "53414e444d4f44350500000030000000");  // "SANDMOD5", 5, 48
+  EXPECT_EQ(encodedVersion(bytes), 5u);
+  ASSERT_EQ(bytes.size(), v4.size() + 64);
+  EXPECT_TRUE(std::equal(bytes.begin() + kHeaderBytes, bytes.end() - 64, v4.begin() + kHeaderBytes));
+  EXPECT_EQ(hex(std::span(bytes).last(64)),
+            "02000000"                  // 2 objects
+            "01030000"                  // icon 1, 3
+            "0aff00ff"                  // class 10, 65535 (explicit)
+            "0000000000c04141"          // x 8, 24
+            "0000000080e04041"          // z 4, 28
+            "00000040"                  // heading 0, 16384 (east)
+            "0000000080203f40"          // scale 1, 2.5
+            "0000000000a03f3f"          // radius 0.5, 1.25
+            "00000000c0704041"          // height 6, 15
+            "00000000232a4141");        // level 0 y 10.1875, 10.625
+  auto back = decode(bytes, "golden");
+  ASSERT_TRUE(back.ok()) << back.error();
+  ASSERT_EQ(back->objects.size(), 2u);
+  EXPECT_EQ(back->objects[1].heading, 16384u);
+  EXPECT_EQ(back->objects[1].cls, kObjectClassExplicit);
+  EXPECT_EQ(back->levels[0].objectY, (std::vector<float>{10.1875f, 10.625f}));
+  EXPECT_EQ(encode(back.value()), bytes);
+}
+
+TEST(ModuleV5, olderVersionsDropObjectsAndDecodeWithNone) {
+  for (const std::uint32_t v : {1u, 2u, 4u}) {
+    auto back = decode(encode(tinyV5(), {.version = v}), "old");
+    ASSERT_TRUE(back.ok()) << back.error();
+    EXPECT_TRUE(back->objects.empty()) << v;
+    EXPECT_TRUE(back->levels[0].objectY.empty()) << v;
+  }
+  auto none = decode(encode(tinyV4()), "none");  // version 5 with no objects: 4 bytes of count
+  ASSERT_TRUE(none.ok());
+  EXPECT_TRUE(none->objects.empty());
+}
+
+TEST(ModuleV5, manyObjectsOnManyLevelsRoundTripBitForBit) {
+  Module m = samples::realistic(3, 4, 8, 2);
+  for (std::uint32_t k = 0; k < 500; ++k) {
+    m.objects.push_back({std::uint16_t(k % 7), std::uint16_t(k % 3), float(k % 97) * 0.37f, float(k / 97) * 5.5f,
+                         std::uint16_t(k * 977), 0.5f + float(k % 5) * 0.25f, 1.5f, 9.0f});
+  }
+  for (std::size_t li = 0; li < m.levels.size(); ++li) {
+    for (std::uint32_t k = 0; k < 500; ++k) m.levels[li].objectY.push_back(100.0f + float(k) * 0.01f + float(li));
+  }
+  const auto bytes = encode(m, {.heightStep = 0});
+  auto back = decode(bytes, "many");
+  ASSERT_TRUE(back.ok()) << back.error();
+  ASSERT_EQ(back->objects.size(), 500u);
+  for (std::size_t k = 0; k < 500; ++k) {
+    const Object& a = m.objects[k];
+    const Object& b = back->objects[k];
+    ASSERT_TRUE(a.icon == b.icon && a.cls == b.cls && sameBits(a.x, b.x) && sameBits(a.z, b.z) &&
+                a.heading == b.heading && sameBits(a.scale, b.scale) && sameBits(a.radius, b.radius) &&
+                sameBits(a.height, b.height))
+        << k;
+  }
+  for (std::size_t li = 0; li < m.levels.size(); ++li) EXPECT_EQ(back->levels[li].objectY, m.levels[li].objectY);
+  EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
+}
+
+TEST(ModuleV5, everyTruncatedPrefixAndFlippedByteIsCaught) {
+  auto bytes = encode(tinyV5());
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+    ASSERT_FALSE(m.ok()) << "prefix " << n;
+    EXPECT_EQ(m.problems().front().offset, 1000 + n) << m.problems().front().message;
+    EXPECT_NE(m.problems().front().message.find("truncated"), std::string::npos);
+  }
+  for (std::size_t off = 0; off < bytes.size(); ++off) {
+    bytes[off] ^= std::byte{0x20};
+    EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+    bytes[off] ^= std::byte{0x20};
+  }
+}
+
+/// tinyV5's encoding with the objects section's bytes at `at` (from the
+/// section's start) set to `value`, and the checksums resealed.
+std::vector<std::byte> withObjectField(std::size_t at, std::uint32_t value, unsigned width = 4) {
+  auto bytes = encode(tinyV5());
+  std::byte* p = bytes.data() + bytes.size() - 64 + at;
+  if (width == 2) {
+    storeLE<std::uint16_t>(p, std::uint16_t(value));
+  } else {
+    storeLE<std::uint32_t>(p, value);
+  }
+  reseal(bytes);
+  return bytes;
+}
+
+TEST(ModuleV5, hostileObjectFieldsAreRefusedBeforeAllocating) {
+  const std::size_t section = encode(tinyV5()).size() - 64;
+  struct Case {
+    std::size_t at;
+    std::uint32_t value;
+    std::size_t offset;
+    const char* message;
+  };
+  const Case cases[] = {
+      {0, 0xffffffffu, section, "module: objects: count 4294967295 is over the limit of 1048576 objects per module"},
+      {0, 1u << 20, section + 64, "module: objects: truncated: 1048576 objects need 31457280 bytes, 60 remain"},
+      {0, 3, section + 64, "module: objects: truncated: 3 objects need 90 bytes, 60 remain"},
+  };
+  for (const Case& c : cases) {
+    gLargestAllocation = 0;
+    auto m = decode(withObjectField(c.at, c.value), "h.bin");
+    ASSERT_FALSE(m.ok()) << c.message;
+    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.message;
+    EXPECT_EQ(m.problems().front().message, c.message);
+    EXPECT_EQ(m.problems().front().offset, c.offset) << c.message;
+  }
+  // Bytes after the section.
+  auto longer = encode(tinyV5());
+  longer.resize(longer.size() + 3, std::byte{0});
+  storeLE<std::uint64_t>(longer.data() + field::totalBytes, longer.size());
+  reseal(longer);
+  auto trailing = decode(longer, "h.bin");
+  ASSERT_FALSE(trailing.ok());
+  EXPECT_EQ(trailing.error(), "h.bin @" + std::to_string(section + 64) +
+                                  ": module: 3 bytes follow the objects section");
+  // Values that would put NaN into a draw or a collision test: object 0's
+  // value in a plane of 4-byte values starting at `at`, byte b at at + 2 b.
+  const std::pair<std::size_t, const char*> nanFields[] = {
+      {12, "module: objects: object 0 position is not finite"},
+      {32, "module: objects: object 0 scale, radius or height is not finite and positive"},
+      {56, "module: objects: object 0 elevation on level 0 is not finite"},
+  };
+  for (const auto& [at, message] : nanFields) {
+    auto bytes = encode(tinyV5());
+    std::byte* p = bytes.data() + section + at;
+    const auto u = std::bit_cast<std::uint32_t>(std::numeric_limits<float>::quiet_NaN());
+    for (unsigned k = 0; k < 4; ++k) p[2 * k] = std::byte((u >> (8 * k)) & 0xff);
+    reseal(bytes);
+    auto r = decode(bytes, "h.bin");
+    ASSERT_FALSE(r.ok()) << message;
+    EXPECT_EQ(r.problems().front().message, message);
+  }
+  const Module negative = [] {
+    Module m = tinyV5();
+    m.objects[0].scale = 0;
+    return m;
+  }();
+  EXPECT_FALSE(decode(encode(negative), "zero").ok());
+}
+
+TEST(ModuleV5, checkEncodableWantsOneElevationPerObjectOnEveryLevel) {
+  Module m = tinyV5();
+  m.levels[0].objectY.pop_back();
+  const Status st = checkEncodable(m);
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.message(), "module: level 0 has 1 object elevations for 2 objects (one per object on every level)");
+}
+
+TEST(ModuleV5, tallestObjectIsFoundPerSquare) {
+  Module m = samples::realistic(3, 4, 8, 2);  // level 0 squares of the realistic sample
+  const Level& l0 = m.levels[0];
+  const float sx = float(l0.spacing);
+  // Two in square 0 (the second taller), one in square (1, 1).
+  m.objects = {{0, 0, 0.2f * sx, 0.2f * sx, 0, 1, 1, 5}, {0, 0, 0.7f * sx, 0.6f * sx, 0, 1, 1, 8},
+               {0, 0, 1.5f * sx, 1.5f * sx, 0, 1, 1, 2}};
+  for (Level& l : m.levels) l.objectY = {10.0f, 9.0f, 3.0f};
+  const auto t = tallestObjects(m, 0);
+  ASSERT_EQ(t.size(), std::size_t(l0.squaresX) * l0.squaresZ);
+  EXPECT_EQ(t[0], 1u);                                 // 9 + 8 over 10 + 5
+  EXPECT_EQ(t[std::size_t(l0.squaresX) + 1], 2u);
+  EXPECT_EQ(t[1], kNoObject);
+  m.levels[0].objectY = {20.0f, 9.0f, 3.0f};           // now the first is taller
+  EXPECT_EQ(tallestObjects(m, 0)[0], 0u);
 }
 
 }  // namespace

@@ -82,7 +82,7 @@ Module sample(std::uint32_t kx, std::uint32_t kz, const IndexHeader& h) {
 
 /// A module holding levels [from, to) of m (what a v2 record encodes).
 Module partOf(const Module& m, std::size_t from, std::size_t to) {
-  return {m.kx, m.kz, std::vector<module::Level>(m.levels.begin() + std::ptrdiff_t(from), m.levels.begin() + std::ptrdiff_t(to))};
+  return {m.kx, m.kz, std::vector<module::Level>(m.levels.begin() + std::ptrdiff_t(from), m.levels.begin() + std::ptrdiff_t(to)), m.objects};
 }
 
 void writePack(const std::string& dir, const IndexHeader& h, const PackLayout& layout, bool reverse = false) {

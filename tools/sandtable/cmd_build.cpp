@@ -37,6 +37,15 @@ void printModuleSummary(const convert::ElevationReport& r) {
   std::printf("  icons      %zu in icons.pack (%s), %zu textures\n", icons["names"].size(),
               icons["definitions"].get<std::string>().c_str(), icons["textures"].get<std::size_t>());
   for (const auto& msg : icons["warnings"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
+  if (!b.contains("objects")) return;
+  const auto& objects = b["objects"];
+  std::string classes;
+  for (const auto& [name, n] : objects["by_class"].items()) {
+    classes += (classes.empty() ? "" : ", ") + std::to_string(n.get<std::uint64_t>()) + " " + name;
+  }
+  std::printf("  objects    %llu placed%s%s\n", static_cast<unsigned long long>(objects["count"].get<std::uint64_t>()),
+              classes.empty() ? "" : ": ", classes.c_str());
+  for (const auto& msg : objects["warnings"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
 }
 
 struct BuildArgs {
@@ -129,6 +138,7 @@ int runBuild(BuildArgs& a) {
       j["modules"] = r.manifest.build["modules"];
       j["culture"] = r.manifest.build["culture"];
       j["icons"] = r.manifest.build["icons"];
+      j["objects"] = r.manifest.build["objects"];
     }
     std::printf("%s\n", j.dump(2).c_str());
     return kOk;
@@ -185,6 +195,9 @@ void registerBuild(CLI::App& root, Commands& c) {
                   "Material table (default: the built-in samples/materials.txt; format in docs/FORMAT.md)");
   sub->add_option("--icons", a->o.icons,
                   "Icon definition file (docs/ICONS.md); icons.pack always holds the built-in tree too");
+  sub->add_option("--objects", a->o.objects,
+                  "Points files of explicit objects: fields icon, heading (degrees), scale; any OGR vector "
+                  "(GeoJSON, GeoPackage, CSV with x/lon and y/lat columns)");
   sub->add_option("--module-size", a->o.moduleSize,
                   "Load-module edge in metres, rounded to a whole number of coarsest-level posts")
       ->default_val(1000.0);
@@ -196,12 +209,13 @@ void registerBuild(CLI::App& root, Commands& c) {
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--module-version", a->o.moduleVersion,
-                  "Load-module format: 4 (compact: lattice heights, implicit skirts, culture heights on the lattice "
+                  "Load-module format: 5 (version 4 with static objects), 4 (compact: lattice heights, implicit "
+                  "skirts, culture heights on the lattice "
                   "plane, integer decal texture, meshopt streams, optional normals), 3 (culture heights re-quantised, "
                   "float decal texture), 2 (the same without implicit skirts and plane heights) or 1 (the original "
                   "float planes); docs/FORMAT.md section 9")
-      ->default_val(4)
-      ->check(CLI::Range(1, 4));
+      ->default_val(5)
+      ->check(CLI::Range(1, 5));
   sub->add_option("--height-step", a->o.heightStep,
                   "Module version 2 to 4 height quantisation step in metres; every module height is within half a "
                   "step of the grid's (0 keeps exact float heights)")

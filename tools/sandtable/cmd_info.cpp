@@ -97,6 +97,11 @@ nlohmann::json infoJson(const Database& db) {
   j["culture"] = field(m.build, "culture");
   // The icons of icons.pack; null for a database built before icons.
   j["icons"] = db.icons ? iconsJson(*db.icons) : nlohmann::json();
+  // Static objects as the build placed them; 0 and {} before objects.
+  const auto& objects = field(m.build, "objects");
+  j["objects"] = objects.is_object() ? objects.value("count", std::uint64_t(0)) : std::uint64_t(0);
+  j["objects_by_class"] = objects.is_object() && objects.contains("by_class") ? objects["by_class"]
+                                                                               : nlohmann::json::object();
   return j;
 }
 
@@ -181,6 +186,11 @@ void printHuman(const nlohmann::json& j) {
   if (!j["modules"].is_null()) printModules(j["modules"]);
   if (!j["culture"].is_null()) printCulture(j["culture"]);
   if (!j["icons"].is_null()) printIconLines(j["icons"]);
+  std::string classes;
+  for (const auto& [name, n] : j["objects_by_class"].items()) {
+    classes += (classes.empty() ? ": " : ", ") + std::to_string(n.get<std::uint64_t>()) + " " + name;
+  }
+  std::printf("objects    %llu%s\n", static_cast<unsigned long long>(j["objects"].get<std::uint64_t>()), classes.c_str());
 }
 
 }  // namespace

@@ -20,6 +20,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::culture", "--culture"},
     {"ElevationOptions::materials", "--materials"},
     {"ElevationOptions::icons", "--icons"},
+    {"ElevationOptions::objects", "--objects"},
     {"ElevationOptions::modules = false", "--no-modules"},
     {"ElevationOptions::zstdLevel", "--zstd-level"},
     {"ElevationOptions::moduleVersion", "--module-version"},

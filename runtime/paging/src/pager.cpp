@@ -349,6 +349,8 @@ bool loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
     im.count.placeholders.fetch_add(1, std::memory_order_relaxed);
   }
   d.placeholder = placeholder;
+  if (placeholder) d.objects.clear();
+  else d.objects.assign(loaded.objects.begin(), loaded.objects.end());
   s.finest[0].store(coarse, std::memory_order_release);
   std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
@@ -501,6 +503,7 @@ void reloadModule(Impl& im, Loader& ld, Slot& s, std::uint64_t w) {
   d.kz = k.kz;
   d.placeholder = false;
   d.generation = read.generation;
+  d.objects.assign(m.objects.begin(), m.objects.end());
   s.finest[nb].store(finest, std::memory_order_release);
   std::uint64_t expect = w;
   if (!s.word.compare_exchange_strong(

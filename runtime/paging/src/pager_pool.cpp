@@ -130,12 +130,14 @@ void reserveAtLeast(std::vector<T>& v, std::size_t n) {
 }  // namespace
 
 std::uint64_t levelCapacityBytes(const module::Level& l) {
-  return capBytes(l.vertices) + capBytes(l.indices) + capBytes(l.groups) + capBytes(l.maxHeight);
+  return capBytes(l.vertices) + capBytes(l.indices) + capBytes(l.groups) + capBytes(l.maxHeight) +
+         capBytes(l.objectY);
 }
 
 std::uint64_t levelGrowthBytes(const module::Level& src, const module::Level& dst) {
   return growBytes(src.vertices, dst.vertices) + growBytes(src.indices, dst.indices) +
-         growBytes(src.groups, dst.groups) + growBytes(src.maxHeight, dst.maxHeight);
+         growBytes(src.groups, dst.groups) + growBytes(src.maxHeight, dst.maxHeight) +
+         growBytes(src.objectY, dst.objectY);
 }
 
 void copyLevel(const module::Level& src, module::Level& dst) {
@@ -148,6 +150,7 @@ void copyLevel(const module::Level& src, module::Level& dst) {
   dst.indices.assign(src.indices.begin(), src.indices.end());
   dst.groups.assign(src.groups.begin(), src.groups.end());
   dst.maxHeight.assign(src.maxHeight.begin(), src.maxHeight.end());
+  dst.objectY.assign(src.objectY.begin(), src.objectY.end());
 }
 
 void reserveLike(const module::Level& src, module::Level& dst) {
@@ -159,6 +162,7 @@ void reserveLike(const module::Level& src, module::Level& dst) {
 
 void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, std::uint32_t kx,
                       std::uint32_t kz, std::uint16_t material, module::Level& out) {
+  out.objectY.clear();  // a stand-in carries no objects
   const int levels = int(std::max<std::uint32_t>(h.levels, 1));
   const std::uint32_t S = std::max<std::uint32_t>(h.moduleSquares, 1);
   const std::uint32_t lastI = grid.postsX() - 1, lastJ = grid.postsZ() - 1;

@@ -97,6 +97,7 @@ struct CultureStats {
   /// reason that applies to it.
   std::map<std::string, ReasonStats> reasons;
   std::uint64_t featuresRead = 0;  ///< line and area features (points are not culture)
+  std::uint64_t pointsPlaced = 0;  ///< point features a `place` line matched, inside the database
   std::uint64_t featuresLanded = 0;   ///< of those, on the database (kept, or default-class areas inside it)
   std::uint64_t featuresOutside = 0;  ///< of those, wholly outside the database (dropped, not a warning)
   std::uint64_t lineVerticesRead = 0;  ///< centreline vertices of the kept line features, as read (clipped)
@@ -142,6 +143,13 @@ inline double threadCpuSeconds() {
 /// input.
 using meshing::LevelLattice;
 
+/// A point feature that a `place` line of the material table matched, in
+/// the database frame (metres east and south of the north-west post).
+struct PointFeature {
+  double x = 0, z = 0;
+  std::uint32_t place = 0;  ///< index into Table::places
+};
+
 /// Loaded, classified and transformed culture; immutable after load, so
 /// decalLevel may run on many threads at once.
 class Culture {
@@ -153,6 +161,8 @@ class Culture {
                                                       const CultureFrame& frame);
   virtual ~Culture() = default;
   virtual const CultureStats& stats() const = 0;
+  /// Point features matched by `place` lines, inside the database, in read order.
+  virtual const std::vector<PointFeature>& points() const = 0;
   /// Fills `out` (vertices, indices, groups sorted by priority, square,
   /// half, material; spacing and squares counts) with the skin and decals
   /// of one level, replacing what it held. Leaves maxHeight, skirtDepth and

@@ -8,6 +8,7 @@
 
 #include "sandtable/converters/culture.h"
 #include "sandtable/converters/elevation.h"
+#include "sandtable/converters/objects.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/pack.h"
 #include "sandtable/meshing/lattice.h"
@@ -30,6 +31,9 @@ struct ModuleOptions {
   /// they cost about 30% of the pack and the renderer samples the grid's
   /// normals itself (docs/FORMAT.md §9.7).
   bool normals = false;
+  /// Static objects to place (version 5 modules; null or empty: none). Not
+  /// owned; must outlive buildModules.
+  const ObjectPlan* objects = nullptr;
 };
 
 // moduleSquares and nodeSquares (sandtable/meshing/lattice.h), as the
@@ -72,6 +76,7 @@ struct ModuleReport {
   double heightStep = 0;
   bool normals = false;  ///< version 2 levels carry octahedral normals
   StageSeconds stages;
+  ObjectTotals objects;  ///< objects placed, over every module
 };
 
 /// Builds every module of `grid` into `directory` (modules.pack, modules.idx).

@@ -60,9 +60,43 @@ struct Rule {
   bool operator==(const Rule&) const = default;
 };
 
+/// How placed objects vary: a uniform scale in [scaleMin, scaleMax] and a
+/// heading uniform over the turn, from a hash of the seed and the position
+/// (the same object for the same seed, whatever the module size).
+struct Variation {
+  double scaleMin = 1, scaleMax = 1;
+  bool operator==(const Variation&) const = default;
+};
+
+/// `scatter CLASS icon=NAME density=N [scale=A..B] [seed=S]`: areas of an
+/// area class get the icon at N objects per hectare (seed chapter V.F,
+/// beyond its hand-placed icons: forests with trees), never under a decal
+/// (a road, a river) nor on another class.
+struct Scatter {
+  std::string className;
+  std::string icon;
+  double perHectare = 0;  ///< (0, 10000]
+  Variation variation;
+  std::uint64_t seed = 1;
+  bool operator==(const Scatter&) const = default;
+};
+
+/// `place KEY=VALUE icon=NAME [scale=A..B]`: point features whose
+/// attribute matches (as rules match: * any, case-insensitive) become the
+/// icon. The first matching place line wins.
+struct Place {
+  std::string key;
+  std::string value;
+  std::string icon;
+  Variation variation;
+  bool operator==(const Place&) const = default;
+};
+
 struct Table {
   std::vector<Class> classes;
   std::vector<Rule> rules;
+  std::vector<Scatter> scatters;
+  std::vector<Place> places;
   std::uint16_t defaultArea = 0;  ///< class for skin not covered by any feature and for unknown areas
   std::uint16_t defaultLine = 0;  ///< class for unknown line features; kNoClass: they are ignored
 
@@ -89,6 +123,9 @@ struct Match {
   double width = 0;      ///< from the rule's width field, else the class default
   bool matched = false;  ///< false: fell back to a default class (a warning)
 };
+
+/// The place line a point feature matches, or nullptr.
+const Place* placeFor(const Table& t, const std::string& layer, const void* feature, AttributeFn attr);
 
 /// Applies the rules. `layer` is the source layer name; `attr` reads the
 /// feature's attributes. `isLine` selects the default when no rule matches.

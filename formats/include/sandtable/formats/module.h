@@ -48,8 +48,13 @@ inline constexpr std::uint32_t kVersion3 = 3;
 /// texture coordinates are stored as integers (flags below).
 inline constexpr std::array<char, 8> kMagic4 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '4'};
 inline constexpr std::uint32_t kVersion4 = 4;
+/// Version 5 (docs/FORMAT.md §9.10): version 4's levels followed by the
+/// static objects section (below): icon instances with an elevation on
+/// every level of detail (seed chapter V.F, obslocstruct yloc[], Figure 87).
+inline constexpr std::array<char, 8> kMagic5 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '5'};
+inline constexpr std::uint32_t kVersion5 = 5;
 /// The version writers produce by default.
-inline constexpr std::uint32_t kNewestVersion = kVersion4;
+inline constexpr std::uint32_t kNewestVersion = kVersion5;
 /// Default height quantisation step of version 2, metres (1 cm).
 inline constexpr double kDefaultHeightStep = 0.01;
 
@@ -195,6 +200,33 @@ static_assert(levelField2::runBytes + 4 == kLevelHeaderBytes2, "version 2 level 
 /// bits per 16 bytes of one byte lane); decode refuses larger claims.
 inline constexpr std::uint64_t kMaxVertexStreamExpansion = 64;
 
+// ------------------------------------------------------- layout, version 5
+// After the last level, the objects section:
+//
+//   objectCount  u32 n
+//   icon         u16[n]   index into icons.pack
+//   class        u16[n]   material class that placed it (kObjectClassExplicit: a points file)
+//   x, z         f32[n]   module-local metres, as vertices
+//   heading      u16[n]   clockwise from north (-z), code * 2 pi / 65536
+//   scale        f32[n]   > 0, times the icon's size
+//   radius       f32[n]   bounding cylinder, scaled, metres, >= 0
+//   height       f32[n]
+//   y            f32[n] per level, finest first: the base on that level's
+//                triangles at (x, z)
+//
+// every plane of width > 1 byte-shuffled like the others. A record of the
+// pack's split layout is a module of its own levels: each record carries
+// the whole objects list with the elevations of its levels.
+inline constexpr std::uint32_t kObjectBytes = 2 + 2 + 4 + 4 + 2 + 4 + 4 + 4;  ///< before the y planes
+/// Object::cls of a points file's objects; 0xff00 + k: the material table's
+/// k-th `place` line; below 0xff00: the area class a `scatter` line filled.
+inline constexpr std::uint16_t kObjectClassExplicit = 0xffff;
+inline constexpr std::uint16_t kObjectClassPlace = 0xff00;
+inline constexpr std::uint32_t kMaxPlaceLines = 0xff;
+/// A module holds at most this many objects (decode refuses more).
+inline constexpr std::uint32_t kMaxObjects = 1u << 20;
+static_assert(kObjectBytes == 26, "object plane widths");
+
 /// Which part of a grid square a group of triangles belongs to.
 enum class Half : std::uint8_t {
   upper = 0,  ///< NW, NE, SW corners
@@ -260,6 +292,9 @@ struct Level {
   /// 0 = exact (version 1, or a version 2 level stored exact). Not encoded
   /// from here: encode takes EncodeOptions::heightStep.
   double heightStep = 0;
+  /// Version 5: the base elevation of each of Module::objects on this
+  /// level's triangles, metres (same size as Module::objects).
+  std::vector<float> objectY;
 };
 
 /// Octahedral normal (seed: none; Cigolle et al. 2014), folded about y (up):
@@ -270,11 +305,41 @@ std::uint32_t octEncode(float x, float y, float z);
 /// Inverse of octEncode, unit length (x, y, z).
 std::array<float, 3> octDecode(std::uint32_t packed);
 
+/// A static object standing on the terrain (version 5): one instance of an
+/// icon. Its base elevation on each level is Level::objectY[k].
+struct Object {
+  std::uint16_t icon = 0;                         ///< index into icons.pack
+  std::uint16_t cls = kObjectClassExplicit;       ///< material class that placed it
+  float x = 0, z = 0;                             ///< module-local metres
+  std::uint16_t heading = 0;                      ///< clockwise from north, 65536 per turn
+  float scale = 1;                                ///< times the icon's size
+  float radius = 0, height = 0;                   ///< bounding cylinder, scaled
+};
+
+/// Heading in radians of an Object::heading code.
+inline double headingRadians(std::uint16_t code) { return double(code) * (6.283185307179586 / 65536.0); }
+/// Nearest heading code of an angle in radians (any value; wraps).
+inline std::uint16_t headingCode(double radians) {
+  const double turns = radians / 6.283185307179586;
+  return static_cast<std::uint16_t>(std::llround((turns - std::floor(turns)) * 65536.0) & 0xffff);
+}
+
 struct Module {
   std::uint32_t kx = 0;  ///< column of the module, from the west edge
   std::uint32_t kz = 0;  ///< row of the module, from the north edge
   std::vector<Level> levels;  ///< [0] is the finest
+  /// Static objects (version 5; empty from older versions): each level's
+  /// objectY has one elevation per object.
+  std::vector<Object> objects;
 };
+
+/// The tallest object of every level-0 grid square of `level`, row-major
+/// (squaresX * squaresZ): the index of the object whose top
+/// (objectY + height) is highest among those whose (x, z) lies in the
+/// square, or kNoObject. The first level of the entity issue's collision
+/// test; derived from the objects, not stored (docs/FORMAT.md §9.10).
+inline constexpr std::uint32_t kNoObject = 0xffffffffu;
+std::vector<std::uint32_t> tallestObjects(const Module& m, std::size_t level);
 
 /// What encode needs and the bytes cannot say: 1 to 16 levels, squares
 /// counts 1..65536, maxHeight sized squaresX * squaresZ, and every group's
@@ -285,13 +350,14 @@ struct Module {
 /// checked by decode.
 Status checkEncodable(const Module& m);
 
-/// Exact size of encode(m, {.version = 1}) in bytes; a version 2 encoding
+/// Exact size of encode(m, {.version = 1}) in bytes, plus version 5's
+/// objects section when m has objects; a version 2 to 5 encoding
 /// is smaller for every module a builder makes (it is an upper bound used
 /// to refuse oversized modules before encoding).
 std::uint64_t encodedBytes(const Module& m);
 
 struct EncodeOptions {
-  std::uint32_t version = kNewestVersion;  ///< 1, 2, 3 or 4
+  std::uint32_t version = kNewestVersion;  ///< 1 to 5 (objects need 5; older versions drop them)
   double heightStep = kDefaultHeightStep;  ///< versions 2 to 4; <= 0 stores exact float heights
 };
 

@@ -16,6 +16,7 @@
 // Thread safety: a ModuleChecker is immutable after construction; check()
 // and neighbours() may run concurrently on distinct modules.
 #include <array>
+#include <optional>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -38,12 +39,17 @@ inline constexpr double kCheckAreaTolerance = 1e-6;
 /// How far maxHeight may lie above the highest vertex of its square, metres.
 inline constexpr double kCheckMaxHeightTolerance = 1e-3;
 
+/// How far an object's base may lie from its level's surface, metres.
+inline constexpr double kCheckObjectTolerance = 0.01;
+
 /// What the checks may consult and how much they report.
 struct CheckOptions {
   /// When set, every group's material id must be a class of this table,
   /// skin groups must use area classes and decal groups line classes of
   /// the group's priority.
   const materials::Table* materials = nullptr;
+  /// When set, every object's icon must be below this count (icons.pack).
+  std::optional<std::uint32_t> iconCount;
   /// Problems of one kind listed per module (or per neighbour pair) before
   /// the rest are summarised in one line; 0 lists them all.
   std::uint32_t maxPerKind = 5;

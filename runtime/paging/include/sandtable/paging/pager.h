@@ -298,6 +298,10 @@ struct ResidentModule {
   bool placeholder = false;  ///< a coarse stand-in from the grid (missing, corrupt, or no budget)
   std::uint64_t generation = 0;  ///< the source's generation of these levels (ModuleSource)
   std::vector<module::Level> levels;
+  /// Static objects (module version 5): each resident level's objectY has
+  /// one elevation per object; none on a placeholder. Not counted in the
+  /// memory budget (a few tens of bytes each).
+  std::vector<module::Object> objects;
 };
 
 /// A read guard on one resident module: while it lives, the module's
