@@ -1266,20 +1266,25 @@ TEST(ModuleV4, textureThatIsNotOnAStepAndExactHeightsRoundTripBitForBit) {
   EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + kHeaderBytes + levelField2::flags) & kLevel4PlaneOffsets, 0u);
 }
 
-TEST(ModuleV4, everyTruncatedPrefixAndFlippedByteIsCaught) {
-  for (auto bytes : {encode(tinyV4()), encode(samples::realistic(2, 3, 4, 2))}) {
-    for (std::size_t n = 0; n < bytes.size(); ++n) {
-      auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
-      ASSERT_FALSE(m.ok()) << "prefix " << n;
-      EXPECT_EQ(m.problems().front().offset, 1000 + n) << m.problems().front().message;
-      EXPECT_NE(m.problems().front().message.find("truncated"), std::string::npos);
-    }
-    for (std::size_t off = 0; off < bytes.size(); ++off) {
-      bytes[off] ^= std::byte{0x20};
-      EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
-      bytes[off] ^= std::byte{0x20};
-    }
+/// Every prefix of `bytes` is refused as truncated at its end, and every
+/// single flipped byte is caught.
+void expectPrefixesAndFlipsCaught(std::vector<std::byte> bytes) {
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
+    ASSERT_FALSE(m.ok()) << "prefix " << n;
+    EXPECT_EQ(m.problems().front().offset, 1000 + n) << m.problems().front().message;
+    EXPECT_NE(m.problems().front().message.find("truncated"), std::string::npos);
   }
+  for (std::size_t off = 0; off < bytes.size(); ++off) {
+    bytes[off] ^= std::byte{0x20};
+    EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
+    bytes[off] ^= std::byte{0x20};
+  }
+}
+
+TEST(ModuleV4, everyTruncatedPrefixAndFlippedByteIsCaught) {
+  expectPrefixesAndFlipsCaught(encode(tinyV4(), {.version = 4}));
+  expectPrefixesAndFlipsCaught(encode(samples::realistic(2, 3, 4, 2), {.version = 4}));
 }
 
 TEST(ModuleV4, hostileFieldsAreRefusedBeforeAllocating) {
@@ -1388,20 +1393,7 @@ TEST(ModuleV5, manyObjectsOnManyLevelsRoundTripBitForBit) {
   EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
 }
 
-TEST(ModuleV5, everyTruncatedPrefixAndFlippedByteIsCaught) {
-  auto bytes = encode(tinyV5());
-  for (std::size_t n = 0; n < bytes.size(); ++n) {
-    auto m = decode(std::span(bytes).first(n), "cut.bin", 1000);
-    ASSERT_FALSE(m.ok()) << "prefix " << n;
-    EXPECT_EQ(m.problems().front().offset, 1000 + n) << m.problems().front().message;
-    EXPECT_NE(m.problems().front().message.find("truncated"), std::string::npos);
-  }
-  for (std::size_t off = 0; off < bytes.size(); ++off) {
-    bytes[off] ^= std::byte{0x20};
-    EXPECT_FALSE(decode(bytes, "flip").ok()) << "flip at " << off << " not caught";
-    bytes[off] ^= std::byte{0x20};
-  }
-}
+TEST(ModuleV5, everyTruncatedPrefixAndFlippedByteIsCaught) { expectPrefixesAndFlipsCaught(encode(tinyV5())); }
 
 /// tinyV5's encoding with the objects section's bytes at `at` (from the
 /// section's start) set to `value`, and the checksums resealed.
