@@ -102,11 +102,6 @@ void vary(const materials::Variation& v, std::uint64_t seed, std::uint64_t key, 
   heading = std::uint16_t(mix(h) & 0xffff);
 }
 
-float levelHeight(const module::Level& level, float x, float z) {
-  const Hit h = locate(level, groupsBySquare(level, skinGroup), x, z);
-  return h.inside >= kOnTriangle ? h.y : std::numeric_limits<float>::quiet_NaN();
-}
-
 void placeObjects(const ObjectPlan& plan, const std::vector<std::uint32_t>& points, double x0, double z0,
                   module::Module& m, ObjectTotals& totals) {
   if (m.levels.empty()) return;

@@ -1,5 +1,6 @@
 #include "sandtable/formats/database.h"
 
+#include <optional>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -122,8 +123,8 @@ bool checkPackAgreement(const manifest::Manifest& m, const grid::Header* g, cons
 /// Load modules: the pack's own checks, the material table, then every
 /// module's geometry and its edges against its west and north neighbours,
 /// row by row (only the previous row's edges are kept).
-void checkModules(const std::string& dir, const manifest::Manifest& m, const grid::GridFile* g, const Work& work,
-                  std::vector<Problem>& out) {
+void checkModules(const std::string& dir, const manifest::Manifest& m, const grid::GridFile* g,
+                  std::optional<std::uint32_t> iconCount, const Work& work, std::vector<Problem>& out) {
   const bool idx = lists(m, pack::kIndexFileName), pk = lists(m, pack::kPackFileName);
   const std::string manifestPath = dir + "/" + manifest::kFileName;
   if (!idx && !pk) return;
@@ -157,10 +158,7 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
     const pack::IndexHeader& h = r.header();
     module::CheckOptions o;
     o.materials = table ? &*table : nullptr;
-    if (lists(m, iconpack::kFileName)) {
-      // Decoded (and its problems reported) by validateDatabase itself.
-      if (auto icons = iconpack::readFile(dir + "/" + iconpack::kFileName)) o.iconCount = std::uint32_t(icons->icons.size());
-    }
+    o.iconCount = iconCount;
     const module::ModuleChecker checker(*g, h, r.packPath(), o);
     std::vector<module::ModuleEdges> above(h.modulesX), row(h.modulesX);
     std::vector<bool> haveAbove(h.modulesX, false), haveRow(h.modulesX, false);
@@ -256,12 +254,17 @@ Status validateDatabase(const std::string& directory, const Work& work) {
   if (stopped(gridPath)) return out;
   auto g = grid::GridFile::open(gridPath);
   if (g) checkAgreement(m.value(), g.value()->header(), gridPath, out);
-  checkModules(directory, m.value(), g ? g.value().get() : nullptr, work, out);
-  if (stopped(directory + "/" + pack::kPackFileName)) return out;
+  // icons.pack before the modules: their icon indices are checked against it.
+  std::optional<std::uint32_t> iconCount;
+  std::vector<Problem> iconProblems;
   if (lists(m.value(), iconpack::kFileName)) {
     const auto icons = iconpack::readFile(directory + "/" + iconpack::kFileName);
-    out.insert(out.end(), icons.problems().begin(), icons.problems().end());
+    if (icons) iconCount = std::uint32_t(icons->icons.size());
+    iconProblems = icons.problems();
   }
+  checkModules(directory, m.value(), g ? g.value().get() : nullptr, iconCount, work, out);
+  if (stopped(directory + "/" + pack::kPackFileName)) return out;
+  out.insert(out.end(), iconProblems.begin(), iconProblems.end());  // after the modules', as before
   return out;
 }
 

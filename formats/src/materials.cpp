@@ -298,17 +298,25 @@ class Parser {
     classLines_.push_back(line_);
   }
 
+  /// tok[1] split at its first '=' into a non-empty key and value (rule
+  /// and place lines); false (a problem reported) when it is not KEY=VALUE.
+  bool keyValue(const std::vector<std::string_view>& tok, std::string& key, std::string& value) {
+    const std::size_t eq = tok[1].find('=');
+    if (eq == std::string_view::npos || eq == 0 || eq + 1 == tok[1].size()) {
+      fail(quoted(tok[1]) + " is not KEY=VALUE (VALUE * matches any non-empty value)");
+      return false;
+    }
+    key = std::string(tok[1].substr(0, eq));
+    value = std::string(tok[1].substr(eq + 1));
+    return true;
+  }
+
   void ruleLine(const std::vector<std::string_view>& tok) {
     if (tok.size() < 3 || tok.size() > 4) {
       return fail("rule needs KEY=VALUE and a class name: rule KEY=VALUE CLASS [width-field=FIELD]");
     }
-    const std::size_t eq = tok[1].find('=');
-    if (eq == std::string_view::npos || eq == 0 || eq + 1 == tok[1].size()) {
-      return fail(quoted(tok[1]) + " is not KEY=VALUE (VALUE * matches any non-empty value)");
-    }
     Rule r;
-    r.key = std::string(tok[1].substr(0, eq));
-    r.value = std::string(tok[1].substr(eq + 1));
+    if (!keyValue(tok, r.key, r.value)) return;
     r.className = std::string(tok[2]);
     if (tok.size() == 4) {
       constexpr std::string_view opt = "width-field=";
@@ -376,13 +384,8 @@ class Parser {
 
   void placeLine(const std::vector<std::string_view>& tok) {
     if (tok.size() < 3) return fail("place needs KEY=VALUE and options: place KEY=VALUE icon=NAME [scale=A..B]");
-    const std::size_t eq = tok[1].find('=');
-    if (eq == std::string_view::npos || eq == 0 || eq + 1 == tok[1].size()) {
-      return fail(quoted(tok[1]) + " is not KEY=VALUE (VALUE * matches any non-empty value)");
-    }
     Place pl;
-    pl.key = std::string(tok[1].substr(0, eq));
-    pl.value = std::string(tok[1].substr(eq + 1));
+    if (!keyValue(tok, pl.key, pl.value)) return;
     if (!objectOptions(tok, 2, false, pl.icon, nullptr, pl.variation, nullptr)) return;
     table_.places.push_back(std::move(pl));
   }

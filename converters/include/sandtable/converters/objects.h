@@ -62,12 +62,6 @@ Result<ObjectPlan> makeObjectPlan(const std::vector<std::string>& files, const C
 void vary(const materials::Variation& v, std::uint64_t seed, std::uint64_t key, float& scale,
           std::uint16_t& heading);
 
-/// The surface height of `level` at module-local (x, z): the skin triangle
-/// that holds the point, interpolated (decals lie on the skin). Points
-/// outside the level's squares are clamped to its edge squares; NaN when no
-/// skin triangle holds the point (a hole: never in a built level).
-float levelHeight(const module::Level& level, float x, float z);
-
 /// Counts from placing one module's objects.
 struct ObjectTotals {
   std::uint64_t placed = 0;
