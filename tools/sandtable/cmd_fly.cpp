@@ -66,6 +66,8 @@ struct FlyArgs {
   double memoryBudgetMb = 1024;
   bool noSky = false;
   std::uint32_t msaa = 0;
+  bool noObjects = false;
+  double objectFade = runtime::kDefaultObjectFade;
   std::string shading = "smooth";
   std::string colour = "natural";
   // the stealth viewer: window, map, free flight, outputs
@@ -263,6 +265,8 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.pager.budgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
   o.view.sky = !a.noSky;
   o.render.msaa = a.msaa;
+  o.render.objects = !a.noObjects;
+  o.render.objectFade = a.objectFade;
   if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
   else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
@@ -518,6 +522,10 @@ void registerFly(CLI::App& root, Commands& c) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--msaa", args->msaa, "Samples per pixel (0 off; 4 steadies thin far decals)")
       ->capture_default_str()->check(CLI::Range(0u, 16u));
+  sub->add_flag("--no-objects", args->noObjects, "Do not draw the modules' static objects (trees, placed icons)");
+  sub->add_option("--object-fade", args->objectFade,
+                  "Fraction of each icon's far range over which its objects fade in (0 pops them in)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_option("--shading", args->shading,
                   "smooth (per-post normals, elevation tint) or flat (the seed's per-triangle look)")
       ->capture_default_str();

@@ -38,6 +38,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"SynthOptions::threads", "--threads"},
     {"RenderOptions::mode = ", "--mode "},
     {"RenderOptions::msaa", "--msaa"},
+    {"RenderOptions::objectFade", "--object-fade"},
     {"RenderOptions::mode", "--mode"},
     {"OutputOptions::frames", "--frames"},
     {"ViewOptions::width/height", "--size"},

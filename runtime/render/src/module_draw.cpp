@@ -912,6 +912,7 @@ void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   moduleSize_ = buf.moduleSize;
   drawn_.clear();
   cells_.clear();
+  moduleCells_.assign(buf.modules.size(), {0, 0});
   const std::uint64_t budget = settings_.uploadBudgetBytes;
   std::uint64_t spent = 0;
   // Uploads go nearest first (nodes are grouped by module, nearest module
@@ -996,6 +997,7 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
   const std::uint32_t side0 = nodesPerSide(0, levels);
   const auto cells = std::uint32_t(cells_.size());
   cells_.resize(cells_.size() + std::size_t(side0) * side0);
+  moduleCells_[buf.nodes[i0].module] = {cells, side0};
   for (const Span& sp : spans_) {
     for (std::uint64_t m = sp.f; m < sp.t; ++m) {
       const auto [x, z] = mortonCell(std::uint32_t(m));
@@ -1007,6 +1009,21 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
     drawn_.push_back({entryAt(sp.level), sp.level, std::uint32_t(sp.f >> s), std::uint32_t(sp.t >> s), sp.morph,
                       buf.nodes[i0].module, cells, side0});
   }
+}
+
+bool ModuleRenderer::drawnAt(std::uint32_t module, double x, double z, std::uint32_t& level,
+                             float& morph) const {
+  if (module >= moduleCells_.size() || moduleSize_ <= 0) return false;
+  const auto [first, side] = moduleCells_[module];
+  if (side == 0) return false;
+  const double cell = moduleSize_ / side;
+  const auto cx = std::uint32_t(std::clamp(std::floor(x / cell), 0.0, double(side - 1)));
+  const auto cz = std::uint32_t(std::clamp(std::floor(z / cell), 0.0, double(side - 1)));
+  const Cell& c = cells_[first + std::size_t(cz) * side + cx];
+  if (c.level == UINT32_MAX) return false;
+  level = c.level;
+  morph = c.morph;
+  return true;
 }
 
 bool ModuleRenderer::skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint32_t side) const {

@@ -146,6 +146,12 @@ class ModuleRenderer {
   /// as in a module) seen by `camera`, through the same program, buffers
   /// and draw path as the modules; times each frame to the GPU's finish.
   /// `beginFrame` binds and clears the target before each frame.
+  /// The level and morph the terrain of buf.modules[module] is drawn with
+  /// at module-local (x, z) this frame (after the upload budget's
+  /// fallback); false where none of it is drawn. Valid from prepare() to
+  /// finishFrame().
+  bool drawnAt(std::uint32_t module, double x, double z, std::uint32_t& level, float& morph) const;
+
   PlainGridRun drawPlainGrid(const Camera& camera, std::uint32_t squares, double spacing,
                              std::uint32_t nodeSquares, std::uint32_t frames,
                              const std::function<void()>& beginFrame);
@@ -245,6 +251,8 @@ class ModuleRenderer {
   // Per-frame scratch (capacity kept).
   std::vector<Drawn> drawn_;
   std::vector<Cell> cells_;  ///< per drawn module, side0 x side0 (Drawn::cells)
+  /// Per buf.modules index: its first Cell in cells_ and their side (none: side 0).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> moduleCells_;
   struct Span {
     std::uint32_t level;
     std::uint64_t f, t;  ///< finest-grid Morton range

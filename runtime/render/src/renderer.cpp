@@ -11,6 +11,7 @@
 
 #include "sandtable/scene/camera_math.h"
 #include "module_draw.h"
+#include "object_draw.h"
 #include "sandtable/render/egl_context.h"
 #include "sandtable/render/gl_program.h"
 #include "terrain_shading.h"
@@ -147,6 +148,7 @@ struct Renderer::Impl {
   GLuint behindTexture = 0; ///< the frame under the darkened boxes, copied there
   std::vector<std::uint8_t> readback;
   std::unique_ptr<detail::ModuleRenderer> modules;
+  std::unique_ptr<detail::ObjectRenderer> objects;  ///< when RenderSettings::icons is set
   std::unique_ptr<ModelsPass> models;
   RenderStats stats;
   std::uint64_t frame = 0, readBackCount = 0;
@@ -155,6 +157,7 @@ struct Renderer::Impl {
   ~Impl() {
     if (!egl) return;
     models.reset();
+    objects.reset();
     modules.reset();
     terrainProgram.reset();
     skyProgram.reset();
@@ -244,6 +247,10 @@ struct Renderer::Impl {
     darkenProgram = std::move(darken.value());
     modules = std::make_unique<detail::ModuleRenderer>();
     if (Status st = modules->create(settings); !st) return st;
+    if (settings.icons && !settings.icons->icons.empty()) {
+      objects = std::make_unique<detail::ObjectRenderer>();
+      if (Status st = objects->create(settings); !st) return st;
+    }
     // Settings that never change over a flight.
     detail::setShadingUniforms(terrainProgram, settings);
     terrainProgram.set("uFlat", int(settings.shading == Shading::flat));
@@ -324,6 +331,7 @@ struct Renderer::Impl {
         if (buf.moduleMode) modules->drawDecals(buf, stats);
         break;
       case RenderPass::models:
+        if (objects && buf.moduleMode) objects->draw(buf, vp, *modules, stats);
         if (models) {
           PassContext ctx{buf, {}};
           std::copy(vp.data(), vp.data() + 16, ctx.viewProjection.begin());

@@ -117,6 +117,10 @@ nlohmann::json frameJson(const FrameStats& s) {
                     {"cached_levels", s.cachedLevels},
                     {"gpu_bytes", s.gpuBytes}};
     j["modules"]["nodes_placeholder"] = s.nodesPlaceholder;
+    j["objects"] = {{"drawn", s.objectsDrawn},
+                    {"instances", s.objectInstances},
+                    {"draws", s.objectDraws},
+                    {"triangles", s.objectTriangles}};
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
                   {"queue", s.pagerQueue},
@@ -168,6 +172,8 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"pixel_error", o.render.lod.pixelError},
                   {"morph", o.render.lod.morph},
                   {"msaa", o.render.msaa},
+                  {"objects", o.render.objects},
+                  {"object_fade", o.render.objectFade},
                   {"hud", o.view.hud},
                   {"path_waypoints", o.motion.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -435,6 +441,10 @@ struct FlightRun {
       s.nodesFallback = rs.nodesFallback;
       s.draws = rs.draws;
       s.trianglesDrawn = rs.trianglesDrawn;
+      s.objectsDrawn = rs.objectsDrawn;
+      s.objectInstances = rs.objectInstances;
+      s.objectDraws = rs.objectDraws;
+      s.objectTriangles = rs.objectTriangles;
       handoff.pushFree(slot);
       if (!drawn) return stop(drawn);
       const auto now = Clock::now();
@@ -529,6 +539,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.shading = o.render.shading;
   rs.colour = o.render.colour;
   rs.waterMaterials = o.render.waterMaterials;
+  rs.objectFade = o.render.objectFade;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
@@ -598,6 +609,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
       run.renderSettings.palette = paletteFor(*db->materials);
       run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
     }
+    if (o.render.objects && db->icons) run.renderSettings.icons = std::make_shared<iconpack::Pack>(*db->icons);
     ModuleSceneSettings ss;
     ss.lod = o.render.lod;
     ss.imageHeight = o.view.height;
@@ -650,6 +662,8 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back(std::string("LOD ") + lodModeName(o.render.lod.mode) + "  LEVELS " + levels);
   lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
                   std::to_string(s.nodesDrawn));
+  lines.push_back("OBJECTS " + std::to_string(s.objectsDrawn) + "  INST " + std::to_string(s.objectInstances) +
+                  "  DRAWS " + std::to_string(s.objectDraws));
   lines.push_back("RESIDENT " +
                   std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
   lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
@@ -691,6 +705,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (std::string e = checkLodOptions(o.render.lod); !e.empty()) bad(e);
   if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
   if (o.render.msaa > 16) bad("RenderOptions::msaa must be 0..16 samples");
+  if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
   const Terrain terrain(std::move(g));
   if (o.motion.path.size() == 1) bad("MotionOptions::path needs at least two waypoints");
   if (o.motion.path.size() >= 2) {

@@ -11,8 +11,9 @@
 //            glMultiDrawArrays, or the load modules' skin and underlay;
 //   decals   the modules' decal priorities over their skin (and their own
 //            object polygons); nothing in mesh mode;
-//   models   the slot for the next issue's icons and objects: the
-//            ModelsPass given to setModelsPass(), else empty;
+//   models   the modules' static objects drawn with the icons of
+//            RenderSettings::icons (docs/VIEWER.md, "Objects"), then the
+//            ModelsPass given to setModelsPass(), if any;
 //   resolve  a multisampled target into the single-sampled one;
 //   hud      the Overlay (overlay.h): darkened boxes, then the layer
 //            blended over them. Height frames skip it.
@@ -34,6 +35,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/icon_pack.h"
 #include "sandtable/base/result.h"
 #include "sandtable/scene/display_buffer.h"
 #include "sandtable/render/image.h"
@@ -78,6 +80,9 @@ inline constexpr double kHeightCodeOffset = 1000.0;
 /// The height a ColourMode::height frame holds at (x, y); nullopt: no terrain.
 std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t y);
 
+/// RenderSettings::objectFade by default: the last 15 % of the far range.
+inline constexpr double kDefaultObjectFade = 0.15;
+
 /// RenderSettings::uploadBudgetBytes by default: 1 MiB a frame.
 inline constexpr std::uint64_t kDefaultUploadBudgetBytes = 1ull << 20;
 
@@ -111,6 +116,13 @@ struct RenderSettings {
   /// each frame) and are drawn meanwhile from a coarser resident level;
   /// every module's coarsest level goes up at once, whatever the budget.
   std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
+  /// Module mode: the icon database the modules' objects index
+  /// (icons.pack); null draws no objects. Height frames never draw them.
+  std::shared_ptr<const iconpack::Pack> icons;
+  /// Objects fade in over this fraction of each icon's far range (its
+  /// last switch range, capped at the view distance) instead of popping
+  /// in; 0 pops. 0 .. 1.
+  double objectFade = kDefaultObjectFade;
 };
 
 /// What the render thread did for the last frame (module mode).
@@ -127,6 +139,11 @@ struct RenderStats {
   std::uint32_t draws = 0;          ///< draw commands (one per node range and block)
   std::uint32_t drawCalls = 0;      ///< GL multi-draw calls that issued them
   std::uint64_t trianglesDrawn = 0; ///< triangles in those commands
+  /// Static objects (models pass): objects drawn (in range, under the view
+  /// triangle, inside the frustum), instances submitted, instanced draws
+  /// (one per icon and level with instances), and their triangles.
+  std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
+  std::uint64_t objectTriangles = 0;
 };
 
 /// Renderer::measureIndexedGrid: llvmpipe's (or the GPU's) own rate on a

@@ -118,6 +118,11 @@ struct RenderOptions {
   /// GPU upload bytes per frame (RenderSettings::uploadBudgetBytes); 0: no
   /// limit. PagerSettings::sync lifts it: every frame is then complete.
   std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
+  /// Draw the modules' static objects with the database's icons.pack.
+  bool objects = true;
+  /// RenderSettings::objectFade: the fraction of each icon's far range
+  /// over which its objects fade in, 0 .. 1.
+  double objectFade = kDefaultObjectFade;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).
@@ -232,6 +237,9 @@ struct FrameStats {
   std::uint32_t nodesFallback = 0;     ///< node runs drawn coarser meanwhile
   std::uint32_t draws = 0;             ///< draw commands (node ranges x blocks)
   std::uint64_t trianglesDrawn = 0;    ///< triangles the GPU was given
+  /// Static objects (RenderStats): drawn, instances, instanced draws, triangles.
+  std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
+  std::uint64_t objectTriangles = 0;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;

@@ -1,0 +1,301 @@
+#include "object_draw.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+
+#include "module_draw.h"
+#include "terrain_shading.h"
+
+namespace sandtable::runtime::detail {
+namespace {
+
+// Appended to shadingVertexGlsl(). The icon turns about Y by the heading
+// (clockwise from north seen from above: north -Z goes to east +X at 90).
+const char* kObjectVertexMain = R"(
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec4 aColour;
+layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
+layout(location = 4) in vec2 aScaleFade;
+uniform mat4 uViewProjection;
+uniform vec3 uEye;
+out vec3 vColour;
+out float vLight;
+out float vFog;
+flat out float vFade;
+void main() {
+  float c = cos(aPlace.w), s = sin(aPlace.w);
+  vec3 p = aPosition * aScaleFade.x;
+  vec3 w = vec3(p.x * c - p.z * s, p.y, p.x * s + p.z * c) + aPlace.xyz;
+  vec3 n = vec3(aNormal.x * c - aNormal.z * s, aNormal.y, aNormal.x * s + aNormal.z * c);
+  gl_Position = uViewProjection * vec4(w, 1.0);
+  vColour = aColour.rgb;
+  vLight = sunLight(n);
+  vFog = fogWeight(distance(w, uEye));
+  vFade = aScaleFade.y;
+}
+)";
+
+// Appended to shadingHeaderGlsl(). Screen-door fade: a fragment stays when
+// the fade exceeds its cell of an ordered 4 x 4 threshold pattern.
+const char* kObjectFragmentMain = R"(
+in vec3 vColour;
+in float vLight;
+in float vFog;
+flat in float vFade;
+out vec4 fragColor;
+const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
+                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
+void main() {
+  if (vFade < 1.0) {
+    ivec2 q = ivec2(gl_FragCoord.xy) & 3;
+    if (vFade * 16.0 <= kBayer[q.y * 4 + q.x]) discard;
+  }
+  fragColor = vec4(mix(uFogColor, vColour * vLight, vFog), 1.0);
+}
+)";
+
+std::uint32_t packNormal(float x, float y, float z) {
+  const float len = std::sqrt(x * x + y * y + z * z);
+  const float k = len > 0 ? 1.0f / len : 0.0f;
+  const auto q = [k](float v) {
+    const long i = std::lround(std::clamp(v * k, -1.0f, 1.0f) * 511.0f);
+    return std::uint32_t(i) & 0x3FFu;
+  };
+  return q(x) | (q(y) << 10) | (q(z) << 20);
+}
+
+std::uint32_t packRgba(const std::array<std::uint8_t, 4>& c) {
+  return std::uint32_t(c[0]) | (std::uint32_t(c[1]) << 8) | (std::uint32_t(c[2]) << 16) |
+         (std::uint32_t(c[3]) << 24);
+}
+
+/// A part's frame origin in the body frame: its offsets up the parent chain.
+std::array<float, 3> partOrigin(const iconpack::Icon& icon, std::size_t part) {
+  std::array<float, 3> o{0, 0, 0};
+  for (std::int32_t p = std::int32_t(part); p != iconpack::kBody; p = icon.parts[std::size_t(p)].parent) {
+    for (int k = 0; k < 3; ++k) o[k] += icon.parts[std::size_t(p)].offset[k];
+  }
+  return o;
+}
+
+void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
+  const auto base = std::int32_t(out.vertices.size());
+  const std::size_t levels = icon.ranges.size();
+  std::vector<std::vector<std::uint32_t>> perLevel(levels);
+  for (std::size_t p = 0; p < icon.parts.size(); ++p) {
+    const iconpack::Part& part = icon.parts[p];
+    if (part.state != iconpack::State::alive) continue;
+    const auto origin = partOrigin(icon, p);
+    for (const iconpack::Mesh& m : part.meshes) {
+      const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
+      const std::uint32_t rgba = m.material < icon.materials.size() ? packRgba(icon.materials[m.material].rgba)
+                                                                    : 0xFFFFFFFFu;
+      for (std::size_t v = 0; v < m.vertexCount(); ++v) {
+        const float* pos = &m.positions[3 * v];
+        const float* n = &m.normals[3 * v];
+        out.vertices.push_back({pos[0] + origin[0], pos[1] + origin[1], pos[2] + origin[2],
+                                packNormal(n[0], n[1], n[2]), rgba});
+      }
+      for (std::size_t l = 0; l < levels && l < m.levels.size(); ++l) {
+        for (const std::uint32_t i : m.levels[l]) perLevel[l].push_back(first + i);
+      }
+    }
+  }
+  std::vector<IconLevelRange> ranges(levels);
+  for (std::size_t l = 0; l < levels; ++l) {
+    ranges[l] = {std::uint32_t(out.indices.size()), std::uint32_t(perLevel[l].size()), base};
+    out.indices.insert(out.indices.end(), perLevel[l].begin(), perLevel[l].end());
+  }
+  out.ranges.push_back(std::move(ranges));
+}
+
+/// Whether a disc of radius r at (x, z) touches the triangle (world metres).
+bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
+  const std::array<GroundPoint, 3> v{t.apex, t.left, t.right};
+  const double area = (v[1].x - v[0].x) * (v[2].z - v[0].z) - (v[1].z - v[0].z) * (v[2].x - v[0].x);
+  const double sign = area < 0 ? -1.0 : 1.0;
+  for (int k = 0; k < 3; ++k) {
+    const GroundPoint& a = v[std::size_t(k)];
+    const GroundPoint& b = v[std::size_t((k + 1) % 3)];
+    const double ex = b.x - a.x, ez = b.z - a.z;
+    const double len = std::hypot(ex, ez);
+    if (len == 0) continue;
+    // Positive inside for a counter-clockwise (area > 0) triangle.
+    const double d = sign * (ex * (z - a.z) - ez * (x - a.x)) / len;
+    if (d < -r) return false;
+  }
+  return true;
+}
+
+/// The frustum's four side planes (Gribb and Hartmann), normalised: a
+/// point p is inside when n . p + w >= 0 for each.
+std::array<Eigen::Vector4f, 4> sidePlanes(const Eigen::Matrix4f& vp) {
+  std::array<Eigen::Vector4f, 4> planes{
+      Eigen::Vector4f(vp.row(3) + vp.row(0)), Eigen::Vector4f(vp.row(3) - vp.row(0)),
+      Eigen::Vector4f(vp.row(3) + vp.row(1)), Eigen::Vector4f(vp.row(3) - vp.row(1))};
+  for (auto& p : planes) {
+    const float n = p.head<3>().norm();
+    if (n > 0) p /= n;
+  }
+  return planes;
+}
+
+}  // namespace
+
+IconMeshes flattenIcons(const iconpack::Pack& pack) {
+  IconMeshes out;
+  for (const iconpack::Icon& icon : pack.icons) flattenIcon(icon, out);
+  return out;
+}
+
+int iconLevelAt(const iconpack::Icon& icon, double distance, double viewDistance, double fadeFraction,
+                float& fade) {
+  fade = 1.0f;
+  if (icon.ranges.empty()) return -1;
+  const double far = std::min(double(icon.ranges.back()), viewDistance);
+  if (!(distance < far)) return -1;
+  const double band = std::clamp(fadeFraction, 0.0, 1.0) * far;
+  if (band > 0 && distance > far - band) fade = float((far - distance) / band);
+  for (std::size_t l = 0; l < icon.ranges.size(); ++l) {
+    if (distance < double(icon.ranges[l])) return int(l);
+  }
+  return int(icon.ranges.size()) - 1;  // capped by the view distance
+}
+
+ObjectRenderer::~ObjectRenderer() {
+  program_.reset();
+  glDeleteVertexArrays(1, &vao_);
+  glDeleteBuffers(1, &vertexBuffer_);
+  glDeleteBuffers(1, &indexBuffer_);
+  glDeleteBuffers(1, &instanceBuffer_);
+}
+
+Status ObjectRenderer::create(const RenderSettings& s) {
+  settings_ = s;
+  auto program = GlProgram::build("object shader", shadingVertexGlsl() + kObjectVertexMain,
+                                  shadingHeaderGlsl() + kObjectFragmentMain);
+  if (!program) return program.problems();
+  program_ = std::move(program.value());
+  program_.use();
+  setShadingUniforms(program_, s);
+
+  IconMeshes meshes = flattenIcons(*s.icons);
+  ranges_ = std::move(meshes.ranges);
+  levelBase_.clear();
+  std::uint32_t buckets = 0;
+  for (const auto& r : ranges_) {
+    levelBase_.push_back(buckets);
+    buckets += std::uint32_t(r.size());
+  }
+  buckets_.assign(buckets, {});
+
+  glCreateBuffers(1, &vertexBuffer_);
+  glNamedBufferStorage(vertexBuffer_, GLsizeiptr(std::max<std::size_t>(1, meshes.vertices.size()) * sizeof(IconVertex)),
+                       meshes.vertices.empty() ? nullptr : meshes.vertices.data(), 0);
+  glCreateBuffers(1, &indexBuffer_);
+  glNamedBufferStorage(indexBuffer_, GLsizeiptr(std::max<std::size_t>(1, meshes.indices.size()) * sizeof(std::uint32_t)),
+                       meshes.indices.empty() ? nullptr : meshes.indices.data(), 0);
+  glCreateBuffers(1, &instanceBuffer_);
+
+  glCreateVertexArrays(1, &vao_);
+  glVertexArrayVertexBuffer(vao_, 0, vertexBuffer_, 0, sizeof(IconVertex));
+  glVertexArrayElementBuffer(vao_, indexBuffer_);
+  const auto attrib = [&](GLuint loc, GLuint binding, GLint n, GLenum type, GLboolean norm, GLuint offset) {
+    glEnableVertexArrayAttrib(vao_, loc);
+    glVertexArrayAttribFormat(vao_, loc, n, type, norm, offset);
+    glVertexArrayAttribBinding(vao_, loc, binding);
+  };
+  attrib(0, 0, 3, GL_FLOAT, GL_FALSE, offsetof(IconVertex, x));
+  attrib(1, 0, 4, GL_INT_2_10_10_10_REV, GL_TRUE, offsetof(IconVertex, normal));
+  attrib(2, 0, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(IconVertex, rgba));
+  attrib(3, 1, 4, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, x));
+  attrib(4, 1, 2, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, scale));
+  glVertexArrayBindingDivisor(vao_, 1, 1);
+  return {};
+}
+
+void ObjectRenderer::collect(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+                             const ModuleRenderer& modules, RenderStats& stats) {
+  for (auto& b : buckets_) b.clear();
+  const Camera& cam = buf.camera;
+  const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
+  const auto planes = sidePlanes(viewProjection);
+  const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
+  for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
+    const ModuleDraw& d = buf.modules[m];
+    if (!d.ref || d.ref.placeholder()) continue;
+    const ResidentModule& rm = d.ref.module();
+    if (rm.objects.empty()) continue;
+    const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
+    for (std::size_t i = 0; i < rm.objects.size(); ++i) {
+      const module::Object& o = rm.objects[i];
+      if (o.icon >= icons.size()) continue;  // validate refuses these
+      std::uint32_t level = 0;
+      float morph = 0;
+      if (!modules.drawnAt(m, o.x, o.z, level, morph)) continue;
+      const std::vector<float>& y0 = d.ref.level(level).objectY;
+      if (i >= y0.size()) continue;
+      double y = y0[i];
+      if (morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()) {
+        y += double(morph) * (double(rm.levels[level + 1].objectY[i]) - y);
+      }
+      const double half = 0.5 * double(o.height);
+      const double radius = std::hypot(double(o.radius), half);
+      const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
+      float fade = 1;
+      const int iconLevel =
+          iconLevelAt(icons[o.icon], (centre - eye).norm(), cam.viewDistance, settings_.objectFade, fade);
+      if (iconLevel < 0 || fade <= 0) continue;
+      if (!discInTriangle(buf.triangle, mx + o.x, mz + o.z, radius)) continue;
+      const Eigen::Vector4f c(float(centre.x()), float(centre.y()), float(centre.z()), 1.0f);
+      bool inside = true;
+      for (const auto& p : planes) inside = inside && p.dot(c) >= -float(radius);
+      if (!inside) continue;
+      buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(
+          {float(centre.x()), float(y), float(centre.z()), float(module::headingRadians(o.heading)), o.scale, fade});
+      ++stats.objectsDrawn;
+    }
+  }
+}
+
+void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+                          const ModuleRenderer& modules, RenderStats& stats) {
+  if (!buf.moduleMode || settings_.colour == ColourMode::height) return;
+  collect(buf, viewProjection, modules, stats);
+  stream_.clear();
+  for (const auto& b : buckets_) stream_.insert(stream_.end(), b.begin(), b.end());
+  if (stream_.empty()) return;
+  const std::uint64_t bytes = stream_.size() * sizeof(ObjectInstance);
+  // A new store each frame: the driver orphans the last one instead of
+  // waiting for the GPU to finish reading it.
+  glNamedBufferData(instanceBuffer_, GLsizeiptr(bytes), stream_.data(), GL_STREAM_DRAW);
+  glVertexArrayVertexBuffer(vao_, 1, instanceBuffer_, 0, sizeof(ObjectInstance));
+  program_.use();
+  program_.setMatrix4("uViewProjection", viewProjection.data());
+  setFrameShading(program_, buf);
+  glBindVertexArray(vao_);
+  glDisable(GL_CULL_FACE);  // imported models need not be closed
+  GLuint baseInstance = 0;
+  for (std::size_t icon = 0; icon < ranges_.size(); ++icon) {
+    for (std::size_t l = 0; l < ranges_[icon].size(); ++l) {
+      const auto n = GLsizei(buckets_[levelBase_[icon] + l].size());
+      const IconLevelRange& r = ranges_[icon][l];
+      if (n > 0 && r.count > 0) {
+        glDrawElementsInstancedBaseVertexBaseInstance(
+            GL_TRIANGLES, GLsizei(r.count), GL_UNSIGNED_INT,
+            reinterpret_cast<const void*>(std::uintptr_t(r.firstIndex) * sizeof(std::uint32_t)), n, r.baseVertex,
+            baseInstance);
+        ++stats.objectDraws;
+        stats.objectInstances += std::uint32_t(n);
+        stats.objectTriangles += std::uint64_t(n) * (r.count / 3);
+      }
+      baseInstance += GLuint(n);
+    }
+  }
+  glBindVertexArray(0);
+}
+
+}  // namespace sandtable::runtime::detail

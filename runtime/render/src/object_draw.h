@@ -1,0 +1,110 @@
+#pragma once
+// Drawing the load modules' static objects (module version 5) with the
+// icons of icons.pack. Private to the renderer; every call on the render
+// thread. Design: docs/VIEWER.md, "Objects".
+//
+// Meshes. At create() every icon's alive state is flattened into one
+// vertex set in its body frame (each articulated part moved by its
+// offsets; a static object never turns its turret), with the base colour
+// of each vertex's material, and one index range per level of detail. All
+// icons share one static vertex and one index buffer.
+//
+// Per frame. For every module the terrain pass drew, each object is kept
+// when its icon's far range (capped at the view distance) reaches it, its
+// ground point lies in the view triangle and its bounding sphere in the
+// frustum. Its base is the elevation stored for the terrain level drawn
+// under it, morphed as that level is (lod.h: the morph moves a level's
+// surface linearly towards the next coarser one, and each level's objectY
+// lies on that level's own triangle), so nothing floats or sinks when the
+// terrain changes level. Its own level of detail is the icon's range bin
+// (seed IX.B.1). Instances are bucketed by (icon, level) and drawn with
+// one instanced draw each from a buffer streamed each frame.
+//
+// Fading: beyond the seed, an object fades in over the last
+// RenderSettings::objectFade of its far range by a screen-door dither
+// (ordered 4 x 4 pattern; discarded fragments): no blending, no sorting,
+// no pop.
+#include <epoxy/gl.h>
+
+#include <Eigen/Dense>
+#include <cstdint>
+#include <vector>
+
+#include "sandtable/base/result.h"
+#include "sandtable/formats/icon_pack.h"
+#include "sandtable/render/gl_program.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/scene/display_buffer.h"
+
+namespace sandtable::runtime::detail {
+
+class ModuleRenderer;
+
+/// One icon vertex: 20 bytes.
+struct IconVertex {
+  float x, y, z;
+  std::uint32_t normal;  ///< GL_INT_2_10_10_10_REV, normalized
+  std::uint32_t rgba;    ///< the material's base colour
+};
+static_assert(sizeof(IconVertex) == 20, "vertex layout is shared with the shader");
+
+/// One drawn object: 24 bytes, divisor 1.
+struct ObjectInstance {
+  float x, y, z;   ///< base, relative to the buffer origin
+  float heading;   ///< radians clockwise from north
+  float scale;
+  float fade;      ///< 1 opaque .. 0 gone (screen-door)
+};
+static_assert(sizeof(ObjectInstance) == 24, "instance layout is shared with the shader");
+
+/// Where (icon, level) lies in the shared buffers.
+struct IconLevelRange {
+  std::uint32_t firstIndex = 0, count = 0;
+  std::int32_t baseVertex = 0;
+};
+
+/// The flattened meshes of every icon of a pack: vertices and indices
+/// (relative to each icon's first vertex), per icon and level. Pure CPU.
+struct IconMeshes {
+  std::vector<IconVertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<std::vector<IconLevelRange>> ranges;  ///< [icon][level]
+};
+IconMeshes flattenIcons(const iconpack::Pack& pack);
+
+/// The icon level drawn at `distance` metres: the first whose far range
+/// reaches past it; -1 beyond the last range or beyond `viewDistance`.
+/// `fade` gets 1, or less inside the last `fadeFraction` of the far range.
+int iconLevelAt(const iconpack::Icon& icon, double distance, double viewDistance, double fadeFraction,
+                float& fade);
+
+class ObjectRenderer {
+ public:
+  ObjectRenderer() = default;
+  ~ObjectRenderer();
+  ObjectRenderer(const ObjectRenderer&) = delete;
+  ObjectRenderer& operator=(const ObjectRenderer&) = delete;
+
+  /// Compiles the program and uploads every icon of s.icons (not null).
+  Status create(const RenderSettings& s);
+  /// The models pass's objects, after the terrain pass of the same frame
+  /// (`modules` says which level is drawn where). Adds to stats' object counters.
+  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
+            RenderStats& stats);
+
+ private:
+  void collect(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
+               RenderStats& stats);
+
+  RenderSettings settings_;
+  GlProgram program_;
+  GLuint vao_ = 0, vertexBuffer_ = 0, indexBuffer_ = 0, instanceBuffer_ = 0;
+  std::uint64_t instanceCapacity_ = 0;  ///< bytes
+  std::vector<std::vector<IconLevelRange>> ranges_;  ///< [icon][level]
+  std::vector<std::uint32_t> levelBase_;             ///< first bucket of each icon
+  // Per-frame scratch (capacity kept).
+  std::vector<std::vector<ObjectInstance>> buckets_;  ///< levelBase_[icon] + level
+  std::vector<ObjectInstance> stream_;
+};
+
+}  // namespace sandtable::runtime::detail
