@@ -6,6 +6,7 @@
 #include <cstddef>
 
 #include "module_draw.h"
+#include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
 
 namespace sandtable::runtime::detail {
@@ -130,19 +131,6 @@ bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
   return true;
 }
 
-/// The frustum's four side planes (Gribb and Hartmann), normalised: a
-/// point p is inside when n . p + w >= 0 for each.
-std::array<Eigen::Vector4f, 4> sidePlanes(const Eigen::Matrix4f& vp) {
-  std::array<Eigen::Vector4f, 4> planes{
-      Eigen::Vector4f(vp.row(3) + vp.row(0)), Eigen::Vector4f(vp.row(3) - vp.row(0)),
-      Eigen::Vector4f(vp.row(3) + vp.row(1)), Eigen::Vector4f(vp.row(3) - vp.row(1))};
-  for (auto& p : planes) {
-    const float n = p.head<3>().norm();
-    if (n > 0) p /= n;
-  }
-  return planes;
-}
-
 }  // namespace
 
 IconMeshes flattenIcons(const iconpack::Pack& pack) {
@@ -217,12 +205,13 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   return {};
 }
 
-void ObjectRenderer::collect(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
-                             const ModuleRenderer& modules, RenderStats& stats) {
+void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
   for (auto& b : buckets_) b.clear();
   const Camera& cam = buf.camera;
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
-  const auto planes = sidePlanes(viewProjection);
+  // The side and far planes, scaled so that n . p + w is a distance.
+  auto planes = frustumPlanes(detail::viewProjection(cam, buf.originX, buf.originZ));
+  for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
   const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
   for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
     const ModuleDraw& d = buf.modules[m];
@@ -250,9 +239,9 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const Eigen::Matrix4f& vi
           iconLevelAt(icons[o.icon], (centre - eye).norm(), cam.viewDistance, settings_.objectFade, fade);
       if (iconLevel < 0 || fade <= 0) continue;
       if (!discInTriangle(buf.triangle, mx + o.x, mz + o.z, radius)) continue;
-      const Eigen::Vector4f c(float(centre.x()), float(centre.y()), float(centre.z()), 1.0f);
+      const Eigen::Vector4d c(centre.x(), centre.y(), centre.z(), 1.0);
       bool inside = true;
-      for (const auto& p : planes) inside = inside && p.dot(c) >= -float(radius);
+      for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
       if (!inside) continue;
       buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(
           {float(centre.x()), float(y), float(centre.z()), float(module::headingRadians(o.heading)), o.scale, fade});
@@ -264,7 +253,7 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const Eigen::Matrix4f& vi
 void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                           const ModuleRenderer& modules, RenderStats& stats) {
   if (!buf.moduleMode || settings_.colour == ColourMode::height) return;
-  collect(buf, viewProjection, modules, stats);
+  collect(buf, modules, stats);
   stream_.clear();
   for (const auto& b : buckets_) stream_.insert(stream_.end(), b.begin(), b.end());
   if (stream_.empty()) return;

@@ -93,8 +93,7 @@ class ObjectRenderer {
             RenderStats& stats);
 
  private:
-  void collect(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
-               RenderStats& stats);
+  void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
 
   RenderSettings settings_;
   GlProgram program_;

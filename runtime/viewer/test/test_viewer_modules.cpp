@@ -10,6 +10,8 @@
 
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/icon_pack.h"
+#include "sandtable/scene/camera_math.h"
 #include "sandtable/formats/pack.h"
 #include "sandtable/viewer/flight.h"
 #include "sandtable/render/renderer.h"
@@ -26,6 +28,14 @@ constexpr double kOriginE = 400000, kOriginN = 5000000;
 
 /// One plane under every level, so every level is exact and nothing cracks.
 float planeY(double x, double z) { return float(200.0 + 0.04 * x - 0.03 * z); }
+
+/// The one static object (ViewerModules.Objects*): a red column in module
+/// (2, 2) whose stored base on level l is the plane plus l * kObjectLift,
+/// so an image tells which level's elevation the viewer used.
+constexpr std::uint32_t kObjectModule = 2;
+constexpr float kObjectLocal = 240;
+constexpr double kObjectLift = 4;
+double objectWorld() { return kObjectModule * kSquares * kSpacing + kObjectLocal; }
 
 module::Module planarModule(std::uint32_t kx, std::uint32_t kz) {
   module::Module m;
@@ -45,7 +55,18 @@ module::Module planarModule(std::uint32_t kx, std::uint32_t kz) {
       }
     }
     fixtures::addLatticeSkin(lv, n);
+    if (kx == kObjectModule && kz == kObjectModule) {
+      lv.objectY = {float(planeY(objectWorld(), objectWorld()) + l * kObjectLift)};
+    }
     m.levels.push_back(std::move(lv));
+  }
+  if (kx == kObjectModule && kz == kObjectModule) {
+    module::Object o;
+    o.icon = 0;
+    o.x = o.z = kObjectLocal;
+    o.radius = 1.5f;
+    o.height = 20;
+    m.objects = {o};
   }
   return m;
 }
@@ -85,6 +106,39 @@ Database planarDatabase(const std::string& dir) {
   t.classes.push_back(c);
   db.materials = t;
   return db;
+}
+
+/// A 2 x 20 x 2 m red box standing on y = 0, one level of detail to 2 km.
+iconpack::Pack columnIcons() {
+  iconpack::Mesh mesh;
+  const float x0 = -1, x1 = 1, y0 = 0, y1 = 20, z0 = -1, z1 = 1;
+  const auto face = [&](std::array<float, 12> q, std::array<float, 3> n) {
+    const auto base = std::uint32_t(mesh.vertexCount());
+    for (int k = 0; k < 4; ++k) {
+      mesh.positions.insert(mesh.positions.end(), {q[3 * k], q[3 * k + 1], q[3 * k + 2]});
+      mesh.normals.insert(mesh.normals.end(), n.begin(), n.end());
+    }
+    if (mesh.levels.empty()) mesh.levels.emplace_back();
+    mesh.levels[0].insert(mesh.levels[0].end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  };
+  face({x0, y0, z1, x1, y0, z1, x1, y1, z1, x0, y1, z1}, {0, 0, 1});
+  face({x1, y0, z0, x0, y0, z0, x0, y1, z0, x1, y1, z0}, {0, 0, -1});
+  face({x0, y0, z0, x0, y0, z1, x0, y1, z1, x0, y1, z0}, {-1, 0, 0});
+  face({x1, y0, z1, x1, y0, z0, x1, y1, z0, x1, y1, z1}, {1, 0, 0});
+  face({x0, y1, z1, x1, y1, z1, x1, y1, z0, x0, y1, z0}, {0, 1, 0});
+  iconpack::Icon icon;
+  icon.name = "column";
+  icon.bounds = {x0, y0, z0, x1, y1, z1};
+  icon.cylinderRadius = 1.5f;
+  icon.cylinderHeight = y1;
+  icon.materials = {iconpack::Material{{230, 20, 20, 255}, iconpack::kNoTexture}};
+  icon.ranges = {2000};
+  iconpack::Part hull;
+  hull.meshes = {mesh};
+  icon.parts = {hull};
+  iconpack::Pack pack;
+  pack.icons = {icon};
+  return pack;
 }
 
 class ViewerModules : public ::testing::Test {
@@ -171,6 +225,101 @@ TEST_F(ViewerModules, ControllerViewDistanceGrowsThePagersWindowUpToItsMostAndIt
   EXPECT_EQ(r->frames[1].viewDistance, 4500.0) << "the window grew to maxViewDistance";
   EXPECT_EQ(r->frames[2].timeS, 12.0);
   EXPECT_FALSE(r->frames[2].freeFlight);
+}
+
+/// The lowest image row (top row 0) of column x where the red column shows; -1: none.
+int lowestRed(const Image& img, std::uint32_t x) {
+  for (int y = int(img.height) - 1; y >= 0; --y) {
+    const std::uint8_t* p = img.rgba.data() + (std::size_t(y) * img.width + x) * 4;
+    if (p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2]) return y;
+  }
+  return -1;
+}
+
+struct ObjectView {
+  FrameStats stats;
+  Image image;
+};
+
+/// One frame looking north at the column from 500 m south (from the next
+/// module, so rings draw the column's whole module at the coarsest
+/// level), eye 30 m up, no fog.
+ObjectView viewColumn(const Database& db, LodMode mode, bool objects) {
+  FlightOptions o;
+  o.view.width = 640;
+  o.view.height = 360;
+  o.view.fog = false;
+  o.view.hud = false;
+  o.view.viewDistance = 1500;
+  o.output.frames = 1;
+  o.pager.sync = true;
+  o.render.lod.mode = mode;
+  o.render.lod.rings = {1, 2};  // rings: the coarsest level everywhere
+  o.render.lod.morph = false;
+  o.render.objects = objects;
+  o.motion.easting = kOriginE + objectWorld();
+  o.motion.northing = kOriginN - (objectWorld() + 500);
+  ObjectView v;
+  FlightHooks hooks(o);
+  hooks.onPose = [&](std::uint32_t, double, GroundClamp&) -> std::optional<Pose> {
+    Pose p;
+    p.easting = o.motion.easting;
+    p.northing = o.motion.northing;
+    p.heightAgl = 30;
+    p.pitchDeg = 0;
+    return p;
+  };
+  hooks.onFrame = [&](std::uint32_t, const Image& img) { v.image = img; };
+  auto r = fly(db, o, &hooks);
+  EXPECT_TRUE(r.ok()) << r.error();
+  if (r.ok() && !r->frames.empty()) v.stats = r->frames.back();
+  return v;
+}
+
+/// Image row of a world point (x, y, z) seen by the frame's camera,
+/// from the camera's own projection (independent of the object code).
+double projectedRow(const FrameStats& s, const Image& img, double x, double y, double z) {
+  Camera cam;
+  cam.x = s.easting - kOriginE;
+  cam.z = kOriginN - s.northing;
+  cam.y = s.eyeElevation;
+  cam.headingDeg = s.headingDeg;
+  cam.pitchDeg = 0;
+  cam.hfovDeg = s.hfovDeg;
+  cam.aspect = double(img.width) / img.height;
+  cam.viewDistance = s.viewDistance;
+  const Eigen::Vector4d c = detail::viewProjection(cam, 0, 0) * Eigen::Vector4d(x, y, z, 1);
+  return (1.0 - c.y() / c.w()) / 2.0 * img.height;
+}
+
+TEST_F(ViewerModules, ObjectsStandOnTheElevationOfTheLevelDrawnUnderThem) {
+  db_.icons = columnIcons();
+  const double x = objectWorld(), ground = planeY(x, x);
+  const std::uint32_t column = 320;  // straight ahead
+  for (const auto& [mode, level] : {std::pair{LodMode::full, 0}, std::pair{LodMode::rings, int(kLevels) - 1}}) {
+    const ObjectView v = viewColumn(db_, mode, true);
+    ASSERT_EQ(v.image.width, 640u);
+    EXPECT_EQ(v.stats.objectsDrawn, 1u);
+    EXPECT_EQ(v.stats.objectInstances, 1u);
+    EXPECT_EQ(v.stats.objectDraws, 1u);
+    EXPECT_EQ(v.stats.objectTriangles, 10u);
+    const double expected = projectedRow(v.stats, v.image, x, ground + level * kObjectLift, x);
+    const int row = lowestRed(v.image, column);
+    ASSERT_GE(row, 0) << lodModeName(mode) << ": the column is not drawn";
+    EXPECT_NEAR(row + 0.5, expected, 1.5) << lodModeName(mode) << ": level " << level << "'s base";
+    // The top, 20 m up, too: the scale and the projection.
+    const double top = projectedRow(v.stats, v.image, x, ground + level * kObjectLift + 20, x - 1);
+    int highest = row;
+    while (highest > 0 && lowestRed(v.image, column) >= 0) {
+      const std::uint8_t* p = v.image.rgba.data() + (std::size_t(highest - 1) * v.image.width + column) * 4;
+      if (!(p[0] > 60 && p[0] > 2 * p[1])) break;
+      --highest;
+    }
+    EXPECT_NEAR(highest, top, 2.0) << lodModeName(mode);
+  }
+  const ObjectView off = viewColumn(db_, LodMode::full, false);
+  EXPECT_EQ(off.stats.objectsDrawn, 0u);
+  EXPECT_EQ(lowestRed(off.image, column), -1) << "--no-objects still drew the column";
 }
 
 }  // namespace
