@@ -553,4 +553,64 @@ std::vector<LayerGeometry> buildCell(const CellInput& in, CellTimes* times) {
   return layers;
 }
 
+// ------------------------------------------------------------ roofs
+
+namespace {
+
+struct RoofInfo {
+  int nesting = -1;  ///< constraints crossed from outside; odd is inside the footprint
+};
+using RoofFb = CGAL::Triangulation_face_base_with_info_2<RoofInfo, K, CGAL::Constrained_triangulation_face_base_2<K>>;
+using RoofTds = CGAL::Triangulation_data_structure_2<CGAL::Triangulation_vertex_base_2<K>, RoofFb>;
+// Exact intersections: a repaired footprint may still touch itself at a point.
+using RoofCdt = CGAL::Constrained_Delaunay_triangulation_2<K, RoofTds, CGAL::Exact_intersections_tag>;
+
+/// Nesting levels by flood fill from the infinite face: crossing a
+/// constrained edge goes one level in.
+void markNesting(RoofCdt& cdt) {
+  std::deque<std::pair<RoofCdt::Face_handle, int>> todo{{cdt.infinite_face(), 0}};
+  while (!todo.empty()) {
+    auto [start, level] = todo.front();
+    todo.pop_front();
+    if (start->info().nesting != -1) continue;
+    std::deque<RoofCdt::Face_handle> same{start};
+    start->info().nesting = level;
+    while (!same.empty()) {
+      const RoofCdt::Face_handle f = same.front();
+      same.pop_front();
+      for (int i = 0; i < 3; ++i) {
+        const RoofCdt::Face_handle n = f->neighbor(i);
+        if (n->info().nesting != -1) continue;
+        if (cdt.is_constrained({f, i})) {
+          todo.emplace_back(n, level + 1);
+        } else {
+          n->info().nesting = level;
+          same.push_back(n);
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::array<Vec2, 3>> roofTriangles(const std::vector<Ring>& rings) {
+  RoofCdt cdt;
+  for (const Ring& r : rings) {
+    for (std::size_t k = 0; k < r.size(); ++k) {
+      const Vec2 a = r[k], b = r[(k + 1) % r.size()];
+      if (!(a == b)) cdt.insert_constraint(Point(a.x, a.z), Point(b.x, b.z));
+    }
+  }
+  markNesting(cdt);
+  std::vector<std::array<Vec2, 3>> out;
+  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (f->info().nesting % 2 != 1) continue;
+    std::array<Vec2, 3> t;
+    for (int i = 0; i < 3; ++i) t[std::size_t(i)] = toVec(f->vertex(i)->point());
+    out.push_back(t);
+  }
+  return out;
+}
+
 }  // namespace sandtable::convert::culture

@@ -1138,6 +1138,7 @@ DecalStats CultureImpl::decalLevel(const LevelLattice& lat, module::Level& out) 
   const std::shared_ptr<const ModuleCell> cell = cellFor(lat, &built);
   const double t1 = threadCpuSeconds();
   DecalStats st = LevelWork(*this, *cell, lat, out).run();
+  addBuildings(lat, out, st);
   st.cutSeconds = threadCpuSeconds() - t1;
   if (built) {
     st.partitionSeconds = t1 - t0;

@@ -14,6 +14,7 @@
 // clockwise; output triangles are flipped to the renderer's winding only
 // when they are emitted.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <condition_variable>
 #include <cstdint>
@@ -124,6 +125,12 @@ Ring octagon(Vec2 c, Vec2 from, double width);
 /// double at the end. Throws std::exception on CGAL failure.
 std::vector<Ring> unionRings(const std::vector<Ring>& rings);
 
+/// A footprint's interior as triangles (CGAL constrained Delaunay of every
+/// ring's edges; a triangle is kept where an odd number of rings encloses
+/// it, so holes such as courtyards stay open). Any orientation in, CGAL's
+/// (counter-clockwise in (x, z)) out. Throws std::exception on CGAL failure.
+std::vector<std::array<Vec2, 3>> roofTriangles(const std::vector<Ring>& rings);
+
 /// Label of no class (decal layers: not covered).
 inline constexpr std::uint16_t kNone = materials::kNoClass;
 
@@ -188,6 +195,17 @@ struct AreaFeature {
   Box box;
 };
 
+/// A footprint of an extruded class (materials::Class::extrude): walls and
+/// a flat roof at priority 99 instead of skin (docs/CULTURE.md, "Buildings").
+struct BuildingFeature {
+  std::uint16_t classId = 0;
+  std::vector<Ring> rings;  ///< world metres, outer positive, holes negative
+  Box box;
+  double height = 0;  ///< metres from its lowest ground to the roof
+  double area = 0;    ///< m^2, holes taken out
+  Vec2 centre() const { return {(box.x0 + box.x1) / 2, (box.z0 + box.z1) / 2}; }
+};
+
 struct LineFeature {
   std::uint16_t classId = 0;
   double width = 0;
@@ -236,10 +254,15 @@ class CultureImpl final : public Culture {
   std::vector<AreaFeature> areas;
   std::vector<LineFeature> lines;
   std::vector<PointFeature> points_;
-  /// Spatial index: features whose box overlaps each index cell.
+  std::vector<BuildingFeature> buildings;
+  /// Spatial index: features whose box overlaps each index cell; buildings
+  /// by the cell of their centre (the module holding it draws them whole).
   double indexCell = 500.0;
   std::uint32_t indexCols = 0, indexRows = 0;
-  std::vector<std::vector<std::uint32_t>> areaIndex, lineIndex;
+  std::vector<std::vector<std::uint32_t>> areaIndex, lineIndex, buildingIndex;
+  /// Appends the walls and roofs of the buildings whose centre lies in the
+  /// lattice's module to `out` at priority 99 (culture_buildings.cpp).
+  void addBuildings(const LevelLattice& lattice, module::Level& out, DecalStats& st) const;
   void buildIndex();
 
   /// The partition of the module the lattice belongs to (cached).

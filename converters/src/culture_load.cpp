@@ -11,11 +11,14 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <unordered_map>
 
 #include "culture_internal.h"
@@ -153,6 +156,24 @@ std::optional<std::string> attributeOf(const void* p, const std::string& key) {
   return std::nullopt;
 }
 
+/// Leading number of an attribute ("12", "12.5 m", "12m"); nullopt when
+/// there is none, or it is not positive and finite.
+std::optional<double> leadingNumber(const std::optional<std::string>& v) {
+  if (!v) return std::nullopt;
+  char* end = nullptr;
+  const double d = std::strtod(v->c_str(), &end);
+  if (end == v->c_str() || !(d > 0) || !std::isfinite(d)) return std::nullopt;
+  return d;
+}
+
+/// A building's height: `height`, else `building:levels` storeys, else the
+/// class's default (materials::Class::extrude); at most 1000 m.
+double buildingHeight(const FeatureView& view, const materials::Class& cls) {
+  if (auto h = leadingNumber(attributeOf(&view, "height")); h && *h <= 1000) return *h;
+  if (auto n = leadingNumber(attributeOf(&view, "building:levels")); n && *n <= 300) return *n * cls.storey;
+  return cls.extrude;
+}
+
 /// Per-layer state: name, transform into the frame, OSM extras.
 struct LayerState {
   std::string name;
@@ -205,7 +226,9 @@ struct Loader {
   void addPoints(OGRFeatureH f, const OGRGeometry& g, LayerState& ls);
   bool addLine(const std::string& where, const OGRGeometry& g, const materials::Class& cls, double width,
                ClassStats& cs);
-  bool addArea(const std::string& where, OGRGeometry& g, const materials::Class& cls, ClassStats& cs);
+  /// buildingHeight > 0: the footprint of an extruded class, kept as a building.
+  bool addArea(const std::string& where, OGRGeometry& g, const materials::Class& cls, ClassStats& cs,
+               double extrudeHeight = 0);
   void simplifyLine(const std::string& id, LineFeature& lf);
 };
 
@@ -430,7 +453,8 @@ void Loader::addFeature(const std::string& where, OGRFeatureH f, LayerState& ls)
     }
     return;
   }
-  const bool kept = kind == 1 ? addLine(id, *g, *cls, m.width, cs) : addArea(id, *g, *cls, cs);
+  const double building = kind == 2 && cls->extrude > 0 ? buildingHeight(view, *cls) : 0.0;
+  const bool kept = kind == 1 ? addLine(id, *g, *cls, m.width, cs) : addArea(id, *g, *cls, cs, building);
   if (kept) ++c.stats_.featuresLanded;
 }
 
@@ -620,7 +644,8 @@ bool Loader::addLine(const std::string& id, const OGRGeometry& g, const material
   return true;
 }
 
-bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Class& cls, ClassStats& cs) {
+bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Class& cls, ClassStats& cs,
+                     double extrudeHeight) {
   // Clean each ring (repeated points, closure) into a fresh multipolygon.
   bool repaired = false, bad = false, unclosed = false, repeated = false;
   OGRMultiPolygon mp;
@@ -751,7 +776,12 @@ bool Loader::addArea(const std::string& id, OGRGeometry& g, const materials::Cla
   }
   if (repaired) ++cs.repaired;
   cs.areaKm2 += area / 1e6;
-  c.areas.push_back(std::move(af));
+  if (extrudeHeight > 0) {
+    c.buildings.push_back({af.classId, std::move(af.rings), af.box, extrudeHeight, area});
+    ++c.stats_.buildings;
+  } else {
+    c.areas.push_back(std::move(af));
+  }
   return true;
 }
 
@@ -855,6 +885,11 @@ void CultureImpl::buildIndex() {
   };
   for (std::uint32_t k = 0; k < areas.size(); ++k) add(areas[k].box, k, areaIndex);
   for (std::uint32_t k = 0; k < lines.size(); ++k) add(lines[k].box, k, lineIndex);
+  buildingIndex.assign(cells, {});
+  for (std::uint32_t k = 0; k < buildings.size(); ++k) {
+    const Vec2 c = buildings[k].centre();
+    add(Box{c.x, c.z, c.x, c.z}, k, buildingIndex);
+  }
 }
 
 }  // namespace culture

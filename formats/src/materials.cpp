@@ -226,8 +226,9 @@ class Parser {
                     "); give every class its own name");
       }
     }
-    enum Field { kind, priority, rank, upper, lower, material, texture, width, count };
-    static const char* names[count] = {"kind", "priority", "rank", "upper", "lower", "material", "texture", "width"};
+    enum Field { kind, priority, rank, upper, lower, material, texture, width, extrude, storey, count };
+    static const char* names[count] = {"kind",     "priority", "rank",  "upper",   "lower",
+                                       "material", "texture",  "width", "extrude", "storey"};
     std::string_view given[count];
     bool seen[count] = {};
     for (std::size_t k = 3; k < tok.size(); ++k) {
@@ -242,7 +243,7 @@ class Parser {
       }
       if (f < 0) {
         return fail("unknown class field " + quoted(key) +
-                    " (known: kind, priority, rank, upper, lower, material, texture, width)");
+                    " (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey)");
       }
       if (seen[f]) return fail("class field " + quoted(key) + " is given twice");
       seen[f] = true;
@@ -293,6 +294,16 @@ class Parser {
       }
     } else if (seen[width]) {
       return fail("width= applies only to line classes");
+    }
+    if ((seen[extrude] || seen[storey]) && c.kind != Kind::area) {
+      return fail("extrude= and storey= apply only to area classes (building footprints)");
+    }
+    if (seen[extrude] && !parseWidth(given[extrude], c.extrude)) {
+      return fail("extrude must be a default building height in metres in (0, 1000], not " +
+                  quoted(given[extrude]));
+    }
+    if (seen[storey] && !parseWidth(given[storey], c.storey)) {
+      return fail("storey must be metres per building level in (0, 1000], not " + quoted(given[storey]));
     }
     table_.classes.push_back(std::move(c));
     classLines_.push_back(line_);
@@ -507,6 +518,8 @@ std::string format(const Table& t) {
     s += " upper=" + hex6(c.upperRgb) + " lower=" + hex6(c.lowerRgb) + " material=" + std::to_string(c.material) +
          " texture=" + std::to_string(c.texture);
     if (c.kind == Kind::line) s += " width=" + number(c.width);
+    if (c.extrude > 0) s += " extrude=" + number(c.extrude);
+    if (c.storey != kDefaultStorey) s += " storey=" + number(c.storey);
     s += "\n";
   }
   for (const Rule& r : t.rules) {

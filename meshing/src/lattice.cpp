@@ -39,6 +39,7 @@ LevelLattice levelLattice(const grid::GridFile& g, const ModuleWindow& m, int l,
   lat.moduleX = double(m.i0) * s;
   lat.moduleZ = double(m.j0) * s;
   lat.spacing = s * double(1u << l);
+  lat.level = l;
   const auto& cols = m.cols[std::size_t(l)];
   const auto& rows = m.rows[std::size_t(l)];
   for (std::uint32_t i : cols) lat.xs.push_back(double(i - m.i0) * s);

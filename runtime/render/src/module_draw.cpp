@@ -275,6 +275,19 @@ class LevelBuilder {
         flip = f.x() * mx + f.z() * mz < 0;
       }
       if (flip) std::swap(k[1], k[2]);
+      if (facing.kind == Facing::asIs) {
+        // Objects (walls, roofs) are lit by their own faces, not the ground's.
+        const Eigen::Vector3f n = f.norm() > 0 ? Eigen::Vector3f(f.normalized()) : Eigen::Vector3f(0, 1, 0);
+        for (const std::uint32_t v : k) {
+          indices_.push_back(std::uint32_t(out_.size()));
+          out_.push_back(vertex(v, rgba, packNormal(n)));
+          if (!flat_) {  // keep shared()'s lists parallel to out_; never shared
+            nextCopy_.push_back(UINT32_MAX);
+            copyNode_.push_back(UINT32_MAX);
+          }
+        }
+        continue;
+      }
       if (!flat_) {
         for (const std::uint32_t v : k) indices_.push_back(shared(v, rgba));
         continue;

@@ -98,6 +98,7 @@ struct CultureStats {
   std::map<std::string, ReasonStats> reasons;
   std::uint64_t featuresRead = 0;  ///< line and area features (points are not culture)
   std::uint64_t pointsPlaced = 0;  ///< point features a `place` line matched, inside the database
+  std::uint64_t buildings = 0;     ///< footprints of extruded classes kept as buildings
   std::uint64_t featuresLanded = 0;   ///< of those, on the database (kept, or default-class areas inside it)
   std::uint64_t featuresOutside = 0;  ///< of those, wholly outside the database (dropped, not a warning)
   std::uint64_t lineVerticesRead = 0;  ///< centreline vertices of the kept line features, as read (clipped)
@@ -120,6 +121,9 @@ struct DecalStats {
   /// decals), or a triangle's cut skin did not tile it (it keeps one skin
   /// triangle).
   std::uint64_t failures = 0;
+  /// Extruded footprints drawn on this level (docs/CULTURE.md,
+  /// "Buildings"), and the wall and roof triangles they added.
+  std::uint64_t buildings = 0, buildingTriangles = 0;
   /// CPU seconds of the calling thread (threadCpuSeconds) spent in this
   /// call, by stage, for the build's profile (docs/CULTURE.md, "Profile").
   /// The partition is built by the first call for a module; a call that

@@ -32,6 +32,9 @@ enum class Kind : std::uint8_t {
 
 /// One class. Area classes are skin (priority 1); line classes are decals
 /// (priority 2..98, drawn in priority order over the skin).
+/// Class::storey by default: metres per building level.
+inline constexpr double kDefaultStorey = 3.0;
+
 struct Class {
   std::uint16_t id = 0;      ///< 0..65534; keep below 256 where the grid stores a u8
   std::string name;
@@ -43,6 +46,11 @@ struct Class {
   std::uint16_t material = 0;
   std::uint16_t texture = 0;
   double width = 0;            ///< line classes: default width in metres
+  /// Area classes: > 0 makes the class's footprints extruded buildings
+  /// (walls and a flat roof at priority 99) instead of skin polygons; the
+  /// height of a footprint with neither `height` nor `building:levels`.
+  double extrude = 0;
+  double storey = kDefaultStorey;  ///< metres per `building:levels` level
   bool operator==(const Class&) const = default;
 };
 

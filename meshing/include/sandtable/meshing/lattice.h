@@ -51,6 +51,7 @@ struct LevelLattice {
   std::vector<double> zs;   ///< module-local z of each lattice row (size squaresZ + 1)
   std::vector<float> heights;  ///< (squaresZ + 1) * (squaresX + 1), row-major, from the grid
   double spacing = 0;  ///< nominal spacing of the level
+  int level = 0;       ///< 0 is the finest
 };
 
 /// What a lattice reads at a post whose stored elevation is NaN or
