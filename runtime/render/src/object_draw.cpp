@@ -254,6 +254,25 @@ void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
                           const ModuleRenderer& modules, RenderStats& stats) {
   if (!buf.moduleMode || settings_.colour == ColourMode::height) return;
   collect(buf, modules, stats);
+  submit(buf, viewProjection, stats);
+}
+
+void ObjectRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
+  if (settings_.colour == ColourMode::height) return;
+  for (auto& b : buckets_) b.clear();
+  for (std::size_t icon = 0; icon < ranges_.size(); ++icon) {
+    if (!ranges_[icon].empty()) {
+      // In front of the warm-up eye and big enough to shade fragments, both
+      // the kept and the discarded (faded) kind.
+      buckets_[levelBase_[icon]].push_back({0.0f, 0.0f, -20.0f, 0.0f, 1.0f, 0.5f});
+      break;
+    }
+  }
+  RenderStats ignored;
+  submit(buf, viewProjection, ignored);
+}
+
+void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   stream_.clear();
   for (const auto& b : buckets_) stream_.insert(stream_.end(), b.begin(), b.end());
   if (stream_.empty()) return;

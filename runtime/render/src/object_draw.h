@@ -91,8 +91,14 @@ class ObjectRenderer {
   /// (`modules` says which level is drawn where). Adds to stats' object counters.
   void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
             RenderStats& stats);
+  /// One tiny instance drawn into the warm-up frame, so that the driver
+  /// compiles the program for this state before frame 0 (llvmpipe compiles
+  /// at the first draw).
+  void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
 
  private:
+  /// Streams the buckets and draws each (icon, level) with instances.
+  void submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
   void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
 
   RenderSettings settings_;

@@ -420,6 +420,11 @@ struct Renderer::Impl {
     b.firsts = {0};
     b.counts = {4};
     (void)drawPasses(b);
+    if (objects) {
+      glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+      objects->warmUp(b, detail::viewProjection(b.camera, b.originX, b.originZ).cast<float>());
+      resolve();
+    }
     if (settings.colour != ColourMode::height) {
       Overlay o;
       o.begin(settings.width, settings.height);
