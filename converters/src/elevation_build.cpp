@@ -493,7 +493,8 @@ nlohmann::json moduleReportJson(const ModuleReport& r) {
   nlohmann::json levels = nlohmann::json::array();
   for (const auto& l : r.levels) {
     levels.push_back({{"triangles", l.triangles}, {"skin_polygons", l.skinPolygons},
-                      {"decal_polygons", l.decalPolygons}, {"skirt_triangles", l.skirtTriangles}});
+                      {"decal_polygons", l.decalPolygons}, {"skirt_triangles", l.skirtTriangles},
+                      {"buildings", l.buildings}, {"building_triangles", l.buildingTriangles}});
   }
   const auto& s = r.sizes;
   return {{"count", r.modules},
@@ -538,6 +539,7 @@ nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
           {"reasons", reasons},
           {"features_read", st.featuresRead},
           {"features_landed", st.featuresLanded},
+          {"buildings", st.buildings},
           {"features_outside", st.featuresOutside},
           {"line_vertices_read", st.lineVerticesRead},
           {"line_vertices_kept", st.lineVerticesKept},

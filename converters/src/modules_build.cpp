@@ -43,6 +43,8 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
           t.triangles += ds.triangles;
           t.skinPolygons += ds.skinPolygons;
           t.decalPolygons += ds.decalPolygons;
+          t.buildings += ds.buildings;
+          t.buildingTriangles += ds.buildingTriangles;
         }
         return true;
       });
@@ -155,6 +157,8 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
           r.levels[l].skinPolygons += b.totals[l].skinPolygons;
           r.levels[l].decalPolygons += b.totals[l].decalPolygons;
           r.levels[l].skirtTriangles += b.totals[l].skirtTriangles;
+          r.levels[l].buildings += b.totals[l].buildings;
+          r.levels[l].buildingTriangles += b.totals[l].buildingTriangles;
         }
         ++done;
         const auto now = std::chrono::steady_clock::now();

@@ -32,6 +32,15 @@ void printModuleSummary(const convert::ElevationReport& r) {
               count("features_landed"), count("features_read"), count("features_outside"), count("warnings"));
   for (const auto& msg : c["messages"]) std::printf("    warning: %s\n", msg.get<std::string>().c_str());
   printCultureReasons(c, "    ");
+  if (const std::uint64_t n = c.value("buildings", std::uint64_t(0)); n > 0) {
+    const auto& levels = m["per_level"];
+    std::string perLevel;
+    for (const auto& l : levels) {
+      perLevel += (perLevel.empty() ? "" : "/") + std::to_string(l.value("buildings", std::uint64_t(0)));
+    }
+    std::printf("  buildings  %llu footprints extruded; drawn per level %s\n", static_cast<unsigned long long>(n),
+                perLevel.c_str());
+  }
   if (!b.contains("icons")) return;
   const auto& icons = b["icons"];
   std::printf("  icons      %zu in icons.pack (%s), %zu textures\n", icons["names"].size(),

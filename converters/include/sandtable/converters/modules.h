@@ -46,6 +46,7 @@ struct LevelTotals {
   std::uint64_t skinPolygons = 0;
   std::uint64_t decalPolygons = 0;
   std::uint64_t skirtTriangles = 0;
+  std::uint64_t buildings = 0, buildingTriangles = 0;  ///< extruded footprints (docs/CULTURE.md, "Buildings")
 };
 
 /// CPU seconds of the module stage by stage, summed over its workers
