@@ -130,7 +130,7 @@ TEST(Materials, malformedLinesNameTheirOffsetAndTheFix) {
       {c + " width=3", "width= applies only to line classes"},
       {"class 2 x kind=line priority=10 rank=3 upper=000000 lower=000000 material=0 texture=0 width=3",
        "rank= applies only to area classes"},
-      {c + " colour=red", "unknown class field \"colour\" (known: kind, priority, rank, upper, lower, material, texture, width)"},
+      {c + " colour=red", "unknown class field \"colour\" (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey)"},
       {c + " kind=area", "class field \"kind\" is given twice"},
       {c + " width", "\"width\" is not KEY=VALUE"},
       {"class 2 x kind=area priority=1 upper=000000 lower=000000 texture=0", "class \"x\" is missing material="},

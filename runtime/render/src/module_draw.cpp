@@ -1200,7 +1200,9 @@ void ModuleRenderer::drawDecals(const DisplayBuffer&, RenderStats& stats) {
   glDisable(GL_POLYGON_OFFSET_FILL);
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_GREATER);
-  // Objects keep their own winding: both faces.
+  // Objects keep their own winding: both faces. Height frames hold the
+  // terrain's height, so buildings are left out of them.
+  if (settings_.colour == ColourMode::height) return;
   glDisable(GL_CULL_FACE);
   multiDraw(101, stats);
 }
