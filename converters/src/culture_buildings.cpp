@@ -21,12 +21,14 @@ constexpr double kKeepFraction = 0.25;
 
 /// Height of the lattice's surface (SW-NE split squares) at module-local
 /// (x, z); clamped to the lattice at its edges.
+/// The lattice interval holding c (clamped to the first and last).
+std::size_t interval(const std::vector<double>& v, double c) {
+  const auto it = std::upper_bound(v.begin(), v.end(), c);
+  const std::size_t i = it == v.begin() ? 0 : std::size_t(it - v.begin()) - 1;
+  return std::min(i, v.size() - 2);
+}
+
 double latticeHeight(const LevelLattice& lat, double x, double z) {
-  const auto interval = [](const std::vector<double>& v, double c) {
-    const auto it = std::upper_bound(v.begin(), v.end(), c);
-    const std::size_t i = it == v.begin() ? 0 : std::size_t(it - v.begin()) - 1;
-    return std::min(i, v.size() - 2);
-  };
   const std::size_t i = interval(lat.xs, x), j = interval(lat.zs, z);
   const double u = std::clamp((x - lat.xs[i]) / (lat.xs[i + 1] - lat.xs[i]), 0.0, 1.0);
   const double v = std::clamp((z - lat.zs[j]) / (lat.zs[j + 1] - lat.zs[j]), 0.0, 1.0);
@@ -38,12 +40,7 @@ double latticeHeight(const LevelLattice& lat, double x, double z) {
 }
 
 std::uint32_t squareIndex(const LevelLattice& lat, Vec2 p) {
-  const auto at = [](const std::vector<double>& v, double c) {
-    const auto it = std::upper_bound(v.begin(), v.end(), c);
-    const std::size_t i = it == v.begin() ? 0 : std::size_t(it - v.begin()) - 1;
-    return std::uint32_t(std::min(i, v.size() - 2));
-  };
-  return at(lat.zs, p.z) * std::uint32_t(lat.xs.size() - 1) + at(lat.xs, p.x);
+  return std::uint32_t(interval(lat.zs, p.z) * (lat.xs.size() - 1) + interval(lat.xs, p.x));
 }
 
 /// One building's triangles on one level, appended to `out` (vertices and
