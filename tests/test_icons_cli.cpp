@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/render/icon_sheet.h"
 #include "test_support.h"
 
 using namespace sandtable::test;
@@ -85,3 +86,72 @@ TEST(IconsCli, aBadDefinitionFileExits2NamingTheLine) {
 }
 
 }  // namespace
+
+namespace {
+
+/// Pixels of a cell that differ from the sheet's cell background.
+struct CellInk {
+  std::size_t pixels = 0;
+  std::uint32_t minX = ~0u, minY = ~0u, maxX = 0, maxY = 0;
+};
+
+CellInk inkOf(const sandtable::runtime::Image& img, std::uint32_t x0, std::uint32_t y0, std::uint32_t n) {
+  const sandtable::runtime::IconSheetOptions o;
+  CellInk ink;
+  for (std::uint32_t y = y0; y < y0 + n; ++y) {
+    for (std::uint32_t x = x0; x < x0 + n; ++x) {
+      const std::uint8_t* p = &img.rgba[(std::size_t(y) * img.width + x) * 4];
+      if (p[0] == o.background.r && p[1] == o.background.g && p[2] == o.background.b) continue;
+      ++ink.pixels;
+      ink.minX = std::min(ink.minX, x - x0), ink.maxX = std::max(ink.maxX, x - x0);
+      ink.minY = std::min(ink.minY, y - y0), ink.maxY = std::max(ink.maxY, y - y0);
+    }
+  }
+  return ink;
+}
+
+}  // namespace
+
+TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
+  TempDir t("sheet");
+  const auto r = runCli({"icons", std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt", "-o", t / "out", "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["contact_sheets"].size(), 1u);
+  const auto img = readPng(j["contact_sheets"][0].get<std::string>());
+  // Layout (docs/ICONS.md 6.3): 3 icons of 3 levels, 200 px cells.
+  using namespace sandtable::runtime;
+  const IconSheetOptions o;
+  ASSERT_EQ(img.width, 2 * kIconSheetMargin + 3 * (o.cell + kIconSheetMargin));
+  ASSERT_EQ(img.height, kIconSheetMargin + 3 * (kIconSheetHeader + o.cell + kIconSheetFooter));
+  for (std::uint32_t icon = 0; icon < 3; ++icon) {
+    for (std::uint32_t level = 0; level < 3; ++level) {
+      const std::uint32_t x = kIconSheetMargin + level * (o.cell + kIconSheetMargin);
+      const std::uint32_t y = kIconSheetMargin + icon * (kIconSheetHeader + o.cell + kIconSheetFooter) +
+                              kIconSheetHeader;
+      const CellInk ink = inkOf(img, x, y, o.cell);
+      SCOPED_TRACE("icon " + std::to_string(icon) + " level " + std::to_string(level));
+      // Framed on the bounding sphere: visible, inside the cell, not clipped at its edges, about centred.
+      EXPECT_GT(ink.pixels, std::size_t(o.cell) * o.cell / 40);
+      EXPECT_GT(ink.minX, 0u);
+      EXPECT_LT(ink.maxX, o.cell - 1);
+      EXPECT_GT(ink.minY, 0u);
+      EXPECT_LT(ink.maxY, o.cell - 1);
+      EXPECT_NEAR(0.5 * (ink.minX + ink.maxX), 0.5 * o.cell, 0.15 * o.cell);
+    }
+  }
+  // One model alone: one row with one cell per level of detail.
+  const std::string model = data("models/assimp/jeep1.3ds");
+  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no ../shared/data/models here";
+  const auto m = runCli({"icons", "--model", model, "-o", t / "jeep", "--json"});
+  ASSERT_EQ(m.exitCode, 0) << m.err;
+  const auto mj = nlohmann::json::parse(m.out);
+  const auto jeep = readPng(mj["contact_sheets"][0].get<std::string>());
+  // The pack's levels: the report's, less any the build drops as no lighter than the one before.
+  ASSERT_EQ((jeep.width - 2 * kIconSheetMargin) % (o.cell + kIconSheetMargin), 0u);
+  const std::size_t columns = (jeep.width - 2 * kIconSheetMargin) / (o.cell + kIconSheetMargin);
+  EXPECT_GE(columns, 2u);
+  EXPECT_LE(columns, mj["levels"].size());
+  EXPECT_EQ(jeep.height, kIconSheetMargin + kIconSheetHeader + o.cell + kIconSheetFooter);
+  EXPECT_GT(inkOf(jeep, kIconSheetMargin, kIconSheetMargin + kIconSheetHeader, o.cell).pixels, 1000u);
+}

@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/render/image.h"
+
 namespace sandtable::test {
 
 /// ../shared/data relative to the repository root.
@@ -52,6 +54,10 @@ void spit(const std::string& path, const std::string& bytes);
 /// Rewrites DB/manifest.json after `edit` changes its JSON, with the
 /// checksum resealed (FORMAT.md §5.2), so only the edit itself is wrong.
 void resealManifest(const std::string& db, const std::function<void(nlohmann::json&)>& edit);
+
+/// A PNG's red, green and blue read through GDAL (alpha 255); an empty
+/// image when it does not read.
+runtime::Image readPng(const std::string& path);
 
 /// Every file (recursively) under `dir` matching the extensions.
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts);

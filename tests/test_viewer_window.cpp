@@ -91,21 +91,6 @@ class ScopedEnv {
   std::optional<std::string> old_;
 };
 
-Image readPng(const std::string& path) {
-  GDALAllRegister();
-  Image img;
-  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
-  if (!ds || ds->GetRasterCount() < 3) return img;
-  img.width = std::uint32_t(ds->GetRasterXSize());
-  img.height = std::uint32_t(ds->GetRasterYSize());
-  img.rgba.assign(std::size_t(img.width) * img.height * 4, 255);
-  int bands[3] = {1, 2, 3};
-  const CPLErr e = ds->RasterIO(GF_Read, 0, 0, int(img.width), int(img.height), img.rgba.data(), int(img.width),
-                                int(img.height), GDT_Byte, 3, bands, 4, GSpacing(img.width) * 4, 1, nullptr);
-  if (e != CE_None) img = Image{};
-  return img;
-}
-
 nlohmann::json readStats(const std::string& dir) {
   const std::string text = slurpFile(dir + "/stats.json");
   return text.empty() ? nlohmann::json() : nlohmann::json::parse(text);

@@ -4,6 +4,7 @@
 // came out: meshes, vertices, triangles, bounds, textures and the levels of
 // detail.
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "icon_report.h"
 #include "sandtable/icons/icon_build.h"
 #include "sandtable/icons/model.h"
+#include "sandtable/render/icon_sheet.h"
 
 namespace sandtable::cli {
 namespace {
@@ -22,8 +24,46 @@ struct IconsArgs {
   std::string model;
   std::string up = "auto";
   icons::ImportOptions o;
+  std::string out;
   bool json = false;
 };
+
+/// Icons per contact sheet page, so that a large pack stays a viewable image.
+constexpr std::size_t kIconsPerSheet = 16;
+
+/// Renders the pack's contact sheets into `dir` (created): contact_sheet.png,
+/// then contact_sheet_2.png and on for every further kIconsPerSheet icons.
+/// Returns the files written, or the problem.
+Result<std::vector<std::string>> writeSheets(const iconpack::Pack& pack, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Problem{dir, 0, "cannot create the output folder: " + ec.message() + " (-o)"};
+  std::vector<std::string> files;
+  for (std::size_t first = 0, page = 1; first < pack.icons.size(); first += kIconsPerSheet, ++page) {
+    auto sheet = runtime::renderIconSheet(pack, first, kIconsPerSheet);
+    if (!sheet) return sheet.problems();
+    std::string name = "contact_sheet";
+    if (page > 1) name += "_" + std::to_string(page);
+    name += ".png";
+    const std::string path = (std::filesystem::path(dir) / name).string();
+    if (Status st = runtime::writePng(path, sheet->image); !st.ok()) return st.problems();
+    files.push_back(path);
+  }
+  return files;
+}
+
+/// The pack of one model alone, named after its file, with no built-in tree.
+Result<iconpack::Pack> modelPack(const IconsArgs& a) {
+  icons::Definitions defs;
+  icons::IconDef def;
+  def.name = std::filesystem::path(a.model).stem().string();
+  def.alive = std::filesystem::absolute(a.model).string();
+  def.import = a.o;
+  defs.icons.push_back(def);
+  icons::PackOptions po = a.pack;
+  po.addDefaultTree = false;
+  return icons::buildPack(defs, po);
+}
 
 nlohmann::json textures(const icons::Model& m) {
   nlohmann::json t = nlohmann::json::array();
@@ -88,6 +128,12 @@ int runDefinitions(const IconsArgs& a) {
   if (!pack) return reportProblems("icons", pack.problems());
   auto bytes = iconpack::encode(pack.value());
   if (!bytes) return reportProblems("icons", bytes.problems());
+  std::vector<std::string> sheets;
+  if (!a.out.empty()) {
+    auto written = writeSheets(pack.value(), a.out);
+    if (!written) return reportProblems("icons", written.problems());
+    sheets = std::move(written.value());
+  }
   if (a.json) {
     nlohmann::json warn = nlohmann::json::array();
     for (const Problem& w : pack.warnings()) warn.push_back(w.str());
@@ -95,12 +141,14 @@ int runDefinitions(const IconsArgs& a) {
                            {"icons", iconsJson(pack.value())},
                            {"textures", pack->textures.size()},
                            {"pack_bytes", bytes->size()},
+                           {"contact_sheets", sheets},
                            {"warnings", warn}};
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     printIcons(pack.value());
     std::printf("%zu icons, %zu textures: icons.pack would be %zu bytes\n", pack->icons.size(), pack->textures.size(),
                 bytes->size());
+    for (const std::string& f : sheets) std::printf("contact sheet %s\n", f.c_str());
   }
   return kOk;
 }
@@ -115,10 +163,21 @@ int runIcons(IconsArgs& a) {
   for (const Problem& w : r.warnings()) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.str().c_str());
   if (!r) return reportProblems("icons", r.problems());
   const auto levels = icons::makeLevels(r.value());
+  std::vector<std::string> sheets;
+  if (!a.out.empty()) {
+    auto pack = modelPack(a);
+    if (!pack) return reportProblems("icons", pack.problems());
+    auto written = writeSheets(pack.value(), a.out);
+    if (!written) return reportProblems("icons", written.problems());
+    sheets = std::move(written.value());
+  }
   if (a.json) {
-    std::printf("%s\n", report(r.value(), levels, r.warnings()).dump(2).c_str());
+    nlohmann::json j = report(r.value(), levels, r.warnings());
+    j["contact_sheets"] = sheets;
+    std::printf("%s\n", j.dump(2).c_str());
   } else {
     printReport(r.value(), levels);
+    for (const std::string& f : sheets) std::printf("contact sheet %s\n", f.c_str());
   }
   return kOk;
 }
@@ -129,10 +188,12 @@ void registerIcons(CLI::App& root, Commands& c) {
   auto a = std::make_shared<IconsArgs>();
   auto* sub = root.add_subcommand("icons", "Check an icon definition file, or import one model as an icon");
   sub->footer(
-      "Examples:\n  sandtable icons samples/icons.txt\n  sandtable icons --model jeep1.3ds --json\n"
+      "Examples:\n  sandtable icons samples/icons.txt -o out/icons\n  sandtable icons --model jeep1.3ds --json\n"
       "With DEFS: reads the definition file (docs/ICONS.md), imports every model it names, makes the levels\n"
       "of detail and the switch ranges, and prints per icon its triangles per level, ranges, bounds,\n"
-      "cylinder and textures; nothing is written. The built-in tree is added unless DEFS defines 'tree'.\n"
+      "cylinder and textures. The built-in tree is added unless DEFS defines 'tree'. Nothing is written\n"
+      "unless -o DIR is given: then DIR/contact_sheet.png shows every icon at every level of detail with\n"
+      "its name and triangle counts (16 icons a sheet; contact_sheet_2.png and on for more).\n"
       "With --model: reads"
       " any format assimp reads (glTF, 3DS, OBJ, OFF, FBX, Collada, ...), triangulates it, flattens its\n"
       "nodes, converts it to metres with Y up, and simplifies it into levels of detail (meshoptimizer).\n"
@@ -156,6 +217,7 @@ void registerIcons(CLI::App& root, Commands& c) {
   sub->add_option("--max-triangles", a->o.maxTriangles, "Most triangles an icon may have")
       ->default_val(a->o.maxTriangles)
       ->check(CLI::PositiveNumber);
+  sub->add_option("-o,--out", a->out, "Write the contact sheet PNG(s) into this folder");
   sub->add_flag("--json", a->json, "Print the report as JSON (keys vertices, triangles, bounds, textures, ...)");
   c.add(sub, [a] { return runIcons(*a); });
 }

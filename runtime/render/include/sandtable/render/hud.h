@@ -4,7 +4,7 @@
 // sandtable. The flight loop draws it into the HUD pass's overlay
 // (overlay.h), which the GPU blends over the frame; drawHudPanel(Image&)
 // draws the same panel straight onto a frame on the CPU. Upper-case letters, digits and
-// . , : - / ( ) + % = ° and space; lower case prints as upper case, any
+// . , : - / ( ) + % = ° _ and space; lower case prints as upper case, any
 // other character as '?'.
 //
 // Thread safety: pure functions on caller-owned images and overlays.
