@@ -5,9 +5,16 @@
 
 #include <nlohmann/json.hpp>
 
+#include <ogrsf_frmts.h>
+
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <memory>
+#include <unordered_map>
 
+#include "sandtable/formats/database.h"
 #include "test_support.h"
 
 using namespace sandtable::test;
@@ -18,6 +25,163 @@ namespace {
 std::vector<std::string> bayreuthBuild(const std::string& db) {
   return {"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.55", "49.94", "11.62",
           "49.99", "--spacing", "30", "--culture", data("culture/osm/north-bayreuth.osm.gz"), "-o", db, "--force"};
+}
+
+/// Every object of the database in its CRS: easting, northing.
+std::vector<std::array<double, 2>> objectsOf(const sandtable::Database& db) {
+  std::vector<std::array<double, 2>> out;
+  const auto& h = db.modules->header();
+  const double edge = double(h.moduleSquares) * db.grid->spacing();
+  for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+    for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+      auto m = db.modules->read(kx, kz);
+      EXPECT_TRUE(m.ok());
+      if (!m) continue;
+      for (const auto& o : m->objects) {
+        out.push_back({db.manifest.originEasting + kx * edge + o.x, db.manifest.originNorthing - (kz * edge + o.z)});
+      }
+    }
+  }
+  return out;
+}
+
+/// Line segments in 50 m buckets, for a nearest-centreline search.
+class SegmentIndex {
+ public:
+  void add(double ax, double ay, double bx, double by, double halfWidth) {
+    const std::size_t id = segments_.size();
+    segments_.push_back({ax, ay, bx, by, halfWidth});
+    for (long cx = cell(std::min(ax, bx)) - 1; cx <= cell(std::max(ax, bx)) + 1; ++cx) {
+      for (long cy = cell(std::min(ay, by)) - 1; cy <= cell(std::max(ay, by)) + 1; ++cy) cells_[key(cx, cy)].push_back(id);
+    }
+  }
+  /// The segment whose widened band reaches deepest over (x, y): its
+  /// distance minus its half width (negative: on it).
+  double clearance(double x, double y) const {
+    double best = INFINITY;
+    const auto it = cells_.find(key(cell(x), cell(y)));
+    if (it == cells_.end()) return best;
+    for (const std::size_t id : it->second) {
+      const auto& s = segments_[id];
+      const double dx = s[2] - s[0], dy = s[3] - s[1], len2 = dx * dx + dy * dy;
+      const double t = len2 > 0 ? std::clamp(((x - s[0]) * dx + (y - s[1]) * dy) / len2, 0.0, 1.0) : 0.0;
+      best = std::min(best, std::hypot(x - s[0] - t * dx, y - s[1] - t * dy) - s[4]);
+    }
+    return best;
+  }
+
+ private:
+  static constexpr double kCell = 50;
+  static long cell(double v) { return long(std::floor(v / kCell)); }
+  static std::int64_t key(long x, long y) { return std::int64_t(x) * 1000003 + y; }
+  std::vector<std::array<double, 5>> segments_;
+  std::unordered_map<std::int64_t, std::vector<std::size_t>> cells_;
+};
+
+/// The half width the sample material table gives an OSM line, metres;
+/// 0 for lines it does not draw (default-line none). A line with its own
+/// width tag gets the narrowest (a path's 2 m).
+double halfWidth(OGRFeature& f) {
+  static const std::map<std::string, double> widths = {
+      {"motorway", 25}, {"motorway_link", 12}, {"trunk", 12}, {"trunk_link", 9}, {"primary", 9},
+      {"primary_link", 8}, {"secondary", 8}, {"secondary_link", 7}, {"tertiary", 7}, {"tertiary_link", 6},
+      {"residential", 6}, {"living_street", 6}, {"unclassified", 6}, {"road", 6}, {"service", 4},
+      {"track", 3.5}, {"path", 2}, {"footway", 2}, {"cycleway", 2}, {"bridleway", 2}, {"pedestrian", 2},
+      {"steps", 2}, {"river", 20}, {"canal", 12}, {"stream", 4}, {"ditch", 2}, {"drain", 2}, {"rail", 5}};
+  const char* other = f.GetFieldAsString("other_tags");
+  const std::string tags = other ? other : "";
+  for (const char* hidden : {"\"tunnel\"", "\"covered\"=>\"yes\"", "\"location\"=>\"underground\""}) {
+    if (tags.find(hidden) != std::string::npos) return 0;
+  }
+  std::string type;
+  for (const char* field : {"highway", "waterway", "railway"}) {
+    const int i = f.GetFieldIndex(field);
+    if (i >= 0 && f.IsFieldSetAndNotNull(i)) type = f.GetFieldAsString(i);
+  }
+  if (tags.find("\"railway\"=>\"rail\"") != std::string::npos) type = "rail";
+  if (type.empty()) return 0;
+  const auto it = widths.find(type);
+  if (it == widths.end()) return 0;
+  if (tags.find("\"width\"") != std::string::npos) return 0.5;
+  return 0.5 * it->second;
+}
+
+TEST(ObjectsBuild, noTreeStandsOnARoadInWaterOrInABuildingByTheOsmGeometryItself) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir t("objclear");
+  const auto b = runCli(bayreuthBuild(t / "db"));
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  auto db = sandtable::openDatabase(t / "db");
+  ASSERT_TRUE(db.ok());
+  const auto trees = objectsOf(db.value());
+  ASSERT_GT(trees.size(), 5000u);
+
+  // The OSM extract read with OGR here, projected into the database's CRS.
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> osm(
+      GDALDataset::Open(("/vsigzip/" + data("culture/osm/north-bayreuth.osm.gz")).c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  ASSERT_TRUE(osm);
+  OGRSpatialReference wgs84, frame;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  frame.importFromWkt(db->manifest.crsWkt.c_str());
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> toFrame(OGRCreateCoordinateTransformation(&wgs84, &frame));
+  ASSERT_TRUE(toFrame);
+
+  SegmentIndex lines;
+  std::size_t lineCount = 0;
+  for (auto& f : osm->GetLayerByName("lines")) {
+    const double half = halfWidth(*f);
+    OGRGeometry* g = f->GetGeometryRef();
+    if (half <= 0 || !g || wkbFlatten(g->getGeometryType()) != wkbLineString) continue;
+    if (g->transform(toFrame.get()) != OGRERR_NONE) continue;
+    const auto* ls = g->toLineString();
+    for (int k = 0; k + 1 < ls->getNumPoints(); ++k) {
+      lines.add(ls->getX(k), ls->getY(k), ls->getX(k + 1), ls->getY(k + 1), half);
+    }
+    ++lineCount;
+  }
+  ASSERT_GT(lineCount, 100u);
+
+  std::vector<std::unique_ptr<OGRGeometry>> areas;  // water and building footprints
+  std::vector<std::string> kinds;
+  for (auto& f : osm->GetLayerByName("multipolygons")) {
+    const auto tag = [&](const char* field) {
+      const int i = f->GetFieldIndex(field);
+      return i >= 0 && f->IsFieldSetAndNotNull(i) ? std::string(f->GetFieldAsString(i)) : std::string();
+    };
+    const bool water = tag("natural") == "water" || tag("landuse") == "reservoir" || tag("landuse") == "basin";
+    const bool building = !tag("building").empty();
+    if (!water && !building) continue;
+    std::unique_ptr<OGRGeometry> g(f->StealGeometry());
+    if (g && g->transform(toFrame.get()) == OGRERR_NONE) {
+      areas.push_back(std::move(g));
+      kinds.push_back(std::string(water ? "water" : "building") + " " + f->GetFieldAsString("osm_way_id") +
+                      f->GetFieldAsString("osm_id"));
+    }
+  }
+  ASSERT_GT(areas.size(), 100u);
+  std::vector<OGREnvelope> boxes(areas.size());
+  for (std::size_t k = 0; k < areas.size(); ++k) areas[k]->getEnvelope(&boxes[k]);
+
+  // The decals are the widened lines clipped to float32 module triangles: 5 cm of slack.
+  std::size_t onLine = 0, inArea = 0;
+  std::string where;
+  double worst = INFINITY;
+  for (const auto& [e, n] : trees) {
+    const double c = lines.clearance(e, n);
+    worst = std::min(worst, c);
+    if (c < -0.05) ++onLine;
+    OGRPoint p(e, n);
+    for (std::size_t k = 0; k < areas.size(); ++k) {
+      const auto& box = boxes[k];
+      if (e < box.MinX || e > box.MaxX || n < box.MinY || n > box.MaxY) continue;
+      if (areas[k]->Contains(&p) && ++inArea <= 5) where += "\n  " + kinds[k] + " at E " + std::to_string(e) + " N " + std::to_string(n);
+    }
+  }
+  EXPECT_EQ(onLine, 0u) << "deepest tree into a road or stream: " << -worst << " m";
+  EXPECT_EQ(inArea, 0u) << "trees in water or in a building footprint:" << where;
 }
 
 TEST(ObjectsBuild, forestsGetTreesAtTheTablesDensityAndEveryBaseIsOnItsLevel) {

@@ -94,6 +94,42 @@ Hit locate(const module::Level& l, const std::vector<std::vector<std::uint32_t>>
 
 constexpr double kOnTriangle = -1e-6;  ///< barycentric slack for points on an edge
 
+/// A building's groups (priority 99: walls and roof) with their ground
+/// extent: a building's groups sit in the square of its centre, not in
+/// every square it covers, so they are found by box instead.
+struct BuildingBox {
+  float x0, z0, x1, z1;
+  std::uint32_t group;
+};
+
+std::vector<BuildingBox> buildingBoxes(const module::Level& l) {
+  std::vector<BuildingBox> out;
+  for (std::uint32_t g = 0; g < l.groups.size(); ++g) {
+    const module::Group& gr = l.groups[g];
+    if (gr.priority != module::kPriorityObject || gr.half == module::Half::skirt) continue;
+    BuildingBox b{std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                  std::numeric_limits<float>::lowest(), std::numeric_limits<float>::lowest(), g};
+    for (std::uint32_t k = gr.firstIndex; k < gr.firstIndex + gr.indexCount && k < l.indices.size(); ++k) {
+      const module::Vertex& v = l.vertices[l.indices[k]];
+      b.x0 = std::min(b.x0, v.x), b.x1 = std::max(b.x1, v.x);
+      b.z0 = std::min(b.z0, v.z), b.z1 = std::max(b.z1, v.z);
+    }
+    out.push_back(b);
+  }
+  return out;
+}
+
+/// Whether (x, z) lies under a building's roof (walls are edge-on from above).
+bool underBuilding(const module::Level& l, const std::vector<BuildingBox>& boxes, double x, double z) {
+  for (const BuildingBox& b : boxes) {
+    if (x < b.x0 || x > b.x1 || z < b.z0 || z > b.z1) continue;
+    Hit hit;
+    search(l, {b.group}, x, z, hit);
+    if (hit.inside >= kOnTriangle) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 void vary(const materials::Variation& v, std::uint64_t seed, std::uint64_t key, float& scale, std::uint16_t& heading) {
@@ -113,6 +149,7 @@ void placeObjects(const ObjectPlan& plan, const std::vector<std::uint32_t>& poin
   }
   if (!plan.scatters.empty()) {
     const auto skin0 = groupsBySquare(l0, skinGroup), decals0 = groupsBySquare(l0, decalGroup);
+    const auto buildings0 = buildingBoxes(l0);
     const double w = l0.spacing * l0.squaresX, h = l0.spacing * l0.squaresZ;
     for (std::size_t s = 0; s < plan.scatters.size(); ++s) {
       const ObjectPlan::Scatter& sc = plan.scatters[s];
@@ -127,7 +164,8 @@ void placeObjects(const ObjectPlan& plan, const std::vector<std::uint32_t>& poin
           const double x = X - x0, z = Z - z0;
           if (!(x >= 0 && x < w && z >= 0 && z < h)) continue;  // another module's
           const Hit skin = locate(l0, skin0, x, z);
-          const bool covered = locate(l0, decals0, x, z).inside >= kOnTriangle;
+          const bool covered =
+              locate(l0, decals0, x, z).inside >= kOnTriangle || underBuilding(l0, buildings0, x, z);
           if (skin.inside < kOnTriangle || skin.material != sc.classId || covered) {
             ++totals.scatterRefused;
             continue;
