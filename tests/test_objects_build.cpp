@@ -229,6 +229,37 @@ TEST(ObjectsBuild, aPointsFilePlacesItsIconsAndRefusesUnknownOnes) {
   EXPECT_NE(j["objects"]["warnings"][0].get<std::string>().find("1 of 3 points lie outside"), std::string::npos);
   EXPECT_EQ(runCli({"validate", t / "db"}).exitCode, 0);
 
+  // Export (docs/EXPORT.md, "Objects"): the module holding the first point,
+  // its objects instanced in glTF and flattened in OBJ; the tree alone.
+  auto db = sandtable::openDatabase(t / "db");
+  ASSERT_TRUE(db.ok());
+  const auto gl = runCli({"export", t / "db", "--lonlat", "11.58", "49.96", "-o", t / "m.glb", "--json"});
+  ASSERT_EQ(gl.exitCode, 0) << gl.err;
+  const auto gj = nlohmann::json::parse(gl.out);
+  auto mod = db->modules->read(gj["modules"]["from"][0], gj["modules"]["from"][1]);
+  ASSERT_TRUE(mod.ok());
+  ASSERT_GT(mod->objects.size(), 0u);
+  EXPECT_EQ(gj["objects"]["mode"], "instanced");
+  EXPECT_EQ(gj["objects"]["count"], mod->objects.size());
+  std::uint64_t iconTriangles = 0;
+  for (const auto& o : mod->objects) iconTriangles += sandtable::iconpack::triangleCount(db->icons->icons[o.icon], 0);
+  const auto flat = runCli({"export", t / "db", "--lonlat", "11.58", "49.96", "-o", t / "m.obj", "--json"});
+  ASSERT_EQ(flat.exitCode, 0) << flat.err;
+  const auto fj = nlohmann::json::parse(flat.out);
+  EXPECT_EQ(fj["objects"]["mode"], "flatten");
+  EXPECT_EQ(fj["triangles"].get<std::uint64_t>(), gj["triangles"].get<std::uint64_t>() + iconTriangles);
+  const auto none = runCli({"export", t / "db", "--lonlat", "11.58", "49.96", "--objects", "none", "-o", t / "n.obj",
+                            "--json"});
+  EXPECT_EQ(nlohmann::json::parse(none.out)["triangles"], gj["triangles"]);
+  const auto tree = runCli({"export", t / "db", "--icon", "tree", "-o", t / "tree.glb", "--json"});
+  ASSERT_EQ(tree.exitCode, 0) << tree.err;
+  EXPECT_EQ(nlohmann::json::parse(tree.out)["triangles"], 80);  // the built-in tree (docs/ICONS.md section 4)
+  const auto unknown = runCli({"export", t / "db", "--icon", "tank", "-o", t / "tank.glb"});
+  EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_NE(unknown.err.find("--icon tank is not in icons.pack; it has tree"), std::string::npos) << unknown.err;
+  const auto objInstanced = runCli({"export", t / "db", "--module", "0", "0", "--objects", "instanced", "-o", t / "x.obj"});
+  EXPECT_EQ(objInstanced.exitCode, 2);
+
   auto badArgs = bayreuthBuild(t / "db2");
   badArgs.insert(badArgs.end(), {"--objects", bad});
   const auto r = runCli(badArgs);

@@ -965,6 +965,18 @@ class Encoder {
 
 }  // namespace
 
+std::array<float, 3> partOrigin(const Icon& icon, std::size_t part) {
+  std::array<float, 3> o{0, 0, 0};
+  // Parents are earlier parts (decode refuses others); anything else ends the chain.
+  std::int32_t p = part < icon.parts.size() ? std::int32_t(part) : kBody;
+  while (p != kBody) {
+    const Part& at = icon.parts[std::size_t(p)];
+    for (int k = 0; k < 3; ++k) o[k] += at.offset[k];
+    p = at.parent >= 0 && at.parent < p ? at.parent : kBody;
+  }
+  return o;
+}
+
 std::uint64_t triangleCount(const Icon& icon, std::size_t level, State state) {
   std::uint64_t n = 0;
   for (const Part& p : icon.parts) {

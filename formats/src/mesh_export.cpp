@@ -58,6 +58,18 @@ std::size_t Mesh::triangles() const {
   return n;
 }
 
+void Mesh::updateBounds() {
+  min = max = {0, 0, 0};
+  if (positions.empty()) return;
+  min = max = positions.front();
+  for (const auto& p : positions) {
+    for (int k = 0; k < 3; ++k) {
+      min[k] = std::min(min[k], p[k]);
+      max[k] = std::max(max[k], p[k]);
+    }
+  }
+}
+
 MeshBuilder::MeshBuilder(Options o) : o_(o) {}
 
 Status MeshBuilder::add(const module::Module& m, double x, double z) {
@@ -129,15 +141,7 @@ Mesh MeshBuilder::finish() {
     }
     mesh_.parts.push_back(std::move(p));
   }
-  if (!mesh_.positions.empty()) {
-    mesh_.min = mesh_.max = mesh_.positions.front();
-    for (const auto& p : mesh_.positions) {
-      for (int k = 0; k < 3; ++k) {
-        mesh_.min[k] = std::min(mesh_.min[k], p[k]);
-        mesh_.max[k] = std::max(mesh_.max[k], p[k]);
-      }
-    }
-  }
+  mesh_.updateBounds();
   parts_.clear();
   Mesh out = std::move(mesh_);
   mesh_ = Mesh{};
@@ -228,80 +232,145 @@ double srgbToLinear(std::uint8_t c) {
   return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
 }
 
-std::pair<nlohmann::json, std::vector<std::byte>> gltfDocument(const Mesh& m, const nlohmann::json& extras,
-                                                               bool embedUri) {
-  using nlohmann::json;
-  constexpr int kFloat = 5126, kUint = 5125, kArrayBuffer = 34962, kElementArrayBuffer = 34963, kTriangles = 4;
-  const std::size_t n = m.positions.size();
-  std::size_t indexCount = 0;
-  for (const Part& p : m.parts) indexCount += p.indices.size();
-  std::vector<std::byte> bin(n * 12 + n * 8 + indexCount * 4);
-  std::byte* w = bin.data();
-  for (const auto& p : m.positions) {
-    std::memcpy(w, p.data(), 12);
-    w += 12;
+namespace {
+
+constexpr int kFloat = 5126, kUint = 5125, kArrayBuffer = 34962, kElementArrayBuffer = 34963, kTriangles = 4;
+
+/// Appends buffer views and accessors to one binary buffer; every view
+/// starts on a 4-byte boundary.
+class GltfWriter {
+ public:
+  /// A view over `bytes` bytes copied from `data`; target 0: none.
+  std::size_t view(const void* data, std::size_t bytes, int target) {
+    while (bin_.size() % 4) bin_.push_back(std::byte{0});
+    const std::size_t at = bin_.size();
+    bin_.resize(at + bytes);
+    if (bytes > 0) std::memcpy(bin_.data() + at, data, bytes);
+    nlohmann::json v = {{"buffer", 0}, {"byteOffset", at}, {"byteLength", bytes}};
+    if (target != 0) v["target"] = target;
+    views_.push_back(std::move(v));
+    return views_.size() - 1;
   }
-  for (const auto& t : m.texcoords) {
-    std::memcpy(w, t.data(), 8);
-    w += 8;
+  template <std::size_t N>
+  std::size_t floats(const std::vector<std::array<float, N>>& v, const char* type, bool bounds,
+                     int target = kArrayBuffer) {
+    const std::size_t view = this->view(v.data(), v.size() * N * 4, target);
+    nlohmann::json a = {{"bufferView", view}, {"componentType", kFloat}, {"count", v.size()}, {"type", type}};
+    if (bounds) {
+      std::array<float, N> lo{}, hi{};
+      if (!v.empty()) lo = hi = v.front();
+      for (const auto& x : v) {
+        for (std::size_t k = 0; k < N; ++k) lo[k] = std::min(lo[k], x[k]), hi[k] = std::max(hi[k], x[k]);
+      }
+      a["min"] = lo;
+      a["max"] = hi;
+    }
+    return accessor(std::move(a));
   }
-  json accessors = json::array();
-  accessors.push_back({{"bufferView", 0}, {"componentType", kFloat}, {"count", n}, {"type", "VEC3"},
-                       {"min", {m.min[0], m.min[1], m.min[2]}}, {"max", {m.max[0], m.max[1], m.max[2]}}});
-  accessors.push_back({{"bufferView", 1}, {"componentType", kFloat}, {"count", n}, {"type", "VEC2"}});
-  json materialsJson = json::array();
-  json primitives = json::array();
-  std::size_t indexOffset = 0;
-  for (const Part& p : m.parts) {
-    std::memcpy(w, p.indices.data(), p.indices.size() * 4);
-    w += p.indices.size() * 4;
+  std::size_t accessor(nlohmann::json a) {
+    accessors_.push_back(std::move(a));
+    return accessors_.size() - 1;
+  }
+  /// A material for `p`, textured when it has a texture.
+  std::size_t material(const Part& p) {
     const auto r = std::uint8_t(p.rgb >> 16), g = std::uint8_t(p.rgb >> 8), b = std::uint8_t(p.rgb);
-    materialsJson.push_back({{"name", p.name},
-                             {"pbrMetallicRoughness",
-                              {{"baseColorFactor", {srgbToLinear(r), srgbToLinear(g), srgbToLinear(b), 1.0}},
-                               {"metallicFactor", 0.0},
-                               {"roughnessFactor", 1.0}}},
-                             {"doubleSided", p.skirt}});
-    primitives.push_back({{"attributes", {{"POSITION", 0}, {"TEXCOORD_0", 1}}},
-                          {"indices", accessors.size()},
-                          {"material", materialsJson.size() - 1},
-                          {"mode", kTriangles}});
-    accessors.push_back({{"bufferView", 2},
-                         {"byteOffset", indexOffset * 4},
-                         {"componentType", kUint},
-                         {"count", p.indices.size()},
-                         {"type", "SCALAR"}});
-    indexOffset += p.indices.size();
+    nlohmann::json pbr = {{"baseColorFactor", {srgbToLinear(r), srgbToLinear(g), srgbToLinear(b), 1.0}},
+                          {"metallicFactor", 0.0},
+                          {"roughnessFactor", 1.0}};
+    if (p.texture != kNoTexture) pbr["baseColorTexture"] = {{"index", p.texture}};
+    materials_.push_back({{"name", p.name}, {"pbrMetallicRoughness", pbr}, {"doubleSided", p.skirt}});
+    return materials_.size() - 1;
   }
-  json bufferViews = json::array();
-  bufferViews.push_back({{"buffer", 0}, {"byteOffset", 0}, {"byteLength", n * 12}, {"target", kArrayBuffer}});
-  bufferViews.push_back({{"buffer", 0}, {"byteOffset", n * 12}, {"byteLength", n * 8}, {"target", kArrayBuffer}});
-  bufferViews.push_back({{"buffer", 0},
-                         {"byteOffset", n * 20},
-                         {"byteLength", indexCount * 4},
-                         {"target", kElementArrayBuffer}});
-  json buffer = {{"byteLength", bin.size()}};
-  if (embedUri) buffer["uri"] = "data:application/octet-stream;base64," + base64(bin);
+  /// A glTF mesh: shared attributes, one primitive per part, all of the
+  /// parts' indices in one view.
+  nlohmann::json mesh(const Mesh& m, const std::string& name) {
+    nlohmann::json attributes;
+    nlohmann::json a = {{"componentType", kFloat}, {"count", m.positions.size()}, {"type", "VEC3"},
+                        {"min", m.min}, {"max", m.max}};
+    a["bufferView"] = view(m.positions.data(), m.positions.size() * 12, kArrayBuffer);
+    attributes["POSITION"] = accessor(std::move(a));
+    attributes["TEXCOORD_0"] = floats(m.texcoords, "VEC2", false);
+    std::vector<std::uint32_t> all;
+    for (const Part& p : m.parts) all.insert(all.end(), p.indices.begin(), p.indices.end());
+    const std::size_t indexView = view(all.data(), all.size() * 4, kElementArrayBuffer);
+    if (!m.normals.empty()) attributes["NORMAL"] = floats(m.normals, "VEC3", false);
+    nlohmann::json primitives = nlohmann::json::array();
+    std::size_t offset = 0;
+    for (const Part& p : m.parts) {
+      const std::size_t indices = accessor({{"bufferView", indexView},
+                                            {"byteOffset", offset * 4},
+                                            {"componentType", kUint},
+                                            {"count", p.indices.size()},
+                                            {"type", "SCALAR"}});
+      offset += p.indices.size();
+      primitives.push_back(
+          {{"attributes", attributes}, {"indices", indices}, {"material", material(p)}, {"mode", kTriangles}});
+    }
+    return {{"name", name}, {"primitives", primitives}};
+  }
+  std::vector<std::byte> bin_;
+  nlohmann::json views_ = nlohmann::json::array(), accessors_ = nlohmann::json::array();
+  nlohmann::json materials_ = nlohmann::json::array();
+};
+
+}  // namespace
+
+std::pair<nlohmann::json, std::vector<std::byte>> gltfDocument(const Mesh& m, const nlohmann::json& extras,
+                                                               bool embedUri, const GltfExtras& more) {
+  using nlohmann::json;
+  GltfWriter w;
+  json meshes = json::array({w.mesh(m, "sandtable")});
+  json nodes = json::array({{{"name", "sandtable"}, {"mesh", 0}}});
+  json sceneNodes = json::array({0});
+  for (const InstancedMesh& im : more.instanced) {
+    meshes.push_back(w.mesh(im.mesh, im.name));
+    const json instancing = {{"attributes",
+                              {{"TRANSLATION", w.floats(im.translations, "VEC3", false, 0)},
+                               {"ROTATION", w.floats(im.rotations, "VEC4", false, 0)},
+                               {"SCALE", w.floats(im.scales, "VEC3", false, 0)}}}};
+    nodes.push_back({{"name", im.name},
+                     {"mesh", meshes.size() - 1},
+                     {"extensions", {{"EXT_mesh_gpu_instancing", instancing}}}});
+    sceneNodes.push_back(nodes.size() - 1);
+  }
+  json images = json::array(), textures = json::array();
+  for (const Texture& t : more.textures) {
+    images.push_back({{"name", t.name}, {"mimeType", t.mimeType}, {"bufferView", w.view(t.bytes.data(), t.bytes.size(), 0)}});
+    textures.push_back({{"source", images.size() - 1}, {"sampler", 0}});
+  }
+  json buffer = {{"byteLength", w.bin_.size()}};
+  if (embedUri) buffer["uri"] = "data:application/octet-stream;base64," + base64(w.bin_);
   json asset = {{"version", "2.0"}, {"generator", std::string("sandtable ") + SANDTABLE_VERSION}};
   if (!extras.is_null()) asset["extras"] = extras;
   json doc = {{"asset", asset},
               {"scene", 0},
-              {"scenes", json::array({{{"nodes", {0}}}})},
-              {"nodes", json::array({{{"name", "sandtable"}, {"mesh", 0}}})},
-              {"meshes", json::array({{{"name", "sandtable"}, {"primitives", primitives}}})},
-              {"materials", materialsJson},
-              {"accessors", accessors},
-              {"bufferViews", bufferViews},
+              {"scenes", json::array({{{"nodes", sceneNodes}}})},
+              {"nodes", nodes},
+              {"meshes", meshes},
+              {"materials", w.materials_},
+              {"accessors", w.accessors_},
+              {"bufferViews", w.views_},
               {"buffers", json::array({buffer})}};
-  return {std::move(doc), std::move(bin)};
+  if (!more.textures.empty()) {
+    // Linear filtering with mipmaps, repeating: what the models were made for.
+    doc["samplers"] = json::array({{{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 10497}, {"wrapT", 10497}}});
+    doc["images"] = images;
+    doc["textures"] = textures;
+  }
+  if (!more.instanced.empty()) {
+    // Without the extension a viewer would draw each icon once, at the origin.
+    doc["extensionsUsed"] = json::array({"EXT_mesh_gpu_instancing"});
+    doc["extensionsRequired"] = json::array({"EXT_mesh_gpu_instancing"});
+  }
+  return {std::move(doc), std::move(w.bin_)};
 }
 
-std::string toGltf(const Mesh& m, const nlohmann::json& extras) {
-  return gltfDocument(m, extras, true).first.dump(1) + "\n";
+std::string toGltf(const Mesh& m, const nlohmann::json& extras, const GltfExtras& more) {
+  return gltfDocument(m, extras, true, more).first.dump(1) + "\n";
 }
 
-std::vector<std::byte> toGlb(const Mesh& m, const nlohmann::json& extras) {
-  auto [doc, bin] = gltfDocument(m, extras, false);
+std::vector<std::byte> toGlb(const Mesh& m, const nlohmann::json& extras, const GltfExtras& more) {
+  auto [doc, bin] = gltfDocument(m, extras, false, more);
   std::string json = doc.dump();
   while (json.size() % 4) json += ' ';
   const std::size_t binPadded = (bin.size() + 3) / 4 * 4;

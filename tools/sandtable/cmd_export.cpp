@@ -13,6 +13,7 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/mesh_export.h"
+#include "sandtable/formats/object_export.h"
 
 namespace sandtable::cli {
 namespace {
@@ -26,8 +27,18 @@ struct ExportArgs {
   std::uint32_t level = 0;
   std::string format;
   std::string output;
+  std::string objects = "auto";  ///< auto, instanced, flatten, none
+  std::uint32_t iconLevel = 0;
+  std::string icon;              ///< export this icon alone
   bool noSkirts = false;
   bool json = false;
+};
+
+/// What a written export holds besides the terrain.
+struct Written {
+  mesh_export::GltfExtras more;
+  std::string objectMode = "none";
+  std::uint64_t objects = 0;
 };
 
 std::string lower(std::string s) {
@@ -82,25 +93,120 @@ std::string locate(const ExportArgs& a, const Database& db, Point& p) {
   return {};
 }
 
-int runExport(ExportArgs& a) {
-  if (int(!a.from.empty()) + int(!a.lonlat.empty()) + int(!a.xy.empty()) != 1) {
-    return usageError("export", "give exactly one of --module KX KZ, --lonlat LON LAT or --xy E N");
-  }
-  // Format: --format, else the output's extension; .glb selects binary glTF.
+/// The output format: --format, else the output's extension (.glb selects
+/// binary glTF); "" after reporting a usage error.
+std::string outputFormat(const ExportArgs& a, bool& glb) {
   const std::string ext = lower(fs::path(a.output).extension().string());
   const std::string byExt = ext == ".obj" ? "obj" : (ext == ".gltf" || ext == ".glb") ? "gltf" : "";
   const std::string format = a.format.empty() ? byExt : a.format;
   if (format.empty()) {
-    return usageError("export", "give --format obj|gltf (the output " + a.output +
-                                    " ends in none of .obj, .gltf, .glb)");
+    usageError("export", "give --format obj|gltf (the output " + a.output + " ends in none of .obj, .gltf, .glb)");
+    return {};
   }
   if (!byExt.empty() && byExt != format) {
-    return usageError("export", "--format " + format + " but the output " + a.output + " is a " + ext + " file");
+    usageError("export", "--format " + format + " but the output " + a.output + " is a " + ext + " file");
+    return {};
   }
-  const bool glb = format == "gltf" && ext == ".glb";
+  glb = format == "gltf" && ext == ".glb";
+  return format;
+}
+
+/// Writes `mesh` (and `more`) as `format`; the files written are added to `files`.
+Status writeMesh(const ExportArgs& a, const std::string& format, bool glb, const mesh_export::Mesh& mesh,
+                 const nlohmann::json& info, const std::vector<std::string>& header,
+                 const mesh_export::GltfExtras& more, std::vector<std::string>& files) {
+  files = {a.output};
+  if (format == "obj") {
+    fs::path mtl = fs::path(a.output).replace_extension(".mtl");
+    files.push_back(mtl.string());
+    Status saved = writeText(mtl.string(), mesh_export::toMtl(mesh));
+    if (saved) saved = writeText(a.output, mesh_export::toObj(mesh, mtl.filename().string(), header));
+    return saved;
+  }
+  if (glb) return writeFileAtomic(a.output, mesh_export::toGlb(mesh, {{"sandtable", info}}, more));
+  return writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}, more));
+}
+
+/// `export DB --icon NAME`: one icon of icons.pack alone, in its body frame.
+int exportIcon(const ExportArgs& a, const Database& db, const std::string& format, bool glb) {
+  if (!db.icons) {
+    return usageError("export", a.dir + " has no icons.pack (built before icons); rebuild it to export icons");
+  }
+  const auto& icons = db.icons->icons;
+  std::size_t index = icons.size();
+  std::string names;
+  for (std::size_t i = 0; i < icons.size(); ++i) {
+    if (icons[i].name == a.icon) index = i;
+    names += (i ? ", " : "") + icons[i].name;
+  }
+  if (index == icons.size()) return usageError("export", "--icon " + a.icon + " is not in icons.pack; it has " + names);
+  const auto& icon = icons[index];
+  if (a.iconLevel >= icon.ranges.size()) {
+    return usageError("export", "--icon-level " + std::to_string(a.iconLevel) + " is out of range: " + a.icon +
+                                    " has " + std::to_string(icon.ranges.size()) + " levels, 0 (full) to " +
+                                    std::to_string(icon.ranges.size() - 1));
+  }
+  mesh_export::GltfExtras more;
+  std::vector<std::int32_t> map;
+  const mesh_export::Mesh mesh = mesh_export::iconMesh(*db.icons, index, a.iconLevel, more.textures, map);
+  const nlohmann::json info = {{"database", a.dir},
+                               {"icon", a.icon},
+                               {"icon_level", a.iconLevel},
+                               {"frame", "metres; the icon's body frame: X right, Y up, Z back (its front is -Z); "
+                                         "origin at its base"}};
+  std::vector<std::string> files;
+  const std::vector<std::string> header = {"sandtable export of icon " + a.icon + " of " + a.dir + ", level " +
+                                           std::to_string(a.iconLevel), info["frame"].get<std::string>()};
+  if (Status st = writeMesh(a, format, glb, mesh, info, header, more, files); !st) {
+    return usageError("export", st.message());
+  }
+  if (a.json) {
+    nlohmann::json j = info;
+    j["files"] = files;
+    j["format"] = glb ? "glb" : format;
+    j["vertices"] = mesh.positions.size();
+    j["triangles"] = mesh.triangles();
+    j["textures"] = more.textures.size();
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("wrote %s: icon %s at level %u, %zu vertices, %zu triangles, %zu materials, %zu textures\n",
+                a.output.c_str(), a.icon.c_str(), a.iconLevel, mesh.positions.size(), mesh.triangles(),
+                mesh.parts.size(), more.textures.size());
+  }
+  return kOk;
+}
+
+/// The objects mode: --objects, where "auto" is instanced for glTF and
+/// flattened for OBJ; "" after reporting a usage error.
+std::string objectMode(const ExportArgs& a, const std::string& format, const Database& db) {
+  std::string mode = a.objects;
+  if (mode == "auto") mode = !db.icons ? "none" : format == "obj" ? "flatten" : "instanced";
+  if (mode == "instanced" && format == "obj") {
+    usageError("export", "--objects instanced needs glTF (EXT_mesh_gpu_instancing); use --objects flatten for OBJ");
+    return {};
+  }
+  if (mode != "none" && !db.icons) {
+    usageError("export", "--objects " + mode + ": " + a.dir +
+                             " has no icons.pack (built before icons); rebuild it, or give --objects none");
+    return {};
+  }
+  return mode;
+}
+
+int runExport(ExportArgs& a) {
+  const int sources = int(!a.from.empty()) + int(!a.lonlat.empty()) + int(!a.xy.empty()) + int(!a.icon.empty());
+  if (sources != 1) {
+    return usageError("export", "give exactly one of --module KX KZ, --lonlat LON LAT, --xy E N or --icon NAME");
+  }
+  bool glb = false;
+  const std::string format = outputFormat(a, glb);
+  if (format.empty()) return kUsage;
 
   auto db = openOrReport("export", a.dir);
   if (!db) return kUsage;
+  if (!a.icon.empty()) return exportIcon(a, *db, format, glb);
+  const std::string mode = objectMode(a, format, *db);
+  if (mode.empty()) return kUsage;
   if (!db->modules) {
     return usageError("export", a.dir + " has no load modules (built with --no-modules?); rebuild it with modules");
   }
@@ -137,6 +243,8 @@ int runExport(ExportArgs& a) {
   o.skirts = !a.noSkirts;
   o.materials = db->materials ? &*db->materials : nullptr;
   mesh_export::MeshBuilder builder(o);
+  std::optional<mesh_export::ObjectCollector> objects;
+  if (mode != "none") objects.emplace(*db->icons, a.level, a.iconLevel);
   const double edge = double(h.moduleSquares) * db->grid->spacing();
   for (std::uint32_t kz = kz0; kz <= kz1; ++kz) {
     for (std::uint32_t kx = kx0; kx <= kx1; ++kx) {
@@ -146,12 +254,21 @@ int runExport(ExportArgs& a) {
         std::fprintf(stderr, "sandtable export: hint: run `sandtable validate %s` for a full report\n", a.dir.c_str());
         return kUsage;
       }
-      if (Status st = builder.add(m.value(), double(kx - kx0) * edge, double(kz - kz0) * edge); !st) {
-        return usageError("export", st.message());
+      const double x = double(kx - kx0) * edge, z = double(kz - kz0) * edge;
+      if (Status st = builder.add(m.value(), x, z); !st) return usageError("export", st.message());
+      if (objects) {
+        if (Status st = objects->add(m.value(), x, z); !st) return usageError("export", st.message());
       }
     }
   }
-  const mesh_export::Mesh mesh = builder.finish();
+  mesh_export::Mesh mesh = builder.finish();
+  Written extra;
+  if (objects) {
+    extra.objectMode = mode;
+    extra.objects = objects->objects();
+    if (mode == "instanced") extra.more = objects->instanced();
+    else objects->flattenInto(mesh, extra.more.textures);
+  }
   if (mesh.triangles() == 0) return usageError("export", "nothing to export: the modules have no triangles at that level");
 
   const auto& man = db->manifest;
@@ -168,31 +285,24 @@ int runExport(ExportArgs& a) {
       {"origin_easting", easting},
       {"origin_northing", northing},
       {"crs_name", man.crsName},
-      {"epsg", man.epsg}};
+      {"epsg", man.epsg},
+      {"objects", {{"mode", extra.objectMode}, {"count", extra.objects}, {"icon_level", a.iconLevel}}}};
   if (point) {
     info["point"] = {{"lon", point->lon}, {"lat", point->lat}, {"easting", point->easting},
                      {"northing", point->northing}};
   }
 
-  std::vector<std::string> written = {a.output};
-  Status saved;
-  if (format == "obj") {
-    fs::path mtl = fs::path(a.output).replace_extension(".mtl");
-    const std::vector<std::string> header = {
-        "sandtable export of " + a.dir + ": modules " + moduleName(kx0, kz0) + " to " + moduleName(kx1, kz1) +
-            ", level " + std::to_string(a.level) + (a.noSkirts ? ", no skirts" : ", skirts in group \"skirt\""),
-        info["frame"].get<std::string>(),
-        "origin: easting " + std::to_string(easting) + ", northing " + std::to_string(northing) + " in " +
-            man.crsName + (man.epsg ? " (EPSG:" + std::to_string(man.epsg) + ")" : std::string())};
-    saved = writeText(mtl.string(), mesh_export::toMtl(mesh));
-    if (saved) saved = writeText(a.output, mesh_export::toObj(mesh, mtl.filename().string(), header));
-    written.push_back(mtl.string());
-  } else if (glb) {
-    saved = writeFileAtomic(a.output, mesh_export::toGlb(mesh, {{"sandtable", info}}));
-  } else {
-    saved = writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}));
+  const std::vector<std::string> header = {
+      "sandtable export of " + a.dir + ": modules " + moduleName(kx0, kz0) + " to " + moduleName(kx1, kz1) +
+          ", level " + std::to_string(a.level) + (a.noSkirts ? ", no skirts" : ", skirts in group \"skirt\"") +
+          ", objects " + extra.objectMode,
+      info["frame"].get<std::string>(),
+      "origin: easting " + std::to_string(easting) + ", northing " + std::to_string(northing) + " in " +
+          man.crsName + (man.epsg ? " (EPSG:" + std::to_string(man.epsg) + ")" : std::string())};
+  std::vector<std::string> written;
+  if (Status saved = writeMesh(a, format, glb, mesh, info, header, extra.more, written); !saved) {
+    return usageError("export", saved.message());
   }
-  if (!saved) return usageError("export", saved.message());
 
   if (a.json) {
     nlohmann::json j = info;
@@ -205,10 +315,11 @@ int runExport(ExportArgs& a) {
     j["materials"] = parts;
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("wrote %s%s: %llu module(s) at level %u, %zu vertices, %zu triangles, %zu materials\n",
+    std::printf("wrote %s%s: %llu module(s) at level %u, %zu vertices, %zu triangles, %zu materials, "
+                "%llu objects (%s)\n",
                 a.output.c_str(), written.size() > 1 ? (" + " + written[1]).c_str() : "",
                 static_cast<unsigned long long>(modules), a.level, mesh.positions.size(), mesh.triangles(),
-                mesh.parts.size());
+                mesh.parts.size(), static_cast<unsigned long long>(extra.objects), extra.objectMode.c_str());
   }
   return kOk;
 }
@@ -224,7 +335,9 @@ void registerExport(CLI::App& root, Commands& c) {
       "The module may be named by a point in it: --lonlat LON LAT (WGS 84) or --xy E N (database CRS).\n"
       "Examples:\n  sandtable export db --module 3 4 -o m34.obj\n"
       "  sandtable export db --lonlat 7.42 43.74 -o monaco.glb\n"
-      "  sandtable export db --module 0 0 --to 2 1 --level 1 --format gltf -o area.glb");
+      "  sandtable export db --module 0 0 --to 2 1 --level 1 --format gltf -o area.glb\n"
+      "  sandtable export db --module 3 4 --objects flatten -o m34-trees.obj\n"
+      "  sandtable export db --icon tree -o tree.glb");
   sub->add_option("DB", a->dir, "Database directory")->required();
   auto* module = sub->add_option("--module", a->from, "Module column and row (north-west module of the range)")
                      ->expected(2);
@@ -238,6 +351,14 @@ void registerExport(CLI::App& root, Commands& c) {
       ->check(CLI::IsMember({"obj", "gltf"}));
   sub->add_option("-o,--output", a->output, "Output file (.obj writes a .mtl beside it)")->required();
   sub->add_flag("--no-skirts", a->noSkirts, "Leave the skirts out");
+  sub->add_option("--objects", a->objects,
+                  "Static objects: instanced (glTF EXT_mesh_gpu_instancing), flatten (moved into the mesh), none; "
+                  "auto: instanced for glTF, flatten for OBJ")
+      ->default_val("auto")
+      ->check(CLI::IsMember({"auto", "instanced", "flatten", "none"}));
+  sub->add_option("--icon-level", a->iconLevel, "Icons' level of detail, 0 = full")->default_val(0);
+  sub->add_option("--icon", a->icon, "Export this icon of icons.pack alone, in its own frame")
+      ->excludes(module)->excludes(lonlat);
   sub->add_flag("--json", a->json, "Print a JSON summary");
   c.add(sub, [a] {
     ExportArgs args = *a;  // runExport fills in --module from a point

@@ -67,6 +67,7 @@ struct FlyArgs {
   bool noSky = false;
   std::uint32_t msaa = 0;
   bool noObjects = false;
+  bool noObjectLod = false;
   double objectFade = runtime::kDefaultObjectFade;
   std::string shading = "smooth";
   std::string colour = "natural";
@@ -267,6 +268,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.render.msaa = a.msaa;
   o.render.objects = !a.noObjects;
   o.render.objectFade = a.objectFade;
+  o.render.objectLod = !a.noObjectLod;
   if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
   else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
@@ -526,6 +528,8 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--object-fade", args->objectFade,
                   "Fraction of each icon's far range over which its objects fade in (0 pops them in)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  sub->add_flag("--no-object-lod", args->noObjectLod,
+                "Draw every object in the view distance at its icon's full detail (no ranges)");
   sub->add_option("--shading", args->shading,
                   "smooth (per-post normals, elevation tint) or flat (the seed's per-triangle look)")
       ->capture_default_str();

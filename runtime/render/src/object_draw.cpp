@@ -73,15 +73,6 @@ std::uint32_t packRgba(const std::array<std::uint8_t, 4>& c) {
          (std::uint32_t(c[3]) << 24);
 }
 
-/// A part's frame origin in the body frame: its offsets up the parent chain.
-std::array<float, 3> partOrigin(const iconpack::Icon& icon, std::size_t part) {
-  std::array<float, 3> o{0, 0, 0};
-  for (std::int32_t p = std::int32_t(part); p != iconpack::kBody; p = icon.parts[std::size_t(p)].parent) {
-    for (int k = 0; k < 3; ++k) o[k] += icon.parts[std::size_t(p)].offset[k];
-  }
-  return o;
-}
-
 void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   const auto base = std::int32_t(out.vertices.size());
   const std::size_t levels = icon.ranges.size();
@@ -89,7 +80,7 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   for (std::size_t p = 0; p < icon.parts.size(); ++p) {
     const iconpack::Part& part = icon.parts[p];
     if (part.state != iconpack::State::alive) continue;
-    const auto origin = partOrigin(icon, p);
+    const auto origin = iconpack::partOrigin(icon, p);
     for (const iconpack::Mesh& m : part.meshes) {
       const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
       const std::uint32_t rgba = m.material < icon.materials.size() ? packRgba(icon.materials[m.material].rgba)
@@ -235,8 +226,10 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       const double radius = std::hypot(double(o.radius), half);
       const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
       float fade = 1;
-      const int iconLevel =
-          iconLevelAt(icons[o.icon], (centre - eye).norm(), cam.viewDistance, settings_.objectFade, fade);
+      const double distance = (centre - eye).norm();
+      const int iconLevel = settings_.objectLod
+                                ? iconLevelAt(icons[o.icon], distance, cam.viewDistance, settings_.objectFade, fade)
+                                : (distance < cam.viewDistance ? 0 : -1);
       if (iconLevel < 0 || fade <= 0) continue;
       if (!discInTriangle(buf.triangle, mx + o.x, mz + o.z, radius)) continue;
       const Eigen::Vector4d c(centre.x(), centre.y(), centre.z(), 1.0);

@@ -174,6 +174,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"msaa", o.render.msaa},
                   {"objects", o.render.objects},
                   {"object_fade", o.render.objectFade},
+                  {"object_lod", o.render.objectLod},
                   {"hud", o.view.hud},
                   {"path_waypoints", o.motion.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -540,6 +541,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.colour = o.render.colour;
   rs.waterMaterials = o.render.waterMaterials;
   rs.objectFade = o.render.objectFade;
+  rs.objectLod = o.render.objectLod;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;

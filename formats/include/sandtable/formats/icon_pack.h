@@ -104,6 +104,10 @@ struct Pack {
   bool operator==(const Pack&) const = default;
 };
 
+/// The origin of part `part`'s frame in the icon's body frame: its offsets
+/// summed up the parent chain (a static object never turns its turret).
+std::array<float, 3> partOrigin(const Icon& icon, std::size_t part);
+
 /// Triangles of `icon` at `level`, summed over every part of `state`.
 std::uint64_t triangleCount(const Icon& icon, std::size_t level, State state = State::alive);
 

@@ -42,22 +42,56 @@ struct Options {
   const materials::Table* materials = nullptr;
 };
 
+/// Part::texture of a part without a texture.
+inline constexpr std::int32_t kNoTexture = -1;
+
 /// The triangles of one material.
 struct Part {
   std::string name;    ///< unique in the mesh; letters, digits, '_', '-', '.' only
   std::uint32_t rgb = kUnknownRgb;  ///< 0xRRGGBB (sRGB)
   bool skirt = false;  ///< the skirt part (vertical walls: draw double-sided)
+  /// Index into the document's textures (glTF baseColorTexture over
+  /// TEXCOORD_0), or kNoTexture. OBJ ignores it.
+  std::int32_t texture = kNoTexture;
   std::vector<std::uint32_t> indices;  ///< triangle list into Mesh vertices
 };
 
 /// A mesh ready to write: shared vertices, one index list per part.
 struct Mesh {
   std::vector<std::array<float, 3>> positions;  ///< x east, y up, z south
-  std::vector<std::array<float, 2>> texcoords;  ///< module s, t (roads: along, across)
+  std::vector<std::array<float, 2>> texcoords;  ///< module s, t (roads: along, across); icons: glTF's (v down)
+  /// One per position, or empty (glTF viewers then shade flat).
+  std::vector<std::array<float, 3>> normals;
   std::vector<Part> parts;  ///< skin classes, decal classes by priority, skirts last
   std::array<float, 3> min{}, max{};  ///< bounds of positions (0 when empty)
 
   std::size_t triangles() const;
+  /// Recomputes min and max from the positions.
+  void updateBounds();
+};
+
+/// An image a part refers to: PNG or JPEG bytes, written into the glTF
+/// buffer as they are.
+struct Texture {
+  std::string name;
+  std::string mimeType;  ///< "image/png" or "image/jpeg"
+  std::vector<std::byte> bytes;
+};
+
+/// One mesh drawn at many places (glTF EXT_mesh_gpu_instancing): one node
+/// whose instances are TRANSLATION, ROTATION and SCALE accessors.
+struct InstancedMesh {
+  std::string name;
+  Mesh mesh;
+  std::vector<std::array<float, 3>> translations;
+  std::vector<std::array<float, 4>> rotations;  ///< unit quaternions x, y, z, w
+  std::vector<std::array<float, 3>> scales;
+};
+
+/// What a glTF document holds besides the main mesh.
+struct GltfExtras {
+  std::vector<InstancedMesh> instanced;  ///< each becomes a node with EXT_mesh_gpu_instancing
+  std::vector<Texture> textures;         ///< Part::texture indexes these
 };
 
 /// Collects modules into one mesh. Vertices are shared within a module and
@@ -91,15 +125,19 @@ std::string toObj(const Mesh& m, const std::string& mtlName, const std::vector<s
 std::string toMtl(const Mesh& m);
 
 /// glTF 2.0 JSON with the buffer embedded as a base64 data URI. `extras`
-/// (may be null) is stored as the asset's extras.
-std::string toGltf(const Mesh& m, const nlohmann::json& extras);
+/// (may be null) is stored as the asset's extras; `more` adds instanced
+/// meshes and textures.
+std::string toGltf(const Mesh& m, const nlohmann::json& extras, const GltfExtras& more = {});
 /// Binary glTF 2.0 (GLB): the same document with the buffer in a BIN chunk.
-std::vector<std::byte> toGlb(const Mesh& m, const nlohmann::json& extras);
+std::vector<std::byte> toGlb(const Mesh& m, const nlohmann::json& extras, const GltfExtras& more = {});
 
 /// The glTF document for `m` and its binary buffer (exposed for tests).
-/// `embedUri`: put the buffer in buffers[0].uri as base64.
+/// `embedUri`: put the buffer in buffers[0].uri as base64. Node 0 / mesh 0
+/// is `m` (buffer views 0, 1 and 2: its positions, texcoords and indices;
+/// then its normals when it has them); each instanced mesh adds a node and
+/// a mesh, and each texture an image, in order.
 std::pair<nlohmann::json, std::vector<std::byte>> gltfDocument(const Mesh& m, const nlohmann::json& extras,
-                                                               bool embedUri);
+                                                               bool embedUri, const GltfExtras& more = {});
 
 /// RFC 4648 base64 (with padding).
 std::string base64(const std::vector<std::byte>& bytes);

@@ -123,6 +123,10 @@ struct RenderSettings {
   /// last switch range, capped at the view distance) instead of popping
   /// in; 0 pops. 0 .. 1.
   double objectFade = kDefaultObjectFade;
+  /// Objects take their icon's level of detail by range and vanish past
+  /// its far range (seed IX.B.1); false: every object out to the view
+  /// distance is drawn at full detail (the benchmark's baseline).
+  bool objectLod = true;
 };
 
 /// What the render thread did for the last frame (module mode).

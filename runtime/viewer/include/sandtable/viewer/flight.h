@@ -123,6 +123,10 @@ struct RenderOptions {
   /// RenderSettings::objectFade: the fraction of each icon's far range
   /// over which its objects fade in, 0 .. 1.
   double objectFade = kDefaultObjectFade;
+  /// RenderSettings::objectLod: icons switch level by range and end at
+  /// their far range; false draws every object in the view distance at
+  /// full detail.
+  bool objectLod = true;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).
