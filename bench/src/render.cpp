@@ -16,11 +16,15 @@
 namespace sandtable::bench {
 namespace {
 
+/// How a case draws the modules' static objects.
+enum class Objects { lod, none, full };
+
 struct Case {
   std::string name;
   runtime::TerrainMode mode;
   runtime::LodMode lod;
   double pixelError, viewDistance;
+  Objects objects = Objects::lod;
 };
 
 /// The view distance and pixel error of the "sse1-20km" case (issue 11's target).
@@ -44,6 +48,9 @@ RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_
     tris += double(c.mode == runtime::TerrainMode::mesh ? fr.triangles : fr.trianglesDrawn);
     draws += double(fr.draws);
     f.uploadsDeferred += fr.uploadsDeferred;
+    f.objectsDrawn += double(fr.objectsDrawn);
+    f.objectDraws += double(fr.objectDraws);
+    f.objectTriangles += double(fr.objectTriangles);
     f.maxErrorPx = std::max(f.maxErrorPx, fr.maxErrorPx);
   }
   f.frames = std::uint32_t(ms.size());
@@ -54,6 +61,9 @@ RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_
   f.p99 = stats::percentile(ms, 0.99);
   f.triangles = tris / double(ms.size());
   f.draws = draws / double(ms.size());
+  f.objectsDrawn /= double(ms.size());
+  f.objectDraws /= double(ms.size());
+  f.objectTriangles /= double(ms.size());
   f.trianglesPerSecond = f.mean > 0 ? f.triangles / (f.mean / 1000.0) : 0;
   return f;
 }
@@ -98,6 +108,14 @@ runtime::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& 
   return base;
 }
 
+/// Whether any module of `db` has static objects (and there are icons to draw them).
+bool hasObjects(const Database& db) {
+  if (!db.icons || !db.modules) return false;
+  const auto objects = db.manifest.build.value("objects", nlohmann::json::object());
+  const auto count = objects.value("count", nlohmann::json());
+  return count.is_number() && count.get<double>() > 0;
+}
+
 nlohmann::json toJson(const RenderBenchOptions& a, const RenderBenchReport& r) {
   nlohmann::json j;
   j["renderer"] = r.renderer;
@@ -119,7 +137,9 @@ nlohmann::json toJson(const RenderBenchOptions& a, const RenderBenchReport& r) {
                           {"frame_ms_mean", f.mean}, {"triangles_mean", f.triangles},
                           {"draws_mean", f.draws}, {"triangles_per_s", f.trianglesPerSecond},
                           {"of_grid_rate", f.ofGridRate}, {"uploads_deferred", f.uploadsDeferred},
-                          {"warmup_ms", f.warmupMs}, {"max_error_px", f.maxErrorPx}});
+                          {"warmup_ms", f.warmupMs}, {"max_error_px", f.maxErrorPx},
+                          {"objects", {{"drawn_mean", f.objectsDrawn}, {"draws_mean", f.objectDraws},
+                                       {"triangles_mean", f.objectTriangles}}}});
   }
   return j;
 }
@@ -140,6 +160,12 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
                              {"full", TerrainMode::modules, LodMode::full, px, vd},
                              {"sse1-20km", TerrainMode::modules, LodMode::sse, kFarPixelError, kFarViewDistance}};
   if (a.mesh) cases.push_back({"mesh", TerrainMode::mesh, LodMode::full, px, vd});
+  if (a.objectCases && hasObjects(db)) {
+    // The sse case draws the objects with their level of detail; these two
+    // bracket it: no objects at all, and every object at full detail.
+    cases.push_back({"no-objects", TerrainMode::modules, LodMode::sse, px, vd, Objects::none});
+    cases.push_back({"objects-full", TerrainMode::modules, LodMode::sse, px, vd, Objects::full});
+  }
   RenderBenchReport report;
   auto before = gridRate(a);
   if (!before) return before.problems();
@@ -150,6 +176,8 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
     o.render.lod.mode = c.lod;
     o.render.lod.pixelError = c.pixelError;
     o.view.viewDistance = c.viewDistance;
+    o.render.objects = c.objects != Objects::none;
+    o.render.objectLod = c.objects == Objects::lod;
     auto r = runtime::fly(db, o);
     if (!r) return r.problems();
     report.renderer = r->summary.rendererDetail;

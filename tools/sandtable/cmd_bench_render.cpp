@@ -21,6 +21,7 @@ struct Args {
   bench::RenderBenchOptions o;
   std::string size = "1280x720";
   std::string rings;
+  bool noObjectCases = false;
   bool json = false;
 };
 
@@ -53,12 +54,14 @@ void printHuman(const Args& a, const bench::RenderBenchReport& r) {
               "flights: %.2f M triangles/s\n",
               static_cast<unsigned long long>(r.gridBefore.triangles), r.gridBefore.draws, r.gridBefore.p50Ms,
               r.gridAfter.p50Ms, r.gridRate / 1e6);
-  std::printf("  %-10s %6s %7s %7s %7s %7s %10s %7s %8s %6s %8s %7s\n", "case", "px", "view m", "fps", "p50 ms",
-              "p99 ms", "triangles", "draws", "M tri/s", "grid", "deferred", "err px");
+  std::printf("  %-12s %6s %7s %7s %7s %7s %10s %7s %8s %6s %8s %7s %9s %10s\n", "case", "px", "view m", "fps",
+              "p50 ms", "p99 ms", "triangles", "draws", "M tri/s", "grid", "deferred", "err px", "objects",
+              "obj tris");
   for (const auto& f : r.cases) {
-    std::printf("  %-10s %6.1f %7.0f %7.1f %7.1f %7.1f %10.0f %7.0f %8.2f %5.0f%% %8llu %7.2f\n", f.name.c_str(),
-                f.pixelError, f.viewDistance, f.fps, f.p50, f.p99, f.triangles, f.draws, f.trianglesPerSecond / 1e6,
-                100 * f.ofGridRate, static_cast<unsigned long long>(f.uploadsDeferred), f.maxErrorPx);
+    std::printf("  %-12s %6.1f %7.0f %7.1f %7.1f %7.1f %10.0f %7.0f %8.2f %5.0f%% %8llu %7.2f %9.0f %10.0f\n",
+                f.name.c_str(), f.pixelError, f.viewDistance, f.fps, f.p50, f.p99, f.triangles, f.draws,
+                f.trianglesPerSecond / 1e6, 100 * f.ofGridRate, static_cast<unsigned long long>(f.uploadsDeferred),
+                f.maxErrorPx, f.objectsDrawn, f.objectTriangles);
   }
 }
 
@@ -68,6 +71,7 @@ int run(Args& a) {
   if (std::sscanf(a.size.c_str(), "%u%c%u%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X')) {
     return usageError(kName, "--size must look like 1280x720");
   }
+  a.o.objectCases = !a.noObjectCases;
   a.o.width = w;
   a.o.height = h;
   a.o.rings.clear();
@@ -96,7 +100,9 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
       "render", "Viewer frame rate: range-ring LoD, screen-space LoD and full resolution");
   sub->footer(
       "Flies straight from the database centre at --speed, once per case, headless (EGL):\n"
-      "rings, sse (--pixel-error), full, and sse1-20km (1 px at a 20 km view distance).\n"
+      "rings, sse (--pixel-error), full, and sse1-20km (1 px at a 20 km view distance); with\n"
+      "static objects also no-objects (sse without them) and objects-full (sse, every object\n"
+      "in the view distance at its icon's full detail); the other cases draw objects by range.\n"
       "Before and after the flights, a plain indexed grid drawn through the same program\n"
       "gives the renderer's own triangle rate; each case's triangles/s is set against it.\n"
       "frame ms is the time between frame completions on the render thread (main and\n"
@@ -121,6 +127,7 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
       ->capture_default_str();
   sub->add_option("--grid-squares", o.gridSquares, "Plain indexed grid: squares a side")
       ->capture_default_str()->check(CLI::Range(16u, 4096u));
+  sub->add_flag("--no-object-cases", args->noObjectCases, "Leave out the no-objects and objects-full cases");
   sub->add_flag("--json", args->json, "Print JSON");
   c.add(sub, [args] { return run(*args); });
 }

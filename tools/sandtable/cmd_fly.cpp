@@ -68,6 +68,7 @@ struct FlyArgs {
   std::uint32_t msaa = 0;
   bool noObjects = false;
   bool noObjectLod = false;
+  double impostorPixels = runtime::kDefaultImpostorPixels;
   double objectFade = runtime::kDefaultObjectFade;
   std::string shading = "smooth";
   std::string colour = "natural";
@@ -269,6 +270,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.render.objects = !a.noObjects;
   o.render.objectFade = a.objectFade;
   o.render.objectLod = !a.noObjectLod;
+  o.render.impostorPixels = a.impostorPixels;
   if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
   else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
@@ -529,7 +531,10 @@ void registerFly(CLI::App& root, Commands& c) {
                   "Fraction of each icon's far range over which its objects fade in (0 pops them in)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--no-object-lod", args->noObjectLod,
-                "Draw every object in the view distance at its icon's full detail (no ranges)");
+                "Draw every object in the view distance at its icon's full detail (no ranges, no sprites)");
+  sub->add_option("--impostor-pixels", args->impostorPixels,
+                  "Objects drawn smaller than this many pixels become impostor sprites (0: always meshes)")
+      ->capture_default_str()->check(CLI::Range(0.0, 255.0));
   sub->add_option("--shading", args->shading,
                   "smooth (per-post normals, elevation tint) or flat (the seed's per-triangle look)")
       ->capture_default_str();

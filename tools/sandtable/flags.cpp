@@ -39,6 +39,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"RenderOptions::mode = ", "--mode "},
     {"RenderOptions::msaa", "--msaa"},
     {"RenderOptions::objectFade", "--object-fade"},
+    {"RenderOptions::impostorPixels", "--impostor-pixels"},
     {"RenderOptions::mode", "--mode"},
     {"OutputOptions::frames", "--frames"},
     {"ViewOptions::width/height", "--size"},

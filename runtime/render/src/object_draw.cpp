@@ -58,6 +58,71 @@ void main() {
 }
 )";
 
+// Appended to shadingVertexGlsl(). One point per object, at the centre of
+// its icon's sprite square, as many pixels wide as the square projects to.
+// (Upright instanced quads, tried instead, cost llvmpipe a third more.)
+const char* kSpriteVertexMain = R"(
+layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
+layout(location = 4) in vec2 aScaleFade;
+uniform mat4 uViewProjection;
+uniform vec3 uEye;
+uniform float uCentre;   // the square's centre above the base, icon units
+uniform float uSize;     // the square's side, icon units
+uniform float uFocal;    // pixels per unit at unit depth
+out float vFog;
+flat out float vFade;
+void main() {
+  vec3 c = aPlace.xyz + vec3(0.0, uCentre * aScaleFade.x, 0.0);
+  gl_Position = uViewProjection * vec4(c, 1.0);
+  gl_PointSize = max(uFocal * uSize * aScaleFade.x / max(gl_Position.w, 1e-3), 1.0);
+  vFog = fogWeight(distance(c, uEye));
+  vFade = aScaleFade.y;
+}
+)";
+
+// Appended to shadingHeaderGlsl(). The impostor's texel, alpha-tested,
+// screen-door faded as the meshes are, fogged.
+const char* kSpriteFragmentMain = R"(
+uniform sampler2DArray uImpostors;
+uniform float uLayer;
+in float vFog;
+flat in float vFade;
+out vec4 fragColor;
+const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
+                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
+void main() {
+  vec4 t = texture(uImpostors, vec3(gl_PointCoord.x, 1.0 - gl_PointCoord.y, uLayer));
+  if (t.a < 0.5) discard;
+  if (vFade < 1.0) {
+    ivec2 q = ivec2(gl_FragCoord.xy) & 3;
+    if (vFade * 16.0 <= kBayer[q.y * 4 + q.x]) discard;
+  }
+  fragColor = vec4(mix(uFogColor, t.rgb, vFog), 1.0);
+}
+)";
+
+// Appended to shadingVertexGlsl(). The icon seen from the south (+Z),
+// orthographic over its sprite square, lit by the meshes' sun.
+const char* kBakeVertexMain = R"(
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec4 aColour;
+uniform float uCentre;
+uniform float uHalf;
+uniform float uDepth;
+out vec3 vColour;
+void main() {
+  gl_Position = vec4(aPosition.x / uHalf, (aPosition.y - uCentre) / uHalf, -aPosition.z / uDepth, 1.0);
+  vColour = aColour.rgb * sunLight(aNormal);
+}
+)";
+
+const char* kBakeFragment = R"(#version 450 core
+in vec3 vColour;
+out vec4 fragColor;
+void main() { fragColor = vec4(vColour, 1.0); }
+)";
+
 std::uint32_t packNormal(float x, float y, float z) {
   const float len = std::sqrt(x * x + y * y + z * z);
   const float k = len > 0 ? 1.0f / len : 0.0f;
@@ -124,6 +189,16 @@ bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
 
 }  // namespace
 
+IconSprite spriteOf(const iconpack::Icon& icon) {
+  const auto& b = icon.bounds;
+  float reach = 0;
+  for (const int k : {0, 2, 3, 5}) reach = std::max(reach, std::abs(b[std::size_t(k)]));
+  IconSprite s;
+  s.centre = 0.5f * (b[1] + b[4]);
+  s.size = std::max(b[4] - b[1], 2.0f * reach);
+  return s;
+}
+
 IconMeshes flattenIcons(const iconpack::Pack& pack) {
   IconMeshes out;
   for (const iconpack::Icon& icon : pack.icons) flattenIcon(icon, out);
@@ -146,7 +221,10 @@ int iconLevelAt(const iconpack::Icon& icon, double distance, double viewDistance
 
 ObjectRenderer::~ObjectRenderer() {
   program_.reset();
+  spriteProgram_.reset();
   glDeleteVertexArrays(1, &vao_);
+  glDeleteVertexArrays(1, &spriteVao_);
+  glDeleteTextures(1, &impostors_);
   glDeleteBuffers(1, &vertexBuffer_);
   glDeleteBuffers(1, &indexBuffer_);
   glDeleteBuffers(1, &instanceBuffer_);
@@ -193,12 +271,93 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   attrib(3, 1, 4, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, x));
   attrib(4, 1, 2, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, scale));
   glVertexArrayBindingDivisor(vao_, 1, 1);
+
+  sprites_.clear();
+  for (const iconpack::Icon& icon : s.icons->icons) sprites_.push_back(spriteOf(icon));
+  spriteBuckets_.assign(sprites_.size(), {});
+  if (s.impostorPixels <= 0 || sprites_.empty()) return {};
+  auto sprite = GlProgram::build("object sprite shader", shadingVertexGlsl() + kSpriteVertexMain,
+                                 shadingHeaderGlsl() + kSpriteFragmentMain);
+  if (!sprite) return sprite.problems();
+  spriteProgram_ = std::move(sprite.value());
+  spriteProgram_.use();
+  setShadingUniforms(spriteProgram_, s);
+  spriteProgram_.set("uImpostors", 1);
+  glCreateVertexArrays(1, &spriteVao_);
+  // The instance stream read per vertex: one point per object.
+  glEnableVertexArrayAttrib(spriteVao_, 3);
+  glVertexArrayAttribFormat(spriteVao_, 3, 4, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, x));
+  glVertexArrayAttribBinding(spriteVao_, 3, 0);
+  glEnableVertexArrayAttrib(spriteVao_, 4);
+  glVertexArrayAttribFormat(spriteVao_, 4, 2, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, scale));
+  glVertexArrayAttribBinding(spriteVao_, 4, 0);
+  return bakeImpostors();
+}
+
+Status ObjectRenderer::bakeImpostors() {
+  auto bake = GlProgram::build("impostor bake shader", shadingVertexGlsl() + kBakeVertexMain, kBakeFragment);
+  if (!bake) return bake.problems();
+  const GlProgram& program = bake.value();
+  program.use();
+  setShadingUniforms(program, settings_);
+  const auto layers = GLsizei(sprites_.size());
+  const GLsizei n = GLsizei(kImpostorTexels);
+  const auto mips = GLsizei(std::log2(double(kImpostorTexels))) + 1;
+  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &impostors_);
+  glTextureStorage3D(impostors_, mips, GL_RGBA8, n, n, layers);
+  glTextureParameteri(impostors_, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  glTextureParameteri(impostors_, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTextureParameteri(impostors_, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTextureParameteri(impostors_, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  GLint oldFramebuffer = 0, oldViewport[4] = {0, 0, 0, 0};
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &oldFramebuffer);
+  glGetIntegerv(GL_VIEWPORT, oldViewport);
+  GLuint fbo = 0, depth = 0;
+  glCreateRenderbuffers(1, &depth);
+  glNamedRenderbufferStorage(depth, GL_DEPTH_COMPONENT24, n, n);
+  glCreateFramebuffers(1, &fbo);
+  glNamedFramebufferRenderbuffer(fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+  glViewport(0, 0, n, n);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);
+  glBindVertexArray(vao_);
+  for (std::size_t icon = 0; icon < sprites_.size(); ++icon) {
+    glNamedFramebufferTextureLayer(fbo, GL_COLOR_ATTACHMENT0, impostors_, 0, GLint(icon));
+    // Transparent, in the mean colour of foliage and bark, so that the
+    // mipmaps' edge texels do not darken towards black.
+    const GLfloat clear[4] = {0.25f, 0.3f, 0.2f, 0.0f};
+    const GLfloat one = 1.0f;
+    glClearNamedFramebufferfv(fbo, GL_COLOR, 0, clear);
+    glClearNamedFramebufferfv(fbo, GL_DEPTH, 0, &one);
+    const IconSprite& sp = sprites_[icon];
+    if (sp.size <= 0 || ranges_[icon].empty() || ranges_[icon][0].count == 0) continue;
+    program.set("uCentre", sp.centre);
+    program.set("uHalf", 0.5f * sp.size);
+    program.set("uDepth", sp.size);
+    const IconLevelRange& r = ranges_[icon][0];
+    glDrawElementsBaseVertex(GL_TRIANGLES, GLsizei(r.count), GL_UNSIGNED_INT,
+                             reinterpret_cast<const void*>(std::uintptr_t(r.firstIndex) * sizeof(std::uint32_t)),
+                             r.baseVertex);
+  }
+  glBindVertexArray(0);
+  glGenerateTextureMipmap(impostors_);
+  glBindFramebuffer(GL_FRAMEBUFFER, GLuint(oldFramebuffer));
+  glViewport(oldViewport[0], oldViewport[1], oldViewport[2], oldViewport[3]);
+  glDeleteFramebuffers(1, &fbo);
+  glDeleteRenderbuffers(1, &depth);
   return {};
 }
 
 void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
   for (auto& b : buckets_) b.clear();
+  for (auto& b : spriteBuckets_) b.clear();
   const Camera& cam = buf.camera;
+  // Pixels per metre at one metre: an object is a sprite where
+  // size * focal < impostorPixels * distance.
+  const bool sprites = impostors_ != 0 && settings_.objectLod;
+  const double focal = 0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad);
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
   // The side and far planes, scaled so that n . p + w is a distance.
   auto planes = frustumPlanes(detail::viewProjection(cam, buf.originX, buf.originZ));
@@ -236,8 +395,13 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       bool inside = true;
       for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
       if (!inside) continue;
-      buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(
-          {float(centre.x()), float(y), float(centre.z()), float(module::headingRadians(o.heading)), o.scale, fade});
+      const ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
+                                    float(module::headingRadians(o.heading)), o.scale, fade};
+      if (sprites && double(sprites_[o.icon].size) * double(o.scale) * focal < settings_.impostorPixels * distance) {
+        spriteBuckets_[o.icon].push_back(instance);
+      } else {
+        buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(instance);
+      }
       ++stats.objectsDrawn;
     }
   }
@@ -253,11 +417,13 @@ void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
 void ObjectRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
   if (settings_.colour == ColourMode::height) return;
   for (auto& b : buckets_) b.clear();
+  for (auto& b : spriteBuckets_) b.clear();
   for (std::size_t icon = 0; icon < ranges_.size(); ++icon) {
     if (!ranges_[icon].empty()) {
       // In front of the warm-up eye and big enough to shade fragments, both
-      // the kept and the discarded (faded) kind.
+      // the kept and the discarded (faded) kind; a sprite too.
       buckets_[levelBase_[icon]].push_back({0.0f, 0.0f, -20.0f, 0.0f, 1.0f, 0.5f});
+      spriteBuckets_[icon].push_back({0.0f, 0.0f, -20.0f, 0.0f, 1.0f, 0.5f});
       break;
     }
   }
@@ -268,6 +434,7 @@ void ObjectRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
 void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   stream_.clear();
   for (const auto& b : buckets_) stream_.insert(stream_.end(), b.begin(), b.end());
+  for (const auto& b : spriteBuckets_) stream_.insert(stream_.end(), b.begin(), b.end());
   if (stream_.empty()) return;
   const std::uint64_t bytes = stream_.size() * sizeof(ObjectInstance);
   // A new store each frame: the driver orphans the last one instead of
@@ -296,6 +463,38 @@ void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
       baseInstance += GLuint(n);
     }
   }
+  glBindVertexArray(0);
+  drawSprites(buf, viewProjection, baseInstance, stats);
+}
+
+void ObjectRenderer::drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint first,
+                                 RenderStats& stats) {
+  if (impostors_ == 0) return;
+  bool any = false;
+  for (const auto& b : spriteBuckets_) any = any || !b.empty();
+  if (!any) return;
+  const Camera& cam = buf.camera;
+  spriteProgram_.use();
+  spriteProgram_.setMatrix4("uViewProjection", viewProjection.data());
+  setFrameShading(spriteProgram_, buf);
+  spriteProgram_.set("uFocal", float(0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad)));
+  glBindTextureUnit(1, impostors_);
+  glVertexArrayVertexBuffer(spriteVao_, 0, instanceBuffer_, 0, sizeof(ObjectInstance));
+  glBindVertexArray(spriteVao_);
+  glEnable(GL_PROGRAM_POINT_SIZE);
+  for (std::size_t icon = 0; icon < spriteBuckets_.size(); ++icon) {
+    const auto n = GLsizei(spriteBuckets_[icon].size());
+    if (n > 0) {
+      spriteProgram_.set("uCentre", sprites_[icon].centre);
+      spriteProgram_.set("uSize", sprites_[icon].size);
+      spriteProgram_.set("uLayer", float(icon));
+      glDrawArrays(GL_POINTS, GLint(first), n);
+      ++stats.objectDraws;
+      stats.objectSprites += std::uint32_t(n);
+    }
+    first += GLuint(n);
+  }
+  glDisable(GL_PROGRAM_POINT_SIZE);
   glBindVertexArray(0);
 }
 

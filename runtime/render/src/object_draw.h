@@ -24,6 +24,14 @@
 // RenderSettings::objectFade of its far range by a screen-door dither
 // (ordered 4 x 4 pattern; discarded fragments): no blending, no sorting,
 // no pop.
+//
+// Impostors: at create() each icon's full-detail alive state is rendered
+// once from the south, orthographic, lit as the meshes are, into one layer
+// of a texture array (kImpostorTexels square, mipmapped). An object whose
+// projected size falls under RenderSettings::impostorPixels is drawn as
+// one point sprite of that size with its icon's layer, alpha-tested: one
+// vertex instead of the icon's coarsest mesh (the tree's 24 triangles),
+// which is where llvmpipe spends a forest's frame time.
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
@@ -72,6 +80,18 @@ struct IconMeshes {
 };
 IconMeshes flattenIcons(const iconpack::Pack& pack);
 
+/// An icon's sprite: the square the impostor covers, in the icon's units
+/// (scaled by each object's scale). Its centre stands `centre` above the
+/// base, on the icon's vertical axis.
+struct IconSprite {
+  float centre = 0;  ///< height of the square's centre above the origin
+  float size = 0;    ///< the square's side: max(height, 2 * widest reach from the axis)
+};
+IconSprite spriteOf(const iconpack::Icon& icon);
+
+/// Texels a side of each icon's impostor layer.
+inline constexpr std::uint32_t kImpostorTexels = 64;
+
 /// The icon level drawn at `distance` metres: the first whose far range
 /// reaches past it; -1 beyond the last range or beyond `viewDistance`.
 /// `fade` gets 1, or less inside the last `fadeFraction` of the far range.
@@ -97,18 +117,27 @@ class ObjectRenderer {
   void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
 
  private:
-  /// Streams the buckets and draws each (icon, level) with instances.
+  /// Streams the buckets and draws each (icon, level) with instances,
+  /// then each icon's sprites.
   void submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  /// Renders every icon's impostor layer (create(), with the icon buffers up).
+  Status bakeImpostors();
+  void drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint firstInstance,
+                   RenderStats& stats);
   void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
 
   RenderSettings settings_;
   GlProgram program_;
   GLuint vao_ = 0, vertexBuffer_ = 0, indexBuffer_ = 0, instanceBuffer_ = 0;
+  GlProgram spriteProgram_;
+  GLuint spriteVao_ = 0, impostors_ = 0;  ///< impostors_: GL_TEXTURE_2D_ARRAY, one layer per icon
+  std::vector<IconSprite> sprites_;        ///< per icon
   std::uint64_t instanceCapacity_ = 0;  ///< bytes
   std::vector<std::vector<IconLevelRange>> ranges_;  ///< [icon][level]
   std::vector<std::uint32_t> levelBase_;             ///< first bucket of each icon
   // Per-frame scratch (capacity kept).
   std::vector<std::vector<ObjectInstance>> buckets_;  ///< levelBase_[icon] + level
+  std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon
   std::vector<ObjectInstance> stream_;
 };
 

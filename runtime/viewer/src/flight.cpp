@@ -120,7 +120,8 @@ nlohmann::json frameJson(const FrameStats& s) {
     j["objects"] = {{"drawn", s.objectsDrawn},
                     {"instances", s.objectInstances},
                     {"draws", s.objectDraws},
-                    {"triangles", s.objectTriangles}};
+                    {"triangles", s.objectTriangles},
+                    {"sprites", s.objectSprites}};
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
                   {"queue", s.pagerQueue},
@@ -175,6 +176,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"objects", o.render.objects},
                   {"object_fade", o.render.objectFade},
                   {"object_lod", o.render.objectLod},
+                  {"impostor_pixels", o.render.impostorPixels},
                   {"hud", o.view.hud},
                   {"path_waypoints", o.motion.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -446,6 +448,7 @@ struct FlightRun {
       s.objectInstances = rs.objectInstances;
       s.objectDraws = rs.objectDraws;
       s.objectTriangles = rs.objectTriangles;
+      s.objectSprites = rs.objectSprites;
       handoff.pushFree(slot);
       if (!drawn) return stop(drawn);
       const auto now = Clock::now();
@@ -542,6 +545,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.waterMaterials = o.render.waterMaterials;
   rs.objectFade = o.render.objectFade;
   rs.objectLod = o.render.objectLod;
+  rs.impostorPixels = o.render.impostorPixels;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
@@ -665,7 +669,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
                   std::to_string(s.nodesDrawn));
   lines.push_back("OBJECTS " + std::to_string(s.objectsDrawn) + "  INST " + std::to_string(s.objectInstances) +
-                  "  DRAWS " + std::to_string(s.objectDraws));
+                  "  DRAWS " + std::to_string(s.objectDraws) + "  SPRITES " + std::to_string(s.objectSprites));
   lines.push_back("RESIDENT " +
                   std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
   lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
@@ -708,6 +712,9 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
   if (o.render.msaa > 16) bad("RenderOptions::msaa must be 0..16 samples");
   if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
+  if (!(o.render.impostorPixels >= 0 && o.render.impostorPixels <= 255)) {
+    bad("RenderOptions::impostorPixels must be 0..255");
+  }
   const Terrain terrain(std::move(g));
   if (o.motion.path.size() == 1) bad("MotionOptions::path needs at least two waypoints");
   if (o.motion.path.size() >= 2) {

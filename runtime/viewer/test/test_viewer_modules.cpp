@@ -244,7 +244,8 @@ struct ObjectView {
 /// One frame looking north at the column from 500 m south (from the next
 /// module, so rings draw the column's whole module at the coarsest
 /// level), eye 30 m up, no fog.
-ObjectView viewColumn(const Database& db, LodMode mode, bool objects) {
+ObjectView viewColumn(const Database& db, LodMode mode, bool objects,
+                      double impostorPixels = kDefaultImpostorPixels) {
   FlightOptions o;
   o.view.width = 640;
   o.view.height = 360;
@@ -257,6 +258,7 @@ ObjectView viewColumn(const Database& db, LodMode mode, bool objects) {
   o.render.lod.rings = {1, 2};  // rings: the coarsest level everywhere
   o.render.lod.morph = false;
   o.render.objects = objects;
+  o.render.impostorPixels = impostorPixels;
   o.motion.easting = kOriginE + objectWorld();
   o.motion.northing = kOriginN - (objectWorld() + 500);
   ObjectView v;
@@ -320,6 +322,51 @@ TEST_F(ViewerModules, ObjectsStandOnTheElevationOfTheLevelDrawnUnderThem) {
   const ObjectView off = viewColumn(db_, LodMode::full, false);
   EXPECT_EQ(off.stats.objectsDrawn, 0u);
   EXPECT_EQ(lowestRed(off.image, column), -1) << "--no-objects still drew the column";
+}
+
+/// The red rows of image column x: first (top) and last; {-1, -1}: none.
+std::pair<int, int> redSpan(const Image& img, std::uint32_t x) {
+  std::pair<int, int> span{-1, -1};
+  for (int y = 0; y < int(img.height); ++y) {
+    const std::uint8_t* p = img.rgba.data() + (std::size_t(y) * img.width + x) * 4;
+    if (!(p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2])) continue;
+    if (span.first < 0) span.first = y;
+    span.second = y;
+  }
+  return span;
+}
+
+TEST_F(ViewerModules, AnObjectUnderTheImpostorSizeIsOneSpriteCoveringWhereItsMeshWould) {
+  db_.icons = columnIcons();
+  const double x = objectWorld(), ground = planeY(x, x);
+  const std::uint32_t column = 320;
+  // 20 m at 500 m projects to about 22 px: a mesh under 16 px, a sprite under 64.
+  const ObjectView mesh = viewColumn(db_, LodMode::full, true, 16);
+  const ObjectView sprite = viewColumn(db_, LodMode::full, true, 64);
+  EXPECT_EQ(mesh.stats.objectSprites, 0u);
+  EXPECT_EQ(mesh.stats.objectInstances, 1u);
+  EXPECT_EQ(sprite.stats.objectsDrawn, 1u);
+  EXPECT_EQ(sprite.stats.objectSprites, 1u);
+  EXPECT_EQ(sprite.stats.objectInstances, 0u);
+  EXPECT_EQ(sprite.stats.objectTriangles, 0u);
+  // Base and top from the camera's own projection; the sprite's square
+  // spans the column's height, so both land where the mesh's do.
+  const double base = projectedRow(sprite.stats, sprite.image, x, ground, x);
+  const double top = projectedRow(sprite.stats, sprite.image, x, ground + 20, x);
+  const auto s = redSpan(sprite.image, column), m = redSpan(mesh.image, column);
+  ASSERT_GE(s.first, 0) << "the sprite is not drawn";
+  ASSERT_GE(m.first, 0);
+  EXPECT_NEAR(s.second + 0.5, base, 2.5);
+  EXPECT_NEAR(s.first, top, 2.5);
+  EXPECT_NEAR(s.second, m.second, 2);
+  EXPECT_NEAR(s.first, m.first, 2);
+  // About as wide: 2 m at 500 m is about 2 px, both ways.
+  int wide = 0;
+  for (std::uint32_t c = column - 10; c <= column + 10; ++c) wide += redSpan(sprite.image, c).first >= 0;
+  EXPECT_GE(wide, 1);
+  EXPECT_LE(wide, 5);
+  const ObjectView noSprites = viewColumn(db_, LodMode::full, true, 0);
+  EXPECT_EQ(noSprites.stats.objectSprites, 0u);
 }
 
 }  // namespace

@@ -49,6 +49,10 @@ struct RenderBenchOptions {
   bool nodeMorph = false;
   /// GPU upload bytes per frame (RenderOptions::uploadBudgetBytes); 0: none.
   std::uint64_t uploadBudgetBytes = runtime::kDefaultUploadBudgetBytes;
+  /// With a database that has static objects: also the cases "no-objects"
+  /// (sse without them) and "objects-full" (sse with every object in the
+  /// view distance at full detail), to bracket the sse case's objects.
+  bool objectCases = true;
   /// The plain grid: squares a side (nodes of 16 squares), frames timed.
   std::uint32_t gridSquares = 512;
   std::uint32_t gridFrames = 20;
@@ -66,6 +70,8 @@ struct RenderCase {
   double warmupMs = 0;            ///< the warm-up frames' total
   double maxErrorPx = 0;
   std::uint64_t uploadsDeferred = 0;  ///< in the measured frames, by the upload budget
+  /// Static objects, means per frame: drawn, instanced draws, triangles.
+  double objectsDrawn = 0, objectDraws = 0, objectTriangles = 0;
   std::uint32_t frames = 0;
 };
 

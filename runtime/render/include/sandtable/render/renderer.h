@@ -83,6 +83,10 @@ std::optional<double> heightAt(const Image& img, std::uint32_t x, std::uint32_t 
 /// RenderSettings::objectFade by default: the last 15 % of the far range.
 inline constexpr double kDefaultObjectFade = 0.15;
 
+/// RenderSettings::impostorPixels by default: objects under 16 pixels tall
+/// are drawn as sprites.
+inline constexpr double kDefaultImpostorPixels = 16.0;
+
 /// RenderSettings::uploadBudgetBytes by default: 1 MiB a frame.
 inline constexpr std::uint64_t kDefaultUploadBudgetBytes = 1ull << 20;
 
@@ -127,6 +131,12 @@ struct RenderSettings {
   /// its far range (seed IX.B.1); false: every object out to the view
   /// distance is drawn at full detail (the benchmark's baseline).
   bool objectLod = true;
+  /// An object whose projected size (its icon's sprite square: the larger
+  /// of its height and its width about its origin, times its scale) is
+  /// under this many pixels is drawn as one point sprite textured with its
+  /// icon's impostor (docs/VIEWER.md, "Impostors") instead of its mesh;
+  /// 0: always meshes. Only with objectLod.
+  double impostorPixels = kDefaultImpostorPixels;
 };
 
 /// What the render thread did for the last frame (module mode).
@@ -148,6 +158,8 @@ struct RenderStats {
   /// (one per icon and level with instances), and their triangles.
   std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
   std::uint64_t objectTriangles = 0;
+  /// Of objectsDrawn, those drawn as impostor sprites (not in objectInstances).
+  std::uint32_t objectSprites = 0;
 };
 
 /// Renderer::measureIndexedGrid: llvmpipe's (or the GPU's) own rate on a

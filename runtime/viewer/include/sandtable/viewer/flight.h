@@ -127,6 +127,9 @@ struct RenderOptions {
   /// their far range; false draws every object in the view distance at
   /// full detail.
   bool objectLod = true;
+  /// RenderSettings::impostorPixels: objects drawn smaller than this many
+  /// pixels are sprites; 0: always meshes.
+  double impostorPixels = kDefaultImpostorPixels;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).
@@ -241,9 +244,11 @@ struct FrameStats {
   std::uint32_t nodesFallback = 0;     ///< node runs drawn coarser meanwhile
   std::uint32_t draws = 0;             ///< draw commands (node ranges x blocks)
   std::uint64_t trianglesDrawn = 0;    ///< triangles the GPU was given
-  /// Static objects (RenderStats): drawn, instances, instanced draws, triangles.
+  /// Static objects (RenderStats): drawn, instances, instanced draws, triangles,
+  /// and of those drawn, the ones drawn as impostor sprites.
   std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
   std::uint64_t objectTriangles = 0;
+  std::uint32_t objectSprites = 0;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;
