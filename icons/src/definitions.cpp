@@ -248,6 +248,10 @@ void parseImportOption(Parser& p, const Line& l, IconDef& icon) {
     } else {
       p.fail(l, "up must be auto, y or z");
     }
+  } else if (key == "base-below") {
+    const auto f = number(v);
+    if (!f || *f < 0 || *f > 1000) return p.fail(l, "base-below must be metres from 0 to 1000");
+    icon.baseBelow = static_cast<float>(*f);
   } else if (key == "max-triangles") {
     const auto n = integer<std::uint64_t>(v);
     if (!n || *n == 0) return p.fail(l, "max-triangles must be a positive integer");
@@ -283,6 +287,7 @@ const std::map<std::string_view, Directive>& directives() {
       {"lod", parseLevel},            {"dis", parseDis},
       {"up", parseImportOption},      {"unit", parseImportOption},
       {"scale", parseImportOption},   {"max-triangles", parseImportOption},
+      {"base-below", parseImportOption},
   };
   return d;
 }

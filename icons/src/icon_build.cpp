@@ -87,6 +87,19 @@ Result<Model> loadModel(const Builder& b, const IconDef& d, const std::string& f
   return m;
 }
 
+/// Lowers the model's foot: every vertex within 1 cm of its lowest point
+/// goes down `metres` (walls and trunks lengthen; seed Figure 24).
+void extendBase(Model& m, float metres) {
+  if (!(metres > 0) || m.meshes.empty()) return;
+  const float foot = m.bounds.min[1] + 0.01f;
+  for (Mesh& mesh : m.meshes) {
+    for (std::size_t k = 1; k < mesh.positions.size(); k += 3) {
+      if (mesh.positions[k] <= foot) mesh.positions[k] -= metres;
+    }
+  }
+  m.bounds.min[1] -= metres;
+}
+
 /// One rigid part: the model's meshes with their levels, the model's
 /// materials appended to the icon's.
 iconpack::Part makePart(Builder& b, iconpack::Icon& icon, const Model& model, const std::vector<float>& ratios,
@@ -227,6 +240,7 @@ Status addState(Builder& b, iconpack::Icon& icon, const IconDef& d, iconpack::St
                 const std::string& hullFile, const std::vector<float>& ratios, std::vector<float>& errors) {
   auto hull = loadModel(b, d, hullFile);
   if (!hull) return hull.problems();
+  extendBase(hull.value(), d.baseBelow);
   b.warnings.insert(b.warnings.end(), hull.warnings().begin(), hull.warnings().end());
   std::map<std::string, std::int32_t> index;  // component name -> part index, this state
   iconpack::Part part = makePart(b, icon, hull.value(), ratios, errors);
@@ -356,9 +370,10 @@ Model treeModel() {
   m.materials = {trunk, crown};
   Mesh wood, leaves;
   wood.material = 0;
-  // The trunk reaches 0.5 m into the ground, so that on a slope no gap
+  // The trunk stands on y = 0; the icon build lowers its foot by the
+  // definition's base-below (0.5 m by default), so that on a slope no gap
   // opens under its downhill side (seed Figure 24).
-  addRing(wood, 8, -0.5f, 3.0f, 0.25f, 0.25f);
+  addRing(wood, 8, 0.0f, 3.0f, 0.25f, 0.25f);
   leaves.material = 1;
   addRing(leaves, 16, 2.0f, 6.0f, 2.5f, 0.0f);
   addRing(leaves, 16, 4.5f, 8.0f, 1.8f, 0.0f);

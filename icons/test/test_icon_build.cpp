@@ -4,6 +4,8 @@
 // and problems that name the definition line.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -79,7 +81,7 @@ TEST(TreeModel, isTheDocumentedTrunkAndCrown) {
   const Mesh& crown = t.meshes[1];
   EXPECT_EQ(trunk.triangleCount(), 8u * 2);       // an open 8-sided tube
   EXPECT_EQ(crown.triangleCount(), 2u * 16 * 2);  // two 16-sided cones with caps
-  EXPECT_NEAR(t.bounds.min[1], -0.5, 1e-6);
+  EXPECT_NEAR(t.bounds.min[1], 0, 1e-6);  // base-below lowers it in the pack
   EXPECT_NEAR(t.bounds.max[1], 8, 1e-6);
   EXPECT_NEAR(t.bounds.max[0], 2.5, 1e-5);  // a vertex at angle 0
   EXPECT_NEAR(t.bounds.min[0], -2.5, 1e-5);
@@ -133,6 +135,45 @@ TEST(BuildPack, theSampleFileBuildsWithoutModelFiles) {
   EXPECT_FLOAT_EQ(small->cylinderRadius, 1.5f);  // given in the file
   EXPECT_NEAR(tall->cylinderHeight, 8 * 1.6, 1e-4);  // scaled
   EXPECT_EQ(tall->ranges, (std::vector<float>{400, 1500, 6000}));
+}
+
+TEST(BuildPack, baseBelowLowersTheFootOfEachHullInMetres) {
+  // A 2 m cube standing on y = 0, written here: 8 corners, 12 triangles.
+  const fs::path dir = fs::temp_directory_path() / ("st-base-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "cube.obj") << "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1\n"
+                                     "f 1 2 3\nf 1 3 4\nf 5 7 6\nf 5 8 7\nf 1 5 6\nf 1 6 2\nf 2 6 7\nf 2 7 3\n"
+                                     "f 3 7 8\nf 3 8 4\nf 4 8 5\nf 4 5 1\n";
+  const auto build = [&](const std::string& extra) {
+    const std::string text = "sandtable-icons 1\nicon cube\n  model cube.obj\n  scale 3\n" + extra;
+    auto defs = parseDefinitions(std::as_bytes(std::span(text.data(), text.size())), "defs.txt", dir.string());
+    EXPECT_TRUE(defs) << defs.error();
+    auto p = buildPack(defs.value());
+    EXPECT_TRUE(p) << p.error();
+    return p.value().icons.at(0);
+  };
+  const iconpack::Icon byDefault = build(""), deep = build("  base-below 4\n"), none = build("  base-below 0\n");
+  // The foot goes down in metres after the scale (the cube is 6 m tall); the top stays.
+  EXPECT_FLOAT_EQ(byDefault.bounds[1], -kDefaultBaseBelow);
+  EXPECT_FLOAT_EQ(deep.bounds[1], -4.0f);
+  EXPECT_FLOAT_EQ(none.bounds[1], 0.0f);
+  for (const auto* icon : {&byDefault, &deep, &none}) {
+    EXPECT_FLOAT_EQ(icon->bounds[4], 6.0f);
+    EXPECT_EQ(iconpack::triangleCount(*icon, 0), 12u);
+  }
+  // The stored vertices: four at the top, the rest exactly at the new foot.
+  const auto& m = deep.parts.at(0).meshes.at(0);
+  for (std::size_t v = 0; v < m.vertexCount(); ++v) {
+    const float y = m.positions[3 * v + 1];
+    EXPECT_TRUE(y == 6.0f || y == -4.0f) << y;
+  }
+  // The built-in tree's trunk stands on 0 and reaches kDefaultBaseBelow down in the pack.
+  EXPECT_FLOAT_EQ(defaultPack().icons.at(0).bounds[1], -kDefaultBaseBelow);
+  const std::string bad = "sandtable-icons 1\nicon c\n  model cube.obj\n  base-below -1\n";
+  auto refused = parseDefinitions(std::as_bytes(std::span(bad.data(), bad.size())), "defs.txt", dir.string());
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().find("base-below must be metres from 0 to 1000"), std::string::npos) << refused.error();
+  fs::remove_all(dir);
 }
 
 TEST(BuildPack, realModelsWithStatesComponentsAndTextures) {

@@ -41,6 +41,11 @@ struct LevelDef {
   float range = 0;
 };
 
+/// IconDef::baseBelow by default: metres the foot of a model reaches below
+/// its lowest point (seed Figure 24: "several meters"; half a metre keeps a
+/// tree's trunk or a house's walls down on a 20 % slope of a 2.5 m radius).
+inline constexpr float kDefaultBaseBelow = 0.5f;
+
 struct IconDef {
   std::string name;
   std::uint64_t line = 0;    ///< byte offset of its `icon` line, for messages
@@ -52,6 +57,11 @@ struct IconDef {
   std::optional<std::array<float, 6>> bounds;       ///< min x y z, max x y z
   std::optional<std::array<float, 2>> cylinder;     ///< radius, height
   std::vector<LevelDef> levels;                     ///< empty: the default ratios
+  /// `base-below M`: the vertices of each state's hull within 1 cm of its
+  /// lowest point are lowered this many metres (after scaling), so that an
+  /// object standing level on a slope shows no gap under its downhill side
+  /// (seed Figure 24). 0 leaves the model as it is.
+  float baseBelow = kDefaultBaseBelow;
   std::optional<iconpack::DisType> dis;
 };
 
