@@ -155,3 +155,29 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
   EXPECT_EQ(jeep.height, kIconSheetMargin + kIconSheetHeader + o.cell + kIconSheetFooter);
   EXPECT_GT(inkOf(jeep, kIconSheetMargin, kIconSheetMargin + kIconSheetHeader, o.cell).pixels, 1000u);
 }
+
+TEST(IconsCli, theContactSheetDrawsTheModelsTextures) {
+  const std::string defs = std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons-models.txt";
+  if (!std::filesystem::exists(data("models/kenney-racing/vehicle-truck-red.glb"))) {
+    GTEST_SKIP() << "no ../shared/data/models here";
+  }
+  TempDir t("sheettex");
+  const auto r = runCli({"icons", defs, "-o", t / "out", "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["icons"][1]["name"], "truck");
+  const auto img = readPng(j["contact_sheets"][0].get<std::string>());
+  using namespace sandtable::runtime;
+  const IconSheetOptions o;
+  // The Kenney truck is white geometry coloured red by its palette texture.
+  const std::uint32_t x0 = kIconSheetMargin, y0 = kIconSheetMargin + (kIconSheetHeader + o.cell + kIconSheetFooter) +
+                                                  kIconSheetHeader;
+  std::size_t red = 0;
+  for (std::uint32_t y = y0; y < y0 + o.cell; ++y) {
+    for (std::uint32_t x = x0; x < x0 + o.cell; ++x) {
+      const std::uint8_t* p = &img.rgba[(std::size_t(y) * img.width + x) * 4];
+      red += p[0] > 100 && p[0] > 2 * p[1] && p[0] > 2 * p[2];
+    }
+  }
+  EXPECT_GT(red, 1500u) << "the truck is not red: its texture was not drawn";
+}

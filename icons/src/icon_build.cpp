@@ -240,7 +240,7 @@ Status addState(Builder& b, iconpack::Icon& icon, const IconDef& d, iconpack::St
                 const std::string& hullFile, const std::vector<float>& ratios, std::vector<float>& errors) {
   auto hull = loadModel(b, d, hullFile);
   if (!hull) return hull.problems();
-  extendBase(hull.value(), d.baseBelow);
+  extendBase(hull.value(), d.baseBelow.value_or(hullFile == kBuiltinTree ? kDefaultBaseBelow : 0.0f));
   b.warnings.insert(b.warnings.end(), hull.warnings().begin(), hull.warnings().end());
   std::map<std::string, std::int32_t> index;  // component name -> part index, this state
   iconpack::Part part = makePart(b, icon, hull.value(), ratios, errors);

@@ -153,8 +153,9 @@ TEST(BuildPack, baseBelowLowersTheFootOfEachHullInMetres) {
     return p.value().icons.at(0);
   };
   const iconpack::Icon byDefault = build(""), deep = build("  base-below 4\n"), none = build("  base-below 0\n");
-  // The foot goes down in metres after the scale (the cube is 6 m tall); the top stays.
-  EXPECT_FLOAT_EQ(byDefault.bounds[1], -kDefaultBaseBelow);
+  // The foot goes down in metres after the scale (the cube is 6 m tall); the
+  // top stays. A model file keeps its foot unless asked.
+  EXPECT_FLOAT_EQ(byDefault.bounds[1], 0.0f);
   EXPECT_FLOAT_EQ(deep.bounds[1], -4.0f);
   EXPECT_FLOAT_EQ(none.bounds[1], 0.0f);
   for (const auto* icon : {&byDefault, &deep, &none}) {

@@ -42,6 +42,7 @@ Result<std::vector<std::string>> writeSheets(const iconpack::Pack& pack, const s
   for (std::size_t first = 0, page = 1; first < pack.icons.size(); first += kIconsPerSheet, ++page) {
     auto sheet = runtime::renderIconSheet(pack, first, kIconsPerSheet);
     if (!sheet) return sheet.problems();
+    for (const std::string& w : sheet->warnings) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.c_str());
     std::string name = "contact_sheet";
     if (page > 1) name += "_" + std::to_string(page);
     name += ".png";

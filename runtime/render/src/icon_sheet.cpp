@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "icon_textures.h"
 #include "object_draw.h"
 #include "sandtable/render/egl_context.h"
 #include "sandtable/render/gl_program.h"
@@ -21,27 +22,38 @@ const char* kSheetVertex = R"(#version 450 core
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColour;
+layout(location = 5) in vec2 aUv;
+layout(location = 6) in float aLayer;
 uniform mat4 uViewProjection;
 out vec3 vColour;
 out vec3 vNormal;
+out vec2 vUv;
+flat out float vLayer;
 void main() {
   gl_Position = uViewProjection * vec4(aPosition, 1.0);
   vColour = aColour.rgb;
   vNormal = aNormal;
+  vUv = aUv;
+  vLayer = aLayer;
 }
 )";
 
-// Two-sided: imported models need not be closed nor consistently wound.
-const char* kSheetFragment = R"(#version 450 core
+// After "#version", the texture define and kIconTextureGlsl. Two-sided:
+// imported models need not be closed nor consistently wound.
+const char* kSheetFragmentMain = R"(
 in vec3 vColour;
 in vec3 vNormal;
+in vec2 vUv;
+flat in float vLayer;
 uniform vec3 uSun;
 out vec4 fragColor;
 void main() {
   vec3 n = normalize(vNormal);
   if (!gl_FrontFacing && dot(n, uSun) < 0.0) n = -n;
   float light = 0.35 + 0.65 * max(dot(n, uSun), 0.0);
-  fragColor = vec4(vColour * light, 1.0);
+  vec3 colour;
+  if (!iconColour(vColour, vUv, vLayer, colour)) discard;
+  fragColor = vec4(colour * light, 1.0);
 }
 )";
 
@@ -91,9 +103,10 @@ CellCamera cameraFor(const iconpack::Icon& icon, const IconSheetOptions& o) {
 /// The GL objects of one sheet; destroyed with the context current.
 struct SheetGl {
   GlProgram program;
-  GLuint vao = 0, vertices = 0, indices = 0, fbo = 0, colour = 0, depth = 0;
+  GLuint vao = 0, vertices = 0, indices = 0, fbo = 0, colour = 0, depth = 0, textures = 0;
   ~SheetGl() {
     program.reset();
+    glDeleteTextures(1, &textures);
     glDeleteFramebuffers(1, &fbo);
     glDeleteRenderbuffers(1, &colour);
     glDeleteRenderbuffers(1, &depth);
@@ -103,10 +116,20 @@ struct SheetGl {
   }
 };
 
-Status setUp(SheetGl& gl, const detail::IconMeshes& meshes, std::uint32_t cell) {
-  auto program = GlProgram::build("icon sheet shader", kSheetVertex, kSheetFragment);
+Status setUp(SheetGl& gl, const iconpack::Pack& pack, const detail::IconMeshes& meshes, std::uint32_t cell,
+             std::vector<std::string>& warnings) {
+  gl.textures = detail::uploadIconTextures(pack, warnings);
+  const std::string fragment = std::string("#version 450 core\n") +
+                               (gl.textures ? "#define SANDTABLE_ICON_TEXTURE\n" : "") + detail::kIconTextureGlsl +
+                               kSheetFragmentMain;
+  auto program = GlProgram::build("icon sheet shader", kSheetVertex, fragment);
   if (!program) return program.problems();
   gl.program = std::move(program.value());
+  if (gl.textures) {
+    gl.program.use();
+    gl.program.set("uIconTextures", 2);
+    glBindTextureUnit(2, gl.textures);
+  }
   glCreateBuffers(1, &gl.vertices);
   glNamedBufferStorage(gl.vertices,
                        GLsizeiptr(std::max<std::size_t>(1, meshes.vertices.size()) * sizeof(detail::IconVertex)),
@@ -117,14 +140,7 @@ Status setUp(SheetGl& gl, const detail::IconMeshes& meshes, std::uint32_t cell) 
   glCreateVertexArrays(1, &gl.vao);
   glVertexArrayVertexBuffer(gl.vao, 0, gl.vertices, 0, sizeof(detail::IconVertex));
   glVertexArrayElementBuffer(gl.vao, gl.indices);
-  const auto attrib = [&](GLuint loc, GLint n, GLenum type, GLboolean norm, GLuint offset) {
-    glEnableVertexArrayAttrib(gl.vao, loc);
-    glVertexArrayAttribFormat(gl.vao, loc, n, type, norm, offset);
-    glVertexArrayAttribBinding(gl.vao, loc, 0);
-  };
-  attrib(0, 3, GL_FLOAT, GL_FALSE, offsetof(detail::IconVertex, x));
-  attrib(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, offsetof(detail::IconVertex, normal));
-  attrib(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(detail::IconVertex, rgba));
+  detail::bindIconVertex(gl.vao);
   glCreateRenderbuffers(1, &gl.colour);
   glNamedRenderbufferStorage(gl.colour, GL_RGBA8, GLsizei(cell), GLsizei(cell));
   glCreateRenderbuffers(1, &gl.depth);
@@ -213,7 +229,7 @@ Result<IconSheet> renderIconSheet(const iconpack::Pack& pack, std::size_t first,
   std::vector<std::uint8_t> scratch;
   {
     SheetGl gl;
-    if (Status st = setUp(gl, meshes, o.cell); !st.ok()) return st.problems();
+    if (Status st = setUp(gl, pack, meshes, o.cell, sheet.warnings); !st.ok()) return st.problems();
     for (std::size_t i = first; i < first + count; ++i) {
       const iconpack::Icon& icon = pack.icons[i];
       const CellCamera cam = cameraFor(icon, o);

@@ -4,7 +4,9 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 
+#include "icon_textures.h"
 #include "module_draw.h"
 #include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
@@ -20,13 +22,19 @@ layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColour;
 layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
 layout(location = 4) in vec2 aScaleFade;
+layout(location = 5) in vec2 aUv;
+layout(location = 6) in float aLayer;
 uniform mat4 uViewProjection;
 uniform vec3 uEye;
 out vec3 vColour;
 out float vLight;
 out float vFog;
+out vec2 vUv;
+flat out float vLayer;
 flat out float vFade;
 void main() {
+  vUv = aUv;
+  vLayer = aLayer;
   float c = cos(aPlace.w), s = sin(aPlace.w);
   vec3 p = aPosition * aScaleFade.x;
   vec3 w = vec3(p.x * c - p.z * s, p.y, p.x * s + p.z * c) + aPlace.xyz;
@@ -45,6 +53,8 @@ const char* kObjectFragmentMain = R"(
 in vec3 vColour;
 in float vLight;
 in float vFog;
+in vec2 vUv;
+flat in float vLayer;
 flat in float vFade;
 out vec4 fragColor;
 const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
@@ -54,7 +64,9 @@ void main() {
     ivec2 q = ivec2(gl_FragCoord.xy) & 3;
     if (vFade * 16.0 <= kBayer[q.y * 4 + q.x]) discard;
   }
-  fragColor = vec4(mix(uFogColor, vColour * vLight, vFog), 1.0);
+  vec3 colour;
+  if (!iconColour(vColour, vUv, vLayer, colour)) discard;
+  fragColor = vec4(mix(uFogColor, colour * vLight, vFog), 1.0);
 }
 )";
 
@@ -107,21 +119,42 @@ const char* kBakeVertexMain = R"(
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColour;
+layout(location = 5) in vec2 aUv;
+layout(location = 6) in float aLayer;
 uniform float uCentre;
 uniform float uHalf;
 uniform float uDepth;
 out vec3 vColour;
+out float vLight;
+out vec2 vUv;
+flat out float vLayer;
 void main() {
   gl_Position = vec4(aPosition.x / uHalf, (aPosition.y - uCentre) / uHalf, -aPosition.z / uDepth, 1.0);
-  vColour = aColour.rgb * sunLight(aNormal);
+  vColour = aColour.rgb;
+  vLight = sunLight(aNormal);
+  vUv = aUv;
+  vLayer = aLayer;
 }
 )";
 
-const char* kBakeFragment = R"(#version 450 core
+// Appended to shadingHeaderGlsl() and kIconTextureGlsl.
+const char* kBakeFragmentMain = R"(
 in vec3 vColour;
+in float vLight;
+in vec2 vUv;
+flat in float vLayer;
 out vec4 fragColor;
-void main() { fragColor = vec4(vColour, 1.0); }
+void main() {
+  vec3 colour;
+  if (!iconColour(vColour, vUv, vLayer, colour)) discard;
+  fragColor = vec4(colour * vLight, 1.0);
+}
 )";
+
+/// The fragment programs' shared GLSL for textured and plain icons.
+std::string iconFragmentGlsl(bool textured, const char* main) {
+  return shadingHeaderGlsl() + (textured ? "#define SANDTABLE_ICON_TEXTURE\n" : "") + kIconTextureGlsl + main;
+}
 
 std::uint32_t packNormal(float x, float y, float z) {
   const float len = std::sqrt(x * x + y * y + z * z);
@@ -142,19 +175,25 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   const auto base = std::int32_t(out.vertices.size());
   const std::size_t levels = icon.ranges.size();
   std::vector<std::vector<std::uint32_t>> perLevel(levels);
+  bool textured = false;
   for (std::size_t p = 0; p < icon.parts.size(); ++p) {
     const iconpack::Part& part = icon.parts[p];
     if (part.state != iconpack::State::alive) continue;
     const auto origin = iconpack::partOrigin(icon, p);
     for (const iconpack::Mesh& m : part.meshes) {
       const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
-      const std::uint32_t rgba = m.material < icon.materials.size() ? packRgba(icon.materials[m.material].rgba)
-                                                                    : 0xFFFFFFFFu;
+      const bool known = m.material < icon.materials.size();
+      const std::uint32_t rgba = known ? packRgba(icon.materials[m.material].rgba) : 0xFFFFFFFFu;
+      const std::uint32_t texture = known ? icon.materials[m.material].texture : iconpack::kNoTexture;
+      const bool uv = texture != iconpack::kNoTexture && m.texcoords.size() == 2 * m.vertexCount();
+      const float layer = uv ? float(texture) : -1.0f;
+      textured = textured || uv;
       for (std::size_t v = 0; v < m.vertexCount(); ++v) {
         const float* pos = &m.positions[3 * v];
         const float* n = &m.normals[3 * v];
+        const float s = uv ? m.texcoords[2 * v] : 0.0f, t = uv ? m.texcoords[2 * v + 1] : 0.0f;
         out.vertices.push_back({pos[0] + origin[0], pos[1] + origin[1], pos[2] + origin[2],
-                                packNormal(n[0], n[1], n[2]), rgba});
+                                packNormal(n[0], n[1], n[2]), rgba, s, t, layer});
       }
       for (std::size_t l = 0; l < levels && l < m.levels.size(); ++l) {
         for (const std::uint32_t i : m.levels[l]) perLevel[l].push_back(first + i);
@@ -167,6 +206,7 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
     out.indices.insert(out.indices.end(), perLevel[l].begin(), perLevel[l].end());
   }
   out.ranges.push_back(std::move(ranges));
+  out.textured.push_back(textured);
 }
 
 /// Whether a disc of radius r at (x, z) touches the triangle (world metres).
@@ -188,6 +228,38 @@ bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
 }
 
 }  // namespace
+
+const char* const kIconTextureGlsl = R"(
+#ifdef SANDTABLE_ICON_TEXTURE
+uniform sampler2DArray uIconTextures;
+#endif
+// The material's colour, times its texture where it has one (layer >= 0);
+// false for a cut-out texel (alpha under one half).
+bool iconColour(vec3 base, vec2 uv, float layer, out vec3 colour) {
+  colour = base;
+#ifdef SANDTABLE_ICON_TEXTURE
+  if (layer >= 0.0) {
+    vec4 t = texture(uIconTextures, vec3(uv, layer));
+    if (t.a < 0.5) return false;
+    colour *= t.rgb;
+  }
+#endif
+  return true;
+}
+)";
+
+void bindIconVertex(GLuint vao) {
+  const auto attrib = [&](GLuint loc, GLint n, GLenum type, GLboolean norm, GLuint offset) {
+    glEnableVertexArrayAttrib(vao, loc);
+    glVertexArrayAttribFormat(vao, loc, n, type, norm, offset);
+    glVertexArrayAttribBinding(vao, loc, 0);
+  };
+  attrib(0, 3, GL_FLOAT, GL_FALSE, offsetof(IconVertex, x));
+  attrib(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, offsetof(IconVertex, normal));
+  attrib(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(IconVertex, rgba));
+  attrib(5, 2, GL_FLOAT, GL_FALSE, offsetof(IconVertex, s));
+  attrib(6, 1, GL_FLOAT, GL_FALSE, offsetof(IconVertex, layer));
+}
 
 IconSprite spriteOf(const iconpack::Icon& icon) {
   const auto& b = icon.bounds;
@@ -225,6 +297,8 @@ ObjectRenderer::~ObjectRenderer() {
   glDeleteVertexArrays(1, &vao_);
   glDeleteVertexArrays(1, &spriteVao_);
   glDeleteTextures(1, &impostors_);
+  glDeleteTextures(1, &textures_);
+  texturedProgram_.reset();
   glDeleteBuffers(1, &vertexBuffer_);
   glDeleteBuffers(1, &indexBuffer_);
   glDeleteBuffers(1, &instanceBuffer_);
@@ -232,15 +306,24 @@ ObjectRenderer::~ObjectRenderer() {
 
 Status ObjectRenderer::create(const RenderSettings& s) {
   settings_ = s;
-  auto program = GlProgram::build("object shader", shadingVertexGlsl() + kObjectVertexMain,
-                                  shadingHeaderGlsl() + kObjectFragmentMain);
-  if (!program) return program.problems();
-  program_ = std::move(program.value());
-  program_.use();
-  setShadingUniforms(program_, s);
+  for (const bool textured : {false, true}) {
+    auto program = GlProgram::build(textured ? "textured object shader" : "object shader",
+                                    shadingVertexGlsl() + kObjectVertexMain,
+                                    iconFragmentGlsl(textured, kObjectFragmentMain));
+    if (!program) return program.problems();
+    GlProgram& p = textured ? texturedProgram_ : program_;
+    p = std::move(program.value());
+    p.use();
+    setShadingUniforms(p, s);
+    if (textured) p.set("uIconTextures", 2);
+  }
+  std::vector<std::string> warnings;
+  textures_ = uploadIconTextures(*s.icons, warnings);
+  for (const std::string& w : warnings) std::fprintf(stderr, "sandtable: warning: %s\n", w.c_str());
 
   IconMeshes meshes = flattenIcons(*s.icons);
   ranges_ = std::move(meshes.ranges);
+  textured_ = std::move(meshes.textured);
   levelBase_.clear();
   std::uint32_t buckets = 0;
   for (const auto& r : ranges_) {
@@ -260,16 +343,14 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   glCreateVertexArrays(1, &vao_);
   glVertexArrayVertexBuffer(vao_, 0, vertexBuffer_, 0, sizeof(IconVertex));
   glVertexArrayElementBuffer(vao_, indexBuffer_);
-  const auto attrib = [&](GLuint loc, GLuint binding, GLint n, GLenum type, GLboolean norm, GLuint offset) {
+  bindIconVertex(vao_);
+  const auto instanceAttrib = [&](GLuint loc, GLint n, GLuint offset) {
     glEnableVertexArrayAttrib(vao_, loc);
-    glVertexArrayAttribFormat(vao_, loc, n, type, norm, offset);
-    glVertexArrayAttribBinding(vao_, loc, binding);
+    glVertexArrayAttribFormat(vao_, loc, n, GL_FLOAT, GL_FALSE, offset);
+    glVertexArrayAttribBinding(vao_, loc, 1);
   };
-  attrib(0, 0, 3, GL_FLOAT, GL_FALSE, offsetof(IconVertex, x));
-  attrib(1, 0, 4, GL_INT_2_10_10_10_REV, GL_TRUE, offsetof(IconVertex, normal));
-  attrib(2, 0, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(IconVertex, rgba));
-  attrib(3, 1, 4, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, x));
-  attrib(4, 1, 2, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, scale));
+  instanceAttrib(3, 4, offsetof(ObjectInstance, x));
+  instanceAttrib(4, 2, offsetof(ObjectInstance, scale));
   glVertexArrayBindingDivisor(vao_, 1, 1);
 
   sprites_.clear();
@@ -295,11 +376,16 @@ Status ObjectRenderer::create(const RenderSettings& s) {
 }
 
 Status ObjectRenderer::bakeImpostors() {
-  auto bake = GlProgram::build("impostor bake shader", shadingVertexGlsl() + kBakeVertexMain, kBakeFragment);
+  auto bake = GlProgram::build("impostor bake shader", shadingVertexGlsl() + kBakeVertexMain,
+                               iconFragmentGlsl(textures_ != 0, kBakeFragmentMain));
   if (!bake) return bake.problems();
   const GlProgram& program = bake.value();
   program.use();
   setShadingUniforms(program, settings_);
+  if (textures_ != 0) {
+    program.set("uIconTextures", 2);
+    glBindTextureUnit(2, textures_);
+  }
   const auto layers = GLsizei(sprites_.size());
   const GLsizei n = GLsizei(kImpostorTexels);
   const auto mips = GLsizei(std::log2(double(kImpostorTexels))) + 1;
@@ -441,17 +527,28 @@ void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
   // waiting for the GPU to finish reading it.
   glNamedBufferData(instanceBuffer_, GLsizeiptr(bytes), stream_.data(), GL_STREAM_DRAW);
   glVertexArrayVertexBuffer(vao_, 1, instanceBuffer_, 0, sizeof(ObjectInstance));
-  program_.use();
-  program_.setMatrix4("uViewProjection", viewProjection.data());
-  setFrameShading(program_, buf);
+  for (const GlProgram* p : {&program_, &texturedProgram_}) {
+    p->use();
+    p->setMatrix4("uViewProjection", viewProjection.data());
+    setFrameShading(*p, buf);
+  }
+  if (textures_ != 0) glBindTextureUnit(2, textures_);
   glBindVertexArray(vao_);
   glDisable(GL_CULL_FACE);  // imported models need not be closed
   GLuint baseInstance = 0;
+  const GlProgram* current = nullptr;
   for (std::size_t icon = 0; icon < ranges_.size(); ++icon) {
+    // llvmpipe pays for a texture fetch in every fragment of a program
+    // that has one, so icons without textures keep the plain program.
+    const GlProgram* wanted = textures_ != 0 && textured_[icon] ? &texturedProgram_ : &program_;
     for (std::size_t l = 0; l < ranges_[icon].size(); ++l) {
       const auto n = GLsizei(buckets_[levelBase_[icon] + l].size());
       const IconLevelRange& r = ranges_[icon][l];
       if (n > 0 && r.count > 0) {
+        if (current != wanted) {
+          wanted->use();
+          current = wanted;
+        }
         glDrawElementsInstancedBaseVertexBaseInstance(
             GL_TRIANGLES, GLsizei(r.count), GL_UNSIGNED_INT,
             reinterpret_cast<const void*>(std::uintptr_t(r.firstIndex) * sizeof(std::uint32_t)), n, r.baseVertex,

@@ -48,13 +48,25 @@ namespace sandtable::runtime::detail {
 
 class ModuleRenderer;
 
-/// One icon vertex: 20 bytes.
+/// One icon vertex: 32 bytes.
 struct IconVertex {
   float x, y, z;
   std::uint32_t normal;  ///< GL_INT_2_10_10_10_REV, normalized
   std::uint32_t rgba;    ///< the material's base colour
+  float s, t;            ///< texture coordinates, bottom-left origin
+  float layer;           ///< the material's texture: its layer in uploadIconTextures' array; -1: none
 };
-static_assert(sizeof(IconVertex) == 20, "vertex layout is shared with the shader");
+static_assert(sizeof(IconVertex) == 32, "vertex layout is shared with the shader");
+
+/// GLSL for fragment stages after shadingHeaderGlsl(): bool iconColour(
+/// base, uv, layer, out colour), the base colour times the icon texture
+/// (uniform uIconTextures) where SANDTABLE_ICON_TEXTURE is defined and the
+/// layer is >= 0; false for a cut-out texel.
+extern const char* const kIconTextureGlsl;
+
+/// Binds IconVertex's attributes to binding 0 of `vao`: position 0,
+/// normal 1, colour 2, texture coordinates 5, texture layer 6.
+void bindIconVertex(GLuint vao);
 
 /// One drawn object: 24 bytes, divisor 1.
 struct ObjectInstance {
@@ -77,6 +89,7 @@ struct IconMeshes {
   std::vector<IconVertex> vertices;
   std::vector<std::uint32_t> indices;
   std::vector<std::vector<IconLevelRange>> ranges;  ///< [icon][level]
+  std::vector<bool> textured;  ///< per icon: a material of its alive state has a texture
 };
 IconMeshes flattenIcons(const iconpack::Pack& pack);
 
@@ -127,7 +140,9 @@ class ObjectRenderer {
   void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
 
   RenderSettings settings_;
-  GlProgram program_;
+  GlProgram program_, texturedProgram_;  ///< the second samples the icon textures
+  GLuint textures_ = 0;                   ///< uploadIconTextures()
+  std::vector<bool> textured_;            ///< per icon
   GLuint vao_ = 0, vertexBuffer_ = 0, indexBuffer_ = 0, instanceBuffer_ = 0;
   GlProgram spriteProgram_;
   GLuint spriteVao_ = 0, impostors_ = 0;  ///< impostors_: GL_TEXTURE_2D_ARRAY, one layer per icon

@@ -41,9 +41,9 @@ struct LevelDef {
   float range = 0;
 };
 
-/// IconDef::baseBelow by default: metres the foot of a model reaches below
-/// its lowest point (seed Figure 24: "several meters"; half a metre keeps a
-/// tree's trunk or a house's walls down on a 20 % slope of a 2.5 m radius).
+/// IconDef::baseBelow of the built-in tree by default: metres its trunk
+/// reaches below the ground (seed Figure 24: "several meters"; half a metre
+/// keeps a trunk down on a 20 % slope of a 2.5 m crown radius).
 inline constexpr float kDefaultBaseBelow = 0.5f;
 
 struct IconDef {
@@ -60,8 +60,10 @@ struct IconDef {
   /// `base-below M`: the vertices of each state's hull within 1 cm of its
   /// lowest point are lowered this many metres (after scaling), so that an
   /// object standing level on a slope shows no gap under its downhill side
-  /// (seed Figure 24). 0 leaves the model as it is.
-  float baseBelow = kDefaultBaseBelow;
+  /// (seed Figure 24). Unset: kDefaultBaseBelow for `builtin:tree`, 0 for
+  /// model files, whose lowest points may be wheels or hooves that would
+  /// stretch into spikes.
+  std::optional<float> baseBelow;
   std::optional<iconpack::DisType> dis;
 };
 

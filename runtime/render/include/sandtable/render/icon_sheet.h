@@ -8,8 +8,9 @@
 // Each icon is seen from the same direction in all its cells (from the
 // south-east, `elevationDegrees` above the horizon), framed on the bounding
 // sphere of its alive state, so that the levels compare pixel for pixel.
-// Shading is the material's base colour, lit by one sun from behind the
-// eye's left shoulder plus an ambient term; textures are not drawn.
+// Shading is the material's base colour times its texture (decoded
+// through GDAL, as the viewer does), lit by one sun from behind the eye's
+// left shoulder plus an ambient term.
 //
 // Thread safety: renderIconSheet creates its own headless EGL context and
 // makes it current on the calling thread; it releases it before it
@@ -43,6 +44,7 @@ struct IconSheetCell {
 struct IconSheet {
   Image image;
   std::vector<IconSheetCell> cells;
+  std::vector<std::string> warnings;  ///< textures that did not decode (drawn in their base colour)
 };
 
 /// Header band above each icon's row and label band under its cells.
