@@ -101,18 +101,6 @@ TEST_F(HostileCli, infoAndValidateTreatTheBuildObjectAsInformational) {
 
 // ---------------------------------------------------------------- validate
 
-/// Brings every files[] size and CRC in the manifest up to date.
-void resealFiles(const std::string& db) {
-  resealManifest(db, [&](json& j) {
-    for (auto& f : j["files"]) {
-      const auto c = crc32File(db + "/" + f["path"].get<std::string>());
-      ASSERT_TRUE(c.ok()) << c.error();
-      f["bytes"] = c->bytes;
-      f["crc32"] = crcHex(c->crc);
-    }
-  });
-}
-
 std::uint32_t crcOf(const std::string& bytes, std::size_t from, std::size_t n) {
   return crc32(std::as_bytes(std::span(bytes.data() + from, n)));
 }

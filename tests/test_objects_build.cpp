@@ -15,6 +15,7 @@
 #include <unordered_map>
 
 #include "sandtable/formats/database.h"
+#include "sandtable/formats/pack.h"
 #include "test_support.h"
 
 using namespace sandtable::test;
@@ -182,6 +183,55 @@ TEST(ObjectsBuild, noTreeStandsOnARoadInWaterOrInABuildingByTheOsmGeometryItself
   }
   EXPECT_EQ(onLine, 0u) << "deepest tree into a road or stream: " << -worst << " m";
   EXPECT_EQ(inArea, 0u) << "trees in water or in a building footprint:" << where;
+}
+
+TEST(ObjectsBuild, validateFindsACoarseRecordWhoseObjectsDifferFromTheFineRecords) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir t("objrecords");
+  const auto b = runCli(bayreuthBuild(t / "db"));
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  // The pack written again, one module's fine record made from the module
+  // less its last object: every CRC is right, only the lists differ.
+  std::uint32_t badX = 0, badZ = 0;
+  bool done = false;
+  {
+    auto reader = sandtable::pack::PackReader::open(t / "db");
+    ASSERT_TRUE(reader.ok()) << reader.error();
+    const auto h = reader.value()->header();
+    ASSERT_GT(h.coarseLevel, 0u);
+    const std::string copy = t / "copy";
+    fs::create_directories(copy);
+    auto w = sandtable::pack::PackWriter::create(copy, h, 3, sandtable::pack::PackLayout::split(h.levels));
+    ASSERT_TRUE(w.ok()) << w.error();
+    for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+      for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+        auto m = reader.value()->read(kx, kz);
+        ASSERT_TRUE(m.ok()) << m.error();
+        auto rec = w.value()->compress(m.value());
+        ASSERT_TRUE(rec.ok()) << rec.error();
+        if (!done && m->objects.size() > 1) {
+          m->objects.pop_back();
+          for (auto& l : m->levels) l.objectY.pop_back();
+          auto less = w.value()->compress(m.value());
+          ASSERT_TRUE(less.ok()) << less.error();
+          rec->fineBytes = less->fineBytes;
+          rec->entry.fine = less->entry.fine;
+          badX = kx, badZ = kz, done = true;
+        }
+        ASSERT_EQ(w.value()->append(std::move(rec.value())).message(), "");
+      }
+    }
+    ASSERT_EQ(w.value()->finish().message(), "");
+  }
+  ASSERT_TRUE(done);
+  for (const char* f : {"modules.pack", "modules.idx"}) fs::rename(t / ("copy/" + std::string(f)), t / ("db/" + std::string(f)));
+  resealFiles(t / "db");
+  const auto v = runCli({"validate", t / "db"});
+  EXPECT_EQ(v.exitCode, 1) << v.out;
+  const std::string want = "module (" + std::to_string(badX) + "," + std::to_string(badZ) +
+                           "): its coarse record holds ";
+  EXPECT_NE(v.out.find(want), std::string::npos) << v.out;
+  EXPECT_NE(v.out.find("both must carry the same list"), std::string::npos) << v.out;
 }
 
 TEST(ObjectsBuild, forestsGetTreesAtTheTablesDensityAndEveryBaseIsOnItsLevel) {

@@ -248,3 +248,56 @@ TEST(ObjectsRender, columnsOnRuggedTerrainNeitherFloatNorSinkAtAnyLevelOfDetail)
 
 }  // namespace
 }  // namespace sandtable::test
+
+namespace sandtable::test {
+namespace {
+
+/// Objects drawn, sprites and thinned in the last of two frames over the
+/// Bayreuth forest.
+runtime::FrameStats forestFrame(const Database& db, double thinPixels, double easting, double northing) {
+  FlightOptions o;
+  o.view.width = 640;
+  o.view.height = 360;
+  o.view.viewDistance = 6000;
+  o.output.frames = 2;
+  o.pager.sync = true;
+  o.motion.speedKmh = 0;
+  o.motion.easting = easting;
+  o.motion.northing = northing;
+  o.motion.heightAgl = 60;
+  o.motion.pitchDeg = -6;
+  o.render.objectThinPixels = thinPixels;
+  auto r = runtime::fly(db, o);
+  EXPECT_TRUE(r.ok()) << r.error();
+  return r.ok() && !r->frames.empty() ? r->frames.back() : runtime::FrameStats{};
+}
+
+TEST(ObjectsRender, farSpritesAreThinnedTheSameWayEveryFrameAndNoneWithoutThinning) {
+  SANDTABLE_REQUIRE_DATA();
+  std::string why;
+  if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  TempDir t("objthin");
+  const auto b = runCli({"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.55", "49.94",
+                         "11.62", "49.99", "--spacing", "30", "--culture",
+                         data("culture/osm/north-bayreuth.osm.gz"), "-o", t / "db"});
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  FlightOptions start;
+  auto db = openAt(t / "db", 11.585, 49.945, start);
+  ASSERT_TRUE(db);
+  const auto all = forestFrame(db.value(), 0, start.motion.easting, start.motion.northing);
+  const auto thinned = forestFrame(db.value(), 6, start.motion.easting, start.motion.northing);
+  const auto again = forestFrame(db.value(), 6, start.motion.easting, start.motion.northing);
+  ASSERT_GT(all.objectsDrawn, 1000u);
+  EXPECT_EQ(all.objectsThinned, 0u);
+  // Every object in range and view is either drawn or thinned, and only sprites are thinned.
+  EXPECT_GT(thinned.objectsThinned, 0u);
+  EXPECT_EQ(thinned.objectsDrawn + thinned.objectsThinned, all.objectsDrawn);
+  EXPECT_EQ(thinned.objectInstances, all.objectInstances);
+  EXPECT_EQ(thinned.objectSprites + thinned.objectsThinned, all.objectSprites);
+  // The same ones every time: the choice hangs on the object, not the frame.
+  EXPECT_EQ(again.objectsDrawn, thinned.objectsDrawn);
+  EXPECT_EQ(again.objectsThinned, thinned.objectsThinned);
+}
+
+}  // namespace
+}  // namespace sandtable::test

@@ -108,4 +108,15 @@ runtime::Image readPng(const std::string& path) {
   return img;
 }
 
+void resealFiles(const std::string& db) {
+  resealManifest(db, [&](nlohmann::json& j) {
+    for (auto& f : j["files"]) {
+      const auto c = crc32File(db + "/" + f["path"].get<std::string>());
+      ASSERT_TRUE(c.ok()) << c.error();
+      f["bytes"] = c->bytes;
+      f["crc32"] = crcHex(c->crc);
+    }
+  });
+}
+
 }  // namespace sandtable::test

@@ -54,6 +54,8 @@ void spit(const std::string& path, const std::string& bytes);
 /// Rewrites DB/manifest.json after `edit` changes its JSON, with the
 /// checksum resealed (FORMAT.md §5.2), so only the edit itself is wrong.
 void resealManifest(const std::string& db, const std::function<void(nlohmann::json&)>& edit);
+/// Brings every files[] size and CRC in DB/manifest.json up to date.
+void resealFiles(const std::string& db);
 
 /// A PNG's red, green and blue read through GDAL (alpha 255); an empty
 /// image when it does not read.

@@ -17,7 +17,7 @@ namespace sandtable::bench {
 namespace {
 
 /// How a case draws the modules' static objects.
-enum class Objects { lod, none, full };
+enum class Objects { lod, none, full, unthinned };
 
 struct Case {
   std::string name;
@@ -161,10 +161,12 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
                              {"sse1-20km", TerrainMode::modules, LodMode::sse, kFarPixelError, kFarViewDistance}};
   if (a.mesh) cases.push_back({"mesh", TerrainMode::mesh, LodMode::full, px, vd});
   if (a.objectCases && hasObjects(db)) {
-    // The sse case draws the objects with their level of detail; these two
-    // bracket it: no objects at all, and every object at full detail.
+    // The sse case draws the objects with their level of detail, sprites
+    // and thinning; these bracket it: no objects at all, every object at
+    // full detail, and the sprites without thinning.
     cases.push_back({"no-objects", TerrainMode::modules, LodMode::sse, px, vd, Objects::none});
     cases.push_back({"objects-full", TerrainMode::modules, LodMode::sse, px, vd, Objects::full});
+    cases.push_back({"unthinned", TerrainMode::modules, LodMode::sse, px, vd, Objects::unthinned});
   }
   RenderBenchReport report;
   auto before = gridRate(a);
@@ -177,7 +179,8 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
     o.render.lod.pixelError = c.pixelError;
     o.view.viewDistance = c.viewDistance;
     o.render.objects = c.objects != Objects::none;
-    o.render.objectLod = c.objects == Objects::lod;
+    o.render.objectLod = c.objects == Objects::lod || c.objects == Objects::unthinned;
+    if (c.objects == Objects::unthinned) o.render.objectThinPixels = 0;
     auto r = runtime::fly(db, o);
     if (!r) return r.problems();
     report.renderer = r->summary.rendererDetail;

@@ -101,8 +101,9 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
   sub->footer(
       "Flies straight from the database centre at --speed, once per case, headless (EGL):\n"
       "rings, sse (--pixel-error), full, and sse1-20km (1 px at a 20 km view distance); with\n"
-      "static objects also no-objects (sse without them) and objects-full (sse, every object\n"
-      "in the view distance at its icon's full detail); the other cases draw objects by range.\n"
+      "static objects also no-objects (sse without them), objects-full (sse, every object\n"
+      "in the view distance at its icon's full detail) and unthinned (sse, every sprite drawn);\n"
+      "the other cases draw objects as the viewer does.\n"
       "Before and after the flights, a plain indexed grid drawn through the same program\n"
       "gives the renderer's own triangle rate; each case's triangles/s is set against it.\n"
       "frame ms is the time between frame completions on the render thread (main and\n"
@@ -127,7 +128,8 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
       ->capture_default_str();
   sub->add_option("--grid-squares", o.gridSquares, "Plain indexed grid: squares a side")
       ->capture_default_str()->check(CLI::Range(16u, 4096u));
-  sub->add_flag("--no-object-cases", args->noObjectCases, "Leave out the no-objects and objects-full cases");
+  sub->add_flag("--no-object-cases", args->noObjectCases,
+                "Leave out the no-objects, objects-full and unthinned cases");
   sub->add_flag("--json", args->json, "Print JSON");
   c.add(sub, [args] { return run(*args); });
 }

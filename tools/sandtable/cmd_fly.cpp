@@ -69,6 +69,7 @@ struct FlyArgs {
   bool noObjects = false;
   bool noObjectLod = false;
   double impostorPixels = runtime::kDefaultImpostorPixels;
+  double objectThinPixels = runtime::kDefaultObjectThinPixels;
   double objectFade = runtime::kDefaultObjectFade;
   std::string shading = "smooth";
   std::string colour = "natural";
@@ -271,6 +272,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.render.objectFade = a.objectFade;
   o.render.objectLod = !a.noObjectLod;
   o.render.impostorPixels = a.impostorPixels;
+  o.render.objectThinPixels = a.objectThinPixels;
   if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
   else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
@@ -534,6 +536,9 @@ void registerFly(CLI::App& root, Commands& c) {
                 "Draw every object in the view distance at its icon's full detail (no ranges, no sprites)");
   sub->add_option("--impostor-pixels", args->impostorPixels,
                   "Objects drawn smaller than this many pixels become impostor sprites (0: always meshes)")
+      ->capture_default_str()->check(CLI::Range(0.0, 255.0));
+  sub->add_option("--object-thin-pixels", args->objectThinPixels,
+                  "Sprites under this many pixels are thinned, the kept ones drawn larger (0: all drawn)")
       ->capture_default_str()->check(CLI::Range(0.0, 255.0));
   sub->add_option("--shading", args->shading,
                   "smooth (per-post normals, elevation tint) or flat (the seed's per-triangle look)")

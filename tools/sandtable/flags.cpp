@@ -40,6 +40,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"RenderOptions::msaa", "--msaa"},
     {"RenderOptions::objectFade", "--object-fade"},
     {"RenderOptions::impostorPixels", "--impostor-pixels"},
+    {"RenderOptions::objectThinPixels", "--object-thin-pixels"},
     {"RenderOptions::mode", "--mode"},
     {"OutputOptions::frames", "--frames"},
     {"ViewOptions::width/height", "--size"},

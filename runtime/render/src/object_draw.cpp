@@ -209,6 +209,16 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   out.textured.push_back(textured);
 }
 
+/// A fixed number in [0, 1) for object k of module (kx, kz) (splitmix64).
+double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
+  std::uint64_t z = (std::uint64_t(kx) << 42) ^ (std::uint64_t(kz) << 21) ^ k;
+  z += 0x9e3779b97f4a7c15ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  z ^= z >> 31;
+  return double(z >> 11) * 0x1p-53;
+}
+
 /// Whether a disc of radius r at (x, z) touches the triangle (world metres).
 bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
   const std::array<GroundPoint, 3> v{t.apex, t.left, t.right};
@@ -481,9 +491,22 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       bool inside = true;
       for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
       if (!inside) continue;
-      const ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
-                                    float(module::headingRadians(o.heading)), o.scale, fade};
-      if (sprites && double(sprites_[o.icon].size) * double(o.scale) * focal < settings_.impostorPixels * distance) {
+      ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
+                              float(module::headingRadians(o.heading)), o.scale, fade};
+      const double pixels = double(sprites_[o.icon].size) * double(o.scale) * focal / std::max(distance, 1e-3);
+      if (sprites && pixels < settings_.impostorPixels) {
+        const double thin = settings_.objectThinPixels;
+        if (thin > 0 && pixels < thin) {
+          // Kept with probability (pixels / thin)^2, by where it stands, so
+          // the same ones stay from frame to frame; the kept grow (up to
+          // twice) to keep the cover of the many they stand for.
+          const double keep = (pixels / thin) * (pixels / thin);
+          if (unitHash(d.kx, d.kz, std::uint32_t(i)) >= keep) {
+            ++stats.objectsThinned;
+            continue;
+          }
+          instance.scale *= float(std::min(thin / pixels, 2.0));
+        }
         spriteBuckets_[o.icon].push_back(instance);
       } else {
         buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(instance);

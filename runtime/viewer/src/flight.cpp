@@ -121,7 +121,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                     {"instances", s.objectInstances},
                     {"draws", s.objectDraws},
                     {"triangles", s.objectTriangles},
-                    {"sprites", s.objectSprites}};
+                    {"sprites", s.objectSprites},
+                    {"thinned", s.objectsThinned}};
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
                   {"queue", s.pagerQueue},
@@ -177,6 +178,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"object_fade", o.render.objectFade},
                   {"object_lod", o.render.objectLod},
                   {"impostor_pixels", o.render.impostorPixels},
+                  {"object_thin_pixels", o.render.objectThinPixels},
                   {"hud", o.view.hud},
                   {"path_waypoints", o.motion.path.size()}};
   nlohmann::json frames = nlohmann::json::array();
@@ -449,6 +451,7 @@ struct FlightRun {
       s.objectDraws = rs.objectDraws;
       s.objectTriangles = rs.objectTriangles;
       s.objectSprites = rs.objectSprites;
+      s.objectsThinned = rs.objectsThinned;
       handoff.pushFree(slot);
       if (!drawn) return stop(drawn);
       const auto now = Clock::now();
@@ -546,6 +549,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.objectFade = o.render.objectFade;
   rs.objectLod = o.render.objectLod;
   rs.impostorPixels = o.render.impostorPixels;
+  rs.objectThinPixels = o.render.objectThinPixels;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
@@ -714,6 +718,9 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
   if (!(o.render.impostorPixels >= 0 && o.render.impostorPixels <= 255)) {
     bad("RenderOptions::impostorPixels must be 0..255");
+  }
+  if (!(o.render.objectThinPixels >= 0 && o.render.objectThinPixels <= 255)) {
+    bad("RenderOptions::objectThinPixels must be 0..255");
   }
   const Terrain terrain(std::move(g));
   if (o.motion.path.size() == 1) bad("MotionOptions::path needs at least two waypoints");

@@ -50,8 +50,9 @@ struct RenderBenchOptions {
   /// GPU upload bytes per frame (RenderOptions::uploadBudgetBytes); 0: none.
   std::uint64_t uploadBudgetBytes = runtime::kDefaultUploadBudgetBytes;
   /// With a database that has static objects: also the cases "no-objects"
-  /// (sse without them) and "objects-full" (sse with every object in the
-  /// view distance at full detail), to bracket the sse case's objects.
+  /// (sse without them), "objects-full" (sse with every object in the view
+  /// distance at full detail) and "unthinned" (sse with every sprite drawn),
+  /// to bracket the sse case's objects.
   bool objectCases = true;
   /// The plain grid: squares a side (nodes of 16 squares), frames timed.
   std::uint32_t gridSquares = 512;

@@ -87,6 +87,9 @@ inline constexpr double kDefaultObjectFade = 0.15;
 /// are drawn as sprites.
 inline constexpr double kDefaultImpostorPixels = 16.0;
 
+/// RenderSettings::objectThinPixels by default.
+inline constexpr double kDefaultObjectThinPixels = 6.0;
+
 /// RenderSettings::uploadBudgetBytes by default: 1 MiB a frame.
 inline constexpr std::uint64_t kDefaultUploadBudgetBytes = 1ull << 20;
 
@@ -137,6 +140,11 @@ struct RenderSettings {
   /// icon's impostor (docs/VIEWER.md, "Impostors") instead of its mesh;
   /// 0: always meshes. Only with objectLod.
   double impostorPixels = kDefaultImpostorPixels;
+  /// Sprites under this many pixels are thinned: each is kept with
+  /// probability (pixels / objectThinPixels)^2, fixed per object, and the
+  /// kept ones are drawn up to twice their size (docs/VIEWER.md,
+  /// "Impostors"); 0: every sprite is drawn.
+  double objectThinPixels = kDefaultObjectThinPixels;
 };
 
 /// What the render thread did for the last frame (module mode).
@@ -160,6 +168,8 @@ struct RenderStats {
   std::uint64_t objectTriangles = 0;
   /// Of objectsDrawn, those drawn as impostor sprites (not in objectInstances).
   std::uint32_t objectSprites = 0;
+  /// Objects in range and view left out by the sprites' thinning.
+  std::uint32_t objectsThinned = 0;
 };
 
 /// Renderer::measureIndexedGrid: llvmpipe's (or the GPU's) own rate on a

@@ -130,6 +130,9 @@ struct RenderOptions {
   /// RenderSettings::impostorPixels: objects drawn smaller than this many
   /// pixels are sprites; 0: always meshes.
   double impostorPixels = kDefaultImpostorPixels;
+  /// RenderSettings::objectThinPixels: sprites under this many pixels are
+  /// thinned; 0 draws them all.
+  double objectThinPixels = kDefaultObjectThinPixels;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).
@@ -248,7 +251,7 @@ struct FrameStats {
   /// and of those drawn, the ones drawn as impostor sprites.
   std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
   std::uint64_t objectTriangles = 0;
-  std::uint32_t objectSprites = 0;
+  std::uint32_t objectSprites = 0, objectsThinned = 0;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;
