@@ -115,6 +115,7 @@ void settleCapacity(Impl& im, Slot& s, std::uint64_t taken) {
   std::uint64_t now = 0;
   for (const ResidentModule& d : s.data) {
     for (const module::Level& l : d.levels) now += levelCapacityBytes(l);
+    now += std::uint64_t(d.objects.capacity()) * sizeof(module::Object);
   }
   const std::int64_t delta = std::int64_t(now) - std::int64_t(s.capacityBytes) - std::int64_t(taken);
   if (delta > 0) im.poolBytes.fetch_add(std::uint64_t(delta), std::memory_order_relaxed);
@@ -142,6 +143,7 @@ void reclaimEmptySlots(Impl& im, const Slot& self, std::uint64_t need) {
     }
     const std::uint64_t before = s.capacityBytes;
     for (std::size_t b = 0; b < s.data.size(); ++b) {
+      std::vector<module::Object>().swap(s.data[b].objects);
       std::vector<module::Level>& levels = s.data[b].levels;
       for (std::size_t l = 0; l < levels.size(); ++l) {
         module::Level fresh;  // buffer 0 keeps the placeholder reserve; the reload buffer keeps nothing
@@ -166,6 +168,24 @@ bool copyWithinBudget(Impl& im, Slot& s, const module::Level& src, std::uint32_t
   copyLevel(src, s.data[b].levels[l]);
   settleCapacity(im, s, growth);
   return true;
+}
+
+/// Copies a module's objects list into `d` if the budget allows (it counts
+/// in the pool as the levels do); when it does not fit even after
+/// reclaiming, the module stays without its objects (`budgetRefusals`).
+void copyObjectsWithinBudget(Impl& im, Slot& s, ResidentModule& d, const std::vector<module::Object>& src) {
+  const std::uint64_t growth =
+      src.size() > d.objects.capacity() ? (src.size() - d.objects.capacity()) * sizeof(module::Object) : 0;
+  if (growth > 0 && !takeBudget(im, growth)) {
+    reclaimEmptySlots(im, s, growth);
+    if (!takeBudget(im, growth)) {
+      d.objects.clear();
+      im.count.budgetRefusals.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+  }
+  d.objects.assign(src.begin(), src.end());
+  settleCapacity(im, s, growth);
 }
 
 // ------------------------------------------------------------ the loads
@@ -350,7 +370,7 @@ bool loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   }
   d.placeholder = placeholder;
   if (placeholder) d.objects.clear();
-  else d.objects.assign(loaded.objects.begin(), loaded.objects.end());
+  else copyObjectsWithinBudget(im, s, d, loaded.objects);
   s.finest[0].store(coarse, std::memory_order_release);
   std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
@@ -503,7 +523,7 @@ void reloadModule(Impl& im, Loader& ld, Slot& s, std::uint64_t w) {
   d.kz = k.kz;
   d.placeholder = false;
   d.generation = read.generation;
-  d.objects.assign(m.objects.begin(), m.objects.end());
+  copyObjectsWithinBudget(im, s, d, m.objects);
   s.finest[nb].store(finest, std::memory_order_release);
   std::uint64_t expect = w;
   if (!s.word.compare_exchange_strong(

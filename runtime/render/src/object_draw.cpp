@@ -219,23 +219,41 @@ double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
   return double(z >> 11) * 0x1p-53;
 }
 
-/// Whether a disc of radius r at (x, z) touches the triangle (world metres).
-bool discInTriangle(const ViewTriangle& t, double x, double z, double r) {
-  const std::array<GroundPoint, 3> v{t.apex, t.left, t.right};
-  const double area = (v[1].x - v[0].x) * (v[2].z - v[0].z) - (v[1].z - v[0].z) * (v[2].x - v[0].x);
-  const double sign = area < 0 ? -1.0 : 1.0;
-  for (int k = 0; k < 3; ++k) {
-    const GroundPoint& a = v[std::size_t(k)];
-    const GroundPoint& b = v[std::size_t((k + 1) % 3)];
-    const double ex = b.x - a.x, ez = b.z - a.z;
-    const double len = std::hypot(ex, ez);
-    if (len == 0) continue;
-    // Positive inside for a counter-clockwise (area > 0) triangle.
-    const double d = sign * (ex * (z - a.z) - ez * (x - a.x)) / len;
-    if (d < -r) return false;
+/// The view triangle's three edges as inward unit normals, once per frame:
+/// the per-object test is then three multiply-adds (a forest is hundreds
+/// of thousands of objects a frame).
+class DiscTest {
+ public:
+  explicit DiscTest(const ViewTriangle& t) {
+    const std::array<GroundPoint, 3> v{t.apex, t.left, t.right};
+    const double area = (v[1].x - v[0].x) * (v[2].z - v[0].z) - (v[1].z - v[0].z) * (v[2].x - v[0].x);
+    const double sign = area < 0 ? -1.0 : 1.0;
+    for (int k = 0; k < 3; ++k) {
+      const GroundPoint& a = v[std::size_t(k)];
+      const GroundPoint& b = v[std::size_t((k + 1) % 3)];
+      const double ex = b.x - a.x, ez = b.z - a.z, len = std::sqrt(ex * ex + ez * ez);
+      Edge& e = edges_[std::size_t(k)];
+      if (len == 0) continue;  // a degenerate edge rejects nothing
+      // Positive inside for a counter-clockwise (area > 0) triangle.
+      e.nx = -sign * ez / len;
+      e.nz = sign * ex / len;
+      e.w = -(e.nx * a.x + e.nz * a.z);
+    }
   }
-  return true;
-}
+  /// Whether a disc of radius r at (x, z) touches the triangle (world metres).
+  bool touches(double x, double z, double r) const {
+    for (const Edge& e : edges_) {
+      if (e.nx * x + e.nz * z + e.w < -r) return false;
+    }
+    return true;
+  }
+
+ private:
+  struct Edge {
+    double nx = 0, nz = 0, w = 0;
+  };
+  std::array<Edge, 3> edges_;
+};
 
 }  // namespace
 
@@ -459,6 +477,14 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
   auto planes = frustumPlanes(detail::viewProjection(cam, buf.originX, buf.originZ));
   for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
   const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
+  const DiscTest triangle(buf.triangle);
+  // Past its far range (capped at the view distance) an object is not
+  // drawn; the ground distance is a cheap lower bound of the eye's.
+  farRange_.resize(icons.size());
+  for (std::size_t k = 0; k < icons.size(); ++k) {
+    const double far = settings_.objectLod && !icons[k].ranges.empty() ? double(icons[k].ranges.back()) : INFINITY;
+    farRange_[k] = std::min(far, cam.viewDistance);
+  }
   for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
     const ModuleDraw& d = buf.modules[m];
     if (!d.ref || d.ref.placeholder()) continue;
@@ -468,6 +494,11 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
     for (std::size_t i = 0; i < rm.objects.size(); ++i) {
       const module::Object& o = rm.objects[i];
       if (o.icon >= icons.size()) continue;  // validate refuses these
+      const double gx = mx + o.x - buf.originX - eye.x(), gz = mz + o.z - buf.originZ - eye.z();
+      if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) continue;
+      const double half = 0.5 * double(o.height);
+      const double radius = std::sqrt(double(o.radius) * double(o.radius) + half * half);
+      if (!triangle.touches(mx + o.x, mz + o.z, radius)) continue;
       std::uint32_t level = 0;
       float morph = 0;
       if (!modules.drawnAt(m, o.x, o.z, level, morph)) continue;
@@ -477,8 +508,6 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       if (morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()) {
         y += double(morph) * (double(rm.levels[level + 1].objectY[i]) - y);
       }
-      const double half = 0.5 * double(o.height);
-      const double radius = std::hypot(double(o.radius), half);
       const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
       float fade = 1;
       const double distance = (centre - eye).norm();
@@ -486,7 +515,6 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
                                 ? iconLevelAt(icons[o.icon], distance, cam.viewDistance, settings_.objectFade, fade)
                                 : (distance < cam.viewDistance ? 0 : -1);
       if (iconLevel < 0 || fade <= 0) continue;
-      if (!discInTriangle(buf.triangle, mx + o.x, mz + o.z, radius)) continue;
       const Eigen::Vector4d c(centre.x(), centre.y(), centre.z(), 1.0);
       bool inside = true;
       for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;

@@ -154,6 +154,7 @@ class ObjectRenderer {
   std::vector<std::vector<ObjectInstance>> buckets_;  ///< levelBase_[icon] + level
   std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon
   std::vector<ObjectInstance> stream_;
+  std::vector<double> farRange_;  ///< per icon, this frame
 };
 
 }  // namespace sandtable::runtime::detail
