@@ -325,7 +325,8 @@ std::string toJson(const SynthSummary& s) {
               {"height", s.demHeight},
               {"pixel_arcsec", s.demArcSeconds},
               {"type", "Float32"}};
-  j["culture"] = {{"roads", s.roads}, {"rivers", s.rivers}, {"lakes", s.lakes}, {"forest", s.forests}};
+  j["culture"] = {{"roads", s.roads}, {"rivers", s.rivers}, {"lakes", s.lakes}, {"forest", s.forests},
+                  {"buildings", s.buildings}};
   j["elevation_m"] = {{"min", s.minElevation}, {"max", s.maxElevation}};
   j["files"] = s.files;
   return j.dump(2) + "\n";
@@ -390,6 +391,7 @@ Result<bool> writeProducts(const World& w, const Layout& l, const SynthOptions& 
     auto r = synth::writeCulture(w, (dir / "culture.gpkg").string());
     if (!r) return r.problems();
     s.roads = r->roads, s.rivers = r->rivers, s.lakes = r->lakes, s.forests = r->forests;
+    s.buildings = r->buildings;
     s.files.push_back("culture.gpkg");
   }
   if (range.lo <= range.hi) s.minElevation = range.lo, s.maxElevation = range.hi;

@@ -380,10 +380,66 @@ void buildForest(World& w, const Terrain2d& t) {
 
 }  // namespace
 
+// ------------------------------------------------------------- buildings
+
+/// Distance from p to the nearest road's edge (its centreline less half
+/// its width), m.
+double roadClearance(const World& w, Vec2 p) {
+  double best = std::numeric_limits<double>::max();
+  for (const Road& r : w.roads) {
+    for (std::size_t k = 0; k + 1 < r.pts.size(); ++k) {
+      const Vec2 a = r.pts[k], b = r.pts[k + 1];
+      const double dx = b.x - a.x, dy = b.y - a.y, len2 = dx * dx + dy * dy;
+      const double s = len2 > 0 ? std::clamp(((p.x - a.x) * dx + (p.y - a.y) * dy) / len2, 0.0, 1.0) : 0.0;
+      best = std::min(best, std::hypot(p.x - a.x - s * dx, p.y - a.y - s * dy) - 0.5 * r.width);
+    }
+  }
+  return best;
+}
+
+/// Villages: houses scattered round each town (more round the first), on
+/// dry, gentle ground, clear of roads, rivers and each other, turned to a
+/// per-town street grid, 3 to 12 m high.
+void buildBuildings(World& w, const Terrain2d& t) {
+  const Grid& g = w.grid;
+  for (std::size_t k = 0; k < w.towns.size(); ++k) {
+    const Vec2 town = w.towns[k];
+    const int wanted = k == 0 ? 40 : 16;
+    const double radius = k == 0 ? 450.0 : 250.0;
+    const double grid = unit(hash32(w.spec.seed, std::uint32_t(k), 0xB11Du)) * std::numbers::pi / 2;
+    int placed = 0;
+    for (std::uint32_t tries = 0; placed < wanted && tries < std::uint32_t(wanted) * 20; ++tries) {
+      const auto h = [&](std::uint32_t salt) { return unit(hash32(w.spec.seed, std::uint32_t(k) * 7919u + tries, salt)); };
+      const double r = radius * std::sqrt(h(1)), a = 2 * std::numbers::pi * h(2);
+      Building b;
+      b.centre = {town.x + r * std::cos(a), town.y + r * std::sin(a)};
+      b.a = 4.0 + 6.0 * h(3);
+      b.b = 4.0 + 3.0 * h(4);
+      b.angle = grid + (h(5) < 0.5 ? 0.0 : std::numbers::pi / 2);
+      b.height = 3.0 * std::floor(1.0 + 4.0 * h(6));
+      if (std::abs(b.centre.x) > w.half - 50 || std::abs(b.centre.y) > w.half - 50) continue;
+      const int i = int(std::lround((b.centre.x - g.x0) / g.step)), j = int(std::lround((b.centre.y - g.y0) / g.step));
+      if (i < 0 || j < 0 || i >= g.nx || j >= g.ny) continue;
+      const std::size_t c = g.index(i, j);
+      if (t.blocked[c] || t.river[c] || t.slope[c] > 0.15 || w.riverDist[c] < 40) continue;
+      const double reach = std::hypot(b.a, b.b);
+      if (roadClearance(w, b.centre) < reach + 4) continue;
+      bool clear = true;
+      for (const Building& o : w.buildings) {
+        clear = clear && std::hypot(o.centre.x - b.centre.x, o.centre.y - b.centre.y) > reach + std::hypot(o.a, o.b) + 3;
+      }
+      if (!clear) continue;
+      w.buildings.push_back(b);
+      ++placed;
+    }
+  }
+}
+
 void buildCulture(World& w) {
   const Terrain2d t = layers(w);
   buildRoads(w, t);
   buildForest(w, t);
+  buildBuildings(w, t);
 }
 
 // ---------------------------------------------------------------- GeoPackage
@@ -443,6 +499,20 @@ OGRGeometryH lakePolygon(const World& w, const Lake& lake) {
     const double a = 2.0 * std::numbers::pi * (k % n) / n;
     const double r = lake.rimRadius(a);
     OGR_G_AddPoint_2D(ring, w.frame.lonOf(lake.centre.x + r * std::cos(a)), w.frame.latOf(lake.centre.y + r * std::sin(a)));
+  }
+  OGRGeometryH poly = OGR_G_CreateGeometry(wkbPolygon);
+  OGR_G_AddGeometryDirectly(poly, ring);
+  return poly;
+}
+
+/// A building's footprint in lon/lat, counter-clockwise.
+OGRGeometryH buildingPolygon(const World& w, const Building& b) {
+  const double c = std::cos(b.angle), s = std::sin(b.angle);
+  OGRGeometryH ring = OGR_G_CreateGeometry(wkbLinearRing);
+  const double corners[5][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}, {-1, -1}};
+  for (const auto& k : corners) {
+    const double x = k[0] * b.a, y = k[1] * b.b;
+    OGR_G_AddPoint_2D(ring, w.frame.lonOf(b.centre.x + x * c - y * s), w.frame.latOf(b.centre.y + x * s + y * c));
   }
   OGRGeometryH poly = OGR_G_CreateGeometry(wkbPolygon);
   OGR_G_AddGeometryDirectly(poly, ring);
@@ -550,8 +620,9 @@ Result<CultureCounts> writeCulture(const World& w, const std::string& path) {
   OGRLayerH rivers = roads ? makeLayer(ds, "rivers", wkbLineString, srs, {{"name", OFTString}, {"width", OFTReal}}) : nullptr;
   OGRLayerH lakes = rivers ? makeLayer(ds, "lakes", wkbPolygon, srs, {{"level", OFTReal}}) : nullptr;
   OGRLayerH forest = lakes ? makeLayer(ds, "forest", wkbPolygon, srs, {}) : nullptr;
+  OGRLayerH buildings = forest ? makeLayer(ds, "buildings", wkbPolygon, srs, {{"height", OFTReal}}) : nullptr;
   OSRRelease(srs);
-  if (!forest) {
+  if (!buildings) {
     const Problem p = gpkgProblem(path, "cannot create layers");
     GDALClose(ds);
     return p;
@@ -580,6 +651,11 @@ Result<CultureCounts> writeCulture(const World& w, const std::string& path) {
     if (!ok) break;
     ok = addFeature(lakes, lakePolygon(w, l), [&](OGRFeatureH f) { OGR_F_SetFieldDouble(f, 0, l.level); });
     n.lakes += ok;
+  }
+  for (const Building& b : w.buildings) {
+    if (!ok) break;
+    ok = addFeature(buildings, buildingPolygon(w, b), [&](OGRFeatureH f) { OGR_F_SetFieldDouble(f, 0, b.height); });
+    n.buildings += ok;
   }
   if (ok) {
     auto forests = writeForest(w, forest, path);

@@ -133,6 +133,14 @@ struct Road {
   std::vector<Vec2> pts;
 };
 
+/// A building footprint: a rectangle of half sides (a, b) turned by angle.
+struct Building {
+  Vec2 centre;
+  double a = 0, b = 0;  ///< half sides, m
+  double angle = 0;     ///< radians, anticlockwise from east
+  double height = 0;    ///< m, the `height` attribute
+};
+
 /// Everything derived once per run: the terrain function and the culture.
 struct World {
   Frame frame;
@@ -146,6 +154,7 @@ struct World {
   std::vector<float> height;         ///< final terrain on grid
   std::vector<float> riverDist;      ///< distance to the nearest river, m (large when none near)
   std::vector<std::uint8_t> forest;  ///< 1 = forest, on grid
+  std::vector<Building> buildings;   ///< villages round the towns
 };
 
 using Fraction = std::function<void(double)>;
@@ -183,7 +192,7 @@ std::vector<std::vector<Vec2>> clipToSquare(const std::vector<Vec2>& pts, double
 
 /// Culture feature counts written by writeCulture.
 struct CultureCounts {
-  int roads = 0, rivers = 0, lakes = 0, forests = 0;
+  int roads = 0, rivers = 0, lakes = 0, forests = 0, buildings = 0;
 };
 
 /// Writes culture.gpkg (EPSG:4326) in one transaction.

@@ -1054,7 +1054,9 @@ TEST(Culture, realSynthGeoPackage) {
   ASSERT_TRUE(c) << c.error();
   const CultureStats& st = c.value()->stats();
   std::printf("synth 20 km: %llu features in %.2f s\n", (unsigned long long)st.featuresRead, st.seconds);
-  EXPECT_EQ(st.featuresRead, std::uint64_t(sum->roads + sum->rivers + sum->lakes + sum->forests));
+  EXPECT_EQ(st.featuresRead, std::uint64_t(sum->roads + sum->rivers + sum->lakes + sum->forests + sum->buildings));
+  EXPECT_GT(sum->buildings, 0);
+  EXPECT_EQ(st.perClass.at("building").read, std::uint64_t(sum->buildings));
   std::uint64_t roads = 0;
   for (const char* r : {"motorway", "primary", "secondary", "track"}) {
     if (st.perClass.count(r)) roads += st.perClass.at(r).read;

@@ -160,12 +160,13 @@ TEST(Synth, WritesRealFormatsThatAgree) {
   EXPECT_GT(compared, 1000);
   EXPECT_LE(demWorst, 1.0);
 
-  // The culture GeoPackage: four layers in EPSG:4326, with their fields.
+  // The culture GeoPackage: five layers in EPSG:4326, with their fields.
   GDALDatasetH gpkg = GDALOpenEx((out / "culture.gpkg").c_str(), GDAL_OF_VECTOR, nullptr, nullptr, nullptr);
   ASSERT_NE(gpkg, nullptr);
   EXPECT_STREQ(GDALGetDriverShortName(GDALGetDatasetDriver(gpkg)), "GPKG");
   const std::pair<const char*, OGRwkbGeometryType> layers[] = {
-      {"roads", wkbLineString}, {"rivers", wkbLineString}, {"lakes", wkbPolygon}, {"forest", wkbPolygon}};
+      {"roads", wkbLineString}, {"rivers", wkbLineString}, {"lakes", wkbPolygon}, {"forest", wkbPolygon},
+      {"buildings", wkbPolygon}};
   for (const auto& [name, type] : layers) {
     OGRLayerH layer = GDALDatasetGetLayerByName(gpkg, name);
     ASSERT_NE(layer, nullptr) << name;
@@ -178,6 +179,18 @@ TEST(Synth, WritesRealFormatsThatAgree) {
   OGRLayerH roads = GDALDatasetGetLayerByName(gpkg, "roads");
   EXPECT_TRUE(hasField(roads, "type", OFTString));
   EXPECT_TRUE(hasField(roads, "width", OFTReal));
+  // Buildings: rectangles 8 to 20 m a side, 3 to 12 m high, clear of each other.
+  OGRLayerH houses = GDALDatasetGetLayerByName(gpkg, "buildings");
+  EXPECT_TRUE(hasField(houses, "height", OFTReal));
+  OGR_L_ResetReading(houses);
+  while (OGRFeatureH f = OGR_L_GetNextFeature(houses)) {
+    const double height = OGR_F_GetFieldAsDouble(f, 0);
+    EXPECT_GE(height, 3.0);
+    EXPECT_LE(height, 12.0);
+    OGRGeometryH ring = OGR_G_GetGeometryRef(OGR_F_GetGeometryRef(f), 0);
+    EXPECT_EQ(OGR_G_GetPointCount(ring), 5);
+    OGR_F_Destroy(f);
+  }
   OGRLayerH rivers = GDALDatasetGetLayerByName(gpkg, "rivers");
   EXPECT_TRUE(hasField(rivers, "name", OFTString));
   EXPECT_TRUE(hasField(rivers, "width", OFTReal));

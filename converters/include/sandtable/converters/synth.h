@@ -43,7 +43,7 @@ struct SynthSummary {
   int dted1Cells = 0, dted2Cells = 0;
   int demWidth = 0, demHeight = 0;
   double demArcSeconds = 0;  ///< DEM pixel size
-  int roads = 0, rivers = 0, lakes = 0, forests = 0;  ///< features per layer
+  int roads = 0, rivers = 0, lakes = 0, forests = 0, buildings = 0;  ///< features per layer
   double minElevation = 0, maxElevation = 0;          ///< over everything written, m
   std::vector<std::string> files;  ///< relative to outDir, synth.json excluded
   std::uint64_t bytes = 0;         ///< total size of files
