@@ -127,6 +127,17 @@ Status writeMesh(const ExportArgs& a, const std::string& format, bool glb, const
   return writeText(a.output, mesh_export::toGltf(mesh, {{"sandtable", info}}, more));
 }
 
+/// The --json summary both exports start from.
+nlohmann::json summary(const nlohmann::json& info, const std::vector<std::string>& files, const std::string& format,
+                       bool glb, const mesh_export::Mesh& mesh) {
+  nlohmann::json j = info;
+  j["files"] = files;
+  j["format"] = glb ? "glb" : format;
+  j["vertices"] = mesh.positions.size();
+  j["triangles"] = mesh.triangles();
+  return j;
+}
+
 /// `export DB --icon NAME`: one icon of icons.pack alone, in its body frame.
 int exportIcon(const ExportArgs& a, const Database& db, const std::string& format, bool glb) {
   if (!db.icons) {
@@ -161,11 +172,7 @@ int exportIcon(const ExportArgs& a, const Database& db, const std::string& forma
     return usageError("export", st.message());
   }
   if (a.json) {
-    nlohmann::json j = info;
-    j["files"] = files;
-    j["format"] = glb ? "glb" : format;
-    j["vertices"] = mesh.positions.size();
-    j["triangles"] = mesh.triangles();
+    nlohmann::json j = summary(info, files, format, glb, mesh);
     j["textures"] = more.textures.size();
     std::printf("%s\n", j.dump(2).c_str());
   } else {
@@ -305,11 +312,7 @@ int runExport(ExportArgs& a) {
   }
 
   if (a.json) {
-    nlohmann::json j = info;
-    j["files"] = written;
-    j["format"] = glb ? "glb" : format;
-    j["vertices"] = mesh.positions.size();
-    j["triangles"] = mesh.triangles();
+    nlohmann::json j = summary(info, written, format, glb, mesh);
     nlohmann::json parts = nlohmann::json::array();
     for (const auto& p : mesh.parts) parts.push_back({{"name", p.name}, {"triangles", p.indices.size() / 3}});
     j["materials"] = parts;

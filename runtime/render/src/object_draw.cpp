@@ -47,8 +47,7 @@ void main() {
 }
 )";
 
-// Appended to shadingHeaderGlsl(). Screen-door fade: a fragment stays when
-// the fade exceeds its cell of an ordered 4 x 4 threshold pattern.
+// Appended to iconFragmentGlsl().
 const char* kObjectFragmentMain = R"(
 in vec3 vColour;
 in float vLight;
@@ -57,13 +56,8 @@ in vec2 vUv;
 flat in float vLayer;
 flat in float vFade;
 out vec4 fragColor;
-const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
-                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
 void main() {
-  if (vFade < 1.0) {
-    ivec2 q = ivec2(gl_FragCoord.xy) & 3;
-    if (vFade * 16.0 <= kBayer[q.y * 4 + q.x]) discard;
-  }
+  if (fadedOut(vFade)) discard;
   vec3 colour;
   if (!iconColour(vColour, vUv, vLayer, colour)) discard;
   fragColor = vec4(mix(uFogColor, colour * vLight, vFog), 1.0);
@@ -92,7 +86,7 @@ void main() {
 }
 )";
 
-// Appended to shadingHeaderGlsl(). The impostor's texel, alpha-tested,
+// Appended to iconFragmentGlsl(). The impostor's texel, alpha-tested,
 // screen-door faded as the meshes are, fogged.
 const char* kSpriteFragmentMain = R"(
 uniform sampler2DArray uImpostors;
@@ -100,15 +94,9 @@ uniform float uLayer;
 in float vFog;
 flat in float vFade;
 out vec4 fragColor;
-const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
-                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
 void main() {
   vec4 t = texture(uImpostors, vec3(gl_PointCoord.x, 1.0 - gl_PointCoord.y, uLayer));
-  if (t.a < 0.5) discard;
-  if (vFade < 1.0) {
-    ivec2 q = ivec2(gl_FragCoord.xy) & 3;
-    if (vFade * 16.0 <= kBayer[q.y * 4 + q.x]) discard;
-  }
+  if (t.a < 0.5 || fadedOut(vFade)) discard;
   fragColor = vec4(mix(uFogColor, t.rgb, vFog), 1.0);
 }
 )";
@@ -258,6 +246,15 @@ class DiscTest {
 }  // namespace
 
 const char* const kIconTextureGlsl = R"(
+// Screen-door fade: a fragment stays when the fade exceeds its cell of an
+// ordered 4 x 4 threshold pattern.
+const float kBayer[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
+                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
+bool fadedOut(float fade) {
+  if (fade >= 1.0) return false;
+  ivec2 q = ivec2(gl_FragCoord.xy) & 3;
+  return fade * 16.0 <= kBayer[q.y * 4 + q.x];
+}
 #ifdef SANDTABLE_ICON_TEXTURE
 uniform sampler2DArray uIconTextures;
 #endif
@@ -386,7 +383,7 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   spriteBuckets_.assign(sprites_.size(), {});
   if (s.impostorPixels <= 0 || sprites_.empty()) return {};
   auto sprite = GlProgram::build("object sprite shader", shadingVertexGlsl() + kSpriteVertexMain,
-                                 shadingHeaderGlsl() + kSpriteFragmentMain);
+                                 iconFragmentGlsl(false, kSpriteFragmentMain));
   if (!sprite) return sprite.problems();
   spriteProgram_ = std::move(sprite.value());
   spriteProgram_.use();

@@ -61,7 +61,8 @@ static_assert(sizeof(IconVertex) == 32, "vertex layout is shared with the shader
 /// GLSL for fragment stages after shadingHeaderGlsl(): bool iconColour(
 /// base, uv, layer, out colour), the base colour times the icon texture
 /// (uniform uIconTextures) where SANDTABLE_ICON_TEXTURE is defined and the
-/// layer is >= 0; false for a cut-out texel.
+/// layer is >= 0, false for a cut-out texel; and bool fadedOut(fade), the
+/// screen-door fade's discard.
 extern const char* const kIconTextureGlsl;
 
 /// Binds IconVertex's attributes to binding 0 of `vao`: position 0,
