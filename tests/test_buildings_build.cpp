@@ -5,13 +5,16 @@
 // in lon/lat and projected by the test itself (OGR), and the ground comes
 // from the grid's posts, not from the builder's modules.
 #include <gtest/gtest.h>
+#include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
 
 #include <nlohmann/json.hpp>
 
 #include <array>
 #include <cmath>
 #include <fstream>
+#include <memory>
 #include <optional>
 
 #include "sandtable/formats/grid.h"
@@ -217,3 +220,88 @@ TEST(BuildingsBuild, footprintsStandOnTheGridAtTheirAttributesHeightWithCourtyar
 }
 
 }  // namespace
+
+namespace {
+
+/// Building polygons of an OSM extract that lie (by their envelope) on the
+/// database's rectangle, counted with OGR here: `building` set, and none of
+/// the sample table's ignore rules (tunnel, covered, underground) on them.
+std::uint64_t osmBuildingsOn(const std::string& osm, const std::string& db) {
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> ds(
+      GDALDataset::Open(("/vsigzip/" + osm).c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  EXPECT_TRUE(ds);
+  if (!ds) return 0;
+  const auto m = nlohmann::json::parse(slurpFile(db + "/manifest.json"));
+  OGRSpatialReference wgs, frame;
+  wgs.SetWellKnownGeogCS("WGS84");
+  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  frame.importFromWkt(m["crs"]["wkt"].get<std::string>().c_str());
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs, &frame));
+  const auto& grid = m["grid"];
+  const double west = grid["origin_easting"], north = grid["origin_northing"];
+  const double east = west + grid["spacing_m"].get<double>() * (grid["posts_x"].get<double>() - 1);
+  const double south = north - grid["spacing_m"].get<double>() * (grid["posts_z"].get<double>() - 1);
+  std::uint64_t n = 0;
+  for (auto& f : ds->GetLayerByName("multipolygons")) {
+    const int b = f->GetFieldIndex("building");
+    if (b < 0 || !f->IsFieldSetAndNotNull(b)) continue;
+    const int o = f->GetFieldIndex("other_tags");
+    const std::string tags = o >= 0 && f->IsFieldSetAndNotNull(o) ? f->GetFieldAsString(o) : "";
+    bool ignored = false;
+    for (const char* t : {"\"tunnel\"=>\"yes\"", "\"tunnel\"=>\"culvert\"", "\"tunnel\"=>\"building_passage\"",
+                          "\"covered\"=>\"yes\"", "\"location\"=>\"underground\""}) {
+      ignored = ignored || tags.find(t) != std::string::npos;
+    }
+    OGRGeometry* g = f->GetGeometryRef();
+    if (ignored || !g || g->transform(ct.get()) != OGRERR_NONE) continue;
+    OGREnvelope e;
+    g->getEnvelope(&e);
+    n += e.MaxX >= west && e.MinX <= east && e.MaxY >= south && e.MinY <= north;
+  }
+  return n;
+}
+
+}  // namespace
+
+TEST(BuildingsBuild, realOsmBuildingsAreTheExtractsFootprintsLessTheDroppedOnes) {
+  SANDTABLE_REQUIRE_DATA();
+  struct Case {
+    const char* name;
+    std::string elevation, osm;
+    std::vector<std::string> extent;
+  };
+  const Case cases[] = {
+      {"monaco", data("elevation/srtm/N43E007.hgt.zip"), data("culture/osm/monaco.osm.gz"),
+       {"7.405", "43.72", "7.44", "43.75"}},
+      {"bayreuth", data("elevation/srtm/N49E011.hgt.zip"), data("culture/osm/north-bayreuth.osm.gz"),
+       {"11.55", "49.94", "11.62", "49.99"}}};
+  TempDir t("osmbuildings");
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    std::vector<std::string> args = {"build", "--elevation", c.elevation, "--extent"};
+    args.insert(args.end(), c.extent.begin(), c.extent.end());
+    args.insert(args.end(), {"--spacing", "10", "--culture", c.osm, "--json", "-o", t / c.name});
+    const auto b = runCli(args);
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    const auto j = nlohmann::json::parse(b.out);
+    const auto& cls = j["culture"]["classes"]["building"];
+    const std::uint64_t read = cls["read"], dropped = cls["dropped"], built = j["culture"]["buildings"];
+    const std::uint64_t gdal = osmBuildingsOn(c.osm, t / c.name);
+    ASSERT_GT(gdal, 100u);
+    // Every footprint GDAL finds on the database is extruded; every other
+    // building the extract holds is read and dropped, with its reason
+    // (wholly outside the database).
+    EXPECT_EQ(built, gdal);
+    EXPECT_EQ(built, read - dropped);
+    std::uint64_t explained = 0;
+    for (const auto& [reason, r] : j["culture"]["reasons"].items()) {
+      if (r["action"] == "dropped") explained += r["count"].get<std::uint64_t>();
+    }
+    EXPECT_GE(explained, dropped);
+    std::printf("%s: %llu building polygons on the database (OGR), %llu extruded, %llu read, %llu dropped\n",
+                c.name, static_cast<unsigned long long>(gdal), static_cast<unsigned long long>(built),
+                static_cast<unsigned long long>(read), static_cast<unsigned long long>(dropped));
+  }
+}
