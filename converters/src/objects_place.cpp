@@ -8,18 +8,14 @@
 #include <cmath>
 #include <limits>
 
+#include "sandtable/base/hash.h"
+
 namespace sandtable::convert {
 
 namespace {
 
-std::uint64_t mix(std::uint64_t z) {  // splitmix64's finaliser
-  z += 0x9e3779b97f4a7c15ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
-
-double unit(std::uint64_t h) { return double(h >> 11) * 0x1p-53; }
+using hash::mix;
+using hash::unit;
 
 std::uint64_t cellKey(std::int64_t i, std::int64_t j) {
   return mix(std::uint64_t(i) * 0x100000001b3ull ^ mix(std::uint64_t(j)));

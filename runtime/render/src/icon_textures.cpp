@@ -69,13 +69,22 @@ Result<std::vector<std::uint8_t>> decodeIconTexture(std::span<const std::byte> b
   return rgba;
 }
 
+GLuint createTextureArray(std::uint32_t texels, std::uint32_t layers, GLenum wrap) {
+  const auto mips = GLsizei(std::log2(double(texels))) + 1;
+  GLuint tex = 0;
+  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &tex);
+  glTextureStorage3D(tex, mips, GL_RGBA8, GLsizei(texels), GLsizei(texels), GLsizei(layers));
+  glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+  glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GLint(wrap));
+  glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GLint(wrap));
+  return tex;
+}
+
 GLuint uploadIconTextures(const iconpack::Pack& pack, std::vector<std::string>& warnings) {
   if (pack.textures.empty()) return 0;
   const auto n = GLsizei(kIconTextureTexels);
-  const auto mips = GLsizei(std::log2(double(kIconTextureTexels))) + 1;
-  GLuint tex = 0;
-  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &tex);
-  glTextureStorage3D(tex, mips, GL_RGBA8, n, n, GLsizei(pack.textures.size()));
+  const GLuint tex = createTextureArray(kIconTextureTexels, std::uint32_t(pack.textures.size()), GL_REPEAT);
   for (std::size_t k = 0; k < pack.textures.size(); ++k) {
     auto rgba = decodeIconTexture(pack.textures[k].bytes, pack.textures[k].name);
     std::vector<std::uint8_t> white;
@@ -87,10 +96,6 @@ GLuint uploadIconTextures(const iconpack::Pack& pack, std::vector<std::string>& 
                         rgba ? rgba.value().data() : white.data());
   }
   glGenerateTextureMipmap(tex);
-  glTextureParameteri(tex, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-  glTextureParameteri(tex, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTextureParameteri(tex, GL_TEXTURE_WRAP_S, GL_REPEAT);
-  glTextureParameteri(tex, GL_TEXTURE_WRAP_T, GL_REPEAT);
   return tex;
 }
 

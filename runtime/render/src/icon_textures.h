@@ -27,6 +27,10 @@ inline constexpr std::uint32_t kIconTextureTexels = 256;
 Result<std::vector<std::uint8_t>> decodeIconTexture(std::span<const std::byte> bytes, const std::string& name,
                                                     std::uint32_t texels = kIconTextureTexels);
 
+/// An RGBA8 GL_TEXTURE_2D_ARRAY of `layers` layers of `texels` square with
+/// every mipmap level, sampled trilinearly, wrapping as `wrap` says.
+GLuint createTextureArray(std::uint32_t texels, std::uint32_t layers, GLenum wrap);
+
 /// One GL_TEXTURE_2D_ARRAY with a layer per pack texture (layer k = pack
 /// texture k), mipmapped, repeating; 0 when the pack has no textures. A
 /// texture that does not decode becomes a white layer (its materials show

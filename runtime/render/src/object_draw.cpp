@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "icon_textures.h"
+#include "sandtable/base/hash.h"
 #include "module_draw.h"
 #include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
@@ -197,14 +198,9 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   out.textured.push_back(textured);
 }
 
-/// A fixed number in [0, 1) for object k of module (kx, kz) (splitmix64).
+/// A fixed number in [0, 1) for object k of module (kx, kz).
 double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
-  std::uint64_t z = (std::uint64_t(kx) << 42) ^ (std::uint64_t(kz) << 21) ^ k;
-  z += 0x9e3779b97f4a7c15ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  z ^= z >> 31;
-  return double(z >> 11) * 0x1p-53;
+  return hash::unit(hash::mix((std::uint64_t(kx) << 42) ^ (std::uint64_t(kz) << 21) ^ k));
 }
 
 /// The view triangle's three edges as inward unit normals, once per frame:
@@ -284,6 +280,17 @@ void bindIconVertex(GLuint vao) {
   attrib(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(IconVertex, rgba));
   attrib(5, 2, GL_FLOAT, GL_FALSE, offsetof(IconVertex, s));
   attrib(6, 1, GL_FLOAT, GL_FALSE, offsetof(IconVertex, layer));
+}
+
+/// Binds ObjectInstance's attributes (place 3, scale and fade 4) to `binding` of `vao`.
+static void bindInstance(GLuint vao, GLuint binding) {
+  const auto attrib = [&](GLuint loc, GLint n, GLuint offset) {
+    glEnableVertexArrayAttrib(vao, loc);
+    glVertexArrayAttribFormat(vao, loc, n, GL_FLOAT, GL_FALSE, offset);
+    glVertexArrayAttribBinding(vao, loc, binding);
+  };
+  attrib(3, 4, offsetof(ObjectInstance, x));
+  attrib(4, 2, offsetof(ObjectInstance, scale));
 }
 
 IconSprite spriteOf(const iconpack::Icon& icon) {
@@ -369,13 +376,7 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   glVertexArrayVertexBuffer(vao_, 0, vertexBuffer_, 0, sizeof(IconVertex));
   glVertexArrayElementBuffer(vao_, indexBuffer_);
   bindIconVertex(vao_);
-  const auto instanceAttrib = [&](GLuint loc, GLint n, GLuint offset) {
-    glEnableVertexArrayAttrib(vao_, loc);
-    glVertexArrayAttribFormat(vao_, loc, n, GL_FLOAT, GL_FALSE, offset);
-    glVertexArrayAttribBinding(vao_, loc, 1);
-  };
-  instanceAttrib(3, 4, offsetof(ObjectInstance, x));
-  instanceAttrib(4, 2, offsetof(ObjectInstance, scale));
+  bindInstance(vao_, 1);
   glVertexArrayBindingDivisor(vao_, 1, 1);
 
   sprites_.clear();
@@ -390,13 +391,7 @@ Status ObjectRenderer::create(const RenderSettings& s) {
   setShadingUniforms(spriteProgram_, s);
   spriteProgram_.set("uImpostors", 1);
   glCreateVertexArrays(1, &spriteVao_);
-  // The instance stream read per vertex: one point per object.
-  glEnableVertexArrayAttrib(spriteVao_, 3);
-  glVertexArrayAttribFormat(spriteVao_, 3, 4, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, x));
-  glVertexArrayAttribBinding(spriteVao_, 3, 0);
-  glEnableVertexArrayAttrib(spriteVao_, 4);
-  glVertexArrayAttribFormat(spriteVao_, 4, 2, GL_FLOAT, GL_FALSE, offsetof(ObjectInstance, scale));
-  glVertexArrayAttribBinding(spriteVao_, 4, 0);
+  bindInstance(spriteVao_, 0);  // read per vertex: one point per object
   return bakeImpostors();
 }
 
@@ -411,15 +406,8 @@ Status ObjectRenderer::bakeImpostors() {
     program.set("uIconTextures", 2);
     glBindTextureUnit(2, textures_);
   }
-  const auto layers = GLsizei(sprites_.size());
   const GLsizei n = GLsizei(kImpostorTexels);
-  const auto mips = GLsizei(std::log2(double(kImpostorTexels))) + 1;
-  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &impostors_);
-  glTextureStorage3D(impostors_, mips, GL_RGBA8, n, n, layers);
-  glTextureParameteri(impostors_, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
-  glTextureParameteri(impostors_, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTextureParameteri(impostors_, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTextureParameteri(impostors_, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  impostors_ = createTextureArray(kImpostorTexels, std::uint32_t(sprites_.size()), GL_CLAMP_TO_EDGE);
   GLint oldFramebuffer = 0, oldViewport[4] = {0, 0, 0, 0};
   glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &oldFramebuffer);
   glGetIntegerv(GL_VIEWPORT, oldViewport);
