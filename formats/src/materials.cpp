@@ -80,6 +80,15 @@ bool parseWidth(std::string_view s, double& out) {
   return true;
 }
 
+/// A finite number, the whole token.
+bool parseReal(std::string_view s, double& out) {
+  double v = 0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || end != s.data() + s.size() || !std::isfinite(v)) return false;
+  out = v;
+  return true;
+}
+
 bool validName(std::string_view s) {
   if (s.empty() || s == kIgnoreClass || s == "none") return false;
   return std::all_of(s.begin(), s.end(), [](char c) {
@@ -226,9 +235,10 @@ class Parser {
                     "); give every class its own name");
       }
     }
-    enum Field { kind, priority, rank, upper, lower, material, texture, width, extrude, storey, count };
-    static const char* names[count] = {"kind",     "priority", "rank",  "upper",   "lower",
-                                       "material", "texture",  "width", "extrude", "storey"};
+    enum Field { kind, priority, rank, upper, lower, material, texture, width, extrude, storey, stick, resist, water,
+                 count };
+    static const char* names[count] = {"kind",  "priority", "rank",   "upper", "lower",  "material", "texture",
+                                       "width", "extrude",  "storey", "stick", "resist", "water"};
     std::string_view given[count];
     bool seen[count] = {};
     for (std::size_t k = 3; k < tok.size(); ++k) {
@@ -243,7 +253,8 @@ class Parser {
       }
       if (f < 0) {
         return fail("unknown class field " + quoted(key) +
-                    " (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey)");
+                     " (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey, stick, resist, "
+                    "water)");
       }
       if (seen[f]) return fail("class field " + quoted(key) + " is given twice");
       seen[f] = true;
@@ -304,6 +315,19 @@ class Parser {
     }
     if (seen[storey] && !parseWidth(given[storey], c.storey)) {
       return fail("storey must be metres per building level in (0, 1000], not " + quoted(given[storey]));
+    }
+    if (seen[stick] && (!parseReal(given[stick], c.stickDeg) || c.stickDeg < 0 || c.stickDeg > 90)) {
+      return fail("stick must be the slope in degrees, 0..90, at which a vehicle at rest starts to slide, not " +
+                  quoted(given[stick]));
+    }
+    if (seen[resist] && (!parseReal(given[resist], c.resist) || c.resist < 0 || c.resist > 10)) {
+      return fail("resist must be the resistive force as a fraction of the vehicle's weight, 0..10, not " +
+                  quoted(given[resist]));
+    }
+    if (seen[water]) {
+      if (given[water] == "yes") c.water = true;
+      else if (given[water] == "no") c.water = false;
+      else return fail("water must be yes or no, not " + quoted(given[water]));
     }
     table_.classes.push_back(std::move(c));
     classLines_.push_back(line_);
@@ -520,6 +544,9 @@ std::string format(const Table& t) {
     if (c.kind == Kind::line) s += " width=" + number(c.width);
     if (c.extrude > 0) s += " extrude=" + number(c.extrude);
     if (c.storey != kDefaultStorey) s += " storey=" + number(c.storey);
+    if (c.stickDeg != kDefaultStickDeg) s += " stick=" + number(c.stickDeg);
+    if (c.resist != kDefaultResist) s += " resist=" + number(c.resist);
+    if (c.water) s += " water=yes";
     s += "\n";
   }
   for (const Rule& r : t.rules) {

@@ -57,6 +57,34 @@ TEST(Materials, sampleParsesAndCoversTheSeedClasses) {
   EXPECT_EQ(m.findByName("motorway")->priority, 10);
   EXPECT_LT(m.findByName("river")->priority, m.findByName("street")->priority);  // bridges show the road
   EXPECT_LT(m.findByName("path")->width, m.findByName("track")->width);
+  // Soil (seed VII.B.2.b): sand and wetland hold a vehicle back more than a road does.
+  EXPECT_GT(m.findByName("sand")->resist, m.findByName("primary")->resist);
+  EXPECT_LT(m.findByName("wetland")->stickDeg, m.findByName("rock")->stickDeg);
+  for (const char* wet : {"water", "river", "canal", "stream", "ditch"}) EXPECT_TRUE(m.findByName(wet)->water) << wet;
+  EXPECT_FALSE(m.findByName("grass")->water);
+}
+
+TEST(Materials, soilFieldsDefaultParseAndRefuseBadValues) {
+  const std::string head = "sandtable-materials 1\n";
+  const std::string cls = "class 0 g kind=area priority=1 upper=000000 lower=000000 material=0 texture=0";
+  auto plain = parseText(head + cls + "\ndefault-area g\n");
+  ASSERT_TRUE(plain) << plain.error();
+  EXPECT_EQ(plain->classes[0].stickDeg, kDefaultStickDeg);
+  EXPECT_EQ(plain->classes[0].resist, kDefaultResist);
+  EXPECT_FALSE(plain->classes[0].water);
+  auto soil = parseText(head + cls + " stick=12.5 resist=0.3 water=yes\ndefault-area g\n");
+  ASSERT_TRUE(soil) << soil.error();
+  EXPECT_EQ(soil->classes[0].stickDeg, 12.5);
+  EXPECT_EQ(soil->classes[0].resist, 0.3);
+  EXPECT_TRUE(soil->classes[0].water);
+  auto again = parseText(format(soil.value()));
+  ASSERT_TRUE(again) << again.error();
+  EXPECT_EQ(again.value(), soil.value());
+  for (const char* bad : {" stick=91", " stick=x", " resist=-1", " resist=nan", " water=maybe"}) {
+    auto r = parseText(head + cls + bad + "\ndefault-area g\n");
+    ASSERT_FALSE(r) << bad;
+    EXPECT_EQ(r.problems().front().offset, head.size()) << bad;
+  }
 }
 
 TEST(Materials, formatRoundTripsTheSample) {
@@ -130,7 +158,7 @@ TEST(Materials, malformedLinesNameTheirOffsetAndTheFix) {
       {c + " width=3", "width= applies only to line classes"},
       {"class 2 x kind=line priority=10 rank=3 upper=000000 lower=000000 material=0 texture=0 width=3",
        "rank= applies only to area classes"},
-      {c + " colour=red", "unknown class field \"colour\" (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey)"},
+      {c + " colour=red", "unknown class field \"colour\" (known: kind, priority, rank, upper, lower, material, texture, width, extrude, storey, stick, resist, water)"},
       {c + " kind=area", "class field \"kind\" is given twice"},
       {c + " width", "\"width\" is not KEY=VALUE"},
       {"class 2 x kind=area priority=1 upper=000000 lower=000000 texture=0", "class \"x\" is missing material="},

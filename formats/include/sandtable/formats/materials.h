@@ -34,6 +34,10 @@ enum class Kind : std::uint8_t {
 /// (priority 2..98, drawn in priority order over the skin).
 /// Class::storey by default: metres per building level.
 inline constexpr double kDefaultStorey = 3.0;
+/// Soil of a class without `stick=` / `resist=` (seed VII.B.2.b): firm
+/// ground. The simulator's land dynamics read them.
+inline constexpr double kDefaultStickDeg = 30.0;
+inline constexpr double kDefaultResist = 0.05;
 
 struct Class {
   std::uint16_t id = 0;      ///< 0..65534; keep below 256 where the grid stores a u8
@@ -51,6 +55,13 @@ struct Class {
   /// height of a footprint with neither `height` nor `building:levels`.
   double extrude = 0;
   double storey = kDefaultStorey;  ///< metres per `building:levels` level
+  /// Soil (seed VII.B.2.b): the slope, degrees, at which a vehicle at rest
+  /// starts to slide, and the resistive force opposing motion along the
+  /// surface as a fraction of the vehicle's weight (a rolling resistance).
+  double stickDeg = kDefaultStickDeg;
+  double resist = kDefaultResist;
+  /// Water: ships may sail here, land vehicles turn back (seed VIII.A.2).
+  bool water = false;
   bool operator==(const Class&) const = default;
 };
 
