@@ -1,0 +1,172 @@
+#pragma once
+// What the simulation knows of the database: the ground it drives on, the
+// soil under it, and the static objects it can hit (seed VII.B, VII.C).
+//
+// Ground: entities follow the surface of the level of detail that is drawn
+// at their position (runtime/world/ground.h). A viewer sets `drawnLevel` to
+// its scene's choice; headless runs draw level 0 (the finest) everywhere,
+// unless told otherwise.
+//
+// Objects: every static object of modules.pack in world coordinates, in a
+// grid of collision squares (Figure 56) with each square's tallest object
+// (the first-level test). A square is at least as wide as the largest
+// object radius plus the largest entity radius plus the farthest an entity
+// moves in a step, so the 3x3 squares around an entity hold every object it
+// can touch: SimWorld::objectsNear finds exactly what a search of every
+// object finds (tested against objectsNearBruteForce).
+//
+// Thread safety: const methods are thread-safe; object states change only
+// through setObjectState, from the simulation thread.
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sandtable/base/result.h"
+#include "sandtable/formats/icon_pack.h"
+#include "sandtable/formats/materials.h"
+#include "sandtable/world/ground.h"
+#include "sandtable/world/terrain.h"
+
+namespace sandtable::pack {
+class PackReader;
+}
+
+namespace sandtable::sim {
+
+/// What a static object has become (seed Table 6's object results).
+enum class ObjectState : std::uint8_t { standing, knockedOver, stump, ruins, destroyed };
+const char* objectStateName(ObjectState s);
+
+/// The collision class of an object (Table 6's columns).
+enum class ObjectKind : std::uint8_t { tree, house, rock };
+const char* objectKindName(ObjectKind k);
+
+struct StaticObject {
+  double x = 0, z = 0;     ///< world metres
+  double baseY = 0;        ///< level 0's base elevation
+  double radius = 0, height = 0;
+  double headingDeg = 0;
+  double scale = 1;
+  std::uint16_t icon = 0;
+  std::uint16_t cls = 0;
+  ObjectKind kind = ObjectKind::rock;
+  ObjectState state = ObjectState::standing;
+  std::uint32_t moduleX = 0, moduleZ = 0, index = 0;  ///< where it is stored
+};
+
+/// Which level is drawn at world (x, z).
+using DrawnLevelFn = std::function<runtime::DrawnLevel(double x, double z)>;
+
+struct SimWorldOptions {
+  /// Collision square edge, metres; the seed's grid square is 125 m. Raised
+  /// to fit the largest object and entity (see above).
+  double squareM = 125;
+  /// Radius of the largest entity the simulation will hold, metres.
+  double maxEntityRadiusM = 15;
+  /// Farthest an entity moves in one step, metres (a 1,200 m/s munition
+  /// at 60 Hz: 20 m); munitions use swept volumes beyond that.
+  double maxStepM = 20;
+};
+
+class SimWorld {
+ public:
+  /// A world over a grid alone (tests): no objects, the materials given.
+  SimWorld(std::shared_ptr<const grid::GridFile> grid, std::uint32_t moduleSquares, std::uint32_t levels,
+           std::optional<materials::Table> materials = std::nullopt);
+  SimWorld(const SimWorld&) = delete;  // classById_ points into materials_
+  SimWorld& operator=(const SimWorld&) = delete;
+
+  /// Opens a built database directory: grid, materials.txt, icons.pack and
+  /// the objects of modules.pack (when present).
+  static Result<std::shared_ptr<SimWorld>> open(const std::string& directory, const SimWorldOptions& options = {});
+
+  const runtime::GroundClamp& clamp() const { return clamp_; }
+  const runtime::Terrain& terrain() const { return terrain_; }
+  const grid::GridFile& grid() const { return *grid_; }
+  double widthM() const { return terrain_.widthMetres(); }
+  double depthM() const { return terrain_.depthMetres(); }
+  double originEasting() const;
+  double originNorthing() const;
+
+  void setDrawnLevel(DrawnLevelFn fn) { drawn_ = std::move(fn); }
+  runtime::DrawnLevel drawnAt(double x, double z) const { return drawn_ ? drawn_(x, z) : runtime::DrawnLevel{}; }
+  /// The drawn surface at (x, z); nullopt off the grid.
+  std::optional<double> groundAt(double x, double z) const;
+
+  /// The soil under (x, z): the material table's class of the nearest post,
+  /// or the defaults where there is no table or no such class.
+  struct Soil {
+    double stickDeg = materials::kDefaultStickDeg;
+    double resist = materials::kDefaultResist;
+    bool water = false;
+    bool known = false;  ///< the post's material is a class of the table
+  };
+  Soil soilAt(double x, double z) const;
+  /// Ships may be here: water, or elevation <= 0 where the material is
+  /// unknown (seed VIII.A.2). False off the grid.
+  bool navigable(double x, double z) const;
+  bool onGrid(double x, double z) const { return x >= 0 && z >= 0 && x <= widthM() && z <= depthM(); }
+
+  // Icons.
+  const iconpack::Pack& icons() const { return icons_; }
+  std::optional<std::uint16_t> iconIndex(const std::string& name) const;
+  void setIcons(iconpack::Pack icons) { icons_ = std::move(icons); }
+
+  // Static objects.
+  const std::vector<StaticObject>& objects() const { return objects_; }
+  /// Replaces the objects and rebuilds the squares (tests build worlds).
+  void setObjects(std::vector<StaticObject> objects, const SimWorldOptions& options = {});
+  void setObjectState(std::uint32_t object, ObjectState state) { objects_[object].state = state; }
+  double squareM() const { return square_; }
+  std::uint32_t squaresX() const { return squaresX_; }
+  std::uint32_t squaresZ() const { return squaresZ_; }
+  /// The highest top (base + height) of a standing object in square (sx,
+  /// sz): Figure 56's first level, the square's tallest object against the
+  /// entity's height, as elevations so that it is exact on slopes too.
+  /// -infinity for an empty square.
+  double tallestTopIn(std::uint32_t sx, std::uint32_t sz) const { return tallest_[std::size_t(sz) * squaresX_ + sx]; }
+  /// Standing objects in the 3x3 squares around (x, z) that an upright
+  /// cylinder of `radius` from `bottomY` up touches: level 1 (the square's
+  /// tallest top above bottomY), level 2 (2-D distance under the sum of the
+  /// radii, Figure 58), level 3 (bottomY under the object's top). Fallen,
+  /// stumps, ruins and destroyed objects are not obstacles. Appends object
+  /// indices to `out` in ascending order.
+  void objectsNear(double x, double z, double radius, double bottomY, std::vector<std::uint32_t>& out) const;
+  /// The same answer by testing every object (the benchmark's baseline and
+  /// the tests' reference).
+  void objectsNearBruteForce(double x, double z, double radius, double bottomY,
+                             std::vector<std::uint32_t>& out) const;
+  /// Counts of what the last objectsNear calls tested (levels 1 and 2).
+  struct SearchStats {
+    std::uint64_t squares = 0, squaresPassed = 0, objectsTested = 0;
+  };
+  SearchStats& stats() const { return stats_; }
+
+ private:
+  void buildSquares(const SimWorldOptions& options);
+
+  std::shared_ptr<const grid::GridFile> grid_;
+  runtime::GroundClamp clamp_;
+  runtime::Terrain terrain_;
+  std::optional<materials::Table> materials_;
+  std::vector<const materials::Class*> classById_;  ///< material id -> class (256)
+  DrawnLevelFn drawn_;
+  iconpack::Pack icons_;
+  std::vector<StaticObject> objects_;
+  double square_ = 125;
+  std::uint32_t squaresX_ = 0, squaresZ_ = 0;
+  std::vector<std::uint32_t> squareStart_;   ///< CSR offsets, squares + 1
+  std::vector<std::uint32_t> squareObjects_; ///< object indices by square
+  std::vector<double> tallest_;
+  mutable SearchStats stats_;
+};
+
+/// The object kind of an icon name and a material class name: trees
+/// ("tree" in either), houses (buildings, "house", "garage", "building"),
+/// rocks otherwise.
+ObjectKind objectKindOf(const std::string& iconName, const std::string& className);
+
+}  // namespace sandtable::sim

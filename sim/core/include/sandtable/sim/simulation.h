@@ -1,0 +1,207 @@
+#pragma once
+// The simulation (seed chapters VII and VIII; Figure 44's entity process):
+// entities advanced on a fixed-step clock, their collisions with static
+// objects and with each other, munitions and their detonations, the
+// reactive behaviours, scripts, and the events all this produces.
+//
+// One step, in this order, each entity in id order (so a run is
+// deterministic, bit for bit, for a given seed and input):
+//  1. scripts apply their due lines (Figure 73); the recorder samples the
+//     driven entity;
+//  2. behaviours steer the computer-generated forces (zig-zag, environment,
+//     edge, fight or flight) and the autopilot turns commands into controls;
+//  3. every live entity moves (motion.h, aircraft.h, munition.h);
+//  4. munitions: terrain impact (Figure 27), swept volumes against objects
+//     and entities (Figure 59), kill and near-miss boxes (Figure 70);
+//  5. moving against static objects (Figures 56-58, Table 6);
+//  6. moving against moving (Figures 60-66).
+//
+// Thread safety: one thread drives a Simulation; readers of its entities
+// must copy them between steps (the viewer does, under its own lock).
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sandtable/sim/aircraft.h"
+#include "sandtable/sim/behaviour.h"
+#include "sandtable/sim/collision_response.h"
+#include "sandtable/sim/entity.h"
+#include "sandtable/sim/munition.h"
+#include "sandtable/sim/script.h"
+#include "sandtable/sim/sim_world.h"
+
+namespace sandtable::sim {
+
+enum class EventKind : std::uint8_t {
+  fire,             ///< a munition was launched
+  detonation,       ///< a munition went off: the DIS and dynamic-terrain issues consume these
+  kill,             ///< an entity died (by a munition, a collision or a crash)
+  objectCollision,  ///< an entity hit a static object (Table 6)
+  entityCollision,  ///< two entities collided (Figure 64)
+  crash,            ///< an aircraft met the ground
+  aground,          ///< a ship's step towards land was refused
+};
+const char* eventKindName(EventKind k);
+
+struct Event {
+  double timeS = 0;
+  EventKind kind = EventKind::fire;
+  std::uint32_t entity = UINT32_MAX;  ///< the actor (the munition for fire and detonation)
+  std::uint32_t other = UINT32_MAX;   ///< the other entity, the target or the launcher
+  std::uint32_t object = UINT32_MAX;  ///< a static object (SimWorld::objects index)
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  std::string munition;               ///< detonation and fire: the munition type
+  std::string detail;                 ///< e.g. "stop/none", "front", "terrain"
+};
+
+/// What collided with what, counted by kind.
+struct CollisionCounts {
+  std::uint64_t objects = 0, entities = 0, munitionObjects = 0, munitionEntities = 0, terrain = 0;
+};
+
+struct SimOptions {
+  double stepS = 1.0 / 60.0;  ///< the fixed step: 60 Hz
+  std::uint64_t seed = 1;
+  bool collisions = true;
+  /// Test every object and every entity pair instead of the grid and the
+  /// 100 m box: the benchmark's baseline.
+  bool bruteForce = false;
+  /// Figure 60: the first-level box, metres in X and Z.
+  double entityBoxM = 100;
+  /// Figure 64's constant: above this closing speed a square impact kills.
+  double killSpeedMs = 5;
+  double bounceKeep = kDefaultBounceKeep;
+  /// Cast the contact ray (Figures 62-63) against the icons' triangles;
+  /// off: the bounding spheres decide.
+  bool contactRay = true;
+  BehaviourOptions behaviour;
+  CollisionTable table = defaultCollisionTable();
+  /// Land entities stay at most this far from the drawn surface; checked
+  /// by the tests.
+  double groundToleranceM = 0.01;
+};
+
+/// Counters of the last steps, for the summary and the benchmark.
+struct SimCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t entitySteps = 0;
+  std::uint64_t fired = 0, detonations = 0, kills = 0;
+  CollisionCounts collisions;
+  std::uint64_t pairsBoxed = 0, pairsSphered = 0, raysCast = 0;
+};
+
+class Simulation {
+ public:
+  Simulation(std::shared_ptr<SimWorld> world, SimOptions options = {});
+
+  /// Adds an entity: its id is its index. Land entities are put on the
+  /// ground and oriented; entities with the edge behaviour that start in
+  /// the buffer zone are moved out of it. Fails when it stands off the grid
+  /// or a ship is not on water.
+  Result<std::uint32_t> add(Entity e);
+
+  /// An aircraft type for air entities (Entity::aircraftType indexes it).
+  std::uint32_t addAircraftType(AircraftParams params);
+  /// The aircraft state of an air entity (position, velocity and
+  /// orientation are mirrored into the Entity after each step).
+  AirState& airState(std::uint32_t id) { return air_[id]; }
+  AirControls& airControls(std::uint32_t id) { return airControls_[id]; }
+
+  /// Scripts (Figure 73): each line for script entity `entity` moves
+  /// simulation entity `id`; lines of entities not mapped are ignored.
+  void addScript(std::vector<ScriptLine> lines, std::vector<std::pair<std::uint32_t, std::uint32_t>> entityToId);
+  /// Records entity `id` (the driven one) into a script with entity number
+  /// `scriptEntity` and type `scriptType`.
+  void record(std::uint32_t id, std::uint32_t scriptEntity, std::uint32_t scriptType, RecorderOptions o = {});
+  /// The recorded lines (after finishRecording, complete).
+  const ScriptRecorder* recorder() const { return recorder_ ? &*recorder_ : nullptr; }
+  void finishRecording();
+
+  /// Launches a munition of `type` from entity `shooter` along azimuth and
+  /// elevation (degrees); guided munitions home on `target` when given.
+  std::uint32_t fire(std::uint32_t shooter, double azimuthDeg, double elevationDeg, std::uint16_t type,
+                     std::uint32_t target = UINT32_MAX);
+
+  /// One fixed step.
+  void step();
+  /// Steps until `seconds` of simulated time have passed.
+  void runFor(double seconds);
+
+  double timeS() const { return double(steps_) * options_.stepS; }
+  std::uint64_t steps() const { return steps_; }
+  const SimOptions& options() const { return options_; }
+  SimOptions& options() { return options_; }
+  std::vector<Entity>& entities() { return entities_; }
+  const std::vector<Entity>& entities() const { return entities_; }
+  const std::vector<Event>& events() const { return events_; }
+  const SimCounters& counters() const { return counters_; }
+  SimWorld& world() { return *world_; }
+  const SimWorld& world() const { return *world_; }
+  const std::vector<MunitionType>& munitions() const { return munitionTypes_; }
+
+  /// The entity the user drives, if any.
+  std::optional<std::uint32_t> driven;
+
+  /// Kills an entity now (an event with `detail`).
+  void kill(std::uint32_t id, std::uint32_t by, const std::string& detail);
+
+ private:
+  void applyScripts();
+  void behave(Entity& e);
+  void move(Entity& e);
+  void moveAir(Entity& e);
+  void flyMunition(Entity& m);
+  void senseMunition(const Entity& m);
+  void detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hitEntity, std::uint32_t hitObject,
+                const std::string& detail);
+  void collideStatic(Entity& e, const Eigen::Vector3d& before);
+  void collideMoving();
+  void collidePair(Entity& a, Entity& b);
+  void bucketEntities();
+  const std::vector<Triangle>& trianglesOf(std::uint16_t icon);
+  std::string entityClass(const Entity& e) const;
+  void emit(Event ev);
+
+  std::shared_ptr<SimWorld> world_;
+  SimOptions options_;
+  std::vector<Entity> entities_;
+  std::vector<AirState> air_;
+  std::vector<AirControls> airControls_;
+  std::vector<AircraftParams> aircraftTypes_;
+  std::vector<MunitionType> munitionTypes_;
+  std::vector<Event> events_;
+  SimCounters counters_;
+  std::uint64_t steps_ = 0;
+  std::uint64_t draws_ = 0;  ///< random draws made (behaviours)
+  std::vector<Eigen::Vector3d> before_;  ///< positions at the start of the step
+
+  struct Script {
+    ScriptPlayer player;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> map;  ///< script entity -> id, sorted
+  };
+  std::vector<Script> scripts_;
+  std::vector<ScriptLine> lastLine_;  ///< per entity: the script line it dead-reckons from
+  std::vector<bool> scripted_;
+  std::optional<ScriptRecorder> recorder_;
+  std::uint32_t recordId_ = 0, recordEntity_ = 0, recordType_ = 0;
+
+  // Moving/moving: entities by 100 m cell (Figure 60), rebuilt each step.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;
+  std::vector<std::vector<Triangle>> triangles_;  ///< per icon, built on first use
+  std::vector<bool> trianglesBuilt_;
+  std::vector<std::uint32_t> scratch_;
+
+  /// Launches decided during the step, made after it (a launch appends an
+  /// entity, which must not happen while entities are being iterated).
+  struct PendingFire {
+    std::uint32_t shooter = 0;
+    double azimuthDeg = 0, elevationDeg = 0;
+    std::uint16_t type = 0;
+    std::uint32_t target = UINT32_MAX;
+  };
+  std::vector<PendingFire> pendingFire_;
+};
+
+}  // namespace sandtable::sim

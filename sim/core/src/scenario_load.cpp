@@ -1,0 +1,196 @@
+// A parsed scenario made into a running simulation.
+#include "sandtable/sim/scenario_load.h"
+
+#include <map>
+
+namespace sandtable::sim {
+
+VehicleParams defaultVehicle(Mobility m, Domain d) {
+  VehicleParams v;  // a 40 t tank
+  if (m == Mobility::wheeled) {
+    v.massKg = 10000;
+    v.maxForceN = 60000;
+    v.powerW = 250000;
+    v.maxSpeedMs = 25;
+    v.turnRateDegS = 25;
+  } else if (d == Domain::sea || m == Mobility::ship) {
+    v.massKg = 200000;
+    v.maxSpeedMs = 15;
+    v.turnRateDegS = 3;
+  } else if (d == Domain::air) {
+    v.maxSpeedMs = 300;
+    v.turnRateDegS = 10;
+  }
+  return v;
+}
+
+namespace {
+
+Domain domainOf(ScenarioDomain d) {
+  switch (d) {
+    case ScenarioDomain::land: return Domain::land;
+    case ScenarioDomain::sea: return Domain::sea;
+    case ScenarioDomain::air: return Domain::air;
+    case ScenarioDomain::munition: return Domain::munition;
+  }
+  return Domain::land;
+}
+
+Mobility mobilityOf(ScenarioMobility m) {
+  switch (m) {
+    case ScenarioMobility::simple: return Mobility::simple;
+    case ScenarioMobility::tracked: return Mobility::tracked;
+    case ScenarioMobility::wheeled: return Mobility::wheeled;
+    case ScenarioMobility::ship: return Mobility::ship;
+    case ScenarioMobility::aircraft: return Mobility::aircraft;
+  }
+  return Mobility::simple;
+}
+
+/// Builds a simulation from a scenario, one entity at a time.
+class Loader {
+ public:
+  Loader(std::shared_ptr<SimWorld> world, const Scenario& s, const runtime::ToProjectedFn& toProjected,
+         SimOptions options)
+      : world_(world), scenario_(s), toProjected_(toProjected) {
+    if (s.seed && options.seed == SimOptions{}.seed) options.seed = *s.seed;
+    sim_ = std::make_unique<Simulation>(std::move(world), std::move(options));
+  }
+
+  Result<std::unique_ptr<Simulation>> run() {
+    for (std::size_t k = 0; k < scenario_.entities.size(); ++k) {
+      const EntitySpec& spec = scenario_.entities[k];
+      if (!addEntity(spec, scenario_.driven && *scenario_.driven == k)) return std::move(problems_);
+    }
+    for (const GroupSpec& g : scenario_.groups) {
+      for (const EntitySpec& spec : expandGroup(g, sim_->options().seed)) {
+        if (!addEntity(spec, false)) return std::move(problems_);
+      }
+    }
+    for (auto& [file, script] : scripts_) sim_->addScript(std::move(script.lines), std::move(script.map));
+    return std::move(sim_);
+  }
+
+ private:
+  struct ScriptFile {
+    std::vector<ScriptLine> lines;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> map;
+  };
+
+  bool fail(const EntitySpec& spec, const std::string& message) {
+    std::string m = "scenario: line ";
+    m += std::to_string(spec.line);
+    m += ": entity ";
+    m += spec.name;
+    m += ": ";
+    m += message;
+    problems_.push_back({scenario_.source, 0, m});
+    return false;
+  }
+
+  /// The script lines of `spec` (its file read once), or null.
+  ScriptFile* scriptOf(const EntitySpec& spec) {
+    auto it = scripts_.find(spec.script);
+    if (it != scripts_.end()) return &it->second;
+    auto lines = readScriptFile(spec.script);
+    if (!lines) {
+      fail(spec, "script " + spec.script + ": " + lines.error());
+      return nullptr;
+    }
+    return &scripts_.emplace(spec.script, ScriptFile{std::move(lines.value()), {}}).first->second;
+  }
+
+  /// World (x, z) of the spec's position, or of its script's first line.
+  bool position(const EntitySpec& spec, const ScriptFile* script, double& x, double& z) {
+    if (spec.a && spec.b) {
+      double e = *spec.a, n = *spec.b;
+      if (spec.lonLat) {
+        if (!toProjected_) return fail(spec, "lon/lat positions need the database's CRS");
+        if (std::string why = toProjected_(*spec.a, *spec.b, e, n); !why.empty()) return fail(spec, why);
+      }
+      x = e - world_->originEasting();
+      z = world_->originNorthing() - n;
+      return true;
+    }
+    if (script) {
+      for (const ScriptLine& l : script->lines) {
+        if (spec.scriptEntity && l.entity == *spec.scriptEntity) {
+          x = l.x;
+          z = l.z;
+          return true;
+        }
+      }
+    }
+    return fail(spec, "has no position: give at=, or a script whose lines name its script-entity");
+  }
+
+  bool aircraftOf(const EntitySpec& spec, std::uint32_t& type) {
+    if (auto it = aircraft_.find(spec.aircraft); it != aircraft_.end()) {
+      type = it->second;
+      return true;
+    }
+    auto p = readAircraftFile(spec.aircraft);
+    if (!p) return fail(spec, "aircraft " + spec.aircraft + ": " + p.error());
+    type = sim_->addAircraftType(std::move(p.value()));
+    aircraft_.emplace(spec.aircraft, type);
+    return true;
+  }
+
+  bool addEntity(const EntitySpec& spec, bool driven) {
+    Entity e;
+    e.name = spec.name;
+    e.iconName = spec.icon;
+    const auto icon = world_->iconIndex(spec.icon);
+    if (!icon) {
+      return fail(spec, "icon \"" + spec.icon +
+                            "\" is not in the database's icons.pack; build the database with --icons DEFS that "
+                            "define it (samples/icons.txt defines tank, truck, jeep, boat, jet, missile)");
+    }
+    e.icon = *icon;
+    e.force = spec.force;
+    e.domain = domainOf(spec.domain);
+    e.mobility = mobilityOf(spec.mobility);
+    e.vehicle = defaultVehicle(e.mobility, e.domain);
+    e.headingDeg = spec.headingDeg;
+    e.speedMs = spec.speedMs;
+    e.fuel = spec.fuel;
+    e.behaviours = {spec.behaviour.zigzag, spec.behaviour.environment, spec.behaviour.edge, spec.behaviour.fight};
+    ScriptFile* script = nullptr;
+    if (!spec.script.empty() && !(script = scriptOf(spec))) return false;
+    double x = 0, z = 0;
+    if (!position(spec, script, x, z)) return false;
+    double y = 0;
+    if (e.domain == Domain::air) {
+      const double ground = world_->groundAt(x, z).value_or(0.0);
+      y = spec.altitude ? *spec.altitude : ground + spec.agl.value_or(300.0);
+      if (y <= ground) return fail(spec, "flies below the ground there; raise its altitude= or agl=");
+    }
+    e.position = {x, y, z};
+    if (e.mobility == Mobility::aircraft && !aircraftOf(spec, e.aircraftType)) return false;
+    if (driven) e.controller = Controller::driven;
+    else if (e.behaviours.any()) e.controller = Controller::behaviour;
+    e.autopilot = e.controller != Controller::behaviour;  // hold the initial course until told otherwise
+    auto id = sim_->add(std::move(e));
+    if (!id) return fail(spec, id.message());
+    if (driven) sim_->driven = id.value();
+    if (script && spec.scriptEntity) script->map.emplace_back(*spec.scriptEntity, id.value());
+    return true;
+  }
+
+  std::shared_ptr<SimWorld> world_;
+  const Scenario& scenario_;
+  const runtime::ToProjectedFn& toProjected_;
+  std::unique_ptr<Simulation> sim_;
+  std::map<std::string, ScriptFile> scripts_;
+  std::map<std::string, std::uint32_t> aircraft_;
+  std::vector<Problem> problems_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<Simulation>> makeSimulation(std::shared_ptr<SimWorld> world, const Scenario& scenario,
+                                                   const runtime::ToProjectedFn& toProjected, SimOptions options) {
+  return Loader(std::move(world), scenario, toProjected, std::move(options)).run();
+}
+
+}  // namespace sandtable::sim
