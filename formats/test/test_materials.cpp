@@ -67,12 +67,12 @@ TEST(Materials, sampleParsesAndCoversTheSeedClasses) {
 TEST(Materials, soilFieldsDefaultParseAndRefuseBadValues) {
   const std::string head = "sandtable-materials 1\n";
   const std::string cls = "class 0 g kind=area priority=1 upper=000000 lower=000000 material=0 texture=0";
-  auto plain = parseText(head + cls + "\ndefault-area g\n");
+  auto plain = parseText(head + cls + "\ndefault-area g\ndefault-line none\n");
   ASSERT_TRUE(plain) << plain.error();
   EXPECT_EQ(plain->classes[0].stickDeg, kDefaultStickDeg);
   EXPECT_EQ(plain->classes[0].resist, kDefaultResist);
   EXPECT_FALSE(plain->classes[0].water);
-  auto soil = parseText(head + cls + " stick=12.5 resist=0.3 water=yes\ndefault-area g\n");
+  auto soil = parseText(head + cls + " stick=12.5 resist=0.3 water=yes\ndefault-area g\ndefault-line none\n");
   ASSERT_TRUE(soil) << soil.error();
   EXPECT_EQ(soil->classes[0].stickDeg, 12.5);
   EXPECT_EQ(soil->classes[0].resist, 0.3);
@@ -81,7 +81,7 @@ TEST(Materials, soilFieldsDefaultParseAndRefuseBadValues) {
   ASSERT_TRUE(again) << again.error();
   EXPECT_EQ(again.value(), soil.value());
   for (const char* bad : {" stick=91", " stick=x", " resist=-1", " resist=nan", " water=maybe"}) {
-    auto r = parseText(head + cls + bad + "\ndefault-area g\n");
+    auto r = parseText(head + cls + bad + "\ndefault-area g\ndefault-line none\n");
     ASSERT_FALSE(r) << bad;
     EXPECT_EQ(r.problems().front().offset, head.size()) << bad;
   }
@@ -95,10 +95,12 @@ TEST(Materials, formatRoundTripsTheSample) {
   ASSERT_TRUE(again) << again.error() << "\n" << text;
   EXPECT_EQ(again.value(), t.value());
   EXPECT_EQ(format(again.value()), text);
-  EXPECT_NE(text.find("class 12 water kind=area priority=1 rank=90 upper=3A6EA5 lower=33639A material=14 texture=43\n"),
+  EXPECT_NE(text.find("class 12 water kind=area priority=1 rank=90 upper=3A6EA5 lower=33639A material=14 texture=43 stick=0 resist=1 "
+                      "water=yes\n"),
             std::string::npos)
       << text;
-  EXPECT_NE(text.find("class 49 track kind=line priority=10 upper=9E8460 lower=9E8460 material=9 texture=102 width=3.5\n"),
+  EXPECT_NE(text.find("class 49 track kind=line priority=10 upper=9E8460 lower=9E8460 material=9 texture=102 width=3.5 stick=26 "
+                      "resist=0.07\n"),
             std::string::npos);
   EXPECT_NE(text.find("rule highway=motorway motorway width-field=width\n"), std::string::npos);
   EXPECT_NE(text.find("default-line none\n"), std::string::npos);
