@@ -40,7 +40,7 @@ TEST(IconsBuild, theDatabaseCarriesItsIconsAndInfoListsThem) {
   const auto info = runCli({"info", t / "db", "--json"});
   ASSERT_EQ(info.exitCode, 0) << info.err;
   const auto j = nlohmann::json::parse(info.out);
-  ASSERT_EQ(j["icons"].size(), 3u);
+  ASSERT_EQ(j["icons"].size(), 11u);  // three trees, then the built-in vehicles and buildings
   EXPECT_EQ(j["icons"][1]["name"], "tree-small");
   // The built-in tree's levels (docs/ICONS.md section 4).
   EXPECT_EQ(j["icons"][0]["levels"][0]["triangles"], 80);

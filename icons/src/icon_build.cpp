@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/icons/builtin_models.h"
 
 namespace sandtable::icons {
 namespace {
@@ -76,7 +77,13 @@ Model scaled(Model m, const ImportOptions& o) {
 }
 
 Result<Model> loadModel(const Builder& b, const IconDef& d, const std::string& file) {
-  if (file == kBuiltinTree) return scaled(treeModel(), d.import);
+  if (isBuiltinName(file)) {
+    // A built-in, never a file: an unknown name is refused here rather than
+    // reported as a missing file.
+    std::optional<Model> m = builtinModel(file);
+    if (!m) return b.at(d, "model '" + file + "' is not a built-in model; the built-ins are " + builtinNames());
+    return scaled(std::move(*m), d.import);
+  }
   const fs::path p = fs::path(file).is_absolute() ? fs::path(file) : fs::path(b.defs.baseDir) / file;
   auto m = importModel(p.string(), d.import);
   if (!m) {
@@ -240,7 +247,8 @@ Status addState(Builder& b, iconpack::Icon& icon, const IconDef& d, iconpack::St
                 const std::string& hullFile, const std::vector<float>& ratios, std::vector<float>& errors) {
   auto hull = loadModel(b, d, hullFile);
   if (!hull) return hull.problems();
-  extendBase(hull.value(), d.baseBelow.value_or(hullFile == kBuiltinTree ? kDefaultBaseBelow : 0.0f));
+  const BuiltinModel* builtin = findBuiltin(hullFile);
+  extendBase(hull.value(), d.baseBelow.value_or(builtin && builtin->grounded ? kDefaultBaseBelow : 0.0f));
   b.warnings.insert(b.warnings.end(), hull.warnings().begin(), hull.warnings().end());
   std::map<std::string, std::int32_t> index;  // component name -> part index, this state
   iconpack::Part part = makePart(b, icon, hull.value(), ratios, errors);

@@ -128,7 +128,7 @@ TEST(BuildPack, theSampleFileBuildsWithoutModelFiles) {
   ASSERT_TRUE(defs) << defs.error();
   auto p = buildPack(defs.value());
   ASSERT_TRUE(p) << p.error();
-  ASSERT_EQ(p->icons.size(), 3u);  // its own tree replaces the default one
+  ASSERT_EQ(p->icons.size(), 11u);  // its own tree replaces the default one
   const iconpack::Icon* small = find(p.value(), "tree-small");
   const iconpack::Icon* tall = find(p.value(), "tree-tall");
   ASSERT_TRUE(small && tall);

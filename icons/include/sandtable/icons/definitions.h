@@ -60,9 +60,10 @@ struct IconDef {
   /// `base-below M`: the vertices of each state's hull within 1 cm of its
   /// lowest point are lowered this many metres (after scaling), so that an
   /// object standing level on a slope shows no gap under its downhill side
-  /// (seed Figure 24). Unset: kDefaultBaseBelow for `builtin:tree`, 0 for
-  /// model files, whose lowest points may be wheels or hooves that would
-  /// stretch into spikes.
+  /// (seed Figure 24). Unset: kDefaultBaseBelow for the grounded built-ins
+  /// (BuiltinModel::grounded: tree, stump, house, ruins, rock), 0 for the
+  /// vehicle built-ins and model files, whose lowest points may be wheels or
+  /// hooves that would stretch into spikes.
   std::optional<float> baseBelow;
   std::optional<iconpack::DisType> dis;
 };

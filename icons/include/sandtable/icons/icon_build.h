@@ -3,7 +3,8 @@
 // (states and components), makes its levels of detail, derives what the
 // definition leaves out (bounds, the bounding cylinder, switch ranges from
 // the screen-space error), embeds the textures, and adds the built-in
-// procedural tree. Rules: docs/ICONS.md.
+// procedural tree. A model named `builtin:NAME` is a built-in model
+// (builtin_models.h), not a file. Rules: docs/ICONS.md.
 //
 // Thread safety: buildPack and the procedural models are reentrant.
 #include <string>
