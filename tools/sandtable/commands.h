@@ -32,6 +32,7 @@ void registerBench(CLI::App& root, Commands& c);
 void registerExport(CLI::App& root, Commands& c);
 void registerUpgrade(CLI::App& root, Commands& c);
 void registerIcons(CLI::App& root, Commands& c);
+void registerSim(CLI::App& root, Commands& c);
 
 /// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage. When the
 /// command was given --json, main also prints every error of the run as one

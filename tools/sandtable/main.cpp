@@ -98,6 +98,7 @@ int main(int argc, char** argv) {
   registerExport(app, commands);
   registerUpgrade(app, commands);
   registerIcons(app, commands);
+  registerSim(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -95,6 +95,17 @@ bool inBox(const Entity& e, const Eigen::Vector3d& p, double half) {
          p.y() >= e.position.y() - half && p.y() <= e.position.y() + e.height + half;
 }
 
+bool lineOfSight(const SimWorld& world, const Eigen::Vector3d& from, const Eigen::Vector3d& to, double stepM) {
+  const double length = (to - from).norm();
+  const int n = std::max(1, static_cast<int>(length / stepM));
+  for (int k = 1; k < n; ++k) {
+    const Eigen::Vector3d p = from + (to - from) * (double(k) / n);
+    const auto g = world.groundAt(p.x(), p.z());
+    if (!g || *g > p.y()) return false;
+  }
+  return true;
+}
+
 Reaction fightOrFlight(Entity& e, const Eigen::Vector3d& munitionVelocity, const BehaviourOptions& o) {
   Reaction r;
   const double along = headingOf(munitionVelocity.x(), munitionVelocity.z());

@@ -523,9 +523,10 @@ class Reader {
       else if (w == "environment") b.environment = other = true;
       else if (w == "edge") b.edge = other = true;
       else if (w == "fight") b.fight = other = true;
+      else if (w == "engage") b.engage = other = true;
       else {
         fail(col, "behaviour " + inQuotes(w) + " is not known; write none, noise (all four), or a comma list of "
-                                             "zigzag, environment, edge, fight");
+                                             "zigzag, environment, edge, fight, engage");
         return false;
       }
       if (comma == std::string_view::npos) break;

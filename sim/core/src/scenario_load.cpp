@@ -53,7 +53,6 @@ class Loader {
   Loader(std::shared_ptr<SimWorld> world, const Scenario& s, const runtime::ToProjectedFn& toProjected,
          SimOptions options)
       : world_(world), scenario_(s), toProjected_(toProjected) {
-    if (s.seed && options.seed == SimOptions{}.seed) options.seed = *s.seed;
     sim_ = std::make_unique<Simulation>(std::move(world), std::move(options));
   }
 
@@ -154,7 +153,8 @@ class Loader {
     e.headingDeg = spec.headingDeg;
     e.speedMs = spec.speedMs;
     e.fuel = spec.fuel;
-    e.behaviours = {spec.behaviour.zigzag, spec.behaviour.environment, spec.behaviour.edge, spec.behaviour.fight};
+    e.behaviours = {spec.behaviour.zigzag, spec.behaviour.environment, spec.behaviour.edge, spec.behaviour.fight,
+                    spec.behaviour.engage};
     ScriptFile* script = nullptr;
     if (!spec.script.empty() && !(script = scriptOf(spec))) return false;
     double x = 0, z = 0;

@@ -57,11 +57,23 @@ double SimWorld::originNorthing() const { return grid_->header().originNorthing;
 
 std::optional<double> SimWorld::groundAt(double x, double z) const { return clamp_.surfaceXZ(x, z, drawnAt(x, z)); }
 
+std::optional<std::uint16_t> SimWorld::classAt(double x, double z) const {
+  if (classes_.empty() || !onGrid(x, z)) return std::nullopt;
+  const double s = grid_->spacing();
+  const std::uint32_t sqX = grid_->postsX() - 1, sqZ = grid_->postsZ() - 1;
+  const auto i = std::min<std::uint32_t>(sqX - 1, static_cast<std::uint32_t>(x / s));
+  const auto j = std::min<std::uint32_t>(sqZ - 1, static_cast<std::uint32_t>(z / s));
+  const double u = x / s - i, v = z / s - j;
+  const std::uint8_t c = classes_[(std::size_t(j) * sqX + i) * 2 + (u + v <= 1 ? 0 : 1)];
+  if (c == 255) return std::nullopt;
+  return c;
+}
+
 SimWorld::Soil SimWorld::soilAt(double x, double z) const {
   Soil soil;
-  const auto s = terrain_.sampleXZ(x, z);
-  if (!s) return soil;
-  if (const materials::Class* c = classById_[s->material]) {
+  const auto id = classAt(x, z);
+  if (!id) return soil;
+  if (const materials::Class* c = classById_[*id]) {
     soil.stickDeg = c->stickDeg;
     soil.resist = c->resist;
     soil.water = c->water;
@@ -72,10 +84,12 @@ SimWorld::Soil SimWorld::soilAt(double x, double z) const {
 
 bool SimWorld::navigable(double x, double z) const {
   if (!onGrid(x, z)) return false;
+  const auto s = terrain_.sampleXZ(x, z);
+  if (!s) return false;
+  if (s->material == kGridWater) return true;  // the builder's sea and elevation <= 0
   const Soil soil = soilAt(x, z);
   if (soil.known) return soil.water;
-  const auto s = terrain_.sampleXZ(x, z);
-  return s && s->elevation <= 0;
+  return s->elevation <= 0;
 }
 
 std::optional<std::uint16_t> SimWorld::iconIndex(const std::string& name) const {
@@ -158,16 +172,54 @@ void SimWorld::objectsNearBruteForce(double x, double z, double radius, double b
 
 namespace {
 
-/// Every module's objects in world coordinates, with level 0's bases.
-Status loadObjects(const pack::PackReader& pack, const iconpack::Pack& icons,
-                   const std::optional<materials::Table>& table, std::vector<StaticObject>& out) {
+/// Level 0's class at the centroid of each grid triangle of module (kx, kz):
+/// the highest priority group whose triangles hold the centroid (the last
+/// drawn among equals).
+void classesOfModule(const module::Module& m, std::uint32_t kx, std::uint32_t kz, std::uint32_t moduleSquares,
+                     std::uint32_t squaresX, std::vector<std::uint8_t>& classes, std::vector<std::uint8_t>& priority) {
+  if (m.levels.empty()) return;
+  const module::Level& lv = m.levels[0];
+  const double s = lv.spacing;
+  for (const module::Group& g : lv.groups) {
+    if (g.half == module::Half::skirt || g.priority >= module::kPriorityObject || g.material > 254) continue;
+    const std::uint32_t sx = g.square % lv.squaresX, sz = g.square / lv.squaresX;
+    const double third = g.half == module::Half::upper ? 1.0 / 3.0 : 2.0 / 3.0;
+    const double px = (sx + third) * s, pz = (sz + third) * s;
+    const std::size_t cell = (std::size_t(kz * moduleSquares + sz) * squaresX + (kx * moduleSquares + sx)) * 2 +
+                             (g.half == module::Half::upper ? 0 : 1);
+    if (cell >= classes.size() || (classes[cell] != 255 && g.priority < priority[cell])) continue;
+    for (std::uint32_t k = g.firstIndex; k + 2 < g.firstIndex + g.indexCount; k += 3) {
+      const module::Vertex& a = lv.vertices[lv.indices[k]];
+      const module::Vertex& b = lv.vertices[lv.indices[k + 1]];
+      const module::Vertex& c = lv.vertices[lv.indices[k + 2]];
+      auto side = [&](const module::Vertex& p, const module::Vertex& q) {
+        return (q.x - p.x) * (pz - p.z) - (q.z - p.z) * (px - p.x);
+      };
+      const double d1 = side(a, b), d2 = side(b, c), d3 = side(c, a);
+      const bool neg = d1 < 0 || d2 < 0 || d3 < 0, pos = d1 > 0 || d2 > 0 || d3 > 0;
+      if (neg && pos) continue;
+      classes[cell] = static_cast<std::uint8_t>(g.material);
+      priority[cell] = g.priority;
+      break;
+    }
+  }
+}
+
+}  // namespace
+
+Status loadModules(SimWorld& world, const pack::PackReader& pack, std::vector<StaticObject>& out) {
   const pack::IndexHeader& h = pack.header();
+  const iconpack::Pack& icons = world.icons();
+  const std::uint32_t squaresX = world.grid().postsX() - 1, squaresZ = world.grid().postsZ() - 1;
+  std::vector<std::uint8_t> classes(std::size_t(squaresX) * squaresZ * 2, 255), priority(classes.size(), 0);
   for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
     for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
       auto m = pack.read(kx, kz);
       if (!m) return Status(m.problems());
       const module::Module& mod = m.value();
-      const std::vector<float>& y0 = mod.levels.empty() ? std::vector<float>{} : mod.levels[0].objectY;
+      classesOfModule(mod, kx, kz, h.moduleSquares, squaresX, classes, priority);
+      const std::vector<float> none;
+      const std::vector<float>& y0 = mod.levels.empty() ? none : mod.levels[0].objectY;
       for (std::uint32_t i = 0; i < mod.objects.size(); ++i) {
         const module::Object& o = mod.objects[i];
         StaticObject s;
@@ -181,7 +233,7 @@ Status loadObjects(const pack::PackReader& pack, const iconpack::Pack& icons,
         s.icon = o.icon;
         s.cls = o.cls;
         const std::string iconName = o.icon < icons.icons.size() ? icons.icons[o.icon].name : std::string();
-        const materials::Class* c = table ? table->find(o.cls) : nullptr;
+        const materials::Class* c = world.materials_ ? world.materials_->find(o.cls) : nullptr;
         s.kind = objectKindOf(iconName, c ? c->name : std::string());
         s.moduleX = kx;
         s.moduleZ = kz;
@@ -190,10 +242,9 @@ Status loadObjects(const pack::PackReader& pack, const iconpack::Pack& icons,
       }
     }
   }
+  world.setClasses(std::move(classes));
   return {};
 }
-
-}  // namespace
 
 Result<std::shared_ptr<SimWorld>> SimWorld::open(const std::string& directory, const SimWorldOptions& options) {
   auto db = openDatabase(directory);
@@ -205,7 +256,7 @@ Result<std::shared_ptr<SimWorld>> SimWorld::open(const std::string& directory, c
   if (d.icons) world->icons_ = std::move(*d.icons);
   std::vector<StaticObject> objects;
   if (d.modules) {
-    Status st = loadObjects(*d.modules, world->icons_, world->materials_, objects);
+    Status st = loadModules(*world, *d.modules, objects);
     if (!st) return st.problems();
   }
   world->setObjects(std::move(objects), options);

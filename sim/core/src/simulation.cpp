@@ -128,6 +128,12 @@ void Simulation::record(std::uint32_t id, std::uint32_t scriptEntity, std::uint3
   recordType_ = scriptType;
 }
 
+std::vector<std::vector<ScriptLine>> Simulation::playedScripts() const {
+  std::vector<std::vector<ScriptLine>> out;
+  for (const Script& s : scripts_) out.push_back(s.player.lines());
+  return out;
+}
+
 void Simulation::finishRecording() {
   if (recorder_) recorder_->finish();
 }
@@ -223,6 +229,7 @@ void Simulation::behave(Entity& e) {
     if (e.behaviours.zigzag) zigzag(e, timeS(), options_.seed, draws_, o);
     if (e.behaviours.environment) environmentLimit(*world_, e, o);
     if (e.behaviours.edge) edgeOfWorld(*world_, e, o);
+    if (e.behaviours.engage && e.armed) engage(e);
   }
   const bool steered = e.controller == Controller::behaviour || e.controller == Controller::script || e.autopilot;
   if (steered && (e.mobility == Mobility::tracked || e.mobility == Mobility::wheeled)) landAutopilot(e);
@@ -230,6 +237,31 @@ void Simulation::behave(Entity& e) {
     airControls_[e.id] = holdAttitude(aircraftTypes_[e.aircraftType], air_[e.id], e.commands.headingDeg,
                                       e.commands.altitudeM, e.commands.speedMs);
   }
+}
+
+void Simulation::engage(Entity& e) {
+  const BehaviourOptions& o = options_.behaviour;
+  const double now = timeS();
+  if (e.nextShotS == 0) e.nextShotS = now + behaviourRandom(options_.seed ^ 0xe17a, e.id, 0) * o.engageReloadS;
+  if (now < e.nextShotS) return;
+  e.nextShotS = now + o.engageReloadS;
+  // The nearest enemy in range and in sight; neutrals are nobody's enemy.
+  const Eigen::Vector3d eye = e.position + Eigen::Vector3d(0, e.height * 0.7, 0);
+  std::uint32_t best = UINT32_MAX;
+  double bestD = o.engageRangeM * o.engageRangeM;
+  for (const Entity& t : entities_) {
+    if (!t.alive || t.domain == Domain::munition || t.force == e.force || t.force == 0 || e.force == 0) continue;
+    const double d = (t.position - e.position).squaredNorm();
+    if (d >= bestD) continue;
+    if (!lineOfSight(*world_, eye, t.position + Eigen::Vector3d(0, t.height * 0.5, 0))) continue;
+    best = t.id;
+    bestD = d;
+  }
+  if (best == UINT32_MAX) return;
+  const Eigen::Vector3d to = entities_[best].position - e.position;
+  const double elevation = std::atan2(to.y(), std::hypot(to.x(), to.z())) * kRadToDeg;
+  e.gunAzimuthDeg = headingOf(to.x(), to.z());
+  pendingFire_.push_back({e.id, e.gunAzimuthDeg, elevation + 1.0, 0, best});
 }
 
 void Simulation::moveAir(Entity& e) {

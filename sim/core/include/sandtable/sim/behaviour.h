@@ -30,6 +30,10 @@ struct BehaviourOptions {
   /// An armed entity turns this much towards the reverse azimuth each time
   /// it senses a munition, and fires once within this of it.
   double fightTurnDeg = 45;
+  /// Engage (beyond the seed): range, metres, and the time between shots,
+  /// seconds (each entity's first shot comes at a random time within it).
+  double engageRangeM = 2500;
+  double engageReloadS = 30;
 };
 
 /// A deterministic random number in [0, 1) for (seed, entity, counter).
@@ -61,6 +65,10 @@ bool placeOutsideBuffer(const SimWorld& world, Entity& e, const BehaviourOptions
 /// Is point p inside the axis-aligned box of half-size `half` around the
 /// entity (x and z in the world frame; y over the entity's height)?
 bool inBox(const Entity& e, const Eigen::Vector3d& p, double half);
+
+/// Can a shooter at `from` see a target at `to`: the segment stays above
+/// the drawn ground, sampled every `stepM` metres.
+bool lineOfSight(const SimWorld& world, const Eigen::Vector3d& from, const Eigen::Vector3d& to, double stepM = 20);
 
 /// What fight or flight decided for one sensed munition.
 struct Reaction {

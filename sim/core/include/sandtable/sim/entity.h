@@ -35,7 +35,10 @@ struct Behaviours {
   bool environment = false;  ///< ships turn back at land, land entities at water
   bool edge = false;         ///< reverse in the buffer zone at the edge of the world
   bool fight = false;        ///< fight (armed) or flight (unarmed)
-  bool any() const { return zigzag || environment || edge || fight; }
+  /// Beyond the seed, whose noise entities only fire back: an armed entity
+  /// fires at the nearest enemy in range and in sight (BehaviourOptions).
+  bool engage = false;
+  bool any() const { return zigzag || environment || edge || fight || engage; }
 };
 
 /// The controls of a land vehicle's dynamics, fractions -1..1 of the
@@ -106,6 +109,7 @@ struct Entity {
   // Behaviour state.
   double nextTurnS = 0;            ///< zig-zag: when the current leg ends
   std::uint32_t lastSensed = UINT32_MAX;  ///< fight or flight: the last munition reacted to
+  double nextShotS = 0;                   ///< engage: reloaded at this time
   double gunAzimuthDeg = 0, gunElevationDeg = 0;
 
   // Munitions.

@@ -39,7 +39,8 @@ struct ScenarioBehaviour {
   bool environment = false;  ///< steer away from terrain it cannot cross
   bool edge = false;         ///< turn back at the database edge
   bool fight = false;        ///< fight or flight when an enemy is near
-  bool any() const { return zigzag || environment || edge || fight; }
+  bool engage = false;       ///< armed: fire at enemies in range and sight (beyond the seed)
+  bool any() const { return zigzag || environment || edge || fight || engage; }
   bool operator==(const ScenarioBehaviour&) const = default;
 };
 

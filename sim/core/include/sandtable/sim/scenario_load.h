@@ -21,7 +21,8 @@ namespace sandtable::sim {
 /// boat, a slow aircraft without a model); VehicleParams documents them.
 VehicleParams defaultVehicle(Mobility m, Domain d);
 
-/// Builds the simulation. `seed` is the scenario's unless given. Problems
+/// Builds the simulation with `options` as given (the caller chooses the
+/// seed: a command line's, else Scenario::seed, else SimOptions'). Problems
 /// name the scenario file and the entity's line: an icon the database's
 /// icons.pack lacks, a position off the database or a ship off water, an
 /// unreadable script or aircraft file.

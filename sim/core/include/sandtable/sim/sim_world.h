@@ -36,6 +36,11 @@ class PackReader;
 
 namespace sandtable::sim {
 
+/// The grid's material byte for water (FORMAT.md, the grid's posts: 0
+/// ground, 1 water, 2 filled void): the builder marks the sea and every post
+/// at or below elevation 0.
+inline constexpr std::uint8_t kGridWater = 1;
+
 /// What a static object has become (seed Table 6's object results).
 enum class ObjectState : std::uint8_t { standing, knockedOver, stump, ruins, destroyed };
 const char* objectStateName(ObjectState s);
@@ -96,8 +101,10 @@ class SimWorld {
   /// The drawn surface at (x, z); nullopt off the grid.
   std::optional<double> groundAt(double x, double z) const;
 
-  /// The soil under (x, z): the material table's class of the nearest post,
-  /// or the defaults where there is no table or no such class.
+  /// The soil under (x, z): the material table's class that covers the
+  /// grid triangle's centroid on level 0 (the highest priority there: a
+  /// road or river decal over the skin), or the defaults where there is no
+  /// table or no module.
   struct Soil {
     double stickDeg = materials::kDefaultStickDeg;
     double resist = materials::kDefaultResist;
@@ -105,8 +112,12 @@ class SimWorld {
     bool known = false;  ///< the post's material is a class of the table
   };
   Soil soilAt(double x, double z) const;
-  /// Ships may be here: water, or elevation <= 0 where the material is
-  /// unknown (seed VIII.A.2). False off the grid.
+  /// The material class id under (x, z) (see soilAt), or nullopt.
+  std::optional<std::uint16_t> classAt(double x, double z) const;
+  /// Ships may be here (seed VIII.A.2): the grid marks the post water (the
+  /// sea, or elevation <= 0), or the class there is water (lakes, rivers);
+  /// with neither, elevation <= 0 where the class is unknown. False off
+  /// the grid.
   bool navigable(double x, double z) const;
   bool onGrid(double x, double z) const { return x >= 0 && z >= 0 && x <= widthM() && z <= depthM(); }
 
@@ -153,6 +164,11 @@ class SimWorld {
   runtime::Terrain terrain_;
   std::optional<materials::Table> materials_;
   std::vector<const materials::Class*> classById_;  ///< material id -> class (256)
+  /// Level 0's class per grid triangle (2 per square, upper first), 255
+  /// where no module covers it; built by open().
+  std::vector<std::uint8_t> classes_;
+  void setClasses(std::vector<std::uint8_t> c) { classes_ = std::move(c); }
+  friend Status loadModules(SimWorld&, const pack::PackReader&, std::vector<StaticObject>&);
   DrawnLevelFn drawn_;
   iconpack::Pack icons_;
   std::vector<StaticObject> objects_;
@@ -163,6 +179,10 @@ class SimWorld {
   std::vector<double> tallest_;
   mutable SearchStats stats_;
 };
+
+/// Reads every module once: the static objects (world coordinates, level
+/// 0's bases) and level 0's class per grid triangle.
+Status loadModules(SimWorld& world, const pack::PackReader& pack, std::vector<StaticObject>& objects);
 
 /// The object kind of an icon name and a material class name: trees
 /// ("tree" in either), houses (buildings, "house", "garage", "building"),

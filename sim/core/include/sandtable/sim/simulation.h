@@ -117,6 +117,9 @@ class Simulation {
   void record(std::uint32_t id, std::uint32_t scriptEntity, std::uint32_t scriptType, RecorderOptions o = {});
   /// The recorded lines (after finishRecording, complete).
   const ScriptRecorder* recorder() const { return recorder_ ? &*recorder_ : nullptr; }
+  /// The lines of every script added, as given (play and record at once
+  /// writes them merged with the recorder's: compounded scripts).
+  std::vector<std::vector<ScriptLine>> playedScripts() const;
   void finishRecording();
 
   /// Launches a munition of `type` from entity `shooter` along azimuth and
@@ -150,6 +153,7 @@ class Simulation {
  private:
   void applyScripts();
   void behave(Entity& e);
+  void engage(Entity& e);
   void move(Entity& e);
   void moveAir(Entity& e);
   void flyMunition(Entity& m);

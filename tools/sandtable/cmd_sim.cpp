@@ -1,0 +1,121 @@
+// sandtable sim: run a scenario headless, faster than real time, and
+// report what happened (docs/SIM.md).
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <optional>
+#include <span>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "progress.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/sim/collision_response.h"
+#include "sandtable/sim/report.h"
+#include "sim_setup.h"
+
+namespace sandtable::cli {
+namespace {
+
+std::atomic<bool> gCancel{false};
+void onSignal(int) { gCancel.store(true); }
+
+struct SimArgs {
+  std::string db, scenario, record, collisions;
+  double duration = 120;
+  std::optional<std::uint64_t> seed;
+  bool json = false, bruteForce = false;
+};
+
+/// The recorded script: the played scripts' lines merged with the driven
+/// entity's, so that recording while playing compounds scripts (seed VIII.B.2).
+Status writeRecording(const sim::Simulation& s, const std::string& path) {
+  std::vector<sim::ScriptLine> played;
+  for (const auto& file : s.playedScripts()) played.insert(played.end(), file.begin(), file.end());
+  std::stable_sort(played.begin(), played.end(),
+                   [](const sim::ScriptLine& a, const sim::ScriptLine& b) { return a.timeS < b.timeS; });
+  const std::string text = sim::mergeScripts(played, s.recorder()->lines());
+  return writeFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+}
+
+int runSim(const SimArgs& a) {
+  if (!(a.duration > 0)) return usageError("sim", "--duration must be a positive number of seconds");
+  sim::SimOptions options;
+  options.bruteForce = a.bruteForce;
+  if (!a.collisions.empty()) {
+    auto table = sim::readCollisionTable(a.collisions);
+    if (!table) return reportProblems("sim", table.problems());
+    options.table = std::move(table.value());
+  }
+  auto setup = setUpSimulation("sim", a.db, a.scenario, a.seed, options);
+  if (!setup) return kUsage;
+  sim::Simulation& s = *setup->sim;
+  if (!a.record.empty()) {
+    if (!s.driven) return usageError("sim", "--record needs a driven entity: mark one `driven` in " + a.scenario);
+    s.record(*s.driven, *s.driven + 1, s.entities()[*s.driven].icon);
+  }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  Progress progress(a.json);
+  const auto start = std::chrono::steady_clock::now();
+  const auto steps = static_cast<std::uint64_t>(std::llround(a.duration / s.options().stepS));
+  for (std::uint64_t k = 0; k < steps; ++k) {
+    if (gCancel.load()) {
+      progress.done();
+      return usageError("sim", "cancelled at " + std::to_string(s.timeS()) + " s; nothing was written");
+    }
+    s.step();
+    if (k % 60 == 59 || k + 1 == steps) {
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      char detail[160];
+      std::snprintf(detail, sizeof detail, "%.0f/%.0f s  %zu entities  %.1fx real time", s.timeS(), a.duration,
+                    s.entities().size(), wall > 0 ? s.timeS() / wall : 0.0);
+      progress.update(double(k + 1) / double(steps), "simulating", detail);
+    }
+  }
+  progress.done();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!a.record.empty()) {
+    s.finishRecording();
+    if (Status st = writeRecording(s, a.record); !st) return reportProblems("sim", st.problems());
+  }
+  if (a.json) {
+    nlohmann::json j = {{"database", a.db}, {"scenario", a.scenario}, {"seed", s.options().seed},
+                        {"wall_s", wall},   {"summary", sim::summaryJson(s)}, {"events", sim::eventsJson(s)}};
+    if (!a.record.empty()) j["recorded"] = a.record;
+    std::printf("%s\n", j.dump(1).c_str());
+  } else {
+    std::printf("%s", sim::summaryText(s).c_str());
+    std::printf("wall time %.2f s (%.1fx real time)\n", wall, wall > 0 ? s.timeS() / wall : 0.0);
+    if (!a.record.empty()) std::printf("recorded %s\n", a.record.c_str());
+  }
+  return kOk;
+}
+
+}  // namespace
+
+void registerSim(CLI::App& root, Commands& c) {
+  auto a = std::make_shared<SimArgs>();
+  auto* sub = root.add_subcommand("sim", "Run a scenario headless, faster than real time, and report what happened");
+  sub->footer(
+      "Entities with dynamics, collisions (Table 6, Figure 64), munitions, the computer-generated forces'\n"
+      "behaviours and scripts (docs/SIM.md). Progress goes to stderr; Ctrl-C stops (exit 2, nothing written).\n"
+      "Examples:\n"
+      "  sandtable sim db --scenario samples/demo.scenario --duration 300\n"
+      "  sandtable sim db --scenario s.scenario --record drive.script --json > events.json");
+  sub->add_option("DB", a->db, "Database directory")->required();
+  sub->add_option("--scenario", a->scenario, "Scenario file (docs/SCRIPTS.md)")->required();
+  sub->add_option("--duration", a->duration, "Simulated seconds (default 120)");
+  sub->add_option("--record", a->record,
+                  "Write the driven entity's script here, merged with the scripts the scenario plays");
+  sub->add_option("--seed", a->seed, "Random seed (default: the scenario's seed line, else 1)");
+  sub->add_option("--collisions", a->collisions, "Collision response table (default: seed Table 6, samples/collisions.txt)");
+  sub->add_flag("--brute-force", a->bruteForce, "Test every object and entity pair (a baseline; same results, slower)");
+  sub->add_flag("--json", a->json, "Print the summary and the event log as JSON");
+  c.add(sub, [a] { return runSim(*a); });
+}
+
+}  // namespace sandtable::cli

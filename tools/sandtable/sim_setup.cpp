@@ -1,0 +1,52 @@
+// Scenario loading for the CLI: the database's CRS turns lon/lat into the
+// grid's easting and northing.
+#include "sim_setup.h"
+
+#include <cstdio>
+
+#include "commands.h"
+#include "db_util.h"
+#include "sandtable/converters/crs.h"
+#include "sandtable/sim/scenario_load.h"
+
+namespace sandtable::cli {
+
+std::optional<SimSetup> setUpSimulation(const std::string& cmd, const std::string& db, const std::string& scenario,
+                                        std::optional<std::uint64_t> seed, sim::SimOptions options) {
+  auto database = openOrReport(cmd, db);
+  if (!database) return std::nullopt;
+  auto scen = sim::readScenarioFile(scenario);
+  if (!scen) {
+    reportProblems(cmd, scen.problems());
+    return std::nullopt;
+  }
+  convert::initGdal();
+  auto geo = convert::GeoTransformer::create(database->manifest.crsWkt);
+  if (!geo) {
+    reportProblems(cmd, geo.problems());
+    return std::nullopt;
+  }
+  auto world = sim::SimWorld::open(db);
+  if (!world) {
+    reportProblems(cmd, world.problems());
+    return std::nullopt;
+  }
+  const convert::GeoTransformer& g = *geo.value();
+  const std::string crs = database->manifest.crsName;
+  runtime::ToProjectedFn toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
+    char where[64];
+    std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);
+    if (!g.toProjected(lon, lat, e, n)) return std::string(where) + " cannot be projected into " + crs;
+    return {};
+  };
+  if (seed) options.seed = *seed;
+  else if (scen->seed) options.seed = *scen->seed;
+  auto made = sim::makeSimulation(world.value(), scen.value(), toProjected, std::move(options));
+  if (!made) {
+    reportProblems(cmd, made.problems());
+    return std::nullopt;
+  }
+  return SimSetup{world.value(), std::move(made.value()), crs};
+}
+
+}  // namespace sandtable::cli
