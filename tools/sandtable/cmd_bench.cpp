@@ -61,6 +61,7 @@ void registerBench(CLI::App& root, Commands& c) {
   registerBenchRender(*bench, c);
   registerBenchPaging(*bench, c);
   registerBenchMakeDb(*bench, c);
+  registerBenchSim(*bench, c);
 }
 
 }  // namespace sandtable::cli

@@ -34,5 +34,6 @@ void registerBenchModules(CLI::App& bench, Commands& c);
 void registerBenchRender(CLI::App& bench, Commands& c);
 void registerBenchPaging(CLI::App& bench, Commands& c);
 void registerBenchMakeDb(CLI::App& bench, Commands& c);
+void registerBenchSim(CLI::App& bench, Commands& c);
 
 }  // namespace sandtable::cli
