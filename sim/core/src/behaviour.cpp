@@ -29,7 +29,9 @@ double zigzag(Entity& e, double nowS, std::uint64_t seed, std::uint64_t& counter
 bool environmentLimit(const SimWorld& world, Entity& e, const BehaviourOptions& o) {
   if (e.domain != Domain::land && e.domain != Domain::sea) return false;
   if (std::abs(e.speedMs) < 0.01 && std::abs(e.commands.speedMs) < 0.01) return false;
-  const double ahead = std::max(2 * e.halfLength, std::abs(e.commands.speedMs) * o.lookAheadS);
+  // Far enough to turn away in: a ship at 3 degrees/s needs 30 s for 90.
+  const double seconds = std::max(o.lookAheadS, 90.0 / std::max(1.0, e.vehicle.turnRateDegS));
+  const double ahead = std::max(2 * e.halfLength, std::abs(e.commands.speedMs) * seconds);
   const Eigen::Vector3d p = e.position + headingVector(e.commands.headingDeg) * ahead;
   if (!world.onGrid(p.x(), p.z())) return false;  // the edge behaviour's business
   bool wrong = false;

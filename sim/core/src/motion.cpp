@@ -115,8 +115,7 @@ bool stepShip(const SimWorld& world, Entity& e, double dt) {
   const Eigen::Vector3d next = e.position + f * (e.speedMs * dt);
   const Eigen::Vector3d bow = next + f * std::copysign(e.halfLength, e.speedMs);
   if (e.speedMs != 0 && (!world.navigable(next.x(), next.z()) || !world.navigable(bow.x(), bow.z()))) {
-    e.speedMs = 0;  // aground: held off the land
-    e.commands.speedMs = 0;
+    e.speedMs = 0;  // held off the land; it moves again once it has turned clear
     e.velocity.setZero();
     return true;
   }

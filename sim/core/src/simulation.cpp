@@ -332,11 +332,11 @@ void Simulation::move(Entity& e) {
   }
   const double speedBefore = e.speedMs;
   stepSurface(*world_, e, dt);
-  if (e.domain == Domain::sea && speedBefore != 0 && e.speedMs == 0 && e.commands.speedMs == 0 &&
-      e.position == before_[e.id]) {
+  if (e.domain == Domain::sea && speedBefore != 0 && e.speedMs == 0 && e.commands.speedMs != 0) {
+    // Stopped at the shore: one event per grounding; computer-generated
+    // ships turn about (the environment behaviour usually turned them before).
     emit({0, EventKind::aground, e.id, UINT32_MAX, UINT32_MAX, e.position, {}, {}});
-    if (e.controller == Controller::behaviour) {
-      e.commands.speedMs = speedBefore;  // the behaviours turn it away next step
+    if (e.controller == Controller::behaviour && std::abs(turnBetween(e.headingDeg, e.commands.headingDeg)) < 90) {
       e.commands.headingDeg = wrapDeg(e.headingDeg + 180);
     }
   }

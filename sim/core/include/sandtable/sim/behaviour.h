@@ -19,8 +19,9 @@ struct BehaviourOptions {
   double zigzagPeriodS = 10;
   double zigzagMaxTurnDeg = 45;
   double zigzagMinSpeedMs = 1;  ///< Figure 68: only entities at 1 m/s or more zig-zag
-  /// Environment limits: how far ahead (seconds at the current speed, and
-  /// at least the entity's length) the ground is checked.
+  /// Environment limits: how far ahead the ground is checked: this many
+  /// seconds at the commanded speed, or the time to turn 90 degrees at the
+  /// entity's turn rate if longer, and at least the entity's length.
   double lookAheadS = 3;
   /// Edge of the world: the buffer zone's width, metres.
   double edgeBufferM = 250;

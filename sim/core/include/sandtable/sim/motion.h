@@ -26,7 +26,7 @@
 //    the heading turns towards the commanded one at turnRateDegS.
 // Ships (VII.B.1) move as simple entities on navigable water at pitch and
 // roll zero; a step that would put the bow on land is refused (the ship
-// stops there).
+// stops there, still turning, until its course is clear).
 //
 // Thread safety: pure functions of their arguments (the world is read only).
 #include <optional>
