@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The end-to-end demo on a built-in sample: synthesize real-format inputs
-# (DTED 1/2, GeoTIFF, GeoPackage), build, validate, show info, fly headless,
-# and say where the images and stats are. Usage: tools/demo.sh [OUT_DIR]
+# (DTED 1/2, GeoTIFF, GeoPackage), build (with the sample's built-in icons),
+# validate, show info, run the sample scenario headless, fly headless, and
+# say where the images, stats and event log are. Usage: tools/demo.sh [OUT_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-out/demo}
@@ -11,19 +12,23 @@ st=./build/tools/sandtable
 mkdir -p "$out"
 echo "== synth: DTED1/DTED2 cells, dem.tif, culture.gpkg"
 $st synth -o "$out/inputs" --size-km 20 --force
-echo "== build: DTED2 -> UTM grid (seed location-weighted resampling), culture decaled, 1 km load modules x 4 levels"
+echo "== build: DTED2 -> UTM grid (seed location-weighted resampling), culture decaled, 1 km load modules x 4 levels, icons"
 # The synthesized square's bounds, from synth.json (no JSON tool needed).
 bound() { sed -n "s/.*\"$1\": *\(-\?[0-9.]*\).*/\1/p" "$out/inputs/synth.json" | head -n 1; }
 extent="$(bound west) $(bound south) $(bound east) $(bound north)"
 $st build --elevation "$out/inputs/dted2" --culture "$out/inputs/culture.gpkg" --extent $extent \
-  --spacing 31.25 -o "$out/db" --force
+  --spacing 31.25 --icons samples/icons.txt -o "$out/db" --force
 echo "== validate"
 $st validate "$out/db"
 echo "== info"
 $st info "$out/db"
+echo "== sim: samples/demo.scenario, 5 simulated minutes (entities, collisions, behaviours, scripts)"
+$st sim "$out/db" --scenario samples/demo.scenario --duration 300 --record "$out/lead.script"
+$st sim "$out/db" --scenario samples/demo.scenario --duration 300 --json > "$out/sim.json"
 echo "== fly (headless EGL)"
 $st fly "$out/db" --headless --png "$out/frames" --frames 60 --size 1280x720 --height 250 --heading 45 --map
 echo
 echo "demo: database  $out/db"
 echo "demo: images    $out/frames/frame_*.png"
 echo "demo: stats     $out/frames/stats.json"
+echo "demo: sim       $out/sim.json (summary and event log), $out/lead.script (the driven tank, Figure 71 lines)"

@@ -49,6 +49,53 @@ bool environmentLimit(const SimWorld& world, Entity& e, const BehaviourOptions& 
 
 namespace {
 
+/// A standing object on the straight path of `length` from the entity at
+/// `headingDeg` (probed at its middle and its end).
+bool blocked(const SimWorld& world, const Entity& e, double headingDeg, double length, std::vector<std::uint32_t>& hits) {
+  const Eigen::Vector3d f = headingVector(headingDeg);
+  for (double at : {0.5 * length, length}) {
+    hits.clear();
+    world.objectsNear(e.position.x() + f.x() * at, e.position.z() + f.z() * at, e.radius, e.position.y(), hits);
+    if (!hits.empty()) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o) {
+  if (e.domain != Domain::land || world.objects().empty()) return false;
+  const double speed = std::max(std::abs(e.commands.speedMs), e.cruiseMs);
+  if (speed < 1) return false;
+  thread_local std::vector<std::uint32_t> hits;
+  const double length = std::max(2 * e.radius, speed * o.avoidS);
+  const double want = e.commands.headingDeg;
+  // Where it points now matters as much as where it wants to go: a tracked
+  // vehicle takes seconds to turn.
+  const bool wanted = blocked(world, e, want, length, hits);
+  if (!wanted && !blocked(world, e, e.headingDeg, length, hits)) {
+    if (e.cruiseMs > 0) {
+      e.commands.speedMs = std::copysign(e.cruiseMs, e.commands.speedMs);
+      e.cruiseMs = 0;
+    }
+    return false;
+  }
+  if (e.cruiseMs == 0 && std::abs(e.commands.speedMs) > o.avoidSpeedMs) {
+    e.cruiseMs = std::abs(e.commands.speedMs);
+    e.commands.speedMs = std::copysign(o.avoidSpeedMs, e.commands.speedMs);
+  }
+  if (!wanted) return false;
+  for (double turn : {30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0, 150.0, -150.0, 180.0}) {
+    if (!blocked(world, e, want + turn, length, hits)) {
+      e.commands.headingDeg = wrapDeg(want + turn);
+      return true;
+    }
+  }
+  return false;
+}
+
+namespace {
+
 /// The outward directions of the buffer zones (x, z) the point lies in.
 Eigen::Vector2d outward(const SimWorld& world, double x, double z, double buffer) {
   Eigen::Vector2d out(0, 0);

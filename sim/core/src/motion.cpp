@@ -166,9 +166,13 @@ void landAutopilot(Entity& e) {
   // Proportional control, with the force needed to hold speed against the
   // resistance of firm ground as the feed-forward.
   const double hold = 0.05 * e.vehicle.massKg * kGravity / e.vehicle.maxForceN;
-  const double drive = std::clamp(hold * (e.commands.speedMs != 0 ? 1 : 0) * (e.commands.speedMs < 0 ? -1 : 1) +
-                                      speedError * 0.5,
-                                  -1.0, 1.0);
+  // Far off the wanted heading, turn first: a tracked vehicle pivots, a
+  // wheeled one backs round (cos < 0 reverses it).
+  const double align = std::cos(std::clamp(std::abs(turn), 0.0, 180.0) * kDegToRad);
+  double drive = std::clamp(hold * (e.commands.speedMs != 0 ? 1 : 0) * (e.commands.speedMs < 0 ? -1 : 1) +
+                                speedError * 0.5,
+                            -1.0, 1.0);
+  if (align < 0.5) drive = e.mobility == Mobility::tracked ? std::min(drive, 0.0) * 0.2 : drive * align;
   if (e.mobility == Mobility::tracked) {
     const double steer = std::clamp(turn / 20.0, -1.0, 1.0);
     e.controls.leftTrack = std::clamp(drive + steer * 0.5, -1.0, 1.0);

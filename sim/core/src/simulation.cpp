@@ -227,7 +227,10 @@ void Simulation::behave(Entity& e) {
   const BehaviourOptions& o = options_.behaviour;
   if (e.controller == Controller::behaviour) {
     if (e.behaviours.zigzag) zigzag(e, timeS(), options_.seed, draws_, o);
-    if (e.behaviours.environment) environmentLimit(*world_, e, o);
+    if (e.behaviours.environment) {
+      environmentLimit(*world_, e, o);
+      avoidObjects(*world_, e, o);
+    }
     if (e.behaviours.edge) edgeOfWorld(*world_, e, o);
     if (e.behaviours.engage && e.armed) engage(e);
   }
@@ -403,17 +406,39 @@ std::string Simulation::entityClass(const Entity& e) const {
 
 void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
   if (e.position == before) return;  // objects do not move: nothing new can touch
-  scratch_.clear();
-  if (options_.bruteForce) {
-    world_->objectsNearBruteForce(e.position.x(), e.position.z(), e.radius, e.position.y(), scratch_);
-  } else {
-    world_->objectsNear(e.position.x(), e.position.z(), e.radius, e.position.y(), scratch_);
+  auto near = [&](const Eigen::Vector3d& p, std::vector<std::uint32_t>& out) {
+    out.clear();
+    if (options_.bruteForce) world_->objectsNearBruteForce(p.x(), p.z(), e.radius, p.y(), out);
+    else world_->objectsNear(p.x(), p.z(), e.radius, p.y(), out);
+  };
+  near(e.position, scratch_);
+  if (e.pressing != UINT32_MAX && !std::binary_search(scratch_.begin(), scratch_.end(), e.pressing)) {
+    // It stood clear of the object that stopped it last; a new touch is a new collision.
+    near(before, touched_);
+    if (!std::binary_search(touched_.begin(), touched_.end(), e.pressing)) e.pressing = UINT32_MAX;
   }
   if (scratch_.empty()) return;
-  const std::uint32_t o = scratch_.front();
+  // A collision is moving into an object: one already touched where the
+  // step began (an entity placed over a tree) is left alone.
+  near(before, touched_);
+  std::uint32_t o = UINT32_MAX;
+  for (std::uint32_t k : scratch_) {
+    if (!std::binary_search(touched_.begin(), touched_.end(), k)) {
+      o = k;
+      break;
+    }
+  }
+  if (o == UINT32_MAX) return;
   const StaticObject& obj = world_->objects()[o];
   const double speed = std::abs(e.speedMs);
   const StaticOutcome out = lookup(options_.table, entityClass(e), objectKindName(obj.kind), speed);
+  if (o == e.pressing && out.entity == EntityResult::stop && out.object == ObjectResult::none) {
+    e.position = before;  // still pushing against what stopped it: held, no new event
+    e.speedMs = 0;
+    e.velocity.setZero();
+    return;
+  }
+  e.pressing = out.entity == EntityResult::stop ? o : UINT32_MAX;
   ++counters_.collisions.objects;
   std::string detail(resultName(out.entity));
   detail += "/";
@@ -642,7 +667,13 @@ void Simulation::flyMunition(Entity& m) {
           Entity& sensing = entities_[it->second];
           sensing.lastSensed = m.id;
           const Reaction r = fightOrFlight(sensing, m.velocity, o);
-          if (r.fire) pendingFire_.push_back({sensing.id, r.fireAzimuthDeg, 2.0, 0, m.launcher});
+          // Fire back at an enemy launcher, when reloaded (a volley of
+          // replies to replies would never end).
+          const bool enemy = m.launcher < entities_.size() && entities_[m.launcher].force != sensing.force;
+          if (r.fire && enemy && timeS() >= sensing.nextShotS) {
+            sensing.nextShotS = timeS() + o.engageReloadS;
+            pendingFire_.push_back({sensing.id, r.fireAzimuthDeg, 2.0, 0, m.launcher});
+          }
         }
       }
     }

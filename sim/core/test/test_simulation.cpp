@@ -18,7 +18,7 @@ double hills(double x, double z) { return 60 + 25 * std::sin(x / 170.0) * std::c
 
 Entity vehicle(double x, double z, double heading, double speed, Mobility m = Mobility::simple) {
   Entity e;
-  e.name = "v";
+  e.name.push_back('v');  // (not = "v": GCC 12 warns -Wrestrict falsely)
   e.mobility = m;
   e.position = {x, 0, z};
   e.headingDeg = heading;
@@ -271,6 +271,28 @@ TEST(Simulation, anAircraftFlownIntoTheGroundCrashes) {
   EXPECT_FALSE(sim.entities()[0].alive);
   ASSERT_FALSE(sim.events().empty());
   EXPECT_EQ(sim.events()[0].kind, EventKind::crash);
+}
+
+}  // namespace
+}  // namespace sandtable::sim
+
+namespace sandtable::sim {
+namespace {
+
+TEST(Simulation, computerGeneratedForcesSteerAroundObjectsInTheirPath) {
+  auto w = test::makeWorld([](double, double) { return 20.0; });
+  w->setObjects({tree(*w, 1000, 940)});
+  Simulation sim(w);
+  Entity e = vehicle(1000, 1000, 0, 25 / 3.6, Mobility::tracked);
+  e.controller = Controller::behaviour;
+  e.autopilot = false;
+  e.behaviours.environment = true;
+  ASSERT_TRUE(sim.add(e));
+  sim.runFor(30);
+  EXPECT_EQ(sim.counters().collisions.objects, 0u);
+  EXPECT_TRUE(sim.entities()[0].alive);
+  EXPECT_LT(sim.entities()[0].position.z(), 900);  // it went past the tree
+  EXPECT_GT(sim.entities()[0].speedMs, 5);          // and back up to speed
 }
 
 }  // namespace

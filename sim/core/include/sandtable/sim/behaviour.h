@@ -23,6 +23,11 @@ struct BehaviourOptions {
   /// seconds at the commanded speed, or the time to turn 90 degrees at the
   /// entity's turn rate if longer, and at least the entity's length.
   double lookAheadS = 3;
+  /// Object avoidance (with the environment behaviour): seconds ahead, and
+  /// the speed while the path is blocked (under Table 6's slow bin for
+  /// tanks, 10 km/h: a touch stops, it does not kill).
+  double avoidS = 2;
+  double avoidSpeedMs = 2.5;
   /// Edge of the world: the buffer zone's width, metres.
   double edgeBufferM = 250;
   /// Fight or flight: half-sizes of the near-miss and kill boxes, metres.
@@ -33,6 +38,8 @@ struct BehaviourOptions {
   double fightTurnDeg = 45;
   /// Engage (beyond the seed): range, metres, and the time between shots,
   /// seconds (each entity's first shot comes at a random time within it).
+  /// Fight or flight fires back only at an enemy's munition, and only when
+  /// reloaded (the seed's rule alone lets replies to replies grow without end).
   double engageRangeM = 2500;
   double engageReloadS = 30;
 };
@@ -53,6 +60,14 @@ double zigzagLegS(double u, double speedMs, const BehaviourOptions& o);
 /// land entity whose look-ahead point is water (or at or below elevation 0
 /// where the soil is unknown), turns back (heading + 180). True when it did.
 bool environmentLimit(const SimWorld& world, Entity& e, const BehaviourOptions& o);
+
+/// Beyond the seed, with the environment behaviour: a land entity whose
+/// path over the next `avoidS` seconds (and at least two radii) meets a
+/// standing object slows to `avoidSpeedMs` and steers to the nearest free
+/// heading among +-30, +-60, ... +-180 degrees of its commanded one; once
+/// its path is clear it resumes its speed. True when it turned. The
+/// seed's noise entities drove into trees and died by Table 6.
+bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o);
 
 /// Edge of the world: an entity in the buffer zone heading further out
 /// turns back into the world (the outward component of its heading is

@@ -110,6 +110,8 @@ struct Entity {
   double nextTurnS = 0;            ///< zig-zag: when the current leg ends
   std::uint32_t lastSensed = UINT32_MAX;  ///< fight or flight: the last munition reacted to
   double nextShotS = 0;                   ///< engage: reloaded at this time
+  double cruiseMs = 0;                    ///< object avoidance: the speed to resume, 0 when not slowed
+  std::uint32_t pressing = UINT32_MAX;    ///< the object it was stopped by and still touches (one event)
   double gunAzimuthDeg = 0, gunElevationDeg = 0;
 
   // Munitions.

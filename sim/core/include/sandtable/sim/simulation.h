@@ -195,7 +195,7 @@ class Simulation {
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;
   std::vector<std::vector<Triangle>> triangles_;  ///< per icon, built on first use
   std::vector<bool> trianglesBuilt_;
-  std::vector<std::uint32_t> scratch_;
+  std::vector<std::uint32_t> scratch_, touched_;
 
   /// Launches decided during the step, made after it (a launch appends an
   /// entity, which must not happen while entities are being iterated).
