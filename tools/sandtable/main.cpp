@@ -99,6 +99,7 @@ int main(int argc, char** argv) {
   registerUpgrade(app, commands);
   registerIcons(app, commands);
   registerSim(app, commands);
+  registerScript(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -98,7 +98,23 @@ void landDynamics(const SimWorld& world, Entity& e, double pitchDeg, double dt) 
   }
 }
 
+/// Table 5, second order: acceleration and angular acceleration.
+void secondOrderControl(Entity& e, double dt) {
+  const double limit = e.vehicle.turnRateDegS;
+  e.speedMs = std::clamp(e.speedMs + e.commands.accelerationMs2 * dt, -e.vehicle.maxSpeedMs, e.vehicle.maxSpeedMs);
+  const double rate = std::clamp(-e.angularVelocity.y() * kRadToDeg + e.commands.turnAccelerationDegS2 * dt, -limit,
+                                 limit);
+  e.headingDeg = wrapDeg(e.headingDeg + rate * dt);
+  e.angularVelocity = {0, -rate * kDegToRad, 0};
+  e.commands.speedMs = e.speedMs;  // what the behaviours and the recorder read
+  e.commands.headingDeg = e.headingDeg;
+}
+
 void simpleControl(Entity& e, double dt) {
+  if (e.commands.order == 2) {
+    secondOrderControl(e, dt);
+    return;
+  }
   const double before = e.headingDeg;
   e.speedMs = std::clamp(e.commands.speedMs, -e.vehicle.maxSpeedMs, e.vehicle.maxSpeedMs);
   if (e.vehicle.fuelBurnPerS > 0) {

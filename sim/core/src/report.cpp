@@ -83,6 +83,10 @@ nlohmann::json eventsJson(const Simulation& sim) {
       j["object_kind"] = objectKindName(o.kind);
       j["object_state"] = objectStateName(o.state);
     }
+    if (ev.contact) {
+      j["contact_body"] = {{mm(ev.bodyA.x()), mm(ev.bodyA.y()), mm(ev.bodyA.z())},
+                           {mm(ev.bodyB.x()), mm(ev.bodyB.y()), mm(ev.bodyB.z())}};
+    }
     if (!ev.munition.empty()) j["munition"] = ev.munition;
     if (!ev.detail.empty()) j["detail"] = ev.detail;
     out.push_back(std::move(j));

@@ -553,6 +553,7 @@ void Simulation::collidePair(Entity& a, Entity& b) {
   if (closing.dot(d) <= 0) return;
   ++counters_.pairsSphered;
   Eigen::Vector3d contact = (ca + cb) * 0.5;
+  Contact ray;
   if (options_.contactRay) {
     const auto& ta = trianglesOf(a.icon);
     const auto& tb = trianglesOf(b.icon);
@@ -560,9 +561,9 @@ void Simulation::collidePair(Entity& a, Entity& b) {
       ++counters_.raysCast;
       const Eigen::Affine3d wa = Eigen::Translation3d(ca) * a.orientation;
       const Eigen::Affine3d wb = Eigen::Translation3d(cb) * b.orientation;
-      const Contact c = contactPoint(ta, wa, tb, wb);  // Figures 62-63
-      if (!c.hit) return;
-      contact = c.worldPoint;
+      ray = contactPoint(ta, wa, tb, wb);  // Figures 62-63
+      if (!ray.hit) return;
+      contact = ray.worldPoint;
     }
   }
   ++counters_.collisions.entities;
@@ -572,7 +573,11 @@ void Simulation::collidePair(Entity& a, Entity& b) {
   const char* kinds[] = {"front", "right", "rear", "left", "glancing"};
   std::string detail = kinds[int(out.kindA)];
   detail += out.killA ? "/kill" : out.stopA ? "/stop" : "/bounce";
-  emit({0, EventKind::entityCollision, a.id, b.id, UINT32_MAX, contact, {}, detail});
+  Event ev{0, EventKind::entityCollision, a.id, b.id, UINT32_MAX, contact, {}, detail};
+  ev.contact = ray.hit;
+  ev.bodyA = ray.bodyPointA;
+  ev.bodyB = ray.bodyPointB;
+  emit(std::move(ev));
   auto apply = [&](Entity& e, bool killed, bool stopped, const Eigen::Vector2d& v, double heading) {
     if (killed) {
       kill(e.id, e.id == a.id ? b.id : a.id, "collision");

@@ -205,3 +205,27 @@ TEST(Motion, shipsStopWhereTheBowWouldReachLand) {
 
 }  // namespace
 }  // namespace sandtable::sim
+
+namespace sandtable::sim {
+namespace {
+
+TEST(Motion, secondOrderControlIntegratesAccelerationAndAngularAcceleration) {
+  auto w = test::makeWorld([](double, double) { return 5.0; });
+  Entity e;
+  e.position = {1000, 0, 1000};
+  e.commands.order = 2;
+  e.commands.accelerationMs2 = 1.5;
+  e.commands.turnAccelerationDegS2 = 2;
+  const double dt = 1.0 / 60;
+  for (int k = 0; k < 120; ++k) ASSERT_TRUE(stepSurface(*w, e, dt));
+  EXPECT_NEAR(e.speedMs, 1.5 * 2, 1e-9);
+  EXPECT_NEAR(-e.angularVelocity.y() * kRadToDeg, 2 * 2, 1e-9);
+  // Heading: the sum of rates k * a * dt over the steps, times dt.
+  EXPECT_NEAR(e.headingDeg, 2 * dt * dt * 120 * 121 / 2, 1e-9);
+  e.commands.turnAccelerationDegS2 = 100;  // the rate stops at the vehicle's limit
+  for (int k = 0; k < 120; ++k) stepSurface(*w, e, dt);
+  EXPECT_NEAR(-e.angularVelocity.y() * kRadToDeg, e.vehicle.turnRateDegS, 1e-9);
+}
+
+}  // namespace
+}  // namespace sandtable::sim

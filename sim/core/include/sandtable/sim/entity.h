@@ -56,6 +56,13 @@ struct Commands {
   double speedMs = 0;        ///< wanted speed along the heading
   double headingDeg = 0;     ///< wanted heading; turned towards at the turn rate
   double altitudeM = 0;      ///< air: wanted altitude above the datum
+  /// Table 5's order for `simple` mobility: 1 (speed and turn rate: the
+  /// fields above) or 2 (acceleration and angular acceleration: the two
+  /// below, integrated; speed and turn rate stay within the vehicle's
+  /// limits). Order 0 (position and orientation) is a script line.
+  int order = 1;
+  double accelerationMs2 = 0;
+  double turnAccelerationDegS2 = 0;  ///< clockwise positive
 };
 
 /// A vehicle's physical limits; the defaults are a 40 t tank.

@@ -23,7 +23,8 @@
 //    half the entity's length, at v / rho rad/s.
 //  - Each force is the control fraction times min(maxForce, power / |v|).
 //  - Simple (Table 5): first-order speed (it is set to the command), and
-//    the heading turns towards the commanded one at turnRateDegS.
+//    the heading turns towards the commanded one at turnRateDegS; or, with
+//    Commands::order 2, acceleration and angular acceleration integrated.
 // Ships (VII.B.1) move as simple entities on navigable water at pitch and
 // roll zero; a step that would put the bow on land is refused (the ship
 // stops there, still turning, until its course is clear).

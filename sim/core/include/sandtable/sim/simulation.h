@@ -54,6 +54,10 @@ struct Event {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   std::string munition;               ///< detonation and fire: the munition type
   std::string detail;                 ///< e.g. "stop/none", "front", "terrain"
+  /// Entity collisions found by the contact ray (Figures 62-63): the
+  /// contact point in each entity's body frame (origin at mid-height).
+  bool contact = false;
+  Eigen::Vector3d bodyA = Eigen::Vector3d::Zero(), bodyB = Eigen::Vector3d::Zero();
 };
 
 /// What collided with what, counted by kind.
