@@ -2,7 +2,7 @@
 // An entity of the simulation (seed chapter VII): what it is, where it is,
 // how it moves and who controls it.
 //
-// World frame (the terrain's, runtime/world/terrain.h): x east and z south
+// World frame (the terrain's, sandtable/world/terrain.h): x east and z south
 // of the grid's north-west corner, y up, metres. Body frame (the icons'):
 // forward -Z, up +Y, right +X, so heading h (clockwise from north) turns
 // forward to (sin h, 0, -cos h). Speeds are m/s, angles in the structs are

@@ -3,7 +3,7 @@
 // soil under it, and the static objects it can hit (seed VII.B, VII.C).
 //
 // Ground: entities follow the surface of the level of detail that is drawn
-// at their position (runtime/world/ground.h). A viewer sets `drawnLevel` to
+// at their position (sandtable/world/ground.h). A viewer sets `drawnLevel` to
 // its scene's choice; headless runs draw level 0 (the finest) everywhere,
 // unless told otherwise.
 //
