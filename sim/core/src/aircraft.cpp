@@ -4,19 +4,20 @@
 #include "sandtable/sim/aircraft.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <iterator>
-#include <numbers>
 #include <utility>
 #include <vector>
+
+#include "sandtable/sim/entity.h"
+#include "text.h"
 
 namespace sandtable::sim {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using namespace text;  // the line readers' shared helpers
+
 constexpr std::size_t kMaxProblems = 20;
 /// Below this airspeed (m/s) the air exerts nothing: alpha and sideslip
 /// have no meaning for a body at rest.
@@ -31,7 +32,9 @@ double clampd(double v, double lo, double hi) { return std::min(std::max(v, lo),
 /// joystick driver must not poison the state), then clamped.
 double control(double v, double lo, double hi) { return std::isfinite(v) ? clampd(v, lo, hi) : 0.0; }
 
-/// Angle in degrees wrapped to (-180, 180].
+/// Angle in degrees wrapped to (-180, 180]. Not turnBetween(0, deg)
+/// (entity.h): that goes through [0, 360), which rounds a small negative
+/// angle to the last bit of 360 and would move the autopilot's controls.
 double wrap180(double deg) {
   double w = std::fmod(deg, 360.0);
   if (w <= -180.0) w += 360.0;
@@ -81,19 +84,6 @@ const Field kFields[] = {
 };
 constexpr std::size_t kFieldCount = std::size(kFields);
 
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
-std::string quoted(std::string_view s) {
-  std::string q = "\"";
-  q += s;
-  q += '"';
-  return q;
-}
-
 std::string knownKeys() {
   std::string s;
   for (const Field& f : kFields) {
@@ -105,26 +95,11 @@ std::string knownKeys() {
 
 std::string rangeText(const Field& f) {
   std::string s = f.loOpen ? "greater than " : "at least ";
-  s += fmt(f.lo);
+  s += shortNumber(f.lo);
   s += " and at most ";
-  s += fmt(f.hi);
+  s += shortNumber(f.hi);
   return s;
 }
-
-/// The whole token as a finite double ("12abc", "nan", "inf" fail).
-bool parseNumber(std::string_view s, double& out) {
-  double v = 0;
-  const char* end = s.data() + s.size();
-  const auto [p, ec] = std::from_chars(s.data(), end, v);
-  if (ec != std::errc() || p != end || !std::isfinite(v)) return false;
-  out = v;
-  return true;
-}
-
-struct Token {
-  std::string_view text;
-  std::size_t offset = 0;  ///< byte offset in the whole text
-};
 
 class Parser {
  public:
@@ -135,15 +110,12 @@ class Parser {
     std::size_t pos = 0;
     std::size_t lineNo = 0;
     while (pos < text_.size()) {
-      std::size_t end = text_.find('\n', pos);
-      if (end == std::string_view::npos) end = text_.size();
-      std::string_view line = text_.substr(pos, end - pos);
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-      const std::size_t start = pos;
-      pos = end + 1;
+      lineStart_ = pos;
+      const std::string_view line = nextLine(text_, pos);
       ++lineNo;
-      if (!plainText(line, start)) continue;
-      const auto tok = tokenize(line, start);
+      if (!plainText(line, lineStart_)) continue;
+      // Keys and numbers never hold a '#', so one anywhere starts a comment.
+      const auto tok = tokenize(line, Comment::anywhere);
       if (tok.empty()) continue;
       if (!header) {
         if (!headerLine(tok)) return problems_;
@@ -160,7 +132,7 @@ class Parser {
     for (std::size_t k = 0; k < kFieldCount; ++k) {
       if (lines_[k] == 0) {
         std::string m = "missing key ";
-        m += quoted(kFields[k].key);
+        m += text::quoted(kFields[k].key);
         m += "; add a line \"";
         m += kFields[k].key;
         m += " VALUE\" (";
@@ -176,7 +148,7 @@ class Parser {
   }
 
  private:
-  /// Line and column (1-based, columns count bytes) of a byte offset.
+  /// Line (from 1) and column (from 0, in bytes) of a byte offset.
   std::pair<std::size_t, std::size_t> where(std::size_t offset) const {
     std::size_t line = 1, lineStart = 0;
     for (std::size_t k = 0; k < offset && k < text_.size(); ++k) {
@@ -185,75 +157,47 @@ class Parser {
         lineStart = k + 1;
       }
     }
-    return {line, offset - lineStart + 1};
+    return {line, offset - lineStart};
   }
 
   void fail(std::size_t offset, const std::string& what) {
     if (problems_.size() >= kMaxProblems) return;
     const auto [line, column] = where(offset);
-    std::string m = "line ";
-    m += std::to_string(line);
-    m += ", column ";
-    m += std::to_string(column);
-    m += ": ";
-    m += what;
-    problems_.push_back({name_, offset, m});
+    problems_.push_back({name_, offset, lineColumnMessage(line, column, what)});
   }
 
   bool plainText(std::string_view line, std::size_t start) {
-    for (std::size_t k = 0; k < line.size(); ++k) {
-      const auto c = static_cast<unsigned char>(line[k]);
-      if ((c < 0x20 && c != '\t') || c == 0x7F) {
-        char buf[8];
-        std::snprintf(buf, sizeof buf, "0x%02X", c);
-        std::string m = "control character ";
-        m += buf;
-        m += "; an aircraft file is plain text (remove it)";
-        fail(start + k, m);
-        return false;
-      }
-    }
-    return true;
+    const std::size_t k = findControl(line);
+    if (k == std::string_view::npos) return true;
+    fail(start + k, controlCharacter(line[k]) + "; an aircraft file is plain text (remove it)");
+    return false;
   }
 
-  /// Whitespace-separated tokens up to a '#' (keys and numbers never
-  /// hold one, so a '#' anywhere starts a comment).
-  static std::vector<Token> tokenize(std::string_view line, std::size_t start) {
-    std::vector<Token> out;
-    std::size_t k = 0;
-    const auto space = [](char c) { return c == ' ' || c == '\t'; };
-    while (k < line.size()) {
-      while (k < line.size() && space(line[k])) ++k;
-      if (k == line.size() || line[k] == '#') break;
-      const std::size_t s = k;
-      while (k < line.size() && !space(line[k]) && line[k] != '#') ++k;
-      out.push_back({line.substr(s, k - s), start + s});
-    }
-    return out;
-  }
+  /// Byte offset in the whole text of a word of the current line.
+  std::size_t offsetOf(const Token& t) const { return lineStart_ + t.column; }
 
   bool headerLine(const std::vector<Token>& tok) {
     if (tok[0].text == "sandtable-aircraft" && tok.size() == 2) {
       double v = 0;
       if (tok[1].text == "1") return true;
-      if (parseNumber(tok[1].text, v) && v > 1) {
+      if (finiteNumber(tok[1].text, v) && v > 1) {
         std::string m = "version ";
         m += tok[1].text;
         m += " is newer than this reader knows (1); use a newer sandtable or write \"";
         m += kAircraftHeaderLine;
         m += "\"";
-        fail(tok[1].offset, m);
+        fail(offsetOf(tok[1]), m);
         return false;
       }
     }
-    fail(tok[0].offset, std::string("missing header; the first line that is not a comment must be \"") +
+    fail(offsetOf(tok[0]), std::string("missing header; the first line that is not a comment must be \"") +
                             kAircraftHeaderLine + "\"");
     return false;
   }
 
   void keyLine(const std::vector<Token>& tok, std::size_t lineNo) {
     if (tok[0].text == "sandtable-aircraft") {
-      return fail(tok[0].offset, "the header may appear only once; remove this line");
+      return fail(offsetOf(tok[0]), "the header may appear only once; remove this line");
     }
     std::size_t f = kFieldCount;
     for (std::size_t k = 0; k < kFieldCount; ++k) {
@@ -261,51 +205,51 @@ class Parser {
     }
     if (f == kFieldCount) {
       std::string m = "unknown key ";
-      m += quoted(tok[0].text);
+      m += text::quoted(tok[0].text);
       m += "; the keys are: ";
       m += knownKeys();
-      return fail(tok[0].offset, m);
+      return fail(offsetOf(tok[0]), m);
     }
     const Field& field = kFields[f];
     if (lines_[f] != 0) {
       std::string m = "key ";
-      m += quoted(field.key);
+      m += text::quoted(field.key);
       m += " is given twice (first on line ";
       m += std::to_string(lines_[f]);
       m += "); keep one";
-      return fail(tok[0].offset, m);
+      return fail(offsetOf(tok[0]), m);
     }
     if (tok.size() == 1) {
       std::string m = "key ";
-      m += quoted(field.key);
+      m += text::quoted(field.key);
       m += " has no value; write \"";
       m += field.key;
       m += " VALUE\" (";
       m += field.unit;
       m += ")";
-      return fail(tok[0].offset + tok[0].text.size(), m);
+      return fail(offsetOf(tok[0]) + tok[0].text.size(), m);
     }
     if (tok.size() > 2) {
       std::string m = "unexpected ";
-      m += quoted(tok[2].text);
+      m += text::quoted(tok[2].text);
       m += " after the value of ";
-      m += quoted(field.key);
+      m += text::quoted(field.key);
       m += "; one value per line (comments start with #)";
-      return fail(tok[2].offset, m);
+      return fail(offsetOf(tok[2]), m);
     }
     double v = 0;
-    if (!parseNumber(tok[1].text, v)) {
+    if (!finiteNumber(tok[1].text, v)) {
       std::string m = "value ";
-      m += quoted(tok[1].text);
+      m += text::quoted(tok[1].text);
       m += " of ";
-      m += quoted(field.key);
+      m += text::quoted(field.key);
       m += " is not a finite number; write a decimal number such as 12.5 (";
       m += field.unit;
       m += ")";
-      return fail(tok[1].offset, m);
+      return fail(offsetOf(tok[1]), m);
     }
     if ((field.loOpen ? !(v > field.lo) : !(v >= field.lo)) || !(v <= field.hi)) {
-      std::string m = quoted(field.key);
+      std::string m = text::quoted(field.key);
       m += " ";
       m += tok[1].text;
       m += " is out of range; it must be ";
@@ -313,11 +257,11 @@ class Parser {
       m += " (";
       m += field.unit;
       m += ")";
-      return fail(tok[1].offset, m);
+      return fail(offsetOf(tok[1]), m);
     }
     params_.*field.member = v;
     lines_[f] = lineNo;
-    valueOffsets_[f] = tok[1].offset;
+    valueOffsets_[f] = offsetOf(tok[1]);
   }
 
   std::size_t fieldIndex(const char* key) const {
@@ -329,14 +273,14 @@ class Parser {
 
   /// Relations between keys: the trim angle of attack must not be stalled.
   void crossCheck() {
-    const double cl = params_.cl0 + params_.clAlpha * params_.alphaTrimDeg * kDeg;
+    const double cl = params_.cl0 + params_.clAlpha * params_.alphaTrimDeg * kDegToRad;
     if (!(std::abs(cl) < params_.clMax)) {
       std::string m = "alpha_trim ";
-      m += fmt(params_.alphaTrimDeg);
+      m += shortNumber(params_.alphaTrimDeg);
       m += " deg gives CL = cl0 + cl_alpha * alpha_trim = ";
-      m += fmt(cl);
+      m += shortNumber(cl);
       m += ", beyond cl_max ";
-      m += fmt(params_.clMax);
+      m += shortNumber(params_.clMax);
       m += "; the aircraft would trim stalled: lower alpha_trim or raise cl_max";
       fail(valueOffsets_[fieldIndex("alpha_trim")], m);
     }
@@ -348,6 +292,7 @@ class Parser {
   AircraftParams params_;
   std::size_t lines_[kFieldCount] = {};
   std::size_t valueOffsets_[kFieldCount] = {};
+  std::size_t lineStart_ = 0;  ///< byte offset of the current line
 };
 
 // ---------------------------------------------------------------------------
@@ -387,10 +332,10 @@ AeroResult aerodynamics(const AircraftParams& p, const AirControls& c, const Eig
   const Eigen::Vector3d sideDir = vHat.cross(liftDir);
   out.forceBody = qbar * p.wingArea * (cl * liftDir - cd * vHat - p.sideForce * beta * sideDir);
   const double ratio = qbar / p.referencePressure;
-  out.drive.x() = ratio * p.aileronPower * c.aileron * p.aileronLimitDeg * kDeg;
-  out.drive.y() = ratio * (p.elevatorPower * c.elevator * p.elevatorLimitDeg * kDeg -
-                           p.pitchStability * (alpha - p.alphaTrimDeg * kDeg));
-  out.drive.z() = ratio * (p.rudderPower * c.rudder * p.rudderLimitDeg * kDeg + p.yawStability * beta);
+  out.drive.x() = ratio * p.aileronPower * c.aileron * p.aileronLimitDeg * kDegToRad;
+  out.drive.y() = ratio * (p.elevatorPower * c.elevator * p.elevatorLimitDeg * kDegToRad -
+                           p.pitchStability * (alpha - p.alphaTrimDeg * kDegToRad));
+  out.drive.z() = ratio * (p.rudderPower * c.rudder * p.rudderLimitDeg * kDegToRad + p.yawStability * beta);
   return out;
 }
 
@@ -405,13 +350,9 @@ AirControls sanitized(const AirControls& c) {
 // Frames.
 
 Eigen::Quaterniond orientationFromEuler(double headingDeg, double pitchDeg, double rollDeg) {
-  // Clockwise heading seen from above is a negative turn about +Y; nose-up
-  // pitch is positive about +X (right); right-wing-down roll is positive
-  // about the forward axis -Z, i.e. negative about +Z.
-  const Eigen::Quaterniond yaw(Eigen::AngleAxisd(-headingDeg * kDeg, Eigen::Vector3d::UnitY()));
-  const Eigen::Quaterniond pitch(Eigen::AngleAxisd(pitchDeg * kDeg, Eigen::Vector3d::UnitX()));
-  const Eigen::Quaterniond roll(Eigen::AngleAxisd(-rollDeg * kDeg, Eigen::Vector3d::UnitZ()));
-  return (yaw * pitch * roll).normalized();
+  // The entities' rotation (entity.h): yaw -h about +Y, then pitch about
+  // the body's +X, then roll -r about the body's +Z (right wing down).
+  return orientationOf(headingDeg, pitchDeg, rollDeg);
 }
 
 Euler eulerFromOrientation(const Eigen::Quaterniond& q) {
@@ -419,23 +360,21 @@ Euler eulerFromOrientation(const Eigen::Quaterniond& q) {
   const Eigen::Vector3d right = m.col(0), up = m.col(1), forward = -m.col(2);
   const double horizontal = std::hypot(forward.x(), forward.z());
   Euler e;
-  e.pitchDeg = std::atan2(forward.y(), horizontal) / kDeg;
+  e.pitchDeg = std::atan2(forward.y(), horizontal) / kDegToRad;
   double heading = 0;
   if (horizontal < kVertical) {
     // Nose straight up or down: roll folds into heading; the right wing is
     // horizontal and points along (cos h, 0, sin h) at roll 0.
     e.pitchDeg = forward.y() > 0 ? 90.0 : -90.0;
-    heading = std::atan2(right.z(), right.x()) / kDeg;
+    heading = std::atan2(right.z(), right.x()) / kDegToRad;
     e.rollDeg = 0;
   } else {
-    heading = std::atan2(forward.x(), -forward.z()) / kDeg;
+    heading = std::atan2(forward.x(), -forward.z()) / kDegToRad;
     // right.y = -sin(roll) cos(pitch), up.y = cos(roll) cos(pitch).
-    e.rollDeg = std::atan2(-right.y(), up.y()) / kDeg;
+    e.rollDeg = std::atan2(-right.y(), up.y()) / kDegToRad;
     if (e.rollDeg <= -180.0) e.rollDeg += 360.0;
   }
-  if (heading < 0) heading += 360.0;
-  if (heading >= 360.0) heading -= 360.0;
-  e.headingDeg = heading;
+  e.headingDeg = wrapDeg(heading);
   return e;
 }
 
@@ -503,15 +442,14 @@ AirState levelFlight(const AircraftParams& p, const Eigen::Vector3d& position, d
   const double speed = std::isfinite(speedMs) ? std::max(speedMs, 0.0) : 0.0;
   const double density = airDensity(position.y());
   const double qbar = 0.5 * density * speed * speed;
-  double alpha = p.alphaTrimDeg * kDeg;
+  double alpha = p.alphaTrimDeg * kDegToRad;
   double cl = p.cl0 + p.clAlpha * alpha;
   if (qbar > 0) {
     cl = clampd(flyingMass(p, s) * kGravity / (qbar * p.wingArea), -p.clMax, p.clMax);
     alpha = (cl - p.cl0) / p.clAlpha;
   }
-  s.orientation = orientationFromEuler(headingDeg, alpha / kDeg, 0);
-  const double h = headingDeg * kDeg;
-  s.velocity = speed * Eigen::Vector3d(std::sin(h), 0, -std::cos(h));
+  s.orientation = orientationFromEuler(headingDeg, alpha / kDegToRad, 0);
+  s.velocity = speed * headingVector(headingDeg);
   const double drag = qbar * p.wingArea * (p.cd0 + p.inducedDrag * cl * cl);
   const double thrust = availableThrust(p, density);
   s.throttle = thrust > 0 ? clampd(drag / thrust, 0, 1) : 0;
@@ -583,30 +521,30 @@ AirControls holdAttitude(const AircraftParams& p, const AirState& s, double targ
 
   // Lateral: bank toward the heading, by inverse roll dynamics so the
   // bank follows a damped second-order response.
-  const double headingErr = wrap180(targetHeadingDeg - e.headingDeg) * kDeg;
-  const double bankCmd = clampd(kBankPerHeading * headingErr, -kMaxBankDeg * kDeg, kMaxBankDeg * kDeg);
-  const double bankErr = wrap180((bankCmd / kDeg) - e.rollDeg) * kDeg;
+  const double headingErr = wrap180(targetHeadingDeg - e.headingDeg) * kDegToRad;
+  const double bankCmd = clampd(kBankPerHeading * headingErr, -kMaxBankDeg * kDegToRad, kMaxBankDeg * kDegToRad);
+  const double bankErr = wrap180((bankCmd / kDegToRad) - e.rollDeg) * kDegToRad;
   const double rollAccel = kRollFreq * kRollFreq * bankErr - 2 * kRollDampingRatio * kRollFreq * pRate;
-  const double aileronAuthority = p.aileronPower * p.aileronLimitDeg * kDeg * ratio;
+  const double aileronAuthority = p.aileronPower * p.aileronLimitDeg * kDegToRad * ratio;
   if (aileronAuthority > 0) c.aileron = clampd((rollAccel + p.rollDamping * pRate) / aileronAuthority, -1, 1);
 
   // Rudder helps the weathercock against sideslip.
-  c.rudder = clampd(kSideslipGain * a.betaRad / (p.rudderLimitDeg * kDeg), -1, 1);
+  c.rudder = clampd(kSideslipGain * a.betaRad / (p.rudderLimitDeg * kDegToRad), -1, 1);
 
   // Longitudinal: altitude error -> climb rate -> flight path -> load
   // factor -> angle of attack -> the elevator that trims at it.
   const double weight = a.massKg * kGravity;
   const double gamma = std::asin(clampd(s.velocity.y() / a.speed, -1, 1));
-  const double maxClimb = a.speed * std::sin(kMaxClimbDeg * kDeg);
+  const double maxClimb = a.speed * std::sin(kMaxClimbDeg * kDegToRad);
   const double climbCmd = clampd(kAltitudeGain * (targetAltitudeM - s.position.y()), -maxClimb, maxClimb);
   const double gammaCmd = std::asin(climbCmd / a.speed);
-  const double cosBank = std::max(std::cos(e.rollDeg * kDeg), 0.5);
+  const double cosBank = std::max(std::cos(e.rollDeg * kDegToRad), 0.5);
   const double loadFactor = std::cos(gamma) / cosBank + a.speed * kPathGain * (gammaCmd - gamma) / kGravity;
   const double clCmd = clampd(loadFactor * weight / (a.dynamicPressure * p.wingArea), -0.5 * p.clMax, 0.9 * p.clMax);
   const double alphaCmd = (clCmd - p.cl0) / p.clAlpha;
-  const double elevatorAuthority = p.elevatorPower * p.elevatorLimitDeg * kDeg;
+  const double elevatorAuthority = p.elevatorPower * p.elevatorLimitDeg * kDegToRad;
   if (elevatorAuthority > 0) {
-    c.elevator = clampd(p.pitchStability * (alphaCmd - p.alphaTrimDeg * kDeg) / elevatorAuthority, -1, 1);
+    c.elevator = clampd(p.pitchStability * (alphaCmd - p.alphaTrimDeg * kDegToRad) / elevatorAuthority, -1, 1);
   }
 
   // Throttle: drag at the commanded lift, the climb, and the speed error.

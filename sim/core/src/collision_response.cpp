@@ -6,13 +6,15 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
-#include <numbers>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/sim/entity.h"
+#include "text.h"
 
 namespace sandtable::sim {
 namespace {
+
+using namespace text;  // the line readers' shared helpers
 
 constexpr std::string_view kHeader = "sandtable-collisions";
 constexpr std::uint64_t kMaxFileBytes = 1u << 20;
@@ -63,41 +65,6 @@ default stop/none
 
 // ------------------------------------------------------------ table text
 
-bool isSpace(char c) { return c == ' ' || c == '\t'; }
-
-/// A whitespace-separated word and its 0-based column in its line.
-struct Token {
-  std::string_view text;
-  std::size_t column = 0;
-};
-
-/// The words of a line up to a word that starts with '#'.
-std::vector<Token> tokenize(std::string_view line) {
-  std::vector<Token> out;
-  std::size_t k = 0;
-  while (k < line.size()) {
-    while (k < line.size() && isSpace(line[k])) ++k;
-    if (k == line.size() || line[k] == '#') break;
-    const std::size_t start = k;
-    while (k < line.size() && !isSpace(line[k])) ++k;
-    out.push_back({line.substr(start, k - start), start});
-  }
-  return out;
-}
-
-std::string quoted(std::string_view s) {
-  std::string q = "\"";
-  q += s;
-  q += '"';
-  return q;
-}
-
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
 bool validName(std::string_view s) {
   return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' ||
@@ -137,13 +104,9 @@ class Parser {
     bool header = false;
     std::size_t pos = 0;
     while (pos < text_.size() && problems_.size() < kMaxProblems) {
-      std::size_t end = text_.find('\n', pos);
-      if (end == std::string_view::npos) end = text_.size();
-      std::string_view line = text_.substr(pos, end - pos);
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
       lineOffset_ = pos;
+      const std::string_view line = nextLine(text_, pos);
       ++line_;
-      pos = end + 1;
       if (!plainText(line)) continue;
       const auto tok = tokenize(line);
       if (tok.empty()) continue;
@@ -170,30 +133,15 @@ class Parser {
   /// A problem at 0-based `column` of the current line.
   void failAt(std::size_t column, const std::string& what) {
     if (problems_.size() >= kMaxProblems) return;
-    std::string m = "line ";
-    m += std::to_string(line_);
-    m += ", column ";
-    m += std::to_string(column + 1);
-    m += ": ";
-    m += what;
-    problems_.push_back({file_, lineOffset_ + column, std::move(m)});
+    problems_.push_back({file_, lineOffset_ + column, lineColumnMessage(line_, column, what)});
   }
   void fail(const Token& t, const std::string& what) { failAt(t.column, what); }
 
   bool plainText(std::string_view line) {
-    for (std::size_t k = 0; k < line.size(); ++k) {
-      const auto c = static_cast<unsigned char>(line[k]);
-      if ((c < 0x20 && c != '\t') || c == 0x7F) {
-        char buf[8];
-        std::snprintf(buf, sizeof buf, "0x%02X", c);
-        std::string m = "control character ";
-        m += buf;
-        m += "; the table is plain text";
-        failAt(k, m);
-        return false;
-      }
-    }
-    return true;
+    const std::size_t k = findControl(line);
+    if (k == std::string_view::npos) return true;
+    failAt(k, controlCharacter(line[k]) + "; the table is plain text");
+    return false;
   }
 
   /// The field count is wrong: point at the first extra word, or at the
@@ -236,7 +184,7 @@ class Parser {
     if (tok[0].text == "default") return defaultLine(tok);
     if (tok[0].text == kHeader) return fail(tok[0], "the header \"sandtable-collisions 1\" may appear only once");
     std::string m = "unknown directive ";
-    m += quoted(tok[0].text);
+    m += text::quoted(tok[0].text);
     m += " (known: speeds, result, default)";
     fail(tok[0], m);
   }
@@ -245,7 +193,7 @@ class Parser {
     if (validName(t.text)) return true;
     std::string m = what;
     m += " class name ";
-    m += quoted(t.text);
+    m += text::quoted(t.text);
     m += " may hold only letters, digits, '_', '-' and '.'";
     fail(t, m);
     return false;
@@ -253,13 +201,11 @@ class Parser {
 
   std::optional<double> edge(const Token& t) {
     double v = 0;
-    const char* end = t.text.data() + t.text.size();
-    const auto [p, ec] = std::from_chars(t.text.data(), end, v);
-    if (ec == std::errc() && p == end && std::isfinite(v) && v >= 0 && v <= kMaxEdgeKmh) return v;
+    if (finiteNumber(t.text, v) && v >= 0 && v <= kMaxEdgeKmh) return v;
     std::string m = "speed edge ";
-    m += quoted(t.text);
+    m += text::quoted(t.text);
     m += " must be a number of km/h from 0 to ";
-    m += fmt(kMaxEdgeKmh);
+    m += shortNumber(kMaxEdgeKmh);
     fail(t, m);
     return std::nullopt;
   }
@@ -270,7 +216,7 @@ class Parser {
     const std::string cls(tok[1].text);
     if (const auto it = speedsWhere_.find(cls); it != speedsWhere_.end()) {
       std::string m = "speeds for ";
-      m += quoted(cls);
+      m += text::quoted(cls);
       m += " were already given on line ";
       m += std::to_string(it->second.line);
       m += "; keep one speeds line per entity class";
@@ -281,9 +227,9 @@ class Parser {
     if (!medium || !fast) return;
     if (*fast < *medium) {
       std::string m = "speed edges must not decrease: the fast edge ";
-      m += fmt(*fast);
+      m += shortNumber(*fast);
       m += " km/h is below the medium edge ";
-      m += fmt(*medium);
+      m += shortNumber(*medium);
       m += " km/h; swap them";
       return fail(tok[3], m);
     }
@@ -296,7 +242,7 @@ class Parser {
     const std::size_t slash = t.text.find('/');
     if (slash == std::string_view::npos || t.text.find('/', slash + 1) != std::string_view::npos) {
       std::string m = "cell ";
-      m += quoted(t.text);
+      m += text::quoted(t.text);
       m += " must be ENTITY/OBJECT, for example stop/none";
       fail(t, m);
       return std::nullopt;
@@ -304,7 +250,7 @@ class Parser {
     const auto e = entityWord(t.text.substr(0, slash));
     if (!e) {
       std::string m = "unknown entity result ";
-      m += quoted(t.text.substr(0, slash));
+      m += text::quoted(t.text.substr(0, slash));
       m += " (known: none, stop, destroyed)";
       fail(t, m);
       return std::nullopt;
@@ -312,7 +258,7 @@ class Parser {
     const auto o = objectWord(t.text.substr(slash + 1));
     if (!o) {
       std::string m = "unknown object result ";
-      m += quoted(t.text.substr(slash + 1));
+      m += text::quoted(t.text.substr(slash + 1));
       m += " (known: none, knocked-over, stump, ruins, destroyed)";
       fail({t.text.substr(slash + 1), t.column + slash + 1}, m);
       return std::nullopt;
@@ -367,7 +313,7 @@ class Parser {
       line_ = where.line;
       lineOffset_ = where.offset - where.column;
       std::string m = "entity class ";
-      m += quoted(entity);
+      m += text::quoted(entity);
       m += " has results but no speeds line; add \"speeds ";
       m += entity;
       m += " MEDIUM_FROM_KMH FAST_FROM_KMH\"";
@@ -390,20 +336,15 @@ class Parser {
 
 // ------------------------------------------------------------ geometry
 
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-
-/// Degrees reduced to [0, 360).
-double wrapDeg(double d) {
-  double r = std::fmod(d, 360.0);
-  if (r < 0) r += 360.0;
-  return r >= 360.0 ? 0.0 : r;
-}
-
 /// Compass bearing of a ground-plane vector (x east, z south): clockwise
-/// from north, which is -z.
-double bearingDeg(const Eigen::Vector2d& v) { return wrapDeg(std::atan2(v.x(), -v.y()) * kRadToDeg); }
+/// from north, which is -z; [0, 360).
+double bearingDeg(const Eigen::Vector2d& v) { return headingOf(v.x(), v.y()); }
 
-Eigen::Vector2d headingVector(double headingDeg) {
+/// The unit ground-plane vector of a heading. Not entity.h's headingVector:
+/// this divides by kRadToDeg where that multiplies by kDegToRad, and the
+/// two differ in the last bit for about one angle in nine (200 of the 1441
+/// whole degrees from -720 to 720).
+Eigen::Vector2d groundVector(double headingDeg) {
   const double r = headingDeg / kRadToDeg;
   return {std::sin(r), -std::cos(r)};
 }
@@ -424,7 +365,8 @@ Eigen::Vector2d bounce(const Eigen::Vector2d& v, const Eigen::Vector2d& away, do
   return keep * (tangential + std::abs(along) * away);
 }
 
-double headingOf(const Eigen::Vector2d& v, double oldHeadingDeg) {
+/// The heading of a velocity after a bounce; a stopped one keeps its old.
+double headingAfter(const Eigen::Vector2d& v, double oldHeadingDeg) {
   return v.squaredNorm() > 0 ? bearingDeg(v) : wrapDeg(oldHeadingDeg);
 }
 
@@ -547,7 +489,7 @@ MovingOutcome resolveMoving(const MovingState& a, const MovingState& b, double k
   const Eigen::Vector2d d = b.position - a.position;
   const double dist = d.norm();
   // The line of centres, A to B; coincident entities use A's heading.
-  const Eigen::Vector2d n = dist > 0 ? Eigen::Vector2d(d / dist) : headingVector(a.headingDeg);
+  const Eigen::Vector2d n = dist > 0 ? Eigen::Vector2d(d / dist) : groundVector(a.headingDeg);
   const double bearingAB = dist > 0 ? bearingDeg(d) : wrapDeg(a.headingDeg);
   out.kindA = classifyImpact(snapDeg(wrapDeg(bearingAB - a.headingDeg)));
   out.kindB = classifyImpact(snapDeg(wrapDeg(bearingAB + 180.0 - b.headingDeg)));
@@ -563,8 +505,8 @@ MovingOutcome resolveMoving(const MovingState& a, const MovingState& b, double k
   const double keep = std::isnan(bounceKeep) ? kDefaultBounceKeep : std::clamp(bounceKeep, 0.0, 1.0);
   out.newVelocityA = bounce(a.velocity, -n, keep);
   out.newVelocityB = bounce(b.velocity, n, keep);
-  out.newHeadingA = headingOf(out.newVelocityA, a.headingDeg);
-  out.newHeadingB = headingOf(out.newVelocityB, b.headingDeg);
+  out.newHeadingA = headingAfter(out.newVelocityA, a.headingDeg);
+  out.newHeadingB = headingAfter(out.newVelocityB, b.headingDeg);
   return out;
 }
 

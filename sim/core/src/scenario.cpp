@@ -3,9 +3,6 @@
 #include "sandtable/sim/scenario.h"
 
 #include <algorithm>
-#include <charconv>
-#include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -13,9 +10,13 @@
 #include <sstream>
 
 #include "sandtable/base/hash.h"
+#include "sandtable/sim/entity.h"
+#include "text.h"
 
 namespace sandtable::sim {
 namespace {
+
+using namespace text;  // the line readers' shared helpers
 
 constexpr std::size_t kMaxProblems = 20;
 constexpr std::size_t kMaxName = 64;
@@ -29,47 +30,6 @@ constexpr const char* kEntityKeys =
     "aircraft, fuel (and the word driven)";
 constexpr const char* kGroupKeys =
     "name, icon, force, domain, mobility, area, heading, speed, altitude, agl, behaviour, aircraft, fuel";
-
-struct Token {
-  std::string_view text;
-  std::size_t column = 0;  ///< 0-based, in the line
-};
-
-bool isSpace(char c) { return c == ' ' || c == '\t'; }
-
-/// Whitespace-separated words up to a word that starts with '#'.
-std::vector<Token> tokenize(std::string_view line) {
-  std::vector<Token> out;
-  std::size_t k = 0;
-  while (k < line.size()) {
-    while (k < line.size() && isSpace(line[k])) ++k;
-    if (k == line.size() || line[k] == '#') break;
-    const std::size_t start = k;
-    while (k < line.size() && !isSpace(line[k])) ++k;
-    out.push_back({line.substr(start, k - start), start});
-  }
-  return out;
-}
-
-std::optional<double> finiteNumber(std::string_view s) {
-  double v = 0;
-  const char* last = s.data() + s.size();
-  const auto [p, ec] = std::from_chars(s.data(), last, v);
-  if (ec != std::errc() || p != last || !std::isfinite(v)) return std::nullopt;
-  return v;
-}
-
-std::optional<std::uint64_t> unsignedNumber(std::string_view s, std::uint64_t max) {
-  if (s.empty() || s.size() > 20) return std::nullopt;
-  std::uint64_t v = 0;
-  for (char c : s) {
-    if (c < '0' || c > '9') return std::nullopt;
-    const auto d = static_cast<std::uint64_t>(c - '0');
-    if (v > (max - d) / 10) return std::nullopt;
-    v = v * 10 + d;
-  }
-  return v;
-}
 
 /// "A,B,..." as exactly n finite numbers.
 std::optional<std::vector<double>> numberList(std::string_view s, std::size_t n) {
@@ -106,25 +66,6 @@ bool validName(std::string_view s) {
     if (!ok) return false;
   }
   return true;
-}
-
-std::string inQuotes(std::string_view s) {
-  std::string q = "\"";
-  q += s;
-  q += '"';
-  return q;
-}
-
-std::string shortNumber(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
-double normalizedHeading(double h) {
-  double r = std::fmod(h, 360.0);
-  if (r < 0) r += 360.0;
-  return r >= 360.0 ? 0.0 : r;
 }
 
 std::optional<ScenarioDomain> domainWord(std::string_view s) {
@@ -205,13 +146,9 @@ class Reader {
     out_.source = name_;
     std::size_t pos = 0;
     while (pos < text.size()) {
-      std::size_t end = text.find('\n', pos);
-      if (end == std::string_view::npos) end = text.size();
-      std::string_view line = text.substr(pos, end - pos);
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
       lineOffset_ = pos;
+      const std::string_view line = nextLine(text, pos);
       ++line_;
-      pos = end + 1;
       if (!parseLine(line) || problems_.size() >= kMaxProblems) break;
     }
     if (problems_.empty() && !header_) {
@@ -229,13 +166,7 @@ class Reader {
  private:
   void fail(std::size_t column, const std::string& what) {
     if (problems_.size() >= kMaxProblems) return;
-    std::string m = "line ";
-    m += std::to_string(line_);
-    m += ", column ";
-    m += std::to_string(column + 1);
-    m += ": ";
-    m += what;
-    problems_.push_back({name_, lineOffset_ + column, std::move(m)});
+    problems_.push_back({name_, lineOffset_ + column, lineColumnMessage(line_, column, what)});
   }
 
   /// False stops the reading (a file without the header is not a scenario).
@@ -255,7 +186,7 @@ class Reader {
     } else if (d == "sandtable-scenario") {
       fail(tok[0].column, "the header \"sandtable-scenario\" may come only once, on the first line");
     } else {
-      fail(tok[0].column, "unknown directive " + inQuotes(d) + "; the directives are frame, seed, entity and group");
+      fail(tok[0].column, "unknown directive " + text::quoted(d) + "; the directives are frame, seed, entity and group");
     }
     return true;
   }
@@ -295,7 +226,7 @@ class Reader {
     }
     const auto v = unsignedNumber(tok[1].text, std::numeric_limits<std::uint64_t>::max());
     if (!v) {
-      return fail(tok[1].column, "seed " + inQuotes(tok[1].text) +
+      return fail(tok[1].column, "seed " + text::quoted(tok[1].text) +
                                      " must be a whole number from 0 to 18446744073709551615");
     }
     out_.seed = *v;
@@ -322,17 +253,17 @@ class Reader {
         if (t.text == "driven") {
           fail(t.column, "a group cannot be driven; make the driven entity an entity line");
         } else {
-          fail(t.column, "unexpected word " + inQuotes(t.text) + "; write key=value, the keys are " + keyList);
+          fail(t.column, "unexpected word " + text::quoted(t.text) + "; write key=value, the keys are " + keyList);
         }
         ok = false;
         continue;
       }
       const std::string_view key = t.text.substr(0, eq);
       if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-        std::string m = "unknown key " + inQuotes(key) + "; the keys are ";
+        std::string m = "unknown key " + text::quoted(key) + "; the keys are ";
         m += keyList;
         if (!allowDriven && (key == "at" || key == "script" || key == "script-entity")) {
-          m = inQuotes(key) + " is not for a group: its members are scattered over area= (keys: ";
+          m = text::quoted(key) + " is not for a group: its members are scattered over area= (keys: ";
           m += keyList;
           m += ")";
         }
@@ -341,7 +272,7 @@ class Reader {
         continue;
       }
       if (eq + 1 == t.text.size()) {
-        fail(t.column + eq + 1, inQuotes(key) + " has no value; write " + std::string(key) + "=VALUE");
+        fail(t.column + eq + 1, text::quoted(key) + " has no value; write " + std::string(key) + "=VALUE");
         ok = false;
         continue;
       }
@@ -358,12 +289,12 @@ class Reader {
   /// A new name: valid and not used before.
   bool claimName(std::string_view name, std::size_t column, const char* what) {
     if (!validName(name)) {
-      fail(column, std::string(what) + " name " + inQuotes(name) + " must be 1 to 64 letters, digits, '_' or '-'");
+      fail(column, std::string(what) + " name " + text::quoted(name) + " must be 1 to 64 letters, digits, '_' or '-'");
       return false;
     }
     const auto it = names_.find(std::string(name));
     if (it != names_.end()) {
-      fail(column, "the name " + inQuotes(name) + " is already used at line " + std::to_string(it->second) +
+      fail(column, "the name " + text::quoted(name) + " is already used at line " + std::to_string(it->second) +
                        "; give each entity and group its own name");
       return false;
     }
@@ -469,7 +400,7 @@ class Reader {
       }
     } else {
       if (!numbers(f, "heading", false, -360, 360, "degrees clockwise from north", r)) ok = false;
-      if (r) c.heading = {normalizedHeading(r->first), normalizedHeading(r->first)};
+      if (r) c.heading = {wrapDeg(r->first), wrapDeg(r->first)};
     }
     r.reset();
     if (!numbers(f, "speed", allowRanges, 0, kMaxSpeedKmh, "km/h", r)) ok = false;
@@ -525,7 +456,7 @@ class Reader {
       else if (w == "fight") b.fight = other = true;
       else if (w == "engage") b.engage = other = true;
       else {
-        fail(col, "behaviour " + inQuotes(w) + " is not known; write none, noise (all four), or a comma list of "
+        fail(col, "behaviour " + text::quoted(w) + " is not known; write none, noise (all four), or a comma list of "
                                              "zigzag, environment, edge, fight, engage");
         return false;
       }
@@ -547,7 +478,7 @@ class Reader {
     const char* form = n == 2 ? (lonLat ? "LON,LAT" : "EASTING,NORTHING")
                               : (lonLat ? "MINLON,MINLAT,MAXLON,MAXLAT" : "MINE,MINN,MAXE,MAXN");
     if (!list) {
-      fail(f.valueColumn, inQuotes(f.value) + " must be " + std::to_string(n) + " numbers " + form +
+      fail(f.valueColumn, text::quoted(f.value) + " must be " + std::to_string(n) + " numbers " + form +
                               ", separated by commas without spaces");
       return false;
     }
@@ -581,7 +512,7 @@ class Reader {
     e.line = line_;
     e.lonLat = out_.frame == ScenarioFrame::lonLat;
     Common c;
-    bool ok = common(f, tok[0].column, "entity " + inQuotes(e.name), false, c);
+    bool ok = common(f, tok[0].column, "entity " + text::quoted(e.name), false, c);
     if (const auto it = f.find("at"); it != f.end()) {
       std::vector<double> v;
       if (position(it->second, 2, v)) {
@@ -593,12 +524,12 @@ class Reader {
     }
     ok = scriptKeys(f, drivenColumn, e) && ok;
     if (!f.count("at") && !f.count("script")) {
-      fail(tok[0].column, "entity " + inQuotes(e.name) + " has no at=; add at=" +
+      fail(tok[0].column, "entity " + text::quoted(e.name) + " has no at=; add at=" +
                               (e.lonLat ? "LON,LAT" : "EASTING,NORTHING") + " (or script=FILE to let a script place it)");
       ok = false;
     }
     if (drivenColumn && out_.driven) {
-      fail(*drivenColumn, "only one entity can be driven; entity " + inQuotes(out_.entities[*out_.driven].name) +
+      fail(*drivenColumn, "only one entity can be driven; entity " + text::quoted(out_.entities[*out_.driven].name) +
                               " at line " + std::to_string(out_.entities[*out_.driven].line) + " already is");
       ok = false;
     }
@@ -659,7 +590,7 @@ class Reader {
     if (tok.size() < 2) return fail(tok[0].column, "expected \"group COUNT icon=ICON area=... \"; the count is missing");
     const auto count = unsignedNumber(tok[1].text, kMaxGroupCount);
     if (!count || *count == 0) {
-      return fail(tok[1].column, "group count " + inQuotes(tok[1].text) + " must be a whole number from 1 to " +
+      return fail(tok[1].column, "group count " + text::quoted(tok[1].text) + " must be a whole number from 1 to " +
                                      std::to_string(kMaxGroupCount));
     }
     ++groupNumber_;
@@ -681,7 +612,7 @@ class Reader {
       ok = claimName(g.name, tok[0].column, "group");
     }
     Common c;
-    ok = common(f, tok[0].column, "group " + inQuotes(g.name), true, c) && ok;
+    ok = common(f, tok[0].column, "group " + text::quoted(g.name), true, c) && ok;
     if (const auto it = f.find("area"); it != f.end()) {
       std::vector<double> v;
       if (!position(it->second, 4, v)) {
@@ -697,7 +628,7 @@ class Reader {
         g.maxB = v[3];
       }
     } else {
-      fail(tok[0].column, "group " + inQuotes(g.name) + " has no area=; add area=" +
+      fail(tok[0].column, "group " + text::quoted(g.name) + " has no area=; add area=" +
                               (g.lonLat ? "MINLON,MINLAT,MAXLON,MAXLAT" : "MINE,MINN,MAXE,MAXN"));
       ok = false;
     }
@@ -762,7 +693,7 @@ EntitySpec groupMember(const GroupSpec& g, int k, std::uint64_t seed) {
   e.lonLat = g.lonLat;
   e.a = between(g.minA, g.maxA, draw(0));
   e.b = between(g.minB, g.maxB, draw(1));
-  e.headingDeg = normalizedHeading(between(g.headingMinDeg, g.headingMaxDeg, draw(2)));
+  e.headingDeg = wrapDeg(between(g.headingMinDeg, g.headingMaxDeg, draw(2)));
   e.speedMs = between(g.speedMinMs, g.speedMaxMs, draw(3));
   if (g.altitudeMin && g.altitudeMax) e.altitude = between(*g.altitudeMin, *g.altitudeMax, draw(4));
   if (g.aglMin && g.aglMax) e.agl = between(*g.aglMin, *g.aglMax, draw(5));

@@ -4,89 +4,31 @@
 #include "sandtable/sim/script.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
-#include <numbers>
 #include <sstream>
 #include <unordered_set>
 
+#include "sandtable/sim/units.h"
 #include "sandtable/world/path.h"
+#include "text.h"
 
 namespace sandtable::sim {
 namespace {
 
+using namespace text;  // the line readers' shared helpers
+
 constexpr std::size_t kMaxProblems = 20;
-constexpr double kDegToRad = std::numbers::pi / 180.0;
+/// The most digits a whole-number field may have: this reader has always
+/// refused longer words, leading zeros or not.
+constexpr std::size_t kMaxDigits = 19;
 
 constexpr const char* kFieldNames[kScriptFields] = {
     "Hours",     "Minutes",    "Seconds",        "Entity_Number",  "Entity_Type",
     "X_Position", "Y_Position", "Z_Position",     "Direction",      "View_Direction",
     "Gun_Elevation", "Above_Ground_Level", "Speed", "Fire_Flag", "Alive_Flag"};
-
-/// A word of a line and where it starts (0-based column in the line).
-struct Token {
-  std::string_view text;
-  std::size_t column = 0;
-};
-
-bool isSpace(char c) { return c == ' ' || c == '\t'; }
-
-/// Whitespace-separated tokens up to a token that starts with '#'; `end`
-/// receives the column just past the last token (where a missing field
-/// would go).
-std::vector<Token> tokenize(std::string_view line, std::size_t& end) {
-  std::vector<Token> out;
-  std::size_t k = 0;
-  end = 0;
-  while (k < line.size()) {
-    while (k < line.size() && isSpace(line[k])) ++k;
-    if (k == line.size() || line[k] == '#') break;
-    const std::size_t start = k;
-    while (k < line.size() && !isSpace(line[k])) ++k;
-    out.push_back({line.substr(start, k - start), start});
-    end = k;
-  }
-  return out;
-}
-
-/// The whole token as a finite double, or false ("12abc", "nan", "inf" fail).
-bool finiteNumber(std::string_view s, double& out) {
-  double v = 0;
-  const char* last = s.data() + s.size();
-  const auto [p, ec] = std::from_chars(s.data(), last, v);
-  if (ec != std::errc() || p != last || !std::isfinite(v)) return false;
-  out = v;
-  return true;
-}
-
-/// Decimal digits only (no sign), at most `max`.
-bool unsignedNumber(std::string_view s, std::uint64_t max, std::uint64_t& out) {
-  if (s.empty() || s.size() > 19) return false;
-  std::uint64_t v = 0;
-  for (char c : s) {
-    if (c < '0' || c > '9') return false;
-    v = v * 10 + static_cast<std::uint64_t>(c - '0');
-  }
-  if (v > max) return false;
-  out = v;
-  return true;
-}
-
-std::string inQuotes(std::string_view s) {
-  std::string q = "\"";
-  q += s;
-  q += '"';
-  return q;
-}
-
-std::string shortNumber(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
 
 class Reader {
  public:
@@ -96,13 +38,9 @@ class Reader {
     std::size_t pos = 0;
     int lineNo = 0;
     while (pos < text.size()) {
-      std::size_t end = text.find('\n', pos);
-      if (end == std::string_view::npos) end = text.size();
-      std::string_view line = text.substr(pos, end - pos);
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
       lineOffset_ = pos;
+      const std::string_view line = nextLine(text, pos);
       line_ = ++lineNo;
-      pos = end + 1;
       parseLine(line);
       if (problems_.size() >= kMaxProblems) break;
     }
@@ -113,13 +51,7 @@ class Reader {
  private:
   void fail(std::size_t column, const std::string& what) {
     if (problems_.size() >= kMaxProblems) return;
-    std::string m = "line ";
-    m += std::to_string(line_);
-    m += ", column ";
-    m += std::to_string(column + 1);
-    m += ": ";
-    m += what;
-    problems_.push_back({name_, lineOffset_ + column, std::move(m)});
+    problems_.push_back({name_, lineOffset_ + column, lineColumnMessage(line_, column, what)});
   }
 
   void parseLine(std::string_view line) {
@@ -138,7 +70,7 @@ class Reader {
     }
     if (tok.size() > kScriptFields) {
       std::string m = "unexpected 16th field ";
-      m += inQuotes(tok[kScriptFields].text);
+      m += text::quoted(tok[kScriptFields].text);
       m += ": a script line has exactly 15 fields (a comment starts with #)";
       return fail(tok[kScriptFields].column, m);
     }
@@ -160,17 +92,17 @@ class Reader {
 
   bool clock(const std::vector<Token>& tok, ScriptLine& s) {
     std::uint64_t h = 0, m = 0;
-    if (!unsignedNumber(tok[0].text, 999999, h)) {
-      fail(tok[0].column, "Hours " + inQuotes(tok[0].text) + " must be a whole number >= 0 (\"00\")");
+    if (!unsignedNumber(tok[0].text, 999999, h, kMaxDigits)) {
+      fail(tok[0].column, "Hours " + text::quoted(tok[0].text) + " must be a whole number >= 0 (\"00\")");
       return false;
     }
-    if (!unsignedNumber(tok[1].text, 59, m)) {
-      fail(tok[1].column, "Minutes " + inQuotes(tok[1].text) + " must be a whole number from 0 to 59 (\"00\")");
+    if (!unsignedNumber(tok[1].text, 59, m, kMaxDigits)) {
+      fail(tok[1].column, "Minutes " + text::quoted(tok[1].text) + " must be a whole number from 0 to 59 (\"00\")");
       return false;
     }
     double sec = 0;
     if (!finiteNumber(tok[2].text, sec) || sec < 0 || !(sec < 60)) {
-      fail(tok[2].column, "Seconds " + inQuotes(tok[2].text) +
+      fail(tok[2].column, "Seconds " + text::quoted(tok[2].text) +
                               " must be a number >= 0 and below 60 (\"11\", or with a fraction \"11.016667\")");
       return false;
     }
@@ -185,8 +117,8 @@ class Reader {
     std::uint64_t v[2] = {0, 0};
     for (std::size_t k = 0; k < 2; ++k) {
       const Token& t = tok[3 + k];
-      if (!unsignedNumber(t.text, std::numeric_limits<std::uint32_t>::max(), v[k])) {
-        fail(t.column, std::string(kFieldNames[3 + k]) + " " + inQuotes(t.text) +
+      if (!unsignedNumber(t.text, std::numeric_limits<std::uint32_t>::max(), v[k], kMaxDigits)) {
+        fail(t.column, std::string(kFieldNames[3 + k]) + " " + text::quoted(t.text) +
                            " must be a whole number from 0 to 4294967295");
         return false;
       }
@@ -202,7 +134,7 @@ class Reader {
     for (std::size_t k = 0; k < 8; ++k) {
       const Token& t = tok[5 + k];
       if (!finiteNumber(t.text, *out[k])) {
-        fail(t.column, std::string(kFieldNames[5 + k]) + " " + inQuotes(t.text) +
+        fail(t.column, std::string(kFieldNames[5 + k]) + " " + text::quoted(t.text) +
                            " is not a finite number (write it like 8161.926270)");
         return false;
       }
@@ -215,7 +147,7 @@ class Reader {
     for (std::size_t k = 0; k < 2; ++k) {
       const Token& t = tok[13 + k];
       if (t.text != "0" && t.text != "1") {
-        fail(t.column, std::string(kFieldNames[13 + k]) + " " + inQuotes(t.text) + " must be 0 or 1");
+        fail(t.column, std::string(kFieldNames[13 + k]) + " " + text::quoted(t.text) + " must be 0 or 1");
         return false;
       }
       *out[k] = t.text == "1";
@@ -242,7 +174,9 @@ void appendF(std::string& out, const char* format, double v) {
   if (n > 0) out.append(buf, std::min<std::size_t>(static_cast<std::size_t>(n), sizeof buf - 1));
 }
 
-/// Degrees b - a wrapped to (-180, 180].
+/// Degrees b - a wrapped to (-180, 180]. Not turnBetween (entity.h): that
+/// goes through [0, 360), which rounds a small negative difference to the
+/// last bit of 360, so the recorder's tolerance test could flip.
 double angleDelta(double a, double b) {
   double d = std::fmod(b - a, 360.0);
   if (d > 180) d -= 360;
@@ -428,6 +362,9 @@ bool moves(const runtime::PathWaypoint& a, const runtime::PathWaypoint& b) {
 /// Bearing of leg k (clockwise from north, [0, 360)), or of the nearest
 /// moving leg before it, or after it; 0 when nothing moves.
 double legBearing(const std::vector<runtime::PathWaypoint>& w, std::size_t k) {
+  // Not headingOf (entity.h): it multiplies by kRadToDeg and wraps 360 to
+  // 0, which differs from this in the last bit for about one angle in
+  // nine; scripts made from paths keep their exact Direction values.
   auto bearing = [&](std::size_t m) {
     const double h = std::atan2(w[m + 1].easting - w[m].easting, w[m + 1].northing - w[m].northing) / kDegToRad;
     return h < 0 ? h + 360.0 : h;

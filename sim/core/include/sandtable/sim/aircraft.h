@@ -99,7 +99,7 @@ struct Euler {
 };
 
 /// Heading, then pitch about the new right axis, then roll about the new
-/// forward axis.
+/// forward axis: the same rotation as orientationOf (entity.h).
 Eigen::Quaterniond orientationFromEuler(double headingDeg, double pitchDeg, double rollDeg);
 /// The inverse of orientationFromEuler. At pitch +-90 heading and roll are
 /// one degree of freedom: roll is reported 0 and heading carries it, so
