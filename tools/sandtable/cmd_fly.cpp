@@ -25,8 +25,10 @@
 #include "sandtable/world/path.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/world/terrain.h"
+#include "sandtable/viewer/sim_session.h"
 #include "sandtable/viewer/video.h"
 #include "sandtable/viewer/x11_window.h"
+#include "sim_setup.h"
 
 namespace sandtable::cli {
 namespace {
@@ -81,7 +83,15 @@ struct FlyArgs {
   std::optional<double> altitude;
   std::string videoFile;
   std::string screenshotDir;
+  // a scenario's entities (docs/VIEWER.md, "Entities (fly --scenario)")
+  std::string scenario;
+  std::optional<std::uint64_t> seed;
+  std::string attach;
+  bool drive = false;
+  double simStart = 0;
   CLI::Option* framesOption = nullptr;  ///< to tell an explicit --frames from the default
+  CLI::Option* headingOption = nullptr;
+  CLI::Option* atOption = nullptr;
 };
 
 const char* kFooter = R"(Window or headless: with DISPLAY set the flight opens a window and is flown
@@ -109,6 +119,22 @@ Without --frames the flight lasts until the last waypoint. Example:
     8.10 46.60 200 time=0
     8.20 46.65 200 150
     8.30 46.70 800 time=0:03:00
+
+--scenario FILE (docs/SCRIPTS.md) runs the simulator's entities (docs/SIM.md)
+on the flight's clock (headless: 1/30 s a frame, 60 Hz steps) and draws them:
+icons turned by their full orientation, turrets, wrecks, munition trails,
+detonation flashes, knocked-over trees and ruins; the map shows them in their
+force's colour and the panel the entity count and the driven one's state.
+--sim-start S runs the simulation S seconds before the first frame. The
+stealth eye starts 1200 m behind the driven (else first) entity unless --at
+or --path is given. --attach NAME tethers the eye behind and above an
+entity; --drive drives the scenario's driven entity (or --attach NAME's).
+Entity keys: Tab / Shift+Tab attach to the next / previous entity, e back to
+the stealth eye, d drive the attached one (again: stop), Space all stop.
+Attached, the arrows bring the eye nearer / farther and orbit it, PageUp /
+PageDown raise / lower it; driving, Up/Down step the commanded speed
+(2.5 m/s), Left/Right turn the commanded heading, PageUp/PageDown an
+aircraft's altitude. stats.json gains `sim` (the summary, as `sandtable sim`).
 
 --map shows the 2-D map (seed Figures 40, 41) in the top-right corner, at
 --map-scale full, half, quarter, eighth or sixteenth of the database.
@@ -387,6 +413,7 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const 
   std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + HUD,"
               " read-back for --png / --video, present; PNG writing excluded), %.0f triangles per frame\n",
               s.fpsMean, s.frameMsP50, s.frameMsP99, s.trianglesMean);
+  if (const runtime::SimSession* sim = session.sim()) std::printf("  sim:      %s\n", sim->summaryLine().c_str());
 }
 
 /// Checks the combinations CLI11 cannot; "" or a usage error.
@@ -396,6 +423,49 @@ std::string checkArgs(const FlyArgs& a) {
   if (a.freeFlight && !a.pathFile.empty()) {
     return "--free-flight with --path: a path's heights are above the ground; leave out --free-flight";
   }
+  if (a.scenario.empty()) {
+    if (!a.attach.empty()) return "--attach needs --scenario FILE (the entities come from a scenario)";
+    if (a.drive) return "--drive needs --scenario FILE (the entities come from a scenario)";
+    if (a.seed) return "--seed needs --scenario FILE (it seeds the scenario's simulation)";
+    if (a.simStart != 0) return "--sim-start needs --scenario FILE";
+  }
+  if ((!a.attach.empty() || a.drive) && !a.pathFile.empty()) {
+    return "--path with --attach or --drive: the eye follows the entity; leave out --path";
+  }
+  return {};
+}
+
+/// The scenario's simulation for the session, and the stealth eye's start
+/// near its entities; "" or a usage error (kUsage with the problem printed
+/// when the text is "-").
+std::string setUpScenario(const FlyArgs& a, FlightOptions& o, FlySessionSettings& ss) {
+  auto setup = setUpSimulation(kName, a.database, a.scenario, a.seed);
+  if (!setup) return "-";
+  runtime::SimSessionOptions so;
+  so.attach = a.attach;
+  so.drive = a.drive;
+  so.scenario = a.scenario;
+  so.startS = a.simStart;
+  const std::shared_ptr<sim::SimWorld> world = setup->world;
+  auto session = runtime::SimSession::create(std::move(setup->sim), so);
+  if (!session) return session.problems().front().message;
+  const sim::Simulation& s = session.value()->simulation();
+  // Unless told where, the stealth eye starts behind the scenario's focus.
+  std::optional<std::uint32_t> focus = session.value()->focus();
+  for (const sim::Entity& e : s.entities()) {
+    if (!focus && e.domain != sim::Domain::munition) focus = e.id;
+  }
+  const bool placed = (a.atOption && a.atOption->count() > 0) || !a.pathFile.empty();
+  if (focus && !placed) {
+    const sim::Entity& e = s.entities()[*focus];
+    const double heading = a.headingOption && a.headingOption->count() > 0 ? a.heading : e.headingDeg;
+    Eigen::Vector3d eye = e.position - sim::headingVector(heading) * 1200.0;
+    if (!world->onGrid(eye.x(), eye.z())) eye = e.position;
+    o.motion.easting = world->originEasting() + eye.x();
+    o.motion.northing = world->originNorthing() - eye.z();
+    o.motion.headingDeg = heading;
+  }
+  ss.sim = std::move(session.value());
   return {};
 }
 
@@ -435,6 +505,11 @@ int run(FlyArgs& a) {
     return usageError(kName, err);
   }
   FlySessionSettings ss;
+  if (!a.scenario.empty()) {
+    const std::string err = setUpScenario(a, o, ss);
+    if (err == "-") return kUsage;  // setUpSimulation printed the problems
+    if (!err.empty()) return usageError(kName, err);
+  }
   if (std::string err = sessionSettings(a, db.value(), o, ss); !err.empty()) return usageError(kName, err);
   if (!a.pathFile.empty()) {
     auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
@@ -496,9 +571,11 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--size", args->size, "Frame (and window) size WxH")->capture_default_str();
   auto* at = sub->add_option("--at", args->at, "Start over LON LAT, degrees (default: database centre)")
                  ->expected(2);
+  args->atOption = at;
   sub->add_option("--height", args->height, "Eye height above the ground, metres")->capture_default_str();
   auto* heading = sub->add_option("--heading", args->heading, "Degrees clockwise from grid north")
                       ->capture_default_str();
+  args->headingOption = heading;
   sub->add_option("--pitch", args->pitch, "Degrees, negative looks down (-89..89)")->capture_default_str();
   sub->add_option("--speed", args->speed, "Ground speed, km/h (also the --path default)")->capture_default_str();
   sub->add_option("--path", args->pathFile, "Waypoint file to fly (docs/PATH.md; format below)")
@@ -563,6 +640,15 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--video", args->videoFile, "Also encode the frames into FILE (e.g. flight.mp4) with ffmpeg");
   sub->add_option("--screenshot-dir", args->screenshotDir,
                   "Where p / F12 write screenshot_NNNN.png (default: the --png directory, else .)");
+  sub->add_option("--scenario", args->scenario,
+                  "Run this scenario's entities (docs/SCRIPTS.md) and draw them (docs/VIEWER.md, Entities)");
+  sub->add_option("--seed", args->seed, "--scenario: random seed (default: the scenario's seed line, else 1)");
+  sub->add_option("--attach", args->attach, "--scenario: tether the eye behind and above this entity");
+  sub->add_option("--sim-start", args->simStart,
+                  "--scenario: simulated seconds run before the first frame (default 0)")
+      ->check(CLI::Range(0.0, 1e6));
+  sub->add_flag("--drive", args->drive,
+                "--scenario: drive the scenario's driven entity (or --attach NAME's) from the keys");
   c.add(sub, [args] { return run(*args); });
 }
 

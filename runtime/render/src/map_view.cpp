@@ -11,8 +11,8 @@
 namespace sandtable::runtime {
 namespace {
 
-constexpr Rgb kMarkerFill{255, 40, 40};
 constexpr Rgb kMarkerEdge{0, 0, 0};
+constexpr Rgb kSelectedEdge{255, 255, 255};
 constexpr Rgb kBorder{255, 255, 255};
 constexpr Rgb kLabel{255, 255, 0};
 
@@ -184,10 +184,73 @@ void MapView::drawMarker(Image& frame, int cx, int cy, double headingDeg, int si
   const int x1 = std::min(int(frame.width), clip[2]), y1 = std::min(int(frame.height), clip[3]);
   const auto outer = tri(size + 1.5), inner = tri(size);
   fillTriangle(frame, outer[0], outer[1], outer[2], kMarkerEdge, x0, y0, x1, y1);
-  fillTriangle(frame, inner[0], inner[1], inner[2], kMarkerFill, x0, y0, x1, y1);
+  fillTriangle(frame, inner[0], inner[1], inner[2], options_.markerFill, x0, y0, x1, y1);
 }
 
-MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headingDeg) {
+Rgb forceColour(std::uint8_t force) {
+  switch (force) {
+    case 1: return {40, 110, 255};
+    case 2: return {235, 30, 30};
+    case 3: return {40, 200, 60};
+    default: return {170, 170, 170};
+  }
+}
+
+Rgb deadColour(std::uint8_t force) {
+  const Rgb c = forceColour(force);
+  return {std::uint8_t(c.r / 2), std::uint8_t(c.g / 2), std::uint8_t(c.b / 2)};
+}
+
+bool MapView::pixelOf(const MapLayout& layout, double x, double z, int& px, int& py) {
+  if (!layout.drawn || !(layout.window.width() > 0) || !(layout.window.depth() > 0)) return false;
+  const double u = (x - layout.window.left) / layout.window.width();
+  const double v = (z - layout.window.top) / layout.window.depth();
+  if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) return false;
+  px = layout.x + int(std::floor(u * layout.width));
+  py = layout.y + int(std::floor(v * layout.height));
+  return true;
+}
+
+void MapView::drawMarks(Image& frame, const MapLayout& box, const std::vector<MapMark>& marks) const {
+  const int x0 = std::max(0, box.x), y0 = std::max(0, box.y);
+  const int x1 = std::min(int(frame.width), box.x + box.width), y1 = std::min(int(frame.height), box.y + box.height);
+  const int size = std::max(3, box.width / 60);
+  // The dead under the living, the selected one last (on top).
+  for (const int pass : {0, 1, 2}) {
+    for (const MapMark& m : marks) {
+      if (pass != (m.selected ? 2 : m.alive ? 1 : 0)) continue;
+      int px = 0, py = 0;
+      if (!pixelOf(box, m.x, m.z, px, py)) continue;
+      if (!m.alive) {
+        // A dimmed dot: no heading on a wreck.
+        const Rgb c = deadColour(m.force);
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            if (px + dx >= x0 && px + dx < x1 && py + dy >= y0 && py + dy < y1) put(frame, px + dx, py + dy, c);
+          }
+        }
+        continue;
+      }
+      const int s = m.selected ? size + 2 : size;
+      const double h = m.headingDeg * std::numbers::pi / 180.0;
+      const double dx = std::sin(h), dy = -std::cos(h);  // north is up the image
+      const Pt c{px + 0.5, py + 0.5};
+      auto tri = [&](double r) {
+        return std::array<Pt, 3>{Pt{c.x + dx * r, c.y + dy * r},
+                                 Pt{c.x - dx * r * 0.7 - dy * r * 0.7, c.y - dy * r * 0.7 + dx * r * 0.7},
+                                 Pt{c.x - dx * r * 0.7 + dy * r * 0.7, c.y - dy * r * 0.7 - dx * r * 0.7}};
+      };
+      const auto outer = tri(s + 1.2), inner = tri(s);
+      fillTriangle(frame, outer[0], outer[1], outer[2], m.selected ? kSelectedEdge : kMarkerEdge, x0, y0, x1, y1);
+      fillTriangle(frame, inner[0], inner[1], inner[2], forceColour(m.force), x0, y0, x1, y1);
+      // The entity's own pixel always holds its colour, however thin the arrow.
+      if (px >= x0 && px < x1 && py >= y0 && py < y1) put(frame, px, py, forceColour(m.force));
+    }
+  }
+}
+
+MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headingDeg,
+                           const std::vector<MapMark>& marks, bool showViewer) {
   MapLayout out;
   if (!visible_ || worldW_ <= 0 || worldD_ <= 0) return out;
   const int box = int(std::lround(std::min(frame.width, frame.height) * options_.sizeFraction));
@@ -232,12 +295,13 @@ MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headin
                 &frame.rgba[(std::size_t(fy) * frame.width + std::size_t(out.x + x0)) * 4]);
   }
 
+  drawMarks(frame, out, marks);
   const double u = (eyeX - window_.left) / window_.width();
   const double v = (eyeZ - window_.top) / window_.depth();
   out.markerVisible = u >= 0 && u < 1 && v >= 0 && v < 1;
   out.markerX = out.x + int(std::floor(u * pw));
   out.markerY = out.y + int(std::floor(v * ph));
-  if (out.markerVisible) {
+  if (out.markerVisible && showViewer) {
     // Drawn wholly inside the map: at the database's edge the arrow moves
     // in by its own size rather than hanging over the frame.
     const int size = std::max(4, pw / 24), reach = size + 3;

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdio>
 
+#include "entity_draw.h"
 #include "icon_textures.h"
 #include "sandtable/base/hash.h"
 #include "module_draw.h"
@@ -140,11 +141,6 @@ void main() {
 }
 )";
 
-/// The fragment programs' shared GLSL for textured and plain icons.
-std::string iconFragmentGlsl(bool textured, const char* main) {
-  return shadingHeaderGlsl() + (textured ? "#define SANDTABLE_ICON_TEXTURE\n" : "") + kIconTextureGlsl + main;
-}
-
 std::uint32_t packNormal(float x, float y, float z) {
   const float len = std::sqrt(x * x + y * y + z * z);
   const float k = len > 0 ? 1.0f / len : 0.0f;
@@ -171,18 +167,8 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
     const auto origin = iconpack::partOrigin(icon, p);
     for (const iconpack::Mesh& m : part.meshes) {
       const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
-      const bool known = m.material < icon.materials.size();
-      const std::uint32_t rgba = known ? packRgba(icon.materials[m.material].rgba) : 0xFFFFFFFFu;
-      const std::uint32_t texture = known ? icon.materials[m.material].texture : iconpack::kNoTexture;
-      const bool uv = texture != iconpack::kNoTexture && m.texcoords.size() == 2 * m.vertexCount();
-      const float layer = uv ? float(texture) : -1.0f;
-      textured = textured || uv;
       for (std::size_t v = 0; v < m.vertexCount(); ++v) {
-        const float* pos = &m.positions[3 * v];
-        const float* n = &m.normals[3 * v];
-        const float s = uv ? m.texcoords[2 * v] : 0.0f, t = uv ? m.texcoords[2 * v + 1] : 0.0f;
-        out.vertices.push_back({pos[0] + origin[0], pos[1] + origin[1], pos[2] + origin[2],
-                                packNormal(n[0], n[1], n[2]), rgba, s, t, layer});
+        out.vertices.push_back(iconVertex(icon, m, v, origin, textured));
       }
       for (std::size_t l = 0; l < levels && l < m.levels.size(); ++l) {
         for (const std::uint32_t i : m.levels[l]) perLevel[l].push_back(first + i);
@@ -268,6 +254,24 @@ bool iconColour(vec3 base, vec2 uv, float layer, out vec3 colour) {
   return true;
 }
 )";
+
+std::string iconFragmentGlsl(bool textured, const char* main) {
+  return shadingHeaderGlsl() + (textured ? "#define SANDTABLE_ICON_TEXTURE\n" : "") + kIconTextureGlsl + main;
+}
+
+IconVertex iconVertex(const iconpack::Icon& icon, const iconpack::Mesh& m, std::size_t v,
+                      const std::array<float, 3>& offset, bool& textured) {
+  const bool known = m.material < icon.materials.size();
+  const std::uint32_t rgba = known ? packRgba(icon.materials[m.material].rgba) : 0xFFFFFFFFu;
+  const std::uint32_t texture = known ? icon.materials[m.material].texture : iconpack::kNoTexture;
+  const bool uv = texture != iconpack::kNoTexture && m.texcoords.size() == 2 * m.vertexCount();
+  textured = textured || uv;
+  const float* pos = &m.positions[3 * v];
+  const float* n = &m.normals[3 * v];
+  const float s = uv ? m.texcoords[2 * v] : 0.0f, t = uv ? m.texcoords[2 * v + 1] : 0.0f;
+  return {pos[0] + offset[0], pos[1] + offset[1], pos[2] + offset[2], packNormal(n[0], n[1], n[2]), rgba, s, t,
+          uv ? float(texture) : -1.0f};
+}
 
 void bindIconVertex(GLuint vao) {
   const auto attrib = [&](GLuint loc, GLint n, GLenum type, GLboolean norm, GLuint offset) {
@@ -452,6 +456,8 @@ Status ObjectRenderer::bakeImpostors() {
 void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
   for (auto& b : buckets_) b.clear();
   for (auto& b : spriteBuckets_) b.clear();
+  diverted_.clear();
+  const std::vector<ObjectOverride>& overrides = buf.dynamic.objectOverrides;
   const Camera& cam = buf.camera;
   // Pixels per metre at one metre: an object is a sprite where
   // size * focal < impostorPixels * distance.
@@ -476,9 +482,17 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
     const ResidentModule& rm = d.ref.module();
     if (rm.objects.empty()) continue;
     const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
+    // This module's changed objects, in index order: walked beside i.
+    auto [changed, changedEnd] = overridesOfModule(overrides, d.kx, d.kz);
     for (std::size_t i = 0; i < rm.objects.size(); ++i) {
       const module::Object& o = rm.objects[i];
       if (o.icon >= icons.size()) continue;  // validate refuses these
+      while (changed != changedEnd && changed->index < i) ++changed;
+      const ObjectLook look = changed != changedEnd && changed->index == i ? changed->look : ObjectLook::standing;
+      if (look == ObjectLook::destroyed) {
+        ++stats.objectsRemoved;
+        continue;
+      }
       const double gx = mx + o.x - buf.originX - eye.x(), gz = mz + o.z - buf.originZ - eye.z();
       if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) continue;
       const double half = 0.5 * double(o.height);
@@ -504,6 +518,10 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       bool inside = true;
       for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
       if (!inside) continue;
+      if (look != ObjectLook::standing) {
+        divert(icons[o.icon], o, look, mx + o.x, y, mz + o.z);
+        continue;
+      }
       ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
                               float(module::headingRadians(o.heading)), o.scale, fade};
       const double pixels = double(sprites_[o.icon].size) * double(o.scale) * focal / std::max(distance, 1e-3);
@@ -527,6 +545,27 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       ++stats.objectsDrawn;
     }
   }
+}
+
+void ObjectRenderer::divert(const iconpack::Icon& icon, const module::Object& o, ObjectLook look, double x, double y,
+                            double z) {
+  DynamicInstance d;
+  d.icon = o.icon;
+  d.x = x;
+  d.y = y;
+  d.z = z;
+  d.scale = o.scale;
+  const double headingDeg = module::headingRadians(o.heading) / kDegToRad;
+  if (look == ObjectLook::knockedOver) {
+    // Laid forward about its base, its body z becomes its height: lifted so
+    // that its lowest point (the bounds' least z) rests on the ground.
+    d.orientation = lyingQuaternion(headingDeg);
+    d.y += std::max(0.0, -double(icon.bounds[2])) * double(o.scale);
+  } else {
+    d.orientation = headingQuaternion(headingDeg);
+    d.dead = true;  // stump, ruins: the dead model (the alive one if it has none)
+  }
+  diverted_.push_back(d);
 }
 
 void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,

@@ -35,11 +35,14 @@
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
+#include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "sandtable/base/result.h"
 #include "sandtable/formats/icon_pack.h"
+#include "sandtable/formats/module.h"
 #include "sandtable/render/gl_program.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/scene/display_buffer.h"
@@ -64,6 +67,16 @@ static_assert(sizeof(IconVertex) == 32, "vertex layout is shared with the shader
 /// layer is >= 0, false for a cut-out texel; and bool fadedOut(fade), the
 /// screen-door fade's discard.
 extern const char* const kIconTextureGlsl;
+
+/// shadingHeaderGlsl(), the texture switch, kIconTextureGlsl and `main`:
+/// an icon program's fragment stage.
+std::string iconFragmentGlsl(bool textured, const char* main);
+
+/// Vertex `v` of mesh `m` of `icon`, moved by `offset` (its part's origin),
+/// with its material's colour and texture layer; `textured` is set when it
+/// samples a texture.
+IconVertex iconVertex(const iconpack::Icon& icon, const iconpack::Mesh& m, std::size_t v,
+                      const std::array<float, 3>& offset, bool& textured);
 
 /// Binds IconVertex's attributes to binding 0 of `vao`: position 0,
 /// normal 1, colour 2, texture coordinates 5, texture layer 6.
@@ -129,6 +142,13 @@ class ObjectRenderer {
   /// compiles the program for this state before frame 0 (llvmpipe compiles
   /// at the first draw).
   void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
+  /// The objects of the last draw() that buf.dynamic.objectOverrides
+  /// changed (knocked over, stumps, ruins), placed on the drawn ground, for
+  /// the entity pass to draw with their dead model or lying down; destroyed
+  /// ones are left out altogether.
+  const std::vector<DynamicInstance>& diverted() const { return diverted_; }
+  /// The icon texture array (0: the pack has none), for the entity pass.
+  GLuint textures() const { return textures_; }
 
  private:
   /// Streams the buckets and draws each (icon, level) with instances,
@@ -139,6 +159,8 @@ class ObjectRenderer {
   void drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint firstInstance,
                    RenderStats& stats);
   void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
+  /// Queues a changed object for the entity pass (world x, drawn base y, world z).
+  void divert(const iconpack::Icon& icon, const module::Object& o, ObjectLook look, double x, double y, double z);
 
   RenderSettings settings_;
   GlProgram program_, texturedProgram_;  ///< the second samples the icon textures
@@ -156,6 +178,7 @@ class ObjectRenderer {
   std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon
   std::vector<ObjectInstance> stream_;
   std::vector<double> farRange_;  ///< per icon, this frame
+  std::vector<DynamicInstance> diverted_;
 };
 
 }  // namespace sandtable::runtime::detail

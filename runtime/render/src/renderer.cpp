@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "sandtable/scene/camera_math.h"
+#include "entity_draw.h"
 #include "module_draw.h"
 #include "object_draw.h"
 #include "sandtable/render/egl_context.h"
@@ -148,7 +149,8 @@ struct Renderer::Impl {
   GLuint behindTexture = 0; ///< the frame under the darkened boxes, copied there
   std::vector<std::uint8_t> readback;
   std::unique_ptr<detail::ModuleRenderer> modules;
-  std::unique_ptr<detail::ObjectRenderer> objects;  ///< when RenderSettings::icons is set
+  std::unique_ptr<detail::ObjectRenderer> objects;  ///< when RenderSettings::icons and staticObjects are set
+  std::unique_ptr<detail::EntityRenderer> entities;  ///< when RenderSettings::icons is set
   std::unique_ptr<ModelsPass> models;
   RenderStats stats;
   std::uint64_t frame = 0, readBackCount = 0;
@@ -157,6 +159,7 @@ struct Renderer::Impl {
   ~Impl() {
     if (!egl) return;
     models.reset();
+    entities.reset();
     objects.reset();
     modules.reset();
     terrainProgram.reset();
@@ -248,8 +251,12 @@ struct Renderer::Impl {
     modules = std::make_unique<detail::ModuleRenderer>();
     if (Status st = modules->create(settings); !st) return st;
     if (settings.icons && !settings.icons->icons.empty()) {
-      objects = std::make_unique<detail::ObjectRenderer>();
-      if (Status st = objects->create(settings); !st) return st;
+      if (settings.staticObjects) {
+        objects = std::make_unique<detail::ObjectRenderer>();
+        if (Status st = objects->create(settings); !st) return st;
+      }
+      entities = std::make_unique<detail::EntityRenderer>();
+      if (Status st = entities->create(settings, objects ? objects->textures() : 0); !st) return st;
     }
     // Settings that never change over a flight.
     detail::setShadingUniforms(terrainProgram, settings);
@@ -332,6 +339,11 @@ struct Renderer::Impl {
         break;
       case RenderPass::models:
         if (objects && buf.moduleMode) objects->draw(buf, vp, *modules, stats);
+        if (entities) {
+          static const std::vector<DynamicInstance> none;
+          entities->draw(buf, vp, buf.moduleMode ? modules.get() : nullptr,
+                         objects && buf.moduleMode ? objects->diverted() : none, stats);
+        }
         if (models) {
           PassContext ctx{buf, {}};
           std::copy(vp.data(), vp.data() + 16, ctx.viewProjection.begin());
@@ -420,9 +432,11 @@ struct Renderer::Impl {
     b.firsts = {0};
     b.counts = {4};
     (void)drawPasses(b);
-    if (objects) {
+    if (objects || entities) {
       glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-      objects->warmUp(b, detail::viewProjection(b.camera, b.originX, b.originZ).cast<float>());
+      const Eigen::Matrix4f vp = detail::viewProjection(b.camera, b.originX, b.originZ).cast<float>();
+      if (objects) objects->warmUp(b, vp);
+      if (entities) entities->warmUp(b, vp);
       resolve();
     }
     if (settings.colour != ColourMode::height) {

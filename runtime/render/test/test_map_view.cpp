@@ -254,6 +254,54 @@ TEST_F(MapViewTest, ZoomedMapFollowsTheViewerOnlyOutOfTheInnerBox) {
   EXPECT_EQ(c.markerX, c.x + c.width / 2);
 }
 
+TEST_F(MapViewTest, EntitiesAreArrowsInTheirForcesColoursTheDeadDimmedUnderTheViewer) {
+  MapView map(grid_, pureRamp());
+  map.setVisible(true);
+  Image frame = filled(640, 480, Rgb{10, 200, 10});
+  // The database is 1290 x 990 m; the map shows all of it (full scale).
+  const std::vector<MapMark> marks = {
+      {300, 200, 90, 2, true, false},   // red, alive, heading east
+      {600, 700, 0, 1, true, false},    // blue
+      {1000, 500, 0, 3, false, false},  // green, dead
+      {200, 800, 0, 0, true, false},    // neutral
+  };
+  const MapLayout l = map.compose(frame, 900, 300, 0, marks);
+  ASSERT_TRUE(l.drawn);
+  const auto at = [&](double x, double z) {
+    int px = 0, py = 0;
+    EXPECT_TRUE(MapView::pixelOf(l, x, z, px, py));
+    // pixelOf follows the layout: the full-scale map maps metres linearly.
+    EXPECT_EQ(px, l.x + int(x / 1290.0 * l.width));
+    EXPECT_EQ(py, l.y + int(z / 990.0 * l.height));
+    return frame.at(std::uint32_t(px), std::uint32_t(py));
+  };
+  const Rgb red{235, 30, 30}, blue{40, 110, 255}, green{40, 200, 60}, grey{170, 170, 170};
+  EXPECT_TRUE(same(forceColour(2), red));
+  EXPECT_TRUE(same(forceColour(3), green));
+  EXPECT_TRUE(same(forceColour(9), grey));
+  EXPECT_TRUE(same(at(300, 200), red));
+  EXPECT_TRUE(same(at(600, 700), blue));
+  EXPECT_TRUE(same(at(200, 800), grey));
+  // The dead: half the force's colour, no heading.
+  EXPECT_TRUE(same(at(1000, 500), Rgb{20, 100, 30}));
+  EXPECT_TRUE(same(deadColour(3), Rgb{20, 100, 30}));
+  // The red arrow points east: red two pixels ahead, not two behind it.
+  int px = 0, py = 0;
+  ASSERT_TRUE(MapView::pixelOf(l, 300, 200, px, py));
+  EXPECT_TRUE(same(frame.at(std::uint32_t(px + 2), std::uint32_t(py)), red));
+  EXPECT_FALSE(same(frame.at(std::uint32_t(px - 3), std::uint32_t(py)), red));
+  // Off the map: nothing to find.
+  EXPECT_FALSE(MapView::pixelOf(l, -10, 200, px, py));
+  // The viewer's arrow goes over an entity at his own place.
+  Image again = filled(640, 480, Rgb{10, 200, 10});
+  MapOptions o = pureRamp();
+  o.markerFill = {255, 220, 0};
+  MapView yellow(grid_, o);
+  yellow.setVisible(true);
+  const MapLayout m = yellow.compose(again, 300, 200, 0, {marks[0]});
+  EXPECT_TRUE(same(again.at(std::uint32_t(m.markerX), std::uint32_t(m.markerY)), o.markerFill));
+}
+
 TEST_F(MapViewTest, ToWorldFromProjected) {
   double x = 0, z = 0;
   MapView::toWorld(grid_->header(), 500120, 3999700, x, z);

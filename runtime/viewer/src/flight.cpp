@@ -89,6 +89,12 @@ std::string format(const char* fmt, double a, double b = 0, double c = 0) {
   return buf;
 }
 
+/// An application's JSON text as JSON (a string when it does not parse).
+nlohmann::json jsonOrText(const std::string& text) {
+  auto j = nlohmann::json::parse(text, nullptr, false);
+  return j.is_discarded() ? nlohmann::json(text) : j;
+}
+
 nlohmann::json frameJson(const FrameStats& s) {
   nlohmann::json j = {{"frame", s.frame},
                       {"time_s", s.timeS},
@@ -123,6 +129,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                     {"triangles", s.objectTriangles},
                     {"sprites", s.objectSprites},
                     {"thinned", s.objectsThinned}};
+    j["objects"]["removed"] = s.objectsRemoved;
+    j["objects"]["changed_drawn"] = s.objectsChanged;
     j["pager"] = {{"resident_in_window", s.residentModules},
                   {"window_modules", s.windowModules},
                   {"queue", s.pagerQueue},
@@ -133,6 +141,11 @@ nlohmann::json frameJson(const FrameStats& s) {
   }
   j["lon"] = s.lon ? nlohmann::json(*s.lon) : nlohmann::json(nullptr);
   j["lat"] = s.lat ? nlohmann::json(*s.lat) : nlohmann::json(nullptr);
+  j["dynamic"] = {{"entities_drawn", s.entitiesDrawn},
+                  {"entity_triangles", s.entityTriangles},
+                  {"trails_drawn", s.trailsDrawn},
+                  {"flashes_drawn", s.flashesDrawn}};
+  for (const auto& [key, text] : s.extraJson) j[key] = jsonOrText(text);
   return j;
 }
 
@@ -151,9 +164,11 @@ nlohmann::json summaryJson(const FlightSummary& s) {
           {"height", s.height}};
 }
 
-std::string writeStats(const std::string& path, const FlightReport& r, const FlightOptions& o) {
+std::string writeStats(const std::string& path, const FlightReport& r, const FlightOptions& o,
+                       const std::vector<std::pair<std::string, std::string>>& sections) {
   nlohmann::json j;
   j["summary"] = summaryJson(r.summary);
+  for (const auto& [key, text] : sections) j[key] = jsonOrText(text);
   j["timing"] = {
       {"simulated_frame_rate", kFramesPerSecond},
       {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
@@ -357,6 +372,7 @@ struct FlightRun {
     previousT = t;
     Slot* slot = handoff.takeFree();
     if (!slot) return false;
+    slot->buf.dynamic.clear();
     if (scene) {
       scene->fill(cam, k, slot->buf);
       // The eye stands on the surface this frame draws under it, at the
@@ -409,6 +425,7 @@ struct FlightRun {
         s.lat = ll->second;
       }
     }
+    app.frameContent(k, slot->buf, s);
     handoff.pushFull(slot);
     return true;
   }
@@ -452,6 +469,12 @@ struct FlightRun {
       s.objectTriangles = rs.objectTriangles;
       s.objectSprites = rs.objectSprites;
       s.objectsThinned = rs.objectsThinned;
+      s.objectsRemoved = rs.objectsRemoved;
+      s.objectsChanged = rs.objectsChangedDrawn;
+      s.entitiesDrawn = rs.entitiesDrawn;
+      s.entityTriangles = rs.entityTriangles;
+      s.trailsDrawn = rs.trailsDrawn;
+      s.flashesDrawn = rs.flashesDrawn;
       handoff.pushFree(slot);
       if (!drawn) return stop(drawn);
       const auto now = Clock::now();
@@ -481,6 +504,8 @@ struct FlightRun {
       }
       lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
       app.frameShown(s);
+      // The panel is drawn: a long window session need not keep its text.
+      s.panelLines = {};
       report.frames.push_back(std::move(s));
     }
   }
@@ -527,7 +552,9 @@ struct FlightRun {
     r.summary.height = o.view.height;
     if (!o.output.outDir.empty()) {
       const std::string path = (std::filesystem::path(o.output.outDir) / "stats.json").string();
-      if (std::string err = writeStats(path, r, o); !err.empty()) return Problem{"fly", 0, err};
+      if (std::string err = writeStats(path, r, o, app.statsSections()); !err.empty()) {
+        return Problem{"fly", 0, err};
+      }
       r.summary.statsPath = path;
     }
     return std::move(r);
@@ -614,12 +641,15 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
   }
   FlightRun run(o, app, g, renderSettingsFor(o));
   run.renderSettings.grid = g;
+  // Icons draw the modules' static objects (unless RenderOptions::objects
+  // is off) and the application's entities, in either terrain mode.
+  if (db && db->icons) run.renderSettings.icons = std::make_shared<iconpack::Pack>(*db->icons);
+  run.renderSettings.staticObjects = o.render.objects && modules;
   if (pager) {
     if (db->materials) {
       run.renderSettings.palette = paletteFor(*db->materials);
       run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
     }
-    if (o.render.objects && db->icons) run.renderSettings.icons = std::make_shared<iconpack::Pack>(*db->icons);
     ModuleSceneSettings ss;
     ss.lod = o.render.lod;
     ss.imageHeight = o.view.height;
@@ -661,6 +691,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back(format("CPU %.1f MS  DRAW %.1f MS", s.cpuMs, s.renderMs));
   if (s.levelCounts.empty()) {
     lines.push_back("TRIS " + std::to_string(s.triangles) + "  STRIPS " + std::to_string(s.strips));
+    lines.insert(lines.end(), s.panelLines.begin(), s.panelLines.end());
     return lines;
   }
   std::string levels;
@@ -677,6 +708,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   lines.push_back("RESIDENT " +
                   std::to_string(s.residentModules) + "/" + std::to_string(s.windowModules));
   lines.push_back("PAGER QUEUE " + std::to_string(s.pagerQueue));
+  lines.insert(lines.end(), s.panelLines.begin(), s.panelLines.end());
   return lines;
 }
 
@@ -762,6 +794,10 @@ bool FlightHooks::wantsFrame(std::uint32_t frame) {
 
 void FlightHooks::frameDone(std::uint32_t frame, const Image& image) {
   if (onFrame) onFrame(frame, image);
+}
+
+void FlightHooks::frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) {
+  if (onFrameContent) onFrameContent(frame, buf, stats);
 }
 
 }  // namespace sandtable::runtime

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -77,6 +78,8 @@ FlySession::FlySession(const Database& db, FlySessionSettings settings, const ru
       window_(std::move(window)),
       video_(std::move(video)) {
   ground_.groundEN(o.motion.easting, o.motion.northing);
+  // The world's one clock: the simulation's step, which the eye's keys share.
+  if (settings_.sim) clock_ = FixedStepClock(settings_.sim->stepS());
   if (window_) {
     runtime::ControllerSettings cs;
     cs.maxFovDeg = 90;  // the view triangle's limit (flight.h): 0 would ask 100
@@ -116,8 +119,41 @@ void FlySession::frameShown(const runtime::FrameStats& s) {
   if (settings_.onFrameDone) settings_.onFrameDone(s.frame);
 }
 
+void FlySession::reseedController(const runtime::Pose& p) {
+  runtime::ViewerState s = controller_->state();
+  s.easting = p.easting;
+  s.northing = p.northing;
+  s.headingDeg = p.headingDeg;
+  s.pitchDeg = p.pitchDeg.value_or(s.pitchDeg);
+  s.speedMs = 0;  // the stealth eye stops where the tether left it
+  s.heightAgl = p.heightAgl;
+  s.eyeElevation = p.altitude.value_or(s.eyeElevation);
+  const ControllerSettings cs = controller_->settings();
+  auto ground = [this](double e, double n) { return ground_.surfaceEN(e, n, ground_.drawn()); };
+  controller_.emplace(s, ground, cs);
+}
+
 double FlySession::pollKeys() {
-  for (const auto& e : window_->pollEvents()) controller_->handle(e);
+  SimSession* sim = settings_.sim.get();
+  const std::vector<KeyEvent> events = window_->pollEvents();
+  if (sim) {
+    for (const ViewerKey k : window_->takeViewerKeys()) {
+      const ViewMode before = sim->mode();
+      sim->handle(k);
+      if (before != ViewMode::stealth && sim->mode() == ViewMode::stealth) reseedController(lastPose_);
+    }
+  }
+  for (const auto& e : events) {
+    // Attached or driving, the arrows and pages steer the tether or the
+    // entity; a release always reaches both, so no key stays held.
+    if (sim && (sim->steers(e.key) || (!e.pressed && sim->mode() != ViewMode::stealth))) {
+      sim->handle(e);
+      if (!e.pressed) controller_->handle(e);
+      continue;
+    }
+    controller_->handle(e);
+    if (sim && !e.pressed) sim->handle(e);
+  }
   if (controller_->quitRequested() || window_->closeRequested()) quitAfterThisFrame_ = true;
   const double now = wallSeconds();
   const double dt = lastWall_ ? std::max(0.0, now - *lastWall_) : 0.0;
@@ -156,23 +192,59 @@ std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp&
   // q, Escape or closing the window: the frame with the keys pressed before
   // it is still drawn (so a last change shows), then the flight ends.
   if (failed_.load() || quitting_) return std::nullopt;
-  FrameControl fc{frame, settings_.map, settings_.mapScale, false};
+  FrameControl fc{frame, settings_.map, settings_.mapScale, false, {}, true};
+  SimSession* sim = settings_.sim.get();
   Pose p;
   if (window_) {
     // The world advances in fixed steps of the wall clock (world/clock.h),
-    // so key repeats and turns do not depend on the frame rate.
-    for (std::uint32_t n = clock_.advance(pollKeys()); n > 0; --n) controller_->advance(clock_.stepS());
+    // so key repeats, turns and the simulation do not depend on the frame rate.
+    for (std::uint32_t n = clock_.advance(pollKeys()); n > 0; --n) {
+      controller_->advance(clock_.stepS());
+      if (sim) sim->step();
+    }
+    if (sim) sim->sample();
     p = windowPose(clock_.timeS());
+    if (sim && sim->mode() != ViewMode::stealth) {
+      // The tether replaces the eye's own motion; FOV and view distance stay the keys'.
+      const Pose tether = sim->tetherPose(ground);
+      const std::optional<double> fov = p.hfovDeg, view = p.viewDistance;
+      p = tether;
+      p.hfovDeg = fov;
+      p.viewDistance = view;
+    }
     p.clockS = clock_.timeS();
     fc.map = controller_->state().mapVisible;
     fc.mapScale = controller_->state().mapScale;
     fc.screenshot = controller_->takeScreenshotRequest();
     quitting_ = quitAfterThisFrame_;
   } else {
-    p = headlessPose(t);
+    if (sim) {
+      // Frame k shows the world at k / 30 s: whole steps, so a headless
+      // flight replays the same simulation frame for frame.
+      sim->advanceToFlightTime(t);
+      sim->sample();
+    }
+    p = sim && sim->mode() != ViewMode::stealth ? sim->tetherPose(ground) : headlessPose(t);
+  }
+  if (sim) {
+    fc.marks = sim->mapMarks();
+    fc.viewerMarker = sim->mode() == ViewMode::stealth;
   }
   controls_.push(fc);
+  lastPose_ = p;
   return p;
+}
+
+void FlySession::frameContent(std::uint32_t, DisplayBuffer& buf, FrameStats& stats) {
+  if (!settings_.sim) return;
+  settings_.sim->fill(buf.dynamic);
+  stats.panelLines = settings_.sim->panelLines();
+  stats.extraJson.emplace_back("sim", settings_.sim->frameJson());
+}
+
+std::vector<std::pair<std::string, std::string>> FlySession::statsSections() {
+  if (!settings_.sim) return {};
+  return {{"sim", settings_.sim->summaryJson()}};
 }
 
 void FlySession::overlay(runtime::Overlay& overlay, const runtime::FrameStats& s) {
@@ -182,13 +254,16 @@ void FlySession::overlay(runtime::Overlay& overlay, const runtime::FrameStats& s
     // Built here, on the render thread that uses it (MapView caches per thread).
     runtime::MapOptions mo;
     mo.waterMaterials = settings_.waterMaterials;
+    // The red force's arrows would read as the viewer's own: his turns yellow.
+    if (settings_.sim) mo.markerFill = {255, 220, 0};
     map_ = std::make_unique<runtime::MapView>(db_.grid, mo);
     map_->setVisible(true);
   }
   map_->setScale(current_.mapScale);
   double x = 0, z = 0;
   runtime::MapView::toWorld(db_.grid->header(), s.easting, s.northing, x, z);
-  const runtime::MapLayout box = map_->compose(overlay.layer(), x, z, s.headingDeg);
+  const runtime::MapLayout box =
+      map_->compose(overlay.layer(), x, z, s.headingDeg, current_.marks, current_.viewerMarker);
   // The map, its label and marker inside a one-pixel border.
   if (box.drawn) overlay.drawn({box.x - 1, box.y - 1, box.width + 2, box.height + 2});
 }

@@ -100,6 +100,18 @@ std::optional<Key> keyForSym(KeySym s) {
   }
 }
 
+/// The entity keys (viewer_keys.h); Shift turns Tab backwards.
+std::optional<ViewerKey> viewerKeyForSym(KeySym s, bool shift) {
+  switch (s) {
+    case XK_Tab: return shift ? ViewerKey::previousEntity : ViewerKey::nextEntity;
+    case XK_ISO_Left_Tab: return ViewerKey::previousEntity;
+    case XK_e: case XK_E: return ViewerKey::stealth;
+    case XK_d: case XK_D: return ViewerKey::drive;
+    case XK_space: return ViewerKey::allStop;
+    default: return std::nullopt;
+  }
+}
+
 // Over kFullScreenVertexGlsl; image row 0 is the top.
 constexpr const char* kFragment = R"(#version 450 core
 in vec2 vNdc;
@@ -301,7 +313,13 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
       case KeyRelease: {
         std::optional<Key> k = keyForSym(XLookupKeysym(&ev.xkey, 0));
         if (!k) k = keyForSym(XLookupKeysym(&ev.xkey, 1));  // shifted: '+' and keypad digits
-        if (k) emit(*k, ev.type == KeyPress);
+        if (k) {
+          emit(*k, ev.type == KeyPress);
+        } else if (ev.type == KeyPress) {
+          if (auto v = viewerKeyForSym(XLookupKeysym(&ev.xkey, 0), (ev.xkey.state & ShiftMask) != 0)) {
+            viewerKeys_.push_back(*v);
+          }
+        }
         break;
       }
       case FocusOut:
@@ -324,6 +342,13 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
       default: break;
     }
   }
+  return out;
+}
+
+std::vector<ViewerKey> ViewerWindow::takeViewerKeys() {
+  std::lock_guard lock(mutex_);
+  std::vector<ViewerKey> out;
+  out.swap(viewerKeys_);
   return out;
 }
 

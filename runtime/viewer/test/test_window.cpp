@@ -184,6 +184,50 @@ TEST_F(WindowTest, KeysTranslate) {
   }
 }
 
+TEST_F(WindowTest, EntityKeysWaitForTakeViewerKeys) {
+  auto opened = ViewerWindow::open(64, 64, "entity keys", xvfb_->display);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ViewerWindow& win = *opened.value();
+  XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
+  XSync(keys_, False);
+  const std::vector<std::pair<KeySym, ViewerKey>> keys = {{XK_Tab, ViewerKey::nextEntity},
+                                                          {XK_e, ViewerKey::stealth},
+                                                          {XK_d, ViewerKey::drive},
+                                                          {XK_space, ViewerKey::allStop}};
+  for (const auto& [sym, key] : keys) {
+    sendKey(keys_, sym, true);
+    sendKey(keys_, sym, false);
+    std::vector<ViewerKey> got;
+    for (int tries = 0; tries < 1000 && got.empty(); ++tries) {
+      // The eye's keys see nothing of them.
+      EXPECT_TRUE(win.pollEvents().empty()) << viewerKeyName(key);
+      got = win.takeViewerKeys();
+      if (got.empty()) {
+        const timespec pause{0, 5'000'000};
+        nanosleep(&pause, nullptr);
+      }
+    }
+    ASSERT_EQ(got.size(), 1u) << viewerKeyName(key);  // a press, not its release
+    EXPECT_EQ(got[0], key) << viewerKeyName(key);
+  }
+  // Shift+Tab goes back.
+  sendKey(keys_, XK_Shift_L, true);
+  sendKey(keys_, XK_Tab, true);
+  sendKey(keys_, XK_Tab, false);
+  sendKey(keys_, XK_Shift_L, false);
+  std::vector<ViewerKey> got;
+  for (int tries = 0; tries < 1000 && got.empty(); ++tries) {
+    (void)win.pollEvents();
+    got = win.takeViewerKeys();
+    if (got.empty()) {
+      const timespec pause{0, 5'000'000};
+      nanosleep(&pause, nullptr);
+    }
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0], ViewerKey::previousEntity);
+}
+
 TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
   auto headless = EglContext::create();
   if (!headless.ok()) GTEST_SKIP() << headless.error();

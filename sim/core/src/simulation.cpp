@@ -105,6 +105,7 @@ Result<std::uint32_t> Simulation::add(Entity e) {
   air_.push_back(air);
   airControls_.emplace_back();
   lastLine_.emplace_back();
+  lineApplied_.push_back(false);
   scripted_.push_back(false);
   return id;
 }
@@ -192,6 +193,7 @@ std::uint32_t Simulation::fire(std::uint32_t shooter, double azimuthDeg, double 
   air_.emplace_back();
   airControls_.emplace_back();
   lastLine_.emplace_back();
+  lineApplied_.push_back(false);
   scripted_.push_back(false);
   return id;
 }
@@ -213,6 +215,7 @@ void Simulation::applyScripts() {
           const std::uint32_t id = idOf(line.entity);
           if (id == UINT32_MAX) return;
           lastLine_[id] = line;
+          lineApplied_[id] = true;
           Entity& e = entities_[id];
           e.headingDeg = e.commands.headingDeg = wrapDeg(line.directionDeg);
           e.speedMs = e.commands.speedMs = line.speed;
@@ -315,7 +318,9 @@ void Simulation::moveAir(Entity& e) {
 void Simulation::move(Entity& e) {
   const double dt = options_.stepS;
   if (scripted_[e.id]) {
-    // Between lines a scripted entity is dead reckoned from its last line.
+    // Between lines a scripted entity is dead reckoned from its last line;
+    // before its first it waits where the scenario put it.
+    if (!lineApplied_[e.id]) return;
     const ScriptLine& line = lastLine_[e.id];
     const Eigen::Vector2d p = deadReckon(line, timeS() + dt);
     const auto a = projectedPointAttitude(*world_, p.x(), p.y(), e.headingDeg, e.halfLength, e.halfWidth);

@@ -43,7 +43,25 @@ struct MapOptions {
   /// The map's box as a fraction of the frame's shorter side.
   double sizeFraction = 0.4;
   int marginPx = 8;
+  /// The viewer's arrow (the seed's red; the stealth viewer makes it
+  /// yellow when entities of the red force share the map).
+  Rgb markerFill{255, 40, 40};
 };
+
+/// An entity on the map: an arrow along its heading in its force's
+/// colour (forceColour), dimmed and without heading when dead.
+struct MapMark {
+  double x = 0, z = 0;    ///< world metres (X east, Z south)
+  double headingDeg = 0;  ///< clockwise from grid north
+  std::uint8_t force = 0; ///< 0 neutral, 1 blue, 2 red, 3 green
+  bool alive = true;
+  bool selected = false;  ///< the entity the eye is attached to: drawn larger, with a white edge
+};
+
+/// A force's map colour: 1 blue, 2 red, 3 green, anything else neutral grey.
+Rgb forceColour(std::uint8_t force);
+/// A dead entity's colour: its force's, dimmed towards black by half.
+Rgb deadColour(std::uint8_t force);
 
 inline constexpr Rgb kMapSeaBlue{0, 46, 113};  ///< Figure 41: "a nice blue color"
 
@@ -81,9 +99,15 @@ class MapView {
   void toggle() { visible_ = !visible_; }
 
   /// Draws the map into the frame's top-right corner when visible: the
-  /// terrain, the viewer as an arrow pointing along headingDeg (clockwise
-  /// from grid north), and a label with the scale and the ground span.
-  MapLayout compose(Image& frame, double eyeX, double eyeZ, double headingDeg);
+  /// terrain, the entities in `marks` (the dead first, then the living),
+  /// the viewer as an arrow pointing along headingDeg (clockwise from grid
+  /// north) over them unless `showViewer` is false (an eye attached to an
+  /// entity: its selected mark is the viewer), and a label with the scale
+  /// and the ground span. The map still centres on (eyeX, eyeZ).
+  MapLayout compose(Image& frame, double eyeX, double eyeZ, double headingDeg,
+                    const std::vector<MapMark>& marks = {}, bool showViewer = true);
+  /// The frame pixel of world (x, z) on the map `layout` drew; false off it.
+  static bool pixelOf(const MapLayout& layout, double x, double z, int& px, int& py);
 
   /// The window Figure 40 gives for a viewer at (eyeX, eyeZ), before any
   /// inner-box hysteresis: centred on the viewer, clamped to the database.
@@ -110,6 +134,7 @@ class MapView {
   /// The arrow, clipped to clip = {x0, y0, x1, y1} (the map's box).
   void drawMarker(Image& frame, int cx, int cy, double headingDeg, int size,
                   std::array<int, 4> clip) const;
+  void drawMarks(Image& frame, const MapLayout& box, const std::vector<MapMark>& marks) const;
   void drawLabel(Image& frame, const MapLayout& box) const;
 
   std::shared_ptr<const grid::GridFile> grid_;

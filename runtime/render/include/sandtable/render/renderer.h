@@ -12,8 +12,10 @@
 //   decals   the modules' decal priorities over their skin (and their own
 //            object polygons); nothing in mesh mode;
 //   models   the modules' static objects drawn with the icons of
-//            RenderSettings::icons (docs/VIEWER.md, "Objects"), then the
-//            ModelsPass given to setModelsPass(), if any;
+//            RenderSettings::icons (docs/VIEWER.md, "Objects"), the
+//            buffer's entities, munition trails and detonation flashes
+//            (DisplayBuffer::dynamic, "Entities"), then the ModelsPass
+//            given to setModelsPass(), if any;
 //   resolve  a multisampled target into the single-sampled one;
 //   hud      the Overlay (overlay.h): darkened boxes, then the layer
 //            blended over them. Height frames skip it.
@@ -123,9 +125,13 @@ struct RenderSettings {
   /// each frame) and are drawn meanwhile from a coarser resident level;
   /// every module's coarsest level goes up at once, whatever the budget.
   std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
-  /// Module mode: the icon database the modules' objects index
-  /// (icons.pack); null draws no objects. Height frames never draw them.
+  /// The icon database (icons.pack) that the modules' objects and the
+  /// DisplayBuffer's entities (scene/dynamic.h) index; null draws neither.
+  /// Height frames never draw them.
   std::shared_ptr<const iconpack::Pack> icons;
+  /// Module mode: draw the modules' static objects (with `icons`); false
+  /// draws only the entities.
+  bool staticObjects = true;
   /// Objects fade in over this fraction of each icon's far range (its
   /// last switch range, capped at the view distance) instead of popping
   /// in; 0 pops. 0 .. 1.
@@ -170,6 +176,14 @@ struct RenderStats {
   std::uint32_t objectSprites = 0;
   /// Objects in range and view left out by the sprites' thinning.
   std::uint32_t objectsThinned = 0;
+  /// Static objects a simulation destroyed (not drawn), and the changed
+  /// ones (knocked over, stumps, ruins) drawn by the entity pass.
+  std::uint32_t objectsRemoved = 0, objectsChangedDrawn = 0;
+  /// The DisplayBuffer's dynamic scene (scene/dynamic.h): entities drawn
+  /// (in range and view), their triangles, trails and flashes drawn.
+  std::uint32_t entitiesDrawn = 0;
+  std::uint64_t entityTriangles = 0;
+  std::uint32_t trailsDrawn = 0, flashesDrawn = 0;
 };
 
 /// Renderer::measureIndexedGrid: llvmpipe's (or the GPU's) own rate on a

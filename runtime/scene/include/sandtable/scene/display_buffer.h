@@ -13,6 +13,7 @@
 #include "sandtable/formats/grid.h"
 #include "sandtable/paging/pager.h"
 #include "sandtable/paging/view_triangle.h"
+#include "sandtable/scene/dynamic.h"
 
 namespace sandtable::runtime {
 
@@ -98,6 +99,9 @@ struct DisplayBuffer {
   std::vector<NodeDraw> nodes;      ///< grouped by module, in module order
   ModuleRect pagerWindow;           ///< GPU copies outside it are released
   SceneStats scene;
+  /// Entities, trails, flashes and changed static objects (dynamic.h),
+  /// filled by the application after the selection; empty without one.
+  DynamicScene dynamic;
 };
 
 /// Builds the view triangle for `cam` on grid `g`, selects the grid squares

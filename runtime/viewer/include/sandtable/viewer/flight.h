@@ -189,6 +189,16 @@ class FlightApplication {
   /// The window every frame is shown in by a GPU blit (present.h), asked
   /// once before the first frame; it must outlive the flight. Null: headless.
   virtual PresentTarget* window() { return nullptr; }
+  /// Main thread, after pose() and the scene selection of frame `frame`:
+  /// what the application adds to it. `buf.dynamic` (scene/dynamic.h:
+  /// entities, trails, flashes, changed static objects; empty on entry) is
+  /// drawn by the models pass; `stats.panelLines` are added to the
+  /// information panel and `stats.extraJson` to the frame's stats.json
+  /// entry. `buf` also tells what is drawn where (drawnLevelAt).
+  virtual void frameContent(std::uint32_t /*frame*/, DisplayBuffer& /*buf*/, FrameStats& /*stats*/) {}
+  /// Main thread, after the last frame: (key, JSON text) objects added to
+  /// stats.json's top level (the stealth viewer's `sim` summary).
+  virtual std::vector<std::pair<std::string, std::string>> statsSections() { return {}; }
 };
 
 /// An application made of callbacks, for tests and small tools. Unset
@@ -202,11 +212,14 @@ struct FlightHooks final : FlightApplication {
   /// Every frame's pixels, or those onWantsFrame picks when it is set.
   std::function<void(std::uint32_t frame, const Image&)> onFrame;
   std::function<bool(std::uint32_t frame)> onWantsFrame;
+  /// frameContent (main thread): e.g. entities placed by a test.
+  std::function<void(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats)> onFrameContent;
 
   std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
   void overlay(Overlay& overlay, const FrameStats& s) override;
   bool wantsFrame(std::uint32_t frame) override;
   void frameDone(std::uint32_t frame, const Image& image) override;
+  void frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) override;
 
   const FlightOptions& options;
 };
@@ -252,6 +265,17 @@ struct FrameStats {
   std::uint32_t objectsDrawn = 0, objectInstances = 0, objectDraws = 0;
   std::uint64_t objectTriangles = 0;
   std::uint32_t objectSprites = 0, objectsThinned = 0;
+  /// Static objects a simulation destroyed (not drawn) and changed ones drawn.
+  std::uint32_t objectsRemoved = 0, objectsChanged = 0;
+  /// The dynamic scene (RenderStats): entities, their triangles, trails and flashes drawn.
+  std::uint32_t entitiesDrawn = 0;
+  std::uint64_t entityTriangles = 0;
+  std::uint32_t trailsDrawn = 0, flashesDrawn = 0;
+  /// The application's (FlightApplication::frameContent): panel lines
+  /// (emptied in FlightReport once the panel is drawn) and (key, JSON text)
+  /// objects for the frame's stats.json entry.
+  std::vector<std::string> panelLines;
+  std::vector<std::pair<std::string, std::string>> extraJson;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;

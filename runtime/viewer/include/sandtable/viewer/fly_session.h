@@ -2,7 +2,10 @@
 // The stealth viewer application (`sandtable fly`), a FlightApplication
 // (flight.h): the pose source (a path file, the keyboard Controller in a
 // window on a fixed-step clock, or the straight line), the 2-D map, the
-// window, screenshots and the video.
+// window, screenshots and the video; with a scenario (`--scenario`), the
+// simulation (sim_session.h) stepped on the same fixed-step clock, its
+// entities drawn and shown on the map and the panel, and the eye attached
+// to or driving an entity.
 //
 // Threads: pose() runs on fly()'s main thread (it polls the window's
 // keys there); overlay(), frameDone() and frameShown() run on its render
@@ -26,6 +29,7 @@
 #include "sandtable/formats/database.h"
 #include "sandtable/world/controls.h"
 #include "sandtable/viewer/flight.h"
+#include "sandtable/viewer/sim_session.h"
 #include "sandtable/render/map_view.h"
 #include "sandtable/world/path.h"
 #include "sandtable/world/clock.h"
@@ -50,6 +54,10 @@ struct FlySessionSettings {
   /// Called on the render thread after each frame is done (e.g. to show
   /// progress); `frame` counts from 0.
   std::function<void(std::uint32_t frame)> onFrameDone;
+  /// A scenario's simulation (`--scenario`), or null. Stepped on the
+  /// flight's clock: headless, frame k at k / 30 s; in a window, one step
+  /// per fixed step of the wall clock.
+  std::unique_ptr<SimSession> sim;
 };
 
 /// Per frame, what the render thread needs of the controller's state.
@@ -58,6 +66,8 @@ struct FrameControl {
   bool map = false;
   int mapScale = 0;
   bool screenshot = false;
+  std::vector<MapMark> marks;  ///< the scenario's entities on the map, as of this frame
+  bool viewerMarker = true;    ///< false while the eye is attached (its entity's mark is selected)
 };
 
 /// Frames go from the main thread to the render thread in order; the
@@ -87,6 +97,10 @@ class FlySession final : public FlightApplication {
   void frameDone(std::uint32_t frame, const runtime::Image& img) override;
   void frameShown(const runtime::FrameStats& s) override;
   PresentTarget* window() override;
+  void frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) override;
+  std::vector<std::pair<std::string, std::string>> statsSections() override;
+  /// The scenario's simulation, or null.
+  const SimSession* sim() const { return settings_.sim.get(); }
   /// After fly(): finishes the video; the first error of the flight's
   /// screenshots or video.
   Status finish();
@@ -95,6 +109,8 @@ class FlySession final : public FlightApplication {
 
  private:
   double pollKeys();  ///< window: handles the keys, returns the wall-clock time since the last poll
+  /// The stealth eye's controller again from `p` (after detaching).
+  void reseedController(const runtime::Pose& p);
   runtime::Pose headlessPose(double t);
   runtime::Pose windowPose(double clock) const;
   void saveScreenshot(const runtime::Image& img);
@@ -114,6 +130,7 @@ class FlySession final : public FlightApplication {
   bool quitAfterThisFrame_ = false, quitting_ = false;
   FixedStepClock clock_;  ///< window: flight time, advanced in fixed steps of the wall clock
   std::optional<double> lastWall_;
+  runtime::Pose lastPose_;  ///< the pose of the last frame (a detached eye starts there)
   // render thread
   std::unique_ptr<runtime::MapView> map_;
   FrameControl current_;

@@ -12,7 +12,8 @@
 // the same thread. open() and the destructor restore it the same way.
 //
 // Keys: pollEvents() returns presses and releases of the keys controls.h
-// knows (others are dropped). X11 auto-repeat is made "detectable", so a
+// knows; presses of the entity keys (viewer_keys.h) wait for
+// takeViewerKeys(); others are dropped. X11 auto-repeat is made "detectable", so a
 // held key gives one press and one release; the Controller does its own
 // repeating. Closing the window (WM_DELETE_WINDOW) reports Key::quit.
 //
@@ -32,6 +33,7 @@
 #include "sandtable/world/controls.h"
 #include "sandtable/render/image.h"
 #include "sandtable/render/present.h"
+#include "sandtable/viewer/viewer_keys.h"
 
 namespace sandtable::runtime {
 
@@ -56,6 +58,9 @@ class ViewerWindow : public PresentTarget {
 
   /// Every key event queued since the last call, oldest first; never blocks.
   std::vector<KeyEvent> pollEvents();
+  /// Presses of the entity keys (viewer_keys.h: Tab, Shift+Tab, E, D,
+  /// Space) that pollEvents() has read since the last call, oldest first.
+  std::vector<ViewerKey> takeViewerKeys();
   /// True once the window manager asked the window to close.
   bool closeRequested() const { return closeRequested_.load(); }
 
@@ -100,6 +105,7 @@ class ViewerWindow : public PresentTarget {
   std::atomic<bool> closeRequested_{false};
   mutable std::mutex mutex_;  // guards the X connection, EGL use and the fields below
   std::uint32_t downMask_ = 0;  // keys pressed and not yet released, by Key
+  std::vector<ViewerKey> viewerKeys_;  // entity keys read by pollEvents(), not yet taken
   std::string renderer_;
 };
 

@@ -191,7 +191,7 @@ class Simulation {
   };
   std::vector<Script> scripts_;
   std::vector<ScriptLine> lastLine_;  ///< per entity: the script line it dead-reckons from
-  std::vector<bool> scripted_;
+  std::vector<bool> scripted_, lineApplied_;
   std::optional<ScriptRecorder> recorder_;
   std::uint32_t recordId_ = 0, recordEntity_ = 0, recordType_ = 0;
 

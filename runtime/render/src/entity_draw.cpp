@@ -1,0 +1,614 @@
+#include "entity_draw.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "icon_textures.h"
+#include "module_draw.h"
+#include "sandtable/scene/camera_math.h"
+#include "terrain_shading.h"
+
+namespace sandtable::runtime::detail {
+namespace {
+
+// Appended to shadingVertexGlsl(). The turret (aPivot.w != 0) turns about
+// Y at its ring; then the quaternion takes the body to the world.
+const char* kEntityVertexMain = R"(
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec4 aColour;
+layout(location = 3) in vec4 aPlace;     // origin x, y, z and scale
+layout(location = 4) in vec4 aRotation;  // body to world quaternion (x, y, z, w)
+layout(location = 5) in vec2 aUv;
+layout(location = 6) in float aLayer;
+layout(location = 7) in vec4 aPivot;     // turret ring x, y, z (body frame) and angle (radians)
+uniform mat4 uViewProjection;
+uniform vec3 uEye;
+out vec3 vColour;
+out float vLight;
+out float vFog;
+out vec2 vUv;
+flat out float vLayer;
+vec3 rotateQ(vec4 q, vec3 v) {
+  vec3 t = 2.0 * cross(q.xyz, v);
+  return v + q.w * t + cross(q.xyz, t);
+}
+// Clockwise seen from above, as a heading turns north (-Z) to east (+X).
+vec3 turnY(vec3 v, float a) {
+  float c = cos(a), s = sin(a);
+  return vec3(v.x * c - v.z * s, v.y, v.x * s + v.z * c);
+}
+void main() {
+  vec3 body = turnY(aPosition, aPivot.w) + aPivot.xyz;
+  vec3 w = rotateQ(aRotation, body * aPlace.w) + aPlace.xyz;
+  vec3 n = rotateQ(aRotation, turnY(aNormal, aPivot.w));
+  gl_Position = uViewProjection * vec4(w, 1.0);
+  vColour = aColour.rgb;
+  vLight = sunLight(n);
+  vFog = fogWeight(distance(w, uEye));
+  vUv = aUv;
+  vLayer = aLayer;
+}
+)";
+
+// Appended to iconFragmentGlsl(): the object pass's colours without its fade.
+const char* kEntityFragmentMain = R"(
+in vec3 vColour;
+in float vLight;
+in float vFog;
+in vec2 vUv;
+flat in float vLayer;
+out vec4 fragColor;
+void main() {
+  vec3 colour;
+  if (!iconColour(vColour, vUv, vLayer, colour)) discard;
+  fragColor = vec4(mix(uFogColor, colour * vLight, vFog), 1.0);
+}
+)";
+
+// Appended to shadingVertexGlsl().
+const char* kEffectVertexMain = R"(
+layout(location = 0) in vec3 aPosition;
+layout(location = 1) in vec2 aUv;
+layout(location = 2) in vec4 aColour;
+uniform mat4 uViewProjection;
+uniform vec3 uEye;
+out vec2 vUv;
+out vec4 vColour;
+out float vFog;
+void main() {
+  gl_Position = uViewProjection * vec4(aPosition, 1.0);
+  vUv = aUv;
+  vColour = aColour;
+  vFog = fogWeight(distance(aPosition, uEye));
+}
+)";
+
+// Appended to shadingHeaderGlsl(). Premultiplied output, blended with
+// (ONE, ONE_MINUS_SRC_ALPHA). Trails thin out towards their edges; a flash
+// is a disc with a white-hot core over its colour, soft at the rim.
+const char* kEffectFragmentMain = R"(
+uniform int uKind;  // 0 trail, 1 flash, 2 contact shadow
+in vec2 vUv;
+in vec4 vColour;
+in float vFog;
+out vec4 fragColor;
+void main() {
+  vec3 c = vColour.rgb;
+  float a;
+  if (uKind == 0) {
+    a = vColour.a * (1.0 - vUv.y * vUv.y);
+  } else if (uKind == 2) {
+    // A rounded rectangle, darkest under the body, soft at the rim.
+    vec2 q = max(abs(vUv) - vec2(0.55), vec2(0.0)) / 0.45;
+    a = vColour.a * (1.0 - smoothstep(0.0, 1.0, length(q)));
+  } else {
+    float d = length(vUv);
+    if (d > 1.0) discard;
+    c = mix(c, vec3(1.0, 0.97, 0.85), 1.0 - smoothstep(0.0, 0.6, d));
+    a = vColour.a * (1.0 - smoothstep(0.55, 1.0, d));
+  }
+  c = mix(uFogColor, c, vFog);
+  fragColor = vec4(c * a, a);
+}
+)";
+
+bool isTurret(const std::string& name) {
+  std::string lower = name;
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return lower == "turret";
+}
+
+/// Whether part p is the turret or hangs from it.
+bool inTurret(const iconpack::Icon& icon, std::size_t p) {
+  for (auto k = std::int32_t(p); k != iconpack::kBody && std::size_t(k) < icon.parts.size();
+       k = icon.parts[std::size_t(k)].parent) {
+    if (isTurret(icon.parts[std::size_t(k)].name)) return true;
+    if (icon.parts[std::size_t(k)].parent >= k) break;  // decode forbids it; never loop
+  }
+  return false;
+}
+
+bool hasState(const iconpack::Icon& icon, iconpack::State s) {
+  return std::any_of(icon.parts.begin(), icon.parts.end(), [s](const iconpack::Part& p) { return p.state == s; });
+}
+
+/// One state of one icon: body and turret index ranges over one vertex run.
+EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, EntityMeshes& out, float& reach,
+                         std::array<float, 6>& body3) {
+  EntityShape shape;
+  const auto base = std::int32_t(out.vertices.size());
+  std::vector<std::uint32_t> body, turret;
+  for (std::size_t p = 0; p < icon.parts.size(); ++p) {
+    const iconpack::Part& part = icon.parts[p];
+    if (part.state != state || !inTurret(icon, p) || !isTurret(part.name)) continue;
+    shape.pivot = iconpack::partOrigin(icon, p);
+    break;
+  }
+  const double pivotLength = std::hypot(shape.pivot[0], shape.pivot[1], shape.pivot[2]);
+  for (std::size_t p = 0; p < icon.parts.size(); ++p) {
+    const iconpack::Part& part = icon.parts[p];
+    if (part.state != state) continue;
+    const bool turning = inTurret(icon, p);
+    std::array<float, 3> offset = iconpack::partOrigin(icon, p);
+    if (turning) {
+      for (int k = 0; k < 3; ++k) offset[std::size_t(k)] -= shape.pivot[std::size_t(k)];
+    }
+    for (const iconpack::Mesh& m : part.meshes) {
+      const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
+      for (std::size_t v = 0; v < m.vertexCount(); ++v) {
+        const IconVertex iv = iconVertex(icon, m, v, offset, shape.textured);
+        out.vertices.push_back(iv);
+        const double r = std::hypot(double(iv.x), double(iv.y), double(iv.z));
+        reach = std::max(reach, float(turning ? r + pivotLength : r));
+        if (turning) continue;
+        const std::array<float, 3> at{iv.x, iv.y, iv.z};
+        for (std::size_t k = 0; k < 3; ++k) {
+          body3[k] = std::min(body3[k], at[k]);
+          body3[k + 3] = std::max(body3[k + 3], at[k]);
+        }
+      }
+      if (m.levels.empty()) continue;
+      for (const std::uint32_t i : m.levels[0]) (turning ? turret : body).push_back(first + i);
+    }
+  }
+  shape.body = {std::uint32_t(out.indices.size()), std::uint32_t(body.size()), base};
+  out.indices.insert(out.indices.end(), body.begin(), body.end());
+  shape.turret = {std::uint32_t(out.indices.size()), std::uint32_t(turret.size()), base};
+  out.indices.insert(out.indices.end(), turret.begin(), turret.end());
+  return shape;
+}
+
+std::array<float, 4> toArray(const Eigen::Quaterniond& q) {
+  const Eigen::Quaterniond n = q.normalized();
+  return {float(n.x()), float(n.y()), float(n.z()), float(n.w())};
+}
+
+std::uint32_t packColour(std::uint8_t r, std::uint8_t g, std::uint8_t b, double alpha) {
+  const auto a = std::uint32_t(std::lround(std::clamp(alpha, 0.0, 1.0) * 255.0));
+  return std::uint32_t(r) | (std::uint32_t(g) << 8) | (std::uint32_t(b) << 16) | (a << 24);
+}
+
+/// The pixels a trail's ribbon and a flash are at least wide.
+constexpr double kTrailMinPixels = 1.5;
+constexpr double kFlashMinPixels = 10;
+
+}  // namespace
+
+EntityMeshes flattenEntityIcons(const iconpack::Pack& pack) {
+  EntityMeshes out;
+  for (const iconpack::Icon& icon : pack.icons) {
+    float reach = 0;
+    std::array<float, 6> body{INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY}, deadBody = body;
+    std::array<EntityShape, 2> shapes;
+    shapes[0] = flattenState(icon, iconpack::State::alive, out, reach, body);
+    // No dead parts: the dead draw as the living (a jeep has no wreck).
+    shapes[1] = hasState(icon, iconpack::State::dead)
+                    ? flattenState(icon, iconpack::State::dead, out, reach, deadBody)
+                    : shapes[0];
+    out.shapes.push_back(shapes);
+    out.reach.push_back(reach);
+    out.footprint.push_back(body[0] <= body[3] ? body : std::array<float, 6>{0, 0, 0, 0, 0, 0});
+  }
+  return out;
+}
+
+std::array<float, 4> headingQuaternion(double headingDeg) {
+  // Clockwise from above is a negative turn about +Y (right-handed).
+  return toArray(Eigen::Quaterniond(Eigen::AngleAxisd(-headingDeg * kDegToRad, Eigen::Vector3d::UnitY())));
+}
+
+std::array<float, 4> lyingQuaternion(double headingDeg) {
+  const Eigen::Quaterniond heading(Eigen::AngleAxisd(-headingDeg * kDegToRad, Eigen::Vector3d::UnitY()));
+  // -90 degrees about the right axis takes up (+Y) to forward (-Z).
+  const Eigen::Quaterniond down(Eigen::AngleAxisd(-0.5 * kPi, Eigen::Vector3d::UnitX()));
+  return toArray(heading * down);
+}
+
+EffectView effectViewOf(const DisplayBuffer& buf, std::uint32_t imageHeight) {
+  const Camera& cam = buf.camera;
+  EffectView v;
+  v.originX = buf.originX;
+  v.originZ = buf.originZ;
+  v.eye = {cam.x - buf.originX, cam.y, cam.z - buf.originZ};
+  const double h = cam.headingDeg * kDegToRad, p = cam.pitchDeg * kDegToRad;
+  const Eigen::Vector3d forward(std::cos(p) * std::sin(h), std::sin(p), -std::cos(p) * std::cos(h));
+  v.right = Eigen::Vector3d(std::cos(h), 0.0, std::sin(h));
+  v.up = v.right.cross(forward).normalized();
+  v.focal = 0.5 * double(imageHeight) / std::tan(0.5 * cam.vfovDeg() * kDegToRad);
+  return v;
+}
+
+void appendTrail(const Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
+  const std::size_t n = trail.points.size();
+  if (n < 2 || !(trail.lifeS > 0)) return;
+  struct Edge {
+    Eigen::Vector3d left, right;
+    std::uint32_t rgba;
+  };
+  std::vector<Edge> edges(n);
+  const auto at = [&](std::size_t i) {
+    const TrailPoint& q = trail.points[i];
+    return Eigen::Vector3d(q.x - view.originX, q.y, q.z - view.originZ);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = at(i);
+    const Eigen::Vector3d along = at(std::min(i + 1, n - 1)) - at(i > 0 ? i - 1 : 0);
+    const Eigen::Vector3d toEye = view.eye - p;
+    Eigen::Vector3d side = along.cross(toEye);
+    side = side.norm() > 1e-9 ? side.normalized() : view.right;
+    const double half = std::max(0.3, 0.5 * minPixels * toEye.norm() / view.focal);
+    const double alpha = 0.85 * std::clamp(1.0 - double(trail.points[i].ageS) / double(trail.lifeS), 0.0, 1.0);
+    edges[i] = {p - side * half, p + side * half, packColour(trail.rgb[0], trail.rgb[1], trail.rgb[2], alpha)};
+  }
+  const auto vertex = [](const Eigen::Vector3d& p, float v, std::uint32_t rgba) {
+    return EffectVertex{float(p.x()), float(p.y()), float(p.z()), 0.0f, v, rgba};
+  };
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const Edge& a = edges[i];
+    const Edge& b = edges[i + 1];
+    out.push_back(vertex(a.left, -1, a.rgba));
+    out.push_back(vertex(a.right, 1, a.rgba));
+    out.push_back(vertex(b.left, -1, b.rgba));
+    out.push_back(vertex(a.right, 1, a.rgba));
+    out.push_back(vertex(b.right, 1, b.rgba));
+    out.push_back(vertex(b.left, -1, b.rgba));
+  }
+}
+
+void appendShadow(const Eigen::Vector3d& origin, const std::array<float, 4>& orientation, float scale,
+                  const std::array<float, 6>& bounds, std::vector<EffectVertex>& out) {
+  const Eigen::Quaterniond q(orientation[3], orientation[0], orientation[1], orientation[2]);
+  constexpr double kMargin = 0.5, kLift = 0.06;
+  // Pushed half the way a real shadow would fall from the fixed sun, so it
+  // shows beside the body rather than only under it.
+  const auto sun = sunDirection();
+  const double lean = 0.5 * std::max(0.0, double(bounds[4])) * double(scale) / std::max(double(sun[1]), 0.1);
+  const Eigen::Vector3d shift(-double(sun[0]) * lean, 0.0, -double(sun[2]) * lean);
+  const double x0 = bounds[0] - kMargin, x1 = bounds[3] + kMargin;
+  const double z0 = bounds[2] - kMargin, z1 = bounds[5] + kMargin;
+  if (!(x1 > x0 && z1 > z0)) return;
+  const std::uint32_t rgba = packColour(0, 0, 0, 0.5);
+  const auto corner = [&](float u, float v) {
+    const Eigen::Vector3d body(u < 0 ? x0 : x1, kLift / std::max(double(scale), 1e-6), v < 0 ? z0 : z1);
+    const Eigen::Vector3d p = origin + q.normalized() * (body * double(scale)) + shift;
+    return EffectVertex{float(p.x()), float(p.y()), float(p.z()), u, v, rgba};
+  };
+  out.push_back(corner(-1, -1));
+  out.push_back(corner(1, -1));
+  out.push_back(corner(1, 1));
+  out.push_back(corner(-1, -1));
+  out.push_back(corner(1, 1));
+  out.push_back(corner(-1, 1));
+}
+
+void appendFlash(const Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
+  if (!(flash.durationS > 0) || flash.ageS < 0 || flash.ageS >= flash.durationS) return;
+  const double f = double(flash.ageS) / double(flash.durationS);
+  double r = double(flash.radiusM) * (0.35 + 0.65 * std::sqrt(f));
+  // Lifted by a quarter of its radius: a ground burst shows as a dome.
+  const Eigen::Vector3d c(flash.x - view.originX, flash.y + 0.25 * r, flash.z - view.originZ);
+  r = std::max(r, 0.5 * minPixels * (c - view.eye).norm() / view.focal);
+  const std::uint32_t rgba = packColour(255, 120, 30, 1.0 - f * f);
+  const auto corner = [&](float u, float v) {
+    const Eigen::Vector3d p = c + view.right * (double(u) * r) + view.up * (double(v) * r);
+    return EffectVertex{float(p.x()), float(p.y()), float(p.z()), u, v, rgba};
+  };
+  out.push_back(corner(-1, -1));
+  out.push_back(corner(1, -1));
+  out.push_back(corner(1, 1));
+  out.push_back(corner(-1, -1));
+  out.push_back(corner(1, 1));
+  out.push_back(corner(-1, 1));
+}
+
+EntityRenderer::~EntityRenderer() {
+  program_.reset();
+  texturedProgram_.reset();
+  effectProgram_.reset();
+  glDeleteVertexArrays(1, &vao_);
+  glDeleteVertexArrays(1, &effectVao_);
+  glDeleteBuffers(1, &vertexBuffer_);
+  glDeleteBuffers(1, &indexBuffer_);
+  glDeleteBuffers(1, &instanceBuffer_);
+  glDeleteBuffers(1, &effectBuffer_);
+  if (ownTextures_) glDeleteTextures(1, &textures_);
+}
+
+Status EntityRenderer::create(const RenderSettings& s, GLuint textures) {
+  settings_ = s;
+  EntityMeshes meshes = flattenEntityIcons(*s.icons);
+  shapes_ = std::move(meshes.shapes);
+  reach_ = std::move(meshes.reach);
+  footprint_ = std::move(meshes.footprint);
+  farRange_.clear();
+  for (const iconpack::Icon& icon : s.icons->icons) {
+    farRange_.push_back(icon.ranges.empty() ? INFINITY : double(icon.ranges.back()));
+  }
+  bool anyTextured = false;
+  for (const auto& st : shapes_) anyTextured = anyTextured || st[0].textured || st[1].textured;
+  textures_ = textures;
+  if (textures_ == 0 && anyTextured) {
+    std::vector<std::string> warnings;
+    textures_ = uploadIconTextures(*s.icons, warnings);
+    ownTextures_ = textures_ != 0;
+    for (const std::string& w : warnings) std::fprintf(stderr, "sandtable: warning: %s\n", w.c_str());
+  }
+  for (const bool textured : {false, true}) {
+    if (textured && textures_ == 0) continue;
+    auto program = GlProgram::build(textured ? "textured entity shader" : "entity shader",
+                                    shadingVertexGlsl() + kEntityVertexMain,
+                                    iconFragmentGlsl(textured, kEntityFragmentMain));
+    if (!program) return program.problems();
+    GlProgram& p = textured ? texturedProgram_ : program_;
+    p = std::move(program.value());
+    p.use();
+    setShadingUniforms(p, s);
+    if (textured) p.set("uIconTextures", 2);
+  }
+  auto effects = GlProgram::build("effects shader", shadingVertexGlsl() + kEffectVertexMain,
+                                  shadingHeaderGlsl() + kEffectFragmentMain);
+  if (!effects) return effects.problems();
+  effectProgram_ = std::move(effects.value());
+  effectProgram_.use();
+  setShadingUniforms(effectProgram_, s);
+
+  glCreateBuffers(1, &vertexBuffer_);
+  glNamedBufferStorage(vertexBuffer_,
+                       GLsizeiptr(std::max<std::size_t>(1, meshes.vertices.size()) * sizeof(IconVertex)),
+                       meshes.vertices.empty() ? nullptr : meshes.vertices.data(), 0);
+  glCreateBuffers(1, &indexBuffer_);
+  glNamedBufferStorage(indexBuffer_,
+                       GLsizeiptr(std::max<std::size_t>(1, meshes.indices.size()) * sizeof(std::uint32_t)),
+                       meshes.indices.empty() ? nullptr : meshes.indices.data(), 0);
+  glCreateBuffers(1, &instanceBuffer_);
+  glCreateVertexArrays(1, &vao_);
+  glVertexArrayVertexBuffer(vao_, 0, vertexBuffer_, 0, sizeof(IconVertex));
+  glVertexArrayElementBuffer(vao_, indexBuffer_);
+  bindIconVertex(vao_);
+  const auto instanceAttrib = [&](GLuint loc, GLuint offset) {
+    glEnableVertexArrayAttrib(vao_, loc);
+    glVertexArrayAttribFormat(vao_, loc, 4, GL_FLOAT, GL_FALSE, offset);
+    glVertexArrayAttribBinding(vao_, loc, 1);
+  };
+  instanceAttrib(3, offsetof(EntityInstanceGpu, x));
+  instanceAttrib(4, offsetof(EntityInstanceGpu, q));
+  instanceAttrib(7, offsetof(EntityInstanceGpu, px));
+  glVertexArrayBindingDivisor(vao_, 1, 1);
+
+  glCreateBuffers(1, &effectBuffer_);
+  glCreateVertexArrays(1, &effectVao_);
+  const auto effectAttrib = [&](GLuint loc, GLint n, GLenum type, GLboolean norm, GLuint offset) {
+    glEnableVertexArrayAttrib(effectVao_, loc);
+    glVertexArrayAttribFormat(effectVao_, loc, n, type, norm, offset);
+    glVertexArrayAttribBinding(effectVao_, loc, 0);
+  };
+  effectAttrib(0, 3, GL_FLOAT, GL_FALSE, offsetof(EffectVertex, x));
+  effectAttrib(1, 2, GL_FLOAT, GL_FALSE, offsetof(EffectVertex, u));
+  effectAttrib(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(EffectVertex, rgba));
+  return {};
+}
+
+double EntityRenderer::drawnY(const DisplayBuffer& buf, const ModuleRenderer* modules, const DynamicInstance& d) {
+  if (!d.onSurface || !modules || !buf.moduleMode || !(buf.moduleSize > 0) || !settings_.grid) return d.y;
+  const double kxf = std::floor(d.x / buf.moduleSize), kzf = std::floor(d.z / buf.moduleSize);
+  if (kxf < 0 || kzf < 0) return d.y;
+  const auto kx = std::uint32_t(kxf), kz = std::uint32_t(kzf);
+  for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
+    const ModuleDraw& md = buf.modules[m];
+    if (md.kx != kx || md.kz != kz || !md.ref) continue;
+    std::uint32_t level = 0;
+    float morph = 0;
+    if (!modules->drawnAt(m, d.x - kxf * buf.moduleSize, d.z - kzf * buf.moduleSize, level, morph)) return d.y;
+    if (level == 0 && morph == 0) return d.y;
+    const auto levels = std::uint32_t(md.ref.module().levels.size());
+    if (!clamp_ || levels > clampLevels_) {
+      const auto squares = std::uint32_t(std::lround(buf.moduleSize / settings_.grid->spacing()));
+      clamp_.emplace(settings_.grid, squares, levels);
+      clampLevels_ = levels;
+    }
+    const auto drawn = clamp_->surfaceXZ(d.x, d.z, DrawnLevel{level, morph});
+    const auto finest = clamp_->surfaceXZ(d.x, d.z);
+    return drawn && finest ? d.y + (*drawn - *finest) : d.y;
+  }
+  return d.y;
+}
+
+void EntityRenderer::add(const DisplayBuffer& buf, const DynamicInstance& d, double y,
+                         const std::array<Eigen::Vector4d, 5>& planes, RenderStats& stats) {
+  if (d.icon >= shapes_.size()) return;
+  const Camera& cam = buf.camera;
+  const Eigen::Vector3d origin(d.x - buf.originX, y, d.z - buf.originZ);
+  const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
+  const double radius = double(reach_[d.icon]) * double(d.scale);
+  const double distance = (origin - eye).norm();
+  if (distance - radius >= std::min(farRange_[d.icon], cam.viewDistance)) return;
+  const Eigen::Vector4d c(origin.x(), origin.y(), origin.z(), 1.0);
+  for (const auto& p : planes) {
+    if (p.dot(c) < -radius) return;
+  }
+  // Shadows only where they are worth seeing: within a kilometre.
+  if (d.shadow && distance < 1000) {
+    appendShadow(origin, d.orientation, d.scale, footprint_[d.icon], shadowVertices_);
+  }
+  const EntityShape& shape = shapes_[d.icon][d.dead ? 1 : 0];
+  EntityInstanceGpu g{float(origin.x()), float(origin.y()), float(origin.z()), d.scale,
+                      {d.orientation[0], d.orientation[1], d.orientation[2], d.orientation[3]},
+                      0.0f, 0.0f, 0.0f, 0.0f};
+  if (shape.body.count > 0) {
+    stream_.push_back(g);
+    draws_.push_back({shape.body, shape.textured});
+  }
+  if (shape.turret.count > 0) {
+    g.px = shape.pivot[0];
+    g.py = shape.pivot[1];
+    g.pz = shape.pivot[2];
+    g.turretRad = float(double(d.turretAzimuthDeg) * kDegToRad);
+    stream_.push_back(g);
+    draws_.push_back({shape.turret, shape.textured});
+  }
+  ++stats.entitiesDrawn;
+}
+
+void EntityRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer* modules,
+                             const std::vector<DynamicInstance>& diverted, RenderStats& stats) {
+  draws_.clear();
+  stream_.clear();
+  shadowVertices_.clear();
+  auto planes = frustumPlanes(detail::viewProjection(buf.camera, buf.originX, buf.originZ));
+  for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
+  for (const DynamicInstance& d : buf.dynamic.instances) add(buf, d, drawnY(buf, modules, d), planes, stats);
+  // Changed static objects already stand on the drawn level (the object pass placed them).
+  const std::uint32_t before = stats.entitiesDrawn;
+  for (const DynamicInstance& d : diverted) add(buf, d, d.y, planes, stats);
+  stats.objectsChangedDrawn += stats.entitiesDrawn - before;
+  stats.entitiesDrawn = before;
+}
+
+void EntityRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
+  if (stream_.empty()) return;
+  glNamedBufferData(instanceBuffer_, GLsizeiptr(stream_.size() * sizeof(EntityInstanceGpu)), stream_.data(),
+                    GL_STREAM_DRAW);
+  glVertexArrayVertexBuffer(vao_, 1, instanceBuffer_, 0, sizeof(EntityInstanceGpu));
+  for (const GlProgram* p : {&program_, &texturedProgram_}) {
+    if (!*p) continue;
+    p->use();
+    p->setMatrix4("uViewProjection", viewProjection.data());
+    setFrameShading(*p, buf);
+  }
+  if (textures_ != 0) glBindTextureUnit(2, textures_);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);  // imported models need not be closed
+  glBindVertexArray(vao_);
+  const GlProgram* current = nullptr;
+  for (std::size_t k = 0; k < draws_.size(); ++k) {
+    const Draw& d = draws_[k];
+    const GlProgram* wanted = d.textured && textures_ != 0 ? &texturedProgram_ : &program_;
+    if (wanted != current) {
+      wanted->use();
+      current = wanted;
+    }
+    glDrawElementsInstancedBaseVertexBaseInstance(
+        GL_TRIANGLES, GLsizei(d.range.count), GL_UNSIGNED_INT,
+        reinterpret_cast<const void*>(std::uintptr_t(d.range.firstIndex) * sizeof(std::uint32_t)), 1,
+        d.range.baseVertex, GLuint(k));
+    stats.entityTriangles += d.range.count / 3;
+  }
+  glBindVertexArray(0);
+}
+
+void EntityRenderer::drawEffects(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+                                 RenderStats& stats) {
+  const DynamicScene& dyn = buf.dynamic;
+  if (dyn.trails.empty() && dyn.flashes.empty() && shadowVertices_.empty()) return;
+  const EffectView view = effectViewOf(buf, settings_.height);
+  trailVertices_.clear();
+  flashVertices_.clear();
+  for (const Trail& t : dyn.trails) {
+    const std::size_t before = trailVertices_.size();
+    appendTrail(t, view, kTrailMinPixels, trailVertices_);
+    stats.trailsDrawn += trailVertices_.size() > before;
+  }
+  for (const Flash& f : dyn.flashes) {
+    const std::size_t before = flashVertices_.size();
+    appendFlash(f, view, kFlashMinPixels, flashVertices_);
+    stats.flashesDrawn += flashVertices_.size() > before;
+  }
+  // One stream: shadows, trails, flashes.
+  const auto shadows = GLsizei(shadowVertices_.size()), trails = GLsizei(trailVertices_.size());
+  const auto flashes = GLsizei(flashVertices_.size());
+  if (shadows + trails + flashes == 0) return;
+  shadowVertices_.insert(shadowVertices_.end(), trailVertices_.begin(), trailVertices_.end());
+  shadowVertices_.insert(shadowVertices_.end(), flashVertices_.begin(), flashVertices_.end());
+  glNamedBufferData(effectBuffer_, GLsizeiptr(shadowVertices_.size() * sizeof(EffectVertex)), shadowVertices_.data(),
+                    GL_STREAM_DRAW);
+  glVertexArrayVertexBuffer(effectVao_, 0, effectBuffer_, 0, sizeof(EffectVertex));
+  effectProgram_.use();
+  effectProgram_.setMatrix4("uViewProjection", viewProjection.data());
+  setFrameShading(effectProgram_, buf);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_GREATER);
+  glDepthMask(GL_FALSE);  // seen through each other, hidden by the ground
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glDisable(GL_CULL_FACE);
+  glBindVertexArray(effectVao_);
+  if (shadows > 0) {
+    // Reversed Z: a positive offset pulls the shadow towards the eye, over
+    // the ground it lies on (as the decals do).
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(1.0f, 8.0f);
+    effectProgram_.set("uKind", 2);
+    glDrawArrays(GL_TRIANGLES, 0, shadows);
+    glDisable(GL_POLYGON_OFFSET_FILL);
+  }
+  if (trails > 0) {
+    effectProgram_.set("uKind", 0);
+    glDrawArrays(GL_TRIANGLES, shadows, trails);
+  }
+  if (flashes > 0) {
+    effectProgram_.set("uKind", 1);
+    glDrawArrays(GL_TRIANGLES, shadows + trails, flashes);
+  }
+  glBindVertexArray(0);
+  glDisable(GL_BLEND);
+  glDepthMask(GL_TRUE);
+}
+
+void EntityRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+                          const ModuleRenderer* modules, const std::vector<DynamicInstance>& diverted,
+                          RenderStats& stats) {
+  if (settings_.colour == ColourMode::height) return;  // data pixels: terrain heights only
+  collect(buf, modules, diverted, stats);
+  submit(buf, viewProjection, stats);
+  drawEffects(buf, viewProjection, stats);
+}
+
+void EntityRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
+  if (settings_.colour == ColourMode::height || shapes_.empty()) return;
+  DisplayBuffer b;
+  b.camera = buf.camera;
+  b.originX = buf.originX;
+  b.originZ = buf.originZ;
+  DynamicInstance d;
+  d.z = -20;
+  d.shadow = true;  // its shadow too
+  d.orientation = headingQuaternion(30);
+  d.turretAzimuthDeg = 10;
+  // The tank's turret if there is one: both groups' draws compile the same program.
+  b.dynamic.instances.push_back(d);
+  Trail t;
+  t.points = {{-2, 1, -20, 0.5f}, {2, 2, -22, 0.1f}};
+  b.dynamic.trails.push_back(t);
+  b.dynamic.flashes.push_back({0, 1, -20, 0.1f, 0.5f, 3});
+  RenderStats ignored;
+  draw(b, viewProjection, nullptr, {}, ignored);
+}
+
+}  // namespace sandtable::runtime::detail

@@ -1,0 +1,172 @@
+#pragma once
+// Drawing what moves (docs/VIEWER.md, "Entities"): the DisplayBuffer's
+// DynamicScene (scene/dynamic.h) — entities with their icons, munition
+// trails and detonation flashes — and the static objects a simulation
+// changed (knocked over, stumps, ruins), which the object pass hands over.
+// Private to the renderer; every GL call on the render thread.
+//
+// Meshes. At create() every icon is flattened per state (alive, dead) into
+// two groups at full detail (level 0): the body (every part but the turret)
+// and the turret (the part named "turret" and its children), the turret's
+// vertices in its own frame so that it turns about its ring (its origin,
+// iconpack::partOrigin). An icon without dead parts draws its alive parts
+// when dead. Entities are few: no coarser levels, no impostors, no
+// thinning; each is drawn out to its icon's far range (capped at the view
+// distance).
+//
+// Instances. Each draw has its origin, scale, a body-to-world quaternion
+// and the turret's pivot and angle; the vertex stage turns the turret
+// about Y at its pivot, then rotates by the quaternion (full pitch, roll
+// and heading, where static objects take a heading only).
+//
+// Ground. An instance marked onSurface stands on the finest surface (the
+// simulator's); it is moved by the difference between the surface drawn
+// under it (the level and morph the terrain pass drew there, after the
+// upload budget's fallback) and the finest one, so it stands on what is
+// drawn (seed Figure 23), as static objects do.
+//
+// Effects, after the opaque meshes, blended, depth-tested without depth
+// writes: a soft contact shadow under every entity that asks for one (a dark rounded
+// rectangle over its footprint, in its own tilt, pulled towards the eye by
+// a polygon offset), so that what stands on the ground is seen to; trails
+// are camera-facing ribbons (at least ~1.5 pixels wide), fading with age;
+// flashes are camera-facing fireballs that grow and fade (at least ~10
+// pixels across). All built on the CPU each frame.
+#include <epoxy/gl.h>
+
+#include <Eigen/Dense>
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "object_draw.h"
+#include "sandtable/base/result.h"
+#include "sandtable/formats/icon_pack.h"
+#include "sandtable/render/gl_program.h"
+#include "sandtable/render/renderer.h"
+#include "sandtable/scene/display_buffer.h"
+#include "sandtable/world/ground.h"
+
+namespace sandtable::runtime::detail {
+
+class ModuleRenderer;
+
+/// One icon state's two groups in the entity buffers.
+struct EntityShape {
+  IconLevelRange body, turret;          ///< count 0: none
+  std::array<float, 3> pivot{0, 0, 0};  ///< the turret's ring, body frame
+  bool textured = false;
+};
+
+/// Every icon flattened for entities: [icon][state], state 0 alive, 1 dead
+/// (the alive shape again when the icon has no dead parts). Pure CPU.
+struct EntityMeshes {
+  std::vector<IconVertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<std::array<EntityShape, 2>> shapes;
+  std::vector<float> reach;  ///< per icon: farthest vertex from the origin (bounding sphere), unscaled
+  /// Per icon: its alive body's extent (min x, y, z, max x, y, z), the
+  /// turret left out (its gun overhangs): the contact shadow's footprint.
+  std::vector<std::array<float, 6>> footprint;
+};
+EntityMeshes flattenEntityIcons(const iconpack::Pack& pack);
+
+/// Body-to-world quaternion (x, y, z, w) of a heading (degrees clockwise
+/// from north, seen from above).
+std::array<float, 4> headingQuaternion(double headingDeg);
+/// A knocked-over object: its heading, then laid down forward (turned
+/// -90 degrees about its right axis), so its top points along the heading.
+std::array<float, 4> lyingQuaternion(double headingDeg);
+
+/// One entity draw: 48 bytes, divisor 1.
+struct EntityInstanceGpu {
+  float x, y, z, scale;    ///< origin relative to the buffer origin
+  float q[4];              ///< body to world
+  float px, py, pz;        ///< turret pivot, body frame (0 for the body)
+  float turretRad;         ///< turret angle, clockwise from above (0 for the body)
+};
+static_assert(sizeof(EntityInstanceGpu) == 48, "instance layout is shared with the shader");
+
+/// A trail or flash vertex: 24 bytes.
+struct EffectVertex {
+  float x, y, z;  ///< relative to the buffer origin
+  float u, v;     ///< flash: position in the disc (-1..1); trail: v across the ribbon (-1..1)
+  std::uint32_t rgba;
+};
+static_assert(sizeof(EffectVertex) == 24, "vertex layout is shared with the shader");
+
+/// What the effects need of the camera (buffer-relative eye and axes).
+struct EffectView {
+  Eigen::Vector3d eye = Eigen::Vector3d::Zero();
+  Eigen::Vector3d right = Eigen::Vector3d::UnitX(), up = Eigen::Vector3d::UnitY();
+  double focal = 1000;  ///< pixels per metre at one metre
+  double originX = 0, originZ = 0;
+};
+EffectView effectViewOf(const DisplayBuffer& buf, std::uint32_t imageHeight);
+
+/// Appends a trail's ribbon (two triangles per segment) facing the eye,
+/// at least `minPixels` wide; alpha 0.85 falling to 0 at the trail's life.
+void appendTrail(const Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
+/// Appends the contact shadow of an icon with footprint `bounds` (min x,
+/// y, z, max x, y, z; EntityMeshes::footprint) standing at `origin` (buffer-relative) turned by
+/// `orientation` (x, y, z, w): its footprint grown by 0.5 m, 6 cm up,
+/// moved half the way the fixed sun would cast it (terrain_shading.h).
+void appendShadow(const Eigen::Vector3d& origin, const std::array<float, 4>& orientation, float scale,
+                  const std::array<float, 6>& bounds, std::vector<EffectVertex>& out);
+/// Appends a flash's disc (two triangles) facing the eye: its radius grows
+/// from 35 % to 100 % of radiusM over its duration, and at least
+/// `minPixels` across; nothing once its age passes its duration.
+void appendFlash(const Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
+
+class EntityRenderer {
+ public:
+  EntityRenderer() = default;
+  ~EntityRenderer();
+  EntityRenderer(const EntityRenderer&) = delete;
+  EntityRenderer& operator=(const EntityRenderer&) = delete;
+
+  /// Compiles the programs and uploads every icon of s.icons (not null).
+  /// `textures`: the icon texture array the object pass uploaded (0: this
+  /// renderer uploads its own when the pack has textures).
+  Status create(const RenderSettings& s, GLuint textures);
+  /// The models pass's entities, diverted static objects and effects.
+  /// `modules` is null in grid-mesh mode (nothing to re-base on).
+  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer* modules,
+            const std::vector<DynamicInstance>& diverted, RenderStats& stats);
+  /// One entity, trail and flash into the warm-up frame (llvmpipe compiles at the first draw).
+  void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
+
+ private:
+  /// The instance's y on the drawn surface (onSurface), else its own.
+  double drawnY(const DisplayBuffer& buf, const ModuleRenderer* modules, const DynamicInstance& d);
+  void collect(const DisplayBuffer& buf, const ModuleRenderer* modules, const std::vector<DynamicInstance>& diverted,
+               RenderStats& stats);
+  void add(const DisplayBuffer& buf, const DynamicInstance& d, double y, const std::array<Eigen::Vector4d, 5>& planes,
+           RenderStats& stats);
+  void submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void drawEffects(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+
+  RenderSettings settings_;
+  GlProgram program_, texturedProgram_, effectProgram_;
+  GLuint textures_ = 0;
+  bool ownTextures_ = false;
+  GLuint vao_ = 0, vertexBuffer_ = 0, indexBuffer_ = 0, instanceBuffer_ = 0;
+  GLuint effectVao_ = 0, effectBuffer_ = 0;
+  std::vector<std::array<EntityShape, 2>> shapes_;
+  std::vector<float> reach_;
+  std::vector<double> farRange_;  ///< per icon: its last switch range (infinite without ranges)
+  std::optional<GroundClamp> clamp_;  ///< module mode: the surfaces of every level
+  std::uint32_t clampLevels_ = 0;
+  // Per-frame scratch (capacity kept).
+  struct Draw {
+    IconLevelRange range;
+    bool textured = false;
+  };
+  std::vector<Draw> draws_;
+  std::vector<EntityInstanceGpu> stream_;
+  std::vector<EffectVertex> shadowVertices_, trailVertices_, flashVertices_;
+  std::vector<std::array<float, 6>> footprint_;  ///< per icon (EntityMeshes::footprint)
+};
+
+}  // namespace sandtable::runtime::detail
