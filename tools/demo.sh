@@ -27,8 +27,12 @@ $st sim "$out/db" --scenario samples/demo.scenario --duration 300 --record "$out
 $st sim "$out/db" --scenario samples/demo.scenario --duration 300 --json > "$out/sim.json"
 echo "== fly (headless EGL)"
 $st fly "$out/db" --headless --png "$out/frames" --frames 60 --size 1280x720 --height 250 --heading 45 --map
+echo "== fly the scenario (headless EGL), attached to a blue tank as the first missiles fly"
+$st fly "$out/db" --scenario samples/demo.scenario --attach blue3 --sim-start 6 --headless --png "$out/battle" \
+  --frames 60 --size 1280x720 --map
 echo
 echo "demo: database  $out/db"
 echo "demo: images    $out/frames/frame_*.png"
 echo "demo: stats     $out/frames/stats.json"
 echo "demo: sim       $out/sim.json (summary and event log), $out/lead.script (the driven tank, Figure 71 lines)"
+echo "demo: battle    $out/battle/frame_*.png, $out/battle/stats.json"
