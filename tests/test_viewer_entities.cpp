@@ -343,6 +343,19 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
     };
     hooks.onFrameContent = [&](std::uint32_t, runtime::DisplayBuffer& buf, runtime::FrameStats&) {
       drawnThere = runtime::drawnLevelAt(buf, x, z);
+      // The snapshot the simulator's entities stand on says the same
+      // everywhere, after the buffer is gone.
+      const runtime::DrawnLevels kept(buf);
+      for (double px = 0; px < 2000; px += 37) {
+        for (double pz = 0; pz < 2000; pz += 41) {
+          const auto a = runtime::drawnLevelAt(buf, px, pz), b = kept.at(px, pz);
+          ASSERT_EQ(a.has_value(), b.has_value()) << px << " " << pz;
+          if (a) {
+            EXPECT_EQ(a->level, b->level);
+            EXPECT_EQ(a->morph, b->morph);
+          }
+        }
+      }
       if (withTank) buf.dynamic.instances.push_back(tankAt(x, z, 90, 0));  // on the finest surface, as the simulator puts it
     };
     Shot s;

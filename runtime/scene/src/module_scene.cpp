@@ -291,6 +291,36 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
 
 namespace sandtable::runtime {
 
+DrawnLevels::DrawnLevels(const DisplayBuffer& buf) {
+  if (!buf.moduleMode || !(buf.moduleSize > 0)) return;
+  moduleSize_ = buf.moduleSize;
+  for (const NodeDraw& nd : buf.nodes) {
+    const ModuleDraw& md = buf.modules[nd.module];
+    const auto levels = static_cast<std::uint32_t>(md.ref.module().levels.size());
+    const std::uint64_t key = (std::uint64_t(md.kz) << 32) | md.kx;
+    nodes_.push_back({key, Node{nd.level, nodesPerSide(nd.level, levels), nd.first, nd.last, nd.morph}});
+  }
+  std::stable_sort(nodes_.begin(), nodes_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+}
+
+std::optional<DrawnLevel> DrawnLevels::at(double x, double z) const {
+  if (!(moduleSize_ > 0)) return std::nullopt;
+  const double kxf = std::floor(x / moduleSize_), kzf = std::floor(z / moduleSize_);
+  if (kxf < 0 || kzf < 0) return std::nullopt;
+  const std::uint64_t key = (std::uint64_t(kzf) << 32) | std::uint64_t(kxf);
+  const double lx = x - kxf * moduleSize_, lz = z - kzf * moduleSize_;
+  auto it = std::lower_bound(nodes_.begin(), nodes_.end(), key, [](const auto& n, std::uint64_t k) { return n.first < k; });
+  for (; it != nodes_.end() && it->first == key; ++it) {
+    const Node& n = it->second;
+    const double node = moduleSize_ / n.side;
+    const auto a = std::min(n.side - 1, static_cast<std::uint32_t>(lx / node));
+    const auto b = std::min(n.side - 1, static_cast<std::uint32_t>(lz / node));
+    const std::uint32_t m = mortonIndex(a, b);
+    if (m >= n.first && m < n.last) return DrawnLevel{n.level, n.morph};
+  }
+  return std::nullopt;
+}
+
 std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z) {
   if (!buf.moduleMode || !(buf.moduleSize > 0)) return std::nullopt;
   const double kxf = std::floor(x / buf.moduleSize), kzf = std::floor(z / buf.moduleSize);

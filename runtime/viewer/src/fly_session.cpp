@@ -237,6 +237,7 @@ std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp&
 
 void FlySession::frameContent(std::uint32_t, DisplayBuffer& buf, FrameStats& stats) {
   if (!settings_.sim) return;
+  settings_.sim->setDrawn(std::make_shared<const runtime::DrawnLevels>(buf));
   settings_.sim->fill(buf.dynamic);
   stats.panelLines = settings_.sim->panelLines();
   stats.extraJson.emplace_back("sim", settings_.sim->frameJson());

@@ -126,6 +126,12 @@ void SimSession::advanceToFlightTime(double t) {
   advanceToStep(startSteps_ + static_cast<std::uint64_t>(std::llround(std::max(0.0, t) / stepS())));
 }
 
+void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
+  sim_->world().setDrawnLevel([drawn = std::move(drawn)](double x, double z) {
+    return drawn->at(x, z).value_or(DrawnLevel{});
+  });
+}
+
 void SimSession::step() {
   if (mode_ == ViewMode::driving && driveKeys_) {
     driveKeys_->advance(stepS());

@@ -75,4 +75,24 @@ namespace sandtable::runtime {
 /// (world/ground.h). Nullopt in grid-mesh mode or where no module is drawn.
 std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z);
 
+/// What a frame drew where, kept after its display buffer is reused: the
+/// simulator's entities stand on it (seed: they follow the terrain that is
+/// drawn). A plain value; safe to read from any thread once built.
+class DrawnLevels {
+ public:
+  DrawnLevels() = default;
+  explicit DrawnLevels(const DisplayBuffer& buf);
+  /// As drawnLevelAt on the buffer it was made from.
+  std::optional<DrawnLevel> at(double x, double z) const;
+
+ private:
+  struct Node {
+    std::uint32_t level = 0, side = 1, first = 0, last = 0;
+    float morph = 0;
+  };
+  double moduleSize_ = 0;
+  /// Per module (kz * modulesX + kx, sorted): its drawn nodes.
+  std::vector<std::pair<std::uint64_t, Node>> nodes_;
+};
+
 }  // namespace sandtable::runtime

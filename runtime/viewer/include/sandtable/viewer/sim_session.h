@@ -33,6 +33,7 @@
 
 #include "sandtable/base/result.h"
 #include "sandtable/render/map_view.h"
+#include "sandtable/scene/module_scene.h"
 #include "sandtable/scene/dynamic.h"
 #include "sandtable/sim/simulation.h"
 #include "sandtable/viewer/viewer_keys.h"
@@ -106,6 +107,10 @@ class SimSession {
   /// One fixed step: the driving controls advance and feed the driven
   /// entity's commands, then the simulation steps.
   void step();
+  /// The levels the last frame drew: the entities stand on them from the
+  /// next step on (seed: they follow the terrain that is drawn there).
+  /// Where nothing was drawn, level 0.
+  void setDrawn(std::shared_ptr<const DrawnLevels> drawn);
   /// After a frame's steps: every live munition's position joins its
   /// trail, and new events are read (detonations flash; objects that a
   /// collision or a munition changed get their new look).
