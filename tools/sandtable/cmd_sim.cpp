@@ -70,15 +70,10 @@ int runSim(const SimArgs& a) {
     s.step();
     if (k % 60 == 59 || k + 1 == steps) {
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      std::size_t alive = 0, munitions = 0;
-      for (const sim::Entity& e : s.entities()) {
-        if (!e.alive) continue;
-        if (e.domain == sim::Domain::munition) ++munitions;
-        else ++alive;
-      }
+      const sim::Census n = sim::census(s);
       char detail[160];
-      std::snprintf(detail, sizeof detail, "%.0f/%.0f s  %zu entities alive  %zu munitions in flight  %.1fx real time",
-                    s.timeS(), a.duration, alive, munitions, wall > 0 ? s.timeS() / wall : 0.0);
+      std::snprintf(detail, sizeof detail, "%.0f/%.0f s  %u entities alive  %u munitions in flight  %.1fx real time",
+                    s.timeS(), a.duration, n.alive, n.munitionsInFlight, wall > 0 ? s.timeS() / wall : 0.0);
       progress.update(double(k + 1) / double(steps), "simulating", detail);
     }
   }

@@ -242,6 +242,18 @@ EffectView effectViewOf(const DisplayBuffer& buf, std::uint32_t imageHeight) {
   return v;
 }
 
+namespace {
+
+/// Two triangles over the corners (-1,-1), (1,-1), (1,1), (-1,1) of a quad.
+template <typename Corner>
+void appendQuad(const Corner& corner, std::vector<EffectVertex>& out) {
+  for (const auto& [u, v] : {std::pair{-1.f, -1.f}, {1.f, -1.f}, {1.f, 1.f}, {-1.f, -1.f}, {1.f, 1.f}, {-1.f, 1.f}}) {
+    out.push_back(corner(u, v));
+  }
+}
+
+}  // namespace
+
 void appendTrail(const Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
   const std::size_t n = trail.points.size();
   if (n < 2 || !(trail.lifeS > 0)) return;
@@ -297,12 +309,7 @@ void appendShadow(const Eigen::Vector3d& origin, const std::array<float, 4>& ori
     const Eigen::Vector3d p = origin + q.normalized() * (body * double(scale)) + shift;
     return EffectVertex{float(p.x()), float(p.y()), float(p.z()), u, v, rgba};
   };
-  out.push_back(corner(-1, -1));
-  out.push_back(corner(1, -1));
-  out.push_back(corner(1, 1));
-  out.push_back(corner(-1, -1));
-  out.push_back(corner(1, 1));
-  out.push_back(corner(-1, 1));
+  appendQuad(corner, out);
 }
 
 void appendFlash(const Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
@@ -317,12 +324,7 @@ void appendFlash(const Flash& flash, const EffectView& view, double minPixels, s
     const Eigen::Vector3d p = c + view.right * (double(u) * r) + view.up * (double(v) * r);
     return EffectVertex{float(p.x()), float(p.y()), float(p.z()), u, v, rgba};
   };
-  out.push_back(corner(-1, -1));
-  out.push_back(corner(1, -1));
-  out.push_back(corner(1, 1));
-  out.push_back(corner(-1, -1));
-  out.push_back(corner(1, 1));
-  out.push_back(corner(-1, 1));
+  appendQuad(corner, out);
 }
 
 EntityRenderer::~EntityRenderer() {

@@ -258,15 +258,8 @@ std::optional<std::uint32_t> SimSession::focus() const { return attached_ ? atta
 
 std::vector<std::string> SimSession::panelLines() const {
   std::vector<std::string> lines;
-  std::uint32_t alive = 0, total = 0, flying = 0;
-  for (const sim::Entity& e : sim_->entities()) {
-    if (!isTarget(e)) {
-      flying += e.alive;
-      continue;
-    }
-    ++total;
-    alive += e.alive;
-  }
+  const sim::Census n = sim::census(*sim_);
+  const std::uint32_t alive = n.alive, total = n.total, flying = n.munitionsInFlight;
   char buf[160];
   std::snprintf(buf, sizeof buf, "SIM %.1f S  ENTITIES %u/%u ALIVE", sim_->timeS(), alive, total);
   lines.emplace_back(buf);
@@ -300,15 +293,8 @@ std::vector<std::string> SimSession::panelLines() const {
 }
 
 std::string SimSession::frameJson() const {
-  std::uint32_t alive = 0, total = 0, flying = 0;
-  for (const sim::Entity& e : sim_->entities()) {
-    if (!isTarget(e)) {
-      flying += e.alive;
-      continue;
-    }
-    ++total;
-    alive += e.alive;
-  }
+  const sim::Census n = sim::census(*sim_);
+  const std::uint32_t alive = n.alive, total = n.total, flying = n.munitionsInFlight;
   nlohmann::json j = {{"time_s", sim_->timeS()},
                       {"steps", sim_->steps()},
                       {"entities", total},

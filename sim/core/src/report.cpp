@@ -17,6 +17,19 @@ const char* forceName(std::uint8_t force) {
   }
 }
 
+Census census(const Simulation& sim) {
+  Census c;
+  for (const Entity& e : sim.entities()) {
+    if (e.domain == Domain::munition) {
+      c.munitionsInFlight += e.alive;
+      continue;
+    }
+    ++c.total;
+    c.alive += e.alive;
+  }
+  return c;
+}
+
 namespace {
 
 /// Rounded to the millimetre: the log stays readable and the bytes stay
@@ -42,11 +55,9 @@ std::uint64_t objectsChanged(const Simulation& sim) {
 
 nlohmann::json summaryJson(const Simulation& sim) {
   const SimCounters& c = sim.counters();
-  std::uint64_t entities = 0;
-  for (const Entity& e : sim.entities()) entities += e.domain != Domain::munition;
   return {{"time_s", mm(sim.timeS())},
           {"steps", sim.steps()},
-          {"entities", entities},
+          {"entities", census(sim).total},
           {"alive", countByForce(sim, true)},
           {"dead", countByForce(sim, false)},
           {"collisions",

@@ -409,6 +409,16 @@ std::string Simulation::entityClass(const Entity& e) const {
   return "tank";
 }
 
+void Simulation::applyObjectResult(std::uint32_t object, ObjectResult r) {
+  switch (r) {
+    case ObjectResult::none: return;
+    case ObjectResult::knockedOver: world_->setObjectState(object, ObjectState::knockedOver); return;
+    case ObjectResult::stump: world_->setObjectState(object, ObjectState::stump); return;
+    case ObjectResult::ruins: world_->setObjectState(object, ObjectState::ruins); return;
+    case ObjectResult::destroyed: world_->setObjectState(object, ObjectState::destroyed); return;
+  }
+}
+
 void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
   if (e.position == before) return;  // objects do not move: nothing new can touch
   auto near = [&](const Eigen::Vector3d& p, std::vector<std::uint32_t>& out) {
@@ -449,13 +459,7 @@ void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
   detail += "/";
   detail += resultName(out.object);
   emit({0, EventKind::objectCollision, e.id, UINT32_MAX, o, e.position, {}, detail});
-  switch (out.object) {
-    case ObjectResult::none: break;
-    case ObjectResult::knockedOver: world_->setObjectState(o, ObjectState::knockedOver); break;
-    case ObjectResult::stump: world_->setObjectState(o, ObjectState::stump); break;
-    case ObjectResult::ruins: world_->setObjectState(o, ObjectState::ruins); break;
-    case ObjectResult::destroyed: world_->setObjectState(o, ObjectState::destroyed); break;
-  }
+  applyObjectResult(o, out.object);
   if (out.entity == EntityResult::destroyed) {
     kill(e.id, UINT32_MAX, "object");
   } else if (out.entity == EntityResult::stop) {
@@ -709,13 +713,7 @@ void Simulation::detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hi
     ++counters_.collisions.munitionObjects;
     const StaticObject& ob = world_->objects()[hitObject];
     const StaticOutcome out = lookup(options_.table, "missile", objectKindName(ob.kind), m.speedMs);
-    switch (out.object) {
-      case ObjectResult::none: break;
-      case ObjectResult::knockedOver: world_->setObjectState(hitObject, ObjectState::knockedOver); break;
-      case ObjectResult::stump: world_->setObjectState(hitObject, ObjectState::stump); break;
-      case ObjectResult::ruins: world_->setObjectState(hitObject, ObjectState::ruins); break;
-      case ObjectResult::destroyed: world_->setObjectState(hitObject, ObjectState::destroyed); break;
-    }
+    applyObjectResult(hitObject, out.object);
   }
   if (detail == "terrain") ++counters_.collisions.terrain;
 }

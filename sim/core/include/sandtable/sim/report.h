@@ -17,6 +17,12 @@ namespace sandtable::sim {
 
 const char* forceName(std::uint8_t force);
 
+/// Entities (munitions apart) alive and in all, and munitions in flight.
+struct Census {
+  std::uint32_t alive = 0, total = 0, munitionsInFlight = 0;
+};
+Census census(const Simulation& sim);
+
 /// {"time_s", "steps", "entities", "alive": {force: n}, "dead": {...},
 ///  "collisions": {...}, "kills", "fired", "detonations", "objects_changed"}
 nlohmann::json summaryJson(const Simulation& sim);

@@ -165,6 +165,8 @@ class Simulation {
   void detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hitEntity, std::uint32_t hitObject,
                 const std::string& detail);
   void collideStatic(Entity& e, const Eigen::Vector3d& before);
+  /// Table 6's object result as the object's new state.
+  void applyObjectResult(std::uint32_t object, ObjectResult r);
   void collideMoving();
   void collidePair(Entity& a, Entity& b);
   void bucketEntities();
