@@ -32,7 +32,9 @@ double turningRadius(double d, double steerDeg) {
 
 double propulsiveForce(const VehicleParams& v, double fraction, double speedMs) {
   const double s = std::abs(speedMs);
-  const double limit = s > 0 ? std::min(v.maxForceN, v.powerW / s) : v.maxForceN;
+  // Braking (the force against the motion) is not limited by engine power.
+  const bool braking = fraction * speedMs < 0;
+  const double limit = s > 0 && !braking ? std::min(v.maxForceN, v.powerW / s) : v.maxForceN;
   return std::clamp(fraction, -1.0, 1.0) * limit;
 }
 

@@ -229,3 +229,28 @@ TEST(Motion, secondOrderControlIntegratesAccelerationAndAngularAcceleration) {
 
 }  // namespace
 }  // namespace sandtable::sim
+
+namespace sandtable::sim {
+namespace {
+
+TEST(Motion, theAutopilotHoldsItsSpeedDownASteepSlopeBecauseBrakesAreNotPowerLimited) {
+  EXPECT_EQ(propulsiveForce(VehicleParams{}, -1, 20), -VehicleParams{}.maxForceN);  // braking
+  EXPECT_NEAR(propulsiveForce(VehicleParams{}, 1, 20), VehicleParams{}.powerW / 20, 1e-9);
+  auto w = test::makeWorld([](double, double z) { return 500 + 0.47 * z; });  // 25 degrees down to the north
+  Entity e;
+  e.mobility = Mobility::tracked;
+  e.position = {1000, 0, 1500};
+  e.halfLength = 3.5;
+  e.halfWidth = 1.7;
+  e.commands = {15, 0, 0};  // at 15 m/s the engine's power gives 73 kN, too little to hold a tank on 25 degrees
+  e.speedMs = 15;
+  const double dt = 1.0 / 60;
+  for (int k = 0; k < 60 * 30; ++k) {
+    landAutopilot(e);
+    ASSERT_TRUE(stepSurface(*w, e, dt));
+  }
+  EXPECT_NEAR(e.speedMs, 15, 1.0);
+}
+
+}  // namespace
+}  // namespace sandtable::sim

@@ -21,7 +21,8 @@
 //  - Wheeled (Figure 54): one force along the hull and a steerable front
 //    axle; the centre turns on rho = sqrt((2d / tan(alpha))^2 + d^2) with d
 //    half the entity's length, at v / rho rad/s.
-//  - Each force is the control fraction times min(maxForce, power / |v|).
+//  - Each force is the control fraction times min(maxForce, power / |v|);
+//    braking (against the motion) gets maxForce whatever the speed.
 //  - Simple (Table 5): first-order speed (it is set to the command), and
 //    the heading turns towards the commanded one at turnRateDegS; or, with
 //    Commands::order 2, acceleration and angular acceleration integrated.
@@ -52,7 +53,8 @@ std::optional<Attitude> projectedPointAttitude(const SimWorld& world, double x, 
 /// alpha the steering angle (0: infinite).
 double turningRadius(double d, double steerDeg);
 
-/// The force available now: fraction * min(maxForce, power / |v|).
+/// The force available now: fraction * min(maxForce, power / |v|); a
+/// force against the motion (braking) is fraction * maxForce.
 double propulsiveForce(const VehicleParams& v, double fraction, double speedMs);
 
 /// One step of a land entity (tracked, wheeled or simple) or a ship; the
