@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <iterator>
 #include <utility>
 #include <vector>
@@ -420,16 +419,9 @@ Result<AircraftParams> parseAircraft(std::string_view text, const std::string& n
 }
 
 Result<AircraftParams> readAircraftFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Problem{path, 0, "line 1, column 1: cannot open the aircraft file; check the path"};
-  std::string text;
-  char buf[4096];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    text.append(buf, static_cast<std::size_t>(in.gcount()));
-    if (text.size() > kMaxAircraftFileBytes) break;
-  }
-  if (in.bad()) return Problem{path, 0, "line 1, column 1: reading the aircraft file failed"};
-  return parseAircraft(text, path);
+  auto body = text::readText(path, kMaxAircraftFileBytes, "the aircraft file", "line 1, column 1: ");
+  if (!body) return body.problems();
+  return parseAircraft(body.value(), path);
 }
 
 // ---------------------------------------------------------------------------

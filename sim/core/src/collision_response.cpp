@@ -436,10 +436,9 @@ Result<CollisionTable> parseCollisionTable(std::string_view text, const std::str
 }
 
 Result<CollisionTable> readCollisionTable(const std::string& path) {
-  auto bytes = readSmallFile(path, kMaxFileBytes);
-  if (!bytes) return Problem{path, 0, "collision table: " + bytes.message()};
-  const auto& b = bytes.value();
-  return parseCollisionTable(std::string_view(reinterpret_cast<const char*>(b.data()), b.size()), path);
+  auto body = text::readText(path, kMaxFileBytes, "the collision table", "collision table: ");
+  if (!body) return body.problems();
+  return parseCollisionTable(body.value(), path);
 }
 
 std::string_view defaultCollisionTableText() { return kDefaultText; }

@@ -4,10 +4,8 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
-#include <sstream>
 
 #include "sandtable/base/hash.h"
 #include "sandtable/sim/entity.h"
@@ -672,12 +670,9 @@ class Reader {
 Result<Scenario> parseScenario(std::string_view text, const std::string& name) { return Reader(name).run(text); }
 
 Result<Scenario> readScenarioFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Problem{path, 0, "cannot open the scenario file; check the path"};
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Problem{path, 0, "cannot read the scenario file"};
-  return parseScenario(text.str(), path);
+  auto body = text::readText(path, 1u << 20, "the scenario file");
+  if (!body) return body.problems();
+  return parseScenario(body.value(), path);
 }
 
 EntitySpec groupMember(const GroupSpec& g, int k, std::uint64_t seed) {

@@ -6,9 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <unordered_set>
 
 #include "sandtable/sim/units.h"
@@ -215,12 +213,10 @@ Result<std::vector<ScriptLine>> parseScript(std::string_view text, const std::st
 }
 
 Result<std::vector<ScriptLine>> readScriptFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Problem{path, 0, "cannot open the script file; check the path"};
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Problem{path, 0, "cannot read the script file"};
-  return parseScript(text.str(), path);
+  // Recordings of long exercises with many entities are big: 256 MiB.
+  auto body = text::readText(path, 256ull << 20, "the script file");
+  if (!body) return body.problems();
+  return parseScript(body.value(), path);
 }
 
 std::string formatScriptLine(const ScriptLine& s) {

@@ -15,7 +15,28 @@
 #include <string_view>
 #include <vector>
 
+#include "sandtable/base/result.h"
+#include "sandtable/formats/bytes.h"
+
 namespace sandtable::sim::text {
+
+/// A whole text file of at most `maxBytes` (formats' readSmallFile), or a
+/// problem "<prefix>cannot open <what>: <why>; check the path".
+inline Result<std::string> readText(const std::string& path, std::uint64_t maxBytes, const std::string& what,
+                                    const std::string& prefix = {}) {
+  auto bytes = readSmallFile(path, maxBytes);
+  if (!bytes) {
+    std::string m = prefix;
+    m += "cannot open ";
+    m += what;
+    m += ": ";
+    m += bytes.message();
+    m += "; check the path";
+    return Problem{path, 0, m};
+  }
+  const auto& b = bytes.value();
+  return std::string(reinterpret_cast<const char*>(b.data()), b.size());
+}
 
 /// The line of `text` that starts at `pos`, without its "\n" or "\r\n";
 /// `pos` moves to the start of the next line (past the end after the last).
