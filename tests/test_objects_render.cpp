@@ -127,7 +127,7 @@ Shots shoot(const Database& db, LodMode lod, double easting, double northing) {
     cam.hfovDeg = f.hfovDeg;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = f.viewDistance;
-    s.rays.viewProjection = runtime::detail::viewProjection(cam, 0, 0);
+    s.rays.viewProjection = runtime::viewProjection(cam, 0, 0);
     s.rays.inverse = s.rays.viewProjection.inverse();
     s.rays.eye = {cam.x, cam.y, cam.z};
   }

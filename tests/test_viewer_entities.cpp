@@ -206,7 +206,7 @@ class ViewerEntities : public ::testing::Test {
     cam.hfovDeg = kFovDeg;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = s.stats.viewDistance;
-    s.viewProjection = runtime::detail::viewProjection(cam, 0, 0);
+    s.viewProjection = runtime::viewProjection(cam, 0, 0);
     return s;
   }
 
@@ -370,7 +370,7 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
     cam.hfovDeg = 12;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = 3000;
-    s.viewProjection = runtime::detail::viewProjection(cam, 0, 0);
+    s.viewProjection = runtime::viewProjection(cam, 0, 0);
     return s;
   };
   const Shot bare = shootFrom(false), tank = shootFrom(true);

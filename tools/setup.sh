@@ -18,7 +18,8 @@ packages=(
   libmeshoptimizer-dev            # meshoptimizer: load module codecs, icon simplification
   libassimp-dev                   # assimp: icon model import (glTF, 3DS, OBJ, OFF, ...)
   libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
-  libpng-dev                      # PNG frames
+  libpng-dev                      # PNG frames and icon textures
+  libjpeg-dev                     # JPEG icon textures in the renderer (libjpeg62-turbo; already there with libgdal-dev)
   libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test (ffmpeg, for video, stays optional)
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )

@@ -12,7 +12,7 @@ bad=$(grep -E "^${forbidden}" <<<"$closure" || true)
 if [ -n "$bad" ]; then
   echo "boundary: $exe links a window-system or GL library:"
   echo "$bad" | sed 's/^/  /'
-  echo "boundary: base, formats, meshing, world, paging and scene must stay GL-free (docs/ARCHITECTURE.md, Targets)"
+  echo "boundary: base, formats, meshing, icons, world, paging, scene and sim must stay GL-free (docs/ARCHITECTURE.md, section 1)"
   exit 1
 fi
 echo "boundary: $exe: $(wc -l <<<"$closure") libraries, none of GL, EGL, epoxy, X11 or libpng"

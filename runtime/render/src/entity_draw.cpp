@@ -480,7 +480,7 @@ void EntityRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer* mod
   draws_.clear();
   stream_.clear();
   shadowVertices_.clear();
-  auto planes = frustumPlanes(detail::viewProjection(buf.camera, buf.originX, buf.originZ));
+  auto planes = frustumPlanes(runtime::viewProjection(buf.camera, buf.originX, buf.originZ));
   for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
   for (const DynamicInstance& d : buf.dynamic.instances) add(buf, d, drawnY(buf, modules, d), planes, stats);
   // Changed static objects already stand on the drawn level (the object pass placed them).

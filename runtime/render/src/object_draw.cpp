@@ -465,7 +465,7 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
   const double focal = 0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad);
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
   // The side and far planes, scaled so that n . p + w is a distance.
-  auto planes = frustumPlanes(detail::viewProjection(cam, buf.originX, buf.originZ));
+  auto planes = frustumPlanes(runtime::viewProjection(cam, buf.originX, buf.originZ));
   for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
   const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
   const DiscTest triangle(buf.triangle);

@@ -285,7 +285,7 @@ struct Renderer::Impl {
   void drawMesh(const DisplayBuffer& buf) {
     if (buf.vertices.empty()) return;
     const Eigen::Matrix4f viewProjection =
-        detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+        runtime::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
     terrainProgram.setMatrix4("uViewProjection", viewProjection.data());
     detail::setFrameShading(terrainProgram, buf);
     // Re-specifying the store each frame orphans last frame's copy, so the
@@ -364,7 +364,7 @@ struct Renderer::Impl {
     stats = RenderStats{};
     frame = buf.frame;
     beginFrame();
-    const Eigen::Matrix4f vp = detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+    const Eigen::Matrix4f vp = runtime::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
     Status st;
     for (const RenderPass pass : kRenderPasses) {
       st = runPass(pass, buf, vp);
@@ -434,7 +434,7 @@ struct Renderer::Impl {
     (void)drawPasses(b);
     if (objects || entities) {
       glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-      const Eigen::Matrix4f vp = detail::viewProjection(b.camera, b.originX, b.originZ).cast<float>();
+      const Eigen::Matrix4f vp = runtime::viewProjection(b.camera, b.originX, b.originZ).cast<float>();
       if (objects) objects->warmUp(b, vp);
       if (entities) entities->warmUp(b, vp);
       resolve();

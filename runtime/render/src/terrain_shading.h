@@ -27,6 +27,9 @@
 
 namespace sandtable::runtime::detail {
 
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kDegToRad = kPi / 180.0;
+
 /// What a module vertex's colour means: its alpha byte (GpuVertex::rgba).
 /// Every vertex of a triangle has the same kind.
 enum class SurfaceKind : std::uint8_t {

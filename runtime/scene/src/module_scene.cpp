@@ -152,7 +152,7 @@ void ModuleScene::visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std
   const std::span<const double> nodeErrors(errors.data(), w.levels);
   const float lo = info.minY[w.finest];
   const float hi = std::isfinite(top) ? top : info.maxY[w.finest];
-  if (!detail::boxInFrustum(*w.planes, {x0, lo, z0}, {x1, hi, z1})) {
+  if (!boxInFrustum(*w.planes, {x0, lo, z0}, {x1, hi, z1})) {
     ++w.out->scene.nodesCulled;
     return;
   }
@@ -212,7 +212,7 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   // grown by one module so the ground round the eye is always in.
   out.triangle = viewTriangleFor(cam, settings_.gridSpacing);
   const auto spans = selectSquares(out.triangle, moduleSize_, modulesX_, modulesZ_, 1);
-  const auto planes = detail::frustumPlanes(detail::viewProjection(cam, 0, 0));
+  const auto planes = frustumPlanes(viewProjection(cam, 0, 0));
   struct Candidate {
     std::uint32_t kx, kz;
     double distance;

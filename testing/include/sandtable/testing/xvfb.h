@@ -1,5 +1,5 @@
 #pragma once
-// Test helper shared by runtime/viewer/test/test_window.cpp and
+// Test helper shared by viewer/test/test_window.cpp and
 // tests/test_viewer_window.cpp: a private Xvfb server.
 #include <fcntl.h>
 #include <signal.h>

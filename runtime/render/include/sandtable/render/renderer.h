@@ -205,7 +205,7 @@ const char* renderPassName(RenderPass p);
 
 /// What a pass is given: the frame's buffer and its view-projection, a
 /// column-major 4 x 4 matrix (positions relative to buf.originX / originZ,
-/// reversed Z; camera_math.h's detail::viewProjection).
+/// reversed Z; camera_math.h's viewProjection).
 struct PassContext {
   const DisplayBuffer& buf;
   std::array<float, 16> viewProjection;

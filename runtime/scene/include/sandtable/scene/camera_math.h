@@ -1,6 +1,8 @@
 #pragma once
-// Projection shared by scene selection (frustum culling on the main thread)
-// and the renderer, so both agree on the view volume. Private to runtime.
+// The projection: one definition of the view volume for scene selection
+// (frustum culling on the main thread), the renderer, the viewer's fog
+// and tests that project a point as the renderer does. Pure functions of
+// their arguments: safe from any thread.
 //
 // Depth is reversed (near = 1, far = 0) with a [0, 1] clip range and a
 // float depth buffer: precision is then nearly uniform in relative terms,
@@ -8,17 +10,15 @@
 #include <Eigen/Dense>
 #include <array>
 #include <cmath>
+#include <numbers>
 
 #include "sandtable/scene/display_buffer.h"
 
-namespace sandtable::runtime::detail {
-
-inline constexpr double kPi = 3.14159265358979323846;
-inline constexpr double kDegToRad = kPi / 180.0;
+namespace sandtable::runtime {
 
 /// Reversed-Z perspective (eye looks down -Z): depth 1 at the near plane, 0 at the far.
 inline Eigen::Matrix4d perspectiveReversed(double vfovDeg, double aspect, double n, double f) {
-  const double t = 1.0 / std::tan(vfovDeg * kDegToRad / 2.0);
+  const double t = 1.0 / std::tan(vfovDeg * std::numbers::pi / 360.0);
   Eigen::Matrix4d m = Eigen::Matrix4d::Zero();
   m(0, 0) = t / aspect;
   m(1, 1) = t;
@@ -31,7 +31,7 @@ inline Eigen::Matrix4d perspectiveReversed(double vfovDeg, double aspect, double
 /// World-to-eye for an eye at `eye` turned to heading (clockwise from -Z)
 /// and pitched (positive up).
 inline Eigen::Matrix4d lookFrom(const Eigen::Vector3d& eye, double headingDeg, double pitchDeg) {
-  const double h = headingDeg * kDegToRad, p = pitchDeg * kDegToRad;
+  const double h = headingDeg * std::numbers::pi / 180.0, p = pitchDeg * std::numbers::pi / 180.0;
   const Eigen::Vector3d forward(std::cos(p) * std::sin(h), std::sin(p), -std::cos(p) * std::cos(h));
   const Eigen::Vector3d right(std::cos(h), 0.0, std::sin(h));
   const Eigen::Vector3d up = right.cross(forward);
@@ -83,4 +83,4 @@ inline bool boxInFrustum(const std::array<Eigen::Vector4d, 5>& planes, const Eig
   return true;
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::runtime

@@ -222,7 +222,7 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
 }
 
 double effectiveViewDistance(const FlightOptions& o) {
-  return o.view.fogDensity > 0 ? detail::viewDistanceForFog(o.view.fogDensity) : o.view.viewDistance;
+  return o.view.fogDensity > 0 ? viewDistanceForFog(o.view.fogDensity) : o.view.viewDistance;
 }
 
 /// The eye's elevation for a pose over `ground`: ground following, or

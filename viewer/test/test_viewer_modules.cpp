@@ -290,7 +290,7 @@ double projectedRow(const FrameStats& s, const Image& img, double x, double y, d
   cam.hfovDeg = s.hfovDeg;
   cam.aspect = double(img.width) / img.height;
   cam.viewDistance = s.viewDistance;
-  const Eigen::Vector4d c = detail::viewProjection(cam, 0, 0) * Eigen::Vector4d(x, y, z, 1);
+  const Eigen::Vector4d c = viewProjection(cam, 0, 0) * Eigen::Vector4d(x, y, z, 1);
   return (1.0 - c.y() / c.w()) / 2.0 * img.height;
 }
 
