@@ -14,6 +14,7 @@
 #include "sandtable/base/stats.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/sim/simulation.h"
+#include "sandtable/sim/step_host.h"
 
 namespace sandtable::bench {
 namespace {
@@ -126,10 +127,11 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   s.options().bruteForce = brute;
   const sim::SimCounters before = s.counters();
   world->stats() = {};
-  const auto steps = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(seconds * 60)));
+  sim::StepHost host(s);
+  const std::uint64_t steps = std::max<std::uint64_t>(1, host.stepsFor(seconds));
   const double cpu0 = threadCpuS();
   const auto t0 = std::chrono::steady_clock::now();
-  for (std::uint64_t k = 0; k < steps; ++k) s.step();
+  host.runToStep(s.steps() + steps);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double cpu = threadCpuS() - cpu0;
   Run r;

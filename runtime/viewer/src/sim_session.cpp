@@ -63,7 +63,16 @@ const char* viewerKeyName(ViewerKey k) {
 }
 
 SimSession::SimSession(std::unique_ptr<sim::Simulation> simulation, SimSessionOptions options)
-    : sim_(std::move(simulation)), options_(std::move(options)), heightRatio_(options_.tether.heightRatio) {
+    : sim_(std::move(simulation)),
+      host_(*sim_),
+      options_(std::move(options)),
+      heightRatio_(options_.tether.heightRatio) {
+  // Driving: the keys' controls advance and feed the commands before each step.
+  host_.addBeforeStep([this](sim::Simulation&) {
+    if (mode_ != ViewMode::driving || !driveKeys_) return;
+    driveKeys_->advance(stepS());
+    applyDrive();
+  });
   // Objects changed before the first frame (a test, a restored state).
   const auto& objects = sim_->world().objects();
   for (std::uint32_t k = 0; k < objects.size(); ++k) {
@@ -110,7 +119,7 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
   } else if (named) {
     s->attach(*named);
   }
-  s->startSteps_ = static_cast<std::uint64_t>(std::llround(s->options_.startS / s->stepS()));
+  s->startSteps_ = s->host_.stepsFor(s->options_.startS);
   s->advanceToStep(s->startSteps_);
   s->sample();
   return s;
@@ -118,13 +127,9 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
 
 // ---------------------------------------------------------------- time
 
-void SimSession::advanceToStep(std::uint64_t steps) {
-  while (sim_->steps() < steps) step();
-}
+void SimSession::advanceToStep(std::uint64_t steps) { host_.runToStep(steps); }
 
-void SimSession::advanceToFlightTime(double t) {
-  advanceToStep(startSteps_ + static_cast<std::uint64_t>(std::llround(std::max(0.0, t) / stepS())));
-}
+void SimSession::advanceToFlightTime(double t) { advanceToStep(startSteps_ + host_.stepsFor(t)); }
 
 void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
   sim_->world().setDrawnLevel([drawn = std::move(drawn)](double x, double z) {
@@ -132,13 +137,7 @@ void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
   });
 }
 
-void SimSession::step() {
-  if (mode_ == ViewMode::driving && driveKeys_) {
-    driveKeys_->advance(stepS());
-    applyDrive();
-  }
-  sim_->step();
-}
+void SimSession::step() { host_.step(); }
 
 void SimSession::sample() {
   const double now = sim_->timeS();

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "sandtable/sim/motion.h"
+#include "sandtable/sim/step_host.h"
 
 namespace sandtable::sim {
 
@@ -394,10 +395,7 @@ void Simulation::step() {
   ++counters_.steps;
 }
 
-void Simulation::runFor(double seconds) {
-  const auto target = static_cast<std::uint64_t>(std::llround(seconds / options_.stepS));
-  for (std::uint64_t k = 0; k < target; ++k) step();
-}
+void Simulation::runFor(double seconds) { StepHost(*this).runFor(seconds); }
 
 std::string Simulation::entityClass(const Entity& e) const {
   switch (e.domain) {

@@ -133,7 +133,8 @@ class Simulation {
 
   /// One fixed step.
   void step();
-  /// Steps until `seconds` of simulated time have passed.
+  /// Steps until `seconds` of simulated time have passed (StepHost::runFor
+  /// without hooks: tests and warm-ups).
   void runFor(double seconds);
 
   double timeS() const { return double(steps_) * options_.stepS; }
