@@ -56,7 +56,7 @@ int runSim(const SimArgs& a) {
   sim::Simulation& s = *setup->sim;
   if (!a.record.empty()) {
     if (!s.driven) return usageError("sim", "--record needs a driven entity: mark one `driven` in " + a.scenario);
-    s.record(*s.driven, *s.driven + 1, s.entities()[*s.driven].icon);
+    s.record(*s.driven, *s.driven + 1, s.entity(*s.driven).icon);
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);

@@ -32,6 +32,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "sandtable/base/result.h"
 #include "sandtable/render/map_view.h"
 #include "sandtable/scene/module_scene.h"
@@ -177,6 +179,8 @@ class SimSession {
   void seedDrive(const sim::Entity& e);
   bool isTarget(const sim::Entity& e) const { return e.domain != sim::Domain::munition; }
   float turretOf(const sim::Entity& e) const;
+  /// An entity's name (a removed one's too), or null.
+  nlohmann::json nameJson(std::optional<std::uint32_t> id) const;
 
   std::unique_ptr<sim::Simulation> sim_;
   sim::StepHost host_;  ///< steps *sim_
