@@ -138,7 +138,7 @@ TEST_F(SimMonaco, aShipOnTheRealCoastlineNeverEntersLandInOneSimulatedHour) {
     s.step();
     if (k % 30 != 0) continue;
     for (std::size_t i = 0; i < 2; ++i) {
-      const sim::Entity& e = s.entity(i);
+      const sim::Entity& e = s.entity(static_cast<std::uint32_t>(i));
       ASSERT_TRUE(e.alive);
       // The bow too: the whole hull stays on water.
       for (double reach : {0.0, e.halfLength}) {
