@@ -126,7 +126,6 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   s.runFor(1.0);  // warm-up (with the grid: the same states, sooner): caches, first turns
   s.options().bruteForce = brute;
   const sim::SimCounters before = s.counters();
-  world->stats() = {};
   sim::StepHost host(s);
   const std::uint64_t steps = std::max<std::uint64_t>(1, host.stepsFor(seconds));
   const double cpu0 = threadCpuS();
@@ -140,7 +139,7 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   r.counters = s.counters();
   r.counters.collisions.objects -= before.collisions.objects;
   r.counters.collisions.entities -= before.collisions.entities;
-  r.objectsTested = world->stats().objectsTested;
+  r.objectsTested = r.counters.search.objectsTested - before.search.objectsTested;
   r.counters.entitySteps -= before.entitySteps;
   return r;
 }

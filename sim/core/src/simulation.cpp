@@ -287,7 +287,7 @@ void Simulation::behave(Record& r) {
     if (e.behaviours.zigzag) zigzag(e, timeS(), options_.seed, draws_, o);
     if (e.behaviours.environment) {
       environmentLimit(*world_, e, o);
-      avoidObjects(*world_, e, o);
+      avoidObjects(*world_, e, o, &counters_.search);
     }
     if (e.behaviours.edge) edgeOfWorld(*world_, e, o);
     if (e.behaviours.engage && e.armed) engage(e);
@@ -481,7 +481,7 @@ void Simulation::collideStatic(Record& r) {
   auto near = [&](const Eigen::Vector3d& p, std::vector<std::uint32_t>& out) {
     out.clear();
     if (options_.bruteForce) world_->objectsNearBruteForce(p.x(), p.z(), e.radius, p.y(), out);
-    else world_->objectsNear(p.x(), p.z(), e.radius, p.y(), out);
+    else world_->objectsNear(p.x(), p.z(), e.radius, p.y(), out, &counters_.search);
   };
   near(e.position, scratch_);
   if (e.pressing != UINT32_MAX && !std::binary_search(scratch_.begin(), scratch_.end(), e.pressing)) {
@@ -705,7 +705,7 @@ void Simulation::flyMunition(Entity& m) {
     const double reach = (b - a).norm() * 0.5 + type.radius;
     const double bottom = std::min(a.y(), b.y()) - type.radius;
     if (options_.bruteForce) world_->objectsNearBruteForce(mid.x(), mid.z(), reach, bottom, scratch_);
-    else world_->objectsNear(mid.x(), mid.z(), reach, bottom, scratch_);
+    else world_->objectsNear(mid.x(), mid.z(), reach, bottom, scratch_, &counters_.search);
     for (std::uint32_t o : scratch_) {
       const StaticObject& ob = world_->objects()[o];
       if (auto t = sweptHitsCylinder(a, b, type.radius, ob.x, ob.z, ob.radius, ob.baseY, ob.height); t && *t < best) {

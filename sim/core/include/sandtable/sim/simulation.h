@@ -100,6 +100,7 @@ struct SimCounters {
   std::uint64_t fired = 0, detonations = 0, kills = 0;
   CollisionCounts collisions;
   std::uint64_t pairsBoxed = 0, pairsSphered = 0, raysCast = 0;
+  SearchStats search;  ///< what the grid searches for objects tested
 };
 
 /// What the simulation keeps of one entity: the entity and the state only
