@@ -238,6 +238,7 @@ TEST_F(SimMonaco, simCliRunsTheScenarioAndTwoRunsWithOneSeedGiveTheSameEventLog)
   EXPECT_EQ(ja["summary"].dump(), jb["summary"].dump());
   EXPECT_EQ(ja["summary"]["entities"].get<int>(), 17);
   EXPECT_EQ(ja["summary"]["time_s"].get<double>(), 120.0);
+  EXPECT_EQ(ja["summary"]["steps"].get<std::uint64_t>(), 7200u);  // 120 s at 60 Hz, as the viewer and bench step
 }
 
 TEST_F(SimMonaco, badScenarioScriptAndAircraftFilesExitTwoNamingLineAndColumn) {

@@ -141,6 +141,7 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   r.counters.collisions.entities -= before.collisions.entities;
   r.objectsTested = r.counters.search.objectsTested - before.search.objectsTested;
   r.counters.entitySteps -= before.entitySteps;
+  r.counters.steps -= before.steps;
   return r;
 }
 
@@ -158,6 +159,7 @@ nlohmann::json modeJson(const std::vector<Run>& runs, std::uint32_t entities) {
           {"hz", 1000 / w},
           {"entities_per_s", 1000 * entities / w},
           {"runs_ms", list},
+          {"steps", runs.front().counters.steps},
           {"object_collisions", runs.front().counters.collisions.objects},
           {"entity_collisions", runs.front().counters.collisions.entities}};
 }
