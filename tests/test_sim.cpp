@@ -133,12 +133,12 @@ TEST_F(SimMonaco, aShipOnTheRealCoastlineNeverEntersLandInOneSimulatedHour) {
     ASSERT_TRUE(s.add(e)) << lon << " " << lat;
   }
   double worst = -1e9, travelled = 0;
-  std::vector<Eigen::Vector3d> last = {s.entities()[0].position, s.entities()[1].position};
+  std::vector<Eigen::Vector3d> last = {s.entity(0).position, s.entity(1).position};
   for (int k = 0; k < 60 * 3600; ++k) {
     s.step();
     if (k % 30 != 0) continue;
     for (std::size_t i = 0; i < 2; ++i) {
-      const sim::Entity& e = s.entities()[i];
+      const sim::Entity& e = s.entity(static_cast<std::uint32_t>(i));
       ASSERT_TRUE(e.alive);
       // The bow too: the whole hull stays on water.
       for (double reach : {0.0, e.halfLength}) {
@@ -183,12 +183,12 @@ TEST_F(SimMonaco, aLandVehicleStaysOnTheDrawnSurfaceAndItsAttitudeNeverJumpsAtTr
   ASSERT_TRUE(s.add(t));
   double worstGround = 0, gridGap = 0, moved = 0;
   double worstPitch = 0, worstRoll = 0, worstNormal = 0;
-  sim::Entity prev = s.entities()[0];
+  sim::Entity prev = s.entity(0);
   double prevNormalPitch = 0;
   bool first = true;
   for (int k = 0; k < 60 * 600; ++k) {
     s.step();
-    const sim::Entity& e = s.entities()[0];
+    const sim::Entity& e = s.entity(0);
     const double x = e.position.x(), z = e.position.z();
     const auto drawnY = o.world->clamp().surfaceXZ(x, z, drawn);
     ASSERT_TRUE(drawnY);
@@ -238,6 +238,7 @@ TEST_F(SimMonaco, simCliRunsTheScenarioAndTwoRunsWithOneSeedGiveTheSameEventLog)
   EXPECT_EQ(ja["summary"].dump(), jb["summary"].dump());
   EXPECT_EQ(ja["summary"]["entities"].get<int>(), 17);
   EXPECT_EQ(ja["summary"]["time_s"].get<double>(), 120.0);
+  EXPECT_EQ(ja["summary"]["steps"].get<std::uint64_t>(), 7200u);  // 120 s at 60 Hz, as the viewer and bench step
 }
 
 TEST_F(SimMonaco, badScenarioScriptAndAircraftFilesExitTwoNamingLineAndColumn) {

@@ -14,6 +14,7 @@
 #include "sandtable/base/stats.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/sim/simulation.h"
+#include "sandtable/sim/step_host.h"
 
 namespace sandtable::bench {
 namespace {
@@ -125,11 +126,11 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   s.runFor(1.0);  // warm-up (with the grid: the same states, sooner): caches, first turns
   s.options().bruteForce = brute;
   const sim::SimCounters before = s.counters();
-  world->stats() = {};
-  const auto steps = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(seconds * 60)));
+  sim::StepHost host(s);
+  const std::uint64_t steps = std::max<std::uint64_t>(1, host.stepsFor(seconds));
   const double cpu0 = threadCpuS();
   const auto t0 = std::chrono::steady_clock::now();
-  for (std::uint64_t k = 0; k < steps; ++k) s.step();
+  host.runToStep(s.steps() + steps);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double cpu = threadCpuS() - cpu0;
   Run r;
@@ -138,8 +139,9 @@ Result<Run> runOnce(const std::shared_ptr<const grid::GridFile>& grid, const std
   r.counters = s.counters();
   r.counters.collisions.objects -= before.collisions.objects;
   r.counters.collisions.entities -= before.collisions.entities;
-  r.objectsTested = world->stats().objectsTested;
+  r.objectsTested = r.counters.search.objectsTested - before.search.objectsTested;
   r.counters.entitySteps -= before.entitySteps;
+  r.counters.steps -= before.steps;
   return r;
 }
 
@@ -157,6 +159,7 @@ nlohmann::json modeJson(const std::vector<Run>& runs, std::uint32_t entities) {
           {"hz", 1000 / w},
           {"entities_per_s", 1000 * entities / w},
           {"runs_ms", list},
+          {"steps", runs.front().counters.steps},
           {"object_collisions", runs.front().counters.collisions.objects},
           {"entity_collisions", runs.front().counters.collisions.entities}};
 }

@@ -12,6 +12,7 @@
 #include "sandtable/bench/make_db.h"
 #include "sandtable/bench/modules.h"
 #include "sandtable/bench/paging.h"
+#include "sandtable/bench/sim.h"
 
 namespace sandtable::bench {
 namespace {
@@ -97,6 +98,21 @@ TEST(BenchModules, aTinyRunAgreesWithItsJson) {
   EXPECT_EQ(j["modules"].get<std::uint64_t>(), r->modules);
   EXPECT_DOUBLE_EQ(j["modules_per_second"].get<double>(), double(r->modules) / r->moduleStageSeconds);
   EXPECT_LE(r->moduleStageSeconds, r->fullBuildSeconds);
+}
+
+TEST(BenchSim, aRunStepsAsManyStepsAsSimAndTheViewerForItsTime) {
+  SimBenchOptions o;
+  o.entities = {3};
+  o.objects = 20;
+  o.sizeKm = 1;
+  o.seconds = 1.01;       // 60.6 steps: 61, as `sim --duration 1.01` and a 1.01 s flight
+  o.bruteSeconds = 0.51;  // 30.6 steps: 31
+  o.repeat = 1;
+  auto r = runSimBench(o);
+  ASSERT_TRUE(r.ok()) << r.error();
+  const nlohmann::json& c = r->json["cases"][0];
+  EXPECT_EQ(c["grid"]["steps"].get<std::uint64_t>(), 61u);
+  EXPECT_EQ(c["brute"]["steps"].get<std::uint64_t>(), 31u);
 }
 
 }  // namespace

@@ -457,7 +457,7 @@ std::string setUpScenario(const FlyArgs& a, FlightOptions& o, FlySessionSettings
   }
   const bool placed = (a.atOption && a.atOption->count() > 0) || !a.pathFile.empty();
   if (focus && !placed) {
-    const sim::Entity& e = s.entities()[*focus];
+    const sim::Entity& e = s.entity(*focus);
     const double heading = a.headingOption && a.headingOption->count() > 0 ? a.heading : e.headingDeg;
     Eigen::Vector3d eye = e.position - sim::headingVector(heading) * 1200.0;
     if (!world->onGrid(eye.x(), eye.z())) eye = e.position;

@@ -15,6 +15,7 @@
 #include "sandtable/formats/bytes.h"
 #include "sandtable/sim/collision_response.h"
 #include "sandtable/sim/report.h"
+#include "sandtable/sim/step_host.h"
 #include "sim_setup.h"
 
 namespace sandtable::cli {
@@ -27,7 +28,7 @@ struct SimArgs {
   std::string db, scenario, record, collisions;
   double duration = 120;
   std::optional<std::uint64_t> seed;
-  bool json = false, bruteForce = false;
+  bool json = false, bruteForce = false, realTime = false;
 };
 
 /// The recorded script: the played scripts' lines merged with the driven
@@ -55,27 +56,29 @@ int runSim(const SimArgs& a) {
   sim::Simulation& s = *setup->sim;
   if (!a.record.empty()) {
     if (!s.driven) return usageError("sim", "--record needs a driven entity: mark one `driven` in " + a.scenario);
-    s.record(*s.driven, *s.driven + 1, s.entities()[*s.driven].icon);
+    s.record(*s.driven, *s.driven + 1, s.entity(*s.driven).icon);
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   Progress progress(a.json);
   const auto start = std::chrono::steady_clock::now();
-  const auto steps = static_cast<std::uint64_t>(std::llround(a.duration / s.options().stepS));
-  for (std::uint64_t k = 0; k < steps; ++k) {
-    if (gCancel.load()) {
-      progress.done();
-      return usageError("sim", "cancelled at " + std::to_string(s.timeS()) + " s; nothing was written");
-    }
-    s.step();
-    if (k % 60 == 59 || k + 1 == steps) {
-      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      const sim::Census n = sim::census(s);
-      char detail[160];
-      std::snprintf(detail, sizeof detail, "%.0f/%.0f s  %u entities alive  %u munitions in flight  %.1fx real time",
-                    s.timeS(), a.duration, n.alive, n.munitionsInFlight, wall > 0 ? s.timeS() / wall : 0.0);
-      progress.update(double(k + 1) / double(steps), "simulating", detail);
-    }
+  sim::StepHost host(s);
+  host.setCancel(&gCancel);
+  if (a.realTime) host.setPacing(sim::Pacing::realTime);
+  const std::uint64_t steps = host.stepsFor(a.duration);
+  host.addAfterStep([&](const sim::Simulation& at) {
+    const std::uint64_t k = at.steps();
+    if (k % 60 != 0 && k != steps) return;
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const sim::Census n = sim::census(at);
+    char detail[160];
+    std::snprintf(detail, sizeof detail, "%.0f/%.0f s  %u entities alive  %u munitions in flight  %.1fx real time",
+                  at.timeS(), a.duration, n.alive, n.munitionsInFlight, wall > 0 ? at.timeS() / wall : 0.0);
+    progress.update(double(k) / double(steps), "simulating", detail);
+  });
+  if (host.runToStep(steps).cancelled) {
+    progress.done();
+    return usageError("sim", "cancelled at " + std::to_string(s.timeS()) + " s; nothing was written");
   }
   progress.done();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -116,6 +119,7 @@ void registerSim(CLI::App& root, Commands& c) {
   sub->add_option("--collisions", a->collisions, "Collision response table (default: seed Table 6, samples/collisions.txt)");
   sub->add_flag("--brute-force", a->bruteForce, "Test every object and entity pair (a baseline; same results, slower)");
   sub->add_flag("--json", a->json, "Print the summary and the event log as JSON");
+  sub->add_flag("--real-time", a->realTime, "Pace the steps to the wall clock instead of running as fast as possible");
   c.add(sub, [a] { return runSim(*a); });
 }
 

@@ -63,7 +63,16 @@ const char* viewerKeyName(ViewerKey k) {
 }
 
 SimSession::SimSession(std::unique_ptr<sim::Simulation> simulation, SimSessionOptions options)
-    : sim_(std::move(simulation)), options_(std::move(options)), heightRatio_(options_.tether.heightRatio) {
+    : sim_(std::move(simulation)),
+      host_(*sim_),
+      options_(std::move(options)),
+      heightRatio_(options_.tether.heightRatio) {
+  // Driving: the keys' controls advance and feed the commands before each step.
+  host_.addBeforeStep([this](sim::Simulation&) {
+    if (mode_ != ViewMode::driving || !driveKeys_) return;
+    driveKeys_->advance(stepS());
+    applyDrive();
+  });
   // Objects changed before the first frame (a test, a restored state).
   const auto& objects = sim_->world().objects();
   for (std::uint32_t k = 0; k < objects.size(); ++k) {
@@ -79,7 +88,7 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
     return Problem{"--sim-start", 0, "--sim-start must be a number of seconds, 0 or more"};
   }
   std::unique_ptr<SimSession> s(new SimSession(std::move(simulation), std::move(options)));
-  const auto& entities = s->sim_->entities();
+  const auto entities = s->sim_->entities();
   std::optional<std::uint32_t> named;
   if (!s->options_.attach.empty()) {
     for (const sim::Entity& e : entities) {
@@ -87,7 +96,8 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
     }
     if (!named) {
       std::string some;
-      for (std::size_t k = 0; k < entities.size() && k < 8; ++k) some += (k ? ", " : "") + entities[k].name;
+      std::size_t k = 0;
+      for (auto it = entities.begin(); it != entities.end() && k < 8; ++it, ++k) some += (k ? ", " : "") + it->name;
       if (entities.size() > 8) some += ", ...";
       std::string msg = "--attach ";
       msg += s->options_.attach;
@@ -103,14 +113,16 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
                      "--drive: the scenario marks no entity `driven`; mark one in the scenario or name it "
                      "with --attach NAME"};
     }
-    if (entities[*who].domain == sim::Domain::munition) {
-      return Problem{"--drive", 0, "--drive: " + entities[*who].name + " is a munition and cannot be driven"};
+    const sim::Entity* e = s->sim_->find(*who);
+    if (!e) return Problem{"--drive", 0, "--drive: the scenario's driven entity is not in the simulation"};
+    if (e->domain == sim::Domain::munition) {
+      return Problem{"--drive", 0, "--drive: " + e->name + " is a munition and cannot be driven"};
     }
     s->drive(*who);
   } else if (named) {
     s->attach(*named);
   }
-  s->startSteps_ = static_cast<std::uint64_t>(std::llround(s->options_.startS / s->stepS()));
+  s->startSteps_ = s->host_.stepsFor(s->options_.startS);
   s->advanceToStep(s->startSteps_);
   s->sample();
   return s;
@@ -118,13 +130,9 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
 
 // ---------------------------------------------------------------- time
 
-void SimSession::advanceToStep(std::uint64_t steps) {
-  while (sim_->steps() < steps) step();
-}
+void SimSession::advanceToStep(std::uint64_t steps) { host_.runToStep(steps); }
 
-void SimSession::advanceToFlightTime(double t) {
-  advanceToStep(startSteps_ + static_cast<std::uint64_t>(std::llround(std::max(0.0, t) / stepS())));
-}
+void SimSession::advanceToFlightTime(double t) { advanceToStep(startSteps_ + host_.stepsFor(t)); }
 
 void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
   sim_->world().setDrawnLevel([drawn = std::move(drawn)](double x, double z) {
@@ -132,25 +140,23 @@ void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
   });
 }
 
-void SimSession::step() {
-  if (mode_ == ViewMode::driving && driveKeys_) {
-    driveKeys_->advance(stepS());
-    applyDrive();
-  }
-  sim_->step();
-}
+void SimSession::step() { host_.step(); }
 
 void SimSession::sample() {
   const double now = sim_->timeS();
-  const auto& entities = sim_->entities();
-  if (aimed_.size() < entities.size()) aimed_.resize(entities.size(), false);
+  // The attached entity may have been removed (Simulation::remove, from a
+  // step hook): back to the stealth eye.
+  if (attached_ && !sim_->find(*attached_)) detach();
+  const auto entities = sim_->entities();
+  if (aimed_.size() < sim_->nextId()) aimed_.resize(sim_->nextId(), false);
   const auto& events = sim_->events();
   for (; eventsSeen_ < events.size(); ++eventsSeen_) {
     const sim::Event& ev = events[eventsSeen_];
     if (ev.object != UINT32_MAX) changedObjects_.insert(ev.object);
     if (ev.kind == sim::EventKind::fire && ev.other < aimed_.size()) aimed_[ev.other] = true;
     if (ev.kind != sim::EventKind::detonation) continue;
-    const bool guided = ev.entity < entities.size() && entities[ev.entity].mobility == sim::Mobility::guided;
+    const sim::Entity* munition = sim_->find(ev.entity);
+    const bool guided = munition && munition->mobility == sim::Mobility::guided;
     Flash f;
     f.x = ev.position.x();
     f.y = ev.position.y();
@@ -177,7 +183,8 @@ void SimSession::sample() {
   for (auto it = trails_.begin(); it != trails_.end();) {
     auto& pts = it->second.points;
     pts.erase(pts.begin(), std::find_if(pts.begin(), pts.end(), [&](const Passed& p) { return p.timeS > trailCut; }));
-    const bool flying = it->first < entities.size() && entities[it->first].alive;
+    const sim::Entity* m = sim_->find(it->first);
+    const bool flying = m && m->alive;
     it = pts.empty() && !flying ? trails_.erase(it) : std::next(it);
   }
   std::erase_if(flashes_, [&](const Detonation& d) { return now - d.timeS >= double(d.flash.durationS); });
@@ -264,15 +271,15 @@ std::vector<std::string> SimSession::panelLines() const {
   std::snprintf(buf, sizeof buf, "SIM %.1f S  ENTITIES %u/%u ALIVE", sim_->timeS(), alive, total);
   lines.emplace_back(buf);
   if (flying > 0) lines.back() += "  MUNITIONS " + std::to_string(flying);
-  const auto& entities = sim_->entities();
   std::string view = mode_ == ViewMode::stealth    ? "VIEW STEALTH"
                      : mode_ == ViewMode::attached ? "VIEW ATTACHED TO "
                                                    : "DRIVING ";
-  if (attached_) view += upper(entities[*attached_].name);
+  if (const sim::Entity* a = attached_ ? sim_->find(*attached_) : nullptr) view += upper(a->name);
   lines.push_back(view);
   const auto who = focus();
-  if (!who) return lines;
-  const sim::Entity& e = entities[*who];
+  const sim::Entity* focused = who ? sim_->find(*who) : nullptr;
+  if (!focused) return lines;
+  const sim::Entity& e = *focused;
   lines.push_back(upper(e.name) + "  " + upper(e.iconName) + "  " + forceWord(e.force) + "  " +
                   (e.alive ? "ALIVE" : "DEAD"));
   std::snprintf(buf, sizeof buf, "SPD %.0f KM/H  HDG %03ld\xC2\xB0  FUEL %.0f%%", std::abs(e.speedMs) * kMsToKmh,
@@ -304,9 +311,10 @@ std::string SimSession::frameJson() const {
                       {"flashes", flashes_.size()},
                       {"objects_changed", changedObjects_.size()},
                       {"view", viewModeName(mode_)}};
-  j["attached"] = attached_ ? nlohmann::json(sim_->entities()[*attached_].name) : nlohmann::json(nullptr);
-  if (const auto who = focus()) {
-    const sim::Entity& e = sim_->entities()[*who];
+  j["attached"] = nameJson(attached_);
+  if (const sim::Entity* focused = focus() ? sim_->find(*focus()) : nullptr) {
+    const sim::Entity& e = *focused;
+    const auto who = focus();
     j["focus"] = {{"name", e.name},          {"alive", e.alive},
                   {"speed_kmh", std::abs(e.speedMs) * kMsToKmh},
                   {"heading", e.headingDeg}, {"fuel", e.fuel},
@@ -320,13 +328,18 @@ std::string SimSession::frameJson() const {
   return j.dump();
 }
 
+nlohmann::json SimSession::nameJson(std::optional<std::uint32_t> id) const {
+  const std::string* name = id ? sim_->nameOf(*id) : nullptr;
+  return name ? nlohmann::json(*name) : nlohmann::json(nullptr);
+}
+
 std::string SimSession::summaryJson() const {
   nlohmann::json j = sim::summaryJson(*sim_);
   j["seed"] = sim_->options().seed;
   j["scenario"] = options_.scenario;
   j["view"] = viewModeName(mode_);
-  j["attached"] = attached_ ? nlohmann::json(sim_->entities()[*attached_].name) : nlohmann::json(nullptr);
-  j["driven"] = sim_->driven ? nlohmann::json(sim_->entities()[*sim_->driven].name) : nlohmann::json(nullptr);
+  j["attached"] = nameJson(attached_);
+  j["driven"] = nameJson(sim_->driven);
   return j.dump();
 }
 
@@ -348,7 +361,7 @@ std::string SimSession::summaryLine() const {
 // ---------------------------------------------------------------- the view
 
 void SimSession::attach(std::uint32_t id) {
-  if (id >= sim_->entities().size()) return;
+  if (!sim_->find(id)) return;
   if (attached_ != id) {
     tetherHeading_.reset();
     tetherTime_.reset();
@@ -384,10 +397,11 @@ void SimSession::seedDrive(const sim::Entity& e) {
 }
 
 void SimSession::drive(std::uint32_t id) {
-  if (id >= sim_->entities().size() || !isTarget(sim_->entities()[id])) return;
+  sim::Entity* found = sim_->find(id);
+  if (!found || !isTarget(*found)) return;
   attach(id);
   mode_ = ViewMode::driving;
-  sim::Entity& e = sim_->entities()[id];
+  sim::Entity& e = *found;
   e.controller = sim::Controller::driven;
   // Land dynamics need the autopilot to turn commands into track forces;
   // simple and ship mobility read the commands themselves.
@@ -403,9 +417,9 @@ void SimSession::stopDriving() {
 }
 
 void SimSession::applyDrive() {
-  if (!attached_ || !driveKeys_) return;
-  sim::Entity& e = sim_->entities()[*attached_];
-  if (!e.alive) return;
+  sim::Entity* driven = attached_ && driveKeys_ ? sim_->find(*attached_) : nullptr;
+  if (!driven || !driven->alive) return;
+  sim::Entity& e = *driven;
   const ViewerState& s = driveKeys_->state();
   e.commands.speedMs = s.speedMs;
   e.commands.headingDeg = s.headingDeg;
@@ -420,14 +434,15 @@ std::optional<std::pair<double, double>> SimSession::driveCommands() const {
 
 void SimSession::allStop() {
   std::optional<std::uint32_t> who = attached_ ? attached_ : sim_->driven;
-  if (!who) return;
-  sim::Entity& e = sim_->entities()[*who];
+  sim::Entity* found = who ? sim_->find(*who) : nullptr;
+  if (!found) return;
+  sim::Entity& e = *found;
   sim::allStop(e);
   if (mode_ == ViewMode::driving && attached_ == who) seedDrive(e);
 }
 
 void SimSession::handle(ViewerKey k) {
-  const auto& entities = sim_->entities();
+  const auto entities = sim_->entities();
   switch (k) {
     case ViewerKey::nextEntity:
     case ViewerKey::previousEntity: {
@@ -475,7 +490,8 @@ bool SimSession::steers(Key k) const {
 
 void SimSession::handle(const KeyEvent& e) {
   if (!steers(e.key)) return;
-  const bool air = attached_ && sim_->entities()[*attached_].domain == sim::Domain::air;
+  const sim::Entity* a = attached_ ? sim_->find(*attached_) : nullptr;
+  const bool air = a && a->domain == sim::Domain::air;
   const bool pages = e.key == Key::pageUp || e.key == Key::pageDown;
   if (mode_ == ViewMode::driving && driveKeys_ && (!pages || air)) {
     driveKeys_->handle(e);
@@ -494,8 +510,9 @@ void SimSession::handle(const KeyEvent& e) {
 }
 
 Pose SimSession::tetherPose(GroundClamp& ground) {
-  if (!attached_ || *attached_ >= sim_->entities().size()) return Pose{};
-  const sim::Entity& e = sim_->entities()[*attached_];
+  const sim::Entity* attached = attached_ ? sim_->find(*attached_) : nullptr;
+  if (!attached) return Pose{};
+  const sim::Entity& e = *attached;
   const TetherSettings& t = options_.tether;
   const double now = sim_->timeS();
   const double target = sim::wrapDeg(e.headingDeg + orbitDeg_);

@@ -114,19 +114,19 @@ TEST(SimSession, instancesCarryTheOrientationAndTheTurretRelativeToTheHull) {
   auto s = session(twoTanks());
   sim::Simulation& sim = s->simulation();
   // A tank that never aimed keeps its turret forward, whatever its heading.
-  sim.entities()[1].headingDeg = 180;
+  sim.entity(1).headingDeg = 180;
   DynamicScene d;
   s->fill(d);
   ASSERT_EQ(d.instances.size(), 2u);
   EXPECT_FLOAT_EQ(d.instances[1].turretAzimuthDeg, 0);
   // Aimed at azimuth 150 (a world bearing) on a hull heading 180: -30.
-  sim.entities()[1].gunAzimuthDeg = 150;
+  sim.entity(1).gunAzimuthDeg = 150;
   s->sample();
   s->fill(d);
   EXPECT_NEAR(d.instances[1].turretAzimuthDeg, -30, 1e-4);
   // The orientation is the entity's own quaternion, pitch and roll included.
   const Eigen::Quaterniond q = sim::orientationOf(40, 10, -5);
-  sim.entities()[0].orientation = q;
+  sim.entity(0).orientation = q;
   s->fill(d);
   const auto& o = d.instances[0].orientation;
   EXPECT_NEAR(std::abs(o[0] * q.x() + o[1] * q.y() + o[2] * q.z() + o[3] * q.w()), 1.0, 1e-6);
@@ -194,11 +194,11 @@ TEST(SimSession, aMissileLeavesAFadingTrailAndFlashesWhereItGoesOff) {
   ASSERT_TRUE(wentOff.has_value());
   EXPECT_TRUE(sawTrail);
   EXPECT_TRUE(sawMissile);
-  EXPECT_FALSE(sim.entities()[1].alive);
+  EXPECT_FALSE(sim.entity(1).alive);
   // The shooter aimed: its turret now points along its fire, relative to the hull.
   DynamicScene d;
   s->fill(d);
-  EXPECT_NEAR(d.instances[0].turretAzimuthDeg, sim::turnBetween(sim.entities()[0].headingDeg, sim.entities()[0].gunAzimuthDeg),
+  EXPECT_NEAR(d.instances[0].turretAzimuthDeg, sim::turnBetween(sim.entity(0).headingDeg, sim.entity(0).gunAzimuthDeg),
               1e-4);
 }
 
@@ -224,8 +224,8 @@ TEST(SimSession, objectsTheSimulationChangedGetTheirLook) {
   ruin.state = sim::ObjectState::ruins;  // before the session: found by its first scan
   world->setObjects({tree, ruin});
   auto sim = twoTanks(world);
-  sim->entities()[0].mobility = sim::Mobility::simple;
-  sim->entities()[0].speedMs = sim->entities()[0].commands.speedMs = 15;
+  sim->entity(0).mobility = sim::Mobility::simple;
+  sim->entity(0).speedMs = sim->entity(0).commands.speedMs = 15;
   auto s = session(std::move(sim));
   DynamicScene d;
   s->fill(d);
@@ -285,7 +285,7 @@ TEST(SimSession, theTetheredEyeFollowsBehindAndAbove) {
   const auto grid = flatGrid();
   auto s = session(twoTanks(flatWorld(grid)), attachTo("b1"));
   ASSERT_EQ(s->mode(), ViewMode::attached);
-  sim::Entity& e = s->simulation().entities()[0];
+  sim::Entity& e = s->simulation().entity(0);
   e.headingDeg = 90;  // east
   GroundClamp ground(grid);
   const Pose p = s->tetherPose(ground);
@@ -312,7 +312,7 @@ TEST(SimSession, drivingFeedsTheCommandsAndAllStopStops) {
   sim->driven = 0;
   auto s = session(std::move(sim), driving());
   ASSERT_EQ(s->mode(), ViewMode::driving);
-  sim::Entity& e = s->simulation().entities()[0];
+  sim::Entity& e = s->simulation().entity(0);
   EXPECT_EQ(e.controller, sim::Controller::driven);
   EXPECT_TRUE(e.autopilot);
   EXPECT_TRUE(s->steers(Key::up));
@@ -373,6 +373,53 @@ TEST(SimSession, attachingToNobodyOrDrivingNobodySaysWhy) {
   EXPECT_EQ(started->simulation().steps(), 120u);
   started->advanceToFlightTime(1);
   EXPECT_EQ(started->simulation().steps(), 180u);
+}
+
+TEST(SimSession, aFlightStepsAsManyStepsAsTheStepHostGivesForItsTime) {
+  auto s = session(twoTanks());
+  // 1.01 s is 60.6 steps: round to 61, as `sandtable sim --duration 1.01`
+  // and `bench sim` step (all through sim::StepHost::stepsFor).
+  s->advanceToFlightTime(1.01);
+  EXPECT_EQ(s->simulation().steps(), 61u);
+  EXPECT_EQ(s->stepHost().stepsFor(1.01), 61u);
+  // Hooks added to the session's host run for every step it takes.
+  std::uint64_t before = 0, after = 0;
+  s->stepHost().addBeforeStep([&](sim::Simulation&) { ++before; });
+  s->stepHost().addAfterStep([&](sim::Simulation&) { ++after; });
+  s->advanceToFlightTime(2.0);
+  s->step();
+  EXPECT_EQ(s->simulation().steps(), 121u);
+  EXPECT_EQ(before, 60u);
+  EXPECT_EQ(after, 60u);
+}
+
+TEST(SimSession, removingTheDrivenEntityFromAStepHookLeavesTheStealthEye) {
+  auto sim = twoTanks();
+  sim->driven = 0;
+  auto s = session(std::move(sim), driving());
+  ASSERT_EQ(s->mode(), ViewMode::driving);
+  bool removed = false;
+  s->stepHost().addBeforeStep([&](sim::Simulation& at) {
+    if (at.steps() == 30) removed = at.remove(0);
+  });
+  s->advanceToFlightTime(1.0);
+  s->sample();
+  ASSERT_TRUE(removed);
+  EXPECT_EQ(s->mode(), ViewMode::stealth);
+  EXPECT_FALSE(s->attached().has_value());
+  EXPECT_FALSE(s->simulation().driven.has_value());
+  // Everything a frame asks still answers, about what is left.
+  ASSERT_EQ(s->mapMarks().size(), 1u);
+  EXPECT_EQ(s->panelLines().size(), 2u);
+  const auto frame = nlohmann::json::parse(s->frameJson());
+  EXPECT_TRUE(frame["attached"].is_null());
+  EXPECT_EQ(frame["entities"], 1);
+  s->handle(ViewerKey::nextEntity);
+  EXPECT_EQ(s->attached(), 1u);  // r1 keeps its id
+  s->handle(ViewerKey::drive);
+  EXPECT_EQ(s->mode(), ViewMode::driving);
+  s->advanceToFlightTime(2.0);
+  EXPECT_EQ(s->simulation().steps(), 120u);
 }
 
 }  // namespace

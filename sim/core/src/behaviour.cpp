@@ -51,11 +51,12 @@ namespace {
 
 /// A standing object on the straight path of `length` from the entity at
 /// `headingDeg` (probed at its middle and its end).
-bool blocked(const SimWorld& world, const Entity& e, double headingDeg, double length, std::vector<std::uint32_t>& hits) {
+bool blocked(const SimWorld& world, const Entity& e, double headingDeg, double length, std::vector<std::uint32_t>& hits,
+             SearchStats* stats) {
   const Eigen::Vector3d f = headingVector(headingDeg);
   for (double at : {0.5 * length, length}) {
     hits.clear();
-    world.objectsNear(e.position.x() + f.x() * at, e.position.z() + f.z() * at, e.radius, e.position.y(), hits);
+    world.objectsNear(e.position.x() + f.x() * at, e.position.z() + f.z() * at, e.radius, e.position.y(), hits, stats);
     if (!hits.empty()) return true;
   }
   return false;
@@ -63,7 +64,7 @@ bool blocked(const SimWorld& world, const Entity& e, double headingDeg, double l
 
 }  // namespace
 
-bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o) {
+bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o, SearchStats* stats) {
   if (e.domain != Domain::land || world.objects().empty()) return false;
   const double speed = std::max(std::abs(e.commands.speedMs), e.cruiseMs);
   if (speed < 1) return false;
@@ -72,8 +73,8 @@ bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o) {
   const double want = e.commands.headingDeg;
   // Where it points now matters as much as where it wants to go: a tracked
   // vehicle takes seconds to turn.
-  const bool wanted = blocked(world, e, want, length, hits);
-  if (!wanted && !blocked(world, e, e.headingDeg, length, hits)) {
+  const bool wanted = blocked(world, e, want, length, hits, stats);
+  if (!wanted && !blocked(world, e, e.headingDeg, length, hits, stats)) {
     if (e.cruiseMs > 0) {
       e.commands.speedMs = std::copysign(e.cruiseMs, e.commands.speedMs);
       e.cruiseMs = 0;
@@ -86,7 +87,7 @@ bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o) {
   }
   if (!wanted) return false;
   for (double turn : {30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0, 150.0, -150.0, 180.0}) {
-    if (!blocked(world, e, want + turn, length, hits)) {
+    if (!blocked(world, e, want + turn, length, hits, stats)) {
       e.commands.headingDeg = wrapDeg(want + turn);
       return true;
     }

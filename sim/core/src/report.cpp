@@ -74,8 +74,10 @@ nlohmann::json summaryJson(const Simulation& sim) {
 
 nlohmann::json eventsJson(const Simulation& sim) {
   nlohmann::json out = nlohmann::json::array();
-  const auto& ents = sim.entities();
-  auto name = [&](std::uint32_t id) { return id < ents.size() ? nlohmann::json(ents[id].name) : nlohmann::json(); };
+  auto name = [&](std::uint32_t id) {
+    const std::string* n = sim.nameOf(id);  // removed entities keep their names here
+    return n ? nlohmann::json(*n) : nlohmann::json();
+  };
   for (const Event& ev : sim.events()) {
     nlohmann::json j = {{"t", mm(ev.timeS)},
                         {"kind", eventKindName(ev.kind)},

@@ -141,8 +141,10 @@ bool touches(const StaticObject& o, double x, double z, double radius, double bo
 
 }  // namespace
 
-void SimWorld::objectsNear(double x, double z, double radius, double bottomY, std::vector<std::uint32_t>& out) const {
+void SimWorld::objectsNear(double x, double z, double radius, double bottomY, std::vector<std::uint32_t>& out,
+                           SearchStats* stats) const {
   const std::size_t first = out.size();
+  SearchStats n;  // counted here, added once: the world itself stays unwritten (const is thread-safe)
   const auto cx = static_cast<std::int64_t>(std::floor(x / square_));
   const auto cz = static_cast<std::int64_t>(std::floor(z / square_));
   for (std::int64_t sz = cz - 1; sz <= cz + 1; ++sz) {
@@ -150,17 +152,22 @@ void SimWorld::objectsNear(double x, double z, double radius, double bottomY, st
     for (std::int64_t sx = cx - 1; sx <= cx + 1; ++sx) {
       if (sx < 0 || sx >= std::int64_t(squaresX_)) continue;
       const std::size_t sq = std::size_t(sz) * squaresX_ + std::size_t(sx);
-      ++stats_.squares;
+      ++n.squares;
       if (bottomY >= tallest_[sq]) continue;  // level 1: above every object of the square
-      ++stats_.squaresPassed;
+      ++n.squaresPassed;
       for (std::uint32_t k = squareStart_[sq]; k < squareStart_[sq + 1]; ++k) {
-        ++stats_.objectsTested;
+        ++n.objectsTested;
         const std::uint32_t i = squareObjects_[k];
         if (touches(objects_[i], x, z, radius, bottomY)) out.push_back(i);
       }
     }
   }
   std::sort(out.begin() + std::ptrdiff_t(first), out.end());
+  if (stats) {
+    stats->squares += n.squares;
+    stats->squaresPassed += n.squaresPassed;
+    stats->objectsTested += n.objectsTested;
+  }
 }
 
 void SimWorld::objectsNearBruteForce(double x, double z, double radius, double bottomY,

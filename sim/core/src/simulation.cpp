@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "sandtable/sim/motion.h"
+#include "sandtable/sim/step_host.h"
 
 namespace sandtable::sim {
 
@@ -18,6 +19,7 @@ const char* eventKindName(EventKind k) {
     case EventKind::entityCollision: return "entity-collision";
     case EventKind::crash: return "crash";
     case EventKind::aground: return "aground";
+    case EventKind::removed: return "removed";
   }
   return "?";
 }
@@ -59,9 +61,68 @@ std::uint32_t Simulation::addAircraftType(AircraftParams params) {
   return static_cast<std::uint32_t>(aircraftTypes_.size() - 1);
 }
 
+Simulation::Record* Simulation::recordOf(std::uint32_t id) {
+  return id < slots_.size() && slots_[id] != kGone ? &records_[slots_[id]] : nullptr;
+}
+
+const Simulation::Record* Simulation::recordOf(std::uint32_t id) const {
+  return id < slots_.size() && slots_[id] != kGone ? &records_[slots_[id]] : nullptr;
+}
+
+Entity* Simulation::find(std::uint32_t id) {
+  Record* r = recordOf(id);
+  return r ? &r->entity : nullptr;
+}
+
+const Entity* Simulation::find(std::uint32_t id) const {
+  const Record* r = recordOf(id);
+  return r ? &r->entity : nullptr;
+}
+
+AirState* Simulation::airState(std::uint32_t id) {
+  Record* r = recordOf(id);
+  return r ? &r->air : nullptr;
+}
+
+AirControls* Simulation::airControls(std::uint32_t id) {
+  Record* r = recordOf(id);
+  return r ? &r->airControls : nullptr;
+}
+
+const std::string* Simulation::nameOf(std::uint32_t id) const {
+  if (const Entity* e = find(id)) return &e->name;
+  const auto it = removedNames_.find(id);
+  return it != removedNames_.end() ? &it->second : nullptr;
+}
+
+Simulation::Record& Simulation::append(Entity e) {
+  e.id = nextId_++;
+  slots_.push_back(static_cast<std::uint32_t>(records_.size()));
+  Record& r = records_.emplace_back();
+  r.entity = std::move(e);
+  return r;
+}
+
+bool Simulation::remove(std::uint32_t id) {
+  Record* r = recordOf(id);
+  if (!r) return false;
+  Entity& e = r->entity;
+  emit({0, EventKind::removed, id, UINT32_MAX, UINT32_MAX, e.position, {}, {}});
+  removedNames_.emplace(id, std::move(e.name));
+  const std::uint32_t slot = slots_[id];
+  records_.erase(records_.begin() + slot);
+  slots_[id] = kGone;
+  for (std::size_t k = slot; k < records_.size(); ++k) --slots_[records_[k].entity.id];
+  // What named it by id: the cells are rebuilt at the next step, the
+  // rest looks the id up (find) and lets go of an id that is gone.
+  cells_.clear();
+  std::erase_if(pendingFire_, [&](const PendingFire& f) { return f.shooter == id; });
+  if (driven == id) driven.reset();
+  return true;
+}
+
 Result<std::uint32_t> Simulation::add(Entity e) {
-  const auto id = static_cast<std::uint32_t>(entities_.size());
-  e.id = id;
+  const std::uint32_t id = nextId_;
   if (e.icon < world_->icons().icons.size() && !isMunition(e)) sizeFromIcon(e, world_->icons().icons[e.icon]);
   if (e.behaviours.edge) placeOutsideBuffer(*world_, e, options_.behaviour);
   const std::string where = "entity " + std::to_string(id) + " (" + e.name + ")";
@@ -101,12 +162,7 @@ Result<std::uint32_t> Simulation::add(Entity e) {
       e.velocity = headingVector(e.headingDeg) * e.speedMs;
     }
   }
-  entities_.push_back(std::move(e));
-  air_.push_back(air);
-  airControls_.emplace_back();
-  lastLine_.emplace_back();
-  lineApplied_.push_back(false);
-  scripted_.push_back(false);
+  append(std::move(e)).air = air;
   return id;
 }
 
@@ -114,9 +170,9 @@ void Simulation::addScript(std::vector<ScriptLine> lines,
                            std::vector<std::pair<std::uint32_t, std::uint32_t>> entityToId) {
   std::sort(entityToId.begin(), entityToId.end());
   for (const auto& [scriptEntity, id] : entityToId) {
-    if (id < scripted_.size()) {
-      scripted_[id] = true;
-      entities_[id].controller = Controller::script;
+    if (Record* r = recordOf(id)) {
+      r->scripted = true;
+      r->entity.controller = Controller::script;
     }
   }
   scripts_.push_back({ScriptPlayer(std::move(lines)), std::move(entityToId)});
@@ -151,8 +207,9 @@ void Simulation::emit(Event ev) {
 }
 
 void Simulation::kill(std::uint32_t id, std::uint32_t by, const std::string& detail) {
-  Entity& e = entities_[id];
-  if (!e.alive) return;
+  Entity* found = find(id);
+  if (!found || !found->alive) return;
+  Entity& e = *found;
   e.alive = false;
   e.speedMs = 0;
   e.velocity.setZero();
@@ -163,7 +220,9 @@ void Simulation::kill(std::uint32_t id, std::uint32_t by, const std::string& det
 
 std::uint32_t Simulation::fire(std::uint32_t shooter, double azimuthDeg, double elevationDeg, std::uint16_t type,
                                std::uint32_t target) {
-  const Entity& s = entities_[shooter];
+  const Entity* shooterEntity = find(shooter);
+  if (!shooterEntity) return UINT32_MAX;
+  const Entity& s = *shooterEntity;
   const MunitionType& t = munitionTypes_[type];
   Entity m;
   m.name = t.name;
@@ -186,15 +245,9 @@ std::uint32_t Simulation::fire(std::uint32_t shooter, double azimuthDeg, double 
   m.target = target;
   m.fuseS = t.lifeS;
   m.munitionType = type;
-  const auto id = static_cast<std::uint32_t>(entities_.size());
-  m.id = id;
+  const std::uint32_t id = nextId_;
   emit({0, EventKind::fire, id, shooter, UINT32_MAX, m.position, t.name, {}});
-  entities_.push_back(std::move(m));
-  air_.emplace_back();
-  airControls_.emplace_back();
-  lastLine_.emplace_back();
-  lineApplied_.push_back(false);
-  scripted_.push_back(false);
+  append(std::move(m));
   return id;
 }
 
@@ -208,15 +261,16 @@ void Simulation::applyScripts() {
     s.player.advance(
         now,
         [&](std::uint32_t scriptEntity) {
-          const std::uint32_t id = idOf(scriptEntity);
-          return id != UINT32_MAX && entities_[id].alive;
+          const Entity* e = find(idOf(scriptEntity));
+          return e && e->alive;
         },
         [&](const ScriptLine& line) {
           const std::uint32_t id = idOf(line.entity);
-          if (id == UINT32_MAX) return;
-          lastLine_[id] = line;
-          lineApplied_[id] = true;
-          Entity& e = entities_[id];
+          Record* r = recordOf(id);
+          if (!r) return;  // not mapped, or removed: the line is consumed and ignored
+          r->lastLine = line;
+          r->lineApplied = true;
+          Entity& e = r->entity;
           e.headingDeg = e.commands.headingDeg = wrapDeg(line.directionDeg);
           e.speedMs = e.commands.speedMs = line.speed;
           e.gunAzimuthDeg = line.viewDirectionDeg;
@@ -226,13 +280,14 @@ void Simulation::applyScripts() {
   }
 }
 
-void Simulation::behave(Entity& e) {
+void Simulation::behave(Record& r) {
+  Entity& e = r.entity;
   const BehaviourOptions& o = options_.behaviour;
   if (e.controller == Controller::behaviour) {
     if (e.behaviours.zigzag) zigzag(e, timeS(), options_.seed, draws_, o);
     if (e.behaviours.environment) {
       environmentLimit(*world_, e, o);
-      avoidObjects(*world_, e, o);
+      avoidObjects(*world_, e, o, &counters_.search);
     }
     if (e.behaviours.edge) edgeOfWorld(*world_, e, o);
     if (e.behaviours.engage && e.armed) engage(e);
@@ -240,8 +295,8 @@ void Simulation::behave(Entity& e) {
   const bool steered = e.controller == Controller::behaviour || e.controller == Controller::script || e.autopilot;
   if (steered && (e.mobility == Mobility::tracked || e.mobility == Mobility::wheeled)) landAutopilot(e);
   if (steered && e.mobility == Mobility::aircraft && e.aircraftType < aircraftTypes_.size()) {
-    airControls_[e.id] = holdAttitude(aircraftTypes_[e.aircraftType], air_[e.id], e.commands.headingDeg,
-                                      e.commands.altitudeM, e.commands.speedMs);
+    r.airControls = holdAttitude(aircraftTypes_[e.aircraftType], r.air, e.commands.headingDeg, e.commands.altitudeM,
+                                 e.commands.speedMs);
   }
 }
 
@@ -253,28 +308,30 @@ void Simulation::engage(Entity& e) {
   e.nextShotS = now + o.engageReloadS;
   // The nearest enemy in range and in sight; neutrals are nobody's enemy.
   const Eigen::Vector3d eye = e.position + Eigen::Vector3d(0, e.height * 0.7, 0);
-  std::uint32_t best = UINT32_MAX;
+  const Entity* best = nullptr;
   double bestD = o.engageRangeM * o.engageRangeM;
-  for (const Entity& t : entities_) {
+  for (const Record& r : records_) {
+    const Entity& t = r.entity;
     if (!t.alive || t.domain == Domain::munition || t.force == e.force || t.force == 0 || e.force == 0) continue;
     const double d = (t.position - e.position).squaredNorm();
     if (d >= bestD) continue;
     if (!lineOfSight(*world_, eye, t.position + Eigen::Vector3d(0, t.height * 0.5, 0))) continue;
-    best = t.id;
+    best = &t;
     bestD = d;
   }
-  if (best == UINT32_MAX) return;
-  const Eigen::Vector3d to = entities_[best].position - e.position;
+  if (!best) return;
+  const Eigen::Vector3d to = best->position - e.position;
   const double elevation = std::atan2(to.y(), std::hypot(to.x(), to.z())) * kRadToDeg;
   e.gunAzimuthDeg = headingOf(to.x(), to.z());
-  pendingFire_.push_back({e.id, e.gunAzimuthDeg, elevation + 1.0, 0, best});
+  pendingFire_.push_back({e.id, e.gunAzimuthDeg, elevation + 1.0, 0, best->id});
 }
 
-void Simulation::moveAir(Entity& e) {
+void Simulation::moveAir(Record& r) {
+  Entity& e = r.entity;
   const double dt = options_.stepS;
   if (e.mobility == Mobility::aircraft && e.aircraftType < aircraftTypes_.size()) {
-    AirState& s = air_[e.id];
-    stepAircraft(aircraftTypes_[e.aircraftType], airControls_[e.id], s, dt);
+    AirState& s = r.air;
+    stepAircraft(aircraftTypes_[e.aircraftType], r.airControls, s, dt);
     e.position = s.position;
     e.velocity = s.velocity;
     e.orientation = s.orientation;
@@ -304,7 +361,7 @@ void Simulation::moveAir(Entity& e) {
   }
   const auto ground = world_->groundAt(e.position.x(), e.position.z());
   if (!ground) {
-    e.position = before_[e.id];
+    e.position = r.before;
     return;
   }
   e.heightAgl = e.position.y() - *ground;
@@ -315,13 +372,14 @@ void Simulation::moveAir(Entity& e) {
   }
 }
 
-void Simulation::move(Entity& e) {
+void Simulation::move(Record& r) {
+  Entity& e = r.entity;
   const double dt = options_.stepS;
-  if (scripted_[e.id]) {
+  if (r.scripted) {
     // Between lines a scripted entity is dead reckoned from its last line;
     // before its first it waits where the scenario put it.
-    if (!lineApplied_[e.id]) return;
-    const ScriptLine& line = lastLine_[e.id];
+    if (!r.lineApplied) return;
+    const ScriptLine& line = r.lastLine;
     const Eigen::Vector2d p = deadReckon(line, timeS() + dt);
     const auto a = projectedPointAttitude(*world_, p.x(), p.y(), e.headingDeg, e.halfLength, e.halfWidth);
     if (!a) return;
@@ -335,7 +393,7 @@ void Simulation::move(Entity& e) {
     return;
   }
   if (e.domain == Domain::air) {
-    moveAir(e);
+    moveAir(r);
     return;
   }
   const double speedBefore = e.speedMs;
@@ -351,12 +409,10 @@ void Simulation::move(Entity& e) {
 }
 
 void Simulation::step() {
-  const std::size_t n = entities_.size();
-  before_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) before_[i] = entities_[i].position;
+  for (Record& r : records_) r.before = r.entity.position;
   applyScripts();
-  if (recorder_ && recordId_ < n) {
-    const Entity& e = entities_[recordId_];
+  if (const Entity* recorded = recorder_ ? find(recordId_) : nullptr) {
+    const Entity& e = *recorded;
     ScriptLine line;
     line.setTime(timeS());
     line.entity = recordEntity_;
@@ -373,31 +429,30 @@ void Simulation::step() {
     recorder_->record(line);
   }
   bucketEntities();
-  for (std::size_t i = 0; i < n; ++i) {
-    Entity& e = entities_[i];
+  // Nothing adds or removes a record until the launches below.
+  for (Record& r : records_) {
+    Entity& e = r.entity;
     if (!e.alive) continue;
     ++counters_.entitySteps;
     if (isMunition(e)) {
       flyMunition(e);
       continue;
     }
-    behave(e);
-    move(e);
-    if (options_.collisions && e.alive) collideStatic(e, before_[i]);
+    behave(r);
+    move(r);
+    if (options_.collisions && e.alive) collideStatic(r);
   }
   if (options_.collisions) collideMoving();
   for (const PendingFire& f : pendingFire_) {
-    if (entities_[f.shooter].alive) fire(f.shooter, f.azimuthDeg, f.elevationDeg, f.type, f.target);
+    const Entity* shooter = find(f.shooter);
+    if (shooter && shooter->alive) fire(f.shooter, f.azimuthDeg, f.elevationDeg, f.type, f.target);
   }
   pendingFire_.clear();
   ++steps_;
   ++counters_.steps;
 }
 
-void Simulation::runFor(double seconds) {
-  const auto target = static_cast<std::uint64_t>(std::llround(seconds / options_.stepS));
-  for (std::uint64_t k = 0; k < target; ++k) step();
-}
+void Simulation::runFor(double seconds) { StepHost(*this).runFor(seconds); }
 
 std::string Simulation::entityClass(const Entity& e) const {
   switch (e.domain) {
@@ -419,12 +474,14 @@ void Simulation::applyObjectResult(std::uint32_t object, ObjectResult r) {
   }
 }
 
-void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
+void Simulation::collideStatic(Record& r) {
+  Entity& e = r.entity;
+  const Eigen::Vector3d& before = r.before;
   if (e.position == before) return;  // objects do not move: nothing new can touch
   auto near = [&](const Eigen::Vector3d& p, std::vector<std::uint32_t>& out) {
     out.clear();
     if (options_.bruteForce) world_->objectsNearBruteForce(p.x(), p.z(), e.radius, p.y(), out);
-    else world_->objectsNear(p.x(), p.z(), e.radius, p.y(), out);
+    else world_->objectsNear(p.x(), p.z(), e.radius, p.y(), out, &counters_.search);
   };
   near(e.position, scratch_);
   if (e.pressing != UINT32_MAX && !std::binary_search(scratch_.begin(), scratch_.end(), e.pressing)) {
@@ -466,7 +523,7 @@ void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
     e.position = before;
     e.speedMs = 0;
     e.velocity.setZero();
-    if (e.domain == Domain::air) air_[e.id].velocity.setZero();
+    if (e.domain == Domain::air) r.air.velocity.setZero();
     if (e.controller == Controller::behaviour) {
       e.commands.headingDeg = wrapDeg(e.headingDeg + 180);  // back away from it
     } else {
@@ -477,9 +534,10 @@ void Simulation::collideStatic(Entity& e, const Eigen::Vector3d& before) {
 
 void Simulation::bucketEntities() {
   cells_.clear();
-  for (const Entity& e : entities_) {
+  for (std::uint32_t k = 0; k < records_.size(); ++k) {
+    const Entity& e = records_[k].entity;
     if (!e.alive || isMunition(e)) continue;
-    cells_.emplace_back(cellKey(e.position.x(), e.position.z(), options_.entityBoxM), e.id);
+    cells_.emplace_back(cellKey(e.position.x(), e.position.z(), options_.entityBoxM), k);
   }
   std::sort(cells_.begin(), cells_.end());
 }
@@ -514,15 +572,15 @@ const std::vector<Triangle>& Simulation::trianglesOf(std::uint16_t icon) {
 void Simulation::collideMoving() {
   const double box = options_.entityBoxM;
   if (options_.bruteForce) {
-    for (std::size_t i = 0; i < entities_.size(); ++i) {
-      for (std::size_t j = i + 1; j < entities_.size(); ++j) {
-        Entity& a = entities_[i];
-        Entity& b = entities_[j];
+    for (std::size_t i = 0; i < records_.size(); ++i) {
+      for (std::size_t j = i + 1; j < records_.size(); ++j) {
+        const Entity& a = records_[i].entity;
+        const Entity& b = records_[j].entity;
         if (!a.alive || !b.alive || isMunition(a) || isMunition(b)) continue;
         if (std::abs(a.position.x() - b.position.x()) >= box || std::abs(a.position.z() - b.position.z()) >= box) {
           continue;
         }
-        collidePair(a, b);
+        collidePair(records_[i], records_[j]);
       }
     }
     return;
@@ -536,21 +594,25 @@ void Simulation::collideMoving() {
         const std::uint64_t k = (std::uint64_t(cx + dx) << 32) | std::uint64_t(cz + dz);
         auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(k, ia + 1));
         for (; it != cells_.end() && it->first == k; ++it) {
-          Entity& a = entities_[ia];
-          Entity& b = entities_[it->second];
+          Record& ra = records_[ia];
+          Record& rb = records_[it->second];
+          const Entity& a = ra.entity;
+          const Entity& b = rb.entity;
           if (!a.alive || !b.alive) continue;
           if (std::abs(a.position.x() - b.position.x()) >= box ||
               std::abs(a.position.z() - b.position.z()) >= box) {
             continue;
           }
-          collidePair(a, b);
+          collidePair(ra, rb);
         }
       }
     }
   }
 }
 
-void Simulation::collidePair(Entity& a, Entity& b) {
+void Simulation::collidePair(Record& ra, Record& rb) {
+  Entity& a = ra.entity;
+  Entity& b = rb.entity;
   ++counters_.pairsBoxed;
   const Eigen::Vector3d ca = a.position + a.orientation * Eigen::Vector3d(0, a.height * 0.5, 0);
   const Eigen::Vector3d cb = b.position + b.orientation * Eigen::Vector3d(0, b.height * 0.5, 0);
@@ -587,18 +649,19 @@ void Simulation::collidePair(Entity& a, Entity& b) {
   ev.bodyA = ray.bodyPointA;
   ev.bodyB = ray.bodyPointB;
   emit(std::move(ev));
-  auto apply = [&](Entity& e, bool killed, bool stopped, const Eigen::Vector2d& v, double heading) {
+  auto apply = [&](Record& r, bool killed, bool stopped, const Eigen::Vector2d& v, double heading) {
+    Entity& e = r.entity;
     if (killed) {
       kill(e.id, e.id == a.id ? b.id : a.id, "collision");
       return;
     }
-    e.position = before_[e.id];
+    e.position = r.before;
     if (stopped) {
       e.speedMs = 0;
       e.velocity.setZero();
       if (e.controller != Controller::behaviour) e.commands.speedMs = 0;
       else e.commands.headingDeg = wrapDeg(e.headingDeg + 180);
-      if (e.domain == Domain::air) air_[e.id].velocity.setZero();
+      if (e.domain == Domain::air) r.air.velocity.setZero();
       return;
     }
     e.headingDeg = e.commands.headingDeg = heading;
@@ -606,20 +669,19 @@ void Simulation::collidePair(Entity& a, Entity& b) {
     if (e.controller == Controller::behaviour) e.commands.speedMs = e.speedMs;
     e.velocity = {v.x(), 0, v.y()};
     if (e.domain == Domain::air) {
-      air_[e.id].velocity.x() = v.x();
-      air_[e.id].velocity.z() = v.y();
+      r.air.velocity.x() = v.x();
+      r.air.velocity.z() = v.y();
     }
   };
-  apply(a, out.killA, out.stopA, out.newVelocityA, out.newHeadingA);
-  apply(b, out.killB, out.stopB, out.newVelocityB, out.newHeadingB);
+  apply(ra, out.killA, out.stopA, out.newVelocityA, out.newHeadingA);
+  apply(rb, out.killB, out.stopB, out.newVelocityB, out.newHeadingB);
 }
 
 void Simulation::flyMunition(Entity& m) {
   const MunitionType& type = munitionTypes_[m.munitionType];
   std::optional<Eigen::Vector3d> target;
-  if (m.target < entities_.size() && entities_[m.target].alive) {
-    const Entity& t = entities_[m.target];
-    target = t.position + Eigen::Vector3d(0, t.height * 0.5, 0);
+  if (const Entity* t = find(m.target); t && t->alive) {  // a target removed or dead: straight on
+    target = t->position + Eigen::Vector3d(0, t->height * 0.5, 0);
   }
   const Eigen::Vector3d a = m.position;
   stepMunition(m, type, target, options_.stepS);
@@ -643,7 +705,7 @@ void Simulation::flyMunition(Entity& m) {
     const double reach = (b - a).norm() * 0.5 + type.radius;
     const double bottom = std::min(a.y(), b.y()) - type.radius;
     if (options_.bruteForce) world_->objectsNearBruteForce(mid.x(), mid.z(), reach, bottom, scratch_);
-    else world_->objectsNear(mid.x(), mid.z(), reach, bottom, scratch_);
+    else world_->objectsNear(mid.x(), mid.z(), reach, bottom, scratch_, &counters_.search);
     for (std::uint32_t o : scratch_) {
       const StaticObject& ob = world_->objects()[o];
       if (auto t = sweptHitsCylinder(a, b, type.radius, ob.x, ob.z, ob.radius, ob.baseY, ob.height); t && *t < best) {
@@ -662,7 +724,7 @@ void Simulation::flyMunition(Entity& m) {
       const std::uint64_t k = (std::uint64_t(cx + dx) << 32) | std::uint64_t(cz + dz);
       for (auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(k, 0u));
            it != cells_.end() && it->first == k; ++it) {
-        const Entity& e = entities_[it->second];
+        Entity& e = records_[it->second].entity;
         if (!e.alive || e.id == m.launcher) continue;
         const Eigen::Vector3d centre = e.position + Eigen::Vector3d(0, e.height * 0.5, 0);
         if (auto t = sweptHitsSphere(a, b, e.sphereRadius + type.radius, centre); t && *t < best) {
@@ -678,12 +740,13 @@ void Simulation::flyMunition(Entity& m) {
           best = std::min(best, 1.0);
           detail = "kill box";
         } else if (e.behaviours.fight && e.lastSensed != m.id && inBox(e, b, o.nearMissBoxM)) {
-          Entity& sensing = entities_[it->second];
+          Entity& sensing = e;
           sensing.lastSensed = m.id;
           const Reaction r = fightOrFlight(sensing, m.velocity, o);
           // Fire back at an enemy launcher, when reloaded (a volley of
           // replies to replies would never end).
-          const bool enemy = m.launcher < entities_.size() && entities_[m.launcher].force != sensing.force;
+          const Entity* launcher = find(m.launcher);  // removed: nobody to fire back at
+          const bool enemy = launcher && launcher->force != sensing.force;
           if (r.fire && enemy && timeS() >= sensing.nextShotS) {
             sensing.nextShotS = timeS() + o.engageReloadS;
             pendingFire_.push_back({sensing.id, r.fireAzimuthDeg, 2.0, 0, m.launcher});

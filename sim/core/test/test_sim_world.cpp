@@ -54,12 +54,15 @@ TEST(SimWorld, theFirstLevelSkipsSquaresWhoseTallestObjectIsBelowTheEntity) {
   objects[0].height = 15;
   w->setObjects(objects);
   std::vector<std::uint32_t> out;
-  w->stats() = {};
-  w->objectsNear(501, 500, 1, 20, out);  // above the 15 m tree
+  SearchStats stats;
+  w->objectsNear(501, 500, 1, 20, out, &stats);  // above the 15 m tree
   EXPECT_TRUE(out.empty());
-  EXPECT_EQ(w->stats().squaresPassed, 0u);
-  EXPECT_EQ(w->stats().objectsTested, 0u);
-  w->objectsNear(501, 500, 1, 10, out);  // among its branches
+  EXPECT_EQ(stats.squares, 9u);
+  EXPECT_EQ(stats.squaresPassed, 0u);
+  EXPECT_EQ(stats.objectsTested, 0u);
+  w->objectsNear(501, 500, 1, 10, out, &stats);  // among its branches
+  EXPECT_EQ(stats.squaresPassed, 1u);  // the tree's square only
+  EXPECT_EQ(stats.objectsTested, 1u);
   EXPECT_EQ(out, std::vector<std::uint32_t>{0});
   out.clear();
   w->objectsNear(504.1, 500, 1, 0, out);  // 4.1 m apart: radii 3 + 1 do not meet

@@ -58,7 +58,7 @@ TEST(Simulation, aTankMeetingATreeGetsTable6sResultForItsSpeed) {
     Simulation sim(w);
     ASSERT_TRUE(sim.add(vehicle(1000, 1000, 0, c.kmh / 3.6)));
     sim.runFor(30);
-    const Entity& t = sim.entities()[0];
+    const Entity& t = sim.entity(0);
     EXPECT_EQ(t.alive, c.alive) << c.kmh;
     EXPECT_EQ(w->objects()[0].state, c.tree) << c.kmh;
     EXPECT_EQ(sim.counters().collisions.objects, 1u) << c.kmh;
@@ -75,14 +75,14 @@ TEST(Simulation, headOnAboveTheKillSpeedKillsBothBelowItStopsBoth) {
     ASSERT_TRUE(sim.add(vehicle(1000, 950, 180, speed)));  // south, towards it
     sim.runFor(60);
     const bool kill = 2 * speed > sim.options().killSpeedMs;
-    EXPECT_EQ(sim.entities()[0].alive, !kill) << speed;
-    EXPECT_EQ(sim.entities()[1].alive, !kill) << speed;
+    EXPECT_EQ(sim.entity(0).alive, !kill) << speed;
+    EXPECT_EQ(sim.entity(1).alive, !kill) << speed;
     EXPECT_EQ(sim.counters().collisions.entities, 1u) << speed;
     if (!kill) {
-      EXPECT_EQ(sim.entities()[0].speedMs, 0);
-      EXPECT_EQ(sim.entities()[1].speedMs, 0);
+      EXPECT_EQ(sim.entity(0).speedMs, 0);
+      EXPECT_EQ(sim.entity(1).speedMs, 0);
     }
-    const double gap = (sim.entities()[0].position - sim.entities()[1].position).norm();
+    const double gap = (sim.entity(0).position - sim.entity(1).position).norm();
     EXPECT_LE(gap, 6.0 + 1e-9);  // they met: the spheres (3 + 3) touched
   }
 }
@@ -94,8 +94,8 @@ TEST(Simulation, aGlancingContactBouncesBothWithLessSpeed) {
   ASSERT_TRUE(sim.add(vehicle(1003, 960, 200, 8)));  // passes 3 m to the east: a glancing touch
   for (int k = 0; k < 60 * 10 && sim.counters().collisions.entities == 0; ++k) sim.step();
   ASSERT_EQ(sim.counters().collisions.entities, 1u);
-  const Entity& a = sim.entities()[0];
-  const Entity& b = sim.entities()[1];
+  const Entity& a = sim.entity(0);
+  const Entity& b = sim.entity(1);
   EXPECT_TRUE(a.alive);
   EXPECT_TRUE(b.alive);
   EXPECT_LT(a.speedMs, 8);
@@ -126,8 +126,8 @@ TEST(Simulation, aGuidedMissileKillsItsTargetAndArmedEntitiesFireBack) {
   ASSERT_TRUE(sim.add(bystander));
   const auto missile = sim.fire(0, 90, 2, 0, 1);
   sim.runFor(15);
-  EXPECT_FALSE(sim.entities()[missile].alive);
-  EXPECT_FALSE(sim.entities()[1].alive);
+  EXPECT_FALSE(sim.entity(missile).alive);
+  EXPECT_FALSE(sim.entity(1).alive);
   bool killedByBlue = false, redFired = false;
   for (const Event& ev : sim.events()) {
     if (ev.kind == EventKind::kill && ev.entity == 1 && ev.other == 0) killedByBlue = true;
@@ -137,8 +137,8 @@ TEST(Simulation, aGuidedMissileKillsItsTargetAndArmedEntitiesFireBack) {
   // Red sensed the missile before it hit and, within one turn of the
   // reverse azimuth, fired back; the unarmed bystander fled east.
   EXPECT_TRUE(redFired);
-  EXPECT_NEAR(sim.entities()[2].headingDeg, 90, 1.0);
-  EXPECT_GT(sim.entities()[2].speedMs, 11);
+  EXPECT_NEAR(sim.entity(2).headingDeg, 90, 1.0);
+  EXPECT_GT(sim.entity(2).speedMs, 11);
 }
 
 TEST(Simulation, aMunitionFoundUnderTheSurfaceDetonatesWhereItsSegmentCrossedIt) {
@@ -208,7 +208,7 @@ TEST(Simulation, recordingAndPlayingBackReproducesThePathWithinOneCentimetre) {
     sim.driven = 0;
     sim.record(0, 7, 2);
     for (int k = 0; k < 60 * 90; ++k) {
-      Entity& d = sim.entities()[0];
+      Entity& d = sim.entity(0);
       const double s = sim.timeS();
       d.controls.leftTrack = 0.35 + 0.2 * std::sin(s / 7);
       d.controls.rightTrack = 0.35 + 0.2 * std::cos(s / 5);
@@ -230,7 +230,7 @@ TEST(Simulation, recordingAndPlayingBackReproducesThePathWithinOneCentimetre) {
   double worst = 0;
   for (std::size_t k = 0; k < path.size(); ++k) {
     play.step();
-    worst = std::max(worst, (play.entities()[0].position - path[k]).norm());
+    worst = std::max(worst, (play.entity(0).position - path[k]).norm());
   }
   EXPECT_LT(worst, 0.01);
 }
@@ -242,9 +242,9 @@ TEST(Simulation, landEntitiesStayOnTheDrawnSurfaceAndTheirAttitudeNeverJumps) {
   t.autopilot = false;
   ASSERT_TRUE(sim.add(t));
   double worstGround = 0, worstPitchStep = 0, worstRollStep = 0;
-  double pitch = sim.entities()[0].pitchDeg, roll = sim.entities()[0].rollDeg;
+  double pitch = sim.entity(0).pitchDeg, roll = sim.entity(0).rollDeg;
   for (int k = 0; k < 60 * 120; ++k) {
-    Entity& e = sim.entities()[0];
+    Entity& e = sim.entity(0);
     e.controls.leftTrack = 0.5;
     e.controls.rightTrack = 0.45;
     sim.step();
@@ -266,9 +266,9 @@ TEST(Simulation, anAircraftFlownIntoTheGroundCrashes) {
   jet.domain = Domain::air;
   jet.position.y() = 300;
   ASSERT_TRUE(sim.add(jet));
-  sim.entities()[0].commands.altitudeM = -100;  // dive
+  sim.entity(0).commands.altitudeM = -100;  // dive
   sim.runFor(60);
-  EXPECT_FALSE(sim.entities()[0].alive);
+  EXPECT_FALSE(sim.entity(0).alive);
   ASSERT_FALSE(sim.events().empty());
   EXPECT_EQ(sim.events()[0].kind, EventKind::crash);
 }
@@ -290,9 +290,9 @@ TEST(Simulation, computerGeneratedForcesSteerAroundObjectsInTheirPath) {
   ASSERT_TRUE(sim.add(e));
   sim.runFor(30);
   EXPECT_EQ(sim.counters().collisions.objects, 0u);
-  EXPECT_TRUE(sim.entities()[0].alive);
-  EXPECT_LT(sim.entities()[0].position.z(), 900);  // it went past the tree
-  EXPECT_GT(sim.entities()[0].speedMs, 5);          // and back up to speed
+  EXPECT_TRUE(sim.entity(0).alive);
+  EXPECT_LT(sim.entity(0).position.z(), 900);  // it went past the tree
+  EXPECT_GT(sim.entity(0).speedMs, 5);          // and back up to speed
 }
 
 }  // namespace

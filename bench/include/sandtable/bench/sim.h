@@ -32,8 +32,8 @@ struct SimBenchOptions {
 
 struct SimBenchReport {
   /// What `sandtable bench sim --json` prints: size_km, objects, cases[]
-  /// with entities, grid {step_ms, entities_per_s, hz, runs_ms}, brute
-  /// {step_ms, entities_per_s, hz, runs_ms}, brute_over_grid, meets_60hz,
+  /// with entities, grid {step_ms, entities_per_s, hz, runs_ms, steps}, brute
+  /// {step_ms, entities_per_s, hz, runs_ms, steps}, brute_over_grid, meets_60hz,
   /// the collisions counted, and the objects tested per entity step.
   nlohmann::json json;
 };

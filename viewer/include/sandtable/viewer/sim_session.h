@@ -10,10 +10,11 @@
 // and driving one (the eye's first-order key scheme feeding the entity's
 // commands, its autopilot turning them into track forces).
 //
-// Time: the simulation only moves in fixed steps (SimOptions::stepS, 60 Hz).
+// Time: the simulation only moves in fixed steps (SimOptions::stepS, 60 Hz),
+// all through one sim::StepHost (the runner `sandtable sim` uses).
 // Headless, frame k is at k / 30 s and the session is stepped to
-// round(t / stepS) steps, so a flight is deterministic frame by frame and
-// gives the simulation `sandtable sim` gives for as long. The entities
+// StepHost::stepsFor(t) steps, so a flight is deterministic frame by frame
+// and gives the simulation `sandtable sim` gives for as long. The entities
 // follow the finest surface, as headless runs of the simulator do; the
 // renderer sets each surface entity on the level of detail it draws there
 // (DynamicInstance::onSurface), so the simulation does not depend on what
@@ -31,11 +32,14 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "sandtable/base/result.h"
 #include "sandtable/render/map_view.h"
 #include "sandtable/scene/module_scene.h"
 #include "sandtable/scene/dynamic.h"
 #include "sandtable/sim/simulation.h"
+#include "sandtable/sim/step_host.h"
 #include "sandtable/viewer/viewer_keys.h"
 #include "sandtable/world/controls.h"
 #include "sandtable/world/ground.h"
@@ -105,8 +109,10 @@ class SimSession {
   /// (SimSessionOptions::startS): round(t / stepS) steps after it.
   void advanceToFlightTime(double t);
   /// One fixed step: the driving controls advance and feed the driven
-  /// entity's commands, then the simulation steps.
+  /// entity's commands (a before-step hook), then the simulation steps.
   void step();
+  /// The runner every step goes through: add hooks here (the network).
+  sim::StepHost& stepHost() { return host_; }
   /// The levels the last frame drew: the entities stand on them from the
   /// next step on (seed: they follow the terrain that is drawn there).
   /// Where nothing was drawn, level 0.
@@ -173,8 +179,11 @@ class SimSession {
   void seedDrive(const sim::Entity& e);
   bool isTarget(const sim::Entity& e) const { return e.domain != sim::Domain::munition; }
   float turretOf(const sim::Entity& e) const;
+  /// An entity's name (a removed one's too), or null.
+  nlohmann::json nameJson(std::optional<std::uint32_t> id) const;
 
   std::unique_ptr<sim::Simulation> sim_;
+  sim::StepHost host_;  ///< steps *sim_
   SimSessionOptions options_;
   ViewMode mode_ = ViewMode::stealth;
   std::optional<std::uint32_t> attached_;

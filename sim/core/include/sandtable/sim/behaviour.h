@@ -66,8 +66,9 @@ bool environmentLimit(const SimWorld& world, Entity& e, const BehaviourOptions& 
 /// standing object slows to `avoidSpeedMs` and steers to the nearest free
 /// heading among +-30, +-60, ... +-180 degrees of its commanded one; once
 /// its path is clear it resumes its speed. True when it turned. The
-/// seed's noise entities drove into trees and died by Table 6.
-bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o);
+/// seed's noise entities drove into trees and died by Table 6. `stats`,
+/// when given, counts the probes' object searches.
+bool avoidObjects(const SimWorld& world, Entity& e, const BehaviourOptions& o, SearchStats* stats = nullptr);
 
 /// Edge of the world: an entity in the buffer zone heading further out
 /// turns back into the world (the outward component of its heading is

@@ -77,7 +77,7 @@ struct VehicleParams {
 };
 
 struct Entity {
-  std::uint32_t id = 0;        ///< its index in Simulation::entities()
+  std::uint32_t id = 0;        ///< given by Simulation::add / fire: stable, never reused in a run
   std::string name;
   std::uint16_t icon = 0;      ///< index into icons.pack
   std::string iconName;

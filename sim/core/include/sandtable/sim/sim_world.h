@@ -76,6 +76,12 @@ struct SimWorldOptions {
   double maxStepM = 20;
 };
 
+/// Counts of what objectsNear calls tested (levels 1 and 2), kept by the
+/// caller (Simulation keeps them in SimCounters).
+struct SearchStats {
+  std::uint64_t squares = 0, squaresPassed = 0, objectsTested = 0;
+};
+
 class SimWorld {
  public:
   /// A world over a grid alone (tests): no objects, the materials given.
@@ -145,16 +151,14 @@ class SimWorld {
   /// radii, Figure 58), level 3 (bottomY under the object's top). Fallen,
   /// stumps, ruins and destroyed objects are not obstacles. Appends object
   /// indices to `out` in ascending order.
-  void objectsNear(double x, double z, double radius, double bottomY, std::vector<std::uint32_t>& out) const;
+  /// `stats`, when given, counts what the search tested: the caller owns
+  /// it, so concurrent searches share nothing.
+  void objectsNear(double x, double z, double radius, double bottomY, std::vector<std::uint32_t>& out,
+                   SearchStats* stats = nullptr) const;
   /// The same answer by testing every object (the benchmark's baseline and
   /// the tests' reference).
   void objectsNearBruteForce(double x, double z, double radius, double bottomY,
                              std::vector<std::uint32_t>& out) const;
-  /// Counts of what the last objectsNear calls tested (levels 1 and 2).
-  struct SearchStats {
-    std::uint64_t squares = 0, squaresPassed = 0, objectsTested = 0;
-  };
-  SearchStats& stats() const { return stats_; }
 
  private:
   void buildSquares(const SimWorldOptions& options);
@@ -177,7 +181,6 @@ class SimWorld {
   std::vector<std::uint32_t> squareStart_;   ///< CSR offsets, squares + 1
   std::vector<std::uint32_t> squareObjects_; ///< object indices by square
   std::vector<double> tallest_;
-  mutable SearchStats stats_;
 };
 
 /// Reads every module once: the static objects (world coordinates, level

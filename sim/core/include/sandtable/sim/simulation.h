@@ -18,10 +18,15 @@
 //
 // Thread safety: one thread drives a Simulation; readers of its entities
 // must copy them between steps (the viewer does, under its own lock).
+#include <cstddef>
 #include <cstdint>
+#include <iterator>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "sandtable/sim/aircraft.h"
@@ -42,6 +47,7 @@ enum class EventKind : std::uint8_t {
   entityCollision,  ///< two entities collided (Figure 64)
   crash,            ///< an aircraft met the ground
   aground,          ///< a ship's step towards land was refused
+  removed,          ///< Simulation::remove took the entity out of the run
 };
 const char* eventKindName(EventKind k);
 
@@ -94,24 +100,90 @@ struct SimCounters {
   std::uint64_t fired = 0, detonations = 0, kills = 0;
   CollisionCounts collisions;
   std::uint64_t pairsBoxed = 0, pairsSphered = 0, raysCast = 0;
+  SearchStats search;  ///< what the grid searches for objects tested
+};
+
+/// What the simulation keeps of one entity: the entity and the state only
+/// the stepping needs. One record per entity, so nothing is kept in step by
+/// hand.
+struct EntityRecord {
+  Entity entity;
+  AirState air;              ///< aircraft: the flight model's state
+  AirControls airControls;   ///< aircraft: the autopilot's controls
+  ScriptLine lastLine;       ///< scripted: the line it is dead reckoned from
+  bool scripted = false;     ///< a script moves it
+  bool lineApplied = false;  ///< its script has given it a line
+  Eigen::Vector3d before = Eigen::Vector3d::Zero();  ///< position at the start of the step
+};
+
+/// The entities of a simulation as a range of Entity (no indexing: a
+/// position in the range is not an id).
+template <class E>
+class EntityRange {
+  using Records = std::conditional_t<std::is_const_v<E>, const std::vector<EntityRecord>, std::vector<EntityRecord>>;
+  using Base = decltype(std::declval<Records&>().begin());
+
+ public:
+  class iterator {
+   public:
+    using value_type = std::remove_const_t<E>;
+    using difference_type = std::ptrdiff_t;
+    using reference = E&;
+    using pointer = E*;
+    using iterator_category = std::forward_iterator_tag;
+    iterator() = default;
+    explicit iterator(Base it) : it_(it) {}
+    E& operator*() const { return it_->entity; }
+    E* operator->() const { return &it_->entity; }
+    iterator& operator++() {
+      ++it_;
+      return *this;
+    }
+    iterator operator++(int) {
+      iterator old = *this;
+      ++it_;
+      return old;
+    }
+    bool operator==(const iterator& o) const { return it_ == o.it_; }
+
+   private:
+    Base it_{};
+  };
+  explicit EntityRange(Records& records) : records_(&records) {}
+  iterator begin() const { return iterator(records_->begin()); }
+  iterator end() const { return iterator(records_->end()); }
+  std::size_t size() const { return records_->size(); }
+  bool empty() const { return records_->empty(); }
+
+ private:
+  Records* records_;
 };
 
 class Simulation {
  public:
   Simulation(std::shared_ptr<SimWorld> world, SimOptions options = {});
 
-  /// Adds an entity: its id is its index. Land entities are put on the
+  /// Adds an entity and gives it the next id (ids count up from 0 and are
+  /// never reused in a run, removal or not). Land entities are put on the
   /// ground and oriented; entities with the edge behaviour that start in
   /// the buffer zone are moved out of it. Fails when it stands off the grid
-  /// or a ship is not on water.
+  /// or a ship is not on water (no id is used up then).
   Result<std::uint32_t> add(Entity e);
+  /// Removes entity `id` between steps (from a step hook or outside a run;
+  /// never from inside step()): a `removed` event, and everything that
+  /// named it lets go: munitions homing on it fly straight on, its script
+  /// lines are consumed and ignored, it is no longer driven or recorded,
+  /// pending launches from it are dropped. Other entities keep their ids.
+  /// False when no entity has that id (never added, or removed before).
+  bool remove(std::uint32_t id);
 
   /// An aircraft type for air entities (Entity::aircraftType indexes it).
   std::uint32_t addAircraftType(AircraftParams params);
   /// The aircraft state of an air entity (position, velocity and
-  /// orientation are mirrored into the Entity after each step).
-  AirState& airState(std::uint32_t id) { return air_[id]; }
-  AirControls& airControls(std::uint32_t id) { return airControls_[id]; }
+  /// orientation are mirrored into the Entity after each step); null when
+  /// `id` is not in the simulation.
+  AirState* airState(std::uint32_t id);
+  AirControls* airControls(std::uint32_t id);
 
   /// Scripts (Figure 73): each line for script entity `entity` moves
   /// simulation entity `id`; lines of entities not mapped are ignored.
@@ -128,20 +200,36 @@ class Simulation {
 
   /// Launches a munition of `type` from entity `shooter` along azimuth and
   /// elevation (degrees); guided munitions home on `target` when given.
+  /// The munition's id, or UINT32_MAX when `shooter` is not in the simulation.
   std::uint32_t fire(std::uint32_t shooter, double azimuthDeg, double elevationDeg, std::uint16_t type,
                      std::uint32_t target = UINT32_MAX);
 
   /// One fixed step.
   void step();
-  /// Steps until `seconds` of simulated time have passed.
+  /// Steps until `seconds` of simulated time have passed (StepHost::runFor
+  /// without hooks: tests and warm-ups).
   void runFor(double seconds);
 
   double timeS() const { return double(steps_) * options_.stepS; }
   std::uint64_t steps() const { return steps_; }
   const SimOptions& options() const { return options_; }
   SimOptions& options() { return options_; }
-  std::vector<Entity>& entities() { return entities_; }
-  const std::vector<Entity>& entities() const { return entities_; }
+  /// The entities in the simulation, in id order (removed ones are gone,
+  /// so a position in this range is not an id: use find()).
+  EntityRange<Entity> entities() { return EntityRange<Entity>(records_); }
+  EntityRange<const Entity> entities() const { return EntityRange<const Entity>(records_); }
+  /// Entity `id`, or null when it was never added or has been removed. The
+  /// pointer is good until the next add, fire, remove or step.
+  Entity* find(std::uint32_t id);
+  const Entity* find(std::uint32_t id) const;
+  /// Entity `id`, which must be in the simulation (find() tells).
+  Entity& entity(std::uint32_t id) { return *find(id); }
+  const Entity& entity(std::uint32_t id) const { return *find(id); }
+  /// The name of any entity the run ever had, removed ones too (the event
+  /// log names them); null for an id never given.
+  const std::string* nameOf(std::uint32_t id) const;
+  /// The id the next entity added or fired gets.
+  std::uint32_t nextId() const { return nextId_; }
   const std::vector<Event>& events() const { return events_; }
   const SimCounters& counters() const { return counters_; }
   SimWorld& world() { return *world_; }
@@ -155,20 +243,24 @@ class Simulation {
   void kill(std::uint32_t id, std::uint32_t by, const std::string& detail);
 
  private:
+  using Record = EntityRecord;
+  Record* recordOf(std::uint32_t id);
+  const Record* recordOf(std::uint32_t id) const;
+  /// Appends a record with the next id.
+  Record& append(Entity e);
   void applyScripts();
-  void behave(Entity& e);
+  void behave(Record& r);
   void engage(Entity& e);
-  void move(Entity& e);
-  void moveAir(Entity& e);
+  void move(Record& r);
+  void moveAir(Record& r);
   void flyMunition(Entity& m);
-  void senseMunition(const Entity& m);
   void detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hitEntity, std::uint32_t hitObject,
                 const std::string& detail);
-  void collideStatic(Entity& e, const Eigen::Vector3d& before);
+  void collideStatic(Record& r);
   /// Table 6's object result as the object's new state.
   void applyObjectResult(std::uint32_t object, ObjectResult r);
   void collideMoving();
-  void collidePair(Entity& a, Entity& b);
+  void collidePair(Record& a, Record& b);
   void bucketEntities();
   const std::vector<Triangle>& trianglesOf(std::uint16_t icon);
   std::string entityClass(const Entity& e) const;
@@ -176,28 +268,30 @@ class Simulation {
 
   std::shared_ptr<SimWorld> world_;
   SimOptions options_;
-  std::vector<Entity> entities_;
-  std::vector<AirState> air_;
-  std::vector<AirControls> airControls_;
+  std::vector<Record> records_;  ///< one per entity in the simulation, in id order
+  /// By id: the index of its record in records_, kGone once removed. Ids
+  /// only grow, so records_ stays sorted by id and iterating it is id order.
+  std::vector<std::uint32_t> slots_;
+  static constexpr std::uint32_t kGone = UINT32_MAX;
+  std::uint32_t nextId_ = 0;
+  std::map<std::uint32_t, std::string> removedNames_;  ///< for the event log
   std::vector<AircraftParams> aircraftTypes_;
   std::vector<MunitionType> munitionTypes_;
   std::vector<Event> events_;
   SimCounters counters_;
   std::uint64_t steps_ = 0;
   std::uint64_t draws_ = 0;  ///< random draws made (behaviours)
-  std::vector<Eigen::Vector3d> before_;  ///< positions at the start of the step
 
   struct Script {
     ScriptPlayer player;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> map;  ///< script entity -> id, sorted
   };
   std::vector<Script> scripts_;
-  std::vector<ScriptLine> lastLine_;  ///< per entity: the script line it dead-reckons from
-  std::vector<bool> scripted_, lineApplied_;
   std::optional<ScriptRecorder> recorder_;
   std::uint32_t recordId_ = 0, recordEntity_ = 0, recordType_ = 0;
 
-  // Moving/moving: entities by 100 m cell (Figure 60), rebuilt each step.
+  // Moving/moving: entities by 100 m cell (Figure 60), rebuilt each step:
+  // (cell, index into records_).
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;
   std::vector<std::vector<Triangle>> triangles_;  ///< per icon, built on first use
   std::vector<bool> trianglesBuilt_;
