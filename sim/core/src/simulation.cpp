@@ -351,6 +351,9 @@ void Simulation::move(Entity& e) {
 }
 
 void Simulation::step() {
+  // A module the source replaced (dynamic terrain) is read again before the
+  // step; a failed read keeps the module as it was.
+  static_cast<void>(world_->refresh());
   const std::size_t n = entities_.size();
   before_.resize(n);
   for (std::size_t i = 0; i < n; ++i) before_[i] = entities_[i].position;
