@@ -160,7 +160,7 @@ Vec3 rayThrough(const FlightOptions& o, double px, double py) {
 /// The first point where the ray from `eye` meets the terrain within
 /// `range` metres: marched in steps of a quarter spacing, then bisected.
 std::optional<Vec3> castRay(const runtime::Terrain& terrain, const Vec3& eye, const Vec3& d, double range) {
-  const double step = terrain.grid().spacing() / 4;
+  const double step = terrain.heights().spacing() / 4;
   const auto above = [&](double s) -> std::optional<double> {
     const auto g = terrain.sampleXZ(eye[0] + s * d[0], eye[2] + s * d[2]);
     if (!g) return std::nullopt;

@@ -29,7 +29,7 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
   const double t0 = threadCpuSeconds();
   double cultureSeconds = 0;
   module::Module out = meshing::assembleModule(
-      g, squares, levels, kx, kz, skirtMaterial, [&](int l, const LevelLattice& lat, module::Level& level) {
+      grid::GridHeightField(g), squares, levels, kx, kz, skirtMaterial, [&](int l, const LevelLattice& lat, module::Level& level) {
         if (cancelRequested()) return false;  // the caller discards a cancelled module
         const DecalStats ds = culture.decalLevel(lat, level);
         if (stages) {

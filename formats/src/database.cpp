@@ -2,6 +2,7 @@
 
 #include <optional>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -231,7 +232,14 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
 
 }  // namespace
 
+namespace {
+std::atomic<std::uint64_t> gDatabaseOpens{0};
+}  // namespace
+
+std::uint64_t databaseOpens() { return gDatabaseOpens.load(std::memory_order_relaxed); }
+
 Result<Database> openDatabase(const std::string& directory) {
+  gDatabaseOpens.fetch_add(1, std::memory_order_relaxed);
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) {
     return Problem{directory, 0, "database: not a directory (give the path that `sandtable build -o` wrote)"};

@@ -52,7 +52,7 @@ std::uint64_t finishLevel(const LevelLattice& lat, std::uint32_t node, float dep
   return skirts;
 }
 
-module::Module assembleModule(const grid::GridFile& g, std::uint32_t squares, int levels, std::uint32_t kx,
+module::Module assembleModule(const grid::HeightField& g, std::uint32_t squares, int levels, std::uint32_t kx,
                               std::uint32_t kz, std::uint16_t skirtMaterial, const SkinFn& skin) {
   const ModuleWindow w = moduleWindow(g, squares, levels, kx, kz);
   std::vector<LevelLattice> lats;

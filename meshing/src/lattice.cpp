@@ -19,7 +19,7 @@ std::vector<std::uint32_t> latticePosts(std::uint32_t first, std::uint32_t last,
   return posts;
 }
 
-ModuleWindow moduleWindow(const grid::GridFile& g, std::uint32_t squares, int levels, std::uint32_t kx,
+ModuleWindow moduleWindow(const grid::HeightField& g, std::uint32_t squares, int levels, std::uint32_t kx,
                           std::uint32_t kz) {
   ModuleWindow m;
   m.i0 = kx * squares;
@@ -33,7 +33,7 @@ ModuleWindow moduleWindow(const grid::GridFile& g, std::uint32_t squares, int le
   return m;
 }
 
-LevelLattice levelLattice(const grid::GridFile& g, const ModuleWindow& m, int l, NonFinite nonFinite) {
+LevelLattice levelLattice(const grid::HeightField& g, const ModuleWindow& m, int l, NonFinite nonFinite) {
   const double s = g.spacing();
   LevelLattice lat;
   lat.moduleX = double(m.i0) * s;

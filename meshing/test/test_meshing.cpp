@@ -80,7 +80,7 @@ TEST(Meshing, moduleSquaresRoundToWholeNodes) {
 TEST(Meshing, latticesReadTheGridPostsAndClampAtTheEastAndSouthEdges) {
   // 30 x 21 posts: module (1, 1) of 16 squares covers posts 16..29 x 16..20.
   const auto g = makeGrid("lattice", 30, 21, slope);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
   EXPECT_EQ(w.i0, 16u);
   EXPECT_EQ(w.i1, 29u);
   EXPECT_EQ(w.j0, 16u);
@@ -88,7 +88,7 @@ TEST(Meshing, latticesReadTheGridPostsAndClampAtTheEastAndSouthEdges) {
   for (int l = 0; l < 3; ++l) {
     EXPECT_EQ(w.cols[std::size_t(l)], postsByHand(16, 29, l));
     EXPECT_EQ(w.rows[std::size_t(l)], postsByHand(16, 20, l));
-    const LevelLattice lat = levelLattice(*g, w, l);
+    const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, l);
     EXPECT_EQ(lat.spacing, kSpacing * (1 << l));
     EXPECT_EQ(lat.moduleX, 160.0);
     EXPECT_EQ(lat.moduleZ, 160.0);
@@ -109,16 +109,16 @@ TEST(Meshing, nonFinitePostsReadAsZeroOnlyWhenAsked) {
   const auto g = makeGrid("nan", 9, 9, [](std::uint32_t i, std::uint32_t j) {
     return i == 4 && j == 4 ? std::numeric_limits<float>::quiet_NaN() : 7.0f;
   });
-  const ModuleWindow w = moduleWindow(*g, 8, 1, 0, 0);
-  EXPECT_TRUE(std::isnan(levelLattice(*g, w, 0).heights[4 * 9 + 4]));
-  EXPECT_EQ(levelLattice(*g, w, 0, NonFinite::zero).heights[4 * 9 + 4], 0.0f);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 8, 1, 0, 0);
+  EXPECT_TRUE(std::isnan(levelLattice(grid::GridHeightField(*g), w, 0).heights[4 * 9 + 4]));
+  EXPECT_EQ(levelLattice(grid::GridHeightField(*g), w, 0, NonFinite::zero).heights[4 * 9 + 4], 0.0f);
 }
 
 TEST(Meshing, surfacesFollowTheSwNeTriangles) {
   const auto g = makeGrid("surface", 30, 21, slope);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
   for (int l = 0; l < 3; ++l) {
-    const LevelLattice lat = levelLattice(*g, w, l);
+    const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, l);
     for (std::uint32_t j = w.j0; j <= w.j1; ++j) {
       for (std::uint32_t i = w.i0; i <= w.i1; ++i) {
         EXPECT_NEAR(surfaceAt(lat, w, l, i, j), surfaceByHand(*g, w.i0, w.i1, w.j0, w.j1, l, i, j), 1e-9)
@@ -135,21 +135,21 @@ TEST(Meshing, skirtDepthsOnPaper) {
   // on its node edge, so it hangs 10 + 1 m. Level 0 is the lowest surface
   // everywhere: 1 m.
   const auto g = makeGrid("dip", 5, 5, [](std::uint32_t i, std::uint32_t j) { return i == 1 && j == 0 ? -10.0f : 0.0f; });
-  const ModuleWindow w = moduleWindow(*g, 4, 2, 0, 0);
-  const std::vector<LevelLattice> lats = {levelLattice(*g, w, 0), levelLattice(*g, w, 1)};
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 4, 2, 0, 0);
+  const std::vector<LevelLattice> lats = {levelLattice(grid::GridHeightField(*g), w, 0), levelLattice(grid::GridHeightField(*g), w, 1)};
   EXPECT_EQ(skirtDepths(lats, w, 2), (std::vector<float>{1.0f, 11.0f}));
   // A bump instead: level 0 lies 10 m above level 1 at (1, 0); level 0 hangs 11 m.
   const auto g2 = makeGrid("bump", 5, 5, [](std::uint32_t i, std::uint32_t j) { return i == 1 && j == 0 ? 10.0f : 0.0f; });
-  const std::vector<LevelLattice> lats2 = {levelLattice(*g2, w, 0), levelLattice(*g2, w, 1)};
+  const std::vector<LevelLattice> lats2 = {levelLattice(grid::GridHeightField(*g2), w, 0), levelLattice(grid::GridHeightField(*g2), w, 1)};
   EXPECT_EQ(skirtDepths(lats2, w, 2), (std::vector<float>{11.0f, 1.0f}));
 }
 
 TEST(Meshing, skirtDepthsAgreeWithTheSurfacesByHand) {
   const auto g = makeGrid("depths", 30, 21, slope);
   const std::uint32_t node = nodeSquares(16, 3);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
   std::vector<LevelLattice> lats;
-  for (int l = 0; l < 3; ++l) lats.push_back(levelLattice(*g, w, l));
+  for (int l = 0; l < 3; ++l) lats.push_back(levelLattice(grid::GridHeightField(*g), w, l));
   const std::vector<float> depths = skirtDepths(lats, w, node);
   for (int l = 0; l < 3; ++l) {
     double worst = 0;
@@ -173,17 +173,17 @@ TEST(Meshing, blockRangeDepthIsTheElevationRangeUnderTheWindow) {
   const auto g = makeGrid("blocks", 100, 40, [](std::uint32_t i, std::uint32_t j) {
     return i < 64 ? float(j) : float(200 + i);
   });
-  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(*g, 32, 1, 0, 0), 5.0f), 39.0f);   // 0 .. 39
-  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(*g, 32, 1, 2, 0), 264.0f), 35.0f);  // 264 .. 299
-  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(*g, 32, 1, 2, 0), 0.0f), 299.0f);   // the seed widens it
+  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(grid::GridHeightField(*g), 32, 1, 0, 0), 5.0f), 39.0f);   // 0 .. 39
+  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(grid::GridHeightField(*g), 32, 1, 2, 0), 264.0f), 35.0f);  // 264 .. 299
+  EXPECT_EQ(blockRangeDepth(*g, moduleWindow(grid::GridHeightField(*g), 32, 1, 2, 0), 0.0f), 299.0f);   // the seed widens it
   const auto flat = makeGrid("flat", 9, 9, [](std::uint32_t, std::uint32_t) { return 3.0f; });
-  EXPECT_EQ(blockRangeDepth(*flat, moduleWindow(*flat, 8, 1, 0, 0), 3.0f), 1.0f);  // at least 1 m
+  EXPECT_EQ(blockRangeDepth(*flat, moduleWindow(grid::GridHeightField(*flat), 8, 1, 0, 0), 3.0f), 1.0f);  // at least 1 m
 }
 
 TEST(Meshing, plainSkinIsTwoTrianglesPerSquareOnTheLatticePosts) {
   const auto g = makeGrid("skin", 30, 21, slope);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
-  const LevelLattice lat = levelLattice(*g, w, 1);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
+  const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, 1);
   module::Level lv;
   plainSkin(lat, 7, lv);
   const std::uint32_t nx = lv.squaresX, nz = lv.squaresZ;
@@ -213,8 +213,8 @@ TEST(Meshing, plainSkinIsTwoTrianglesPerSquareOnTheLatticePosts) {
 
 TEST(Meshing, maxHeightIsTheHighestCornerOfEachSquare) {
   const auto g = makeGrid("maxh", 30, 21, slope);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
-  const LevelLattice lat = levelLattice(*g, w, 2);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
+  const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, 2);
   module::Level lv;
   plainSkin(lat, 0, lv);
   computeMaxHeights(lv);
@@ -231,8 +231,8 @@ TEST(Meshing, maxHeightIsTheHighestCornerOfEachSquare) {
 
 TEST(Meshing, skirtsHangAlongEveryNodeEdgeAndShareTheSkinsPosts) {
   const auto g = makeGrid("skirts", 17, 17, slope);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 0, 0);
-  const LevelLattice lat = levelLattice(*g, w, 0);  // 16 x 16 squares, nodes of 4
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 0, 0);
+  const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, 0);  // 16 x 16 squares, nodes of 4
   module::Level lv;
   plainSkin(lat, 1, lv);
   const std::size_t posts = lv.vertices.size();
@@ -274,7 +274,7 @@ TEST(Meshing, skirtsHangAlongEveryNodeEdgeAndShareTheSkinsPosts) {
 TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
   const auto g = makeGrid("assemble", 30, 21, slope);
   int calls = 0;
-  const module::Module m = assembleModule(*g, 16, 3, 1, 1, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
+  const module::Module m = assembleModule(grid::GridHeightField(*g), 16, 3, 1, 1, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
     EXPECT_EQ(l, calls++);
     plainSkin(lat, 2, out);
     for (module::Vertex& v : out.vertices) {  // the skin texture rule (module.h), offsets 0
@@ -286,9 +286,9 @@ TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
   ASSERT_EQ(m.levels.size(), 3u);
   EXPECT_EQ(m.kx, 1u);
   EXPECT_EQ(m.kz, 1u);
-  const ModuleWindow w = moduleWindow(*g, 16, 3, 1, 1);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 1, 1);
   std::vector<LevelLattice> lats;
-  for (int l = 0; l < 3; ++l) lats.push_back(levelLattice(*g, w, l));
+  for (int l = 0; l < 3; ++l) lats.push_back(levelLattice(grid::GridHeightField(*g), w, l));
   const std::vector<float> depths = skirtDepths(lats, w, 4);
   for (int l = 0; l < 3; ++l) {
     const module::Level& lv = m.levels[std::size_t(l)];
@@ -329,7 +329,7 @@ TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
             0u);
   EXPECT_LT(v3.size(), module::encode(m, {.version = 2, .heightStep = 0}).size());
   // A skin that stops leaves the later levels empty.
-  const module::Module stopped = assembleModule(*g, 16, 3, 0, 0, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
+  const module::Module stopped = assembleModule(grid::GridHeightField(*g), 16, 3, 0, 0, 5, [&](int l, const LevelLattice& lat, module::Level& out) {
     if (l == 1) return false;
     plainSkin(lat, 2, out);
     return true;

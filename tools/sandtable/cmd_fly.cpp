@@ -438,8 +438,8 @@ std::string checkArgs(const FlyArgs& a) {
 /// The scenario's simulation for the session, and the stealth eye's start
 /// near its entities; "" or a usage error (kUsage with the problem printed
 /// when the text is "-").
-std::string setUpScenario(const FlyArgs& a, FlightOptions& o, FlySessionSettings& ss) {
-  auto setup = setUpSimulation(kName, a.database, a.scenario, a.seed);
+std::string setUpScenario(const FlyArgs& a, const runtime::World& shared, FlightOptions& o, FlySessionSettings& ss) {
+  auto setup = setUpSimulation(kName, shared, a.scenario, a.seed);
   if (!setup) return "-";
   runtime::SimSessionOptions so;
   so.attach = a.attach;
@@ -496,21 +496,25 @@ int reportFailure(const Result<runtime::FlightReport>& report) {
 
 int run(FlyArgs& a) {
   if (std::string err = checkArgs(a); !err.empty()) return usageError(kName, err);
-  auto db = openDatabase(a.database);
-  if (!db) return usageError(kName, db.error());
+  // The run's one database open: the flight, the map and the simulation
+  // share this World.
+  auto opened = runtime::World::open(a.database);
+  if (!opened) return usageError(kName, opened.error());
+  const std::shared_ptr<const runtime::World> world = opened.value();
+  const Database* db = &world->database();
   auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
   if (!geo) return usageError(kName, geo.error());
   FlightOptions o;
-  if (std::string err = buildOptions(a, db.value(), *geo.value(), o); !err.empty()) {
+  if (std::string err = buildOptions(a, *db, *geo.value(), o); !err.empty()) {
     return usageError(kName, err);
   }
   FlySessionSettings ss;
   if (!a.scenario.empty()) {
-    const std::string err = setUpScenario(a, o, ss);
+    const std::string err = setUpScenario(a, *world, o, ss);
     if (err == "-") return kUsage;  // setUpSimulation printed the problems
     if (!err.empty()) return usageError(kName, err);
   }
-  if (std::string err = sessionSettings(a, db.value(), o, ss); !err.empty()) return usageError(kName, err);
+  if (std::string err = sessionSettings(a, *db, o, ss); !err.empty()) return usageError(kName, err);
   if (!a.pathFile.empty()) {
     auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
     if (!path) {
@@ -526,7 +530,7 @@ int run(FlyArgs& a) {
   std::unique_ptr<runtime::VideoWriter> video;
   if (std::string err = openVideo(a, o, video); !err.empty()) return usageError(kName, err);
   std::unique_ptr<runtime::ViewerWindow> window;
-  if (std::string err = openWindow(a, db.value(), o, window); !err.empty()) return usageError(kName, err);
+  if (std::string err = openWindow(a, *db, o, window); !err.empty()) return usageError(kName, err);
   const bool framesGiven = a.framesOption && a.framesOption->count() > 0;
   if (window) {
     // In a window the flight runs until q, Escape or the window closes.
@@ -542,8 +546,8 @@ int run(FlyArgs& a) {
   // rate and time left (a bar on a TTY, plain lines in a log).
   Progress progress(window != nullptr);
   if (!window) ss.onFrameDone = flightProgress(progress, o.output.frames);
-  FlySession session(db.value(), std::move(ss), o, std::move(window), std::move(video));
-  auto report = runtime::fly(db.value(), o, &session);
+  FlySession session(*world, std::move(ss), o, std::move(window), std::move(video));
+  auto report = runtime::fly(*world, o, &session);
   progress.done();
   const Status sessionStatus = session.finish();
   if (!report) return reportFailure(report);

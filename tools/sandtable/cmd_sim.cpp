@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "db_util.h"
 #include "progress.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/sim/collision_response.h"
@@ -51,7 +52,9 @@ int runSim(const SimArgs& a) {
     if (!table) return reportProblems("sim", table.problems());
     options.table = std::move(table.value());
   }
-  auto setup = setUpSimulation("sim", a.db, a.scenario, a.seed, options);
+  const std::shared_ptr<const runtime::World> world = openWorldOrReport("sim", a.db);
+  if (!world) return kUsage;
+  auto setup = setUpSimulation("sim", *world, a.scenario, a.seed, options);
   if (!setup) return kUsage;
   sim::Simulation& s = *setup->sim;
   if (!a.record.empty()) {

@@ -1,11 +1,13 @@
 #pragma once
 // Helpers shared by the commands that read a database.
 #include <cstdio>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "commands.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/paging/world.h"
 
 namespace sandtable::cli {
 
@@ -18,6 +20,14 @@ inline std::optional<Database> openOrReport(const std::string& cmd, const std::s
     return std::nullopt;
   }
   return std::move(db.value());
+}
+
+/// Opens a database as the run's one World (paging/world.h), or prints
+/// every problem as openOrReport does and returns null.
+inline std::shared_ptr<const runtime::World> openWorldOrReport(const std::string& cmd, const std::string& dir) {
+  auto db = openOrReport(cmd, dir);
+  if (!db) return nullptr;
+  return std::make_shared<const runtime::World>(std::move(*db));
 }
 
 }  // namespace sandtable::cli

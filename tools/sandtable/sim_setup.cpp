@@ -5,34 +5,32 @@
 #include <cstdio>
 
 #include "commands.h"
-#include "db_util.h"
 #include "sandtable/converters/crs.h"
 #include "sandtable/sim/scenario_load.h"
 
 namespace sandtable::cli {
 
-std::optional<SimSetup> setUpSimulation(const std::string& cmd, const std::string& db, const std::string& scenario,
-                                        std::optional<std::uint64_t> seed, sim::SimOptions options) {
-  auto database = openOrReport(cmd, db);
-  if (!database) return std::nullopt;
+std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::World& w,
+                                        const std::string& scenario, std::optional<std::uint64_t> seed,
+                                        sim::SimOptions options) {
   auto scen = sim::readScenarioFile(scenario);
   if (!scen) {
     reportProblems(cmd, scen.problems());
     return std::nullopt;
   }
   convert::initGdal();
-  auto geo = convert::GeoTransformer::create(database->manifest.crsWkt);
+  auto geo = convert::GeoTransformer::create(w.manifest().crsWkt);
   if (!geo) {
     reportProblems(cmd, geo.problems());
     return std::nullopt;
   }
-  auto world = sim::SimWorld::open(db);
+  auto world = sim::SimWorld::open(w);
   if (!world) {
     reportProblems(cmd, world.problems());
     return std::nullopt;
   }
   const convert::GeoTransformer& g = *geo.value();
-  const std::string crs = database->manifest.crsName;
+  const std::string crs = w.manifest().crsName;
   runtime::ToProjectedFn toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
     char where[64];
     std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);

@@ -1,12 +1,14 @@
 #pragma once
-// What `sim` and `fly --scenario` share: a database opened for the
-// simulator and a scenario made into a Simulation, lon/lat through the
-// database's CRS. Problems are printed; nullptr means exit 2.
+// What `sim` and `fly --scenario` share: the simulator's view of the one
+// World the command opened, and a scenario made into a Simulation, lon/lat
+// through the database's CRS. Opens no database. Problems are printed;
+// nullopt means exit 2.
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
 
+#include "sandtable/paging/world.h"
 #include "sandtable/sim/simulation.h"
 
 namespace sandtable::cli {
@@ -17,9 +19,10 @@ struct SimSetup {
   std::string crsName;
 };
 
-/// Opens `db`, reads `scenario` (and its scripts and aircraft files), and
-/// places its entities. `seed` overrides the scenario's.
-std::optional<SimSetup> setUpSimulation(const std::string& cmd, const std::string& db, const std::string& scenario,
-                                        std::optional<std::uint64_t> seed, sim::SimOptions options = {});
+/// Reads `scenario` (and its scripts and aircraft files) and places its
+/// entities in `world`. `seed` overrides the scenario's.
+std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::World& world,
+                                        const std::string& scenario, std::optional<std::uint64_t> seed,
+                                        sim::SimOptions options = {});
 
 }  // namespace sandtable::cli

@@ -232,10 +232,10 @@ double eyeFor(const Pose& p, double ground) {
 }
 
 /// Camera for a pose; the ground under the eye comes from `ground`.
-Camera cameraFor(const grid::Header& h, const FlightOptions& o, const Pose& p, double ground) {
+Camera cameraFor(const grid::HeightField& h, const FlightOptions& o, const Pose& p, double ground) {
   Camera c;
-  c.x = p.easting - h.originEasting;
-  c.z = h.originNorthing - p.northing;
+  c.x = p.easting - h.originEasting();
+  c.z = h.originNorthing() - p.northing;
   c.y = eyeFor(p, ground);
   c.headingDeg = p.headingDeg;
   c.pitchDeg = std::clamp(p.pitchDeg.value_or(o.motion.pitchDeg), -89.0, 89.0);
@@ -303,12 +303,12 @@ class Handoff {
 /// Everything one flight owns while it runs.
 struct FlightRun {
   FlightRun(const FlightOptions& options, FlightApplication& application,
-            std::shared_ptr<const grid::GridFile> g, RenderSettings rs)
+            std::shared_ptr<const grid::HeightField> g, RenderSettings rs)
       : o(options), app(application), grid(g), ground(std::move(g)), renderSettings(std::move(rs)) {}
 
   const FlightOptions& o;
   FlightApplication& app;
-  std::shared_ptr<const grid::GridFile> grid;
+  std::shared_ptr<const grid::HeightField> grid;
   /// The one ground clamp: the surface drawn under the eye (module mode:
   /// reset with the pack's module size and levels).
   GroundClamp ground;
@@ -357,7 +357,7 @@ struct FlightRun {
     const Pose pose = *next;
     const double t = pose.clockS.value_or(k / kFramesPerSecond);
     double groundHere = ground.groundEN(pose.easting, pose.northing);
-    Camera cam = cameraFor(grid->header(), o, pose, groundHere);
+    Camera cam = cameraFor(*grid, o, pose, groundHere);
     if (pager) {
       // The window follows the view distance asked for (the + and - keys,
       // a path). Growing, the new ring is drawn only as it comes in, so the
@@ -606,13 +606,14 @@ class StraightFlight final : public FlightApplication {
   const FlightOptions& o_;
 };
 
-Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Database* db,
+Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const World* world,
                              const FlightOptions& o, FlightApplication* application) {
+  const Database* db = world ? &world->database() : nullptr;
   if (!g) return Problem{"fly", 0, "no grid"};
   if (auto problems = checkFlightOptions(g, o, application); !problems.empty()) return problems;
   StraightFlight straight(o);
   FlightApplication& app = application ? *application : straight;
-  const bool haveModules = db && db->modules;
+  const bool haveModules = world && world->modules();
   if (o.render.mode == TerrainMode::modules && !haveModules) {
     return Problem{kFlightOptionProblem, 0,
                    "RenderOptions::mode = modules needs load modules (modules.pack), and this database was "
@@ -635,7 +636,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
                                                                         : 3 * po.viewDistance);
     po.loaderThreads = o.pager.loaders;
     po.memoryBudgetBytes = o.pager.budgetBytes;
-    auto p = Pager::open(*db, po);
+    auto p = Pager::open(*world, po);
     if (!p) return p.problems();
     pager = std::move(p.value());
   }
@@ -654,9 +655,9 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::GridFile> g, const Data
     ss.lod = o.render.lod;
     ss.imageHeight = o.view.height;
     ss.gridSpacing = g->spacing();
-    ss.minElevation = g->header().minElevation;
-    ss.moduleSquares = db->modules->header().moduleSquares;
-    run.ground = GroundClamp(g, ss.moduleSquares, db->modules->header().levels);
+    ss.minElevation = g->elevationBounds().first;
+    ss.moduleSquares = world->modules()->header().moduleSquares;
+    run.ground = GroundClamp(g, ss.moduleSquares, world->modules()->header().levels);
     run.scene = std::make_unique<ModuleScene>(*pager, ss);
     run.pager = pager.get();
     run.readyViewDistance = effectiveViewDistance(o);
@@ -724,6 +725,11 @@ std::string frameFileName(std::uint32_t frame) {
 
 std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
                                         const FlightOptions& o, const FlightApplication* app) {
+  return checkFlightOptions(grid::heightField(std::move(g)), o, app);
+}
+
+std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::HeightField> g,
+                                        const FlightOptions& o, const FlightApplication* app) {
   std::vector<Problem> out;
   auto bad = [&](const std::string& msg) { out.push_back({kFlightOptionProblem, 0, msg}); };
   if (o.output.frames == 0) bad("OutputOptions::frames must be at least 1");
@@ -770,13 +776,23 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   return out;
 }
 
-Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o,
+Result<FlightReport> fly(std::shared_ptr<const grid::HeightField> g, const FlightOptions& o,
                          FlightApplication* app) {
   return flyWith(std::move(g), nullptr, o, app);
 }
 
+Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o,
+                         FlightApplication* app) {
+  return flyWith(grid::heightField(std::move(g)), nullptr, o, app);
+}
+
+Result<FlightReport> fly(const World& world, const FlightOptions& o, FlightApplication* app) {
+  return flyWith(world.heights(), &world, o, app);
+}
+
 Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app) {
-  return flyWith(db.grid, &db, o, app);
+  const World world(db);
+  return fly(world, o, app);
 }
 
 std::optional<Pose> FlightHooks::pose(std::uint32_t frame, double t, GroundClamp& ground) {

@@ -12,10 +12,10 @@ namespace {
 using runtime::Pose;
 
 /// The ground clamp of a database: modules' lattices when it has them.
-GroundClamp groundOf(const Database& db) {
-  if (!db.modules) return GroundClamp(db.grid);
-  const auto& h = db.modules->header();
-  return GroundClamp(db.grid, h.moduleSquares, h.levels);
+GroundClamp groundOf(const World& world) {
+  if (!world.modules()) return GroundClamp(world.heights());
+  const auto& h = world.modules()->header();
+  return GroundClamp(world.heights(), h.moduleSquares, h.levels);
 }
 
 double wallSeconds() {
@@ -68,13 +68,13 @@ std::vector<std::uint8_t> waterMaterials(const Database& db) {
   return out;
 }
 
-FlySession::FlySession(const Database& db, FlySessionSettings settings, const runtime::FlightOptions& o,
+FlySession::FlySession(const World& world, FlySessionSettings settings, const runtime::FlightOptions& o,
                        std::unique_ptr<runtime::ViewerWindow> window,
                        std::unique_ptr<runtime::VideoWriter> video)
-    : db_(db),
+    : world_(world),
       settings_(std::move(settings)),
       options_(o),
-      ground_(groundOf(db)),
+      ground_(groundOf(world)),
       window_(std::move(window)),
       video_(std::move(video)) {
   ground_.groundEN(o.motion.easting, o.motion.northing);
@@ -257,12 +257,13 @@ void FlySession::overlay(runtime::Overlay& overlay, const runtime::FrameStats& s
     mo.waterMaterials = settings_.waterMaterials;
     // The red force's arrows would read as the viewer's own: his turns yellow.
     if (settings_.sim) mo.markerFill = {255, 220, 0};
-    map_ = std::make_unique<runtime::MapView>(db_.grid, mo);
+    map_ = std::make_unique<runtime::MapView>(world_.heights(), mo);
     map_->setVisible(true);
   }
   map_->setScale(current_.mapScale);
   double x = 0, z = 0;
-  runtime::MapView::toWorld(db_.grid->header(), s.easting, s.northing, x, z);
+  x = s.easting - world_.heights()->originEasting();
+  z = world_.heights()->originNorthing() - s.northing;
   const runtime::MapLayout box =
       map_->compose(overlay.layer(), x, z, s.headingDeg, current_.marks, current_.viewerMarker);
   // The map, its label and marker inside a one-pixel border.

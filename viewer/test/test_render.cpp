@@ -141,7 +141,7 @@ TEST_F(RenderTest, StripsReproduceTheTerrainTriangles) {
   cam.y = 500;
   cam.viewDistance = 2000;
   DisplayBuffer buf;
-  fillDisplayBuffer(*grid_, cam, 7, buf);
+  fillDisplayBuffer(grid::GridHeightField(*grid_), cam, 7, buf);
   ASSERT_FALSE(buf.spans.empty());
   EXPECT_EQ(buf.frame, 7u);
   EXPECT_EQ(buf.firsts.size(), buf.spans.size());

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "pager_internal.h"
+#include "sandtable/paging/world.h"
 
 namespace sandtable::runtime {
 
@@ -877,6 +878,10 @@ Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile>
 
 Result<std::unique_ptr<Pager>> Pager::open(const Database& db, const PagerOptions& options) {
   return openWith(db.grid, packSource(db.modules), options, db.materials ? db.materials->defaultArea : 0);
+}
+
+Result<std::unique_ptr<Pager>> Pager::open(const World& world, const PagerOptions& options) {
+  return openWith(world.gridFile(), world.modules(), options, world.materials() ? world.materials()->defaultArea : 0);
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(const std::string& directory,

@@ -181,8 +181,9 @@ void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, st
   // builder meshes it. Its skirts hang as deep as the blocks' elevation
   // range: a stand-in has no finer levels to measure the builder's depth
   // against, and its neighbours may be drawn at any level.
-  const meshing::ModuleWindow w = meshing::moduleWindow(grid, S, levels, kx, kz);
-  const meshing::LevelLattice lat = meshing::levelLattice(grid, w, levels - 1, meshing::NonFinite::zero);
+  const grid::GridHeightField heights(grid);
+  const meshing::ModuleWindow w = meshing::moduleWindow(heights, S, levels, kx, kz);
+  const meshing::LevelLattice lat = meshing::levelLattice(heights, w, levels - 1, meshing::NonFinite::zero);
   meshing::plainSkin(lat, material, out);
   const float centre = grid.elevation(std::min(w.i0 + S / 2, lastI), std::min(w.j0 + S / 2, lastJ));
   const float depth = meshing::blockRangeDepth(grid, w, std::isfinite(centre) ? centre : 0.0f);

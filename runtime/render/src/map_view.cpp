@@ -52,14 +52,18 @@ void fillTriangle(Image& img, Pt a, Pt b, Pt c, Rgb color, int x0, int y0, int x
 
 }  // namespace
 
-MapView::MapView(std::shared_ptr<const grid::GridFile> grid, MapOptions options)
-    : grid_(std::move(grid)), options_(std::move(options)) {
+MapView::MapView(std::shared_ptr<const grid::HeightField> heights, MapOptions options)
+    : grid_(std::move(heights)), options_(std::move(options)) {
   options_.colorSteps = std::max(1, options_.colorSteps);
   options_.hillshade = std::clamp(options_.hillshade, 0.0, 1.0);
   worldW_ = grid_->spacing() * (grid_->postsX() - 1);
   worldD_ = grid_->spacing() * (grid_->postsZ() - 1);
+  generation_ = grid_->generation();
   buildOverview();
 }
+
+MapView::MapView(std::shared_ptr<const grid::GridFile> grid, MapOptions options)
+    : MapView(grid::heightField(std::move(grid)), std::move(options)) {}
 
 void MapView::toWorld(const grid::Header& h, double easting, double northing, double& x, double& z) {
   x = easting - h.originEasting;
@@ -253,6 +257,12 @@ MapLayout MapView::compose(Image& frame, double eyeX, double eyeZ, double headin
                            const std::vector<MapMark>& marks, bool showViewer) {
   MapLayout out;
   if (!visible_ || worldW_ <= 0 || worldD_ <= 0) return out;
+  if (const std::uint64_t g = grid_->generation(); g != generation_) {
+    // The terrain changed under the map: rescan the overview, redraw the base.
+    generation_ = g;
+    buildOverview();
+    baseScale_ = -1;
+  }
   const int box = int(std::lround(std::min(frame.width, frame.height) * options_.sizeFraction));
   const bool wide = worldW_ >= worldD_;
   const int pw = wide ? box : std::max(1, int(std::lround(box * worldW_ / worldD_)));

@@ -108,7 +108,7 @@ struct GridSample {
   float water = 0;
 };
 
-GridSample sampleGrid(const grid::GridFile& g, const std::array<float, 256>& water, double x, double z) {
+GridSample sampleGrid(const grid::HeightField& g, const std::array<float, 256>& water, double x, double z) {
   const double maxI = double(g.postsX() - 1), maxJ = double(g.postsZ() - 1);
   const double u = std::clamp(x / g.spacing(), 0.0, maxI), v = std::clamp(z / g.spacing(), 0.0, maxJ);
   const auto i = std::uint32_t(std::min(std::floor(u), maxI - 1));
@@ -244,7 +244,7 @@ class LevelBuilder {
   }
 
   /// Smooth shading: the grid's normal and water weight at every vertex.
-  void sampleGrid(const grid::GridFile& g, const std::vector<std::uint8_t>& waterMaterials,
+  void sampleGrid(const grid::HeightField& g, const std::vector<std::uint8_t>& waterMaterials,
                   double originX, double originZ) {
     std::array<float, 256> water{};
     for (const std::uint8_t m : waterMaterials) water[m] = 1.0f;

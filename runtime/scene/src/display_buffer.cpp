@@ -10,7 +10,7 @@ namespace {
 /// Grid material index -> water (1) or not (0).
 using WaterTable = std::array<float, 256>;
 
-TerrainVertex vertexAt(const grid::GridFile& g, std::uint32_t i, std::uint32_t j, double originX,
+TerrainVertex vertexAt(const grid::HeightField& g, std::uint32_t i, std::uint32_t j, double originX,
                        double originZ, const WaterTable& water) {
   const double s = g.spacing();
   const auto n = g.normal(i, j);
@@ -21,7 +21,7 @@ TerrainVertex vertexAt(const grid::GridFile& g, std::uint32_t i, std::uint32_t j
 /// Appends the strip for one row span: posts i = first..last+1 along rows
 /// j and j+1, north post first, so the strip's triangles are NW-SW-NE and
 /// SW-NE-SE, i.e. the upper and lower triangles of each square.
-void appendStrip(const grid::GridFile& g, const RowSpan& span, const WaterTable& water,
+void appendStrip(const grid::HeightField& g, const RowSpan& span, const WaterTable& water,
                  DisplayBuffer& out) {
   const auto first = static_cast<std::int32_t>(out.vertices.size());
   for (std::uint32_t i = span.firstI; i <= span.lastI + 1; ++i) {
@@ -48,7 +48,7 @@ ViewTriangle viewTriangleFor(const Camera& cam, double spacing) {
   return makeViewTriangle(p);
 }
 
-void fillDisplayBuffer(const grid::GridFile& g, const Camera& cam, std::uint64_t frame,
+void fillDisplayBuffer(const grid::HeightField& g, const Camera& cam, std::uint64_t frame,
                        DisplayBuffer& out, const std::vector<std::uint8_t>& waterMaterials) {
   const auto start = std::chrono::steady_clock::now();
   out.frame = frame;

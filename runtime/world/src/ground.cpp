@@ -35,12 +35,16 @@ std::array<double, 4> cornerWeights(double fx, double fz) {
 
 }  // namespace
 
+GroundClamp::GroundClamp(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares,
+                         std::uint32_t levels)
+    : grid_(std::move(heights)), squares_(moduleSquares), levels_(moduleSquares ? std::max(1u, levels) : 1u) {}
+
 GroundClamp::GroundClamp(std::shared_ptr<const grid::GridFile> grid, std::uint32_t moduleSquares,
                          std::uint32_t levels)
-    : grid_(std::move(grid)), squares_(moduleSquares), levels_(moduleSquares ? std::max(1u, levels) : 1u) {}
+    : GroundClamp(grid::heightField(std::move(grid)), moduleSquares, levels) {}
 
 GroundClamp::Square GroundClamp::squareAt(std::uint32_t level, double x, double z) const {
-  const grid::GridFile& g = *grid_;
+  const grid::HeightField& g = *grid_;
   const double sp = g.spacing();
   const std::uint32_t maxI = g.postsX() - 1, maxJ = g.postsZ() - 1;
   const double u = std::clamp(x / sp, 0.0, double(maxI)), v = std::clamp(z / sp, 0.0, double(maxJ));
@@ -89,8 +93,7 @@ std::optional<double> GroundClamp::surfaceXZ(double x, double z, DrawnLevel draw
 }
 
 std::optional<double> GroundClamp::surfaceEN(double easting, double northing, DrawnLevel drawn) const {
-  const auto& h = grid_->header();
-  return surfaceXZ(easting - h.originEasting, h.originNorthing - northing, drawn);
+  return surfaceXZ(easting - grid_->originEasting(), grid_->originNorthing() - northing, drawn);
 }
 
 double GroundClamp::groundEN(double easting, double northing) {

@@ -5,11 +5,12 @@
 
 namespace sandtable::runtime {
 
-Terrain::Terrain(std::shared_ptr<const grid::GridFile> grid) : grid_(std::move(grid)) {}
+Terrain::Terrain(std::shared_ptr<const grid::HeightField> heights) : grid_(std::move(heights)) {}
+
+Terrain::Terrain(std::shared_ptr<const grid::GridFile> grid) : Terrain(grid::heightField(std::move(grid))) {}
 
 std::optional<TerrainSample> Terrain::sampleEN(double easting, double northing) const {
-  const auto& h = grid_->header();
-  return sampleXZ(easting - h.originEasting, h.originNorthing - northing);
+  return sampleXZ(easting - grid_->originEasting(), grid_->originNorthing() - northing);
 }
 
 std::optional<TerrainSample> Terrain::sampleXZ(double x, double z) const {

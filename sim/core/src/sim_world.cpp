@@ -7,7 +7,6 @@
 #include <limits>
 
 #include "sandtable/formats/database.h"
-#include "sandtable/formats/pack.h"
 
 namespace sandtable::sim {
 
@@ -42,7 +41,11 @@ ObjectKind objectKindOf(const std::string& iconName, const std::string& classNam
 
 SimWorld::SimWorld(std::shared_ptr<const grid::GridFile> grid, std::uint32_t moduleSquares, std::uint32_t levels,
                    std::optional<materials::Table> table)
-    : grid_(grid), clamp_(grid, moduleSquares, levels), terrain_(grid), materials_(std::move(table)) {
+    : SimWorld(grid::heightField(std::move(grid)), moduleSquares, levels, std::move(table)) {}
+
+SimWorld::SimWorld(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares,
+                   std::uint32_t levels, std::optional<materials::Table> table)
+    : grid_(heights), clamp_(heights, moduleSquares, levels), terrain_(heights), materials_(std::move(table)) {
   classById_.assign(256, nullptr);
   if (materials_) {
     for (const materials::Class& c : materials_->classes) {
@@ -52,8 +55,8 @@ SimWorld::SimWorld(std::shared_ptr<const grid::GridFile> grid, std::uint32_t mod
   buildSquares({});
 }
 
-double SimWorld::originEasting() const { return grid_->header().originEasting; }
-double SimWorld::originNorthing() const { return grid_->header().originNorthing; }
+double SimWorld::originEasting() const { return grid_->originEasting(); }
+double SimWorld::originNorthing() const { return grid_->originNorthing(); }
 
 std::optional<double> SimWorld::groundAt(double x, double z) const { return clamp_.surfaceXZ(x, z, drawnAt(x, z)); }
 
@@ -101,6 +104,7 @@ std::optional<std::uint16_t> SimWorld::iconIndex(const std::string& name) const 
 
 void SimWorld::setObjects(std::vector<StaticObject> objects, const SimWorldOptions& options) {
   objects_ = std::move(objects);
+  options_ = options;
   buildSquares(options);
 }
 
@@ -126,14 +130,14 @@ void SimWorld::buildSquares(const SimWorldOptions& options) {
   for (std::uint32_t i = 0; i < objects_.size(); ++i) {
     const std::size_t sq = squareOf(objects_[i]);
     squareObjects_[fill[sq]++] = i;
-    tallest_[sq] = std::max(tallest_[sq], objects_[i].baseY + objects_[i].height);
+    if (objects_[i].current) tallest_[sq] = std::max(tallest_[sq], objects_[i].baseY + objects_[i].height);
   }
 }
 
 namespace {
 
 bool touches(const StaticObject& o, double x, double z, double radius, double bottomY) {
-  if (o.state != ObjectState::standing) return false;
+  if (o.state != ObjectState::standing || !o.current) return false;
   const double dx = o.x - x, dz = o.z - z, r = o.radius + radius;
   if (dx * dx + dz * dz >= r * r) return false;  // level 2: Figure 58's cylinders
   return bottomY < o.baseY + o.height;           // level 3: below the object's top
@@ -181,7 +185,8 @@ namespace {
 
 /// Level 0's class at the centroid of each grid triangle of module (kx, kz):
 /// the highest priority group whose triangles hold the centroid (the last
-/// drawn among equals).
+/// drawn among equals). `priority` is the module's own, (sz * moduleSquares
+/// + sx) * 2 + half: a module writes only its own squares' cells.
 void classesOfModule(const module::Module& m, std::uint32_t kx, std::uint32_t kz, std::uint32_t moduleSquares,
                      std::uint32_t squaresX, std::vector<std::uint8_t>& classes, std::vector<std::uint8_t>& priority) {
   if (m.levels.empty()) return;
@@ -192,9 +197,12 @@ void classesOfModule(const module::Module& m, std::uint32_t kx, std::uint32_t kz
     const std::uint32_t sx = g.square % lv.squaresX, sz = g.square / lv.squaresX;
     const double third = g.half == module::Half::upper ? 1.0 / 3.0 : 2.0 / 3.0;
     const double px = (sx + third) * s, pz = (sz + third) * s;
-    const std::size_t cell = (std::size_t(kz * moduleSquares + sz) * squaresX + (kx * moduleSquares + sx)) * 2 +
-                             (g.half == module::Half::upper ? 0 : 1);
-    if (cell >= classes.size() || (classes[cell] != 255 && g.priority < priority[cell])) continue;
+    const std::size_t half = g.half == module::Half::upper ? 0 : 1;
+    const std::size_t cell = (std::size_t(kz * moduleSquares + sz) * squaresX + (kx * moduleSquares + sx)) * 2 + half;
+    const std::size_t own = (std::size_t(sz) * moduleSquares + sx) * 2 + half;
+    if (cell >= classes.size() || own >= priority.size() || (classes[cell] != 255 && g.priority < priority[own])) {
+      continue;
+    }
     for (std::uint32_t k = g.firstIndex; k + 2 < g.firstIndex + g.indexCount; k += 3) {
       const module::Vertex& a = lv.vertices[lv.indices[k]];
       const module::Vertex& b = lv.vertices[lv.indices[k + 1]];
@@ -206,7 +214,7 @@ void classesOfModule(const module::Module& m, std::uint32_t kx, std::uint32_t kz
       const bool neg = d1 < 0 || d2 < 0 || d3 < 0, pos = d1 > 0 || d2 > 0 || d3 > 0;
       if (neg && pos) continue;
       classes[cell] = static_cast<std::uint8_t>(g.material);
-      priority[cell] = g.priority;
+      priority[own] = g.priority;
       break;
     }
   }
@@ -214,60 +222,117 @@ void classesOfModule(const module::Module& m, std::uint32_t kx, std::uint32_t kz
 
 }  // namespace
 
-Status loadModules(SimWorld& world, const pack::PackReader& pack, std::vector<StaticObject>& out) {
-  const pack::IndexHeader& h = pack.header();
-  const iconpack::Pack& icons = world.icons();
-  const std::uint32_t squaresX = world.grid().postsX() - 1, squaresZ = world.grid().postsZ() - 1;
-  std::vector<std::uint8_t> classes(std::size_t(squaresX) * squaresZ * 2, 255), priority(classes.size(), 0);
-  for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
-    for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
-      auto m = pack.read(kx, kz);
-      if (!m) return Status(m.problems());
-      const module::Module& mod = m.value();
-      classesOfModule(mod, kx, kz, h.moduleSquares, squaresX, classes, priority);
-      const std::vector<float> none;
-      const std::vector<float>& y0 = mod.levels.empty() ? none : mod.levels[0].objectY;
-      for (std::uint32_t i = 0; i < mod.objects.size(); ++i) {
-        const module::Object& o = mod.objects[i];
-        StaticObject s;
-        s.x = double(kx) * h.moduleSize + o.x;
-        s.z = double(kz) * h.moduleSize + o.z;
-        s.baseY = i < y0.size() ? double(y0[i]) : 0.0;
-        s.radius = o.radius;
-        s.height = o.height;
-        s.headingDeg = module::headingRadians(o.heading) * 57.29577951308232;
-        s.scale = o.scale;
-        s.icon = o.icon;
-        s.cls = o.cls;
-        const std::string iconName = o.icon < icons.icons.size() ? icons.icons[o.icon].name : std::string();
-        const materials::Class* c = world.materials_ ? world.materials_->find(o.cls) : nullptr;
-        s.kind = objectKindOf(iconName, c ? c->name : std::string());
-        s.moduleX = kx;
-        s.moduleZ = kz;
-        s.index = i;
-        out.push_back(s);
-      }
+Status SimWorld::readModule(std::uint32_t kx, std::uint32_t kz, module::Module& mod) {
+  const pack::IndexHeader& h = modules_->header();
+  auto generation = modules_->read(kx, kz, mod);
+  if (!generation) return Status(generation.problems());
+  moduleGeneration_[std::size_t(kz) * h.modulesX + kx] = generation.value();
+  // This module's cells only: another module's soil stays as it was.
+  const std::uint32_t squaresX = grid_->postsX() - 1, squaresZ = grid_->postsZ() - 1, S = h.moduleSquares;
+  for (std::uint32_t sz = 0; sz < S && std::uint64_t(kz) * S + sz < squaresZ; ++sz) {
+    for (std::uint32_t sx = 0; sx < S && std::uint64_t(kx) * S + sx < squaresX; ++sx) {
+      const std::size_t cell = (std::size_t(kz * S + sz) * squaresX + (kx * S + sx)) * 2;
+      classes_[cell] = classes_[cell + 1] = 255;
     }
   }
-  world.setClasses(std::move(classes));
+  std::vector<std::uint8_t> priority(std::size_t(S) * S * 2, 0);
+  classesOfModule(mod, kx, kz, S, squaresX, classes_, priority);
+  const std::vector<float> none;
+  const std::vector<float>& y0 = mod.levels.empty() ? none : mod.levels[0].objectY;
+  for (std::uint32_t i = 0; i < mod.objects.size(); ++i) {
+    const module::Object& o = mod.objects[i];
+    StaticObject st;
+    st.x = double(kx) * h.moduleSize + o.x;
+    st.z = double(kz) * h.moduleSize + o.z;
+    st.baseY = i < y0.size() ? double(y0[i]) : 0.0;
+    st.radius = o.radius;
+    st.height = o.height;
+    st.headingDeg = module::headingRadians(o.heading) * 57.29577951308232;
+    st.scale = o.scale;
+    st.icon = o.icon;
+    st.cls = o.cls;
+    const std::string iconName = o.icon < icons_.icons.size() ? icons_.icons[o.icon].name : std::string();
+    const materials::Class* c = materials_ ? materials_->find(o.cls) : nullptr;
+    st.kind = objectKindOf(iconName, c ? c->name : std::string());
+    st.moduleX = kx;
+    st.moduleZ = kz;
+    st.index = i;
+    objects_.push_back(st);
+  }
   return {};
 }
 
-Result<std::shared_ptr<SimWorld>> SimWorld::open(const std::string& directory, const SimWorldOptions& options) {
-  auto db = openDatabase(directory);
-  if (!db) return db.problems();
-  Database& d = db.value();
-  const std::uint32_t squares = d.modules ? d.modules->header().moduleSquares : 0;
-  const std::uint32_t levels = d.modules ? d.modules->header().levels : 1;
-  auto world = std::make_shared<SimWorld>(d.grid, squares, levels, d.materials);
-  if (d.icons) world->icons_ = std::move(*d.icons);
-  std::vector<StaticObject> objects;
-  if (d.modules) {
-    Status st = loadModules(*world, *d.modules, objects);
-    if (!st) return st.problems();
+Status SimWorld::loadModules() {
+  const pack::IndexHeader& h = modules_->header();
+  const std::uint32_t squaresX = grid_->postsX() - 1, squaresZ = grid_->postsZ() - 1;
+  classes_.assign(std::size_t(squaresX) * squaresZ * 2, 255);
+  moduleGeneration_.assign(std::size_t(h.modulesX) * h.modulesZ, 0);
+  // Read before the first module, so a change made while loading is seen
+  // by the first refresh().
+  changesSeen_ = modules_->changes();
+  module::Module scratch;
+  for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+    for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+      if (Status st = readModule(kx, kz, scratch); !st) return st;
+    }
   }
-  world->setObjects(std::move(objects), options);
+  return {};
+}
+
+Result<std::uint32_t> SimWorld::refresh() {
+  if (!modules_) return 0u;
+  const std::uint64_t now = modules_->changes();
+  if (now == changesSeen_) return 0u;
+  std::vector<runtime::ModuleKey> changed;
+  changesSeen_ = modules_->changedSince(changesSeen_, changed);
+  const pack::IndexHeader& h = modules_->header();
+  std::sort(changed.begin(), changed.end(), [](const runtime::ModuleKey& a, const runtime::ModuleKey& b) {
+    return a.kz != b.kz ? a.kz < b.kz : a.kx < b.kx;
+  });
+  changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+  std::uint32_t read = 0;
+  std::vector<Problem> problems;
+  module::Module scratch;
+  for (const runtime::ModuleKey& k : changed) {
+    if (k.kx >= h.modulesX || k.kz >= h.modulesZ) continue;
+    if (modules_->generation(k.kx, k.kz) == moduleGeneration_[std::size_t(k.kz) * h.modulesX + k.kx]) continue;
+    const std::size_t first = objects_.size();
+    if (Status st = readModule(k.kx, k.kz, scratch); !st) {
+      problems.insert(problems.end(), st.problems().begin(), st.problems().end());
+      continue;
+    }
+    // The module's objects of older generations are retired (their
+    // indices stay valid for events and the viewer's overrides).
+    for (std::size_t i = 0; i < first; ++i) {
+      StaticObject& o = objects_[i];
+      if (o.moduleX == k.kx && o.moduleZ == k.kz) o.current = false;
+    }
+    ++read;
+  }
+  if (read) buildSquares(options_);
+  if (!problems.empty()) return problems;
+  return read;
+}
+
+Result<std::shared_ptr<SimWorld>> SimWorld::open(const runtime::World& w, const SimWorldOptions& options) {
+  const std::shared_ptr<const runtime::ModuleSource>& source = w.modules();
+  const std::uint32_t squares = source ? source->header().moduleSquares : 0;
+  const std::uint32_t levels = source ? source->header().levels : 1;
+  auto world = std::make_shared<SimWorld>(w.heights(), squares, levels, w.materials());
+  if (w.icons()) world->icons_ = *w.icons();
+  world->options_ = options;
+  if (source) {
+    world->modules_ = source;
+    if (Status st = world->loadModules(); !st) return st.problems();
+  }
+  world->buildSquares(options);
   return world;
+}
+
+Result<std::shared_ptr<SimWorld>> SimWorld::open(const std::string& directory, const SimWorldOptions& options) {
+  auto w = runtime::World::open(directory);
+  if (!w) return w.problems();
+  return open(*w.value(), options);
 }
 
 }  // namespace sandtable::sim

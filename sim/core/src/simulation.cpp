@@ -409,6 +409,9 @@ void Simulation::move(Record& r) {
 }
 
 void Simulation::step() {
+  // A module the source replaced (dynamic terrain) is read again before the
+  // step; a failed read keeps the module as it was.
+  static_cast<void>(world_->refresh());
   for (Record& r : records_) r.before = r.entity.position;
   applyScripts();
   if (const Entity* recorded = recorder_ ? find(recordId_) : nullptr) {

@@ -1,5 +1,6 @@
 #pragma once
 // A database directory: manifest.json plus the files it lists.
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -34,6 +35,10 @@ struct Database {
 /// table when listed, and checks that grid, pack index and manifest agree.
 /// Cheap; reads neither the elevation data nor any module.
 Result<Database> openDatabase(const std::string& directory);
+/// How many times openDatabase has been called in this process (one
+/// atomic, every call counted, failed ones too): the test that `sim` and
+/// `fly --scenario` open their database once reads it.
+std::uint64_t databaseOpens();
 
 /// Checks everything: manifest schema and checksum, every listed file's
 /// size and CRC-32, files present but not listed, grid contents, and that

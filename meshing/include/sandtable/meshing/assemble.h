@@ -1,16 +1,16 @@
 #pragma once
-// A load module assembled from a grid window: for each level its lattice,
+// A load module assembled from a window of a HeightField's posts: for each level its lattice,
 // a skin filled by the caller (the converters' culture decaler, or the
 // plain grid triangles), skirts, and per-square heights. The converters'
 // module builder, the pager's placeholders and (later) dynamic terrain all
 // make their modules here, so the three agree on lattices and skirts.
 //
-// Thread safety: pure functions over a read-only grid; the skin callback
+// Thread safety: pure functions over a HeightField (lattice.h); the skin callback
 // is called on the caller's thread, level by level, finest first.
 #include <cstdint>
 #include <functional>
 
-#include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/meshing/lattice.h"
 
@@ -39,7 +39,7 @@ std::uint64_t finishLevel(const LevelLattice& lat, std::uint32_t node, float dep
 /// side: every level's lattice, skirt depths from all of them
 /// (skirtDepths), `skin` per level, then finishLevel. Stops early when
 /// `skin` returns false (the later levels stay empty).
-module::Module assembleModule(const grid::GridFile& g, std::uint32_t squares, int levels, std::uint32_t kx,
+module::Module assembleModule(const grid::HeightField& g, std::uint32_t squares, int levels, std::uint32_t kx,
                               std::uint32_t kz, std::uint16_t skirtMaterial, const SkinFn& skin);
 
 }  // namespace sandtable::meshing

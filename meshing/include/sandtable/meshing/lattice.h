@@ -5,12 +5,16 @@
 // window always kept, so a module at the database's east or south edge has
 // narrower last squares at coarse levels (docs/FORMAT.md, "module").
 //
-// Thread safety: plain values and pure functions over a read-only grid;
-// call from any thread.
+// The posts come from a HeightField (the grid file, or a field that
+// changes: dynamic terrain re-meshes a changed module from it).
+//
+// Thread safety: plain values and pure functions over a HeightField; call
+// from any thread (a lattice read while the field changes may mix the
+// change's old and new posts: compare the field's regionGeneration).
 #include <cstdint>
 #include <vector>
 
-#include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 
 namespace sandtable::meshing {
 
@@ -37,7 +41,7 @@ struct ModuleWindow {
 
 /// Module (kx, kz) of `squares` level-0 squares a side: posts
 /// [kx * squares, kx * squares + squares], clamped to the grid's last post.
-ModuleWindow moduleWindow(const grid::GridFile& g, std::uint32_t squares, int levels, std::uint32_t kx,
+ModuleWindow moduleWindow(const grid::HeightField& g, std::uint32_t squares, int levels, std::uint32_t kx,
                           std::uint32_t kz);
 
 /// One module level's lattice: where its posts are and their elevations.
@@ -63,7 +67,7 @@ enum class NonFinite : std::uint8_t {
 
 /// Level `level` of window `w`: the posts' module-local positions
 /// ((post - i0) * spacing) and the grid's elevations at them.
-LevelLattice levelLattice(const grid::GridFile& g, const ModuleWindow& w, int level,
+LevelLattice levelLattice(const grid::HeightField& g, const ModuleWindow& w, int level,
                           NonFinite nonFinite = NonFinite::keep);
 
 /// Height of a level's drawn surface (SW-NE triangles, docs/FORMAT.md) at

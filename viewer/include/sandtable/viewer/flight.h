@@ -41,6 +41,8 @@
 
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
+#include "sandtable/paging/world.h"
 #include "sandtable/base/result.h"
 #include "sandtable/world/ground.h"
 #include "sandtable/world/pose.h"
@@ -303,18 +305,26 @@ struct FlightReport {
 /// Checks the options against the grid; problems say which option is wrong.
 /// `app`: the application that will steer the flight (its start point is
 /// then not checked against the database).
+std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::HeightField> g,
+                                        const FlightOptions& o,
+                                        const FlightApplication* app = nullptr);
 std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
                                         const FlightOptions& o,
                                         const FlightApplication* app = nullptr);
 
-/// Flies over the grid mesh (TerrainMode::modules is refused: no pack).
+/// Flies over the posts' mesh (TerrainMode::modules is refused: no pack).
 /// Fails with Problem::file == kGlContextProblem (renderer.h) when no
 /// headless GL context can be opened.
+Result<FlightReport> fly(std::shared_ptr<const grid::HeightField> g, const FlightOptions& o,
+                         FlightApplication* app = nullptr);
 Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOptions& o,
                          FlightApplication* app = nullptr);
-/// Flies over a database: load modules through the pager when it has them
-/// (or TerrainMode::modules asks), else the grid mesh. Module colours come
-/// from its material table.
+/// Flies over a world opened once (paging/world.h): load modules from its
+/// ModuleSource through the pager when it has them (or TerrainMode::modules
+/// asks), else the mesh of its posts; ground, map and shading read its
+/// HeightField. Module colours come from its material table. Opens nothing.
+Result<FlightReport> fly(const World& world, const FlightOptions& o, FlightApplication* app = nullptr);
+/// The same over a database already open (a World made from it).
 Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app = nullptr);
 
 /// The lines of the information panel for a frame.

@@ -87,7 +87,7 @@ class FlySession final : public FlightApplication {
  public:
   /// `window` and `video` may be null (headless, no video). `o` must be
   /// the flight's options (start, heading, speed, height, FOV...).
-  FlySession(const Database& db, FlySessionSettings settings, const runtime::FlightOptions& o,
+  FlySession(const World& world, FlySessionSettings settings, const runtime::FlightOptions& o,
              std::unique_ptr<runtime::ViewerWindow> window,
              std::unique_ptr<runtime::VideoWriter> video);
 
@@ -117,7 +117,7 @@ class FlySession final : public FlightApplication {
   void fail(const Status& st);
   runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
 
-  const Database& db_;
+  const World& world_;
   FlySessionSettings settings_;
   const runtime::FlightOptions& options_;
   /// The viewer's own copy of the flight's ground clamp (same surface; the

@@ -53,6 +53,8 @@
 
 namespace sandtable::runtime {
 
+class World;
+
 // ------------------------------------------------------------ strip logic
 
 /// Cardinal directions; north is -Z. Also the index of each loader thread.
@@ -447,6 +449,9 @@ class Pager {
                                              const PagerOptions& options);
   /// The database's pack, placeholders in its default area material.
   static Result<std::unique_ptr<Pager>> open(const Database& db, const PagerOptions& options);
+  /// The world's module source (world.h), placeholders in its default
+  /// area material: opens nothing.
+  static Result<std::unique_ptr<Pager>> open(const World& world, const PagerOptions& options);
   static Result<std::unique_ptr<Pager>> open(const std::string& directory,
                                              const PagerOptions& options);
   ~Pager();

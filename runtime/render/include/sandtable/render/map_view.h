@@ -19,8 +19,12 @@
 // World frame: X east, Z south of the grid's north-west corner post, in
 // metres (grid.h); toWorld() converts projected coordinates.
 //
+// The posts come from a HeightField (the grid file or a field that
+// changes): when its generation moves, the next compose() rescans the
+// overview and redraws the base image.
+//
 // Thread safety: one MapView per thread (compose() caches its base image).
-// The GridFile is shared and only read.
+// The HeightField is shared and only read.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -28,6 +32,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/render/image.h"
 
 namespace sandtable::runtime {
@@ -86,6 +91,8 @@ class MapView {
  public:
   /// Scans the grid once (about overviewMaxSide^2 posts) for the land
   /// elevation range and the overview image.
+  explicit MapView(std::shared_ptr<const grid::HeightField> heights, MapOptions options = {});
+  /// Over the grid file's posts (a GridHeightField).
   explicit MapView(std::shared_ptr<const grid::GridFile> grid, MapOptions options = {});
 
   /// 0 full .. 4 sixteenth; clamped.
@@ -137,7 +144,8 @@ class MapView {
   void drawMarks(Image& frame, const MapLayout& box, const std::vector<MapMark>& marks) const;
   void drawLabel(Image& frame, const MapLayout& box) const;
 
-  std::shared_ptr<const grid::GridFile> grid_;
+  std::shared_ptr<const grid::HeightField> grid_;
+  std::uint64_t generation_ = 0;  ///< the field's generation the overview shows
   MapOptions options_;
   double worldW_ = 0, worldD_ = 0;
   float landMin_ = 0, landMax_ = 0;

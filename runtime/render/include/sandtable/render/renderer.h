@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/formats/icon_pack.h"
 #include "sandtable/base/result.h"
 #include "sandtable/scene/display_buffer.h"
@@ -116,9 +117,10 @@ struct RenderSettings {
   std::uint16_t uncoveredMaterial = 0;
   /// Grid material indices that are water (docs/FORMAT.md 4.7).
   std::vector<std::uint8_t> waterMaterials{1};
-  /// Module mode, smooth shading: normals and water come from the grid at
-  /// each module vertex (computed once per upload). Null: up and no water.
-  std::shared_ptr<const grid::GridFile> grid;
+  /// Module mode, smooth shading: normals and water come from the posts
+  /// (the grid file or a changing field) at each module vertex (computed
+  /// once per upload). Null: up and no water.
+  std::shared_ptr<const grid::HeightField> grid;
   /// Module mode: bytes of (module, level) buffers built and uploaded per
   /// frame, so that a jump does not make one long frame; 0: no limit.
   /// Levels over the budget wait for a later frame (at least one goes up

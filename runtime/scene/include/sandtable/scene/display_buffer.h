@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/paging/pager.h"
 #include "sandtable/paging/view_triangle.h"
 #include "sandtable/scene/dynamic.h"
@@ -104,12 +105,13 @@ struct DisplayBuffer {
   DynamicScene dynamic;
 };
 
-/// Builds the view triangle for `cam` on grid `g`, selects the grid squares
+/// Mesh mode. Builds the view triangle for `cam` on the posts of `g` (the
+/// grid file or a changing field, read as they are now), selects the grid squares
 /// and writes one strip per row span (TerrainVertex::water from the grid
 /// material: water when listed in `waterMaterials`, default {1}): v(i,j), v(i,j+1), v(i+1,j), ... so
 /// each square splits along its south-west to north-east diagonal exactly
 /// as Terrain::sampleXZ assumes. Reuses `out`'s memory.
-void fillDisplayBuffer(const grid::GridFile& g, const Camera& cam, std::uint64_t frame,
+void fillDisplayBuffer(const grid::HeightField& g, const Camera& cam, std::uint64_t frame,
                        DisplayBuffer& out, const std::vector<std::uint8_t>& waterMaterials = {1});
 
 /// The view triangle `fillDisplayBuffer` uses for a camera.

@@ -17,6 +17,9 @@
 // The lattice rule must match the module builder's (meshing/); the end-
 // to-end test GroundClamp.* compares this clamp against the built modules.
 //
+// The posts come from a HeightField (formats/height_field.h), read at the
+// time of each query, so a changed patch is under the next query.
+//
 // Thread safety: surface*() are const and thread-safe. ground*() and
 // setDrawn() keep state (the last ground seen, the level drawn under the
 // eye): one GroundClamp per main thread.
@@ -26,6 +29,7 @@
 #include <optional>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 
 namespace sandtable::runtime {
 
@@ -39,6 +43,9 @@ class GroundClamp {
  public:
   /// `moduleSquares` (pack::IndexHeader) = 0 or `levels` = 1: the grid
   /// mesh is drawn, every level is level 0.
+  explicit GroundClamp(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares = 0,
+                       std::uint32_t levels = 1);
+  /// Over the grid file's posts (a GridHeightField).
   explicit GroundClamp(std::shared_ptr<const grid::GridFile> grid, std::uint32_t moduleSquares = 0,
                        std::uint32_t levels = 1);
 
@@ -79,7 +86,7 @@ class GroundClamp {
   Square squareAt(std::uint32_t level, double x, double z) const;
   double latticeHeight(std::uint32_t level, double x, double z) const;
 
-  std::shared_ptr<const grid::GridFile> grid_;
+  std::shared_ptr<const grid::HeightField> grid_;
   std::uint32_t squares_ = 0, levels_ = 1;
   DrawnLevel drawn_;
   double last_ = 0;

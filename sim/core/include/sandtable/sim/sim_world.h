@@ -15,8 +15,18 @@
 // can touch: SimWorld::objectsNear finds exactly what a search of every
 // object finds (tested against objectsNearBruteForce).
 //
-// Thread safety: const methods are thread-safe; object states change only
-// through setObjectState, from the simulation thread.
+// Modules: read through the world's ModuleSource (paging/module_source.h),
+// never from modules.pack directly. refresh() polls the source's changes:
+// a module with a newer generation has exactly its own soil classes,
+// object bases and objects replaced (its old objects are retired, never
+// removed, so object indices stay valid in events), and the collision
+// squares are rebuilt. The ground (GroundClamp, Terrain) reads the
+// world's HeightField at every query, so a changed patch is under the next
+// step with no refresh.
+//
+// Thread safety: const methods are thread-safe, except that objectsNear
+// counts into stats(); object states change only through setObjectState,
+// and refresh() runs, from the simulation thread between steps.
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -26,13 +36,12 @@
 
 #include "sandtable/base/result.h"
 #include "sandtable/formats/icon_pack.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/formats/materials.h"
+#include "sandtable/paging/module_source.h"
+#include "sandtable/paging/world.h"
 #include "sandtable/world/ground.h"
 #include "sandtable/world/terrain.h"
-
-namespace sandtable::pack {
-class PackReader;
-}
 
 namespace sandtable::sim {
 
@@ -60,6 +69,9 @@ struct StaticObject {
   ObjectKind kind = ObjectKind::rock;
   ObjectState state = ObjectState::standing;
   std::uint32_t moduleX = 0, moduleZ = 0, index = 0;  ///< where it is stored
+  /// False once a newer generation of its module replaced it: kept so that
+  /// indices stay valid, never an obstacle and never drawn.
+  bool current = true;
 };
 
 /// Which level is drawn at world (x, z).
@@ -84,19 +96,32 @@ struct SearchStats {
 
 class SimWorld {
  public:
-  /// A world over a grid alone (tests): no objects, the materials given.
+  /// A world over posts alone (tests): no objects, the materials given.
+  SimWorld(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares, std::uint32_t levels,
+           std::optional<materials::Table> materials = std::nullopt);
+  /// Over the grid file's posts (a GridHeightField).
   SimWorld(std::shared_ptr<const grid::GridFile> grid, std::uint32_t moduleSquares, std::uint32_t levels,
            std::optional<materials::Table> materials = std::nullopt);
   SimWorld(const SimWorld&) = delete;  // classById_ points into materials_
   SimWorld& operator=(const SimWorld&) = delete;
 
-  /// Opens a built database directory: grid, materials.txt, icons.pack and
-  /// the objects of modules.pack (when present).
+  /// The simulator's view of a world opened once (paging/world.h): its
+  /// posts, materials and icons, and every module's objects and soil read
+  /// through its ModuleSource (when it has one). Opens nothing.
+  static Result<std::shared_ptr<SimWorld>> open(const runtime::World& world, const SimWorldOptions& options = {});
+  /// Opens the directory as a World first (tests; one database open).
   static Result<std::shared_ptr<SimWorld>> open(const std::string& directory, const SimWorldOptions& options = {});
+
+  /// Reads again each module whose generation moved since it was read
+  /// (ModuleSource::changes, one atomic load when nothing changed): its soil
+  /// classes, object bases and objects are replaced, the collision squares
+  /// rebuilt. Returns how many modules were read again; a failed read keeps
+  /// the module as it was and is returned as problems.
+  Result<std::uint32_t> refresh();
 
   const runtime::GroundClamp& clamp() const { return clamp_; }
   const runtime::Terrain& terrain() const { return terrain_; }
-  const grid::GridFile& grid() const { return *grid_; }
+  const grid::HeightField& heights() const { return *grid_; }
   double widthM() const { return terrain_.widthMetres(); }
   double depthM() const { return terrain_.depthMetres(); }
   double originEasting() const;
@@ -162,17 +187,23 @@ class SimWorld {
 
  private:
   void buildSquares(const SimWorldOptions& options);
+  /// Reads module (kx, kz) through modules_: replaces its classes and
+  /// appends its objects (the caller retires the old ones).
+  Status readModule(std::uint32_t kx, std::uint32_t kz, module::Module& scratch);
+  Status loadModules();
 
-  std::shared_ptr<const grid::GridFile> grid_;
+  std::shared_ptr<const grid::HeightField> grid_;
   runtime::GroundClamp clamp_;
   runtime::Terrain terrain_;
   std::optional<materials::Table> materials_;
   std::vector<const materials::Class*> classById_;  ///< material id -> class (256)
   /// Level 0's class per grid triangle (2 per square, upper first), 255
-  /// where no module covers it; built by open().
+  /// where no module covers it; built by open(), per module by refresh().
   std::vector<std::uint8_t> classes_;
-  void setClasses(std::vector<std::uint8_t> c) { classes_ = std::move(c); }
-  friend Status loadModules(SimWorld&, const pack::PackReader&, std::vector<StaticObject>&);
+  std::shared_ptr<const runtime::ModuleSource> modules_;
+  std::vector<std::uint64_t> moduleGeneration_;  ///< the generation read, per module (row-major)
+  std::uint64_t changesSeen_ = 0;                ///< modules_->changes() when last polled
+  SimWorldOptions options_;
   DrawnLevelFn drawn_;
   iconpack::Pack icons_;
   std::vector<StaticObject> objects_;
@@ -182,10 +213,6 @@ class SimWorld {
   std::vector<std::uint32_t> squareObjects_; ///< object indices by square
   std::vector<double> tallest_;
 };
-
-/// Reads every module once: the static objects (world coordinates, level
-/// 0's bases) and level 0's class per grid triangle.
-Status loadModules(SimWorld& world, const pack::PackReader& pack, std::vector<StaticObject>& objects);
 
 /// The object kind of an icon name and a material class name: trees
 /// ("tree" in either), houses (buildings, "house", "garage", "building"),

@@ -1,0 +1,28 @@
+// The database opened once (world.h).
+#include "sandtable/paging/world.h"
+
+namespace sandtable::runtime {
+namespace {
+
+std::shared_ptr<const ModuleSource> packSourceOf(const Database& db) {
+  if (!db.modules) return nullptr;
+  return std::make_shared<const PackSource>(db.modules);
+}
+
+}  // namespace
+
+Result<std::shared_ptr<const World>> World::open(const std::string& directory) {
+  auto db = openDatabase(directory);
+  if (!db) return db.problems();
+  return std::make_shared<const World>(std::move(db.value()));
+}
+
+World::World(Database db) : db_(std::move(db)) {
+  heights_ = grid::heightField(db_.grid);
+  modules_ = packSourceOf(db_);
+}
+
+World::World(Database db, std::shared_ptr<const grid::HeightField> heights, std::shared_ptr<const ModuleSource> modules)
+    : db_(std::move(db)), heights_(std::move(heights)), modules_(std::move(modules)) {}
+
+}  // namespace sandtable::runtime
