@@ -61,7 +61,7 @@ struct MeshBlock {
 /// it reads and the module layout.
 struct MeshSettings {
   bool flat = false;  ///< Shading::flat
-  std::shared_ptr<const grid::GridFile> grid;
+  decltype(RenderSettings::grid) grid;  ///< RenderSettings::grid, compared by pointer
   std::vector<std::uint8_t> waterMaterials;
   std::vector<MaterialColour> palette;
   std::uint16_t uncoveredMaterial = 0;

@@ -364,7 +364,8 @@ PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t s
   buf.originZ = camera.z;
   buf.moduleSize = 0;
   buf.modules.resize(1);
-  const Eigen::Matrix4f vp = detail::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+  // Unqualified: camera_math.h's projection, whichever namespace holds it.
+  const Eigen::Matrix4f vp = viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
   const auto nodes = std::uint32_t(order.size());
   drawn_.clear();
   // One draw per node, as a module drawn at full LoD.
