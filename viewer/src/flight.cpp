@@ -12,6 +12,8 @@
 #include <mutex>
 #include <thread>
 
+#include <time.h>
+
 #include <nlohmann/json.hpp>
 
 #include "sandtable/formats/bytes.h"
@@ -83,6 +85,13 @@ double percentile(std::vector<double> v, double p) {
   return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
 }
 
+/// CPU time of the calling thread, milliseconds.
+double threadCpuMs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) / 1e6;
+}
+
 std::string format(const char* fmt, double a, double b = 0, double c = 0) {
   char buf[128];
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
@@ -100,6 +109,8 @@ nlohmann::json frameJson(const FrameStats& s) {
                       {"time_s", s.timeS},
                       {"cpu_ms", s.cpuMs},
                       {"render_ms", s.renderMs},
+                      {"render_cpu_ms", s.renderCpuMs},
+                      {"upload_ms", s.uploadMs},
                       {"frame_ms", s.frameMs},
                       {"png_ms", s.pngMs},
                       {"triangles", s.triangles},
@@ -173,7 +184,8 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
       {"simulated_frame_rate", kFramesPerSecond},
       {"note", "time_s is simulated (frame / 30). cpu_ms: main thread, view triangle, "
                "selection and LoD (mesh: vertex build too); render_ms: render thread, upload "
-               "and the passes up to the HUD (waits for the GPU); frame_ms: time between frame "
+               "and the passes up to the HUD (waits for the GPU); render_cpu_ms: the render thread's "
+               "own CPU time over that span; upload_ms: of render_ms, module uploads and LoD; frame_ms: time between frame "
                "completions on the render thread (the threads overlap), frame 0 cpu + render + "
                "panel; png_ms is not in frame_ms or fps"}};
   j["options"] = {{"size", std::to_string(o.view.width) + "x" + std::to_string(o.view.height)},
@@ -449,12 +461,15 @@ struct FlightRun {
     while (Slot* slot = handoff.takeFull()) {
       FrameStats s = slot->stats;
       const auto t0 = Clock::now();
+      const double cpu0 = threadCpuMs();
       const Status drawn = renderer.draw(slot->buf);
       if (drawn) renderer.finish();
       s.renderMs = msSince(t0);
+      s.renderCpuMs = threadCpuMs() - cpu0;
       slot->buf.modules.clear();  // release the pager's guards within the frame
       const RenderStats& rs = renderer.stats();
       s.uploads = rs.uploads;
+      s.uploadMs = rs.uploadMs;
       s.released = rs.released;
       s.cachedLevels = rs.cachedLevels;
       s.gpuBytes = rs.gpuBytes;
@@ -628,6 +643,16 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const W
                      "cannot create the output directory " + o.output.outDir + ": " + ec.message()};
     }
   }
+  RenderSettings rs = renderSettingsFor(o);
+  rs.grid = g;
+  // Icons draw the modules' static objects (unless RenderOptions::objects
+  // is off) and the application's entities, in either terrain mode.
+  if (db && db->icons) rs.icons = std::make_shared<iconpack::Pack>(*db->icons);
+  rs.staticObjects = o.render.objects && modules;
+  if (modules && db->materials) {
+    rs.palette = paletteFor(*db->materials);
+    rs.uncoveredMaterial = db->materials->defaultArea;
+  }
   std::unique_ptr<Pager> pager;
   if (modules) {
     PagerOptions po;
@@ -636,21 +661,18 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const W
                                                                         : 3 * po.viewDistance);
     po.loaderThreads = o.pager.loaders;
     po.memoryBudgetBytes = o.pager.budgetBytes;
+    // The loaders mesh each level as they publish it (the worker phase);
+    // the render thread only copies meshes to the GPU. nodeSquares as
+    // ModuleScene derives it.
+    const pack::IndexHeader& h = world->modules()->header();
+    const auto nodeSquares = std::max<std::uint32_t>(h.moduleSquares >> (std::max<std::uint32_t>(h.levels, 1) - 1), 1);
+    po.prepareLevel = moduleLevelPreparer(rs, nodeSquares, h.moduleSize);
     auto p = Pager::open(*world, po);
     if (!p) return p.problems();
     pager = std::move(p.value());
   }
-  FlightRun run(o, app, g, renderSettingsFor(o));
-  run.renderSettings.grid = g;
-  // Icons draw the modules' static objects (unless RenderOptions::objects
-  // is off) and the application's entities, in either terrain mode.
-  if (db && db->icons) run.renderSettings.icons = std::make_shared<iconpack::Pack>(*db->icons);
-  run.renderSettings.staticObjects = o.render.objects && modules;
+  FlightRun run(o, app, g, rs);
   if (pager) {
-    if (db->materials) {
-      run.renderSettings.palette = paletteFor(*db->materials);
-      run.renderSettings.uncoveredMaterial = db->materials->defaultArea;
-    }
     ModuleSceneSettings ss;
     ss.lod = o.render.lod;
     ss.imageHeight = o.view.height;

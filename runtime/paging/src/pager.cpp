@@ -281,6 +281,12 @@ struct PublishTimer {
 
 void publishFinerLevels(Impl& im, Slot& s, const module::Module& m, std::uint32_t from, std::uint32_t to);
 
+/// PagerOptions::prepareLevel on level l of d, written and not yet
+/// published (the worker phase of the load).
+void prepareLevel(Impl& im, ResidentModule& d, std::uint32_t l) {
+  if (im.options.prepareLevel) im.options.prepareLevel(d, l);
+}
+
 /// Reads module p.key into slot s (whose `write` the caller holds) and
 /// publishes it, coarse level first, unless it is resident already. With
 /// coarse-first, only the coarse levels are read and published; returns
@@ -372,6 +378,7 @@ bool loadFresh(Impl& im, Loader& ld, Slot& s, const Pending& p) {
   d.placeholder = placeholder;
   if (placeholder) d.objects.clear();
   else copyObjectsWithinBudget(im, s, d, loaded.objects);
+  prepareLevel(im, d, coarse);
   s.finest[0].store(coarse, std::memory_order_release);
   std::uint64_t expect = makeWord(p.key, SlotState::loading, gen);
   if (!s.word.compare_exchange_strong(expect, makeWord(p.key, SlotState::resident, gen),
@@ -478,6 +485,7 @@ void publishFinerLevels(Impl& im, Slot& s, const module::Module& m, std::uint32_
       }
       break;
     }
+    prepareLevel(im, s.data[0], l);
     s.finest[0].store(l, std::memory_order_release);
   }
 }
@@ -525,6 +533,7 @@ void reloadModule(Impl& im, Loader& ld, Slot& s, std::uint64_t w) {
   d.placeholder = false;
   d.generation = read.generation;
   copyObjectsWithinBudget(im, s, d, m.objects);
+  for (std::uint32_t l = im.levels; l-- > finest;) prepareLevel(im, d, l);
   s.finest[nb].store(finest, std::memory_order_release);
   std::uint64_t expect = w;
   if (!s.word.compare_exchange_strong(
@@ -945,6 +954,10 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
       Slot& s = im->slots[i];
       s.data[0].levels.resize(im->levels);
       s.data[1].levels.resize(im->levels);
+      if (options.prepareLevel) {
+        s.data[0].prepared.resize(im->levels);
+        s.data[1].prepared.resize(im->levels);
+      }
       reserveLike(proto, s.data[0].levels[im->levels - 1]);
       settleCapacity(*im, s, 0);
     }

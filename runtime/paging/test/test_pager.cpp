@@ -944,6 +944,70 @@ TEST(Pager, coarseFirstReadsEveryCoarseRecordBeforeAnyFineOne) {
   EXPECT_EQ(src->hinted.load(), n);
 }
 
+// PagerOptions::prepareLevel runs on the loader for every level it
+// publishes, coarsest first, before readers can see the level: each
+// prepared level a reader finds was made from that module's own level, and
+// the call for level 0 comes with every level written. Without a hook
+// nothing is prepared.
+TEST(Pager, everyPublishedLevelIsPreparedFirstCoarsestFirst) {
+  const TestDb db = makeDb("prepare-hook", 20, 20, kSquares, 3, pack::PackLayout::split(3));
+  struct Tag final : LevelExtra {
+    std::uint32_t kx = 0, kz = 0, level = 0;
+    float s = -1;  ///< the level's first vertex's s when prepared (makeDb tags it kx)
+  };
+  std::mutex mutex;
+  std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> calls;
+  std::atomic<std::uint32_t> wholeAtLevel0{0}, notWhole{0};
+  PagerOptions o = baseOptions();
+  o.loaderThreads = 2;
+  o.prepareLevel = [&](ResidentModule& m, std::uint32_t level) {
+    ASSERT_EQ(m.prepared.size(), m.levels.size());
+    auto tag = std::make_unique<Tag>();
+    tag->kx = m.kx, tag->kz = m.kz, tag->level = level;
+    if (!m.levels[level].vertices.empty()) tag->s = m.levels[level].vertices.front().s;
+    m.prepared[level] = std::move(tag);
+    if (level == 0 && !m.placeholder) {
+      bool whole = true;
+      for (const module::Level& l : m.levels) whole = whole && !l.vertices.empty() && l.vertices.front().s == float(m.kx);
+      (whole ? wholeAtLevel0 : notWhole).fetch_add(1);
+    }
+    const std::lock_guard lock(mutex);
+    calls[{m.kx, m.kz}].push_back(level);
+  };
+  auto opened = Pager::open(db.grid, db.pack, o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  p.update(10500, 10500, 0, 0, 0);
+  ASSERT_TRUE(p.waitIdle(30));
+  const std::size_t n = std::size_t(p.window().count());
+  ASSERT_EQ(calls.size(), n);
+  for (const auto& [key, levels] : calls) {
+    EXPECT_EQ(levels, (std::vector<std::uint32_t>{2, 1, 0})) << key.first << "," << key.second;
+    const ResidentRef r = p.resident(key.first, key.second, 0);
+    ASSERT_TRUE(r);
+    ASSERT_EQ(r.finestLevel(), 0u);
+    for (std::uint32_t l = 0; l < 3; ++l) {
+      const auto* tag = dynamic_cast<const Tag*>(r.module().prepared[l].get());
+      ASSERT_NE(tag, nullptr);
+      EXPECT_EQ(tag->kx, key.first);
+      EXPECT_EQ(tag->kz, key.second);
+      EXPECT_EQ(tag->level, l);
+      EXPECT_EQ(tag->s, float(key.first));
+    }
+  }
+  EXPECT_EQ(wholeAtLevel0.load(), n);
+  EXPECT_EQ(notWhole.load(), 0u);
+  p.stop();
+
+  auto plain = Pager::open(db.grid, db.pack, baseOptions());
+  ASSERT_TRUE(plain.ok()) << plain.error();
+  plain.value()->update(10500, 10500, 0, 0, 0);
+  ASSERT_TRUE(plain.value()->waitIdle(30));
+  const ResidentRef r = plain.value()->resident(10, 10, 0);
+  ASSERT_TRUE(r);
+  EXPECT_TRUE(r.module().prepared.empty());
+}
+
 // The same pack with coarseFirst off reads each module whole, once.
 TEST(Pager, coarseFirstOffReadsWholeModules) {
   const TestDb db = makeDb("coarse-off", 20, 20, kSquares, 3, pack::PackLayout::split(3));

@@ -1,6 +1,11 @@
 #pragma once
 // Drawing load modules on the render thread. Private to the renderer;
 // every call on the render thread. Design: docs/VIEWER.md, "Module draws".
+// The class's parts live by concern: the GPU cache and uploads
+// (module_cache.cpp), LoD resolution with the upload budget's fallback
+// (module_lod.cpp), command lists and passes (module_passes.cpp), the road
+// texture (road_texture.cpp) and the arena (gpu_arena.h). The CPU meshing
+// of a level (module_mesh.h) runs on the pager's loader threads.
 //
 // Memory. Every resident (module, level) is one Entry: its vertices and
 // its u32 indices (relative to its first vertex) sub-allocated from one
@@ -8,8 +13,9 @@
 // that coalesces, grown by doubling with a GPU copy that keeps every
 // offset). An upload is a memcpy into the mapping; a released block is
 // reused only once the GPU has passed a fence set after its last frame.
-// Entries are built from the pager's decoded levels the first time a
-// frame lists them (within RenderSettings::uploadBudgetBytes a frame) and
+// Entries are copied from the levels' meshes (LevelMesh, built on a loader
+// thread, or here when a level comes without one) the first time a frame
+// lists them (within RenderSettings::uploadBudgetBytes a frame) and
 // released when the pager frees or replaces the module.
 //
 // Draws. Each pass is one glMultiDrawElementsIndirect: one command per
@@ -28,7 +34,7 @@
 // Shading::smooth: indexed triangles; a module vertex is copied only where
 // triangles of different colours meet. Its normal and water weight are the
 // grid's, interpolated at the vertex (so every level, skirt and cut piece
-// is lit like the grid mesh), computed once per upload. Shading::flat (the
+// is lit like the grid mesh), computed once per level mesh. Shading::flat (the
 // seed's look): three vertices per triangle with its face normal and its
 // half's colour.
 //
@@ -42,8 +48,9 @@
 // terrain pass culls back faces (CCW front); skirts and the plain lattice
 // under culture-cut squares are drawn after the skin with a polygon offset
 // away from the eye, so they show only through cracks and pinholes. Skirt
-// feet are raised at upload from the file's module-wide depth to what
-// their own stretch of edge needs, when every level is resident.
+// feet are raised from the file's module-wide depth to what their own
+// stretch of edge needs (LevelMesh::feet, written into the arena at upload),
+// when every level is resident.
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
@@ -61,59 +68,15 @@
 #include "sandtable/render/gl_program.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/scene/display_buffer.h"
+#include "gpu_arena.h"
+#include "module_mesh.h"
 
 namespace sandtable::runtime::detail {
 
-// 32 bytes each.
-struct GpuVertex {
-  float x, y, z;
-  float morphDelta;     ///< next coarser level's surface minus this level's, here
-  std::uint32_t rgba;   ///< GL_UNSIGNED_BYTE x 4, normalized; alpha: SurfaceKind (terrain_shading.h)
-  std::uint32_t normal; ///< GL_INT_2_10_10_10_REV, normalized
-  float s, t;           ///< roads: S along in road widths, T across 0..1 (docs/CULTURE.md 8)
-};
-static_assert(sizeof(GpuVertex) == 32, "vertex layout is shared with the shader");
-
-/// One persistent, coherent, write-mapped GL buffer, sub-allocated in
-/// blocks of kUnit bytes (first fit, coalescing free list). Released
-/// blocks wait behind a fence until the GPU can no longer read them.
-class GpuArena {
- public:
-  static constexpr std::uint64_t kUnit = 32;  ///< a GpuVertex: vertex blocks start on a vertex
-  GpuArena() = default;
-  ~GpuArena();
-  GpuArena(const GpuArena&) = delete;
-  GpuArena& operator=(const GpuArena&) = delete;
-
-  /// Byte offset of a block of at least `bytes`; grows the buffer (a new
-  /// GL name: rebind) when no free block fits.
-  std::uint64_t allocate(std::uint64_t bytes);
-  /// Gives a block back once the GPU has finished the frames drawn so far.
-  void release(std::uint64_t offset, std::uint64_t bytes);
-  /// Marks the end of a frame: blocks released before it become free once
-  /// its fence has passed (checked without waiting).
-  void endFrame();
-  std::uint8_t* data() { return map_; }
-  GLuint buffer() const { return buffer_; }
-  std::uint64_t capacity() const { return capacity_; }
-
- private:
-  void grow(std::uint64_t atLeast);
-  void recycle();
-  GLuint buffer_ = 0;
-  std::uint8_t* map_ = nullptr;
-  std::uint64_t capacity_ = 0;
-  std::map<std::uint64_t, std::uint64_t> free_;  ///< offset -> bytes
-  struct Pending {
-    std::uint64_t offset, bytes;
-  };
-  std::vector<Pending> released_;  ///< this frame's, not yet fenced
-  struct Fenced {
-    GLsync fence;
-    std::vector<Pending> blocks;
-  };
-  std::vector<Fenced> fenced_;
-};
+/// The GPU cache's key of a module's level.
+inline std::uint64_t cacheKey(std::uint32_t kx, std::uint32_t kz, std::uint32_t level) {
+  return std::uint64_t(kx) | (std::uint64_t(kz) << 20) | (std::uint64_t(level) << 40);
+}
 
 /// A plain indexed grid drawn with the module program (Renderer::measureIndexedGrid).
 struct PlainGridRun {
@@ -157,21 +120,8 @@ class ModuleRenderer {
                              const std::function<void()>& beginFrame);
 
  private:
-  /// Pseudo priorities of blocks that are not module priorities.
-  static constexpr std::uint8_t kSkirtPriority = 254;
-  static constexpr std::uint8_t kUnderlayPriority = 255;
-  /// The triangles of one priority, bucketed by quadtree node: node m's
-  /// indices are [start[m], start[m + 1]) (Morton order, lod.h), relative
-  /// to the entry's first index.
-  struct Block {
-    std::uint8_t priority = 1;
-    std::vector<std::uint32_t> start;
-    bool roads = false;  ///< some triangle has a road kind: drawn with program_
-    /// The skirts: start[4 m + s] for node m's side s (kSide*) instead of start[m].
-    bool sides = false;
-  };
-  /// Node sides, towards -z, +z, -x, +x (module-local).
-  static constexpr std::uint32_t kSideNorth = 0, kSideSouth = 1, kSideWest = 2, kSideEast = 3;
+  /// Node blocks relative to the entry's first index (module_mesh.h).
+  using Block = MeshBlock;
   struct Entry {
     std::uint64_t generation = 0;
     bool resident = false;
@@ -207,6 +157,9 @@ class ModuleRenderer {
   };
 
   Entry* ready(std::uint64_t key);
+  /// The level's mesh built on a loader thread for these settings (raised
+  /// feet too when `raise`), or null.
+  const LevelMesh* preparedMesh(const ResidentRef& ref, std::uint32_t level, bool raise);
   void upload(const ModuleDraw& d, std::uint32_t level, Entry& e, RenderStats& stats);
   void storeEntry(Entry& e, const std::vector<GpuVertex>& vertices, const std::vector<std::uint32_t>& indices);
   void freeEntry(Entry& e);
@@ -247,6 +200,11 @@ class ModuleRenderer {
   std::uint64_t gpuBytes_ = 0;
   std::uint32_t nodeSquares_ = 4;
   double moduleSize_ = 0;  ///< metres along a module edge (DisplayBuffer::moduleSize)
+  /// What this renderer's level meshes are built with (prepare()), and the
+  /// last loader-built settings found equal to it.
+  std::shared_ptr<const MeshSettings> meshSettings_;
+  const MeshSettings* matchedSettings_ = nullptr;
+  LevelMesh ownMesh_;  ///< a level built here (no matching LevelMesh came with it)
 
   // Per-frame scratch (capacity kept).
   std::vector<Drawn> drawn_;

@@ -235,6 +235,12 @@ struct FrameStats {
   double timeS = 0;
   double cpuMs = 0;     ///< main thread: selection (+ vertex build in mesh mode)
   double renderMs = 0;  ///< render thread: upload and draw up to the HUD (waits for the GPU)
+  /// Render thread: its own CPU time over the same span (the GL driver's
+  /// threads and the waits for the GPU are not in it).
+  double renderCpuMs = 0;
+  /// Render thread: of renderMs, module mode's uploads and LoD resolution
+  /// (RenderStats::uploadMs).
+  double uploadMs = 0;
   /// Time between this frame's completion and the previous one's on the
   /// render thread, PNG writing excluded (frame 0: cpu + render + panel).
   /// With the two threads overlapping, this is what limits the frame rate.

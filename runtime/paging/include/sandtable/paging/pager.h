@@ -233,6 +233,8 @@ std::vector<NeededModule> neededModules(const NeedParams& p, double moduleSize,
 
 // ------------------------------------------------------------------ pager
 
+struct ResidentModule;
+
 enum class PagerMode {
   predictive,  ///< four directional loaders, lead strips, the seed's scheme
   demand,      ///< baseline: a module is read when resident() misses it
@@ -291,6 +293,26 @@ struct PagerOptions {
   /// Called on a loader thread after a module's coarse level is published
   /// (tests, tracing): loader index, module, placeholder. Keep it quick.
   std::function<void(std::uint32_t, ModuleKey, bool)> onResident;
+  /// The worker phase of a load (docs/PAGER.md, section 4): called on a
+  /// loader thread, holding the slot, once level `level` of `m` is written
+  /// and before it is published, coarsest level first (every coarser level
+  /// is written; finer ones are not). It may (re)make m.prepared[level];
+  /// with level 0 every level is written, so it may also add to the
+  /// coarser levels' prepared data what needs them all, in members that a
+  /// reader holding a ResidentRef with finestLevel() > 0 does not read.
+  /// The viewer installs the renderer's CPU meshing here (render's
+  /// moduleLevelPreparer), so the render thread only copies to the GPU.
+  /// It delays the level's publication by its own time. Null: nothing is
+  /// prepared and ResidentModule::prepared stays empty.
+  std::function<void(ResidentModule& m, std::uint32_t level)> prepareLevel;
+};
+
+/// What PagerOptions::prepareLevel derives from a level on the loader
+/// thread: plain CPU data (the renderer's vertex arrays, say) of a type the
+/// hook's owner defines. Paging never looks inside; it keeps one per level
+/// of each slot, reused (with its capacity) from load to load.
+struct LevelExtra {
+  virtual ~LevelExtra() = default;
 };
 
 /// A module as readers see it: the decoded levels, finest first. Only the
@@ -304,6 +326,10 @@ struct ResidentModule {
   /// one elevation per object; none on a placeholder. Not counted in the
   /// memory budget (a few tens of bytes each).
   std::vector<module::Object> objects;
+  /// Per level, what PagerOptions::prepareLevel made of it (sized like
+  /// `levels` with a hook, else empty; null until the hook makes one).
+  /// Valid for the same levels as `levels`. Not counted in the budget.
+  std::vector<std::unique_ptr<LevelExtra>> prepared;
 };
 
 /// A read guard on one resident module: while it lives, the module's

@@ -31,6 +31,7 @@
 // thread); it reads DisplayBuffers that other threads filled.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -280,5 +281,18 @@ class Renderer {
 /// Whether a headless GL 4.5 core context can be opened here; `why` gets
 /// the reason when not. Opens and closes one context.
 bool headlessGlAvailable(std::string& why);
+
+/// The CPU half of drawing load modules, for PagerOptions::prepareLevel:
+/// on the pager's loader threads it builds each level's vertices, indices
+/// and node blocks (morph deltas, grid normals and water, skirts) and
+/// raises the skirt feet once every level is written, so the render
+/// thread only copies them into the GPU (docs/VIEWER.md, "Module draws").
+/// `s` as the Renderer is created with; `nodeSquares` and `moduleSize` as
+/// the scene's DisplayBuffer carries them (a level built with other
+/// settings is built again on the render thread). Thread-safe: every
+/// loader may run it at once; no GL.
+std::function<void(ResidentModule& m, std::uint32_t level)> moduleLevelPreparer(const RenderSettings& s,
+                                                                                std::uint32_t nodeSquares,
+                                                                                double moduleSize);
 
 }  // namespace sandtable::runtime
