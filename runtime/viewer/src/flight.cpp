@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/base/stats.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/scene/camera_math.h"
@@ -74,13 +75,6 @@ Pose pathPose(const std::vector<Waypoint>& path, double t) {
   auto resolved = resolvePath(points, {}, "FlightOptions::path");
   if (!resolved.ok()) return {};  // checkFlightOptions refuses such a path before flight
   return samplePath(resolved.value(), t);
-}
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const auto rank = static_cast<std::size_t>(std::ceil(p * double(v.size())));
-  return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
 }
 
 std::string format(const char* fmt, double a, double b = 0, double c = 0) {
@@ -215,8 +209,8 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
   }
   if (frames.empty()) return s;
   s.trianglesMean = triangles / double(frames.size());
-  s.frameMsP50 = percentile(ms, 0.50);
-  s.frameMsP99 = percentile(ms, 0.99);
+  s.frameMsP50 = stats::percentile(ms, 0.50);
+  s.frameMsP99 = stats::percentile(ms, 0.99);
   s.fpsMean = totalMs > 0 ? 1000.0 * double(frames.size()) / totalMs : 0;
   return s;
 }
