@@ -15,6 +15,7 @@
 #include <map>
 #include <mutex>
 
+#include "sandtable/base/morton.h"
 #include "sandtable/formats/bytes.h"
 
 namespace sandtable::pack {
@@ -561,24 +562,12 @@ Entry decodeEntry(std::span<const std::byte> in, std::uint32_t version) {
   return e;
 }
 
-namespace {
-/// Spreads the 16 bits of v to the even bits of the result.
-std::uint32_t spreadBits(std::uint32_t v) {
-  v &= 0xffffu;
-  v = (v | (v << 8)) & 0x00ff00ffu;
-  v = (v | (v << 4)) & 0x0f0f0f0fu;
-  v = (v | (v << 2)) & 0x33333333u;
-  v = (v | (v << 1)) & 0x55555555u;
-  return v;
-}
-}  // namespace
-
 std::vector<std::uint32_t> moduleOrder(std::uint32_t modulesX, std::uint32_t modulesZ, PackOrder order) {
   std::vector<std::uint32_t> out(std::size_t(modulesX) * modulesZ);
   for (std::size_t k = 0; k < out.size(); ++k) out[k] = static_cast<std::uint32_t>(k);
   if (order == PackOrder::morton) {
     // Morton codes of a 65536 x 65536 grid fit in 32 bits; ties cannot occur.
-    auto code = [&](std::uint32_t k) { return spreadBits(k % modulesX) | (spreadBits(k / modulesX) << 1); };
+    auto code = [&](std::uint32_t k) { return morton::encode(k % modulesX, k / modulesX); };
     std::sort(out.begin(), out.end(), [&](std::uint32_t a, std::uint32_t b) { return code(a) < code(b); });
   }
   return out;

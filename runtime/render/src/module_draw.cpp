@@ -11,6 +11,7 @@
 
 #include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
+#include "sandtable/base/morton.h"
 #include "sandtable/scene/lod.h"
 
 namespace sandtable::runtime::detail {
@@ -899,16 +900,6 @@ void ModuleRenderer::release(RenderStats& stats, const DisplayBuffer& buf) {
 
 namespace {
 
-/// Node (a, b) of a Morton index (lod.h's mortonIndex inverted).
-std::pair<std::uint32_t, std::uint32_t> mortonCell(std::uint32_t m) {
-  std::uint32_t a = 0, b = 0;
-  for (std::uint32_t bit = 0; bit < 16; ++bit) {
-    a |= ((m >> (2 * bit)) & 1u) << bit;
-    b |= ((m >> (2 * bit + 1)) & 1u) << bit;
-  }
-  return {a, b};
-}
-
 /// Command list of a block priority (ModuleRenderer::lists_).
 std::size_t listOf(std::uint8_t priority) {
   if (priority == module::kPrioritySkin) return 0;
@@ -1013,7 +1004,7 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
   moduleCells_[buf.nodes[i0].module] = {cells, side0};
   for (const Span& sp : spans_) {
     for (std::uint64_t m = sp.f; m < sp.t; ++m) {
-      const auto [x, z] = mortonCell(std::uint32_t(m));
+      const auto [x, z] = morton::decode(std::uint32_t(m));
       if (x < side0 && z < side0) cells_[cells + std::size_t(z) * side0 + x] = {sp.level, sp.morph};
     }
   }
@@ -1040,7 +1031,7 @@ bool ModuleRenderer::drawnAt(std::uint32_t module, double x, double z, std::uint
 }
 
 bool ModuleRenderer::skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint32_t side) const {
-  const auto [a, b] = mortonCell(node);
+  const auto [a, b] = morton::decode(node);
   const std::uint32_t scale = 1u << dr.level, n = dr.side0;
   // The finest-level cells just across the side, from x0/z0 along the other axis.
   std::int64_t x = std::int64_t(a) * scale, z = std::int64_t(b) * scale;
