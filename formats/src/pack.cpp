@@ -15,6 +15,7 @@
 #include <map>
 #include <mutex>
 
+#include "sandtable/base/capped_problems.h"
 #include "sandtable/base/morton.h"
 #include "sandtable/formats/bytes.h"
 
@@ -1142,33 +1143,14 @@ Status PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& 
 
 namespace {
 
-/// Collects problems, keeping at most `kPerKind` of each kind so a badly
-/// damaged pack gives a readable report.
-class Report {
+/// The pack's problems, at most `kPerKind` of each kind listed.
+class Report : public CappedProblems<> {
  public:
-  void add(const std::string& kind, Problem p) {
-    auto& [n, file] = counts_[kind];
-    if (n++ == 0) file = p.file;
-    if (n <= kPerKind) problems_.add(std::move(p));
-  }
-  void add(const std::string& kind, const Status& st) {
-    for (const Problem& p : st.problems()) add(kind, p);
-  }
-  Status take() {
-    for (const auto& [kind, c] : counts_) {
-      if (c.first > kPerKind) {
-        problems_.add({c.second, 0,
-                             "pack: " + str(std::uint64_t(c.first - kPerKind)) + " more " + kind +
-                                 " problems not listed"});
-      }
-    }
-    return std::move(problems_);
-  }
+  Report() : CappedProblems(kPerKind) {}
+  Status take() { return CappedProblems::take("pack"); }
 
  private:
   static constexpr int kPerKind = 20;
-  Status problems_;
-  std::map<std::string, std::pair<int, std::string>> counts_;
 };
 
 struct Placed {
