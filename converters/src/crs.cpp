@@ -20,6 +20,11 @@ void initGdal() {
   });
 }
 
+std::string lastGdalError() {
+  const char* m = CPLGetLastErrorMsg();
+  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
+}
+
 namespace {
 
 std::string toWkt2(const OGRSpatialReference& srs) {

@@ -63,11 +63,6 @@ struct PlaneSums {
   }
 };
 
-std::string lastGdalError() {
-  const char* m = CPLGetLastErrorMsg();
-  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
-}
-
 }  // namespace
 
 double weightedPlaneEstimate(const double* dx, const double* dy, const double* z, std::size_t n,

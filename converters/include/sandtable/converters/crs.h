@@ -23,4 +23,7 @@ Result<TargetCrs> resolveCrs(const std::string& request, double centerLon, doubl
 /// Registers GDAL drivers once; safe to call from anywhere.
 void initGdal();
 
+/// GDAL's last error message on this thread, or "unknown GDAL error".
+std::string lastGdalError();
+
 }  // namespace sandtable::convert
