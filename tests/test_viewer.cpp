@@ -284,7 +284,7 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
   };
   for (const auto [height, msaa] : {Shot{500, 0}, Shot{1500, 0}, Shot{3000, 0}, Shot{1500, 4}}) {
     FlightOptions o;
-    o.render.msaa = msaa;
+    o.render.samples = msaa;
     o.view.width = 480;
     o.view.height = 270;
     o.motion.heightAgl = height;

@@ -295,7 +295,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Pr
   o.pager.sync = a.pagerSync;
   o.pager.budgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
   o.view.sky = !a.noSky;
-  o.render.msaa = a.msaa;
+  o.render.samples = a.msaa;
   o.render.objects = !a.noObjects;
   o.render.objectFade = a.objectFade;
   o.render.objectLod = !a.noObjectLod;

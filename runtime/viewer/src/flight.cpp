@@ -182,7 +182,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"rings", o.render.lod.rings},
                   {"pixel_error", o.render.lod.pixelError},
                   {"morph", o.render.lod.morph},
-                  {"msaa", o.render.msaa},
+                  {"msaa", o.render.samples},
                   {"objects", o.render.objects},
                   {"object_fade", o.render.objectFade},
                   {"object_lod", o.render.objectLod},
@@ -563,14 +563,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.fog = o.view.fog;
   rs.sky = o.view.sky;
   rs.clearColour = o.view.clearColour;
-  rs.samples = o.render.msaa;
-  rs.shading = o.render.shading;
-  rs.colour = o.render.colour;
-  rs.waterMaterials = o.render.waterMaterials;
-  rs.objectFade = o.render.objectFade;
-  rs.objectLod = o.render.objectLod;
-  rs.impostorPixels = o.render.impostorPixels;
-  rs.objectThinPixels = o.render.objectThinPixels;
+  static_cast<DrawChoices&>(rs) = o.render;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
@@ -740,7 +733,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::GridFile> g,
   if (!(o.motion.heightAgl >= 0 && o.motion.heightAgl < 1e5)) bad("MotionOptions::heightAgl must be 0 .. 100000 m");
   if (std::string e = checkLodOptions(o.render.lod); !e.empty()) bad(e);
   if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
-  if (o.render.msaa > 16) bad("RenderOptions::msaa must be 0..16 samples");
+  if (o.render.samples > 16) bad("RenderOptions::samples must be 0..16 samples");
   if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
   if (!(o.render.impostorPixels >= 0 && o.render.impostorPixels <= 255)) {
     bad("RenderOptions::impostorPixels must be 0..255");
