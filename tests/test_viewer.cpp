@@ -363,9 +363,9 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   ASSERT_TRUE(geo.ok());
   const auto& gh = db->grid->header();
-  const auto a = geo->toProjected({kRoadLon0, kRoadLat}), b = geo->toProjected({kRoadLon1, kRoadLat});
-  ASSERT_TRUE(a && b);
-  const double ea = a->easting, na = a->northing, eb = b->easting, nb = b->northing;
+  const auto roadA = geo->toProjected({kRoadLon0, kRoadLat}), roadB = geo->toProjected({kRoadLon1, kRoadLat});
+  ASSERT_TRUE(roadA && roadB);
+  const double ea = roadA->easting, na = roadA->northing, eb = roadB->easting, nb = roadB->northing;
   const double length = std::hypot(eb - ea, nb - na);
   const double ue = (eb - ea) / length, un = (nb - na) / length;
   for (const double back : {300.0, 900.0}) {

@@ -451,9 +451,9 @@ TEST_F(ViewerLook, RoadsShowTheirMarkingsFromLowAltitude) {
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   ASSERT_TRUE(geo.ok());
   const auto& gh = db->grid->header();
-  const auto a = geo->toProjected({kLon0, kLat}), b = geo->toProjected({kLon1, kLat});
-  ASSERT_TRUE(a && b);
-  const double ea = a->easting, na = a->northing, eb = b->easting, nb = b->northing;
+  const auto roadA = geo->toProjected({kLon0, kLat}), roadB = geo->toProjected({kLon1, kLat});
+  ASSERT_TRUE(roadA && roadB);
+  const double ea = roadA->easting, na = roadA->northing, eb = roadB->easting, nb = roadB->northing;
   const double length = std::hypot(eb - ea, nb - na);
   const double ue = (eb - ea) / length, un = (nb - na) / length;
   // The driver's left, seen from above: T = 0 there.

@@ -32,8 +32,9 @@
 // objects are not shareable between threads (a PJ belongs to its
 // PJ_CONTEXT), so each calling thread builds its own context and its own
 // PJ per CRS pair on first use and keeps them in a thread-local cache
-// (bounded; freed when the thread ends). The first call on a thread costs
-// the parse of the CRS (about a millisecond); later calls do not.
+// (bounded; freed when the thread ends). The first call on a thread pays
+// for parsing the CRS and looking it up in proj.db (milliseconds); later
+// calls do not.
 #include <cstdint>
 #include <memory>
 #include <span>
