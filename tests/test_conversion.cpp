@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/world/terrain.h"
@@ -38,7 +39,7 @@ ErrorStats summarize(std::vector<double> errs) {
 /// Errors of the database against the source at random land points.
 std::vector<double> landErrors(const Database& db, const SourceRaster& src, std::size_t want, unsigned seed) {
   runtime::Terrain terrain(db.grid);
-  auto geo = convert::GeoTransformer::create(db.manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db.manifest.crsWkt);
   std::mt19937 rng(seed);
   const auto& m = db.manifest;
   std::uniform_real_distribution<double> ue(m.originEasting, m.eastEasting());
@@ -46,9 +47,9 @@ std::vector<double> landErrors(const Database& db, const SourceRaster& src, std:
   std::vector<double> errs;
   for (int tries = 0; tries < 200000 && errs.size() < want; ++tries) {
     const double e = ue(rng), n = un(rng);
-    double lon, lat;
-    if (!geo.value()->toLonLat(e, n, lon, lat)) continue;
-    const auto ref = src.bilinear(lon, lat, 0.0);
+    const auto ll = geo->toLonLat({e, n});
+    if (!ll) continue;
+    const auto ref = src.bilinear(ll->lon, ll->lat, 0.0);
     if (!ref) continue;
     const auto got = terrain.sampleEN(e, n);
     if (!got) continue;
@@ -109,7 +110,7 @@ struct PostErrors {
 
 PostErrors postErrors(const Database& db, const SourceRaster& src) {
   runtime::Terrain terrain(db.grid);
-  auto geo = convert::GeoTransformer::create(db.manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db.manifest.crsWkt);
   PostErrors out;
   std::vector<double> errs;
   for (int r = 3; r < src.height(); r += 7) {
@@ -117,9 +118,9 @@ PostErrors postErrors(const Database& db, const SourceRaster& src) {
       const auto z = src.post(c, r);
       if (!z) continue;
       const auto xy = src.postXY(c, r);  // lon, lat: the cells are geographic
-      double e, n;
-      if (!geo.value()->toProjected(xy[0], xy[1], e, n)) continue;
-      const auto got = terrain.sampleEN(e, n);
+      const auto en = geo->toProjected({xy[0], xy[1]});
+      if (!en) continue;
+      const auto got = terrain.sampleEN(en->easting, en->northing);
       if (!got) continue;
       errs.push_back(got->elevation - *z);
       if (*z > out.summit) out.summit = *z, out.summitError = errs.back();

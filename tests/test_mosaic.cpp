@@ -5,6 +5,7 @@
 #include <ogr_spatialref.h>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/world/terrain.h"
@@ -40,7 +41,7 @@ void checkEdges(const std::vector<std::string>& files, const std::vector<double>
   auto db = openDatabase(o.output);
   ASSERT_TRUE(db.ok());
   runtime::Terrain terrain(db->grid);
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   Mosaic m;
   for (const auto& f : files) m.cells.push_back(std::make_unique<SourceRaster>(f));
   int profiles = 0;
@@ -50,9 +51,9 @@ void checkEdges(const std::vector<std::string>& files, const std::vector<double>
     std::vector<double> err, h;
     for (int k = -40; k <= 40; ++k) {
       const double lon = lon0 + k * dLon, lat = lat0 + k * dLat;
-      double e, n;
-      if (!geo.value()->toProjected(lon, lat, e, n)) return;
-      const auto got = terrain.sampleEN(e, n);
+      const auto en = geo->toProjected({lon, lat});
+      if (!en) return;
+      const auto got = terrain.sampleEN(en->easting, en->northing);
       const auto ref = m.at(lon, lat);
       if (!got || !ref) return;
       EXPECT_NE(got->material, 2) << "filled void at the edge, lon " << lon << " lat " << lat;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/world/terrain.h"
@@ -181,7 +182,7 @@ TEST(Sea, danishCellSeaIsWaterAtZeroAndCountedApart) {
   SourceRaster src(cell);
   ASSERT_TRUE(src.ok());
   runtime::Terrain terrain(dbo->grid);
-  auto geo = convert::GeoTransformer::create(dbo->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(dbo->manifest.crsWkt);
   std::uint64_t deep = 0, water = 0;
   for (int r = 2; r + 2 < src.height(); r += 5) {
     for (int c = 2; c + 2 < src.width(); c += 5) {
@@ -191,9 +192,9 @@ TEST(Sea, danishCellSeaIsWaterAtZeroAndCountedApart) {
       }
       if (!allVoid) continue;
       const auto xy = src.postXY(c, r);
-      double e, n;
-      if (!geo.value()->toProjected(xy[0], xy[1], e, n)) continue;
-      const auto got = terrain.sampleEN(e, n);
+      const auto en = geo->toProjected({xy[0], xy[1]});
+      if (!en) continue;
+      const auto got = terrain.sampleEN(en->easting, en->northing);
       if (!got) continue;
       ++deep;
       water += got->material == kWater && got->elevation == 0.0;

@@ -16,6 +16,7 @@
 #include <cmath>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/sim/report.h"
 #include "sandtable/sim/simulation.h"
@@ -84,7 +85,7 @@ class Srtm {
 
 struct Opened {
   std::shared_ptr<sim::SimWorld> world;
-  std::unique_ptr<convert::GeoTransformer> geo;
+  std::optional<geodesy::Projection> geo;
 };
 
 Opened open(const std::string& db) {
@@ -94,17 +95,17 @@ Opened open(const std::string& db) {
   if (w) o.world = w.value();
   auto d = openDatabase(db);
   EXPECT_TRUE(d) << d.error();
-  convert::initGdal();
-  auto g = convert::GeoTransformer::create(d->manifest.crsWkt);
+  auto g = geodesy::Projection::create(d->manifest.crsWkt);
   EXPECT_TRUE(g) << g.error();
-  if (g) o.geo = std::move(g.value());
+  if (g) o.geo = g.value();
   return o;
 }
 
 Eigen::Vector2d worldXZ(const Opened& o, double lon, double lat) {
-  double e = 0, n = 0;
-  EXPECT_TRUE(o.geo->toProjected(lon, lat, e, n));
-  return {e - o.world->originEasting(), o.world->originNorthing() - n};
+  const auto en = o.geo->toProjected({lon, lat});
+  EXPECT_TRUE(en) << en.error();
+  if (!en) return {0, 0};
+  return {en->easting - o.world->originEasting(), o.world->originNorthing() - en->northing};
 }
 
 TEST_F(SimMonaco, aShipOnTheRealCoastlineNeverEntersLandInOneSimulatedHour) {
@@ -143,9 +144,9 @@ TEST_F(SimMonaco, aShipOnTheRealCoastlineNeverEntersLandInOneSimulatedHour) {
       // The bow too: the whole hull stays on water.
       for (double reach : {0.0, e.halfLength}) {
         const Eigen::Vector3d p = e.position + sim::headingVector(e.headingDeg) * reach;
-        double lon = 0, lat = 0;
-        ASSERT_TRUE(o.geo->toLonLat(o.world->originEasting() + p.x(), o.world->originNorthing() - p.z(), lon, lat));
-        worst = std::max(worst, srtm.at(lon, lat));
+        const auto ll = o.geo->toLonLat({o.world->originEasting() + p.x(), o.world->originNorthing() - p.z()});
+        ASSERT_TRUE(ll) << ll.error();
+        worst = std::max(worst, srtm.at(ll->lon, ll->lat));
       }
       travelled += (e.position - last[i]).norm();
       last[i] = e.position;

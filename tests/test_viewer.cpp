@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/viewer/flight.h"
@@ -263,13 +264,14 @@ std::array<double, 2> project(const FlightOptions& o, const std::array<double, 3
 TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
   auto db = openDatabase(road_);
   ASSERT_TRUE(db.ok()) << db.error();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   ASSERT_TRUE(geo.ok());
   const auto& gh = db->grid->header();
   const auto world = [&](double lon, double lat) {
-    double e = 0, n = 0;
-    EXPECT_TRUE(geo.value()->toProjected(lon, lat, e, n));
-    return std::array<double, 2>{e - gh.originEasting, gh.originNorthing - n};
+    const auto en = geo->toProjected({lon, lat});
+    EXPECT_TRUE(en);
+    if (!en) return std::array<double, 2>{0, 0};
+    return std::array<double, 2>{en->easting - gh.originEasting, gh.originNorthing - en->northing};
   };
   const auto a = world(kRoadLon0, kRoadLat), b = world(kRoadLon1, kRoadLat);
   const double length = std::hypot(b[0] - a[0], b[1] - a[1]);
@@ -282,7 +284,7 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
   };
   for (const auto [height, msaa] : {Shot{500, 0}, Shot{1500, 0}, Shot{3000, 0}, Shot{1500, 4}}) {
     FlightOptions o;
-    o.render.msaa = msaa;
+    o.render.samples = msaa;
     o.view.width = 480;
     o.view.height = 270;
     o.motion.heightAgl = height;
@@ -358,12 +360,12 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
   // cover its centreline from near to far (no z-fighting with the skin).
   auto db = openDatabase(road_);
   ASSERT_TRUE(db.ok()) << db.error();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   ASSERT_TRUE(geo.ok());
   const auto& gh = db->grid->header();
-  double ea = 0, na = 0, eb = 0, nb = 0;
-  ASSERT_TRUE(geo.value()->toProjected(kRoadLon0, kRoadLat, ea, na));
-  ASSERT_TRUE(geo.value()->toProjected(kRoadLon1, kRoadLat, eb, nb));
+  const auto roadA = geo->toProjected({kRoadLon0, kRoadLat}), roadB = geo->toProjected({kRoadLon1, kRoadLat});
+  ASSERT_TRUE(roadA && roadB);
+  const double ea = roadA->easting, na = roadA->northing, eb = roadB->easting, nb = roadB->northing;
   const double length = std::hypot(eb - ea, nb - na);
   const double ue = (eb - ea) / length, un = (nb - na) / length;
   for (const double back : {300.0, 900.0}) {
@@ -374,9 +376,9 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
     o.motion.headingDeg = std::atan2(ue, un) * 180 / kPi;
     o.motion.pitchDeg = -3;
     o.view.viewDistance = 8000;
-    double lon = 0, lat = 0;
-    ASSERT_TRUE(geo.value()->toLonLat(ea - back * ue, na - back * un, lon, lat));
-    auto [img, s] = frame(road_, o, lon, lat, "road along " + std::to_string(int(back)));
+    const auto ll = geo->toLonLat({ea - back * ue, na - back * un});
+    ASSERT_TRUE(ll);
+    auto [img, s] = frame(road_, o, ll->lon, ll->lat, "road along " + std::to_string(int(back)));
     ASSERT_EQ(img.width, 320u);
     const std::array<double, 3> eye{ea - back * ue - gh.originEasting, s.eyeElevation,
                                     gh.originNorthing - (na - back * un)};

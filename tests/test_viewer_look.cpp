@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/viewer/flight.h"
@@ -97,9 +98,11 @@ class ViewerLook : public ::testing::Test {
                     runtime::Shading shading = runtime::Shading::smooth) {
     Shot s;
     FlightOptions& o = s.o;
-    auto geo = convert::GeoTransformer::create(db.manifest.crsWkt);
+    auto geo = geodesy::Projection::create(db.manifest.crsWkt);
     EXPECT_TRUE(geo.ok());
-    EXPECT_TRUE(geo.value()->toProjected(v.lon, v.lat, o.motion.easting, o.motion.northing));
+    const auto en = geo ? geo->toProjected({v.lon, v.lat}) : Result<geodesy::EastNorth>(Problem{});
+    EXPECT_TRUE(en);
+    if (en) o.motion.easting = en->easting, o.motion.northing = en->northing;
     o.view.width = 320;
     o.view.height = 180;
     o.output.frames = 2;
@@ -445,12 +448,12 @@ TEST_F(ViewerLook, RoadsShowTheirMarkingsFromLowAltitude) {
   ASSERT_TRUE(convert::buildElevation(bo, nullptr).ok());
   auto db = openDatabase(bo.output);
   ASSERT_TRUE(db.ok()) << db.error();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   ASSERT_TRUE(geo.ok());
   const auto& gh = db->grid->header();
-  double ea = 0, na = 0, eb = 0, nb = 0;
-  ASSERT_TRUE(geo.value()->toProjected(kLon0, kLat, ea, na));
-  ASSERT_TRUE(geo.value()->toProjected(kLon1, kLat, eb, nb));
+  const auto roadA = geo->toProjected({kLon0, kLat}), roadB = geo->toProjected({kLon1, kLat});
+  ASSERT_TRUE(roadA && roadB);
+  const double ea = roadA->easting, na = roadA->northing, eb = roadB->easting, nb = roadB->northing;
   const double length = std::hypot(eb - ea, nb - na);
   const double ue = (eb - ea) / length, un = (nb - na) / length;
   // The driver's left, seen from above: T = 0 there.

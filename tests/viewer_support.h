@@ -5,6 +5,7 @@
 #include <string>
 
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/viewer/flight.h"
 #include "sandtable/render/image.h"
@@ -40,11 +41,13 @@ inline std::optional<Database> openAt(const std::string& dir, double lon, double
     ADD_FAILURE() << db.error();
     return std::nullopt;
   }
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
-  if (!geo.ok() || !geo.value()->toProjected(lon, lat, o.motion.easting, o.motion.northing)) {
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
+  const auto en = geo ? geo->toProjected({lon, lat}) : Result<geodesy::EastNorth>(Problem{});
+  if (!en) {
     ADD_FAILURE() << dir << ": cannot place " << lon << " " << lat;
     return std::nullopt;
   }
+  o.motion.easting = en->easting, o.motion.northing = en->northing;
   return std::move(db.value());
 }
 

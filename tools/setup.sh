@@ -7,7 +7,8 @@ build_dir=${1:-build}
 
 packages=(
   build-essential cmake ninja-build pkg-config git
-  libgdal-dev gdal-bin            # GDAL/OGR with PROJ: every raster, vector and transform
+  libgdal-dev gdal-bin            # GDAL/OGR with PROJ: every raster and vector source, and its reprojection
+  libproj-dev proj-data           # PROJ: geodesy/ (database frame, lon/lat/height, ECEF) links it directly; proj-data holds the EPSG grids (egm96_15.gtx)
   libeigen3-dev                   # vector math
   libtbb-dev                      # oneTBB: the job system of every parallel build stage
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev  # CGAL (exact arithmetic): culture cut to the terrain triangles

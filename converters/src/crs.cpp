@@ -20,6 +20,11 @@ void initGdal() {
   });
 }
 
+std::string lastGdalError() {
+  const char* m = CPLGetLastErrorMsg();
+  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
+}
+
 namespace {
 
 std::string toWkt2(const OGRSpatialReference& srs) {
@@ -80,49 +85,6 @@ Result<TargetCrs> resolveCrs(const std::string& request, double lon, double lat)
     return finish(srs, request);
   }
   return Problem{"ElevationOptions::crs", 0, "crs: unknown request \"" + request + "\"; use utm, cassini or EPSG:<n>"};
-}
-
-GeoTransformer::~GeoTransformer() {
-  OGRCoordinateTransformation::DestroyCT(forward_);
-  OGRCoordinateTransformation::DestroyCT(inverse_);
-}
-
-Result<std::unique_ptr<GeoTransformer>> GeoTransformer::create(const std::string& wkt) {
-  initGdal();
-  OGRSpatialReference proj, geo;
-  if (proj.importFromWkt(wkt.c_str()) != OGRERR_NONE) {
-    return Problem{"crs", 0, "crs: the database CRS WKT cannot be parsed"};
-  }
-  proj.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  geo.SetWellKnownGeogCS("WGS84");
-  geo.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<GeoTransformer> t(new GeoTransformer());
-  t->forward_ = OGRCreateCoordinateTransformation(&geo, &proj);
-  t->inverse_ = OGRCreateCoordinateTransformation(&proj, &geo);
-  if (!t->forward_ || !t->inverse_) {
-    return Problem{"crs", 0, "crs: PROJ cannot transform between WGS 84 and the database CRS"};
-  }
-  return t;
-}
-
-bool GeoTransformer::toProjected(double lon, double lat, double& e, double& n) const {
-  e = lon;
-  n = lat;
-  return forward_->Transform(1, &e, &n) && std::isfinite(e) && std::isfinite(n);
-}
-
-bool GeoTransformer::toLonLat(double e, double n, double& lon, double& lat) const {
-  lon = e;
-  lat = n;
-  return inverse_->Transform(1, &lon, &lat) && std::isfinite(lon) && std::isfinite(lat);
-}
-
-bool GeoTransformer::toProjected(std::size_t n, double* x, double* y) const {
-  return forward_->Transform(static_cast<int>(n), x, y);
-}
-
-bool GeoTransformer::toLonLat(std::size_t n, double* x, double* y) const {
-  return inverse_->Transform(static_cast<int>(n), x, y);
 }
 
 }  // namespace sandtable::convert

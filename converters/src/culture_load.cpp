@@ -25,6 +25,7 @@
 #include "sandtable/base/jobs.h"
 #include "sandtable/converters/clip.h"
 #include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
 
 namespace sandtable::convert {
@@ -324,15 +325,12 @@ Result<bool> Loader::readSource(const std::string& source) {
 }
 
 std::string Loader::lonLatExtent(const Box& b) {
-  OGRSpatialReference wgs84;
-  wgs84.SetWellKnownGeogCS("WGS84");
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  const std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&target, &wgs84));
+  const auto geo = geodesy::Projection::create(c.frame.crsWkt);
   Box ll;
-  for (int i = 0; i <= 4 && ct; ++i) {  // the edges, not only the corners: projections bend them
+  for (int i = 0; i <= 4 && geo; ++i) {  // the edges, not only the corners: projections bend them
     for (int j = 0; j <= 4; ++j) {
-      double x = b.x0 + (b.x1 - b.x0) * i / 4, y = b.z0 + (b.z1 - b.z0) * j / 4;
-      if (ct->Transform(1, &x, &y) && std::isfinite(x + y)) ll.add(Vec2{x, y});
+      const double x = b.x0 + (b.x1 - b.x0) * i / 4, y = b.z0 + (b.z1 - b.z0) * j / 4;
+      if (const auto p = geo->toLonLat({x, y})) ll.add(Vec2{p->lon, p->lat});
     }
   }
   if (ll.empty()) return "(not expressible in longitude/latitude)";

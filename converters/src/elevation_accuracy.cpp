@@ -8,6 +8,7 @@
 #include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
+#include "sandtable/geodesy/geodesy.h"
 
 namespace sandtable::convert::detail {
 namespace {
@@ -118,12 +119,9 @@ SourceAccuracy AccuracySampler::finish() const {
   if (out.samples == 0) return out;
   out.mean = sum / double(out.samples);
   out.rmse = std::sqrt(sum2 / double(out.samples));
-  OGRSpatialReference dst, wgs;
-  dst.importFromWkt(wkt_.c_str());
-  wgs.SetWellKnownGeogCS("WGS84");
-  for (auto* s : {&dst, &wgs}) s->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> toLonLat(OGRCreateCoordinateTransformation(&dst, &wgs));
-  if (toLonLat && toLonLat->Transform(1, &worstE, &worstN)) out.worstLonLat = {worstE, worstN};
+  if (const auto geo = geodesy::Projection::create(wkt_)) {
+    if (const auto ll = geo->toLonLat({worstE, worstN})) out.worstLonLat = {ll->lon, ll->lat};
+  }
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
+#include "sandtable/geodesy/geodesy.h"
 
 namespace sandtable::convert::detail {
 namespace {
@@ -41,15 +42,14 @@ std::array<double, 2> metresPerDegree(double latDeg) {
 }
 
 /// Largest |scale - 1| of the projection at this point, east and north.
-double scaleError(const GeoTransformer& t, double lon, double lat, bool& ok) {
+double scaleError(const geodesy::Projection& t, double lon, double lat, bool& ok) {
   constexpr double d = 0.001;
-  double e0, n0, e1, n1, e2, n2;
-  ok = t.toProjected(lon, lat, e0, n0) && t.toProjected(lon + d, lat, e1, n1) &&
-       t.toProjected(lon, lat + d, e2, n2);
+  const auto p0 = t.toProjected({lon, lat}), p1 = t.toProjected({lon + d, lat}), p2 = t.toProjected({lon, lat + d});
+  ok = p0 && p1 && p2;
   if (!ok) return INFINITY;
   const auto m = metresPerDegree(lat);
-  const double kx = std::hypot(e1 - e0, n1 - n0) / (d * m[0]);
-  const double ky = std::hypot(e2 - e0, n2 - n0) / (d * m[1]);
+  const double kx = std::hypot(p1->easting - p0->easting, p1->northing - p0->northing) / (d * m[0]);
+  const double ky = std::hypot(p2->easting - p0->easting, p2->northing - p0->northing) / (d * m[1]);
   return std::max(std::fabs(kx - 1), std::fabs(ky - 1));
 }
 
@@ -62,7 +62,7 @@ struct Inner {
 };
 
 /// Rejects a target CRS that distorts too much anywhere on the lon/lat box.
-Result<bool> checkScale(const GeoTransformer& t, const Box& b, const std::string& crsName, double maxScaleError) {
+Result<bool> checkScale(const geodesy::Projection& t, const Box& b, const std::string& crsName, double maxScaleError) {
   double worst = 0, worstLon = 0, worstLat = 0;
   constexpr int kSteps = 32;
   for (int k = 0; k <= kSteps; ++k) {
@@ -197,9 +197,9 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   const double cLon = 0.5 * (b[0] + b[2]), cLat = 0.5 * (b[1] + b[3]);
   auto crs = resolveCrs(o.crs, cLon, cLat);
   if (!crs) return crs.problems();
-  auto t = GeoTransformer::create(crs->wkt);
+  auto t = geodesy::Projection::create(crs->wkt, "ElevationOptions::crs");
   if (!t) return t.problems();
-  if (auto ok = checkScale(*t.value(), b, crs->name, o.maxScaleError); !ok) return ok.problems();
+  if (auto ok = checkScale(t.value(), b, crs->name, o.maxScaleError); !ok) return ok.problems();
   auto inner = targetRectangle(o, sources, crs.value());
   if (!inner) return inner.problems();
 
@@ -231,9 +231,9 @@ Result<Frame> planFrame(const ElevationOptions& o, const std::vector<Source>& so
   const double xs[4] = {f.originEasting, east, east, f.originEasting};
   const double ys[4] = {f.originNorthing, f.originNorthing, south, south};
   for (int k = 0; k < 4; ++k) {
-    if (!t.value()->toLonLat(xs[k], ys[k], f.cornersLonLat[k][0], f.cornersLonLat[k][1])) {
-      return Problem{"ElevationOptions::crs", 0, "frame: a corner of the grid does not transform back to lon/lat"};
-    }
+    const auto corner = t->toLonLat({xs[k], ys[k]});
+    if (!corner) return Problem{"ElevationOptions::crs", 0, "frame: a corner of the grid does not transform back to lon/lat"};
+    f.cornersLonLat[k] = {corner->lon, corner->lat};
   }
   return f;
 }

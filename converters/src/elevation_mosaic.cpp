@@ -13,11 +13,6 @@
 
 namespace sandtable::convert::detail {
 
-std::string lastGdalError() {
-  const char* m = CPLGetLastErrorMsg();
-  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
-}
-
 Status buildMosaic(const std::vector<Source>& sources, const std::string& vrtPath) {
   std::vector<const char*> names;
   for (const auto& s : sources) names.push_back(s.path.c_str());

@@ -20,12 +20,12 @@
 #include <ogr_spatialref.h>
 
 #include "elevation_internal.h"
+#include "sandtable/converters/crs.h"
 #include "sandtable/base/jobs.h"
 
 namespace sandtable::convert::detail {
 
-/// The last GDAL error message, or "unknown GDAL error".
-std::string lastGdalError();
+using convert::lastGdalError;
 
 /// Target post -> fractional source post index, on a sparse lattice of
 /// exact PROJ transforms with bilinear interpolation in between (like

@@ -88,11 +88,6 @@ namespace detail {
 
 namespace {
 
-std::string lastGdalError() {
-  const char* m = CPLGetLastErrorMsg();
-  return (m && *m) ? std::string(m) : std::string("unknown GDAL error");
-}
-
 /// Lon/lat box of a raster's posts.
 bool footprintLonLat(GDALDataset& ds, const std::array<double, 6>& g, std::array<double, 4>& box) {
   const OGRSpatialReference* srs = ds.GetSpatialRef();

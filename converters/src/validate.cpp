@@ -8,6 +8,7 @@
 
 #include "sandtable/converters/crs.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/geodesy/geodesy.h"
 
 namespace sandtable::convert {
 namespace {
@@ -51,7 +52,7 @@ double groundMetres(double lon0, double lat0, double lon1, double lat1) {
 Status checkGeoreference(const manifest::Manifest& m, const std::string& manifestPath) {
   auto fail = [&](const std::string& msg) { return Status(Problem{manifestPath, 0, "manifest: " + msg}); };
   if (Status crs = checkCrs(m.crsWkt); !crs) return fail(crs.message());
-  auto geo = GeoTransformer::create(m.crsWkt);
+  auto geo = geodesy::Projection::create(m.crsWkt);
   if (!geo) return fail("crs.wkt: " + geo.problems().front().message + "; rebuild the database");
   Status out;
   const char* names[4] = {"NW", "NE", "SE", "SW"};
@@ -59,14 +60,15 @@ Status checkGeoreference(const manifest::Manifest& m, const std::string& manifes
   const double ns[4] = {m.originNorthing, m.originNorthing, m.southNorthing(), m.southNorthing()};
   for (int k = 0; k < 4; ++k) {
     const auto& c = m.cornersLonLat[std::size_t(k)];
-    double lon = 0, lat = 0;
-    if (!geo.value()->toLonLat(es[k], ns[k], lon, lat)) {
+    const auto ll = geo->toLonLat({es[k], ns[k]});
+    if (!ll) {
       out.add({manifestPath, 0,
                      format("manifest: the grid's %s corner post (E %.3f, N %.3f) does not transform to lon/lat "
                             "through crs.wkt",
                             names[k], es[k], ns[k])});
       continue;
     }
+    const double lon = ll->lon, lat = ll->lat;
     const double d = groundMetres(c[0], c[1], lon, lat);
     if (!(d <= kCornerToleranceMetres)) {
       out.add({manifestPath, 0,

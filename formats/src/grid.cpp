@@ -13,6 +13,7 @@
 #include <cstring>
 #include <map>
 
+#include "sandtable/base/capped_problems.h"
 #include "sandtable/formats/bytes.h"
 
 namespace sandtable::grid {
@@ -318,30 +319,17 @@ BlockEntry GridFile::blockEntry(std::uint32_t bx, std::uint32_t bz) const {
 
 namespace {
 
-/// Collects problems, keeping at most `kPerKind` of each kind so a badly
-/// damaged file gives a readable report.
+/// The grid file's problems, at most `kPerKind` of each kind listed.
 class Report {
  public:
   explicit Report(std::string file) : file_(std::move(file)) {}
-  void add(const std::string& kind, std::uint64_t off, const std::string& msg) {
-    auto& n = counts_[kind];
-    if (++n <= kPerKind) problems_.add({file_, off, msg});
-  }
-  Status take() {
-    for (const auto& [kind, n] : counts_) {
-      if (n > kPerKind) {
-        problems_.add({file_, 0, "grid: " + std::to_string(n - kPerKind) + " more " + kind +
-                                           " problems not listed"});
-      }
-    }
-    return std::move(problems_);
-  }
+  void add(const std::string& kind, std::uint64_t off, const std::string& msg) { capped_.add(kind, {file_, off, msg}); }
+  Status take() { return capped_.take("grid"); }
 
  private:
   static constexpr int kPerKind = 20;
   std::string file_;
-  Status problems_;
-  std::map<std::string, int> counts_;
+  CappedProblems<> capped_{kPerKind};
 };
 
 constexpr float kMinPlausible = -12000.0f;  // below the Challenger Deep

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <limits>
 
+#include "sandtable/base/capped_problems.h"
+
 namespace sandtable::module {
 namespace {
 
@@ -38,31 +40,27 @@ constexpr const char* kKindNames[kKindCount] = {
     "orientation", "skin-coverage", "lattice-post", "max-height",      "skirt",
     "skirt-coverage", "skirt-depth", "neighbour-edge", "texture", "object"};
 
+/// One module's problems, written to `out` as found, at most `cap` of each
+/// kind (0: all).
 class Report {
  public:
   Report(const std::string& file, std::string who, std::uint32_t cap, Status& out)
-      : file_(file), who_(std::move(who)), cap_(cap), out_(out) {}
+      : file_(file), who_(std::move(who)), capped_(cap), out_(out) {}
   /// Counts one problem of `k`; true when it should be written out (so the
   /// message is only formatted when it will be listed).
-  bool want(Kind k) { return ++counts_[k] <= cap_ || cap_ == 0; }
+  bool want(Kind k) { return capped_.want(k, file_); }
   void add(std::uint64_t offset, const std::string& msg) {
     out_.add({file_, offset, "module check: " + msg});
   }
   void finish(std::uint64_t offset) {
-    for (std::size_t k = 0; k < kKindCount; ++k) {
-      if (cap_ != 0 && counts_[k] > cap_) {
-        add(offset, who_ + ": " + std::to_string(counts_[k] - cap_) + " more " + kKindNames[k] +
-                        " problems not listed");
-      }
-    }
+    capped_.appendSummary(out_, "module check: " + who_, offset, [](Kind k) { return std::string(kKindNames[k]); });
   }
 
  private:
   const std::string& file_;
   std::string who_;
-  std::uint32_t cap_;
+  CappedProblems<Kind> capped_;
   Status& out_;
-  std::array<std::uint64_t, kKindCount> counts_{};
 };
 
 std::string fmt(const char* f, double v) {

@@ -15,6 +15,8 @@
 #include <map>
 #include <mutex>
 
+#include "sandtable/base/capped_problems.h"
+#include "sandtable/base/morton.h"
 #include "sandtable/formats/bytes.h"
 
 namespace sandtable::pack {
@@ -561,24 +563,12 @@ Entry decodeEntry(std::span<const std::byte> in, std::uint32_t version) {
   return e;
 }
 
-namespace {
-/// Spreads the 16 bits of v to the even bits of the result.
-std::uint32_t spreadBits(std::uint32_t v) {
-  v &= 0xffffu;
-  v = (v | (v << 8)) & 0x00ff00ffu;
-  v = (v | (v << 4)) & 0x0f0f0f0fu;
-  v = (v | (v << 2)) & 0x33333333u;
-  v = (v | (v << 1)) & 0x55555555u;
-  return v;
-}
-}  // namespace
-
 std::vector<std::uint32_t> moduleOrder(std::uint32_t modulesX, std::uint32_t modulesZ, PackOrder order) {
   std::vector<std::uint32_t> out(std::size_t(modulesX) * modulesZ);
   for (std::size_t k = 0; k < out.size(); ++k) out[k] = static_cast<std::uint32_t>(k);
   if (order == PackOrder::morton) {
     // Morton codes of a 65536 x 65536 grid fit in 32 bits; ties cannot occur.
-    auto code = [&](std::uint32_t k) { return spreadBits(k % modulesX) | (spreadBits(k / modulesX) << 1); };
+    auto code = [&](std::uint32_t k) { return morton::encode(k % modulesX, k / modulesX); };
     std::sort(out.begin(), out.end(), [&](std::uint32_t a, std::uint32_t b) { return code(a) < code(b); });
   }
   return out;
@@ -1153,33 +1143,14 @@ Status PackReader::readInto(std::uint32_t kx, std::uint32_t kz, module::Module& 
 
 namespace {
 
-/// Collects problems, keeping at most `kPerKind` of each kind so a badly
-/// damaged pack gives a readable report.
-class Report {
+/// The pack's problems, at most `kPerKind` of each kind listed.
+class Report : public CappedProblems<> {
  public:
-  void add(const std::string& kind, Problem p) {
-    auto& [n, file] = counts_[kind];
-    if (n++ == 0) file = p.file;
-    if (n <= kPerKind) problems_.add(std::move(p));
-  }
-  void add(const std::string& kind, const Status& st) {
-    for (const Problem& p : st.problems()) add(kind, p);
-  }
-  Status take() {
-    for (const auto& [kind, c] : counts_) {
-      if (c.first > kPerKind) {
-        problems_.add({c.second, 0,
-                             "pack: " + str(std::uint64_t(c.first - kPerKind)) + " more " + kind +
-                                 " problems not listed"});
-      }
-    }
-    return std::move(problems_);
-  }
+  Report() : CappedProblems(kPerKind) {}
+  Status take() { return CappedProblems::take("pack"); }
 
  private:
   static constexpr int kPerKind = 20;
-  Status problems_;
-  std::map<std::string, std::pair<int, std::string>> counts_;
 };
 
 struct Placed {

@@ -10,7 +10,7 @@
 
 #include "commands.h"
 #include "db_util.h"
-#include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/mesh_export.h"
 #include "sandtable/formats/object_export.h"
@@ -65,18 +65,22 @@ struct Point {
 /// a point on the grid's east or south edge belongs to the last module.
 std::string locate(const ExportArgs& a, const Database& db, Point& p) {
   const auto& m = db.manifest;
-  auto geo = convert::GeoTransformer::create(m.crsWkt);
+  auto geo = geodesy::Projection::create(m.crsWkt);
   if (!geo) return geo.error();
   const char* opt = a.lonlat.empty() ? "--xy" : "--lonlat";
   if (!a.lonlat.empty()) {
     p.lon = a.lonlat[0], p.lat = a.lonlat[1];
-    if (!geo.value()->toProjected(p.lon, p.lat, p.easting, p.northing)) {
+    const auto en = geo->toProjected({p.lon, p.lat});
+    if (en) p.easting = en->easting, p.northing = en->northing;
+    else {
       return "--lonlat " + std::to_string(p.lon) + " " + std::to_string(p.lat) + " cannot be projected into " +
              m.crsName;
     }
   } else {
     p.easting = a.xy[0], p.northing = a.xy[1];
-    if (!geo.value()->toLonLat(p.easting, p.northing, p.lon, p.lat)) p.lon = p.lat = NAN;
+    const auto ll = geo->toLonLat({p.easting, p.northing});
+    p.lon = ll ? ll->lon : NAN;
+    p.lat = ll ? ll->lat : NAN;
   }
   const pack::IndexHeader& h = db.modules->header();
   const double edge = double(h.moduleSquares) * db.grid->spacing();

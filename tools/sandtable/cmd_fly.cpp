@@ -19,7 +19,7 @@
 #include "flags.h"
 #include "progress.h"
 #include "sandtable/viewer/fly_session.h"
-#include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/viewer/flight.h"
 #include "sandtable/world/path.h"
@@ -212,11 +212,13 @@ std::string projectedBoundsText(const manifest::Manifest& m) {
 }
 
 /// Converts lon/lat and checks it lies on the grid; "" or the reason not.
-std::string project(const convert::GeoTransformer& geo, const runtime::Terrain& terrain,
+std::string project(const geodesy::Projection& geo, const runtime::Terrain& terrain,
                     const manifest::Manifest& m, double lon, double lat, double& e, double& n) {
   char where[64];
   std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);
-  if (!geo.toProjected(lon, lat, e, n)) return std::string(where) + " cannot be projected into " + m.crsName;
+  const auto en = geo.toProjected({lon, lat});
+  if (!en) return std::string(where) + " cannot be projected into " + m.crsName;
+  e = en->easting, n = en->northing;
   if (!terrain.sampleEN(e, n)) {
     return std::string(where) + " is outside the database, which covers " + boundsText(m) +
            " (the grid is a rectangle in " + m.crsName + ", so its lon/lat corners are not square)";
@@ -224,9 +226,9 @@ std::string project(const convert::GeoTransformer& geo, const runtime::Terrain& 
   return {};
 }
 
-/// Reads a --path file through path.h (lon/lat via the GeoTransformer,
-/// checked against the grid); every error names the file and line.
-Result<runtime::Path> readPath(const FlyArgs& a, const convert::GeoTransformer& geo,
+/// Reads a --path file through path.h (lon/lat via geodesy, checked
+/// against the grid); every error names the file and line.
+Result<runtime::Path> readPath(const FlyArgs& a, const geodesy::Projection& geo,
                                const runtime::Terrain& terrain, const manifest::Manifest& m) {
   runtime::PathOptions po;
   po.defaultSpeedKmh = a.speed;
@@ -248,7 +250,7 @@ Result<runtime::Path> readPath(const FlyArgs& a, const convert::GeoTransformer& 
 }
 
 /// Fills the runtime options from the command line; "" or a usage error.
-std::string buildOptions(const FlyArgs& a, const Database& db, const convert::GeoTransformer& geo,
+std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Projection& geo,
                          FlightOptions& o) {
   const runtime::Terrain terrain(db.grid);
   const auto& m = db.manifest;
@@ -293,7 +295,7 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
   o.pager.sync = a.pagerSync;
   o.pager.budgetBytes = std::uint64_t(a.memoryBudgetMb * 1024 * 1024);
   o.view.sky = !a.noSky;
-  o.render.msaa = a.msaa;
+  o.render.samples = a.msaa;
   o.render.objects = !a.noObjects;
   o.render.objectFade = a.objectFade;
   o.render.objectLod = !a.noObjectLod;
@@ -314,10 +316,11 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const convert::Ge
       return "--at " + err;
     }
   }
-  o.output.toLonLat = [&geo](double e, double n) -> std::optional<std::pair<double, double>> {
-    double lon = 0, lat = 0;
-    if (!geo.toLonLat(e, n, lon, lat)) return std::nullopt;
-    return std::pair{lon, lat};
+  // Called from the viewer's frame loop: geodesy is safe from any thread.
+  o.output.toLonLat = [geo](double e, double n) -> std::optional<std::pair<double, double>> {
+    const auto ll = geo.toLonLat({e, n});
+    if (!ll) return std::nullopt;
+    return std::pair{ll->lon, ll->lat};
   };
   return {};
 }
@@ -502,10 +505,10 @@ int run(FlyArgs& a) {
   if (!opened) return usageError(kName, opened.error());
   const std::shared_ptr<const runtime::World> world = opened.value();
   const Database* db = &world->database();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return usageError(kName, geo.error());
   FlightOptions o;
-  if (std::string err = buildOptions(a, *db, *geo.value(), o); !err.empty()) {
+  if (std::string err = buildOptions(a, *db, geo.value(), o); !err.empty()) {
     return usageError(kName, err);
   }
   FlySessionSettings ss;
@@ -516,7 +519,7 @@ int run(FlyArgs& a) {
   }
   if (std::string err = sessionSettings(a, *db, o, ss); !err.empty()) return usageError(kName, err);
   if (!a.pathFile.empty()) {
-    auto path = readPath(a, *geo.value(), runtime::Terrain(db->grid), db->manifest);
+    auto path = readPath(a, geo.value(), runtime::Terrain(db->grid), db->manifest);
     if (!path) {
       // "--path FILE:N: what, how to fix" (the Problem's offset is always 0 here).
       return usageError(kName, withFlags("--path " + runtime::pathProblemText(path.problems().front())));

@@ -8,7 +8,7 @@
 
 #include "commands.h"
 #include "db_util.h"
-#include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/world/terrain.h"
 
 namespace sandtable::cli {
@@ -54,7 +54,7 @@ int runSample(const SampleArgs& a) {
   if (modes != 1) return usageError("sample", "give exactly one of --lonlat LON LAT, --xy E N or --points FILE");
   auto db = openOrReport("sample", a.dir);
   if (!db) return kUsage;
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return usageError("sample", geo.error());
   runtime::Terrain terrain(db->grid);
 
@@ -77,14 +77,20 @@ int runSample(const SampleArgs& a) {
     Point p;
     p.easting = a.xy[0];
     p.northing = a.xy[1];
-    if (!geo.value()->toLonLat(p.easting, p.northing, p.lon, p.lat)) return usageError("sample", "cannot transform --xy");
+    const auto ll = geo->toLonLat({p.easting, p.northing});
+    if (!ll) return usageError("sample", "cannot transform --xy");
+    p.lon = ll->lon, p.lat = ll->lat;
     pts.push_back(p);
   }
   int outside = 0;
   for (auto& p : pts) {
-    if (a.xy.empty() && !geo.value()->toProjected(p.lon, p.lat, p.easting, p.northing)) {
-      ++outside;
-      continue;
+    if (a.xy.empty()) {
+      const auto en = geo->toProjected({p.lon, p.lat});
+      if (!en) {
+        ++outside;
+        continue;
+      }
+      p.easting = en->easting, p.northing = en->northing;
     }
     p.sample = terrain.sampleEN(p.easting, p.northing);
     if (!p.sample) {

@@ -7,7 +7,7 @@
 
 #include "commands.h"
 #include "db_util.h"
-#include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/sim/script.h"
 #include "sandtable/world/path.h"
@@ -25,14 +25,15 @@ struct ScriptArgs {
 int fromPath(const ScriptArgs& a) {
   auto db = openOrReport("script", a.db);
   if (!db) return kUsage;
-  convert::initGdal();
-  auto geo = convert::GeoTransformer::create(db->manifest.crsWkt);
+  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return reportProblems("script", geo.problems());
   runtime::PathOptions po;
   if (a.speedKmh > 0) po.defaultSpeedKmh = a.speedKmh;
-  const convert::GeoTransformer& g = *geo.value();
+  const geodesy::Projection& g = geo.value();
   po.toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
-    if (!g.toProjected(lon, lat, e, n)) return "cannot be projected into " + db->manifest.crsName;
+    const auto en = g.toProjected({lon, lat});
+    if (!en) return "cannot be projected into " + db->manifest.crsName;
+    e = en->easting, n = en->northing;
     return {};
   };
   auto path = runtime::readPathFile(a.path, po);

@@ -37,7 +37,7 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"SynthOptions::force", "--force"},
     {"SynthOptions::threads", "--threads"},
     {"RenderOptions::mode = ", "--mode "},
-    {"RenderOptions::msaa", "--msaa"},
+    {"RenderOptions::samples", "--msaa"},
     {"RenderOptions::objectFade", "--object-fade"},
     {"RenderOptions::impostorPixels", "--impostor-pixels"},
     {"RenderOptions::objectThinPixels", "--object-thin-pixels"},

@@ -5,7 +5,7 @@
 #include <cstdio>
 
 #include "commands.h"
-#include "sandtable/converters/crs.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/sim/scenario_load.h"
 
 namespace sandtable::cli {
@@ -18,8 +18,7 @@ std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::W
     reportProblems(cmd, scen.problems());
     return std::nullopt;
   }
-  convert::initGdal();
-  auto geo = convert::GeoTransformer::create(w.manifest().crsWkt);
+  auto geo = geodesy::Projection::create(w.manifest().crsWkt);
   if (!geo) {
     reportProblems(cmd, geo.problems());
     return std::nullopt;
@@ -29,12 +28,14 @@ std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::W
     reportProblems(cmd, world.problems());
     return std::nullopt;
   }
-  const convert::GeoTransformer& g = *geo.value();
+  const geodesy::Projection& g = geo.value();
   const std::string crs = w.manifest().crsName;
   runtime::ToProjectedFn toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
     char where[64];
     std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);
-    if (!g.toProjected(lon, lat, e, n)) return std::string(where) + " cannot be projected into " + crs;
+    const auto en = g.toProjected({lon, lat});
+    if (!en) return std::string(where) + " cannot be projected into " + crs;
+    e = en->easting, n = en->northing;
     return {};
   };
   if (seed) options.seed = *seed;

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/base/stats.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/scene/camera_math.h"
@@ -76,13 +77,6 @@ Pose pathPose(const std::vector<Waypoint>& path, double t) {
   auto resolved = resolvePath(points, {}, "FlightOptions::path");
   if (!resolved.ok()) return {};  // checkFlightOptions refuses such a path before flight
   return samplePath(resolved.value(), t);
-}
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const auto rank = static_cast<std::size_t>(std::ceil(p * double(v.size())));
-  return v[std::clamp<std::size_t>(rank, 1, v.size()) - 1];
 }
 
 /// CPU time of the calling thread, milliseconds.
@@ -200,7 +194,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"rings", o.render.lod.rings},
                   {"pixel_error", o.render.lod.pixelError},
                   {"morph", o.render.lod.morph},
-                  {"msaa", o.render.msaa},
+                  {"msaa", o.render.samples},
                   {"objects", o.render.objects},
                   {"object_fade", o.render.objectFade},
                   {"object_lod", o.render.objectLod},
@@ -227,8 +221,8 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
   }
   if (frames.empty()) return s;
   s.trianglesMean = triangles / double(frames.size());
-  s.frameMsP50 = percentile(ms, 0.50);
-  s.frameMsP99 = percentile(ms, 0.99);
+  s.frameMsP50 = stats::percentile(ms, 0.50);
+  s.frameMsP99 = stats::percentile(ms, 0.99);
   s.fpsMean = totalMs > 0 ? 1000.0 * double(frames.size()) / totalMs : 0;
   return s;
 }
@@ -584,14 +578,7 @@ RenderSettings renderSettingsFor(const FlightOptions& o) {
   rs.fog = o.view.fog;
   rs.sky = o.view.sky;
   rs.clearColour = o.view.clearColour;
-  rs.samples = o.render.msaa;
-  rs.shading = o.render.shading;
-  rs.colour = o.render.colour;
-  rs.waterMaterials = o.render.waterMaterials;
-  rs.objectFade = o.render.objectFade;
-  rs.objectLod = o.render.objectLod;
-  rs.impostorPixels = o.render.impostorPixels;
-  rs.objectThinPixels = o.render.objectThinPixels;
+  static_cast<DrawChoices&>(rs) = o.render;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
@@ -774,7 +761,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::HeightField>
   if (!(o.motion.heightAgl >= 0 && o.motion.heightAgl < 1e5)) bad("MotionOptions::heightAgl must be 0 .. 100000 m");
   if (std::string e = checkLodOptions(o.render.lod); !e.empty()) bad(e);
   if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
-  if (o.render.msaa > 16) bad("RenderOptions::msaa must be 0..16 samples");
+  if (o.render.samples > 16) bad("RenderOptions::samples must be 0..16 samples");
   if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
   if (!(o.render.impostorPixels >= 0 && o.render.impostorPixels <= 255)) {
     bad("RenderOptions::impostorPixels must be 0..255");

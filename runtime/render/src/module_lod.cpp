@@ -6,22 +6,10 @@
 #include <cmath>
 
 #include "module_draw.h"
+#include "sandtable/base/morton.h"
 #include "sandtable/scene/lod.h"
 
 namespace sandtable::runtime::detail {
-namespace {
-
-/// Node (a, b) of a Morton index (lod.h's mortonIndex inverted).
-std::pair<std::uint32_t, std::uint32_t> mortonCell(std::uint32_t m) {
-  std::uint32_t a = 0, b = 0;
-  for (std::uint32_t bit = 0; bit < 16; ++bit) {
-    a |= ((m >> (2 * bit)) & 1u) << bit;
-    b |= ((m >> (2 * bit + 1)) & 1u) << bit;
-  }
-  return {a, b};
-}
-
-}  // namespace
 
 void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std::size_t i1, RenderStats& stats) {
   const ModuleDraw& d = buf.modules[buf.nodes[i0].module];
@@ -76,7 +64,7 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
   moduleCells_[buf.nodes[i0].module] = {cells, side0};
   for (const Span& sp : spans_) {
     for (std::uint64_t m = sp.f; m < sp.t; ++m) {
-      const auto [x, z] = mortonCell(std::uint32_t(m));
+      const auto [x, z] = morton::decode(std::uint32_t(m));
       if (x < side0 && z < side0) cells_[cells + std::size_t(z) * side0 + x] = {sp.level, sp.morph};
     }
   }
@@ -103,7 +91,7 @@ bool ModuleRenderer::drawnAt(std::uint32_t module, double x, double z, std::uint
 }
 
 bool ModuleRenderer::skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint32_t side) const {
-  const auto [a, b] = mortonCell(node);
+  const auto [a, b] = morton::decode(node);
   const std::uint32_t scale = 1u << dr.level, n = dr.side0;
   // The finest-level cells just across the side, from x0/z0 along the other axis.
   std::int64_t x = std::int64_t(a) * scale, z = std::int64_t(b) * scale;

@@ -31,15 +31,6 @@ const char* lodModeName(LodMode m) {
   return "?";
 }
 
-std::uint32_t mortonIndex(std::uint32_t a, std::uint32_t b) {
-  std::uint32_t m = 0;
-  for (std::uint32_t bit = 0; bit < 16; ++bit) {
-    m |= ((a >> bit) & 1u) << (2 * bit);
-    m |= ((b >> bit) & 1u) << (2 * bit + 1);
-  }
-  return m;
-}
-
 std::uint32_t nodeOfSquare(const module::Level& level, std::uint32_t square,
                            std::uint32_t nodeSquares, std::uint32_t nodesPerSide) {
   const std::uint32_t nx = std::max<std::uint32_t>(level.squaresX, 1);

@@ -1,12 +1,10 @@
 #pragma once
-// Coordinate reference systems for the database frame, through GDAL/OGR and
-// PROJ. Every coordinate transform in sandtable goes through this file.
-#include <memory>
+// Choosing the coordinate reference system of a database, through GDAL/OGR
+// and PROJ. Transforms between the database frame, lon/lat and geocentric
+// coordinates are geodesy's (sandtable/geodesy/geodesy.h).
 #include <string>
 
 #include "sandtable/base/result.h"
-
-class OGRCoordinateTransformation;
 
 namespace sandtable::convert {
 
@@ -22,28 +20,10 @@ struct TargetCrs {
 /// centred there), or "EPSG:n" (must be a projected CRS in metres).
 Result<TargetCrs> resolveCrs(const std::string& request, double centerLon, double centerLat);
 
-/// lon/lat (WGS 84, degrees) <-> easting/northing in a projected CRS.
-/// Not thread-safe: give each thread its own.
-class GeoTransformer {
- public:
-  static Result<std::unique_ptr<GeoTransformer>> create(const std::string& projectedWkt);
-  ~GeoTransformer();
-  GeoTransformer(const GeoTransformer&) = delete;
-  GeoTransformer& operator=(const GeoTransformer&) = delete;
-
-  bool toProjected(double lon, double lat, double& easting, double& northing) const;
-  bool toLonLat(double easting, double northing, double& lon, double& lat) const;
-  /// Batch versions (in place); false if any point failed.
-  bool toProjected(std::size_t n, double* x, double* y) const;
-  bool toLonLat(std::size_t n, double* x, double* y) const;
-
- private:
-  GeoTransformer() = default;
-  OGRCoordinateTransformation* forward_ = nullptr;
-  OGRCoordinateTransformation* inverse_ = nullptr;
-};
-
 /// Registers GDAL drivers once; safe to call from anywhere.
 void initGdal();
+
+/// GDAL's last error message on this thread, or "unknown GDAL error".
+std::string lastGdalError();
 
 }  // namespace sandtable::convert

@@ -105,36 +105,14 @@ struct ViewOptions {
   Rgb clearColour{0xFF, 0x00, 0xFF};
 };
 
-/// How the terrain is drawn.
-struct RenderOptions {
+/// How the terrain is drawn: the renderer's DrawChoices (renderer.h;
+/// `samples` is --msaa, and PagerSettings::sync lifts `uploadBudgetBytes`:
+/// every frame is then complete), and what the flight adds to them.
+struct RenderOptions : DrawChoices {
   TerrainMode mode = TerrainMode::automatic;
   LodOptions lod;
-  std::uint32_t msaa = 0;  ///< samples per pixel, 0 (off) .. 16
-  /// Smooth (default) or the seed's flat look (docs/VIEWER.md, "Colours").
-  Shading shading = Shading::smooth;
-  /// ColourMode::height writes each pixel's world height (renderer.h,
-  /// kHeightCode*) with no sky, fog, multisampling, panel or composite.
-  ColourMode colour = ColourMode::natural;
-  /// Grid material indices drawn as water (docs/FORMAT.md 4.7).
-  std::vector<std::uint8_t> waterMaterials{1};
-  /// GPU upload bytes per frame (RenderSettings::uploadBudgetBytes); 0: no
-  /// limit. PagerSettings::sync lifts it: every frame is then complete.
-  std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
   /// Draw the modules' static objects with the database's icons.pack.
   bool objects = true;
-  /// RenderSettings::objectFade: the fraction of each icon's far range
-  /// over which its objects fade in, 0 .. 1.
-  double objectFade = kDefaultObjectFade;
-  /// RenderSettings::objectLod: icons switch level by range and end at
-  /// their far range; false draws every object in the view distance at
-  /// full detail.
-  bool objectLod = true;
-  /// RenderSettings::impostorPixels: objects drawn smaller than this many
-  /// pixels are sprites; 0: always meshes.
-  double impostorPixels = kDefaultImpostorPixels;
-  /// RenderSettings::objectThinPixels: sprites under this many pixels are
-  /// thinned; 0 draws them all.
-  double objectThinPixels = kDefaultObjectThinPixels;
 };
 
 /// The pager under a module flight (paging/pager.h has the full options).

@@ -97,44 +97,26 @@ inline constexpr double kDefaultObjectThinPixels = 6.0;
 /// RenderSettings::uploadBudgetBytes by default: 1 MiB a frame.
 inline constexpr std::uint64_t kDefaultUploadBudgetBytes = 1ull << 20;
 
-struct RenderSettings {
-  std::uint32_t width = 1280, height = 720;
-  Rgb background{0x87, 0xCE, 0xEB};  ///< sky at the horizon and fog colour
-  bool fog = true;
-  /// Draw the sky; false leaves the clear colour wherever no terrain is
-  /// drawn (the crack tests clear to magenta).
-  bool sky = true;
-  Rgb clearColour{0xFF, 0x00, 0xFF};
-  /// Multisampling (0 = off): resolves thin, far decals to their coverage
-  /// instead of letting them shimmer from frame to frame.
+/// How frames are drawn, as a user chooses it: the renderer's settings and
+/// the viewer's RenderOptions (viewer/flight.h) both are these, so the
+/// fields and their defaults are written once.
+struct DrawChoices {
+  /// Multisampling (0 = off, up to 16): resolves thin, far decals to their
+  /// coverage instead of letting them shimmer from frame to frame.
   std::uint32_t samples = 0;
+  /// Smooth (default) or the seed's flat look (docs/VIEWER.md, "Colours").
   Shading shading = Shading::smooth;
-  ColourMode colour = ColourMode::natural;  ///< height: no sky, fog or multisampling
-  /// Module mode: colour of each material id (index); ids beyond it get
-  /// the default MaterialColour.
-  std::vector<MaterialColour> palette;
-  /// Module mode: the class of skin no culture covers (the table's
-  /// default-area). Smooth shading colours it by the grid: water or tint.
-  std::uint16_t uncoveredMaterial = 0;
+  /// ColourMode::height writes each pixel's world height (kHeightCode*)
+  /// with no sky, fog, multisampling, panel or composite.
+  ColourMode colour = ColourMode::natural;
   /// Grid material indices that are water (docs/FORMAT.md 4.7).
   std::vector<std::uint8_t> waterMaterials{1};
-  /// Module mode, smooth shading: normals and water come from the posts
-  /// (the grid file or a changing field) at each module vertex (computed
-  /// once per upload). Null: up and no water.
-  std::shared_ptr<const grid::HeightField> grid;
   /// Module mode: bytes of (module, level) buffers built and uploaded per
   /// frame, so that a jump does not make one long frame; 0: no limit.
   /// Levels over the budget wait for a later frame (at least one goes up
   /// each frame) and are drawn meanwhile from a coarser resident level;
   /// every module's coarsest level goes up at once, whatever the budget.
   std::uint64_t uploadBudgetBytes = kDefaultUploadBudgetBytes;
-  /// The icon database (icons.pack) that the modules' objects and the
-  /// DisplayBuffer's entities (scene/dynamic.h) index; null draws neither.
-  /// Height frames never draw them.
-  std::shared_ptr<const iconpack::Pack> icons;
-  /// Module mode: draw the modules' static objects (with `icons`); false
-  /// draws only the entities.
-  bool staticObjects = true;
   /// Objects fade in over this fraction of each icon's far range (its
   /// last switch range, capped at the view distance) instead of popping
   /// in; 0 pops. 0 .. 1.
@@ -154,6 +136,33 @@ struct RenderSettings {
   /// kept ones are drawn up to twice their size (docs/VIEWER.md,
   /// "Impostors"); 0: every sprite is drawn.
   double objectThinPixels = kDefaultObjectThinPixels;
+};
+
+struct RenderSettings : DrawChoices {
+  std::uint32_t width = 1280, height = 720;
+  Rgb background{0x87, 0xCE, 0xEB};  ///< sky at the horizon and fog colour
+  bool fog = true;
+  /// Draw the sky; false leaves the clear colour wherever no terrain is
+  /// drawn (the crack tests clear to magenta).
+  bool sky = true;
+  Rgb clearColour{0xFF, 0x00, 0xFF};
+  /// Module mode: colour of each material id (index); ids beyond it get
+  /// the default MaterialColour.
+  std::vector<MaterialColour> palette;
+  /// Module mode: the class of skin no culture covers (the table's
+  /// default-area). Smooth shading colours it by the grid: water or tint.
+  std::uint16_t uncoveredMaterial = 0;
+  /// Module mode, smooth shading: normals and water come from the posts
+  /// (the grid file or a changing field) at each module vertex (computed
+  /// once per upload). Null: up and no water.
+  std::shared_ptr<const grid::HeightField> grid;
+  /// The icon database (icons.pack) that the modules' objects and the
+  /// DisplayBuffer's entities (scene/dynamic.h) index; null draws neither.
+  /// Height frames never draw them.
+  std::shared_ptr<const iconpack::Pack> icons;
+  /// Module mode: draw the modules' static objects (with `icons`); false
+  /// draws only the entities.
+  bool staticObjects = true;
 };
 
 /// What the render thread did for the last frame (module mode).

@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/base/morton.h"
 #include "sandtable/formats/module.h"
 
 namespace sandtable::runtime {
@@ -67,7 +68,7 @@ inline std::uint32_t nodesPerSide(std::uint32_t level, std::uint32_t levels) {
 /// Morton index of node (a, b): a in the even bits, b in the odd ones, so
 /// child c (a bit 0 = c & 1, b bit 0 = c >> 1) of node n is 4 n + c and
 /// every coarser node is a contiguous range of finer indices.
-std::uint32_t mortonIndex(std::uint32_t a, std::uint32_t b);
+inline std::uint32_t mortonIndex(std::uint32_t a, std::uint32_t b) { return morton::encode(a, b); }
 /// Morton index of the node holding row-major `square` of `level`.
 std::uint32_t nodeOfSquare(const module::Level& level, std::uint32_t square,
                            std::uint32_t nodeSquares, std::uint32_t nodesPerSide);

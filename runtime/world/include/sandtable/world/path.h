@@ -12,7 +12,7 @@
 // files of `sandtable fly --path` read unchanged.
 //
 // The runtime has no PROJ: lon/lat reach projected coordinates through the
-// caller's ToProjectedFn (the CLI passes its GeoTransformer).
+// caller's ToProjectedFn (the CLI passes one built on geodesy).
 //
 // Thread safety: pure functions on caller-owned values.
 #include <functional>

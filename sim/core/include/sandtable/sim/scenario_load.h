@@ -4,7 +4,7 @@
 // behaviours and scripts, and the driven one chosen.
 //
 // The runtime has no PROJ: lon/lat positions reach the database's CRS
-// through the caller's ToProjectedFn (the CLI passes its GeoTransformer).
+// through the caller's ToProjectedFn (the CLI passes one built on geodesy).
 //
 // Thread safety: pure functions; the Simulation returned belongs to the caller.
 #include <memory>
