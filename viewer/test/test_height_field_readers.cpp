@@ -216,11 +216,12 @@ TEST(HeightFieldReaders, anEntityStandsOnThePatchAndOneBesideItOnTheGrid) {
   auto world = std::make_shared<sim::SimWorld>(f.raised, 0, 1);
   sim::Simulation s(world);
   // At the patch's middle post, and 100 m east of it.
-  ASSERT_TRUE(s.add(tankAt("on", 42 * kSpacing, 52 * kSpacing)).ok());
-  ASSERT_TRUE(s.add(tankAt("off", 52 * kSpacing, 52 * kSpacing)).ok());
+  const auto on = s.add(tankAt("on", 42 * kSpacing, 52 * kSpacing));
+  const auto off = s.add(tankAt("off", 52 * kSpacing, 52 * kSpacing));
+  ASSERT_TRUE(on.ok() && off.ok());
   for (int k = 0; k < 3; ++k) s.step();
-  EXPECT_NEAR(s.entities()[0].position.y(), baseElevation(42, 52) + kRaise, 1e-6);
-  EXPECT_NEAR(s.entities()[1].position.y(), baseElevation(52, 52), 1e-6);
+  EXPECT_NEAR(s.entity(on.value()).position.y(), baseElevation(42, 52) + kRaise, 1e-6);
+  EXPECT_NEAR(s.entity(off.value()).position.y(), baseElevation(52, 52), 1e-6);
   EXPECT_NEAR(*world->groundAt(41.5 * kSpacing, 51.5 * kSpacing), baseElevation(41, 51) + 0.5 * 3 + kRaise, 1e-9);
 }
 
