@@ -3,6 +3,7 @@
 // DEFS`: the sample definition file's icons, and exit 2 with the line named
 // for a bad one.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <nlohmann/json.hpp>
 
@@ -67,6 +68,40 @@ TEST(IconsCli, theSampleDefinitionFileListsItsIconsAsJson) {
   EXPECT_EQ(j["icons"][0]["levels"][0]["triangles"], 80);
   EXPECT_EQ(j["icons"][2]["levels"][0]["range_m"], 400.0);
   EXPECT_GT(j["pack_bytes"].get<int>(), 0);
+}
+
+TEST(IconsCli, devicesAndFifosAreNotRegularFilesForModelsAndDefinitions) {
+  TempDir t("iconfifo");
+  const std::string fifo = t / "model.obj";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& path : {std::string("/dev/zero"), fifo}) {
+    // Both the model and the definition file: a FIFO must not block the read.
+    for (const std::vector<std::string>& args : {std::vector<std::string>{"icons", "--model", path},
+                                                 std::vector<std::string>{"icons", path}}) {
+      const auto r = runCli(args);
+      EXPECT_EQ(r.exitCode, 2) << args.back();
+      EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("not a regular file"), std::string::npos) << r.err;
+    }
+  }
+}
+
+TEST(IconsCli, aTextureOutsideTheModelsFolderIsNotEmbedded) {
+  TempDir t("icontex");
+  spit(t / "t.mtl", "newmtl skin\nKd 0.5 0.5 0.5\nmap_Kd /etc/passwd\n");
+  spit(t / "t.obj", "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl skin\nf 1/1 2/2 3/3\n");
+  const auto r = runCli({"icons", "--model", t / "t.obj", "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;  // a warning: the base colour is used
+  EXPECT_NE(r.err.find("points outside the model's folder"), std::string::npos) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["textures"].size(), 1u);
+  EXPECT_FALSE(j["textures"][0]["found"].get<bool>());
+  // A file of that name beside the model is found, and is not an image.
+  spit(t / "passwd", "root:x:0:0:root:/root:/bin/bash\n");
+  const auto text = runCli({"icons", "--model", t / "t.obj", "--json"});
+  ASSERT_EQ(text.exitCode, 0) << text.err;
+  EXPECT_NE(text.err.find(t / "passwd"), std::string::npos) << text.err;
+  EXPECT_NE(text.err.find("is not an image"), std::string::npos) << text.err;
 }
 
 TEST(IconsCli, aBadDefinitionFileExits2NamingTheLine) {
