@@ -16,7 +16,7 @@ namespace {
 
 TEST(IconsCli, aRealModelReportsItsCountsBoundsAndTexturesAsJson) {
   const std::string model = data("models/assimp/jeep1.3ds");
-  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no ../shared/data/models here";
+  SANDTABLE_REQUIRE(std::filesystem::exists(model), "the models of ../shared/data: " << model);
   const auto r = runCli({"icons", "--model", model, "--json"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
@@ -178,7 +178,7 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
   }
   // One model alone: one row with one cell per level of detail.
   const std::string model = data("models/assimp/jeep1.3ds");
-  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no ../shared/data/models here";
+  SANDTABLE_REQUIRE(std::filesystem::exists(model), "the models of ../shared/data: " << model);
   const auto m = runCli({"icons", "--model", model, "-o", t / "jeep", "--json"});
   ASSERT_EQ(m.exitCode, 0) << m.err;
   const auto mj = nlohmann::json::parse(m.out);
@@ -194,9 +194,8 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
 
 TEST(IconsCli, theContactSheetDrawsTheModelsTextures) {
   const std::string defs = std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons-models.txt";
-  if (!std::filesystem::exists(data("models/kenney-racing/vehicle-truck-red.glb"))) {
-    GTEST_SKIP() << "no ../shared/data/models here";
-  }
+  SANDTABLE_REQUIRE(std::filesystem::exists(data("models/kenney-racing/vehicle-truck-red.glb")),
+                    "the models of ../shared/data: " << data("models/kenney-racing/vehicle-truck-red.glb"));
   TempDir t("sheettex");
   const auto r = runCli({"icons", defs, "-o", t / "out", "--json"});
   ASSERT_EQ(r.exitCode, 0) << r.err;

@@ -25,6 +25,7 @@
 #include "sandtable/testing/xvfb.h"
 #include "sandtable/world/ground.h"
 #include "test_support.h"
+#include "sandtable/testing/require.h"
 
 // After gtest (test_support.h): Xlib's macros would break its templates.
 #include <X11/Xlib.h>
@@ -83,7 +84,7 @@ class ViewerEntities : public ::testing::Test {
   }
   void SetUp() override {
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+    SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
     ASSERT_NE(db_, nullptr);
   }
 
@@ -556,7 +557,7 @@ void tap(Display* dpy, KeySym sym) {
 }
 
 TEST_F(ViewerEntities, inAWindowTheKeysDriveStopAndCycleTheEntities) {
-  if (std::system("command -v Xvfb > /dev/null 2>&1") != 0) GTEST_SKIP() << "Xvfb is not installed";
+  SANDTABLE_REQUIRE(std::system("command -v Xvfb > /dev/null 2>&1") == 0, "Xvfb (apt-get install xvfb)");
   auto xvfb = testsupport::Xvfb::start();
   ASSERT_TRUE(xvfb) << "Xvfb is installed but did not start";
   Display* keys = XOpenDisplay(xvfb->display.c_str());

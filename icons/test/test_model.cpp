@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "sandtable/icons/model.h"
+#include "sandtable/testing/require.h"
 
 namespace fs = std::filesystem;
 using namespace sandtable;
@@ -25,10 +26,7 @@ namespace {
 
 const std::string kModels = std::string(SANDTABLE_SOURCE_DIR) + "/../shared/data/models";
 
-#define NEED_MODELS()                                                          \
-  do {                                                                         \
-    if (!fs::exists(kModels)) GTEST_SKIP() << "no ../shared/data/models here"; \
-  } while (0)
+#define NEED_MODELS() SANDTABLE_REQUIRE(fs::exists(kModels), "the models of ../shared/data at " << kModels)
 
 std::string slurp(const std::string& p) {
   std::ifstream f(p, std::ios::binary);
