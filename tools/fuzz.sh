@@ -72,6 +72,10 @@ else
   echo "fuzz: warning: no $cli or no $data; the binary readers start from empty seeds" >&2
 fi
 
+# The grid and pack targets write their scratch files under TMPDIR.
+export TMPDIR="$(cd "$build_dir" && pwd)/tmp"
+rm -rf "$TMPDIR"
+mkdir -p "$TMPDIR"
 status=0
 while read -r name bin; do
   corpus=$build_dir/corpus/$name

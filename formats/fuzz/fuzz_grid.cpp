@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <cstddef>
+#include <cstdlib>
 #include <cstdint>
 #include <fstream>
 #include <string>
@@ -23,7 +24,8 @@ namespace {
 /// One file per fuzzing process, rewritten for every input.
 const std::string& scratchFile() {
   static const std::string path = [] {
-    std::string dir = "/tmp/sandtable-fuzz-grid-XXXXXX";
+    const char* tmp = std::getenv("TMPDIR");  // tools/fuzz.sh points it into its build directory
+    std::string dir = std::string(tmp && *tmp ? tmp : "/tmp") + "/sandtable-fuzz-grid-XXXXXX";
     if (!::mkdtemp(dir.data())) __builtin_trap();
     return dir + "/grid.bin";
   }();

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdlib>
 #include <cstdint>
 #include <fstream>
 #include <span>
@@ -25,7 +26,8 @@ namespace {
 
 const std::string& scratchDir() {
   static const std::string dir = [] {
-    std::string d = "/tmp/sandtable-fuzz-pack-XXXXXX";
+    const char* tmp = std::getenv("TMPDIR");  // tools/fuzz.sh points it into its build directory
+    std::string d = std::string(tmp && *tmp ? tmp : "/tmp") + "/sandtable-fuzz-pack-XXXXXX";
     if (!::mkdtemp(d.data())) __builtin_trap();
     return d;
   }();
