@@ -68,6 +68,22 @@ idx = open(sys.argv[1] + "/modules.idx", "rb").read()
 pack = open(sys.argv[1] + "/modules.pack", "rb").read()
 open(sys.argv[2], "wb").write(struct.pack("<I", len(idx)) + idx + pack)
 EOF
+  # Raw modules (the pack's first records, unpacked by the zstd tool) seed the module target.
+  if command -v zstd >/dev/null 2>&1; then
+    python3 - "$db" "$seeds/sandtable_fuzz_module" <<'EOF'
+import os, struct, subprocess, sys
+db, out = sys.argv[1], sys.argv[2]
+os.makedirs(out, exist_ok=True)
+idx = open(db + "/modules.idx", "rb").read()
+pack = open(db + "/modules.pack", "rb").read()
+entry_bytes, count, table = struct.unpack_from("<IQQ", idx, 52)  # FORMAT.md §10: entryBytes, entryCount, tableOffset
+for k in range(min(count, 2)):
+    offset, size = struct.unpack_from("<QI", idx, table + k * entry_bytes)
+    raw = subprocess.run(["zstd", "-dcq"], input=pack[offset:offset + size], capture_output=True)
+    if raw.returncode == 0:
+        open(f"{out}/module{k}", "wb").write(raw.stdout)
+EOF
+  fi
 else
   echo "fuzz: warning: no $cli or no $data; the binary readers start from empty seeds" >&2
 fi

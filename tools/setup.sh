@@ -22,6 +22,7 @@ packages=(
   libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test
   ffmpeg                          # fly --video; installed so its tests run (CI fails a test that would skip)
   clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
+  zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )
 
