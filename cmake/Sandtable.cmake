@@ -27,3 +27,18 @@ function(sandtable_add_unit_tests lib)
   gtest_discover_tests(${lib}_test WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
     DISCOVERY_TIMEOUT 60)
 endfunction()
+
+# libFuzzer targets (clang only): tools/fuzz.sh configures a separate build
+# with -DSANDTABLE_FUZZ=ON and builds the target sandtable_fuzzers, every
+# target added here; fuzzers.txt in the build directory lists "NAME PATH".
+option(SANDTABLE_FUZZ "Build the libFuzzer targets (needs clang)" OFF)
+function(sandtable_add_fuzzer name source)
+  if(NOT SANDTABLE_FUZZ OR NOT CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    return()
+  endif()
+  add_executable(${name} ${source})
+  target_link_libraries(${name} PRIVATE ${ARGN})
+  target_compile_options(${name} PRIVATE -fsanitize=fuzzer,address)
+  target_link_options(${name} PRIVATE -fsanitize=fuzzer,address)
+  set_property(GLOBAL APPEND PROPERTY SANDTABLE_FUZZERS ${name})
+endfunction()

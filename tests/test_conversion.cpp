@@ -249,6 +249,10 @@ TEST(ConversionAccuracyCli, buildThenSamplePointsMatchesSource) {
 INSTANTIATE_TEST_SUITE_P(RealData, ConversionAccuracy, ::testing::ValuesIn(demFiles()),
                          [](const auto& param) { return shortName(param.param); });
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(ConversionAccuracy);
+// Without the data the suite above has no cases and nothing would say so.
+TEST(ConversionAccuracyFiles, theRealDemFilesArePresent) {
+  SANDTABLE_REQUIRE(!demFiles().empty(), "the DTED and SRTM files under " << data("elevation"));
+}
 
 }  // namespace
 }  // namespace sandtable::test

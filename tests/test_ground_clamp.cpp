@@ -19,6 +19,7 @@
 #include "sandtable/world/ground.h"
 #include "sandtable/world/terrain.h"
 #include "test_support.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::test {
 namespace {
@@ -123,7 +124,7 @@ TEST_F(GroundClampTest, matchesTheBuiltModulesAtEveryLevelAndMorph) {
 
 TEST_F(GroundClampTest, theEyeStandsOnTheLevelDrawnUnderIt) {
   std::string why;
-  if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   const GroundClamp g = clamp();
   // Where level 3 and the finest grid differ most, over a coarse grid of
   // candidate points away from the edges.

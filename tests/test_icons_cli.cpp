@@ -3,6 +3,7 @@
 // DEFS`: the sample definition file's icons, and exit 2 with the line named
 // for a bad one.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <nlohmann/json.hpp>
 
@@ -15,7 +16,7 @@ namespace {
 
 TEST(IconsCli, aRealModelReportsItsCountsBoundsAndTexturesAsJson) {
   const std::string model = data("models/assimp/jeep1.3ds");
-  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no ../shared/data/models here";
+  SANDTABLE_REQUIRE(std::filesystem::exists(model), "the models of ../shared/data: " << model);
   const auto r = runCli({"icons", "--model", model, "--json"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
@@ -67,6 +68,40 @@ TEST(IconsCli, theSampleDefinitionFileListsItsIconsAsJson) {
   EXPECT_EQ(j["icons"][0]["levels"][0]["triangles"], 80);
   EXPECT_EQ(j["icons"][2]["levels"][0]["range_m"], 400.0);
   EXPECT_GT(j["pack_bytes"].get<int>(), 0);
+}
+
+TEST(IconsCli, devicesAndFifosAreNotRegularFilesForModelsAndDefinitions) {
+  TempDir t("iconfifo");
+  const std::string fifo = t / "model.obj";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& path : {std::string("/dev/zero"), fifo}) {
+    // Both the model and the definition file: a FIFO must not block the read.
+    for (const std::vector<std::string>& args : {std::vector<std::string>{"icons", "--model", path},
+                                                 std::vector<std::string>{"icons", path}}) {
+      const auto r = runCli(args);
+      EXPECT_EQ(r.exitCode, 2) << args.back();
+      EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("not a regular file"), std::string::npos) << r.err;
+    }
+  }
+}
+
+TEST(IconsCli, aTextureOutsideTheModelsFolderIsNotEmbedded) {
+  TempDir t("icontex");
+  spit(t / "t.mtl", "newmtl skin\nKd 0.5 0.5 0.5\nmap_Kd /etc/passwd\n");
+  spit(t / "t.obj", "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl skin\nf 1/1 2/2 3/3\n");
+  const auto r = runCli({"icons", "--model", t / "t.obj", "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;  // a warning: the base colour is used
+  EXPECT_NE(r.err.find("points outside the model's folder"), std::string::npos) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["textures"].size(), 1u);
+  EXPECT_FALSE(j["textures"][0]["found"].get<bool>());
+  // A file of that name beside the model is found, and is not an image.
+  spit(t / "passwd", "root:x:0:0:root:/root:/bin/bash\n");
+  const auto text = runCli({"icons", "--model", t / "t.obj", "--json"});
+  ASSERT_EQ(text.exitCode, 0) << text.err;
+  EXPECT_NE(text.err.find(t / "passwd"), std::string::npos) << text.err;
+  EXPECT_NE(text.err.find("is not an image"), std::string::npos) << text.err;
 }
 
 TEST(IconsCli, aBadDefinitionFileExits2NamingTheLine) {
@@ -143,7 +178,7 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
   }
   // One model alone: one row with one cell per level of detail.
   const std::string model = data("models/assimp/jeep1.3ds");
-  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no ../shared/data/models here";
+  SANDTABLE_REQUIRE(std::filesystem::exists(model), "the models of ../shared/data: " << model);
   const auto m = runCli({"icons", "--model", model, "-o", t / "jeep", "--json"});
   ASSERT_EQ(m.exitCode, 0) << m.err;
   const auto mj = nlohmann::json::parse(m.out);
@@ -159,9 +194,8 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
 
 TEST(IconsCli, theContactSheetDrawsTheModelsTextures) {
   const std::string defs = std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons-models.txt";
-  if (!std::filesystem::exists(data("models/kenney-racing/vehicle-truck-red.glb"))) {
-    GTEST_SKIP() << "no ../shared/data/models here";
-  }
+  SANDTABLE_REQUIRE(std::filesystem::exists(data("models/kenney-racing/vehicle-truck-red.glb")),
+                    "the models of ../shared/data: " << data("models/kenney-racing/vehicle-truck-red.glb"));
   TempDir t("sheettex");
   const auto r = runCli({"icons", defs, "-o", t / "out", "--json"});
   ASSERT_EQ(r.exitCode, 0) << r.err;

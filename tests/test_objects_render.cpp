@@ -22,6 +22,7 @@
 #include "sandtable/viewer/flight.h"
 #include "test_support.h"
 #include "viewer_support.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::test {
 namespace {
@@ -192,7 +193,7 @@ Measure measure(const Shots& s, double x, double z, double guessY) {
 TEST(ObjectsRender, columnsOnRuggedTerrainNeitherFloatNorSinkAtAnyLevelOfDetail) {
   SANDTABLE_REQUIRE_DATA();
   std::string why;
-  if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   TempDir t("objrender");
   writeColumnIcon(t.path());
   writePoints(t / "columns.csv");
@@ -275,7 +276,7 @@ runtime::FrameStats forestFrame(const Database& db, double thinPixels, double ea
 TEST(ObjectsRender, farSpritesAreThinnedTheSameWayEveryFrameAndNoneWithoutThinning) {
   SANDTABLE_REQUIRE_DATA();
   std::string why;
-  if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   TempDir t("objthin");
   const auto b = runCli({"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.55", "49.94",
                          "11.62", "49.99", "--spacing", "30", "--culture",

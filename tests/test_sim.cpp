@@ -254,6 +254,15 @@ TEST_F(SimMonaco, badScenarioScriptAndAircraftFilesExitTwoNamingLineAndColumn) {
       {"sandtable-scenario 1\nentity a icon=jet domain=air aircraft=bad.txt at=7.405,43.745 altitude=900\n",
        "bad.txt", "sandtable-aircraft 1\nmass -5\n", "line 2, column"},
       {"sandtable-scenario 1\nentity a icon=submarine at=7.405,43.745\n", "", "", "icons.pack"},
+      // 1,000 groups of 100,000 asked for 10^8 entities (10.9 GB and still loading after 60 s).
+      {[] {
+         std::string text = "sandtable-scenario 1\n";
+         for (int k = 0; k < 1000; ++k) {
+           text += "group 100000 name=g" + std::to_string(k) + " icon=tank area=7.40,43.74,7.41,43.75\n";
+         }
+         return text;
+       }(),
+       "", "", "line 3, column 7: this line brings the scenario to 200000 entities, more than the 100000"},
   };
   for (const Bad& c : cases) {
     spit(t / "s.scenario", c.scenario);
@@ -262,6 +271,21 @@ TEST_F(SimMonaco, badScenarioScriptAndAircraftFilesExitTwoNamingLineAndColumn) {
     EXPECT_EQ(r.exitCode, 2) << c.scenario;
     EXPECT_NE(r.err.find(c.want), std::string::npos) << r.err;
   }
+}
+
+// The duration is checked before the database is opened: no data needed.
+TEST(SimCli, durationsPastTheMaximumNaNOrNegativeExitTwoNamingTheFlag) {
+  TempDir t("sim-duration");
+  spit(t / "s.scenario", "sandtable-scenario 1\n");
+  for (const char* d : {"1e18", "604801", "nan", "-5", "0", "inf"}) {
+    const auto r = runCli({"sim", t / "no-db", "--scenario", t / "s.scenario", "--duration", d});
+    EXPECT_EQ(r.exitCode, 2) << d;
+    EXPECT_NE(r.err.find("--duration"), std::string::npos) << d << ": " << r.err;
+  }
+  // The maximum itself passes the check and fails later, at the missing database.
+  const auto max = runCli({"sim", t / "no-db", "--scenario", t / "s.scenario", "--duration", "604800"});
+  EXPECT_EQ(max.exitCode, 2);
+  EXPECT_EQ(max.err.find("--duration"), std::string::npos) << max.err;
 }
 
 }  // namespace

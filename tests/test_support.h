@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/render/image.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::test {
 
@@ -20,10 +21,9 @@ inline std::string dataDir() { return std::string(SANDTABLE_SOURCE_DIR) + "/../s
 inline std::string data(const std::string& rel) { return dataDir() + "/" + rel; }
 inline bool haveData() { return std::filesystem::is_directory(dataDir() + "/elevation"); }
 
-#define SANDTABLE_REQUIRE_DATA()                                                  \
-  do {                                                                            \
-    if (!::sandtable::test::haveData()) GTEST_SKIP() << "no ../shared/data here"; \
-  } while (0)
+/// The real data, or a skip (a failure under SANDTABLE_REQUIRE_ALL=1).
+#define SANDTABLE_REQUIRE_DATA() \
+  SANDTABLE_REQUIRE(::sandtable::test::haveData(), "../shared/data at " << ::sandtable::test::dataDir())
 
 /// A fresh directory under the system temp dir, removed at scope exit.
 class TempDir {

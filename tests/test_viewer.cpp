@@ -69,7 +69,7 @@ class Viewer : public ::testing::Test {
   }
   void SetUp() override {
     SANDTABLE_REQUIRE_DATA();
-    if (!noGl_.empty()) GTEST_SKIP() << "no headless GL: " << noGl_;
+    SANDTABLE_REQUIRE(noGl_.empty(), "headless GL (EGL, Mesa): " << noGl_);
   }
 
   /// Renders one frame of `db` at lon/lat with the options; fog, sky and

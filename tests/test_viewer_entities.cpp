@@ -25,6 +25,7 @@
 #include "sandtable/testing/xvfb.h"
 #include "sandtable/world/ground.h"
 #include "test_support.h"
+#include "sandtable/testing/require.h"
 
 // After gtest (test_support.h): Xlib's macros would break its templates.
 #include <X11/Xlib.h>
@@ -83,7 +84,7 @@ class ViewerEntities : public ::testing::Test {
   }
   void SetUp() override {
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+    SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
     ASSERT_NE(db_, nullptr);
   }
 
@@ -531,6 +532,24 @@ void sleepMs(long ms) {
   nanosleep(&t, nullptr);
 }
 
+/// Frames written to `dir` so far.
+std::size_t framesIn(const std::string& dir) {
+  std::size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) n += e.path().filename().string().rfind("frame_", 0) == 0;
+  return n;
+}
+
+/// Waits until the flight has written `n` more frames (or has ended): a key
+/// tapped before is then seen by a frame whatever the machine's speed, where
+/// a fixed sleep was too short on a loaded machine. A frame polls the
+/// window's events before it is drawn, so the second frame after a tap has
+/// it; three leave one to spare.
+void waitFrames(const std::string& dir, std::size_t n, const std::atomic<bool>& done) {
+  const std::size_t start = framesIn(dir);
+  while (!done && framesIn(dir) < start + n) sleepMs(10);
+}
+
 /// The top-level window whose name starts with `prefix`; 0 if none yet.
 Window findWindow(Display* dpy, const std::string& prefix) {
   Window root = 0, parent = 0, *children = nullptr;
@@ -556,7 +575,7 @@ void tap(Display* dpy, KeySym sym) {
 }
 
 TEST_F(ViewerEntities, inAWindowTheKeysDriveStopAndCycleTheEntities) {
-  if (std::system("command -v Xvfb > /dev/null 2>&1") != 0) GTEST_SKIP() << "Xvfb is not installed";
+  SANDTABLE_REQUIRE(std::system("command -v Xvfb > /dev/null 2>&1") == 0, "Xvfb (apt-get install xvfb)");
   auto xvfb = testsupport::Xvfb::start();
   ASSERT_TRUE(xvfb) << "Xvfb is installed but did not start";
   Display* keys = XOpenDisplay(xvfb->display.c_str());
@@ -590,13 +609,13 @@ TEST_F(ViewerEntities, inAWindowTheKeysDriveStopAndCycleTheEntities) {
     tap(keys, XK_Up);    // commanded 30 -> 39 km/h
     tap(keys, XK_Up);    // -> 48
     tap(keys, XK_Left);  // 10 -> 5 degrees
-    sleepMs(600);
+    waitFrames(frames, 3, done);
     tap(keys, XK_space);  // all stop: commanded 0
-    sleepMs(600);
+    waitFrames(frames, 3, done);
     tap(keys, XK_Tab);  // attached to the next entity: wing
-    sleepMs(600);
+    waitFrames(frames, 3, done);
     tap(keys, XK_e);  // the stealth eye
-    sleepMs(600);
+    waitFrames(frames, 3, done);
     tap(keys, XK_q);
   }
   flight.join();

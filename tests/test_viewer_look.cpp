@@ -89,7 +89,7 @@ class ViewerLook : public ::testing::Test {
   }
   void SetUp() override {
     SANDTABLE_REQUIRE_DATA();
-    if (!noGl_.empty()) GTEST_SKIP() << "no headless GL: " << noGl_;
+    SANDTABLE_REQUIRE(noGl_.empty(), "headless GL (EGL, Mesa): " << noGl_);
   }
 
   /// Renders the second frame of a still flight (the pager settled, no fog,

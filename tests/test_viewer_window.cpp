@@ -190,7 +190,7 @@ class ViewerCli : public ::testing::Test {
   }
   void SetUp() override {
     SANDTABLE_REQUIRE_DATA();
-    if (!noGl_.empty()) GTEST_SKIP() << "no headless GL: " << noGl_;
+    SANDTABLE_REQUIRE(noGl_.empty(), "headless GL (EGL, Mesa): " << noGl_);
     ASSERT_FALSE(db_.empty());
   }
   static std::vector<std::string> flyArgs(std::vector<std::string> extra) {
@@ -204,7 +204,7 @@ class ViewerCli : public ::testing::Test {
 };
 
 TEST_F(ViewerCli, WindowUpKeyRaisesTheSpeedInStatsAndPanel) {
-  if (!onPath("Xvfb")) GTEST_SKIP() << "Xvfb is not installed (apt-get install xvfb)";
+  SANDTABLE_REQUIRE(onPath("Xvfb"), "Xvfb (apt-get install xvfb)");
   auto xvfb = Xvfb::start();
   ASSERT_TRUE(xvfb) << "Xvfb is installed but did not start";
   Display* keys = XOpenDisplay(xvfb->display.c_str());  // the user's keyboard

@@ -21,7 +21,10 @@ packages=(
   libepoxy-dev libegl-dev libegl-mesa0 libgl1-mesa-dri  # OpenGL 4.5 core through EGL (llvmpipe)
   libpng-dev                      # PNG frames and icon textures
   libjpeg-dev                     # JPEG icon textures in the renderer (libjpeg62-turbo; already there with libgdal-dev)
-  libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test (ffmpeg, for video, stays optional)
+  libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test
+  ffmpeg                          # fly --video; installed so its tests run (CI fails a test that would skip)
+  clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
+  zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )
 

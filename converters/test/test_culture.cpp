@@ -31,6 +31,7 @@
 #include "sandtable/converters/culture.h"
 #include "sandtable/converters/synth.h"
 #include "sandtable/formats/materials.h"
+#include "sandtable/testing/require.h"
 
 namespace fs = std::filesystem;
 using namespace sandtable;
@@ -932,7 +933,7 @@ CultureFrame frameOver(int epsg, double west, double south, double east, double 
 
 TEST(Culture, realOsmNorthOfBayreuth) {
   const std::string src = kData + "/osm/north-bayreuth.osm.gz";
-  if (!fs::exists(src)) GTEST_SKIP() << src << " not present";
+  SANDTABLE_REQUIRE(fs::exists(src), src);
   const auto t = sampleTable();
   const CultureFrame frame = frameOver(32632, 11.40, 49.88, 11.67, 50.10);
   CultureOptions o;
@@ -990,7 +991,7 @@ TEST(Culture, realOsmNorthOfBayreuth) {
 
 TEST(Culture, realOsmZipOfSamsoe) {
   const std::string src = kData + "/osm/samsoe.osm.zip";
-  if (!fs::exists(src)) GTEST_SKIP() << src << " not present";
+  SANDTABLE_REQUIRE(fs::exists(src), src);
   const auto t = sampleTable();
   const CultureFrame frame = frameOver(32632, 10.50, 55.78, 10.70, 55.98);
   CultureOptions o;
@@ -1010,7 +1011,7 @@ TEST(Culture, realShapefileAndGeoJson) {
   const auto t = sampleTable();
   {
     const std::string src = kData + "/shp/BayArea.shp";
-    if (!fs::exists(src)) GTEST_SKIP() << src << " not present";
+    SANDTABLE_REQUIRE(fs::exists(src), src);
     CultureOptions o;
     o.sources = {src};
     auto c = Culture::load(o, t, frameOver(32610, -122.095, 37.41, -122.075, 37.43));

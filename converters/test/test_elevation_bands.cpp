@@ -17,6 +17,7 @@
 
 #include "sandtable/converters/elevation.h"
 #include "sandtable/formats/grid.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::convert {
 namespace {
@@ -25,10 +26,7 @@ namespace fs = std::filesystem;
 
 std::string dataFile(const std::string& rel) { return std::string(SANDTABLE_SOURCE_DIR) + "/../shared/data/" + rel; }
 
-#define REQUIRE_FILE(path)                                              \
-  do {                                                                  \
-    if (!fs::exists(path)) GTEST_SKIP() << "no real data at " << (path); \
-  } while (0)
+#define REQUIRE_FILE(path) SANDTABLE_REQUIRE(fs::exists(path), "real data at " << (path))
 
 struct TempDir {
   fs::path path;

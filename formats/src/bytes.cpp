@@ -83,12 +83,14 @@ Status writeFileAtomic(const std::string& path, std::span<const std::byte> data)
 
 Result<std::vector<std::byte>> readSmallFile(const std::string& path, std::uint64_t maxBytes) {
   auto fail = [&](const std::string& msg) { return Result<std::vector<std::byte>>(Problem{path, 0, msg}); };
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a
+  // writer for ever; a regular file reads the same either way.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return fail(std::string("cannot open: ") + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
-    return fail("not a regular file");
+    return fail("not a regular file (a directory, device or FIFO)");
   }
   if (static_cast<std::uint64_t>(st.st_size) > maxBytes) {
     ::close(fd);

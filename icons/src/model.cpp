@@ -11,6 +11,9 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <span>
 #include <limits>
 
 namespace sandtable::icons {
@@ -36,27 +39,59 @@ namespace {
 
 Problem problem(const std::string& path, const std::string& what) { return Problem{path, 0, "icons: " + what}; }
 
-/// A texture file named by a model: as given (relative to the model's
-/// folder), else the same name in any letter case, else its file name
-/// alone in the model's folder (3DS files from Windows tools often carry
-/// an absolute path or upper case).
+/// Whether a path leaves the folder it is taken in: absolute, or with a
+/// ".." part.
+bool leavesFolder(const fs::path& p) {
+  if (p.is_absolute()) return true;
+  return std::any_of(p.begin(), p.end(), [](const fs::path& part) { return part == ".."; });
+}
+
+/// A texture file named by a model, looked for only inside the model's
+/// folder, so that a model from elsewhere cannot make the pack embed any
+/// file of the machine (map_Kd /etc/passwd): as named when the name stays
+/// inside, else by its file name alone in the model's folder (3DS files from
+/// Windows tools often carry an absolute path); in any letter case too.
 std::string findTexture(const fs::path& modelDir, const std::string& name) {
   std::error_code ec;
   std::string n = name;
   std::replace(n.begin(), n.end(), '\\', '/');
-  const fs::path given = fs::path(n).is_absolute() ? fs::path(n) : modelDir / n;
+  const fs::path named(n);
+  const fs::path given = leavesFolder(named) ? modelDir / named.filename() : modelDir / named;
   if (fs::is_regular_file(given, ec)) return given.string();
   auto lower = [](std::string s) {
     std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return s;
   };
-  const std::string leaf = lower(fs::path(n).filename().string());
+  const std::string leaf = lower(named.filename().string());
   for (const fs::path& dir : {given.parent_path(), modelDir}) {
     for (const auto& e : fs::directory_iterator(dir, ec)) {
       if (e.is_regular_file(ec) && lower(e.path().filename().string()) == leaf) return e.path().string();
     }
   }
   return {};
+}
+
+/// Whether bytes start like an image the icon texture decoder reads (PNG,
+/// JPEG, TIFF, BMP, GIF, WebP; render/src/icon_textures.cpp): a texture
+/// that is some other file is refused here, where the warning can name it.
+bool looksLikeImage(std::span<const unsigned char> b) {
+  auto starts = [&](std::initializer_list<unsigned char> magic) {
+    return b.size() >= magic.size() && std::equal(magic.begin(), magic.end(), b.begin());
+  };
+  const bool webp = starts({'R', 'I', 'F', 'F'}) && b.size() >= 12 && b[8] == 'W' && b[9] == 'E' && b[10] == 'B' &&
+                    b[11] == 'P';
+  return starts({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}) || starts({0xFF, 0xD8, 0xFF}) ||
+         starts({'I', 'I', 42, 0}) || starts({'M', 'M', 0, 42}) || starts({'B', 'M'}) || starts({'G', 'I', 'F', '8'}) ||
+         webp;
+}
+
+/// The first bytes of a file (at most 12), enough for looksLikeImage.
+std::vector<unsigned char> fileHead(const std::string& path) {
+  std::vector<unsigned char> head(12);
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(head.data()), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  return head;
 }
 
 Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path& dir, const std::string& path,
@@ -80,16 +115,35 @@ Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path
     if (t->mHeight == 0 && t->pcData) {
       const auto* b = reinterpret_cast<const std::byte*>(t->pcData);
       m.embeddedBytes.assign(b, b + t->mWidth);
+      const std::span head(reinterpret_cast<const unsigned char*>(t->pcData), std::min<std::size_t>(t->mWidth, 12));
+      if (!looksLikeImage(head)) {
+        m.embeddedBytes.clear();
+        warnings.push_back(problem(path, "embedded texture \"" + m.texture + "\" of material \"" + m.name +
+                                             "\" is not an image (PNG, JPEG, TIFF, BMP, GIF or WebP); its base "
+                                             "colour is used"));
+      }
     } else {
       warnings.push_back(problem(path, "embedded texture \"" + m.texture + "\" of material \"" + m.name +
                                            "\" is raw texels, which icons do not keep; its base colour is used"));
     }
     return m;
   }
+  std::string named = m.texture;
+  std::replace(named.begin(), named.end(), '\\', '/');
+  if (leavesFolder(fs::path(named))) {
+    warnings.push_back(problem(path, "texture \"" + m.texture + "\" of material \"" + m.name +
+                                         "\" points outside the model's folder; only its file name \"" +
+                                         fs::path(named).filename().string() + "\" is looked for there"));
+  }
   m.texturePath = findTexture(dir, m.texture);
   if (m.texturePath.empty()) {
     warnings.push_back(problem(path, "texture \"" + m.texture + "\" of material \"" + m.name +
                                          "\" not found beside the model; its base colour is used"));
+  } else if (!looksLikeImage(fileHead(m.texturePath))) {
+    warnings.push_back(problem(path, "texture " + m.texturePath + " of material \"" + m.name +
+                                         "\" is not an image (PNG, JPEG, TIFF, BMP, GIF or WebP); its base colour "
+                                         "is used"));
+    m.texturePath.clear();
   }
   return m;
 }
@@ -206,7 +260,10 @@ void optimiseModel(Model& m) {
 
 Result<Model> importModel(const std::string& path, const ImportOptions& o) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return problem(path, "model file not found; check the path");
+  if (!fs::exists(path, ec)) return problem(path, "model file not found; check the path");
+  if (!fs::is_regular_file(path, ec)) {
+    return problem(path, "not a regular file (a directory, device or FIFO); give a model file");
+  }
   Assimp::Importer importer;
   // Lines and points go to their own meshes, which are then dropped.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);

@@ -12,6 +12,7 @@
 #include <numbers>
 
 #include "sandtable/icons/icon_build.h"
+#include "sandtable/testing/require.h"
 
 namespace fs = std::filesystem;
 using namespace sandtable;
@@ -22,10 +23,7 @@ namespace {
 const std::string kSource = SANDTABLE_SOURCE_DIR;
 const std::string kModels = kSource + "/../shared/data/models";
 
-#define NEED_MODELS()                                                          \
-  do {                                                                         \
-    if (!fs::exists(kModels)) GTEST_SKIP() << "no ../shared/data/models here"; \
-  } while (0)
+#define NEED_MODELS() SANDTABLE_REQUIRE(fs::exists(kModels), "the models of ../shared/data at " << kModels)
 
 Result<Definitions> parse(const std::string& text) {
   return parseDefinitions(std::as_bytes(std::span(text.data(), text.size())), "defs.txt", kModels);

@@ -2,6 +2,7 @@
 // counts and bounds read from the files without assimp: the glTF JSON and
 // binary chunk, the OBJ and OFF lines, the 3DS chunks.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <nlohmann/json.hpp>
 
@@ -15,6 +16,7 @@
 #include <sstream>
 
 #include "sandtable/icons/model.h"
+#include "sandtable/testing/require.h"
 
 namespace fs = std::filesystem;
 using namespace sandtable;
@@ -24,10 +26,7 @@ namespace {
 
 const std::string kModels = std::string(SANDTABLE_SOURCE_DIR) + "/../shared/data/models";
 
-#define NEED_MODELS()                                                          \
-  do {                                                                         \
-    if (!fs::exists(kModels)) GTEST_SKIP() << "no ../shared/data/models here"; \
-  } while (0)
+#define NEED_MODELS() SANDTABLE_REQUIRE(fs::exists(kModels), "the models of ../shared/data at " << kModels)
 
 std::string slurp(const std::string& p) {
   std::ifstream f(p, std::ios::binary);
@@ -356,6 +355,74 @@ TEST(Import, aMissingTextureIsAWarningAndTheBaseColourStays) {
   ASSERT_FALSE(r.warnings().empty());
   EXPECT_NE(r.warnings().front().message.find("colormap.png"), std::string::npos);
   for (const Material& m : r->materials) EXPECT_TRUE(m.texturePath.empty());
+}
+
+TEST(Import, devicesFifosAndDirectoriesAreNotRegularFiles) {
+  Scratch s;
+  const std::string fifo = (s.dir / "model.obj").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& p : {std::string("/dev/zero"), fifo, s.dir.string()}) {
+    expectRefused(importModel(p), p, "not a regular file");
+  }
+}
+
+/// A one-triangle OBJ in the folder m/ whose material names `texture`, and its MTL.
+std::string texturedObj(Scratch& s, const std::string& texture) {
+  fs::create_directories(s.dir / "m");
+  s.write("m/t.mtl", "newmtl skin\nKd 0.5 0.5 0.5\nmap_Kd " + texture + "\n");
+  return s.write("m/t.obj", "mtllib t.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl skin\n"
+                            "f 1/1 2/2 3/3\n");
+}
+
+/// The MTL's material (assimp adds a default one beside it).
+const Material& skin(const Result<Model>& r) {
+  for (const Material& m : r->materials) {
+    if (m.name == "skin") return m;
+  }
+  ADD_FAILURE() << "no material skin";
+  return r->materials.front();
+}
+
+std::string allWarnings(const Result<Model>& r) {
+  std::string w;
+  for (const Problem& p : r.warnings()) w += p.message + "\n";
+  return w;
+}
+
+TEST(Import, texturePathsStayInsideTheModelsFolder) {
+  Scratch s;
+  // /etc/passwd is a readable file outside the folder: never taken.
+  auto outside = importModel(texturedObj(s, "/etc/passwd"));
+  ASSERT_TRUE(outside) << outside.error();
+  EXPECT_EQ(skin(outside).texture, "/etc/passwd");
+  EXPECT_TRUE(skin(outside).texturePath.empty());
+  EXPECT_NE(allWarnings(outside).find("points outside the model's folder"), std::string::npos) << allWarnings(outside);
+
+  // "../x/skin.png" exists, but the file name in the model's folder is taken.
+  const std::string png("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", 16);
+  fs::create_directories(s.dir / "x");
+  s.write("x/skin.png", png);
+  auto absent = importModel(texturedObj(s, "../x/skin.png"));
+  ASSERT_TRUE(absent) << absent.error();
+  EXPECT_TRUE(skin(absent).texturePath.empty());
+  const std::string inFolder = s.write("m/skin.png", png);
+  auto up = importModel(texturedObj(s, "../x/skin.png"));
+  ASSERT_TRUE(up) << up.error();
+  EXPECT_EQ(skin(up).texturePath, inFolder);
+  EXPECT_NE(allWarnings(up).find("points outside the model's folder"), std::string::npos) << allWarnings(up);
+
+  // A file of that name that is not an image is reported as such.
+  s.write("m/passwd", "root:x:0:0:root:/root:/bin/bash\n");
+  auto text = importModel(texturedObj(s, "/etc/passwd"));
+  ASSERT_TRUE(text) << text.error();
+  EXPECT_TRUE(skin(text).texturePath.empty());
+  EXPECT_NE(allWarnings(text).find("is not an image"), std::string::npos) << allWarnings(text);
+
+  // A plain relative name inside the folder: no warning.
+  auto plain = importModel(texturedObj(s, "skin.png"));
+  ASSERT_TRUE(plain) << plain.error();
+  EXPECT_EQ(skin(plain).texturePath, inFolder);
+  EXPECT_TRUE(plain.warnings().empty()) << allWarnings(plain);
 }
 
 TEST(Levels, simplifyDownWithValidIndicesAndLevelZeroWhole) {

@@ -22,6 +22,10 @@
 namespace sandtable::cli {
 namespace {
 
+// A week of simulated time: longer runs are a typing slip (1e18 would
+// step for ever), and a week of 60 Hz steps still fits any counter.
+constexpr double kMaxDurationS = 7 * 24 * 3600.0;
+
 std::atomic<bool> gCancel{false};
 void onSignal(int) { gCancel.store(true); }
 
@@ -44,7 +48,10 @@ Status writeRecording(const sim::Simulation& s, const std::string& path) {
 }
 
 int runSim(const SimArgs& a) {
-  if (!(a.duration > 0)) return usageError("sim", "--duration must be a positive number of seconds");
+  if (!(a.duration > 0 && a.duration <= kMaxDurationS)) {
+    return usageError("sim", "--duration must be a number of simulated seconds above 0 and at most " +
+                                 std::to_string(static_cast<long>(kMaxDurationS)) + " (7 days, docs/SIM.md)");
+  }
   sim::SimOptions options;
   options.bruteForce = a.bruteForce;
   if (!a.collisions.empty()) {
@@ -115,7 +122,7 @@ void registerSim(CLI::App& root, Commands& c) {
       "  sandtable sim db --scenario s.scenario --record drive.script --json > events.json");
   sub->add_option("DB", a->db, "Database directory")->required();
   sub->add_option("--scenario", a->scenario, "Scenario file (docs/SCRIPTS.md)")->required();
-  sub->add_option("--duration", a->duration, "Simulated seconds (default 120)");
+  sub->add_option("--duration", a->duration, "Simulated seconds, above 0 and at most 604800 (7 days; default 120)");
   sub->add_option("--record", a->record,
                   "Write the driven entity's script here, merged with the scripts the scenario plays");
   sub->add_option("--seed", a->seed, "Random seed (default: the scenario's seed line, else 1)");

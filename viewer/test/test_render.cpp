@@ -18,6 +18,7 @@
 #include "sandtable/render/hud.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/world/terrain.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -233,7 +234,7 @@ double distance(Rgb a, Rgb b) {
 
 TEST_F(RenderTest, RendersSkyAboveTerrain) {
   std::string why;
-  if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   FlightOptions o = southLookingNorth();
   o.output.outDir = (root_ / "frames").string();
   std::vector<Image> frames;
@@ -287,7 +288,7 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
 
 TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
   std::string why;
-  if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   FlightOptions o = southLookingNorth();
   o.output.frames = 10;
   const Pose start = poseAt(o, 0);

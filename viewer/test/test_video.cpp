@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "sandtable/viewer/video.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -34,7 +35,7 @@ TEST(Video, MissingFfmpegSaysHowToInstallIt) {
 }
 
 TEST(Video, WritesAnMp4) {
-  if (!VideoWriter::available()) GTEST_SKIP() << VideoWriter::notInstalledMessage();
+  SANDTABLE_REQUIRE(VideoWriter::available(), "ffmpeg: " << VideoWriter::notInstalledMessage());
   const fs::path out = tempVideo("odd.mp4");
   auto v = VideoWriter::open(out.string(), 65, 47);  // odd: padded for yuv420p
   ASSERT_TRUE(v.ok()) << v.error();
@@ -52,7 +53,7 @@ TEST(Video, WritesAnMp4) {
 }
 
 TEST(Video, MissingDirectoryIsReportedAtOpen) {
-  if (!VideoWriter::available()) GTEST_SKIP() << VideoWriter::notInstalledMessage();
+  SANDTABLE_REQUIRE(VideoWriter::available(), "ffmpeg: " << VideoWriter::notInstalledMessage());
   const fs::path out = tempVideo("no-such-dir") / "x.mp4";
   auto v = VideoWriter::open(out.string(), 32, 32);
   ASSERT_FALSE(v.ok());
@@ -60,7 +61,7 @@ TEST(Video, MissingDirectoryIsReportedAtOpen) {
 }
 
 TEST(Video, FfmpegFailureIsReported) {
-  if (!VideoWriter::available()) GTEST_SKIP() << VideoWriter::notInstalledMessage();
+  SANDTABLE_REQUIRE(VideoWriter::available(), "ffmpeg: " << VideoWriter::notInstalledMessage());
   const fs::path out = tempVideo("bad-preset.mp4");
   VideoOptions o;
   o.preset = "no-such-preset";  // x264 refuses it: ffmpeg exits with an error

@@ -16,6 +16,7 @@
 #include "sandtable/viewer/flight.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/testing/fixtures.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -145,7 +146,7 @@ class ViewerModules : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string why;
-    if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+    SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
     dir_ = (fs::temp_directory_path() / ("sandtable-viewer-" + std::to_string(::getpid()))).string();
     db_ = planarDatabase(dir_);
   }

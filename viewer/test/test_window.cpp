@@ -32,6 +32,7 @@
 #include "sandtable/render/renderer.h"
 #include "sandtable/viewer/x11_window.h"
 #include "sandtable/testing/xvfb.h"
+#include "sandtable/testing/require.h"
 
 
 namespace sandtable::runtime {
@@ -108,7 +109,7 @@ void sendKey(Display* dpy, KeySym sym, bool press) {
 class WindowTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!onPath("Xvfb")) GTEST_SKIP() << "Xvfb is not installed (apt-get install xvfb)";
+    SANDTABLE_REQUIRE(onPath("Xvfb"), "Xvfb (apt-get install xvfb)");
     xvfb_ = Xvfb::start();
     ASSERT_TRUE(xvfb_) << "Xvfb is installed but did not start";
     keys_ = XOpenDisplay(xvfb_->display.c_str());
@@ -230,7 +231,7 @@ TEST_F(WindowTest, EntityKeysWaitForTakeViewerKeys) {
 
 TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
   auto headless = EglContext::create();
-  if (!headless.ok()) GTEST_SKIP() << headless.error();
+  SANDTABLE_REQUIRE(headless.ok(), "headless GL (EGL, Mesa): " << headless.error());
   const EGLContext renderer = eglGetCurrentContext();
   const EGLSurface draw = eglGetCurrentSurface(EGL_DRAW);
   ASSERT_NE(renderer, EGL_NO_CONTEXT);

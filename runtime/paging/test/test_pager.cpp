@@ -613,8 +613,12 @@ Arrivals jumpAndRecord(const TestDb& db, std::uint32_t loaders, bool holdSlot) {
     // (6, 5) is in the old window and shares the slot of (30, 29) (ring 12).
     ResidentRef guard = holdSlot ? p->resident(6, 5) : ResidentRef();
     EXPECT_EQ(bool(guard), holdSlot);
+    // update() deals the whole refill, sorted, before it returns, so the
+    // order does not depend on how soon the loader starts (there was a
+    // 50 ms sleep here). The guard only shows that a reader of the slot's
+    // old occupant does not disturb the load: double buffering keeps the
+    // fresh load out of the guarded buffer.
     p->update(30200, 29700, 0, 0, 1);
-    if (holdSlot) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_TRUE(p->waitIdle(30));
   a.metrics = p->metrics();
@@ -641,8 +645,9 @@ TEST(Pager, jumpRefillsNearestFirstOnEveryLoader) {
 }
 
 TEST(Pager, jumpRefillsNearestFirstOverall) {
-  // One loader, and everything queued before its first read completes
-  // (the held reader makes it wait): the arrival order is sorted.
+  // One loader, and everything queued (by update() itself) before its
+  // first read: the arrival order is sorted, with a reader holding the old
+  // occupant of the first module's slot.
   const TestDb db = makeDb("jump1", 40, 40);
   const Arrivals a = jumpAndRecord(db, 1, true);
   ASSERT_EQ(a.all.size(), 81u);
@@ -718,24 +723,84 @@ TEST(Pager, idleLoadersStealFromTheBusyDirection) {
   EXPECT_EQ(on.metrics.stripSignals[std::size_t(Direction::east)], 1u);
 }
 
+/// A pack source whose reads, once armed, wait at a gate until the test
+/// opens it: loads stay in flight for exactly as long as a test needs,
+/// with no sleep (Pager::open's preallocation reads before arming).
+class GatedSource final : public ModuleSource {
+ public:
+  explicit GatedSource(std::shared_ptr<const pack::PackReader> p) : pack_(std::move(p)) {}
+  const pack::IndexHeader& header() const override { return pack_.header(); }
+  ModuleInfo info(std::uint32_t kx, std::uint32_t kz) const override { return pack_.info(kx, kz); }
+  std::uint64_t generation(std::uint32_t, std::uint32_t) const override { return 0; }
+  Result<std::uint64_t> read(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    pass();
+    return pack_.read(kx, kz, into);
+  }
+  std::uint32_t coarseLevel() const override { return pack_.coarseLevel(); }
+  Result<std::uint64_t> readCoarse(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    pass();
+    return pack_.readCoarse(kx, kz, into);
+  }
+  Status readFine(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
+    return pack_.readFine(kx, kz, into);
+  }
+  bool missing(std::uint32_t kx, std::uint32_t kz) const override { return pack_.missing(kx, kz); }
+  std::uint64_t changes() const override { return 0; }
+  std::uint64_t changedSince(std::uint64_t since, std::vector<ModuleKey>&) const override { return since; }
+
+  void arm() { armed_.store(true); }
+  void open() {
+    const std::lock_guard lock(mu_);
+    armed_.store(false);
+    cv_.notify_all();
+  }
+  /// Blocks until `n` reads wait at the gate.
+  void waitForWaiting(std::uint32_t n) const {
+    std::unique_lock lock(mu_);
+    cv_.wait(lock, [&] { return waiting_ >= n; });
+  }
+
+ private:
+  void pass() const {
+    if (!armed_.load()) return;
+    std::unique_lock lock(mu_);
+    ++waiting_;
+    cv_.notify_all();
+    cv_.wait(lock, [&] { return !armed_.load(); });
+  }
+  PackSource pack_;
+  std::atomic<bool> armed_{false};
+  mutable std::mutex mu_;
+  mutable std::condition_variable cv_;
+  mutable std::uint32_t waiting_ = 0;
+};
+
 TEST(Pager, loadsThatLeaveTheAreaAreCancelled) {
+  // Every loader's first read of the 81-module area is held at the gate
+  // while the viewer jumps away: the rest of that refill is still queued
+  // and must be cancelled, not read.
   const TestDb db = makeDb("cancel", 40, 40);
+  auto src = std::make_shared<GatedSource>(db.pack);
   PagerOptions o = baseOptions();
-  o.simulatedReadSeconds = 0.02;  // 81 modules over 4 loaders: about 0.4 s
-  auto p = openPager(db, o);
-  ASSERT_TRUE(p);
-  p->update(8500, 8500, 0, 0, 0);
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  p->update(30500, 30500, 0, 0, 0.05);  // far away before the first area is in
-  ASSERT_TRUE(p->waitIdle(30));
-  const PagerMetrics m = p->metrics();
-  EXPECT_GT(m.cancelledQueued, 40u);
-  EXPECT_LT(m.loaded, 81u + 40u);
+  o.workStealing = false;
+  auto opened = Pager::open(db.grid, src, o);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  Pager& p = *opened.value();
+  src->arm();
+  p.update(8500, 8500, 0, 0, 0);
+  src->waitForWaiting(o.loaderThreads);  // one read in flight per loader, the rest queued
+  p.update(30500, 30500, 0, 0, 0.05);    // far away before the first area is in
+  src->open();
+  ASSERT_TRUE(p.waitIdle(30));
+  const PagerMetrics m = p.metrics();
+  EXPECT_GE(m.cancelledQueued, 81u - o.loaderThreads);
+  EXPECT_EQ(m.cancelledInFlight, std::uint64_t(o.loaderThreads));
+  EXPECT_EQ(m.loaded, 81u);  // only the new area
   EXPECT_EQ(m.holesInWindow, 0u);
   for (std::uint32_t kz = 4; kz < 13; ++kz) {
-    for (std::uint32_t kx = 4; kx < 13; ++kx) EXPECT_FALSE(residentNow(*p, kx, kz));
+    for (std::uint32_t kx = 4; kx < 13; ++kx) EXPECT_FALSE(residentNow(p, kx, kz));
   }
-  EXPECT_TRUE(residentNow(*p, 30, 30));
+  EXPECT_TRUE(residentNow(p, 30, 30));
 }
 
 long residentPages() {
@@ -1393,7 +1458,12 @@ class GenerationSource final : public ModuleSource {
   }
   Result<std::uint64_t> read(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override {
     const std::uint64_t g = generation(kx, kz);
-    if (slow_.load() == index(kx, kz) + 1) std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    if (held_.load() == index(kx, kz) + 1) {
+      // The held module's read waits until the test has seen what it
+      // wanted meanwhile (no sleep: as long as the test needs, no longer).
+      entered_.store(true);
+      while (held_.load() == index(kx, kz) + 1) std::this_thread::yield();
+    }
     into = makeModule(kx, kz, header_.moduleSquares, header_.levels);
     for (module::Level& l : into.levels) {
       for (module::Vertex& v : l.vertices) v.y += float(100000.0 * double(g));
@@ -1409,20 +1479,25 @@ class GenerationSource final : public ModuleSource {
     return log_.size();
   }
 
-  /// A newer generation of module (kx, kz); its reads take 300 ms if slow.
-  void bump(std::uint32_t kx, std::uint32_t kz, bool slow) {
-    slow_.store(slow ? index(kx, kz) + 1 : 0);
+  /// A newer generation of module (kx, kz); with `hold`, its reads wait
+  /// (entered() turns true) until release().
+  void bump(std::uint32_t kx, std::uint32_t kz, bool hold) {
+    entered_.store(false);
+    held_.store(hold ? index(kx, kz) + 1 : 0);
     generations_[index(kx, kz)].fetch_add(1);
     const std::lock_guard lock(mu_);
     log_.push_back({kx, kz});
     changes_.store(log_.size());
   }
+  bool entered() const { return entered_.load(); }
+  void release() { held_.store(0); }
 
  private:
   std::size_t index(std::uint32_t kx, std::uint32_t kz) const { return std::size_t(kz) * header_.modulesX + kx; }
   pack::IndexHeader header_;
   std::vector<std::atomic<std::uint64_t>> generations_;
-  std::atomic<std::size_t> slow_{0};
+  std::atomic<std::size_t> held_{0};
+  mutable std::atomic<bool> entered_{false};
   mutable std::mutex mu_;
   std::vector<ModuleKey> log_;
   std::atomic<std::uint64_t> changes_{0};
@@ -1470,8 +1545,13 @@ TEST(Pager, aNewerGenerationReplacesTheResidentModuleWithNoHoleMeanwhile) {
     }
   });
   while (seenOld.load() == 0 && holes.load() == 0) std::this_thread::yield();
-  source->bump(5, 5, true);  // its read takes 300 ms
+  source->bump(5, 5, true);  // its read waits until released
   p.update(5500, 5500, 0, 0, 1);
+  while (!source->entered()) std::this_thread::yield();
+  // While the newer generation is being read, the older one is still drawn.
+  const std::uint64_t oldAtRead = seenOld.load();
+  while (seenOld.load() < oldAtRead + 2 && holes.load() == 0 && torn.load() == 0) std::this_thread::yield();
+  source->release();
   ASSERT_TRUE(p.waitIdle(30));
   const std::uint64_t oldBeforeNew = seenOld.load();
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);

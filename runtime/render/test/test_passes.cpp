@@ -13,6 +13,7 @@
 #include "sandtable/render/hud.h"
 #include "sandtable/render/overlay.h"
 #include "sandtable/render/renderer.h"
+#include "sandtable/testing/require.h"
 
 namespace sandtable::runtime {
 namespace {
@@ -64,7 +65,7 @@ class Passes : public ::testing::TestWithParam<std::uint32_t> {
  protected:
   void SetUp() override {
     std::string why;
-    if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+    SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   }
 };
 
@@ -132,7 +133,7 @@ class SquareModels : public ModelsPass {
 
 TEST(RenderPasses, ModelsSlotDrawsOverTheTerrainAndUnderTheHud) {
   std::string why;
-  if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   EXPECT_EQ(kRenderPasses.front(), RenderPass::sky);
   EXPECT_EQ(kRenderPasses.back(), RenderPass::hud);
   auto r = makeRenderer();
@@ -164,7 +165,7 @@ TEST(RenderPasses, ModelsSlotDrawsOverTheTerrainAndUnderTheHud) {
 
 TEST(RenderPasses, OverlayOfAnotherSizeIsRefused) {
   std::string why;
-  if (!headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   auto r = makeRenderer();
   ASSERT_TRUE(r);
   ASSERT_TRUE(r->draw(groundAhead(0)).ok());

@@ -1,10 +1,11 @@
 #include "sandtable/world/path.h"
 
+#include "sandtable/formats/bytes.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <numbers>
 #include <sstream>
 
@@ -338,12 +339,13 @@ std::string pathProblemText(const Problem& p) {
 }
 
 Result<Path> readPathFile(const std::string& file, const PathOptions& options) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return Problem{file, 0, "cannot open the path file"};
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Problem{file, 0, "cannot read the path file"};
-  return parsePath(text.str(), file, options);
+  // A bound, so that /dev/zero or a huge file is refused rather than read
+  // into memory; a path of a million waypoints fits (docs/PATH.md).
+  constexpr std::uint64_t kMaxPathFileBytes = 64ull << 20;
+  auto bytes = readSmallFile(file, kMaxPathFileBytes);
+  if (!bytes) return Problem{file, 0, "cannot open the path file: " + bytes.message()};
+  const auto& b = bytes.value();
+  return parsePath(std::string_view(reinterpret_cast<const char*>(b.data()), b.size()), file, options);
 }
 
 namespace {

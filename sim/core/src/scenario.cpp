@@ -19,6 +19,9 @@ using namespace text;  // the line readers' shared helpers
 constexpr std::size_t kMaxProblems = 20;
 constexpr std::size_t kMaxName = 64;
 constexpr int kMaxGroupCount = 100000;
+// Entity lines and group members together: the simulator allocates for
+// each before its first step, so the cap is checked as the file is read.
+constexpr std::uint64_t kMaxScenarioEntities = 100000;
 constexpr double kMaxSpeedKmh = 15000;  // about Mach 12: above any munition
 constexpr double kMaxHeightM = 100000;  // the bound of paths and --height
 constexpr double kMinAltitudeM = -500;  // below the Dead Sea shore (-430 m)
@@ -543,6 +546,7 @@ class Reader {
     e.behaviour = c.behaviour;
     e.aircraft = c.aircraft;
     e.fuel = c.fuel;
+    if (!claimEntities(1, tok[0].column)) return;
     e.driven = drivenColumn.has_value();
     if (e.driven) out_.driven = out_.entities.size();
     out_.entities.push_back(std::move(e));
@@ -650,7 +654,21 @@ class Reader {
     g.behaviour = c.behaviour;
     g.aircraft = c.aircraft;
     g.fuel = c.fuel;
+    if (!claimEntities(*count, tok[1].column)) return;
     out_.groups.push_back(std::move(g));
+  }
+
+  /// Counts `n` more entities against kMaxScenarioEntities; false (with
+  /// the problem at `column`) when the scenario would hold more.
+  bool claimEntities(std::uint64_t n, std::size_t column) {
+    if (entityTotal_ + n > kMaxScenarioEntities) {
+      fail(column, "this line brings the scenario to " + std::to_string(entityTotal_ + n) +
+                       " entities, more than the " + std::to_string(kMaxScenarioEntities) +
+                       " a scenario may hold (entity lines and group members together); lower the group counts");
+      return false;
+    }
+    entityTotal_ += n;
+    return true;
   }
 
   std::string name_;
@@ -661,6 +679,7 @@ class Reader {
   std::size_t lineOffset_ = 0;
   int line_ = 0;
   int groupNumber_ = 0;
+  std::uint64_t entityTotal_ = 0;
   bool header_ = false;
   bool frameSet_ = false;
 };

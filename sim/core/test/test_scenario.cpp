@@ -360,5 +360,28 @@ TEST(Scenario, GroupsArePlacedBySeedWithinTheirRanges) {
   }
 }
 
+TEST(Scenario, EntityCountsPastTheCapAreRefusedAtTheirLine) {
+  // 1,000 groups of 100,000 asked for 10^8 entities; the reader stops at the
+  // line that passes 100,000 in all, with nothing expanded.
+  std::string text = "sandtable-scenario 1\nframe projected\n";
+  text += "entity a icon=tank at=0,0\n";
+  for (int k = 0; k < 1000; ++k) {
+    text += "group 100000 name=g" + std::to_string(k) + " icon=tank area=0,0,10,10\n";
+  }
+  const auto r = parseScenario(text, "big.scenario");
+  ASSERT_FALSE(r.ok());
+  // Line 4 is the first group: 1 + 100,000 entities. Line 3 is within the cap.
+  EXPECT_NE(r.problems().front().message.find("line 4, column 7"), std::string::npos) << r.error();
+  EXPECT_NE(r.problems().front().message.find("100001 entities, more than the 100000"), std::string::npos)
+      << r.error();
+
+  // Exactly at the cap is allowed: 99,999 in a group and one entity.
+  const auto atCap = parseScenario(
+      "sandtable-scenario 1\nframe projected\nentity a icon=tank at=0,0\ngroup 99999 icon=tank area=0,0,10,10\n",
+      "cap.scenario");
+  ASSERT_TRUE(atCap.ok()) << atCap.error();
+  EXPECT_EQ(atCap->groups[0].count, 99999);
+}
+
 }  // namespace
 }  // namespace sandtable::sim

@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# Builds every libFuzzer target with clang (a separate build directory, only
+# the fuzz targets and the libraries they need, instrumented for coverage
+# and AddressSanitizer) and runs each for a short fixed time on seeds from
+# samples/ and a small database built by the normal build's CLI. Any crash,
+# leak, sanitizer report or timeout fails the script (exit 1); the input
+# that did it is kept under BUILD_DIR/crashes/. Run by .ci/run.
+# Usage: tools/fuzz.sh [BUILD_DIR]   (default build-fuzz)
+# Environment: SANDTABLE_FUZZ_SECONDS (per target, default 6: 9 targets, about a minute),
+#   SANDTABLE_FUZZ_RUNS (most inputs per target, default 200000),
+#   SANDTABLE_CLI (the CLI that builds the seed database, default build/tools/sandtable).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build_dir=${1:-build-fuzz}
+seconds=${SANDTABLE_FUZZ_SECONDS:-6}
+runs=${SANDTABLE_FUZZ_RUNS:-200000}
+cli=${SANDTABLE_CLI:-build/tools/sandtable}
+
+command -v clang++ >/dev/null || { echo "fuzz: clang++ not found (tools/setup.sh installs clang)" >&2; exit 1; }
+launcher=()
+if command -v ccache >/dev/null 2>&1; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
+# Every library is instrumented (fuzzer-no-link) so that libFuzzer sees the
+# readers' branches, not only the target's; the targets add -fsanitize=fuzzer.
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ "${launcher[@]}" \
+  -DCMAKE_C_FLAGS="-fsanitize=fuzzer-no-link,address" -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link,address" \
+  -DSANDTABLE_FUZZ=ON -DSANDTABLE_TESTS=OFF -DSANDTABLE_BENCH=OFF >/dev/null
+cmake --build "$build_dir" --target sandtable_fuzzers -j 2
+
+# Seeds: a fresh corpus every run, so a run is the same on every machine.
+seeds=$build_dir/seeds
+rm -rf "$seeds" "$build_dir/corpus" "$build_dir/crashes"
+mkdir -p "$seeds" "$build_dir/crashes"
+seed() {  # seed NAME FILE... : copy files into NAME's seed directory
+  local name=$1
+  shift
+  mkdir -p "$seeds/$name"
+  for f in "$@"; do cp "$f" "$seeds/$name/"; done
+}
+seed sandtable_fuzz_materials samples/materials.txt
+seed sandtable_fuzz_icon_definitions samples/icons.txt samples/icons-models.txt
+seed sandtable_fuzz_path samples/demo.path
+# The sim text target's first byte picks the reader: 0 script, 1 scenario,
+# 2 aircraft, 3 collision table.
+mkdir -p "$seeds/sandtable_fuzz_sim_text"
+pick() { { printf "\\x$1"; cat "$2"; } >"$seeds/sandtable_fuzz_sim_text/$1-$(basename "$2")"; }
+pick 00 samples/demo.script
+pick 01 samples/demo.scenario
+for f in samples/aircraft/*.txt; do pick 02 "$f"; done
+pick 03 samples/collisions.txt
+
+# A small database (Monaco, 1.6 km by 1.7 km at 30 m: one grid block, with icons and materials)
+# seeds the binary readers.
+data=../shared/data/elevation/srtm/N43E007.hgt.zip
+if [ -x "$cli" ] && [ -f "$data" ]; then
+  db=$build_dir/seed-db
+  "$cli" build --elevation "$data" --extent 7.40 43.725 7.42 43.74 --spacing 30 \
+    --icons samples/icons.txt --materials samples/materials.txt -o "$db" --force >/dev/null 2>&1
+  seed sandtable_fuzz_grid "$db/grid.stg"
+  seed sandtable_fuzz_manifest "$db/manifest.json"
+  seed sandtable_fuzz_icon_pack "$db/icons.pack"
+  mkdir -p "$seeds/sandtable_fuzz_pack"
+  python3 - "$db" "$seeds/sandtable_fuzz_pack/db" <<'EOF'
+import struct, sys
+idx = open(sys.argv[1] + "/modules.idx", "rb").read()
+pack = open(sys.argv[1] + "/modules.pack", "rb").read()
+open(sys.argv[2], "wb").write(struct.pack("<I", len(idx)) + idx + pack)
+EOF
+  # Raw modules (the pack's first records, unpacked by the zstd tool) seed the module target.
+  if command -v zstd >/dev/null 2>&1; then
+    python3 - "$db" "$seeds/sandtable_fuzz_module" <<'EOF'
+import os, struct, subprocess, sys
+db, out = sys.argv[1], sys.argv[2]
+os.makedirs(out, exist_ok=True)
+idx = open(db + "/modules.idx", "rb").read()
+pack = open(db + "/modules.pack", "rb").read()
+entry_bytes, count, table = struct.unpack_from("<IQQ", idx, 52)  # FORMAT.md §10: entryBytes, entryCount, tableOffset
+for k in range(min(count, 2)):
+    offset, size = struct.unpack_from("<QI", idx, table + k * entry_bytes)
+    raw = subprocess.run(["zstd", "-dcq"], input=pack[offset:offset + size], capture_output=True)
+    if raw.returncode == 0:
+        open(f"{out}/module{k}", "wb").write(raw.stdout)
+EOF
+  fi
+else
+  echo "fuzz: warning: no $cli or no $data; the binary readers start from empty seeds" >&2
+fi
+
+# The grid and pack targets write their scratch files under TMPDIR.
+export TMPDIR="$(cd "$build_dir" && pwd)/tmp"
+rm -rf "$TMPDIR"
+mkdir -p "$TMPDIR"
+status=0
+while read -r name bin; do
+  corpus=$build_dir/corpus/$name
+  mkdir -p "$corpus" "$seeds/$name"
+  echo "fuzz: $name for ${seconds} s (at most $runs inputs)"
+  # -timeout: one input taking 10 s is a hang; -rss_limit_mb: an input that
+  # makes a reader allocate over 2 GiB is a failure too.
+  if ! "$bin" -max_total_time="$seconds" -runs="$runs" -timeout=10 -rss_limit_mb=2048 \
+      -artifact_prefix="$build_dir/crashes/$name-" -print_final_stats=0 "$corpus" "$seeds/$name" \
+      >"$build_dir/$name.log" 2>&1; then
+    echo "fuzz: $name FAILED; its log: $build_dir/$name.log; the input: $build_dir/crashes/" >&2
+    tail -n 40 "$build_dir/$name.log" >&2
+    status=1
+  fi
+done <"$build_dir/fuzzers.txt"
+[ $status -eq 0 ] && echo "fuzz: every target ran without a crash"
+exit $status
