@@ -16,6 +16,7 @@
 #include "sandtable/paging/world.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/sim/sim_world.h"
+#include "sandtable/testing/require.h"
 #include "test_support.h"
 
 namespace sandtable::test {
@@ -91,7 +92,7 @@ TEST_F(OneWorld, simOpensTheDatabaseOnce) {
 
 TEST_F(OneWorld, flyWithAScenarioOpensTheDatabaseOnce) {
   std::string why;
-  if (!runtime::headlessGlAvailable(why)) GTEST_SKIP() << "no headless GL: " << why;
+  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   OpenCounter opens(db(), manifest::kFileName);
   const auto r = runCli({"fly", db(), "--scenario", *tmp_ / "one.scenario", "--png", *tmp_ / "frames", "--frames",
                          "2", "--size", "160x120", "--no-hud"});
