@@ -18,6 +18,7 @@
 
 #include "culture_internal.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 namespace culture {
@@ -74,8 +75,7 @@ struct Tri {
   }
   double height(Vec2 p) const {
     const double fx = (p.x - x0) / (x1 - x0), fz = (p.z - z0) / (z1 - z0);
-    if (upper) return hNW + fx * (hNE - hNW) + fz * (hSW - hNW);
-    return hSE + (1.0 - fx) * (hSW - hSE) + (1.0 - fz) * (hNE - hSE);
+    return terrain::halfPlane(upper ? Half::upper : Half::lower, fx, fz, hNW, hNE, hSW, hSE);
   }
   Vec2 cornerOf(std::uint8_t b) const {
     for (int k = 0; k < 3; ++k) {

@@ -12,6 +12,7 @@
 
 #include "module_internal.h"
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::module {
 
@@ -218,21 +219,15 @@ bool findSkinOffset(std::uint32_t n, Coord coord, Tex tex, double& offset) {
 
 // ------------------------------------------------------- version 3 rules
 
-/// Skirt vertices, indices and groups that implicit skirts add to a level of
-/// sx x sz squares with nodes of `node` squares (meshing::addSkirts).
-struct SkirtCounts {
-  std::uint64_t vertices = 0, indices = 0, groups = 0;
-};
+/// Skirt vertices, indices and groups that implicit skirts add to a level
+/// (terrain_rule.h, the rule meshing::addSkirts follows).
+using terrain::SkirtCounts;
+using terrain::skirtCounts;
 
-SkirtCounts skirtCounts(std::uint64_t sx, std::uint64_t sz, std::uint64_t node) {
-  const std::uint64_t nx = (sx + node - 1) / node, nz = (sz + node - 1) / node;
-  return {2 * nz * (sx + nx) + 2 * nx * (sz + nz), 12 * (nz * sx + nx * sz), nx * nz};
-}
-
-/// The skirts meshing::addSkirts hangs below a lattice whose posts are
-/// vertices 0 .. (sx+1)(sz+1)-1 of `v`: bottom vertices written from
-/// v[base], and per node (row-major) its group square and 12 * side
-/// squares indices. The order is the builder's, so that an encoder can
+/// The skirts of terrain_rule.h below a lattice whose posts are vertices
+/// 0 .. (sx+1)(sz+1)-1 of `v`: bottom vertices written from v[base], and
+/// per node (row-major) its group square and 12 * side squares indices.
+/// The order is the builder's (meshing::addSkirts), so that an encoder can
 /// compare bit for bit and a decoder rebuild the same level.
 struct SkirtSink {
   Vertex* vertices;                   ///< room for SkirtCounts::vertices
@@ -247,40 +242,32 @@ void makeSkirts(const Vertex* v, const std::uint32_t* normals, std::uint32_t sx,
   const std::size_t w = std::size_t(sx) + 1;
   std::uint32_t next = base;
   std::size_t vi = 0, ii = 0, gi = 0;
-  const auto side = [&](std::size_t a0, std::size_t b0, std::size_t a1, std::size_t b1) {
-    const std::size_t n = std::max(a1 - a0, b1 - b0);
-    const std::size_t along = b0 == b1 ? 1 : w;  // post stride along the side
+  const auto side = [&](const terrain::SkirtSide& s) {
+    const std::size_t n = s.posts() - 1;
+    const std::size_t along = s.b0 == s.b1 ? 1 : w;  // post stride along the side
+    const std::size_t from = s.b0 * w + s.a0;
     const std::uint32_t first = next;
-    for (std::size_t k = 0, top = b0 * w + a0; k <= n; ++k, top += along) {
-      const Vertex& t = v[top];
-      out.vertices[vi + k] = {t.x, t.y - depth, t.z, 0.0f, 0.0f};
+    for (std::size_t k = 0, top = from; k <= n; ++k, top += along) {
+      out.vertices[vi + k] = terrain::skirtBottom(v[top], depth);
     }
     if (out.normals) {
-      for (std::size_t k = 0, top = b0 * w + a0; k <= n; ++k, top += along) out.normals[vi + k] = normals[top];
+      for (std::size_t k = 0, top = from; k <= n; ++k, top += along) out.normals[vi + k] = normals[top];
     }
-    for (std::size_t k = 1, top = b0 * w + a0 + along; k <= n; ++k, top += along) {
-      const auto a = std::uint32_t(top - along), c = std::uint32_t(top);
-      const std::uint32_t ab = first + std::uint32_t(k) - 1, cb = first + std::uint32_t(k);
-      const std::uint32_t tri[6] = {a, ab, c, c, ab, cb};
-      std::memcpy(out.indices + ii, tri, sizeof tri);
-      ii += 6;
+    for (std::size_t k = 1, top = from + along; k <= n; ++k, top += along) {
+      const auto quad = terrain::skirtQuad(std::uint32_t(top - along), std::uint32_t(top),
+                                           first + std::uint32_t(k) - 1, first + std::uint32_t(k));
+      std::memcpy(out.indices + ii, quad.data(), sizeof quad);
+      ii += quad.size();
     }
     vi += n + 1, next += std::uint32_t(n + 1);
   };
-  for (std::size_t nz = 0; nz < sz; nz += node) {
-    for (std::size_t nx = 0; nx < sx; nx += node) {
-      const std::size_t ax = nx, bx = std::min<std::size_t>(nx + node, sx), az = nz,
-                        bz = std::min<std::size_t>(nz + node, sz);
-      const std::size_t start = ii;
-      side(ax, az, bx, az);  // north
-      side(ax, bz, bx, bz);  // south
-      side(ax, az, ax, bz);  // west
-      side(bx, az, bx, bz);  // east
-      out.squares[gi] = std::uint32_t(nz * sx + nx);
-      out.counts[gi] = std::uint32_t(ii - start);
-      ++gi;
-    }
-  }
+  terrain::forEachSkirtNode(sx, sz, node, [&](std::uint32_t square, const std::array<terrain::SkirtSide, 4>& sides) {
+    const std::size_t start = ii;
+    for (const terrain::SkirtSide& s : sides) side(s);
+    out.squares[gi] = square;
+    out.counts[gi] = std::uint32_t(ii - start);
+    ++gi;
+  });
 }
 
 /// The highest y over the indices of every non-skirt group, per square
@@ -331,13 +318,8 @@ float planeY(const Vertex* lat, std::uint32_t sx, std::uint32_t sz, double spaci
   const std::size_t nw = b * w + a, ne = nw + 1, sw = nw + w, se = sw + 1;
   const double u = (double(x) - lat[nw].x) / (double(lat[ne].x) - lat[nw].x);
   const double t = (double(z) - lat[nw].z) / (double(lat[sw].z) - lat[nw].z);
-  const double hnw = height(nw), hne = height(ne), hsw = height(sw), hse = height(se);
-  // Both halves, then a select: which half a culture vertex lies in is
-  // close to random, and a mispredicted branch cost more than the other
-  // half's arithmetic.
-  const double upper = hnw + u * (hne - hnw) + t * (hsw - hnw);
-  const double lower = hse + (1.0 - u) * (hsw - hse) + (1.0 - t) * (hne - hse);
-  return float(u + t <= 1.0 ? upper : lower);
+  return float(terrain::planeHeight(u, t, double(height(nw)), double(height(ne)), double(height(sw)),
+                                    double(height(se))));
 }
 
 /// The lattice vertices of grid triangle (square, half) in the builder's
@@ -346,9 +328,9 @@ float planeY(const Vertex* lat, std::uint32_t sx, std::uint32_t sz, double spaci
 bool latticeTriangle(std::uint32_t square, std::uint8_t half, std::uint32_t sx, std::uint32_t sz,
                      std::uint32_t out[3]) {
   if (half > 1 || square >= std::uint64_t(sx) * sz) return false;
-  const std::uint32_t w = sx + 1, nw = (square / sx) * w + square % sx, ne = nw + 1, sw = nw + w, se = sw + 1;
-  if (half == 0) out[0] = nw, out[1] = sw, out[2] = ne;
-  else out[0] = ne, out[1] = sw, out[2] = se;
+  const std::uint32_t w = sx + 1, nw = (square / sx) * w + square % sx;
+  const auto tri = terrain::halfCorners(static_cast<Half>(half), std::array{nw, nw + 1, nw + w, nw + w + 1});
+  std::copy(tri.begin(), tri.end(), out);
   return true;
 }
 
@@ -819,9 +801,8 @@ void fillLatticeRuns(const Group* gr, std::size_t ng, const std::uint32_t* strea
         ++square, ++nw;
         if (++col == sx) col = 0, ++nw;
       }
-      std::uint32_t* o = out + gr[g].firstIndex;
-      if (gr[g].half == Half::upper) o[0] = nw, o[1] = nw + w, o[2] = nw + 1;
-      else o[0] = nw + 1, o[1] = nw + w, o[2] = nw + w + 1;
+      const auto tri = terrain::halfCorners(gr[g].half, std::array{nw, nw + 1, nw + w, nw + w + 1});
+      std::memcpy(out + gr[g].firstIndex, tri.data(), sizeof tri);
     }
   }
   (void)sz;

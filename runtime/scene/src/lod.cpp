@@ -5,6 +5,8 @@
 #include <limits>
 #include <utility>
 
+#include "sandtable/formats/terrain_rule.h"
+
 namespace sandtable::runtime {
 namespace {
 
@@ -104,9 +106,7 @@ std::optional<double> levelHeightAt(const module::Level& level, double x, double
   const module::Vertex& se = post(column + 1, row + 1);
   const double w = std::max(double(ne.x - nw.x), 1e-9), h = std::max(double(sw.z - nw.z), 1e-9);
   const double u = std::clamp((x - nw.x) / w, 0.0, 1.0), v = std::clamp((z - nw.z) / h, 0.0, 1.0);
-  // The SW-NE diagonal is u + v = 1; the upper triangle holds the NW corner.
-  if (u + v <= 1.0) return nw.y + u * (ne.y - nw.y) + v * (sw.y - nw.y);
-  return se.y + (1.0 - u) * (sw.y - se.y) + (1.0 - v) * (ne.y - se.y);
+  return terrain::planeHeight(u, v, nw.y, ne.y, sw.y, se.y);
 }
 
 std::vector<double> levelErrors(std::span<const module::Level> levels, std::uint32_t finest) {
