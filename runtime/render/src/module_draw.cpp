@@ -168,8 +168,7 @@ class PostMap {
   std::optional<double> heightAt(double x, double z) const {
     if (nx_ == 0 || nz_ == 0 || !(level_->spacing > 0)) return std::nullopt;
     const double sp = level_->spacing;
-    const auto column = std::uint32_t(std::clamp(std::floor(x / sp), 0.0, double(nx_ - 1)));
-    const auto row = std::uint32_t(std::clamp(std::floor(z / sp), 0.0, double(nz_ - 1)));
+    const std::uint32_t column = terrain::latticeCell(x, sp, nx_), row = terrain::latticeCell(z, sp, nz_);
     const std::uint32_t k[4] = {at(column, row), at(column + 1, row), at(column, row + 1), at(column + 1, row + 1)};
     for (const std::uint32_t v : k) {
       if (v == UINT32_MAX) return std::nullopt;

@@ -95,8 +95,8 @@ std::optional<double> levelHeightAt(const module::Level& level, double x, double
   if (nx == 0 || nz == 0 || level.vertices.size() < posts || !(level.spacing > 0)) {
     return std::nullopt;
   }
-  const auto column = std::uint32_t(std::clamp(std::floor(x / level.spacing), 0.0, double(nx - 1)));
-  const auto row = std::uint32_t(std::clamp(std::floor(z / level.spacing), 0.0, double(nz - 1)));
+  const std::uint32_t column = terrain::latticeCell(x, level.spacing, nx);
+  const std::uint32_t row = terrain::latticeCell(z, level.spacing, nz);
   const auto post = [&](std::uint32_t c, std::uint32_t r) -> const module::Vertex& {
     return level.vertices[std::size_t(r) * (nx + 1) + c];
   };

@@ -142,6 +142,17 @@ constexpr LatticeSpan latticeSpan(double u, std::uint32_t first, std::uint32_t l
   return {a, std::min(a + step, last)};
 }
 
+/// The square (column or row) of a module level's lattice, n squares of
+/// nominal spacing `spacing` along the axis, that holds module-local
+/// coordinate c: the nominal spacing decides, clamped to 0 .. n-1 (the last
+/// square may be narrower; a coordinate that is not a number is in square 0).
+constexpr std::uint32_t latticeCell(double c, double spacing, std::uint32_t n) {
+  const double f = c / spacing;
+  if (!(f > 0)) return 0;
+  if (f >= double(n)) return n - 1;
+  return std::uint32_t(f);
+}
+
 /// The first grid post of the module holding post coordinate u along an
 /// axis of posts 0..lastPost, for modules of `squares` level-0 squares
 /// (module k spans posts k * squares .. k * squares + squares, clamped).
