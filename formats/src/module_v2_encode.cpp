@@ -280,40 +280,18 @@ void planVersion4(const Level& l, std::size_t E, Plan& p) {
   p.stExp = stExponent(l.vertices, P + E - d, P + E);
 }
 
-void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::vector<std::byte>& out) {
-  Plan p = plan(l, heightStep);
-  if (version >= kVersion3 && p.posts) {
-    p.flags |= kLevel3PlaneHeights;
-    planSkirts(l, p);
-    p.xzExp = xzExponent(l.vertices, std::size_t(p.posts), l.vertices.size() - std::size_t(p.skirts.vertices));
-  }
+/// The vertices after the lattice (and before implicit skirts) as
+/// meshopt's vertex stream: x, z and height codes (from the lattice plane
+/// in versions 3 and 4), texture (XOR the skin's with the lattice) and
+/// normal.
+std::vector<unsigned char> vertexStream(const Level& l, const Plan& p, std::size_t E) {
   const auto& v = l.vertices;
-  const std::size_t P = std::size_t(p.posts), V = v.size(), E = V - P - std::size_t(p.skirts.vertices);
-  if (version >= kVersion4 && P > 0) planVersion4(l, E, p);
-  const std::size_t w = std::size_t(l.squaresX) + 1;
+  const std::size_t P = std::size_t(p.posts);
   const bool normals = p.flags & kLevel2Normals;
-  const bool implicitSkirts = p.flags & kLevel3ImplicitSkirts;
-  // The groups and indices stored: all but implicit skirts.
-  std::vector<Group> keptGroups;
-  std::vector<std::uint32_t> keptIndices;
-  if (implicitSkirts) {
-    keptGroups.reserve(l.groups.size() - std::size_t(p.skirts.groups));
-    keptIndices.reserve(l.indices.size() - std::size_t(p.skirts.indices));
-    for (const Group& g : l.groups) {
-      if (g.half == Half::skirt) continue;
-      keptGroups.push_back(g);
-      keptIndices.insert(keptIndices.end(), l.indices.begin() + g.firstIndex,
-                         l.indices.begin() + g.firstIndex + g.indexCount);
-    }
-  }
-  const std::vector<Group>& groups = implicitSkirts ? keptGroups : l.groups;
-  const std::vector<std::uint32_t>& indices = implicitSkirts ? keptIndices : l.indices;
   std::vector<float> latticeY(P);  // as decoded
   for (std::size_t k = 0; k < P; ++k) latticeY[k] = heightValue(p, heightCode(p, v[k].y));
   const bool plane = p.flags & kLevel3PlaneHeights;
   const bool exact = p.flags & kLevel2ExactHeights;
-
-  // Vertex and index streams first (their sizes go in the header).
   const std::size_t stride = normals ? 24 : 20;
   std::vector<std::uint32_t> raw(E * stride / 4);
   for (std::size_t i = 0; i < E; ++i) {
@@ -342,66 +320,88 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
     vstream.resize(meshopt_encodeVertexBufferBound(E, stride));
     vstream.resize(meshopt_encodeVertexBuffer(vstream.data(), vstream.size(), raw.data(), E, stride));
   }
-  // Version 3: a group that is one grid triangle of the lattice, in the
-  // builder's vertex order, stores no indices (its run says so).
-  std::vector<std::uint8_t> plain(groups.size(), 0);
+  return vstream;
+}
+
+/// The indices the index stream holds. Version 3: a group that is one grid
+/// triangle of the lattice, in the builder's vertex order, stores no
+/// indices (plain[g] = 1; its run says so).
+std::vector<std::uint32_t> streamIndices(const Level& l, bool lattice, const std::vector<Group>& groups,
+                                         const std::vector<std::uint32_t>& indices, std::vector<std::uint8_t>& plain) {
+  plain.assign(groups.size(), 0);
+  if (!lattice) return indices;
   std::vector<std::uint32_t> streamIdx;
-  const bool v3 = version >= kVersion3;
-  if (v3 && P > 0) {
-    streamIdx.reserve(indices.size());
-    std::size_t at = 0;
-    for (std::size_t g = 0; g < groups.size(); ++g) {
-      const Group& k = groups[g];
-      std::uint32_t tri[3];
-      plain[g] = k.indexCount == 3 && latticeTriangle(k.square, std::uint8_t(k.half), l.squaresX, l.squaresZ, tri) &&
-                 std::equal(tri, tri + 3, indices.begin() + std::ptrdiff_t(at));
-      if (!plain[g]) streamIdx.insert(streamIdx.end(), indices.begin() + std::ptrdiff_t(at),
-                                      indices.begin() + std::ptrdiff_t(at + k.indexCount));
-      at += k.indexCount;
-    }
-    // Readers allow at most two lattice groups a square (kMaxLatticeGroupsPerSquare),
-    // which bounds what they allocate; past that every index is stored.
-    const std::size_t latticeGroups = std::size_t(std::count(plain.begin(), plain.end(), std::uint8_t{1}));
-    if (latticeGroups > kMaxLatticeGroupsPerSquare * std::size_t(l.squaresX) * l.squaresZ) {
-      std::fill(plain.begin(), plain.end(), std::uint8_t{0});
-      streamIdx = indices;
-    }
+  streamIdx.reserve(indices.size());
+  std::size_t at = 0;
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    const Group& k = groups[g];
+    std::uint32_t tri[3];
+    plain[g] = k.indexCount == 3 && latticeTriangle(k.square, std::uint8_t(k.half), l.squaresX, l.squaresZ, tri) &&
+               std::equal(tri, tri + 3, indices.begin() + std::ptrdiff_t(at));
+    if (!plain[g]) streamIdx.insert(streamIdx.end(), indices.begin() + std::ptrdiff_t(at),
+                                    indices.begin() + std::ptrdiff_t(at + k.indexCount));
+    at += k.indexCount;
   }
-  const std::vector<std::uint32_t>& stream = v3 && P > 0 ? streamIdx : indices;
-  std::vector<unsigned char> istream;
-  if (!stream.empty()) {
-    istream.resize(meshopt_encodeIndexSequenceBound(stream.size(), V));
-    istream.resize(meshopt_encodeIndexSequence(istream.data(), istream.size(), stream.data(), stream.size()));
+  // Readers allow at most two lattice groups a square (kMaxLatticeGroupsPerSquare),
+  // which bounds what they allocate; past that every index is stored.
+  const std::size_t latticeGroups = std::size_t(std::count(plain.begin(), plain.end(), std::uint8_t{1}));
+  if (latticeGroups > kMaxLatticeGroupsPerSquare * std::size_t(l.squaresX) * l.squaresZ) {
+    std::fill(plain.begin(), plain.end(), std::uint8_t{0});
+    streamIdx = indices;
   }
+  return streamIdx;
+}
+
+/// The stored groups as runs (LEB128: slot delta, priority, material, index
+/// count, length; version 3 marks a lattice run in bit 0 of the length);
+/// returns the run count.
+std::uint32_t groupRuns(const std::vector<Group>& groups, const std::vector<std::uint8_t>& plain, bool v3,
+                        std::vector<std::byte>& runs) {
+  std::uint32_t runCount = 0;
+  std::uint64_t prev = 0;
+  for (std::size_t g = 0; g < groups.size();) {
+    const Group& a = groups[g];
+    const std::uint64_t start = slotOf(a.square, std::uint8_t(a.half));
+    std::size_t n = 1;
+    std::uint64_t slot = start;
+    while (g + n < groups.size()) {
+      const Group& b = groups[g + n];
+      if (b.priority != a.priority || b.material != a.material || b.indexCount != a.indexCount ||
+          slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot) || plain[g + n] != plain[g]) {
+        break;
+      }
+      slot = nextSlot(slot);
+      ++n;
+    }
+    putVarint(runs, zigzag64(std::int64_t(start - prev)));
+    putVarint(runs, a.priority);
+    putVarint(runs, a.material);
+    putVarint(runs, a.indexCount);
+    putVarint(runs, v3 ? std::uint64_t(n) << 1 | plain[g] : n);
+    prev = slot;
+    g += n;
+    ++runCount;
+  }
+  return runCount;
+}
+
+/// What a level's bytes are made of, besides its plan.
+struct LevelStreams {
+  std::vector<unsigned char> vertices, indices;
   std::vector<std::byte> runs;
   std::uint32_t runCount = 0;
-  {
-    std::uint64_t prev = 0;
-    for (std::size_t g = 0; g < groups.size();) {
-      const Group& a = groups[g];
-      const std::uint64_t start = slotOf(a.square, std::uint8_t(a.half));
-      std::size_t n = 1;
-      std::uint64_t slot = start;
-      while (g + n < groups.size()) {
-        const Group& b = groups[g + n];
-        if (b.priority != a.priority || b.material != a.material || b.indexCount != a.indexCount ||
-            slotOf(b.square, std::uint8_t(b.half)) != nextSlot(slot) || plain[g + n] != plain[g]) {
-          break;
-        }
-        slot = nextSlot(slot);
-        ++n;
-      }
-      putVarint(runs, zigzag64(std::int64_t(start - prev)));
-      putVarint(runs, a.priority);
-      putVarint(runs, a.material);
-      putVarint(runs, a.indexCount);
-      putVarint(runs, v3 ? std::uint64_t(n) << 1 | plain[g] : n);
-      prev = slot;
-      g += n;
-      ++runCount;
-    }
-  }
+  std::size_t streamIndices = 0;
+};
 
+/// Appends the level: header, lattice planes, maxHeight plane, streams.
+void writeLevel(const Level& l, const Plan& p, std::uint32_t version, const LevelStreams& st,
+                std::vector<std::byte>& out) {
+  const auto& v = l.vertices;
+  const std::size_t P = std::size_t(p.posts), V = v.size(), w = std::size_t(l.squaresX) + 1;
+  const bool normals = p.flags & kLevel2Normals;
+  const std::vector<unsigned char>& vstream = st.vertices;
+  const std::vector<unsigned char>& istream = st.indices;
+  const std::vector<std::byte>& runs = st.runs;
   const std::size_t S = std::size_t(l.squaresX) * l.squaresZ;
   const std::uint32_t headerBytes = version >= kVersion4   ? kLevelHeaderBytes4
                                     : version >= kVersion3 ? kLevelHeaderBytes3
@@ -420,7 +420,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   storeLE<std::uint32_t>(h + levelField2::vertexCount, std::uint32_t(V));
   storeLE<std::uint32_t>(h + levelField2::indexCount, std::uint32_t(l.indices.size()));
   storeLE<std::uint32_t>(h + levelField2::groupCount, std::uint32_t(l.groups.size()));
-  storeLE<std::uint32_t>(h + levelField2::runCount, runCount);
+  storeLE<std::uint32_t>(h + levelField2::runCount, st.runCount);
   storeLE<double>(h + levelField2::heightStep, p.step);
   storeLE<std::int64_t>(h + levelField2::heightBase, p.base);
   storeLE<double>(h + levelField2::lastX, p.lastX);
@@ -435,7 +435,7 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   if (version >= kVersion3) {
     storeLE<std::uint32_t>(h + levelField3::skirtNode, p.node);
     storeLE<std::uint16_t>(h + levelField3::skirtMaterial, p.skirtMaterial);
-    storeLE<std::uint32_t>(h + levelField3::streamIndices, std::uint32_t(stream.size()));
+    storeLE<std::uint32_t>(h + levelField3::streamIndices, std::uint32_t(st.streamIndices));
   }
   if (version >= kVersion4) {
     storeLE<std::uint32_t>(h + levelField4::rawTextureVertices, p.rawTexture);
@@ -475,6 +475,46 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
   if (!runs.empty()) std::memcpy(q, runs.data(), runs.size());
   q += runs.size();
   assert(q == out.data() + out.size());
+}
+
+void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::vector<std::byte>& out) {
+  Plan p = plan(l, heightStep);
+  if (version >= kVersion3 && p.posts) {
+    p.flags |= kLevel3PlaneHeights;
+    planSkirts(l, p);
+    p.xzExp = xzExponent(l.vertices, std::size_t(p.posts), l.vertices.size() - std::size_t(p.skirts.vertices));
+  }
+  const std::size_t P = std::size_t(p.posts), E = l.vertices.size() - P - std::size_t(p.skirts.vertices);
+  if (version >= kVersion4 && P > 0) planVersion4(l, E, p);
+  const bool implicitSkirts = p.flags & kLevel3ImplicitSkirts;
+  // The groups and indices stored: all but implicit skirts.
+  std::vector<Group> keptGroups;
+  std::vector<std::uint32_t> keptIndices;
+  if (implicitSkirts) {
+    keptGroups.reserve(l.groups.size() - std::size_t(p.skirts.groups));
+    keptIndices.reserve(l.indices.size() - std::size_t(p.skirts.indices));
+    for (const Group& g : l.groups) {
+      if (g.half == Half::skirt) continue;
+      keptGroups.push_back(g);
+      keptIndices.insert(keptIndices.end(), l.indices.begin() + g.firstIndex,
+                         l.indices.begin() + g.firstIndex + g.indexCount);
+    }
+  }
+  const std::vector<Group>& groups = implicitSkirts ? keptGroups : l.groups;
+  const std::vector<std::uint32_t>& indices = implicitSkirts ? keptIndices : l.indices;
+  // Vertex and index streams first (their sizes go in the header).
+  LevelStreams st;
+  st.vertices = vertexStream(l, p, E);
+  std::vector<std::uint8_t> plain;
+  const bool v3 = version >= kVersion3;
+  const std::vector<std::uint32_t> stream = streamIndices(l, v3 && P > 0, groups, indices, plain);
+  if (!stream.empty()) {
+    st.indices.resize(meshopt_encodeIndexSequenceBound(stream.size(), l.vertices.size()));
+    st.indices.resize(meshopt_encodeIndexSequence(st.indices.data(), st.indices.size(), stream.data(), stream.size()));
+  }
+  st.streamIndices = stream.size();
+  st.runCount = groupRuns(groups, plain, v3, st.runs);
+  writeLevel(l, p, version, st, out);
 }
 
 }  // namespace
