@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "culture_internal.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert::culture {
 namespace {
@@ -35,8 +36,7 @@ double latticeHeight(const LevelLattice& lat, double x, double z) {
   const std::size_t cols = lat.xs.size();
   const auto h = [&](std::size_t a, std::size_t b) { return double(lat.heights[b * cols + a]); };
   const double nw = h(i, j), ne = h(i + 1, j), sw = h(i, j + 1), se = h(i + 1, j + 1);
-  if (u + v <= 1) return nw + u * (ne - nw) + v * (sw - nw);
-  return se + (1 - u) * (sw - se) + (1 - v) * (ne - se);
+  return terrain::planeHeight(u, v, nw, ne, sw, se);
 }
 
 std::uint32_t squareIndex(const LevelLattice& lat, Vec2 p) {

@@ -18,6 +18,7 @@
 
 #include "culture_level_work.h"
 #include "sandtable/converters/elevation.h"  // cancelRequested
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 namespace culture {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "culture_internal.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 namespace culture {
@@ -69,8 +70,7 @@ struct Tri {
   }
   double height(Vec2 p) const {
     const double fx = (p.x - x0) / (x1 - x0), fz = (p.z - z0) / (z1 - z0);
-    if (upper) return hNW + fx * (hNE - hNW) + fz * (hSW - hNW);
-    return hSE + (1.0 - fx) * (hSW - hSE) + (1.0 - fz) * (hNE - hSE);
+    return terrain::halfPlane(upper ? module::Half::upper : module::Half::lower, fx, fz, hNW, hNE, hSW, hSE);
   }
   Vec2 cornerOf(std::uint8_t b) const {
     for (int k = 0; k < 3; ++k) {

@@ -9,6 +9,7 @@
 
 #include "elevation_internal.h"
 #include "sandtable/geodesy/geodesy.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert::detail {
 namespace {
@@ -93,11 +94,8 @@ Status AccuracySampler::prepare(const std::string& vrtPath, const Frame& f) {
 
 double AccuracySampler::error(std::uint32_t i, double fx, double fz, const float* r0, const float* r1,
                               const Post& p) const {
-  // Each square split along its SW-NE diagonal (FORMAT.md §2).
   const double nw = r0[i], ne = r0[i + 1], sw = r1[i], se = r1[i + 1];
-  const double t = fx + fz <= 1.0 ? nw + fx * (ne - nw) + fz * (sw - nw)
-                                  : se + (1.0 - fx) * (sw - se) + (1.0 - fz) * (ne - se);
-  return t - p.z;
+  return terrain::planeHeight(fx, fz, nw, ne, sw, se) - p.z;
 }
 
 SourceAccuracy AccuracySampler::finish() const {

@@ -9,6 +9,7 @@
 
 #include "elevation_resample.h"
 #include "sandtable/base/jobs.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 namespace detail {
@@ -21,12 +22,7 @@ constexpr int kFitSamples = 3;     // samples per square side
 constexpr int kFitIterations = 10; // damped Jacobi sweeps; the start is close
 constexpr double kFitDamping = 0.8;
 
-/// Weights of a square's corners (NW, NE, SW, SE) at (fx, fz) on the
-/// triangle containing it (split along the SW-NE diagonal).
-std::array<double, 4> cornerWeights(double fx, double fz) {
-  if (fx + fz <= 1.0) return {1 - fx - fz, fx, fz, 0};
-  return {0, 1 - fz, 1 - fx, fx + fz - 1};
-}
+using terrain::cornerWeights;
 
 /// The quadrature shared by the right-hand side and the mass matrix, so a
 /// source surface that is already linear on a triangle is reproduced exactly.

@@ -15,6 +15,7 @@
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/manifest.h"
 #include "sandtable/formats/materials.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 
@@ -27,13 +28,9 @@ namespace {
 /// rule, runtime/render/src/module_draw.cpp), so a lattice vertex gets its
 /// post's normal exactly.
 std::array<double, 3> gridNormal(const grid::GridFile& g, double x, double z) {
-  const double maxI = double(g.postsX() - 1), maxJ = double(g.postsZ() - 1);
-  const double u = std::clamp(x / g.spacing(), 0.0, maxI), v = std::clamp(z / g.spacing(), 0.0, maxJ);
-  const auto i = std::uint32_t(std::min(std::floor(u), std::max(0.0, maxI - 1)));
-  const auto j = std::uint32_t(std::min(std::floor(v), std::max(0.0, maxJ - 1)));
-  const double fx = u - i, fz = v - j;
-  const std::array<double, 4> w = fx + fz <= 1.0 ? std::array<double, 4>{1.0 - fx - fz, fx, fz, 0.0}
-                                                 : std::array<double, 4>{0.0, 1.0 - fz, 1.0 - fx, fx + fz - 1.0};
+  const terrain::SquarePoint q = terrain::squareAt(x / g.spacing(), z / g.spacing(), g.postsX(), g.postsZ());
+  const std::uint32_t i = q.i, j = q.j;
+  const std::array<double, 4> w = terrain::cornerWeights(q.fx, q.fz);
   const std::uint32_t pi[4] = {i, i + 1, i, i + 1}, pj[4] = {j, j, j + 1, j + 1};
   std::array<double, 3> n{0, 0, 0};
   for (int k = 0; k < 4; ++k) {

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "sandtable/base/capped_problems.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::module {
 namespace {
@@ -417,8 +418,7 @@ class ModuleRun {
     const double x0 = xs_.local[a], x1 = xs_.local[a + 1], z0 = zs_.local[b], z1 = zs_.local[b + 1];
     const double u = (x - x0) / (x1 - x0), v = (z - z0) / (z1 - z0);
     const double nw = height(a, b), ne = height(a + 1, b), sw = height(a, b + 1), se = height(a + 1, b + 1);
-    if (u + v <= 1) return nw + u * (ne - nw) + v * (sw - nw);  // upper: NW, NE, SW
-    return se + (1 - u) * (sw - se) + (1 - v) * (ne - se);       // lower: NE, SE, SW
+    return terrain::planeHeight(u, v, nw, ne, sw, se);
   }
 
   /// Every object stands inside the module, names an icon of icons.pack and
@@ -574,14 +574,11 @@ class ModuleRun {
     const double xw = xs_.local[sx], xe = xs_.local[sx + 1];
     const double zn = zs_.local[sz], zs = zs_.local[sz + 1];
     GridTriangle t;
-    if (half == Half::upper) {  // NW, SW, NE
-      t.set(0, xw, zn, height(sx, sz));
-      t.set(1, xw, zs, height(sx, sz + 1));
-      t.set(2, xe, zn, height(sx + 1, sz));
-    } else {  // NE, SW, SE
-      t.set(0, xe, zn, height(sx + 1, sz));
-      t.set(1, xw, zs, height(sx, sz + 1));
-      t.set(2, xe, zs, height(sx + 1, sz + 1));
+    const auto corners = terrain::halfCorners(half, std::array{terrain::kNW, terrain::kNE, terrain::kSW, terrain::kSE});
+    for (int k = 0; k < 3; ++k) {
+      const terrain::Corner c = corners[std::size_t(k)];
+      const std::uint32_t east = terrain::east(c), south = terrain::south(c);
+      t.set(k, east ? xe : xw, south ? zs : zn, height(sx + east, sz + south));
     }
     t.finish();
     return t;

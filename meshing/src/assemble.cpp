@@ -1,8 +1,9 @@
 // Module assembly from a grid window (assemble.h).
 #include "sandtable/meshing/assemble.h"
 
-#include <tuple>
+#include <array>
 
+#include "sandtable/formats/terrain_rule.h"
 #include "sandtable/meshing/heights.h"
 #include "sandtable/meshing/skirts.h"
 
@@ -24,9 +25,10 @@ void plainSkin(const LevelLattice& lat, std::uint16_t material, module::Level& o
   auto post = [&](std::uint32_t a, std::uint32_t b) { return b * (nx + 1) + a; };
   for (std::uint32_t sz = 0; sz < nz; ++sz) {
     for (std::uint32_t sx = 0; sx < nx; ++sx) {
-      const std::uint32_t nw = post(sx, sz), ne = post(sx + 1, sz), sw = post(sx, sz + 1), se = post(sx + 1, sz + 1);
-      for (const auto& [half, a, b, c] : {std::tuple{module::Half::upper, nw, sw, ne},
-                                           std::tuple{module::Half::lower, ne, sw, se}}) {
+      const std::array<std::uint32_t, 4> corners = {post(sx, sz), post(sx + 1, sz), post(sx, sz + 1),
+                                                    post(sx + 1, sz + 1)};
+      for (const module::Half half : {module::Half::upper, module::Half::lower}) {
+        const auto [a, b, c] = terrain::halfCorners(half, corners);
         module::Group g;
         g.square = sz * nx + sx;
         g.half = half;

@@ -2,9 +2,12 @@
 #include "sandtable/meshing/skirts.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <utility>
+
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::meshing {
 
@@ -66,15 +69,12 @@ void appendSkirtSide(Level& level, const std::vector<std::uint32_t>& top, float 
                      std::vector<std::uint32_t>& indices) {
   const std::uint32_t base = std::uint32_t(level.vertices.size());
   for (std::uint32_t v : top) {
-    Vertex b = level.vertices[v];
-    b.y -= depth;
-    b.s = b.t = 0;
+    const Vertex b = terrain::skirtBottom(level.vertices[v], depth);
     level.vertices.push_back(b);
   }
   for (std::size_t k = 0; k + 1 < top.size(); ++k) {
-    const std::uint32_t a = top[k], c = top[k + 1];
-    const std::uint32_t ab = base + std::uint32_t(k), cb = base + std::uint32_t(k + 1);
-    indices.insert(indices.end(), {a, ab, c, c, ab, cb});
+    const auto quad = terrain::skirtQuad(top[k], top[k + 1], base + std::uint32_t(k), base + std::uint32_t(k + 1));
+    indices.insert(indices.end(), quad.begin(), quad.end());
   }
 }
 
@@ -105,33 +105,24 @@ void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, floa
     if (cache[k] == UINT32_MAX && p.y == lat.heights[k]) cache[k] = v;
   }
   const std::size_t sx = lat.xs.size() - 1, sz = lat.zs.size() - 1;
-  for (std::size_t nz = 0; nz < sz; nz += node) {
-    for (std::size_t nx = 0; nx < sx; nx += node) {
-      const std::size_t ax = nx, bx = std::min(nx + node, sx), az = nz, bz = std::min(nz + node, sz);
-      Group g;
-      g.square = std::uint32_t(nz * sx + nx);
-      g.half = Half::skirt;
-      g.priority = module::kPrioritySkin;
-      g.material = material;
-      g.firstIndex = std::uint32_t(indices.size());
-      std::vector<std::uint32_t> top;
-      auto side = [&](std::size_t a0, std::size_t b0, std::size_t a1, std::size_t b1) {
-        top.clear();
-        const std::size_t n = std::max(a1 - a0, b1 - b0);
-        for (std::size_t k = 0; k <= n; ++k) {
-          const std::size_t a = a0 == a1 ? a0 : a0 + k, b = b0 == b1 ? b0 : b0 + k;
-          top.push_back(latticeVertex(level, lat, a, b, cache));
-        }
-        appendSkirtSide(level, top, depth, indices);
-      };
-      side(ax, az, bx, az);  // north
-      side(ax, bz, bx, bz);  // south
-      side(ax, az, ax, bz);  // west
-      side(bx, az, bx, bz);  // east
-      g.indexCount = std::uint32_t(indices.size()) - g.firstIndex;
-      groups.push_back(g);
+  std::vector<std::uint32_t> top;
+  terrain::forEachSkirtNode(sx, sz, node, [&](std::uint32_t square, const std::array<terrain::SkirtSide, 4>& sides) {
+    Group g;
+    g.square = square;
+    g.half = Half::skirt;
+    g.priority = module::kPrioritySkin;
+    g.material = material;
+    g.firstIndex = std::uint32_t(indices.size());
+    for (const terrain::SkirtSide& side : sides) {
+      top.clear();
+      for (std::size_t k = 0; k < side.posts(); ++k) {
+        top.push_back(latticeVertex(level, lat, side.column(k), side.row(k), cache));
+      }
+      appendSkirtSide(level, top, depth, indices);
     }
-  }
+    g.indexCount = std::uint32_t(indices.size()) - g.firstIndex;
+    groups.push_back(g);
+  });
 }
 
 bool groupBefore(const Group& a, const Group& b) {

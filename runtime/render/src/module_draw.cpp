@@ -12,6 +12,7 @@
 #include <limits>
 #include <optional>
 
+#include "sandtable/formats/terrain_rule.h"
 #include "sandtable/scene/lod.h"
 
 namespace sandtable::runtime::detail {
@@ -60,18 +61,9 @@ struct GridSample {
 };
 
 GridSample sampleGrid(const grid::HeightField& g, const std::array<float, 256>& water, double x, double z) {
-  const double maxI = double(g.postsX() - 1), maxJ = double(g.postsZ() - 1);
-  const double u = std::clamp(x / g.spacing(), 0.0, maxI), v = std::clamp(z / g.spacing(), 0.0, maxJ);
-  const auto i = std::uint32_t(std::min(std::floor(u), maxI - 1));
-  const auto j = std::uint32_t(std::min(std::floor(v), maxJ - 1));
-  const double fx = u - i, fz = v - j;
-  // Weights of NW, NE, SW, SE.
-  std::array<double, 4> w{};
-  if (fx + fz <= 1.0) {
-    w = {1.0 - fx - fz, fx, fz, 0.0};
-  } else {
-    w = {0.0, 1.0 - fz, 1.0 - fx, fx + fz - 1.0};
-  }
+  const terrain::SquarePoint q = terrain::squareAt(x / g.spacing(), z / g.spacing(), g.postsX(), g.postsZ());
+  const std::uint32_t i = q.i, j = q.j;
+  const std::array<double, 4> w = terrain::cornerWeights(q.fx, q.fz);  // NW, NE, SW, SE
   const std::array<std::array<std::uint32_t, 2>, 4> posts = {{{i, j}, {i + 1, j}, {i, j + 1}, {i + 1, j + 1}}};
   GridSample out;
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
@@ -127,8 +119,7 @@ class PostMap {
   std::optional<double> heightAt(double x, double z) const {
     if (nx_ == 0 || nz_ == 0 || !(level_->spacing > 0)) return std::nullopt;
     const double sp = level_->spacing;
-    const auto column = std::uint32_t(std::clamp(std::floor(x / sp), 0.0, double(nx_ - 1)));
-    const auto row = std::uint32_t(std::clamp(std::floor(z / sp), 0.0, double(nz_ - 1)));
+    const std::uint32_t column = terrain::latticeCell(x, sp, nx_), row = terrain::latticeCell(z, sp, nz_);
     const std::uint32_t k[4] = {at(column, row), at(column + 1, row), at(column, row + 1), at(column + 1, row + 1)};
     for (const std::uint32_t v : k) {
       if (v == UINT32_MAX) return std::nullopt;
@@ -139,8 +130,7 @@ class PostMap {
     const auto& se = level_->vertices[k[3]];
     const double w = std::max(double(ne.x - nw.x), 1e-9), h = std::max(double(sw.z - nw.z), 1e-9);
     const double u = std::clamp((x - nw.x) / w, 0.0, 1.0), v = std::clamp((z - nw.z) / h, 0.0, 1.0);
-    if (u + v <= 1.0) return nw.y + u * (ne.y - nw.y) + v * (sw.y - nw.y);
-    return se.y + (1.0 - u) * (sw.y - se.y) + (1.0 - v) * (ne.y - se.y);
+    return terrain::planeHeight(u, v, nw.y, ne.y, sw.y, se.y);
   }
 
  private:

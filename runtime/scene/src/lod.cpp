@@ -5,6 +5,8 @@
 #include <limits>
 #include <utility>
 
+#include "sandtable/formats/terrain_rule.h"
+
 namespace sandtable::runtime {
 namespace {
 
@@ -84,8 +86,8 @@ std::optional<double> levelHeightAt(const module::Level& level, double x, double
   if (nx == 0 || nz == 0 || level.vertices.size() < posts || !(level.spacing > 0)) {
     return std::nullopt;
   }
-  const auto column = std::uint32_t(std::clamp(std::floor(x / level.spacing), 0.0, double(nx - 1)));
-  const auto row = std::uint32_t(std::clamp(std::floor(z / level.spacing), 0.0, double(nz - 1)));
+  const std::uint32_t column = terrain::latticeCell(x, level.spacing, nx);
+  const std::uint32_t row = terrain::latticeCell(z, level.spacing, nz);
   const auto post = [&](std::uint32_t c, std::uint32_t r) -> const module::Vertex& {
     return level.vertices[std::size_t(r) * (nx + 1) + c];
   };
@@ -95,9 +97,7 @@ std::optional<double> levelHeightAt(const module::Level& level, double x, double
   const module::Vertex& se = post(column + 1, row + 1);
   const double w = std::max(double(ne.x - nw.x), 1e-9), h = std::max(double(sw.z - nw.z), 1e-9);
   const double u = std::clamp((x - nw.x) / w, 0.0, 1.0), v = std::clamp((z - nw.z) / h, 0.0, 1.0);
-  // The SW-NE diagonal is u + v = 1; the upper triangle holds the NW corner.
-  if (u + v <= 1.0) return nw.y + u * (ne.y - nw.y) + v * (sw.y - nw.y);
-  return se.y + (1.0 - u) * (sw.y - se.y) + (1.0 - v) * (ne.y - se.y);
+  return terrain::planeHeight(u, v, nw.y, ne.y, sw.y, se.y);
 }
 
 std::vector<double> levelErrors(std::span<const module::Level> levels, std::uint32_t finest) {

@@ -4,36 +4,9 @@
 #include <array>
 #include <cmath>
 
+#include "sandtable/formats/terrain_rule.h"
+
 namespace sandtable::runtime {
-namespace {
-
-/// One lattice interval [a, b] of grid posts holding post coordinate u.
-struct Interval {
-  std::uint32_t a = 0, b = 0;
-  double f = 0;  ///< (u - a) / (b - a)
-};
-
-/// The interval of a level's lattice (step `step` from the module's first
-/// post `first`, and the module's last post `last`) that holds u.
-Interval intervalOf(double u, std::uint32_t first, std::uint32_t last, std::uint32_t step) {
-  Interval iv;
-  const double k = std::floor((u - first) / step);
-  std::uint32_t a = first + static_cast<std::uint32_t>(std::max(0.0, k)) * step;
-  if (a >= last) a = first + ((last - first - 1) / step) * step;
-  iv.a = a;
-  iv.b = std::min(a + step, last);
-  iv.f = std::clamp((u - a) / double(iv.b - a), 0.0, 1.0);
-  return iv;
-}
-
-/// Barycentric weights of (fx, fz) over a square's corners NW, NE, SW, SE
-/// split along the SW-NE diagonal (terrain.h).
-std::array<double, 4> cornerWeights(double fx, double fz) {
-  if (fx + fz <= 1.0) return {1.0 - fx - fz, fx, fz, 0.0};
-  return {0.0, 1.0 - fz, 1.0 - fx, fx + fz - 1.0};
-}
-
-}  // namespace
 
 GroundClamp::GroundClamp(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares,
                          std::uint32_t levels)
@@ -50,15 +23,12 @@ GroundClamp::Square GroundClamp::squareAt(std::uint32_t level, double x, double 
   const double u = std::clamp(x / sp, 0.0, double(maxI)), v = std::clamp(z / sp, 0.0, double(maxJ));
   const std::uint32_t squares = squares_ ? squares_ : std::max(maxI, maxJ);
   const std::uint32_t step = 1u << std::min(level, 30u);
-  const auto firstPost = [&](double w, std::uint32_t maxPost) {
-    const auto k = std::min(static_cast<std::uint32_t>(w / squares), (maxPost - 1) / squares);
-    return k * squares;
-  };
-  const std::uint32_t i0 = firstPost(u, maxI), j0 = firstPost(v, maxJ);
-  const Interval ix = intervalOf(u, i0, std::min(i0 + squares, maxI), step);
-  const Interval iz = intervalOf(v, j0, std::min(j0 + squares, maxJ), step);
+  const std::uint32_t i0 = terrain::moduleFirstPost(u, squares, maxI);
+  const std::uint32_t j0 = terrain::moduleFirstPost(v, squares, maxJ);
+  const terrain::LatticeSpan ix = terrain::latticeSpan(u, i0, terrain::moduleLastPost(i0, squares, maxI), step);
+  const terrain::LatticeSpan iz = terrain::latticeSpan(v, j0, terrain::moduleLastPost(j0, squares, maxJ), step);
   Square q;
-  q.weights = cornerWeights(ix.f, iz.f);
+  q.weights = terrain::cornerWeights(ix.fraction(u), iz.fraction(v));
   q.i = {ix.a, ix.b, ix.a, ix.b};
   q.j = {iz.a, iz.a, iz.b, iz.b};
   return q;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "sandtable/formats/terrain_rule.h"
+
 namespace sandtable::runtime {
 
 Terrain::Terrain(std::shared_ptr<const grid::HeightField> heights) : grid_(std::move(heights)) {}
@@ -21,18 +23,15 @@ std::optional<TerrainSample> Terrain::sampleXZ(double x, double z) const {
   // A small tolerance keeps points on the far edges inside.
   constexpr double eps = 1e-9;
   if (!(u >= -eps && v >= -eps && u <= maxI + eps && v <= maxJ + eps)) return std::nullopt;
-  const double uc = std::clamp(u, 0.0, maxI), vc = std::clamp(v, 0.0, maxJ);
-  const auto i = static_cast<std::uint32_t>(std::min(std::floor(uc), maxI - 1));
-  const auto j = static_cast<std::uint32_t>(std::min(std::floor(vc), maxJ - 1));
-  const double fx = uc - i, fz = vc - j;
+  const terrain::SquarePoint q = terrain::squareAt(u, v, grid_->postsX(), grid_->postsZ());
+  const std::uint32_t i = q.i, j = q.j;
   const double nw = grid_->elevation(i, j), ne = grid_->elevation(i + 1, j);
   const double sw = grid_->elevation(i, j + 1), se = grid_->elevation(i + 1, j + 1);
   TerrainSample out;
-  out.upperTriangle = fx + fz <= 1.0;
-  out.elevation = out.upperTriangle ? nw + fx * (ne - nw) + fz * (sw - nw)
-                                    : se + (1.0 - fx) * (sw - se) + (1.0 - fz) * (ne - se);
-  const auto ni = static_cast<std::uint32_t>(std::lround(uc));
-  const auto nj = static_cast<std::uint32_t>(std::lround(vc));
+  out.upperTriangle = terrain::halfAt(q.fx, q.fz) == module::Half::upper;
+  out.elevation = terrain::planeHeight(q.fx, q.fz, nw, ne, sw, se);
+  const auto ni = static_cast<std::uint32_t>(std::lround(std::clamp(u, 0.0, maxI)));
+  const auto nj = static_cast<std::uint32_t>(std::lround(std::clamp(v, 0.0, maxJ)));
   out.material = grid_->material(ni, nj);
   return out;
 }

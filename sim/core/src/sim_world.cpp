@@ -7,6 +7,8 @@
 #include <limits>
 
 #include "sandtable/formats/database.h"
+#include "sandtable/formats/pack.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::sim {
 
@@ -67,7 +69,7 @@ std::optional<std::uint16_t> SimWorld::classAt(double x, double z) const {
   const auto i = std::min<std::uint32_t>(sqX - 1, static_cast<std::uint32_t>(x / s));
   const auto j = std::min<std::uint32_t>(sqZ - 1, static_cast<std::uint32_t>(z / s));
   const double u = x / s - i, v = z / s - j;
-  const std::uint8_t c = classes_[(std::size_t(j) * sqX + i) * 2 + (u + v <= 1 ? 0 : 1)];
+  const std::uint8_t c = classes_[(std::size_t(j) * sqX + i) * 2 + std::size_t(terrain::halfAt(u, v))];
   if (c == 255) return std::nullopt;
   return c;
 }
