@@ -106,9 +106,10 @@ TEST(ModuleGolden, assembledModulesKeepTheirBytesAndDecodingInEveryVersion) {
       {5, 0.01, 0xbec551aau, 0xd51125bdu}, {4, 0.0, 0x7168c467u, 0x745e617fu},
   };
   std::vector<module::Module> modules;
+  const grid::GridHeightField field(*g);
   for (std::uint32_t kz = 0; kz < mz; ++kz) {
     for (std::uint32_t kx = 0; kx < mx; ++kx) {
-      modules.push_back(assembleModule(*g, kSquares, kLevels, kx, kz, 9,
+      modules.push_back(assembleModule(field, kSquares, kLevels, kx, kz, 9,
                                        [](int, const LevelLattice& lat, module::Level& out) { return skin(lat, out); }));
       ASSERT_TRUE(module::checkEncodable(modules.back()).ok()) << module::checkEncodable(modules.back()).error();
     }
