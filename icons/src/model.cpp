@@ -71,21 +71,26 @@ std::string findTexture(const fs::path& modelDir, const std::string& name) {
   return {};
 }
 
-/// Whether bytes start like an image the icon texture decoder reads (PNG,
-/// JPEG, TIFF, BMP, GIF, WebP; render/src/icon_textures.cpp): a texture
-/// that is some other file is refused here, where the warning can name it.
-bool looksLikeImage(std::span<const unsigned char> b) {
+/// What bytes start like: the icon texture decoder (render/src/icon_textures.cpp)
+/// reads PNG and JPEG; other images are named so the warning can say why
+/// they are not kept. Empty: a texture that is a decodable image.
+std::string textureProblem(std::span<const unsigned char> b) {
   auto starts = [&](std::initializer_list<unsigned char> magic) {
     return b.size() >= magic.size() && std::equal(magic.begin(), magic.end(), b.begin());
   };
+  if (starts({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}) || starts({0xFF, 0xD8, 0xFF})) return {};
   const bool webp = starts({'R', 'I', 'F', 'F'}) && b.size() >= 12 && b[8] == 'W' && b[9] == 'E' && b[10] == 'B' &&
                     b[11] == 'P';
-  return starts({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}) || starts({0xFF, 0xD8, 0xFF}) ||
-         starts({'I', 'I', 42, 0}) || starts({'M', 'M', 0, 42}) || starts({'B', 'M'}) || starts({'G', 'I', 'F', '8'}) ||
-         webp;
+  const char* kind = starts({'I', 'I', 42, 0}) || starts({'M', 'M', 0, 42}) ? "a TIFF"
+                     : starts({'B', 'M'})                                   ? "a BMP"
+                     : starts({'G', 'I', 'F', '8'})                         ? "a GIF"
+                     : webp                                                 ? "a WebP"
+                                                                            : nullptr;
+  if (kind) return std::string("is ") + kind + " image, which the viewer does not decode (PNG or JPEG only)";
+  return "is not an image (PNG or JPEG)";
 }
 
-/// The first bytes of a file (at most 12), enough for looksLikeImage.
+/// The first bytes of a file (at most 12), enough for textureProblem.
 std::vector<unsigned char> fileHead(const std::string& path) {
   std::vector<unsigned char> head(12);
   std::ifstream in(path, std::ios::binary);
@@ -116,11 +121,10 @@ Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path
       const auto* b = reinterpret_cast<const std::byte*>(t->pcData);
       m.embeddedBytes.assign(b, b + t->mWidth);
       const std::span head(reinterpret_cast<const unsigned char*>(t->pcData), std::min<std::size_t>(t->mWidth, 12));
-      if (!looksLikeImage(head)) {
+      if (const std::string why = textureProblem(head); !why.empty()) {
         m.embeddedBytes.clear();
         warnings.push_back(problem(path, "embedded texture \"" + m.texture + "\" of material \"" + m.name +
-                                             "\" is not an image (PNG, JPEG, TIFF, BMP, GIF or WebP); its base "
-                                             "colour is used"));
+                                             "\" " + why + "; its base colour is used"));
       }
     } else {
       warnings.push_back(problem(path, "embedded texture \"" + m.texture + "\" of material \"" + m.name +
@@ -139,10 +143,9 @@ Material readMaterial(const aiMaterial& am, const aiScene& scene, const fs::path
   if (m.texturePath.empty()) {
     warnings.push_back(problem(path, "texture \"" + m.texture + "\" of material \"" + m.name +
                                          "\" not found beside the model; its base colour is used"));
-  } else if (!looksLikeImage(fileHead(m.texturePath))) {
-    warnings.push_back(problem(path, "texture " + m.texturePath + " of material \"" + m.name +
-                                         "\" is not an image (PNG, JPEG, TIFF, BMP, GIF or WebP); its base colour "
-                                         "is used"));
+  } else if (const std::string why = textureProblem(fileHead(m.texturePath)); !why.empty()) {
+    warnings.push_back(problem(path, "texture " + m.texturePath + " of material \"" + m.name + "\" " + why +
+                                         "; its base colour is used"));
     m.texturePath.clear();
   }
   return m;

@@ -389,6 +389,26 @@ std::string allWarnings(const Result<Model>& r) {
   return w;
 }
 
+TEST(Import, aTextureTheViewerCannotDecodeIsNamedAndNotKept) {
+  // The renderer decodes PNG and JPEG only (render/src/icon_textures.cpp):
+  // a BMP or GIF beside the model is named at import, not silently dropped
+  // when drawn. Magic numbers from the BMP and GIF specifications.
+  Scratch s;
+  fs::create_directories(s.dir / "m");
+  s.write("m/skin.bmp", std::string("BM\x36\0\0\0\0\0\0\0\x36\0", 12));
+  auto bmp = importModel(texturedObj(s, "skin.bmp"));
+  ASSERT_TRUE(bmp) << bmp.error();
+  EXPECT_TRUE(skin(bmp).texturePath.empty());
+  EXPECT_NE(allWarnings(bmp).find("is a BMP image, which the viewer does not decode (PNG or JPEG only)"),
+            std::string::npos)
+      << allWarnings(bmp);
+  s.write("m/skin.gif", "GIF89a\x01\0\x01\0\0\0");
+  auto gif = importModel(texturedObj(s, "skin.gif"));
+  ASSERT_TRUE(gif) << gif.error();
+  EXPECT_TRUE(skin(gif).texturePath.empty());
+  EXPECT_NE(allWarnings(gif).find("is a GIF image"), std::string::npos) << allWarnings(gif);
+}
+
 TEST(Import, texturePathsStayInsideTheModelsFolder) {
   Scratch s;
   // /etc/passwd is a readable file outside the folder: never taken.
