@@ -16,6 +16,7 @@
 #include <iterator>
 #include <memory>
 
+#include "sandtable/testing/require.h"
 #include "../src/icon_textures.h"
 #include "sandtable/render/image.h"
 
@@ -186,7 +187,7 @@ TEST(IconTextures, theModelsTexturesDecodeAsGdalDecodesThem) {
   // A progressive JPEG (the jeep's) and an RGBA PNG (the Kenney palette).
   for (const char* name : {"assimp/jeep1.jpg", "kenney-racing/Textures/colormap.png"}) {
     const fs::path file = sharedModels() / name;
-    ASSERT_TRUE(fs::exists(file)) << file << " is missing: the real models live in ../shared/data/models";
+    SANDTABLE_REQUIRE(fs::exists(file), file << " (the real models in ../shared/data/models)");
     const auto bytes = fileBytes(file);
     expectAsGdalDecodes(bytes, name);
     // Resampled to the layer size: GDAL's bilinear kernel, to rounding. GDAL
