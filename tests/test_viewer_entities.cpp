@@ -604,18 +604,23 @@ TEST_F(ViewerEntities, inAWindowTheKeysDriveStopAndCycleTheEntities) {
   for (int k = 0; k < 1200 && !done && !std::filesystem::exists(frames + "/frame_00000.png"); ++k) sleepMs(50);
   Window w = 0;
   for (int k = 0; k < 200 && !done && !(w = findWindow(keys, "sandtable fly")); ++k) sleepMs(50);
+  // Keys reach the simulation at its next step (the step host's before-step
+  // hook) and frames can be faster than the 60 Hz step, so each key gets
+  // enough frames for several steps before the next (Space re-seeds the
+  // drive from the entity and would drop arrows no step has applied yet).
+  constexpr std::size_t kKeyFrames = 20;
   if (w) {
     XSetInputFocus(keys, w, RevertToPointerRoot, CurrentTime);
     tap(keys, XK_Up);    // commanded 30 -> 39 km/h
     tap(keys, XK_Up);    // -> 48
     tap(keys, XK_Left);  // 10 -> 5 degrees
-    waitFrames(frames, 3, done);
+    waitFrames(frames, kKeyFrames, done);
     tap(keys, XK_space);  // all stop: commanded 0
-    waitFrames(frames, 3, done);
+    waitFrames(frames, kKeyFrames, done);
     tap(keys, XK_Tab);  // attached to the next entity: wing
-    waitFrames(frames, 3, done);
+    waitFrames(frames, kKeyFrames, done);
     tap(keys, XK_e);  // the stealth eye
-    waitFrames(frames, 3, done);
+    waitFrames(frames, kKeyFrames, done);
     tap(keys, XK_q);
   }
   flight.join();
