@@ -38,7 +38,7 @@ ErrorStats summarize(std::vector<double> errs) {
 
 /// Errors of the database against the source at random land points.
 std::vector<double> landErrors(const Database& db, const SourceRaster& src, std::size_t want, unsigned seed) {
-  runtime::Terrain terrain(db.grid);
+  world::Terrain terrain(db.grid);
   auto geo = geodesy::Projection::create(db.manifest.crsWkt);
   std::mt19937 rng(seed);
   const auto& m = db.manifest;
@@ -109,7 +109,7 @@ struct PostErrors {
 };
 
 PostErrors postErrors(const Database& db, const SourceRaster& src) {
-  runtime::Terrain terrain(db.grid);
+  world::Terrain terrain(db.grid);
   auto geo = geodesy::Projection::create(db.manifest.crsWkt);
   PostErrors out;
   std::vector<double> errs;

@@ -24,8 +24,8 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::DrawnLevel;
-using runtime::GroundClamp;
+using world::DrawnLevel;
+using world::GroundClamp;
 
 class GroundClampTest : public ::testing::Test {
  protected:
@@ -64,7 +64,7 @@ class GroundClampTest : public ::testing::Test {
   /// morph does), interpolated on level l's triangle.
   static double moduleSurface(const module::Module& m, std::uint32_t l, double m01, double x, double z) {
     const module::Level& level = m.levels[l];
-    const double y = *runtime::levelHeightAt(level, x, z);
+    const double y = *scene::levelHeightAt(level, x, z);
     if (m01 == 0 || l + 1 >= m.levels.size()) return y;
     // The level-l square holding (x, z) and its corners.
     const double s = level.spacing;
@@ -74,7 +74,7 @@ class GroundClampTest : public ::testing::Test {
     auto post = [&](std::uint32_t a, std::uint32_t b) { return level.vertices[std::size_t(b) * (nx + 1) + a]; };
     const auto nw = post(c, r), ne = post(c + 1, r), sw = post(c, r + 1), se = post(c + 1, r + 1);
     auto moved = [&](const module::Vertex& v) {
-      return v.y + m01 * (*runtime::levelHeightAt(m.levels[l + 1], v.x, v.z) - v.y);
+      return v.y + m01 * (*scene::levelHeightAt(m.levels[l + 1], v.x, v.z) - v.y);
     };
     const double u = (x - nw.x) / (ne.x - nw.x), v = (z - nw.z) / (sw.z - nw.z);
     if (u + v <= 1.0) return moved(nw) + u * (moved(ne) - moved(nw)) + v * (moved(sw) - moved(nw));
@@ -117,14 +117,14 @@ TEST_F(GroundClampTest, matchesTheBuiltModulesAtEveryLevelAndMorph) {
   // The test means something only where the levels differ by metres.
   EXPECT_GT(worstGap, 10.0);
   // Level 0 is the grid itself.
-  const runtime::Terrain t(db_->grid);
+  const world::Terrain t(db_->grid);
   EXPECT_NEAR(*g.surfaceXZ(1234.5, 2345.25), t.sampleXZ(1234.5, 2345.25)->elevation, 1e-9);
   EXPECT_FALSE(g.surfaceXZ(-1, 10).has_value());
 }
 
 TEST_F(GroundClampTest, theEyeStandsOnTheLevelDrawnUnderIt) {
   std::string why;
-  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   const GroundClamp g = clamp();
   // Where level 3 and the finest grid differ most, over a coarse grid of
   // candidate points away from the edges.
@@ -137,7 +137,7 @@ TEST_F(GroundClampTest, theEyeStandsOnTheLevelDrawnUnderIt) {
     }
   }
   ASSERT_GT(bestGap, 5.0);
-  runtime::FlightOptions o;
+  viewer::FlightOptions o;
   o.motion.easting = hdr.originEasting + bx;
   o.motion.northing = hdr.originNorthing - bz;
   o.motion.heightAgl = 5;
@@ -147,17 +147,17 @@ TEST_F(GroundClampTest, theEyeStandsOnTheLevelDrawnUnderIt) {
   o.view.width = o.view.height = 65;  // an odd size has a centre pixel
   o.view.viewDistance = 2000;
   o.view.hud = false;
-  o.render.mode = runtime::TerrainMode::modules;
-  o.render.colour = runtime::ColourMode::height;
+  o.render.mode = viewer::TerrainMode::modules;
+  o.render.colour = render::ColourMode::height;
   o.pager.sync = true;
   // A huge allowed error: the coarsest level is drawn even under the eye.
-  o.render.lod.mode = runtime::LodMode::sse;
+  o.render.lod.mode = scene::LodMode::sse;
   o.render.lod.pixelError = 1e6;
   o.render.lod.morph = false;
-  runtime::FlightHooks hooks(o);
+  viewer::FlightHooks hooks(o);
   std::optional<double> below;
-  hooks.onFrame = [&](std::uint32_t, const runtime::Image& img) { below = runtime::heightAt(img, 32, 32); };
-  auto r = runtime::fly(*db_, o, &hooks);
+  hooks.onFrame = [&](std::uint32_t, const render::Image& img) { below = render::heightAt(img, 32, 32); };
+  auto r = viewer::fly(*db_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_TRUE(below.has_value());
   const auto& f = r->frames.back();

@@ -130,8 +130,8 @@ struct CellInk {
   std::uint32_t minX = ~0u, minY = ~0u, maxX = 0, maxY = 0;
 };
 
-CellInk inkOf(const sandtable::runtime::Image& img, std::uint32_t x0, std::uint32_t y0, std::uint32_t n) {
-  const sandtable::runtime::IconSheetOptions o;
+CellInk inkOf(const sandtable::render::Image& img, std::uint32_t x0, std::uint32_t y0, std::uint32_t n) {
+  const sandtable::render::IconSheetOptions o;
   CellInk ink;
   for (std::uint32_t y = y0; y < y0 + n; ++y) {
     for (std::uint32_t x = x0; x < x0 + n; ++x) {

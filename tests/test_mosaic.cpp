@@ -40,7 +40,7 @@ void checkEdges(const std::vector<std::string>& files, const std::vector<double>
   ASSERT_TRUE(r.ok()) << r.error();
   auto db = openDatabase(o.output);
   ASSERT_TRUE(db.ok());
-  runtime::Terrain terrain(db->grid);
+  world::Terrain terrain(db->grid);
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   Mosaic m;
   for (const auto& f : files) m.cells.push_back(std::make_unique<SourceRaster>(f));

@@ -27,9 +27,9 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::FlightOptions;
-using runtime::Image;
-using runtime::LodMode;
+using viewer::FlightOptions;
+using render::Image;
+using scene::LodMode;
 
 constexpr double kColumnHeight = 30, kColumnHalfWidth = 1.5;
 /// From over the sea south of Monaco, a narrow view up the slopes: the
@@ -100,13 +100,13 @@ Shots shoot(const Database& db, LodMode lod, double easting, double northing) {
     o.output.frames = 2;
     o.pager.sync = true;
     o.motion.speedKmh = 0;
-    o.render.mode = runtime::TerrainMode::modules;
+    o.render.mode = viewer::TerrainMode::modules;
     o.render.lod.mode = lod;
     if (lod == LodMode::rings) o.render.lod.rings = {1200, 2400, 3600};
-    o.render.colour = height ? runtime::ColourMode::height : runtime::ColourMode::natural;
-    runtime::FlightHooks hooks(o);
-    hooks.onPose = [&](std::uint32_t, double, runtime::GroundClamp&) -> std::optional<runtime::Pose> {
-      runtime::Pose p;
+    o.render.colour = height ? render::ColourMode::height : render::ColourMode::natural;
+    viewer::FlightHooks hooks(o);
+    hooks.onPose = [&](std::uint32_t, double, world::GroundClamp&) -> std::optional<world::Pose> {
+      world::Pose p;
       p.easting = easting;
       p.northing = northing;
       p.heightAgl = kEyeAgl;
@@ -115,11 +115,11 @@ Shots shoot(const Database& db, LodMode lod, double easting, double northing) {
       return p;
     };
     hooks.onFrame = [&](std::uint32_t, const Image& img) { (height ? s.heights : s.objects) = img; };
-    auto r = runtime::fly(db, o, &hooks);
+    auto r = viewer::fly(db, o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     if (!r.ok() || r->frames.empty()) return s;
     const auto& f = r->frames.back();
-    runtime::Camera cam;
+    scene::Camera cam;
     cam.x = f.easting - db.manifest.originEasting;
     cam.z = db.manifest.originNorthing - f.northing;
     cam.y = f.eyeElevation;
@@ -128,7 +128,7 @@ Shots shoot(const Database& db, LodMode lod, double easting, double northing) {
     cam.hfovDeg = f.hfovDeg;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = f.viewDistance;
-    s.rays.viewProjection = runtime::viewProjection(cam, 0, 0);
+    s.rays.viewProjection = scene::viewProjection(cam, 0, 0);
     s.rays.inverse = s.rays.viewProjection.inverse();
     s.rays.eye = {cam.x, cam.y, cam.z};
   }
@@ -150,7 +150,7 @@ Measure measure(const Shots& s, double x, double z, double guessY) {
   double best = INFINITY;
   int row = -1;
   for (int v = 0; v < int(kHeight); ++v) {
-    const auto h = runtime::heightAt(s.heights, std::uint32_t(u), std::uint32_t(v));
+    const auto h = render::heightAt(s.heights, std::uint32_t(u), std::uint32_t(v));
     if (!h) continue;
     const Eigen::Vector3d d = s.rays.direction(u, v);
     if (d.y() >= 0) continue;
@@ -160,7 +160,7 @@ Measure measure(const Shots& s, double x, double z, double guessY) {
   }
   if (row < 1) return m;
   const auto groundAt = [&](int v) -> std::optional<Eigen::Vector3d> {
-    const auto h = runtime::heightAt(s.heights, std::uint32_t(u), std::uint32_t(v));
+    const auto h = render::heightAt(s.heights, std::uint32_t(u), std::uint32_t(v));
     const Eigen::Vector3d d = s.rays.direction(u, v);
     if (!h || d.y() >= 0) return std::nullopt;
     return s.rays.eye + d * ((*h - s.rays.eye.y()) / d.y());
@@ -193,7 +193,7 @@ Measure measure(const Shots& s, double x, double z, double guessY) {
 TEST(ObjectsRender, columnsOnRuggedTerrainNeitherFloatNorSinkAtAnyLevelOfDetail) {
   SANDTABLE_REQUIRE_DATA();
   std::string why;
-  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   TempDir t("objrender");
   writeColumnIcon(t.path());
   writePoints(t / "columns.csv");
@@ -219,7 +219,7 @@ TEST(ObjectsRender, columnsOnRuggedTerrainNeitherFloatNorSinkAtAnyLevelOfDetail)
   }
   ASSERT_EQ(columns.size(), 99u);
   for (const LodMode lod : {LodMode::full, LodMode::rings, LodMode::sse}) {
-    SCOPED_TRACE(runtime::lodModeName(lod));
+    SCOPED_TRACE(scene::lodModeName(lod));
     const Shots s = shoot(db.value(), lod, start.motion.easting, start.motion.northing);
     ASSERT_EQ(s.objects.width, kWidth);
     std::size_t seen = 0;
@@ -255,7 +255,7 @@ namespace {
 
 /// Objects drawn, sprites and thinned in the last of two frames over the
 /// Bayreuth forest.
-runtime::FrameStats forestFrame(const Database& db, double thinPixels, double easting, double northing) {
+viewer::FrameStats forestFrame(const Database& db, double thinPixels, double easting, double northing) {
   FlightOptions o;
   o.view.width = 640;
   o.view.height = 360;
@@ -268,15 +268,15 @@ runtime::FrameStats forestFrame(const Database& db, double thinPixels, double ea
   o.motion.heightAgl = 60;
   o.motion.pitchDeg = -6;
   o.render.objectThinPixels = thinPixels;
-  auto r = runtime::fly(db, o);
+  auto r = viewer::fly(db, o);
   EXPECT_TRUE(r.ok()) << r.error();
-  return r.ok() && !r->frames.empty() ? r->frames.back() : runtime::FrameStats{};
+  return r.ok() && !r->frames.empty() ? r->frames.back() : viewer::FrameStats{};
 }
 
 TEST(ObjectsRender, farSpritesAreThinnedTheSameWayEveryFrameAndNoneWithoutThinning) {
   SANDTABLE_REQUIRE_DATA();
   std::string why;
-  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   TempDir t("objthin");
   const auto b = runCli({"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.55", "49.94",
                          "11.62", "49.99", "--spacing", "30", "--culture",

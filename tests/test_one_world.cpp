@@ -92,7 +92,7 @@ TEST_F(OneWorld, simOpensTheDatabaseOnce) {
 
 TEST_F(OneWorld, flyWithAScenarioOpensTheDatabaseOnce) {
   std::string why;
-  SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   OpenCounter opens(db(), manifest::kFileName);
   const auto r = runCli({"fly", db(), "--scenario", *tmp_ / "one.scenario", "--png", *tmp_ / "frames", "--frames",
                          "2", "--size", "160x120", "--no-hud"});
@@ -103,7 +103,7 @@ TEST_F(OneWorld, flyWithAScenarioOpensTheDatabaseOnce) {
 TEST_F(OneWorld, theCounterSeesOneOpenForAWorldAndNoneForTheSimulatorOnIt) {
   OpenCounter fileOpens(db(), manifest::kFileName);
   const std::uint64_t before = databaseOpens();
-  auto world = runtime::World::open(db());
+  auto world = paging::World::open(db());
   ASSERT_TRUE(world) << world.error();
   auto sim = sim::SimWorld::open(*world.value());
   ASSERT_TRUE(sim) << sim.error();

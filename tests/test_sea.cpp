@@ -181,7 +181,7 @@ TEST(Sea, danishCellSeaIsWaterAtZeroAndCountedApart) {
   ASSERT_TRUE(dbo.ok()) << dbo.error();
   SourceRaster src(cell);
   ASSERT_TRUE(src.ok());
-  runtime::Terrain terrain(dbo->grid);
+  world::Terrain terrain(dbo->grid);
   auto geo = geodesy::Projection::create(dbo->manifest.crsWkt);
   std::uint64_t deep = 0, water = 0;
   for (int r = 2; r + 2 < src.height(); r += 5) {

@@ -166,7 +166,7 @@ TEST_F(SimMonaco, aLandVehicleStaysOnTheDrawnSurfaceAndItsAttitudeNeverJumpsAtTr
   Opened o = open(db());
   ASSERT_TRUE(o.world && o.geo);
   // A coarse, morphed level everywhere: what a viewer draws a few km out.
-  const runtime::DrawnLevel drawn{1, 0.25f};
+  const world::DrawnLevel drawn{1, 0.25f};
   o.world->setDrawnLevel([&](double, double) { return drawn; });
   sim::SimOptions opts;
   opts.collisions = false;  // the ground, not the buildings, is under test here

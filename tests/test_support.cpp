@@ -93,9 +93,9 @@ std::vector<std::string> filesUnder(const std::string& dir, const std::vector<st
   return out;
 }
 
-runtime::Image readPng(const std::string& path) {
+render::Image readPng(const std::string& path) {
   GDALAllRegister();
-  runtime::Image img;
+  render::Image img;
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds || ds->GetRasterCount() < 3) return img;
   img.width = std::uint32_t(ds->GetRasterXSize());
@@ -104,7 +104,7 @@ runtime::Image readPng(const std::string& path) {
   int bands[3] = {1, 2, 3};
   const CPLErr e = ds->RasterIO(GF_Read, 0, 0, int(img.width), int(img.height), img.rgba.data(), int(img.width),
                                 int(img.height), GDT_Byte, 3, bands, 4, GSpacing(img.width) * 4, 1, nullptr);
-  if (e != CE_None) img = runtime::Image{};
+  if (e != CE_None) img = render::Image{};
   return img;
 }
 

@@ -59,7 +59,7 @@ void resealFiles(const std::string& db);
 
 /// A PNG's red, green and blue read through GDAL (alpha 255); an empty
 /// image when it does not read.
-runtime::Image readPng(const std::string& path);
+render::Image readPng(const std::string& path);
 
 /// Every file (recursively) under `dir` matching the extensions.
 std::vector<std::string> filesUnder(const std::string& dir, const std::vector<std::string>& exts);

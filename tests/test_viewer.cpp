@@ -22,9 +22,9 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::FlightOptions;
-using runtime::Image;
-using runtime::LodMode;
+using viewer::FlightOptions;
+using render::Image;
+using scene::LodMode;
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kRoadWidth = 40;  // metres, the GeoJSON's width attribute
@@ -48,7 +48,7 @@ class Viewer : public ::testing::Test {
   static void SetUpTestSuite() {
     if (!haveData()) return;
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) {
+    if (!render::headlessGlAvailable(why)) {
       noGl_ = why;
       return;
     }
@@ -74,7 +74,7 @@ class Viewer : public ::testing::Test {
 
   /// Renders one frame of `db` at lon/lat with the options; fog, sky and
   /// panel off, the pager settled, so the frame shows exactly the modules.
-  static std::pair<Image, runtime::FrameStats> frame(const std::string& dir, FlightOptions o,
+  static std::pair<Image, viewer::FrameStats> frame(const std::string& dir, FlightOptions o,
                                                      double lon, double lat,
                                                      const std::string& name = "") {
     auto db = openAt(dir, lon, lat, o);
@@ -87,17 +87,17 @@ class Viewer : public ::testing::Test {
     o.view.sky = false;
     o.view.hud = false;
     o.pager.sync = true;
-    o.render.mode = runtime::TerrainMode::modules;
+    o.render.mode = viewer::TerrainMode::modules;
     Image img;
-    runtime::FlightHooks hooks(o);
+    viewer::FlightHooks hooks(o);
     hooks.onFrame = [&](std::uint32_t, const Image& i) { img = i; };
-    auto r = runtime::fly(db.value(), o, &hooks);
+    auto r = viewer::fly(db.value(), o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
-    runtime::FrameStats s;
+    viewer::FrameStats s;
     if (r.ok() && !r->frames.empty()) s = r->frames.back();
     // SANDTABLE_KEEP_TEST_OUTPUT=DIR keeps the frames for a look.
     if (const char* keep = std::getenv("SANDTABLE_KEEP_TEST_OUTPUT"); keep && !name.empty()) {
-      runtime::writePng(std::string(keep) + "/" + name + ".png", img);
+      render::writePng(std::string(keep) + "/" + name + ".png", img);
     }
     return {img, s};
   }
@@ -168,7 +168,7 @@ TEST_F(Viewer, NoCracksBelowTheHorizonInAnyLodConfiguration) {
 
 /// A 320 x 180 view at 6 km view distance, `agl` metres above the ground,
 /// looking along `heading` with `pitch`, drawn with `lod`.
-FlightOptions smallView(double agl, double heading, double pitch, const runtime::LodOptions& lod) {
+FlightOptions smallView(double agl, double heading, double pitch, const scene::LodOptions& lod) {
   FlightOptions o;
   o.view.width = 320;
   o.view.height = 180;
@@ -181,7 +181,7 @@ FlightOptions smallView(double agl, double heading, double pitch, const runtime:
 }
 
 /// 80 m over Monaco's harbour looking along the coast (7.415, 43.725).
-FlightOptions lowOverMonaco(const runtime::LodOptions& lod) { return smallView(80, 20, -6, lod); }
+FlightOptions lowOverMonaco(const scene::LodOptions& lod) { return smallView(80, 20, -6, lod); }
 
 TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
   // Table 8: 0-6000 all fine, then two, three and four bins.
@@ -198,7 +198,7 @@ TEST_F(Viewer, TrianglesFallAsRangeBinsAreAdded) {
     EXPECT_LT(triangles[k], triangles[k - 1]) << "bins " << k + 1;
   }
   // One bin out to the view distance is what the finest level draws.
-  runtime::LodOptions fullLod;
+  scene::LodOptions fullLod;
   fullLod.mode = LodMode::full;
   const FlightOptions full = smallView(150, 70, -5, fullLod);
   EXPECT_EQ(frame(monaco_, full, 7.39, 43.73).second.triangles, triangles.front());
@@ -255,7 +255,7 @@ std::array<double, 2> project(const FlightOptions& o, const std::array<double, 3
   const std::array<double, 3> d{p[0] - eye[0], p[1] - eye[1], p[2] - eye[2]};
   const auto dot = [](const auto& a, const auto& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
   const double aspect = double(o.view.width) / o.view.height;
-  const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
+  const double k = 1 / std::tan(paging::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
   const double depth = dot(f, d);
   const double nx = k / aspect * dot(r, d) / depth, ny = k * dot(u, d) / depth;
   return {(nx + 1) / 2 * o.view.width, (1 - ny) / 2 * o.view.height};
@@ -311,7 +311,7 @@ TEST_F(Viewer, StraightRoadCoversItsAreaWithNoSkinShowingThrough) {
     // the road's colour (primary: F0B060), its darker shoulders and its
     // white markings are neither.
     // (Nor the magenta clear colour past the database's east edge.)
-    const auto isRoad = [](runtime::Rgb c) {
+    const auto isRoad = [](render::Rgb c) {
       return int(c.r) + 20 > int(c.b) && int(c.r) + 20 > int(c.g) && c.g > 60;
     };
     ASSERT_TRUE(isRoad(img.at(std::uint32_t(centre[0]), std::uint32_t(centre[1]))))
@@ -382,13 +382,13 @@ TEST_F(Viewer, StraightRoadHoldsAtGrazingAnglesFarAway) {
     ASSERT_EQ(img.width, 320u);
     const std::array<double, 3> eye{ea - back * ue - gh.originEasting, s.eyeElevation,
                                     gh.originNorthing - (na - back * un)};
-    runtime::Rgb road{};
+    render::Rgb road{};
     int checked = 0;
     for (double f = 0.1; f <= 0.9; f += 0.02) {
       const double e = ea + f * length * ue, n = na + f * length * un;
       const auto p = project(o, eye, {e - gh.originEasting, 0, gh.originNorthing - n});
       ASSERT_TRUE(p[0] >= 0 && p[0] < o.view.width && p[1] >= 0 && p[1] < o.view.height) << f;
-      const runtime::Rgb c = img.at(std::uint32_t(p[0]), std::uint32_t(p[1]));
+      const render::Rgb c = img.at(std::uint32_t(p[0]), std::uint32_t(p[1]));
       if (checked++ == 0) road = c;
       EXPECT_GT(int(c.r) - int(c.b), 60) << "back " << back << " at " << f;  // road, not grass
       EXPECT_LE(std::abs(int(c.r) - int(road.r)) + std::abs(int(c.g) - int(road.g)), 24)
@@ -412,7 +412,7 @@ TEST_F(Viewer, GpuCopiesFollowThePager) {
   o.view.viewDistance = 1200;
   o.view.hud = false;
   o.pager.sync = true;
-  auto r = runtime::fly(db.value(), o);
+  auto r = viewer::fly(db.value(), o);
   ASSERT_TRUE(r.ok()) << r.error();
   std::uint64_t uploads = 0, released = 0;
   for (const auto& f : r->frames) {
@@ -464,9 +464,9 @@ TEST_F(Viewer, ClearErrorsForBadViewerOptions) {
   EXPECT_EQ(pitch.exitCode, 2);
   EXPECT_NE(pitch.err.find("--pitch must be between -89 and 89 degrees"), std::string::npos) << pitch.err;
   EXPECT_EQ(pitch.err.find("MotionOptions::"), std::string::npos) << pitch.err;
-  runtime::FlightOptions bad;
+  viewer::FlightOptions bad;
   bad.motion.pitchDeg = 95;
-  const auto problems = runtime::checkFlightOptions(openDatabase(monaco_).value().grid, bad);
+  const auto problems = viewer::checkFlightOptions(openDatabase(monaco_).value().grid, bad);
   ASSERT_FALSE(problems.empty());
   EXPECT_NE(problems.front().message.find("MotionOptions::pitchDeg"), std::string::npos);
 }

@@ -44,9 +44,9 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::DynamicScene;
-using runtime::Image;
-using runtime::Rgb;
+using scene::DynamicScene;
+using render::Image;
+using render::Rgb;
 
 constexpr std::uint32_t kWidth = 640, kHeight = 360;
 constexpr double kFovDeg = 30, kAbove = 60;
@@ -84,7 +84,7 @@ class ViewerEntities : public ::testing::Test {
   }
   void SetUp() override {
     std::string why;
-    SANDTABLE_REQUIRE(runtime::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+    SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
     ASSERT_NE(db_, nullptr);
   }
 
@@ -146,7 +146,7 @@ class ViewerEntities : public ::testing::Test {
   }
 
   static double groundAt(double x, double z) {
-    const runtime::GroundClamp clamp(db_->grid);
+    const world::GroundClamp clamp(db_->grid);
     return clamp.surfaceXZ(x, z).value_or(0);
   }
 
@@ -155,7 +155,7 @@ class ViewerEntities : public ::testing::Test {
   struct Shot {
     Image image;
     Eigen::Matrix4d viewProjection;
-    runtime::FrameStats stats;
+    viewer::FrameStats stats;
     Eigen::Vector2d project(double x, double y, double z) const {
       const Eigen::Vector4d c = viewProjection * Eigen::Vector4d(x, y, z, 1);
       return {(c.x() / c.w() + 1) / 2 * kWidth, (1 - c.y() / c.w()) / 2 * kHeight};
@@ -166,7 +166,7 @@ class ViewerEntities : public ::testing::Test {
     }
   };
   static Shot shoot(double x, double z, const std::function<void(DynamicScene&)>& fill) {
-    runtime::FlightOptions o;
+    viewer::FlightOptions o;
     o.view.width = kWidth;
     o.view.height = kHeight;
     o.view.fog = false;
@@ -177,28 +177,28 @@ class ViewerEntities : public ::testing::Test {
     o.pager.sync = true;
     o.motion.speedKmh = 0;
     o.motion.pitchDeg = -89;
-    o.render.mode = runtime::TerrainMode::modules;
-    o.render.lod.mode = runtime::LodMode::full;
+    o.render.mode = viewer::TerrainMode::modules;
+    o.render.lod.mode = scene::LodMode::full;
     const double ground = groundAt(x, z);
-    runtime::FlightHooks hooks(o);
-    hooks.onPose = [&](std::uint32_t, double, runtime::GroundClamp&) -> std::optional<runtime::Pose> {
-      runtime::Pose p;
+    viewer::FlightHooks hooks(o);
+    hooks.onPose = [&](std::uint32_t, double, world::GroundClamp&) -> std::optional<world::Pose> {
+      world::Pose p;
       p.easting = db_->manifest.originEasting + x;
       p.northing = db_->manifest.originNorthing - z;
       p.altitude = ground + kAbove;
       p.headingDeg = 0;
       return p;
     };
-    hooks.onFrameContent = [&](std::uint32_t, runtime::DisplayBuffer& buf, runtime::FrameStats&) {
+    hooks.onFrameContent = [&](std::uint32_t, scene::DisplayBuffer& buf, viewer::FrameStats&) {
       if (fill) fill(buf.dynamic);
     };
     Shot s;
     hooks.onFrame = [&](std::uint32_t, const Image& img) { s.image = img; };
-    auto r = runtime::fly(*db_, o, &hooks);
+    auto r = viewer::fly(*db_, o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     if (!r.ok() || r->frames.empty()) return s;
     s.stats = r->frames.back();
-    runtime::Camera cam;
+    scene::Camera cam;
     cam.x = s.stats.easting - db_->manifest.originEasting;
     cam.z = db_->manifest.originNorthing - s.stats.northing;
     cam.y = s.stats.eyeElevation;
@@ -207,12 +207,12 @@ class ViewerEntities : public ::testing::Test {
     cam.hfovDeg = kFovDeg;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = s.stats.viewDistance;
-    s.viewProjection = runtime::viewProjection(cam, 0, 0);
+    s.viewProjection = scene::viewProjection(cam, 0, 0);
     return s;
   }
 
-  static runtime::DynamicInstance tankAt(double x, double z, double headingDeg, float turretDeg) {
-    runtime::DynamicInstance d;
+  static scene::DynamicInstance tankAt(double x, double z, double headingDeg, float turretDeg) {
+    scene::DynamicInstance d;
     d.icon = iconOf("tank");
     d.onSurface = true;
     d.shadow = true;
@@ -291,8 +291,8 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
   const auto& header = reader.value()->header();
   const std::uint32_t levels = header.levels;
   ASSERT_GE(levels, 2u);
-  const runtime::GroundClamp clamp(db_->grid, header.moduleSquares, levels);
-  const runtime::DrawnLevel coarsest{levels - 1, 0};
+  const world::GroundClamp clamp(db_->grid, header.moduleSquares, levels);
+  const world::DrawnLevel coarsest{levels - 1, 0};
   const double width = db_->grid->spacing() * (db_->grid->postsX() - 1);
   const double depth = db_->grid->spacing() * (db_->grid->postsZ() - 1);
   constexpr double kBack = 250, kUp = 60;
@@ -317,9 +317,9 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
   }
   ASSERT_TRUE(spot.has_value()) << "no open coarse slope in view";
   const double x = (*spot)[0], z = (*spot)[1], fine = *clamp.surfaceXZ(x, z);
-  std::optional<runtime::DrawnLevel> drawnThere;
+  std::optional<world::DrawnLevel> drawnThere;
   const auto shootFrom = [&](bool withTank) {
-    runtime::FlightOptions o;
+    viewer::FlightOptions o;
     o.view.width = kWidth;
     o.view.height = kHeight;
     o.view.fog = false;
@@ -329,12 +329,12 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
     o.output.frames = 2;
     o.pager.sync = true;  // no upload budget: what is selected is drawn
     o.render.objects = false;
-    o.render.mode = runtime::TerrainMode::modules;
+    o.render.mode = viewer::TerrainMode::modules;
     o.render.lod.rings = {40, 80, 120};
     const double pitch = std::atan2(-kUp, kBack) * 180 / kPi;
-    runtime::FlightHooks hooks(o);
-    hooks.onPose = [&](std::uint32_t, double, runtime::GroundClamp&) -> std::optional<runtime::Pose> {
-      runtime::Pose p;
+    viewer::FlightHooks hooks(o);
+    hooks.onPose = [&](std::uint32_t, double, world::GroundClamp&) -> std::optional<world::Pose> {
+      world::Pose p;
       p.easting = db_->manifest.originEasting + x;
       p.northing = db_->manifest.originNorthing - (z + kBack);
       p.altitude = fine + kUp;
@@ -342,14 +342,14 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
       p.headingDeg = 0;
       return p;
     };
-    hooks.onFrameContent = [&](std::uint32_t, runtime::DisplayBuffer& buf, runtime::FrameStats&) {
-      drawnThere = runtime::drawnLevelAt(buf, x, z);
+    hooks.onFrameContent = [&](std::uint32_t, scene::DisplayBuffer& buf, viewer::FrameStats&) {
+      drawnThere = scene::drawnLevelAt(buf, x, z);
       // The snapshot the simulator's entities stand on says the same
       // everywhere, after the buffer is gone.
-      const runtime::DrawnLevels kept(buf);
+      const scene::DrawnLevels kept(buf);
       for (double px = 0; px < 2000; px += 37) {
         for (double pz = 0; pz < 2000; pz += 41) {
-          const auto a = runtime::drawnLevelAt(buf, px, pz), b = kept.at(px, pz);
+          const auto a = scene::drawnLevelAt(buf, px, pz), b = kept.at(px, pz);
           ASSERT_EQ(a.has_value(), b.has_value()) << px << " " << pz;
           if (a) {
             EXPECT_EQ(a->level, b->level);
@@ -361,9 +361,9 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
     };
     Shot s;
     hooks.onFrame = [&](std::uint32_t, const Image& img) { s.image = img; };
-    auto r = runtime::fly(*db_, o, &hooks);
+    auto r = viewer::fly(*db_, o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
-    runtime::Camera cam;
+    scene::Camera cam;
     cam.x = x;
     cam.z = z + kBack;
     cam.y = fine + kUp;
@@ -371,7 +371,7 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
     cam.hfovDeg = 12;
     cam.aspect = double(kWidth) / kHeight;
     cam.viewDistance = 3000;
-    s.viewProjection = runtime::viewProjection(cam, 0, 0);
+    s.viewProjection = scene::viewProjection(cam, 0, 0);
     return s;
   };
   const Shot bare = shootFrom(false), tank = shootFrom(true);
@@ -393,13 +393,13 @@ TEST_F(ViewerEntities, aTankStandsOnTheCoarseLevelDrawnUnderItNotOnTheFinest) {
 
 TEST_F(ViewerEntities, aDestroyedTreeIsGoneAndAStumpedOneChanges) {
   const Tree& t = tree_;
-  const auto with = [&](runtime::ObjectLook look) {
+  const auto with = [&](scene::ObjectLook look) {
     return shoot(t.x, t.z, [&](DynamicScene& d) { d.objectOverrides.push_back({t.kx, t.kz, t.index, look}); });
   };
   const Shot standing = shoot(t.x, t.z, nullptr);
-  const Shot destroyed = with(runtime::ObjectLook::destroyed);
-  const Shot stump = with(runtime::ObjectLook::stump);
-  const Shot fallen = with(runtime::ObjectLook::knockedOver);
+  const Shot destroyed = with(scene::ObjectLook::destroyed);
+  const Shot stump = with(scene::ObjectLook::stump);
+  const Shot fallen = with(scene::ObjectLook::knockedOver);
   // Count the pixels around the tree that changed.
   const auto changed = [&](const Shot& a, const Shot& b, double radius) {
     const Eigen::Vector2d c = standing.project(t.x, t.y, t.z);
@@ -454,7 +454,7 @@ TEST_F(ViewerEntities, aFlashAndATrailAreDrawnWhileTheyLast) {
   // young, nothing once older than its life.
   const auto trail = [&](float age) {
     return shoot(x, z, [&](DynamicScene& d) {
-      runtime::Trail t;
+      scene::Trail t;
       t.points = {{x - 15, y + 10, z, age}, {x + 15, y + 10, z, age}};
       d.trails.push_back(t);
     });
@@ -484,19 +484,19 @@ TEST_F(ViewerEntities, theCliDrawsAScenarioRedTankAsARedDotOnTheMapAndReportsThe
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_NE(r.out.find("sim:      0.1 s simulated, 2/2 entities alive"), std::string::npos) << r.out;
   // The map's layout, as the viewer composes it on a frame of this size.
-  runtime::MapView map(db_->grid);
+  render::MapView map(db_->grid);
   map.setVisible(true);
   Image scratch;
   scratch.width = kWidth;
   scratch.height = kHeight;
   scratch.rgba.assign(std::size_t(kWidth) * kHeight * 4, 0);
-  const runtime::MapLayout layout = map.compose(scratch, 0, 0, 0);
+  const render::MapLayout layout = map.compose(scratch, 0, 0, 0);
   int px = 0, py = 0;
-  ASSERT_TRUE(runtime::MapView::pixelOf(layout, tx, tz, px, py));
+  ASSERT_TRUE(render::MapView::pixelOf(layout, tx, tz, px, py));
   const Image frame = readPng(out + "/frame_00002.png");
   ASSERT_EQ(frame.width, kWidth);
   const Rgb dot = frame.at(std::uint32_t(px), std::uint32_t(py));
-  EXPECT_EQ(distance(dot, runtime::forceColour(2)), 0) << int(dot.r) << " " << int(dot.g) << " " << int(dot.b);
+  EXPECT_EQ(distance(dot, render::forceColour(2)), 0) << int(dot.r) << " " << int(dot.g) << " " << int(dot.b);
   // stats.json: the run's summary and each frame's state.
   const auto stats = nlohmann::json::parse(slurpFile(out + "/stats.json"));
   ASSERT_TRUE(stats.contains("sim")) << stats.dump().substr(0, 400);

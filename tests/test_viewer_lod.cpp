@@ -21,16 +21,16 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::FlightOptions;
-using runtime::FrameStats;
-using runtime::LodMode;
+using viewer::FlightOptions;
+using viewer::FrameStats;
+using scene::LodMode;
 
 class ViewerLod : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (!haveData()) return;
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) {
+    if (!render::headlessGlAvailable(why)) {
       noGl_ = why;
       return;
     }
@@ -58,7 +58,7 @@ class ViewerLod : public ::testing::Test {
   /// south, pitch -10, 20 km, no fog. The second frame is drawn with every
   /// queued load done.
   static FrameStats frame(FlightOptions o, double lon = 11.60, double lat = 50.05,
-                          runtime::Image* image = nullptr) {
+                          render::Image* image = nullptr) {
     auto db = openAt(db_, lon, lat, o);
     if (!db) return {};
     o.output.frames = 2;
@@ -69,12 +69,12 @@ class ViewerLod : public ::testing::Test {
     o.view.sky = false;
     o.view.hud = false;
     o.pager.sync = true;
-    o.render.mode = runtime::TerrainMode::modules;
-    runtime::FlightHooks hooks(o);
-    hooks.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+    o.render.mode = viewer::TerrainMode::modules;
+    viewer::FlightHooks hooks(o);
+    hooks.onFrame = [&](std::uint32_t, const render::Image& i) {
       if (image) *image = i;
     };
-    auto r = runtime::fly(db.value(), o, &hooks);
+    auto r = viewer::fly(db.value(), o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     return r.ok() && !r->frames.empty() ? r->frames.back() : FrameStats{};
   }
@@ -128,8 +128,8 @@ TEST_F(ViewerLod, OtherModesDrawNothingCoarserThanTheirRuleOnceEverythingIsIn) {
   for (LodMode m : {LodMode::rings, LodMode::sse}) {
     const FrameStats s = frame(issuePose(m));
     EXPECT_GT(s.nodesDrawn, 0u);
-    EXPECT_EQ(s.nodesCoarser, 0u) << runtime::lodModeName(m);
-    EXPECT_EQ(s.nodesPlaceholder, 0u) << runtime::lodModeName(m);
+    EXPECT_EQ(s.nodesCoarser, 0u) << scene::lodModeName(m);
+    EXPECT_EQ(s.nodesPlaceholder, 0u) << scene::lodModeName(m);
     EXPECT_EQ(sum(s.levelCounts), s.nodesDrawn);
   }
 }
@@ -151,10 +151,10 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
   o.view.fog = false;
   o.view.sky = false;
   o.view.hud = false;
-  o.render.mode = runtime::TerrainMode::modules;
-  runtime::FlightHooks hooks(o);
-  hooks.onPose = [&](std::uint32_t k, double, runtime::GroundClamp&) -> std::optional<runtime::Pose> {
-    runtime::Pose p;
+  o.render.mode = viewer::TerrainMode::modules;
+  viewer::FlightHooks hooks(o);
+  hooks.onPose = [&](std::uint32_t k, double, world::GroundClamp&) -> std::optional<world::Pose> {
+    world::Pose p;
     p.easting = o.motion.easting;
     p.northing = o.motion.northing;
     p.heightAgl = o.motion.heightAgl;
@@ -165,10 +165,10 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
     return p;
   };
   std::uint64_t worst = 0;
-  hooks.onFrame = [&](std::uint32_t, const runtime::Image& i) {
+  hooks.onFrame = [&](std::uint32_t, const render::Image& i) {
     worst = std::max(worst, holesBelowTheSilhouette(i));
   };
-  auto r = runtime::fly(db.value(), o, &hooks);
+  auto r = viewer::fly(db.value(), o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 150u);
   EXPECT_DOUBLE_EQ(r->frames[0].viewDistance, 3000);
@@ -190,7 +190,7 @@ TEST_F(ViewerLod, ABudgetTooSmallIsCountedAndLeavesNoHoles) {
   FlightOptions o = issuePose(LodMode::full);
   o.pager.budgetBytes = 48ull << 20;
   o.view.clearColour = {0xFF, 0x00, 0xFF};
-  runtime::Image img;
+  render::Image img;
   const FrameStats s = frame(o, 11.60, 50.05, &img);
   ASSERT_EQ(s.levelCounts.size(), 4u);
   EXPECT_GT(s.pagerBudgetRefusals + s.pagerTrimmedLevels, 0u);

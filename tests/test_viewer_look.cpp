@@ -5,7 +5,7 @@
 // no quilting); high mountains are not green; roads carry their markings.
 //
 // Every expectation is computed here from the grid (rays cast through
-// pixel centres against runtime::Terrain), not from the renderer.
+// pixel centres against world::Terrain), not from the renderer.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -27,14 +27,14 @@
 namespace sandtable::test {
 namespace {
 
-using runtime::ColourMode;
-using runtime::FlightOptions;
-using runtime::Image;
-using runtime::TerrainMode;
+using render::ColourMode;
+using viewer::FlightOptions;
+using render::Image;
+using viewer::TerrainMode;
 
 constexpr double kPi = 3.14159265358979323846;
 /// --colour height quantisation (renderer.h): 1/256 m.
-constexpr double kQuantum = 1.0 / runtime::kHeightCodeScale;
+constexpr double kQuantum = 1.0 / render::kHeightCodeScale;
 
 using Vec3 = std::array<double, 3>;
 
@@ -70,7 +70,7 @@ class ViewerLook : public ::testing::Test {
   static void SetUpTestSuite() {
     if (!haveData()) return;
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) {
+    if (!render::headlessGlAvailable(why)) {
       noGl_ = why;
       return;
     }
@@ -95,7 +95,7 @@ class ViewerLook : public ::testing::Test {
   /// Renders the second frame of a still flight (the pager settled, no fog,
   /// no sky, no panel) at the view, in `mode` and `colour`.
   static Shot shoot(const Database& db, const View& v, TerrainMode mode, ColourMode colour,
-                    runtime::Shading shading = runtime::Shading::smooth) {
+                    render::Shading shading = render::Shading::smooth) {
     Shot s;
     FlightOptions& o = s.o;
     auto geo = geodesy::Projection::create(db.manifest.crsWkt);
@@ -118,10 +118,10 @@ class ViewerLook : public ::testing::Test {
     o.render.mode = mode;
     o.render.colour = colour;
     o.render.shading = shading;
-    o.render.lod.mode = runtime::LodMode::full;
-    runtime::FlightHooks hooks(o);
+    o.render.lod.mode = scene::LodMode::full;
+    viewer::FlightHooks hooks(o);
     hooks.onFrame = [&](std::uint32_t, const Image& i) { s.img = i; };
-    auto r = runtime::fly(db, o, &hooks);
+    auto r = viewer::fly(db, o, &hooks);
     EXPECT_TRUE(r.ok()) << r.error();
     if (r.ok() && !r->frames.empty()) {
       const auto& f = r->frames.back();
@@ -133,8 +133,8 @@ class ViewerLook : public ::testing::Test {
     if (const char* keep = std::getenv("SANDTABLE_KEEP_TEST_OUTPUT")) {
       const std::string name = std::string(v.name) + (mode == TerrainMode::mesh ? " mesh" : " modules") +
                                (colour == ColourMode::height ? " height" : "") +
-                               (shading == runtime::Shading::flat ? " flat" : "");
-      runtime::writePng(std::string(keep) + "/" + name + ".png", s.img);
+                               (shading == render::Shading::flat ? " flat" : "");
+      render::writePng(std::string(keep) + "/" + name + ".png", s.img);
     }
     return s;
   }
@@ -151,7 +151,7 @@ Vec3 rayThrough(const FlightOptions& o, double px, double py) {
   const Vec3 r{std::cos(h), 0, std::sin(h)};
   const Vec3 u{r[1] * f[2] - r[2] * f[1], r[2] * f[0] - r[0] * f[2], r[0] * f[1] - r[1] * f[0]};
   const double aspect = double(o.view.width) / o.view.height;
-  const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
+  const double k = 1 / std::tan(paging::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
   const double nx = (px + 0.5) / o.view.width * 2 - 1, ny = 1 - (py + 0.5) / o.view.height * 2;
   Vec3 d{};
   for (int c = 0; c < 3; ++c) d[c] = f[c] + nx * aspect / k * r[c] + ny / k * u[c];
@@ -162,7 +162,7 @@ Vec3 rayThrough(const FlightOptions& o, double px, double py) {
 
 /// The first point where the ray from `eye` meets the terrain within
 /// `range` metres: marched in steps of a quarter spacing, then bisected.
-std::optional<Vec3> castRay(const runtime::Terrain& terrain, const Vec3& eye, const Vec3& d, double range) {
+std::optional<Vec3> castRay(const world::Terrain& terrain, const Vec3& eye, const Vec3& d, double range) {
   const double step = terrain.heights().spacing() / 4;
   const auto above = [&](double s) -> std::optional<double> {
     const auto g = terrain.sampleXZ(eye[0] + s * d[0], eye[2] + s * d[2]);
@@ -191,11 +191,11 @@ std::optional<Vec3> castRay(const runtime::Terrain& terrain, const Vec3& eye, co
 /// height step over `maxStep` metres: away from silhouettes.
 bool continuous(const Image& a, std::uint32_t x, std::uint32_t y, double maxStep) {
   if (x == 0 || y == 0 || x + 1 >= a.width || y + 1 >= a.height) return false;
-  const auto c = runtime::heightAt(a, x, y);
+  const auto c = render::heightAt(a, x, y);
   if (!c) return false;
   for (int dy = -1; dy <= 1; ++dy) {
     for (int dx = -1; dx <= 1; ++dx) {
-      const auto n = runtime::heightAt(a, std::uint32_t(int(x) + dx), std::uint32_t(int(y) + dy));
+      const auto n = render::heightAt(a, std::uint32_t(int(x) + dx), std::uint32_t(int(y) + dy));
       if (!n || std::abs(*n - *c) > maxStep) return false;
     }
   }
@@ -212,7 +212,7 @@ Agreement compareHeights(const Image& modules, const Image& mesh, double toleran
   Agreement a;
   for (std::uint32_t y = 0; y < mesh.height; ++y) {
     for (std::uint32_t x = 0; x < mesh.width; ++x) {
-      const auto hm = runtime::heightAt(modules, x, y), hg = runtime::heightAt(mesh, x, y);
+      const auto hm = render::heightAt(modules, x, y), hg = render::heightAt(mesh, x, y);
       if (!hm || !hg) continue;
       ++a.terrain;
       if (!continuous(mesh, x, y, 10) || !continuous(modules, x, y, 10)) continue;
@@ -252,7 +252,7 @@ TEST_F(ViewerLook, HeightFramesOfModulesAtFullLodMatchTheGridMeshAndTheGrid) {
     EXPECT_GE(a.fraction(), 0.995) << c.view.name;
 
     // Both against the grid: a ray through each sampled pixel's centre.
-    const runtime::Terrain terrain(db->grid);
+    const world::Terrain terrain(db->grid);
     std::uint64_t cast = 0, onGrid = 0;
     for (std::uint32_t y = 1; y + 1 < mesh.img.height; y += 7) {
       for (std::uint32_t x = 1; x + 1 < mesh.img.width; x += 7) {
@@ -261,12 +261,12 @@ TEST_F(ViewerLook, HeightFramesOfModulesAtFullLodMatchTheGridMeshAndTheGrid) {
         if (!hit) continue;
         ++cast;
         const double want = (*hit)[1];
-        const bool ok = std::abs(*runtime::heightAt(mesh.img, x, y) - want) <= 0.05 &&
-                        std::abs(*runtime::heightAt(modules.img, x, y) - want) <= 0.05;
+        const bool ok = std::abs(*render::heightAt(mesh.img, x, y) - want) <= 0.05 &&
+                        std::abs(*render::heightAt(modules.img, x, y) - want) <= 0.05;
         onGrid += ok;
         EXPECT_TRUE(ok) << c.view.name << " pixel " << x << "," << y << ": grid " << want << " mesh "
-                        << *runtime::heightAt(mesh.img, x, y) << " modules "
-                        << *runtime::heightAt(modules.img, x, y);
+                        << *render::heightAt(mesh.img, x, y) << " modules "
+                        << *render::heightAt(modules.img, x, y);
       }
     }
     EXPECT_GT(cast, 100u) << c.view.name;
@@ -288,9 +288,9 @@ TEST_F(ViewerLook, UploadBudgetSpreadsTheFirstFrameAndNeverLeavesAHole) {
   o.output.frames = 60;
   o.view.clearColour = {0xFF, 0x00, 0xFF};
   std::vector<Image> frames;
-  runtime::FlightHooks hooks(o);
+  viewer::FlightHooks hooks(o);
   hooks.onFrame = [&](std::uint32_t, const Image& i) { frames.push_back(i); };
-  auto r = runtime::fly(db.value(), o, &hooks);
+  auto r = viewer::fly(db.value(), o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(frames.size(), 60u);
   EXPECT_GT(r->frames.front().uploadsDeferred, 0u);
@@ -301,7 +301,7 @@ TEST_F(ViewerLook, UploadBudgetSpreadsTheFirstFrameAndNeverLeavesAHole) {
     deferredFrames += f.uploadsDeferred > 0;
     std::uint64_t holes = 0;
     for (std::uint32_t y = 0; y < frames[k].height; ++y) {
-      for (std::uint32_t x = 0; x < frames[k].width; ++x) holes += !runtime::heightAt(frames[k], x, y).has_value();
+      for (std::uint32_t x = 0; x < frames[k].width; ++x) holes += !render::heightAt(frames[k], x, y).has_value();
     }
     EXPECT_EQ(holes, 0u) << "frame " << k;
   }
@@ -314,7 +314,7 @@ TEST_F(ViewerLook, UploadBudgetSpreadsTheFirstFrameAndNeverLeavesAHole) {
   std::uint64_t differ = 0;
   for (std::uint32_t y = 0; y < last.height; ++y) {
     for (std::uint32_t x = 0; x < last.width; ++x) {
-      const auto a = runtime::heightAt(last, x, y), b = runtime::heightAt(want.img, x, y);
+      const auto a = render::heightAt(last, x, y), b = render::heightAt(want.img, x, y);
       differ += a.has_value() != b.has_value() || (a && std::abs(*a - *b) > 2 * kQuantum);
     }
   }
@@ -322,7 +322,7 @@ TEST_F(ViewerLook, UploadBudgetSpreadsTheFirstFrameAndNeverLeavesAHole) {
 }
 
 /// Blue-ish: the water colour lit (docs/VIEWER.md, "Colours").
-bool isWater(runtime::Rgb c) { return c.b > c.r + 40 && c.b > c.g + 15; }
+bool isWater(render::Rgb c) { return c.b > c.r + 40 && c.b > c.g + 15; }
 
 TEST_F(ViewerLook, SeaIsDrawnAsWaterInBothModes) {
   struct Case {
@@ -339,7 +339,7 @@ TEST_F(ViewerLook, SeaIsDrawnAsWaterInBothModes) {
     auto db = openDatabase(c.dir);
     ASSERT_TRUE(db.ok()) << db.error();
     const grid::GridFile& g = *db->grid;
-    const runtime::Terrain terrain(db->grid);
+    const world::Terrain terrain(db->grid);
     for (const TerrainMode mode : {TerrainMode::modules, TerrainMode::mesh}) {
       const Shot shot = shoot(db.value(), c.view, mode, ColourMode::natural);
       std::uint64_t sea = 0, blue = 0;
@@ -376,7 +376,7 @@ TEST_F(ViewerLook, SeaIsDrawnAsWaterInBothModes) {
   }
 }
 
-int channelGap(runtime::Rgb a, runtime::Rgb b) {
+int channelGap(render::Rgb a, render::Rgb b) {
   return std::max({std::abs(a.r - b.r), std::abs(a.g - b.g), std::abs(a.b - b.b)});
 }
 
@@ -392,7 +392,7 @@ TEST_F(ViewerLook, ModulesAndMeshColourUncoveredGroundAlikeAndMountainsAreNotGre
     const Shot hm = shoot(db.value(), v, TerrainMode::mesh, ColourMode::height);
     const Shot cm = shoot(db.value(), v, TerrainMode::mesh, ColourMode::natural);
     const Shot cmod = shoot(db.value(), v, TerrainMode::modules, ColourMode::natural);
-    const Shot cflat = shoot(db.value(), v, TerrainMode::modules, ColourMode::natural, runtime::Shading::flat);
+    const Shot cflat = shoot(db.value(), v, TerrainMode::modules, ColourMode::natural, render::Shading::flat);
     std::uint64_t compared = 0, same = 0, flatSame = 0;
     for (std::uint32_t y = 0; y < hm.img.height; ++y) {
       for (std::uint32_t x = 0; x < hm.img.width; ++x) {
@@ -400,8 +400,8 @@ TEST_F(ViewerLook, ModulesAndMeshColourUncoveredGroundAlikeAndMountainsAreNotGre
         ++compared;
         same += channelGap(cm.img.at(x, y), cmod.img.at(x, y)) <= 3;
         flatSame += channelGap(cm.img.at(x, y), cflat.img.at(x, y)) <= 3;
-        const double h = *runtime::heightAt(hm.img, x, y);
-        const runtime::Rgb c = cm.img.at(x, y);
+        const double h = *render::heightAt(hm.img, x, y);
+        const render::Rgb c = cm.img.at(x, y);
         if (h >= 2700) {
           ++high;
           highNeutral += std::abs(c.g - c.r) <= 16 && std::abs(c.g - c.b) <= 16;
@@ -474,21 +474,21 @@ TEST_F(ViewerLook, RoadsShowTheirMarkingsFromLowAltitude) {
     const Vec3 d{p[0] - shot.eye[0], p[1] - shot.eye[1], p[2] - shot.eye[2]};
     const auto dot = [](const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
     const double aspect = double(o.view.width) / o.view.height;
-    const double k = 1 / std::tan(runtime::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
+    const double k = 1 / std::tan(paging::verticalFovDeg(o.view.hfovDeg, aspect) * kPi / 360);
     const double x = (k / aspect * dot(r, d) / dot(f, d) + 1) / 2 * o.view.width;
     const double y = (1 - k * dot(u, d) / dot(f, d)) / 2 * o.view.height;
     if (x < 1 || y < 1 || x >= o.view.width - 1 || y >= o.view.height - 1) return std::nullopt;
     return std::array<std::uint32_t, 2>{std::uint32_t(x), std::uint32_t(y)};
   };
   // Markings are near white; the primary road's colour (F0B060) has little blue.
-  const auto white = [](runtime::Rgb c) { return std::min({c.r, c.g, c.b}) > 150; };
-  const auto asphalt = [](runtime::Rgb c) { return int(c.r) - int(c.b) > 60; };  // primary: F0B060
+  const auto white = [](render::Rgb c) { return std::min({c.r, c.g, c.b}) > 150; };
+  const auto asphalt = [](render::Rgb c) { return int(c.r) - int(c.b) > 60; };  // primary: F0B060
   std::uint64_t dash = 0, dashWhite = 0, gap = 0, gapRoad = 0, edge = 0, edgeWhite = 0, lane = 0, laneRoad = 0;
   for (double s = 0.3 * length; s <= 0.7 * length; s += 1.0) {
     // S runs in road widths (docs/CULTURE.md 8); dashes cover [0, 0.45) of each.
     const double f = s / kWidth - std::floor(s / kWidth);
     if (auto p = pixel(s, 0.5); p && std::min({f, std::abs(f - 0.45), 1 - f}) > 0.05) {
-      const runtime::Rgb c = shot.img.at((*p)[0], (*p)[1]);
+      const render::Rgb c = shot.img.at((*p)[0], (*p)[1]);
       if (f < 0.45) dash++, dashWhite += white(c);
       else gap++, gapRoad += asphalt(c);
     }

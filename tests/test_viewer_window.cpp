@@ -48,7 +48,7 @@ namespace sandtable::test {
 namespace {
 
 namespace fs = std::filesystem;
-using runtime::Image;
+using render::Image;
 
 constexpr const char* kSize = "320x180";
 constexpr std::uint32_t kWidth = 320, kHeight = 180;
@@ -99,7 +99,7 @@ nlohmann::json readStats(const std::string& dir) {
 /// The panel's "HDG ... SPD ..." line for a frame of stats.json, and its
 /// index among the panel's lines, as the flight loop writes them.
 std::pair<std::string, int> speedLine(const nlohmann::json& f) {
-  runtime::FrameStats s;
+  viewer::FrameStats s;
   s.frame = f["frame"];
   s.headingDeg = f["heading"];
   s.speedKmh = f["speed_kmh"];
@@ -107,7 +107,7 @@ std::pair<std::string, int> speedLine(const nlohmann::json& f) {
     s.lon = f["lon"].get<double>();
     s.lat = f["lat"].get<double>();
   }
-  const auto lines = runtime::hudLines(s, runtime::FlightOptions{});
+  const auto lines = viewer::hudLines(s, viewer::FlightOptions{});
   for (std::size_t k = 0; k < lines.size(); ++k) {
     if (lines[k].rfind("HDG ", 0) == 0) return {lines[k], int(k)};
   }
@@ -124,14 +124,14 @@ bool isWhite(const Image& img, std::uint32_t x, std::uint32_t y) {
 /// exactly the glyphs. "" when they are the glyphs of `text`, else where not.
 std::string panelLineReads(const Image& frame, int index, const std::string& text) {
   const int pad = 4;  // drawHudPanel at scale 1 (frames narrower than 800)
-  const int y0 = pad + index * runtime::kLineAdvance;
+  const int y0 = pad + index * render::kLineAdvance;
   Image want;
   want.width = frame.width;
   want.height = frame.height;
   want.rgba.assign(frame.rgba.size(), 0);
-  runtime::drawText(want, pad, y0, text, 1, runtime::Rgb{255, 255, 255});
-  const int x1 = pad + runtime::textWidth(text, 1) + runtime::kGlyphAdvance * 4;
-  for (int y = y0; y < y0 + runtime::kGlyphHeight; ++y) {
+  render::drawText(want, pad, y0, text, 1, render::Rgb{255, 255, 255});
+  const int x1 = pad + render::textWidth(text, 1) + render::kGlyphAdvance * 4;
+  for (int y = y0; y < y0 + render::kGlyphHeight; ++y) {
     for (int x = 0; x < x1 && x < int(frame.width); ++x) {
       if (isWhite(frame, x, y) != isWhite(want, x, y)) {
         return "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") differs from \"" + text + "\"";
@@ -170,7 +170,7 @@ class ViewerCli : public ::testing::Test {
   static void SetUpTestSuite() {
     if (!haveData()) return;
     std::string why;
-    if (!runtime::headlessGlAvailable(why)) {
+    if (!render::headlessGlAvailable(why)) {
       noGl_ = why;
       return;
     }
@@ -264,8 +264,8 @@ TEST_F(ViewerCli, WindowUpKeyRaisesTheSpeedInStatsAndPanel) {
   ASSERT_GE(oldIndex, 0);
   ASSERT_NE(oldLine, newLine);
   EXPECT_NE(newLine.find("SPD 54 KM/H"), std::string::npos) << newLine;
-  const Image a = readPng(frames + "/" + runtime::frameFileName(std::uint32_t(k - 1)));
-  const Image b = readPng(frames + "/" + runtime::frameFileName(std::uint32_t(k)));
+  const Image a = readPng(frames + "/" + viewer::frameFileName(std::uint32_t(k - 1)));
+  const Image b = readPng(frames + "/" + viewer::frameFileName(std::uint32_t(k)));
   ASSERT_EQ(a.width, kWidth);
   ASSERT_EQ(b.width, kWidth);
   EXPECT_EQ(panelLineReads(a, oldIndex, oldLine), "");
@@ -277,7 +277,7 @@ TEST_F(ViewerCli, WindowUpKeyRaisesTheSpeedInStatsAndPanel) {
   ASSERT_EQ(shot.width, kWidth) << result.out;
   bool matches = false;
   for (std::size_t j = k; j < f.size() && !matches; ++j) {
-    matches = readPng(frames + "/" + runtime::frameFileName(std::uint32_t(j))).rgba == shot.rgba;
+    matches = readPng(frames + "/" + viewer::frameFileName(std::uint32_t(j))).rgba == shot.rgba;
   }
   EXPECT_TRUE(matches) << "screenshot_0000.png is none of the frames after the Up key";
 }
@@ -293,7 +293,7 @@ TEST_F(ViewerCli, WindowWithoutADisplayFailsClearly) {
   EXPECT_NE(h.err.find("a headless flight needs --png DIR"), std::string::npos) << h.err;
 }
 
-bool isSeaBlue(runtime::Rgb c) { return c.r == 0 && c.g == 46 && c.b == 113; }
+bool isSeaBlue(render::Rgb c) { return c.r == 0 && c.g == 46 && c.b == 113; }
 
 TEST_F(ViewerCli, MapDrawsInTheTopRightCorner) {
   TempDir out("flymap");

@@ -14,7 +14,7 @@
 namespace sandtable::test {
 
 /// The clear colour the crack and hole tests draw against (FlightOptions::clearColour).
-inline bool isMagenta(const runtime::Image& img, std::uint32_t x, std::uint32_t y) {
+inline bool isMagenta(const render::Image& img, std::uint32_t x, std::uint32_t y) {
   const auto c = img.at(x, y);
   return c.r > 240 && c.g < 16 && c.b > 240;
 }
@@ -22,7 +22,7 @@ inline bool isMagenta(const runtime::Image& img, std::uint32_t x, std::uint32_t 
 /// Magenta pixels below the terrain's silhouette: in each column, those
 /// under the first pixel from the top that is not the clear colour. With
 /// the sky off, each one is a crack or a hole in the terrain.
-inline std::uint64_t holesBelowTheSilhouette(const runtime::Image& img) {
+inline std::uint64_t holesBelowTheSilhouette(const render::Image& img) {
   std::uint64_t n = 0;
   for (std::uint32_t x = 0; x < img.width; ++x) {
     std::uint32_t y = 0;
@@ -35,7 +35,7 @@ inline std::uint64_t holesBelowTheSilhouette(const runtime::Image& img) {
 /// Opens the database in `dir` and starts `o` over (lon, lat), through the
 /// database's own CRS. Empty (with a test failure) when either fails.
 inline std::optional<Database> openAt(const std::string& dir, double lon, double lat,
-                                      runtime::FlightOptions& o) {
+                                      viewer::FlightOptions& o) {
   auto db = openDatabase(dir);
   if (!db.ok()) {
     ADD_FAILURE() << db.error();

@@ -30,7 +30,7 @@ namespace sandtable::bench {
 namespace {
 
 namespace fs = std::filesystem;
-using runtime::PagerMode;
+using paging::PagerMode;
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
@@ -291,7 +291,7 @@ struct FlightResult {
   std::uint64_t lateTicks = 0;
   std::uint32_t maxLead = 0;      ///< most lead strips on one side, sampled at 10 Hz
   double maxEstimateMs = 0;       ///< highest latency estimate, sampled at 10 Hz
-  runtime::PagerMetrics before, after;
+  paging::PagerMetrics before, after;
   std::uint64_t diskBytes = 0;
   double rssMb = 0, peakRssMb = 0;
 };
@@ -310,8 +310,8 @@ struct Flight {
   double seconds = 0;
 };
 
-runtime::PagerOptions pagerOptions(const PagingBenchOptions& a, const ModeSpec& mode, const Notes& notes) {
-  runtime::PagerOptions o;
+paging::PagerOptions pagerOptions(const PagingBenchOptions& a, const ModeSpec& mode, const Notes& notes) {
+  paging::PagerOptions o;
   o.mode = mode.mode;
   o.viewDistance = a.viewDistance;
   o.loaderThreads = a.loaders;
@@ -327,7 +327,7 @@ runtime::PagerOptions pagerOptions(const PagingBenchOptions& a, const ModeSpec& 
 
 class FlightRunner {
  public:
-  FlightRunner(const PagingBenchOptions& a, const Database& db, const runtime::Pager& pager) : pager_(pager) {
+  FlightRunner(const PagingBenchOptions& a, const Database& db, const paging::Pager& pager) : pager_(pager) {
     const pack::IndexHeader& h = db.modules->header();
     edge_ = h.moduleSize;
     mx_ = h.modulesX;
@@ -344,14 +344,14 @@ class FlightRunner {
     need_.eyeX = p.x;
     need_.eyeZ = p.z;
     need_.headingDeg = std::atan2(p.dx, -p.dz) * 180 / std::numbers::pi;
-    runtime::neededModules(need_, edge_, mx_, mz_, levels_, needed_);
+    paging::neededModules(need_, edge_, mx_, mz_, levels_, needed_);
     std::uint64_t holes = 0, degraded = 0;
-    for (const runtime::NeededModule& n : needed_) {
+    for (const paging::NeededModule& n : needed_) {
       if (grid_) {
         holes += grid_->resident(n.kx, n.kz) ? 0 : 1;
         continue;
       }
-      const runtime::ResidentRef r = pager_.resident(n.kx, n.kz, n.level);
+      const paging::ResidentRef r = pager_.resident(n.kx, n.kz, n.level);
       if (!r) ++holes;
       else if (r.finestLevel() > n.level) ++degraded;
     }
@@ -371,11 +371,11 @@ class FlightRunner {
   }
 
  private:
-  const runtime::Pager& pager_;
+  const paging::Pager& pager_;
   double edge_ = 1000;
   std::uint32_t mx_ = 0, mz_ = 0, levels_ = 1;
-  runtime::NeedParams need_;
-  std::vector<runtime::NeededModule> needed_;
+  paging::NeedParams need_;
+  std::vector<paging::NeededModule> needed_;
   std::optional<GridResidency> grid_;
 };
 
@@ -383,7 +383,7 @@ class FlightRunner {
 /// the pager is given until it has the first view (and, predictive, the
 /// whole window with its lead strips): a running start, so the flight
 /// measures sustained paging, not the cold start of an empty area.
-double runningStart(runtime::Pager& pager, FlightRunner& runner, const FlightPath::Point& p0, double v) {
+double runningStart(paging::Pager& pager, FlightRunner& runner, const FlightPath::Point& p0, double v) {
   const auto t0 = Clock::now();
   const double deadline = 60;
   for (;;) {
@@ -396,8 +396,8 @@ double runningStart(runtime::Pager& pager, FlightRunner& runner, const FlightPat
   }
 }
 
-void sample(const runtime::Pager& pager, FlightResult& out) {
-  const runtime::PagerMetrics m = pager.metrics();
+void sample(const paging::Pager& pager, FlightResult& out) {
+  const paging::PagerMetrics m = pager.metrics();
   out.maxLead = std::max(out.maxLead, *std::max_element(m.leadStrips.begin(), m.leadStrips.end()));
   out.maxEstimateMs = std::max(out.maxEstimateMs, m.latencyEstimateSeconds * 1000);
 }
@@ -411,9 +411,9 @@ Result<FlightResult> fly(const PagingBenchOptions& a, const Flight& f, const Fli
   auto dbr = openDatabase(a.database);
   if (!dbr) return dbr.problems();
   const Database db = std::move(dbr.value());
-  auto pr = runtime::Pager::open(db, pagerOptions(a, f.mode, notes));
+  auto pr = paging::Pager::open(db, pagerOptions(a, f.mode, notes));
   if (!pr) return pr.problems();
-  runtime::Pager& pager = *pr.value();
+  paging::Pager& pager = *pr.value();
   FlightRunner runner(a, db, pager);
 
   const double v0 = f.speedsKmh.front() / 3.6, v1 = f.speedsKmh.back() / 3.6;
@@ -548,8 +548,8 @@ json stageBreakdown(const PagingBenchOptions& a, const FlightPath& path, std::si
 // --------------------------------------------------------------- results
 
 json binJson(const Bin& b, const FlightResult& r, double share) {
-  const runtime::PagerMetrics& m0 = r.before;
-  const runtime::PagerMetrics& m1 = r.after;
+  const paging::PagerMetrics& m0 = r.before;
+  const paging::PagerMetrics& m1 = r.after;
   const double s = std::max(1e-9, r.seconds * share);
   const bool mmap = m1.mode == PagerMode::mmap;
   // Per-bin rates share the flight's totals by time (exact for one bin).

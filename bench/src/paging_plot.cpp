@@ -24,7 +24,7 @@ using nlohmann::json;
 struct Series {
   std::string label;
   std::vector<std::array<double, 2>> points;  ///< speed km/h, % of frames
-  runtime::Rgb color;
+  render::Rgb color;
   bool dashed = false;
 };
 
@@ -37,7 +37,7 @@ std::string speedLabel(double v) {
 }
 
 std::vector<Series> plotSeries(const json& modes) {
-  const std::map<std::string, runtime::Rgb> colors = {
+  const std::map<std::string, render::Rgb> colors = {
       {"predictive", {0, 114, 178}}, {"demand", {213, 94, 0}}, {"mmap", {0, 158, 115}}, {"seed", {204, 121, 167}}};
   std::vector<Series> out;
   for (const auto& [mode, m] : modes.items()) {
@@ -132,14 +132,14 @@ std::string svgPlot(const std::vector<Series>& series, const std::string& title)
   return o.str();
 }
 
-void dot(runtime::Image& img, int x, int y, runtime::Rgb c) {
+void dot(render::Image& img, int x, int y, render::Rgb c) {
   if (x < 0 || y < 0 || x >= int(img.width) || y >= int(img.height)) return;
   const std::size_t k = (std::size_t(y) * img.width + std::size_t(x)) * 4;
   img.rgba[k] = c.r, img.rgba[k + 1] = c.g, img.rgba[k + 2] = c.b, img.rgba[k + 3] = 255;
 }
 
 /// A line two pixels wide; `dashed` leaves gaps every 6 pixels.
-void line(runtime::Image& img, double x0, double y0, double x1, double y1, runtime::Rgb c, bool dashed = false) {
+void line(render::Image& img, double x0, double y0, double x1, double y1, render::Rgb c, bool dashed = false) {
   const double len = std::max(1.0, std::hypot(x1 - x0, y1 - y0));
   for (double t = 0; t <= len; t += 0.5) {
     if (dashed && int(t) % 10 >= 6) continue;
@@ -151,27 +151,27 @@ void line(runtime::Image& img, double x0, double y0, double x1, double y1, runti
 
 std::string pngPlot(const std::string& file, const std::vector<Series>& series, const std::string& title) {
   const Axes ax = axesFor(series);
-  runtime::Image img{std::uint32_t(ax.w), std::uint32_t(ax.h), {}};
+  render::Image img{std::uint32_t(ax.w), std::uint32_t(ax.h), {}};
   img.rgba.assign(std::size_t(ax.w) * ax.h * 4, 255);
-  const runtime::Rgb grey{200, 200, 200}, black{0, 0, 0};
+  const render::Rgb grey{200, 200, 200}, black{0, 0, 0};
   const double xr = ax.w - ax.right, yb = ax.h - ax.bottom;
   for (int pct = 0; pct <= 100; pct += 20) {
     line(img, ax.left, ax.py(pct), xr, ax.py(pct), grey);
     const std::string t = std::to_string(pct) + "%";
-    runtime::drawText(img, ax.left - 8 - runtime::textWidth(t, 2), int(ax.py(pct)) - 7, t, 2, black);
+    render::drawText(img, ax.left - 8 - render::textWidth(t, 2), int(ax.py(pct)) - 7, t, 2, black);
   }
   for (double v = ax.x0; v <= ax.x1 * 1.0001; v *= 10) {
     line(img, ax.px(v), ax.top, ax.px(v), yb, grey);
     const std::string t = speedLabel(v);
-    runtime::drawText(img, int(ax.px(v)) - runtime::textWidth(t, 2) / 2, int(yb) + 8, t, 2, black);
+    render::drawText(img, int(ax.px(v)) - render::textWidth(t, 2) / 2, int(yb) + 8, t, 2, black);
   }
   line(img, ax.left, ax.top, xr, ax.top, black);
   line(img, ax.left, yb, xr, yb, black);
   line(img, ax.left, ax.top, ax.left, yb, black);
   line(img, xr, ax.top, xr, yb, black);
-  runtime::drawText(img, ax.left, 14, title, 2, black);
-  runtime::drawText(img, int(ax.left + xr) / 2 - 100, ax.h - 28, "SPEED KM/H (LOG)", 2, black);
-  runtime::drawText(img, ax.left - 60, ax.top - 32, "% OF FRAMES", 2, black);
+  render::drawText(img, ax.left, 14, title, 2, black);
+  render::drawText(img, int(ax.left + xr) / 2 - 100, ax.h - 28, "SPEED KM/H (LOG)", 2, black);
+  render::drawText(img, ax.left - 60, ax.top - 32, "% OF FRAMES", 2, black);
   int ly = ax.top + 10;
   for (const Series& s : series) {
     for (std::size_t i = 1; i < s.points.size(); ++i) {
@@ -183,10 +183,10 @@ std::string pngPlot(const std::string& file, const std::vector<Series>& series, 
         for (int dx = -3; dx <= 3; ++dx) dot(img, int(ax.px(p[0])) + dx, int(ax.py(p[1])) + dy, s.color);
     }
     line(img, xr + 10, ly, xr + 40, ly, s.color, s.dashed);
-    runtime::drawText(img, int(xr) + 46, ly - 6, s.label, 2, black);
+    render::drawText(img, int(xr) + 46, ly - 6, s.label, 2, black);
     ly += 22;
   }
-  return runtime::writePng(file, img).error();
+  return render::writePng(file, img).error();
 }
 
 }  // namespace

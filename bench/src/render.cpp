@@ -21,8 +21,8 @@ enum class Objects { lod, none, full, unthinned };
 
 struct Case {
   std::string name;
-  runtime::TerrainMode mode;
-  runtime::LodMode lod;
+  viewer::TerrainMode mode;
+  scene::LodMode lod;
   double pixelError, viewDistance;
   Objects objects = Objects::lod;
 };
@@ -30,10 +30,10 @@ struct Case {
 /// The view distance and pixel error of the "sse1-20km" case (issue 11's target).
 constexpr double kFarViewDistance = 20000, kFarPixelError = 1;
 
-RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_t warmup) {
+RenderCase figuresOf(const Case& c, const viewer::FlightReport& r, std::uint32_t warmup) {
   RenderCase f;
   f.name = c.name;
-  f.pixelError = c.lod == runtime::LodMode::sse ? c.pixelError : 0;
+  f.pixelError = c.lod == scene::LodMode::sse ? c.pixelError : 0;
   f.viewDistance = c.viewDistance;
   std::vector<double> ms;
   double sum = 0, tris = 0, draws = 0;
@@ -45,7 +45,7 @@ RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_
     ms.push_back(fr.frameMs);
     sum += fr.frameMs;
     // Module frames count what the GPU was given; the mesh has no commands.
-    tris += double(c.mode == runtime::TerrainMode::mesh ? fr.triangles : fr.trianglesDrawn);
+    tris += double(c.mode == viewer::TerrainMode::mesh ? fr.triangles : fr.trianglesDrawn);
     draws += double(fr.draws);
     f.uploadsDeferred += fr.uploadsDeferred;
     f.objectsDrawn += double(fr.objectsDrawn);
@@ -70,14 +70,14 @@ RenderCase figuresOf(const Case& c, const runtime::FlightReport& r, std::uint32_
 
 /// The plain grid under an eye posed as the flights' first frame, reaching
 /// as far as the farthest case: the renderer's own indexed rate.
-Result<runtime::IndexedGridRate> gridRate(const RenderBenchOptions& a) {
-  runtime::RenderSettings s;
+Result<render::IndexedGridRate> gridRate(const RenderBenchOptions& a) {
+  render::RenderSettings s;
   s.width = a.width;
   s.height = a.height;
   s.uploadBudgetBytes = 0;
-  auto renderer = runtime::Renderer::create(s);
+  auto renderer = render::Renderer::create(s);
   if (!renderer) return renderer.problems();
-  runtime::Camera cam;
+  scene::Camera cam;
   cam.y = a.heightAgl;
   cam.headingDeg = a.headingDeg;
   cam.pitchDeg = a.pitchDeg;
@@ -88,8 +88,8 @@ Result<runtime::IndexedGridRate> gridRate(const RenderBenchOptions& a) {
   return renderer.value()->measureIndexedGrid(cam, squares, spacing, 16, std::max<std::uint32_t>(a.gridFrames, 1));
 }
 
-runtime::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& a) {
-  runtime::FlightOptions base;
+viewer::FlightOptions baseFlight(const Database& db, const RenderBenchOptions& a) {
+  viewer::FlightOptions base;
   base.view.width = a.width;
   base.view.height = a.height;
   base.output.frames = a.frames + a.warmup;
@@ -151,9 +151,9 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
     return Problem{"", 0, db.directory + " has no load modules (built with ElevationOptions::modules = false); "
                                          "rebuild it with ElevationOptions::modules = true"};
   }
-  const runtime::FlightOptions base = baseFlight(db, a);
-  using runtime::LodMode;
-  using runtime::TerrainMode;
+  const viewer::FlightOptions base = baseFlight(db, a);
+  using scene::LodMode;
+  using viewer::TerrainMode;
   const double vd = a.viewDistance, px = a.pixelError;
   std::vector<Case> cases = {{"rings", TerrainMode::modules, LodMode::rings, px, vd},
                              {"sse", TerrainMode::modules, LodMode::sse, px, vd},
@@ -173,7 +173,7 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
   if (!before) return before.problems();
   report.gridBefore = before.value();
   for (const Case& c : cases) {
-    runtime::FlightOptions o = base;
+    viewer::FlightOptions o = base;
     o.render.mode = c.mode;
     o.render.lod.mode = c.lod;
     o.render.lod.pixelError = c.pixelError;
@@ -181,7 +181,7 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
     o.render.objects = c.objects != Objects::none;
     o.render.objectLod = c.objects == Objects::lod || c.objects == Objects::unthinned;
     if (c.objects == Objects::unthinned) o.render.objectThinPixels = 0;
-    auto r = runtime::fly(db, o);
+    auto r = viewer::fly(db, o);
     if (!r) return r.problems();
     report.renderer = r->summary.rendererDetail;
     report.cases.push_back(figuresOf(c, r.value(), a.warmup));

@@ -17,10 +17,10 @@ int main(int argc, char**) {
   using namespace sandtable;
   std::printf("%d\n", jobs::threadCount(argc));
   auto g = grid::GridFile::open("/nonexistent");
-  runtime::LodOptions lod;
-  std::printf("%d %s\n", g.ok() ? 1 : 0, runtime::checkLodOptions(lod).c_str());
+  scene::LodOptions lod;
+  std::printf("%d %s\n", g.ok() ? 1 : 0, scene::checkLodOptions(lod).c_str());
 #ifdef SANDTABLE_PROBE_RENDER
-  std::printf("%s\n", runtime::writePng("/nonexistent/x.png", runtime::Image{}).error().c_str());
+  std::printf("%s\n", render::writePng("/nonexistent/x.png", render::Image{}).error().c_str());
 #endif
   return 0;
 }

@@ -82,7 +82,7 @@ int run(Args& a) {
   if (!r) {
     const Problem& first = r.problems().front();
     if (first.file.empty()) return reportBenchProblems(kName, r.problems(), kFlags);
-    const bool usage = first.file == runtime::kFlightOptionProblem || first.file == runtime::kGlContextProblem;
+    const bool usage = first.file == viewer::kFlightOptionProblem || first.file == render::kGlContextProblem;
     reportProblems(kName, r.problems());
     return usage ? kUsage : kProblems;
   }

@@ -33,10 +33,10 @@
 namespace sandtable::cli {
 namespace {
 
-using runtime::FlightOptions;
-using runtime::FlySession;
-using runtime::FlySessionSettings;
-using runtime::waterMaterials;
+using viewer::FlightOptions;
+using viewer::FlySession;
+using viewer::FlySessionSettings;
+using viewer::waterMaterials;
 
 constexpr const char* kName = "fly";
 
@@ -70,9 +70,9 @@ struct FlyArgs {
   std::uint32_t msaa = 0;
   bool noObjects = false;
   bool noObjectLod = false;
-  double impostorPixels = runtime::kDefaultImpostorPixels;
-  double objectThinPixels = runtime::kDefaultObjectThinPixels;
-  double objectFade = runtime::kDefaultObjectFade;
+  double impostorPixels = render::kDefaultImpostorPixels;
+  double objectThinPixels = render::kDefaultObjectThinPixels;
+  double objectFade = render::kDefaultObjectFade;
   std::string shading = "smooth";
   std::string colour = "natural";
   // the stealth viewer: window, map, free flight, outputs
@@ -173,7 +173,7 @@ bool parseSize(const std::string& s, std::uint32_t& w, std::uint32_t& h) {
   return true;
 }
 
-bool parseColor(std::string s, runtime::Rgb& c) {
+bool parseColor(std::string s, render::Rgb& c) {
   if (!s.empty() && s[0] == '#') s.erase(0, 1);
   if (s.size() != 6 || !std::all_of(s.begin(), s.end(), [](char ch) { return std::isxdigit(static_cast<unsigned char>(ch)); })) {
     return false;
@@ -212,7 +212,7 @@ std::string projectedBoundsText(const manifest::Manifest& m) {
 }
 
 /// Converts lon/lat and checks it lies on the grid; "" or the reason not.
-std::string project(const geodesy::Projection& geo, const runtime::Terrain& terrain,
+std::string project(const geodesy::Projection& geo, const world::Terrain& terrain,
                     const manifest::Manifest& m, double lon, double lat, double& e, double& n) {
   char where[64];
   std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);
@@ -228,14 +228,14 @@ std::string project(const geodesy::Projection& geo, const runtime::Terrain& terr
 
 /// Reads a --path file through path.h (lon/lat via geodesy, checked
 /// against the grid); every error names the file and line.
-Result<runtime::Path> readPath(const FlyArgs& a, const geodesy::Projection& geo,
-                               const runtime::Terrain& terrain, const manifest::Manifest& m) {
-  runtime::PathOptions po;
+Result<world::Path> readPath(const FlyArgs& a, const geodesy::Projection& geo,
+                               const world::Terrain& terrain, const manifest::Manifest& m) {
+  world::PathOptions po;
   po.defaultSpeedKmh = a.speed;
   po.toProjected = [&](double lon, double lat, double& e, double& n) {
     return project(geo, terrain, m, lon, lat, e, n);
   };
-  auto path = runtime::readPathFile(a.pathFile, po);
+  auto path = world::readPathFile(a.pathFile, po);
   if (!path) return path;
   // Projected waypoints bypass toProjected, so check them here.
   for (const auto& w : path->waypoints) {
@@ -252,7 +252,7 @@ Result<runtime::Path> readPath(const FlyArgs& a, const geodesy::Projection& geo,
 /// Fills the runtime options from the command line; "" or a usage error.
 std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Projection& geo,
                          FlightOptions& o) {
-  const runtime::Terrain terrain(db.grid);
+  const world::Terrain terrain(db.grid);
   const auto& m = db.manifest;
   o.output.outDir = a.pngDir;
   o.output.frames = a.frames;
@@ -267,13 +267,13 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Pr
   o.view.hfovDeg = a.fov;
   o.view.hud = !a.noHud;
   o.view.fog = !a.noFog;
-  if (a.mode == "auto") o.render.mode = runtime::TerrainMode::automatic;
-  else if (a.mode == "mesh") o.render.mode = runtime::TerrainMode::mesh;
-  else if (a.mode == "modules") o.render.mode = runtime::TerrainMode::modules;
+  if (a.mode == "auto") o.render.mode = viewer::TerrainMode::automatic;
+  else if (a.mode == "mesh") o.render.mode = viewer::TerrainMode::mesh;
+  else if (a.mode == "modules") o.render.mode = viewer::TerrainMode::modules;
   else return "--mode must be auto, mesh or modules, not \"" + a.mode + "\"";
-  if (a.lod == "rings") o.render.lod.mode = runtime::LodMode::rings;
-  else if (a.lod == "sse") o.render.lod.mode = runtime::LodMode::sse;
-  else if (a.lod == "full") o.render.lod.mode = runtime::LodMode::full;
+  if (a.lod == "rings") o.render.lod.mode = scene::LodMode::rings;
+  else if (a.lod == "sse") o.render.lod.mode = scene::LodMode::sse;
+  else if (a.lod == "full") o.render.lod.mode = scene::LodMode::full;
   else return "--lod must be rings, sse or full, not \"" + a.lod + "\"";
   if (!a.rings.empty()) {
     std::stringstream in(a.rings);
@@ -301,11 +301,11 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Pr
   o.render.objectLod = !a.noObjectLod;
   o.render.impostorPixels = a.impostorPixels;
   o.render.objectThinPixels = a.objectThinPixels;
-  if (a.shading == "smooth") o.render.shading = runtime::Shading::smooth;
-  else if (a.shading == "flat") o.render.shading = runtime::Shading::flat;
+  if (a.shading == "smooth") o.render.shading = render::Shading::smooth;
+  else if (a.shading == "flat") o.render.shading = render::Shading::flat;
   else return "--shading must be smooth or flat, not \"" + a.shading + "\"";
-  if (a.colour == "natural") o.render.colour = runtime::ColourMode::natural;
-  else if (a.colour == "height") o.render.colour = runtime::ColourMode::height;
+  if (a.colour == "natural") o.render.colour = render::ColourMode::natural;
+  else if (a.colour == "height") o.render.colour = render::ColourMode::height;
   else return "--colour must be natural or height, not \"" + a.colour + "\"";
   o.render.waterMaterials = waterMaterials(db);
   const auto& h = db.grid->header();
@@ -327,9 +327,9 @@ std::string buildOptions(const FlyArgs& a, const Database& db, const geodesy::Pr
 
 /// Frames of a headless path flight without --frames: until the eye is at
 /// the last waypoint (frame k is at k / 30 s).
-std::uint32_t framesForPath(const runtime::Path& p) {
+std::uint32_t framesForPath(const world::Path& p) {
   const double end = p.waypoints.back().timeS;
-  const double frames = std::ceil(end * runtime::kFramesPerSecond - 1e-9) + 1;
+  const double frames = std::ceil(end * viewer::kFramesPerSecond - 1e-9) + 1;
   return std::uint32_t(std::clamp(frames, 1.0, 1e6));
 }
 
@@ -337,7 +337,7 @@ std::uint32_t framesForPath(const runtime::Path& p) {
 std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOptions& o,
                             FlySessionSettings& s) {
   s.freeFlight = a.freeFlight;
-  if (auto g = runtime::Terrain(db.grid).sampleEN(o.motion.easting, o.motion.northing)) {
+  if (auto g = world::Terrain(db.grid).sampleEN(o.motion.easting, o.motion.northing)) {
     s.altitude = a.altitude.value_or(g->elevation + a.height);
   } else {
     s.altitude = a.altitude.value_or(a.height);
@@ -348,7 +348,7 @@ std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOp
   s.mapScale = *scale;
   s.waterMaterials = waterMaterials(db);
   s.screenshotDir = !a.screenshotDir.empty() ? a.screenshotDir : !a.pngDir.empty() ? a.pngDir : ".";
-  const bool modules = db.modules && o.render.mode != runtime::TerrainMode::mesh;
+  const bool modules = db.modules && o.render.mode != viewer::TerrainMode::mesh;
   // Over load modules the pager's ring is sized for the most the keys may
   // ask for; the grid mesh has no such limit.
   s.maxViewDistance = modules ? std::max(o.view.viewDistance, o.view.maxViewDistance > 0 ? o.view.maxViewDistance
@@ -361,15 +361,15 @@ std::string sessionSettings(const FlyArgs& a, const Database& db, const FlightOp
 /// Decides window or headless; opens the window. "" or a usage error; a
 /// null window with "" means headless.
 std::string openWindow(const FlyArgs& a, const Database& db, const FlightOptions& o,
-                       std::unique_ptr<runtime::ViewerWindow>& window) {
+                       std::unique_ptr<viewer::ViewerWindow>& window) {
   if (a.headless) return {};
-  if (a.window && !runtime::ViewerWindow::displayConfigured()) {
+  if (a.window && !viewer::ViewerWindow::displayConfigured()) {
     return "--window needs an X display, and DISPLAY is not set; run it in a desktop session or "
            "under Xvfb (xvfb-run sandtable fly ...), or fly headless with --png DIR";
   }
-  if (!runtime::ViewerWindow::displayConfigured()) return {};
+  if (!viewer::ViewerWindow::displayConfigured()) return {};
   const std::string title = "sandtable fly " + std::filesystem::path(db.directory).filename().string();
-  auto w = runtime::ViewerWindow::open(o.view.width, o.view.height, title);
+  auto w = viewer::ViewerWindow::open(o.view.width, o.view.height, title);
   if (w) {
     window = std::move(w.value());
     return {};
@@ -384,25 +384,25 @@ std::string openWindow(const FlyArgs& a, const Database& db, const FlightOptions
   return {};
 }
 
-std::string openVideo(const FlyArgs& a, const FlightOptions& o, std::unique_ptr<runtime::VideoWriter>& video) {
+std::string openVideo(const FlyArgs& a, const FlightOptions& o, std::unique_ptr<viewer::VideoWriter>& video) {
   if (a.videoFile.empty()) return {};
-  if (!runtime::VideoWriter::available()) return "--video: " + runtime::VideoWriter::notInstalledMessage();
-  runtime::VideoOptions vo;
-  vo.fps = runtime::kFramesPerSecond;
-  auto v = runtime::VideoWriter::open(a.videoFile, o.view.width, o.view.height, vo);
+  if (!viewer::VideoWriter::available()) return "--video: " + viewer::VideoWriter::notInstalledMessage();
+  viewer::VideoOptions vo;
+  vo.fps = viewer::kFramesPerSecond;
+  auto v = viewer::VideoWriter::open(a.videoFile, o.view.width, o.view.height, vo);
   if (!v) return "--video " + a.videoFile + ": " + v.problems().front().message;
   video = std::move(v.value());
   return {};
 }
 
-void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const FlySession& session,
+void printSummary(const FlightOptions& o, const viewer::FlightReport& r, const FlySession& session,
                   const FlyArgs& a) {
   const auto& s = r.summary;
   std::printf("sandtable fly: %u frame%s at %ux%u%s", s.frames, s.frames == 1 ? "" : "s", s.width, s.height,
               session.windowed() ? " in a window" : "");
   if (!o.output.outDir.empty() && s.frames > 0) {
-    std::printf(" in %s/ (%s .. %s)", o.output.outDir.c_str(), runtime::frameFileName(0).c_str(),
-                runtime::frameFileName(s.frames - 1).c_str());
+    std::printf(" in %s/ (%s .. %s)", o.output.outDir.c_str(), viewer::frameFileName(0).c_str(),
+                viewer::frameFileName(s.frames - 1).c_str());
   }
   std::printf("\n");
   if (!s.statsPath.empty()) std::printf("  stats:    %s\n", s.statsPath.c_str());
@@ -416,7 +416,7 @@ void printSummary(const FlightOptions& o, const runtime::FlightReport& r, const 
   std::printf("  speed:    %.1f fps mean, frame %.1f ms p50 / %.1f ms p99 (selection + draw + HUD,"
               " read-back for --png / --video, present; PNG writing excluded), %.0f triangles per frame\n",
               s.fpsMean, s.frameMsP50, s.frameMsP99, s.trianglesMean);
-  if (const runtime::SimSession* sim = session.sim()) std::printf("  sim:      %s\n", sim->summaryLine().c_str());
+  if (const viewer::SimSession* sim = session.sim()) std::printf("  sim:      %s\n", sim->summaryLine().c_str());
 }
 
 /// Checks the combinations CLI11 cannot; "" or a usage error.
@@ -441,16 +441,16 @@ std::string checkArgs(const FlyArgs& a) {
 /// The scenario's simulation for the session, and the stealth eye's start
 /// near its entities; "" or a usage error (kUsage with the problem printed
 /// when the text is "-").
-std::string setUpScenario(const FlyArgs& a, const runtime::World& shared, FlightOptions& o, FlySessionSettings& ss) {
+std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightOptions& o, FlySessionSettings& ss) {
   auto setup = setUpSimulation(kName, shared, a.scenario, a.seed);
   if (!setup) return "-";
-  runtime::SimSessionOptions so;
+  viewer::SimSessionOptions so;
   so.attach = a.attach;
   so.drive = a.drive;
   so.scenario = a.scenario;
   so.startS = a.simStart;
   const std::shared_ptr<sim::SimWorld> world = setup->world;
-  auto session = runtime::SimSession::create(std::move(setup->sim), so);
+  auto session = viewer::SimSession::create(std::move(setup->sim), so);
   if (!session) return session.problems().front().message;
   const sim::Simulation& s = session.value()->simulation();
   // Unless told where, the stealth eye starts behind the scenario's focus.
@@ -486,11 +486,11 @@ std::function<void(std::uint32_t)> flightProgress(Progress& progress, std::uint3
   };
 }
 
-int reportFailure(const Result<runtime::FlightReport>& report) {
+int reportFailure(const Result<viewer::FlightReport>& report) {
   // Bad options and a missing GL context are the caller's to fix (2);
   // anything else went wrong while flying (1).
   const auto& first = report.problems().front();
-  const bool usage = first.file == runtime::kFlightOptionProblem || first.file == runtime::kGlContextProblem;
+  const bool usage = first.file == viewer::kFlightOptionProblem || first.file == render::kGlContextProblem;
   for (const auto& q : report.problems()) {
     std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(q.message).c_str());
   }
@@ -501,9 +501,9 @@ int run(FlyArgs& a) {
   if (std::string err = checkArgs(a); !err.empty()) return usageError(kName, err);
   // The run's one database open: the flight, the map and the simulation
   // share this World.
-  auto opened = runtime::World::open(a.database);
+  auto opened = paging::World::open(a.database);
   if (!opened) return usageError(kName, opened.error());
-  const std::shared_ptr<const runtime::World> world = opened.value();
+  const std::shared_ptr<const paging::World> world = opened.value();
   const Database* db = &world->database();
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return usageError(kName, geo.error());
@@ -519,10 +519,10 @@ int run(FlyArgs& a) {
   }
   if (std::string err = sessionSettings(a, *db, o, ss); !err.empty()) return usageError(kName, err);
   if (!a.pathFile.empty()) {
-    auto path = readPath(a, geo.value(), runtime::Terrain(db->grid), db->manifest);
+    auto path = readPath(a, geo.value(), world::Terrain(db->grid), db->manifest);
     if (!path) {
       // "--path FILE:N: what, how to fix" (the Problem's offset is always 0 here).
-      return usageError(kName, withFlags("--path " + runtime::pathProblemText(path.problems().front())));
+      return usageError(kName, withFlags("--path " + world::pathProblemText(path.problems().front())));
     }
     const auto& first = path->waypoints.front();
     o.motion.easting = first.easting;
@@ -530,9 +530,9 @@ int run(FlyArgs& a) {
     o.motion.heightAgl = first.heightAgl;
     ss.path = std::move(path.value());
   }
-  std::unique_ptr<runtime::VideoWriter> video;
+  std::unique_ptr<viewer::VideoWriter> video;
   if (std::string err = openVideo(a, o, video); !err.empty()) return usageError(kName, err);
-  std::unique_ptr<runtime::ViewerWindow> window;
+  std::unique_ptr<viewer::ViewerWindow> window;
   if (std::string err = openWindow(a, *db, o, window); !err.empty()) return usageError(kName, err);
   const bool framesGiven = a.framesOption && a.framesOption->count() > 0;
   if (window) {
@@ -550,7 +550,7 @@ int run(FlyArgs& a) {
   Progress progress(window != nullptr);
   if (!window) ss.onFrameDone = flightProgress(progress, o.output.frames);
   FlySession session(*world, std::move(ss), o, std::move(window), std::move(video));
-  auto report = runtime::fly(*world, o, &session);
+  auto report = viewer::fly(*world, o, &session);
   progress.done();
   const Status sessionStatus = session.finish();
   if (!report) return reportFailure(report);

@@ -40,14 +40,14 @@ Result<std::vector<std::string>> writeSheets(const iconpack::Pack& pack, const s
   if (ec) return Problem{dir, 0, "cannot create the output folder: " + ec.message() + " (-o)"};
   std::vector<std::string> files;
   for (std::size_t first = 0, page = 1; first < pack.icons.size(); first += kIconsPerSheet, ++page) {
-    auto sheet = runtime::renderIconSheet(pack, first, kIconsPerSheet);
+    auto sheet = render::renderIconSheet(pack, first, kIconsPerSheet);
     if (!sheet) return sheet.problems();
     for (const std::string& w : sheet->warnings) std::fprintf(stderr, "sandtable icons: warning: %s\n", w.c_str());
     std::string name = "contact_sheet";
     if (page > 1) name += "_" + std::to_string(page);
     name += ".png";
     const std::string path = (std::filesystem::path(dir) / name).string();
-    if (Status st = runtime::writePng(path, sheet->image); !st.ok()) return st.problems();
+    if (Status st = render::writePng(path, sheet->image); !st.ok()) return st.problems();
     files.push_back(path);
   }
   return files;

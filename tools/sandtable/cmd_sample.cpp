@@ -23,7 +23,7 @@ struct SampleArgs {
 
 struct Point {
   double lon = 0, lat = 0, easting = 0, northing = 0;
-  std::optional<runtime::TerrainSample> sample;
+  std::optional<world::TerrainSample> sample;
 };
 
 Result<std::vector<std::array<double, 2>>> readPoints(const std::string& path) {
@@ -56,7 +56,7 @@ int runSample(const SampleArgs& a) {
   if (!db) return kUsage;
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return usageError("sample", geo.error());
-  runtime::Terrain terrain(db->grid);
+  world::Terrain terrain(db->grid);
 
   std::vector<Point> pts;
   if (!a.points.empty()) {

@@ -27,7 +27,7 @@ int fromPath(const ScriptArgs& a) {
   if (!db) return kUsage;
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return reportProblems("script", geo.problems());
-  runtime::PathOptions po;
+  world::PathOptions po;
   if (a.speedKmh > 0) po.defaultSpeedKmh = a.speedKmh;
   const geodesy::Projection& g = geo.value();
   po.toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
@@ -36,7 +36,7 @@ int fromPath(const ScriptArgs& a) {
     e = en->easting, n = en->northing;
     return {};
   };
-  auto path = runtime::readPathFile(a.path, po);
+  auto path = world::readPathFile(a.path, po);
   if (!path) return reportProblems("script", path.problems());
   const auto& h = db->grid->header();
   auto lines = sim::scriptFromPath(path.value(), a.entity, a.type, h.originEasting, h.originNorthing);

@@ -59,7 +59,7 @@ int runSim(const SimArgs& a) {
     if (!table) return reportProblems("sim", table.problems());
     options.table = std::move(table.value());
   }
-  const std::shared_ptr<const runtime::World> world = openWorldOrReport("sim", a.db);
+  const std::shared_ptr<const paging::World> world = openWorldOrReport("sim", a.db);
   if (!world) return kUsage;
   auto setup = setUpSimulation("sim", *world, a.scenario, a.seed, options);
   if (!setup) return kUsage;

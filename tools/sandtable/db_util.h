@@ -24,10 +24,10 @@ inline std::optional<Database> openOrReport(const std::string& cmd, const std::s
 
 /// Opens a database as the run's one World (paging/world.h), or prints
 /// every problem as openOrReport does and returns null.
-inline std::shared_ptr<const runtime::World> openWorldOrReport(const std::string& cmd, const std::string& dir) {
+inline std::shared_ptr<const paging::World> openWorldOrReport(const std::string& cmd, const std::string& dir) {
   auto db = openOrReport(cmd, dir);
   if (!db) return nullptr;
-  return std::make_shared<const runtime::World>(std::move(*db));
+  return std::make_shared<const paging::World>(std::move(*db));
 }
 
 }  // namespace sandtable::cli

@@ -10,7 +10,7 @@
 
 namespace sandtable::cli {
 
-std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::World& w,
+std::optional<SimSetup> setUpSimulation(const std::string& cmd, const paging::World& w,
                                         const std::string& scenario, std::optional<std::uint64_t> seed,
                                         sim::SimOptions options) {
   auto scen = sim::readScenarioFile(scenario);
@@ -30,7 +30,7 @@ std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::W
   }
   const geodesy::Projection& g = geo.value();
   const std::string crs = w.manifest().crsName;
-  runtime::ToProjectedFn toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
+  world::ToProjectedFn toProjected = [&](double lon, double lat, double& e, double& n) -> std::string {
     char where[64];
     std::snprintf(where, sizeof where, "%.6f %.6f", lon, lat);
     const auto en = g.toProjected({lon, lat});

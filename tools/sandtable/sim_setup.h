@@ -21,7 +21,7 @@ struct SimSetup {
 
 /// Reads `scenario` (and its scripts and aircraft files) and places its
 /// entities in `world`. `seed` overrides the scenario's.
-std::optional<SimSetup> setUpSimulation(const std::string& cmd, const runtime::World& world,
+std::optional<SimSetup> setUpSimulation(const std::string& cmd, const paging::World& world,
                                         const std::string& scenario, std::optional<std::uint64_t> seed,
                                         sim::SimOptions options = {});
 

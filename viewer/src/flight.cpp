@@ -28,7 +28,7 @@
 #include "sandtable/render/renderer.h"
 #include "sandtable/world/terrain.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -46,10 +46,10 @@ double normalizeHeading(double deg) {
   return h < 0 ? h + 360.0 : h;
 }
 
-Pose straightPose(const FlightOptions& o, double t) {
+world::Pose straightPose(const FlightOptions& o, double t) {
   const double d = o.motion.speedKmh / 3.6 * t;
   const double h = o.motion.headingDeg * kDegToRad;
-  Pose p;
+  world::Pose p;
   p.easting = o.motion.easting + std::sin(h) * d;
   p.northing = o.motion.northing + std::cos(h) * d;
   p.headingDeg = normalizeHeading(o.motion.headingDeg);
@@ -61,11 +61,11 @@ Pose straightPose(const FlightOptions& o, double t) {
 /// FlightOptions::path flown as a path file would be (path.h): the legs at
 /// their speeds, the heading turning at Path::turnRateDegS round each
 /// waypoint rather than snapping.
-Pose pathPose(const std::vector<Waypoint>& path, double t) {
-  std::vector<PathPoint> points;
+world::Pose pathPose(const std::vector<Waypoint>& path, double t) {
+  std::vector<world::PathPoint> points;
   points.reserve(path.size());
   for (const Waypoint& w : path) {
-    PathPoint q;
+    world::PathPoint q;
     q.easting = w.easting;
     q.northing = w.northing;
     q.heightAgl = w.heightAgl;
@@ -74,9 +74,9 @@ Pose pathPose(const std::vector<Waypoint>& path, double t) {
   }
   points.back().speedKmh.reset();  // no leg starts at the last waypoint
   points.front().timeS = 0;
-  auto resolved = resolvePath(points, {}, "FlightOptions::path");
+  auto resolved = world::resolvePath(points, {}, "FlightOptions::path");
   if (!resolved.ok()) return {};  // checkFlightOptions refuses such a path before flight
-  return samplePath(resolved.value(), t);
+  return world::samplePath(resolved.value(), t);
 }
 
 /// CPU time of the calling thread, milliseconds.
@@ -190,7 +190,7 @@ std::string writeStats(const std::string& path, const FlightReport& r, const Fli
                   {"view_distance", o.view.viewDistance},
                   {"fog", o.view.fog},
                   {"mode", terrainModeName(o.render.mode)},
-                  {"lod", lodModeName(o.render.lod.mode)},
+                  {"lod", scene::lodModeName(o.render.lod.mode)},
                   {"rings", o.render.lod.rings},
                   {"pixel_error", o.render.lod.pixelError},
                   {"morph", o.render.lod.morph},
@@ -228,18 +228,18 @@ FlightSummary summarize(const std::vector<FrameStats>& frames) {
 }
 
 double effectiveViewDistance(const FlightOptions& o) {
-  return o.view.fogDensity > 0 ? viewDistanceForFog(o.view.fogDensity) : o.view.viewDistance;
+  return o.view.fogDensity > 0 ? scene::viewDistanceForFog(o.view.fogDensity) : o.view.viewDistance;
 }
 
 /// The eye's elevation for a pose over `ground`: ground following, or
 /// free flight but never below the ground.
-double eyeFor(const Pose& p, double ground) {
-  return GroundClamp::eyeElevation(ground, p.heightAgl, p.altitude, 0.0);
+double eyeFor(const world::Pose& p, double ground) {
+  return world::GroundClamp::eyeElevation(ground, p.heightAgl, p.altitude, 0.0);
 }
 
 /// Camera for a pose; the ground under the eye comes from `ground`.
-Camera cameraFor(const grid::HeightField& h, const FlightOptions& o, const Pose& p, double ground) {
-  Camera c;
+scene::Camera cameraFor(const grid::HeightField& h, const FlightOptions& o, const world::Pose& p, double ground) {
+  scene::Camera c;
   c.x = p.easting - h.originEasting();
   c.z = h.originNorthing() - p.northing;
   c.y = eyeFor(p, ground);
@@ -253,7 +253,7 @@ Camera cameraFor(const grid::HeightField& h, const FlightOptions& o, const Pose&
 
 /// A display buffer with what the main thread knows about its frame.
 struct Slot {
-  DisplayBuffer buf;
+  scene::DisplayBuffer buf;
   FrameStats stats;
 };
 
@@ -309,7 +309,7 @@ class Handoff {
 /// Everything one flight owns while it runs.
 struct FlightRun {
   FlightRun(const FlightOptions& options, FlightApplication& application,
-            std::shared_ptr<const grid::HeightField> g, RenderSettings rs)
+            std::shared_ptr<const grid::HeightField> g, render::RenderSettings rs)
       : o(options), app(application), grid(g), ground(std::move(g)), renderSettings(std::move(rs)) {}
 
   const FlightOptions& o;
@@ -317,13 +317,13 @@ struct FlightRun {
   std::shared_ptr<const grid::HeightField> grid;
   /// The one ground clamp: the surface drawn under the eye (module mode:
   /// reset with the pack's module size and levels).
-  GroundClamp ground;
-  RenderSettings renderSettings;
-  Pager* pager = nullptr;                 ///< module mode
+  world::GroundClamp ground;
+  render::RenderSettings renderSettings;
+  paging::Pager* pager = nullptr;                 ///< module mode
   /// The view distance the pager's window has been filled to: the drawn
   /// distance grows past it only as far as the pager has modules resident.
   double readyViewDistance = 0;
-  std::unique_ptr<ModuleScene> scene;     ///< module mode
+  std::unique_ptr<scene::ModuleScene> scene;     ///< module mode
   std::array<Slot, 2> slots;
   Handoff handoff{slots};
   // Written by the render thread only; read after it is joined.
@@ -334,7 +334,7 @@ struct FlightRun {
   /// Velocity in the world frame (X east, Z south) for the pager's lead
   /// strips: the motion since the previous frame over the time it took, or
   /// on frame 0 (no previous) the pose's own speed along its heading.
-  static std::pair<double, double> velocity(const Pose& pose, double t, const Pose& previous,
+  static std::pair<double, double> velocity(const world::Pose& pose, double t, const world::Pose& previous,
                                             double previousT, bool first) {
     if (first || !(t > previousT)) {
       const double v = pose.speedKmh / 3.6, h = pose.headingDeg * kDegToRad;
@@ -357,13 +357,13 @@ struct FlightRun {
 
   /// Main thread, one frame: motion, paging, selection into a free buffer.
   /// False when the flight ends (the controller said so, or rendering failed).
-  bool produce(std::uint32_t k, Pose& previous, double& previousT) {
+  bool produce(std::uint32_t k, world::Pose& previous, double& previousT) {
     auto next = app.pose(k, k / kFramesPerSecond, ground);
     if (!next) return false;
-    const Pose pose = *next;
+    const world::Pose pose = *next;
     const double t = pose.clockS.value_or(k / kFramesPerSecond);
     double groundHere = ground.groundEN(pose.easting, pose.northing);
-    Camera cam = cameraFor(*grid, o, pose, groundHere);
+    scene::Camera cam = cameraFor(*grid, o, pose, groundHere);
     if (pager) {
       // The window follows the view distance asked for (the + and - keys,
       // a path). Growing, the new ring is drawn only as it comes in, so the
@@ -383,7 +383,7 @@ struct FlightRun {
       scene->fill(cam, k, slot->buf);
       // The eye stands on the surface this frame draws under it, at the
       // level and morph just selected there (seed Figure 23).
-      if (auto drawn = drawnLevelAt(slot->buf, cam.x, cam.z)) ground.setDrawn(*drawn);
+      if (auto drawn = scene::drawnLevelAt(slot->buf, cam.x, cam.z)) ground.setDrawn(*drawn);
       groundHere = ground.groundEN(pose.easting, pose.northing);
       cam.y = eyeFor(pose, groundHere);
       slot->buf.camera.y = cam.y;
@@ -408,7 +408,7 @@ struct FlightRun {
     s.viewDistance = cam.viewDistance;
     s.freeFlight = pose.altitude.has_value();
     if (slot->buf.moduleMode) {
-      const SceneStats& sc = slot->buf.scene;
+      const scene::SceneStats& sc = slot->buf.scene;
       s.modulesDrawn = sc.modulesDrawn;
       s.modulesMissing = sc.modulesMissing;
       s.nodesDrawn = sc.nodesDrawn;
@@ -446,10 +446,10 @@ struct FlightRun {
   /// `composite` into the HUD overlay, reads the frame back only for a
   /// sink that wants its pixels, presents it in the window, and hands out
   /// each frame, then returns the buffer (its pager guards released).
-  void consume(Renderer& renderer) {
-    PresentTarget* const window = app.window();
-    Image image;
-    Overlay overlay;
+  void consume(render::Renderer& renderer) {
+    render::PresentTarget* const window = app.window();
+    render::Image image;
+    render::Overlay overlay;
     Clock::time_point lastDone{};
     double lastPngMs = 0;
     while (Slot* slot = handoff.takeFull()) {
@@ -461,7 +461,7 @@ struct FlightRun {
       s.renderMs = msSince(t0);
       s.renderCpuMs = threadCpuMs() - cpu0;
       slot->buf.modules.clear();  // release the pager's guards within the frame
-      const RenderStats& rs = renderer.stats();
+      const render::RenderStats& rs = renderer.stats();
       s.uploads = rs.uploads;
       s.uploadMs = rs.uploadMs;
       s.released = rs.released;
@@ -492,9 +492,9 @@ struct FlightRun {
                       : std::chrono::duration<double, std::milli>(now - lastDone).count() - lastPngMs;
       s.fps = s.frameMs > 0 ? 1000.0 / s.frameMs : 0;
       // A height frame holds data in its pixels: nothing is drawn over it.
-      const bool data = o.render.colour == ColourMode::height;
+      const bool data = o.render.colour == render::ColourMode::height;
       overlay.begin(o.view.width, o.view.height);
-      if (o.view.hud && !data) drawHudPanel(overlay, hudLines(s, o));
+      if (o.view.hud && !data) render::drawHudPanel(overlay, hudLines(s, o));
       if (!data) app.overlay(overlay, s);
       Status shown = renderer.drawOverlay(overlay);
       const bool sink = app.wantsFrame(s.frame);
@@ -508,7 +508,7 @@ struct FlightRun {
       if (!o.output.outDir.empty()) {
         const auto t2 = Clock::now();
         const std::string path = (std::filesystem::path(o.output.outDir) / frameFileName(s.frame)).string();
-        if (Status st = writePng(path, image); !st) return stop(st);
+        if (Status st = render::writePng(path, image); !st) return stop(st);
         s.pngMs = msSince(t2);
       }
       lastPngMs = std::chrono::duration<double, std::milli>(Clock::now() - lastDone).count();
@@ -521,7 +521,7 @@ struct FlightRun {
 
   /// The render thread's body: the GL context is made, used and destroyed here.
   void renderThread(std::promise<std::vector<Problem>>& ready) {
-    auto renderer = Renderer::create(renderSettings, app.window());
+    auto renderer = render::Renderer::create(renderSettings, app.window());
     if (!renderer) {
       ready.set_value(renderer.problems());
       return;
@@ -540,9 +540,9 @@ struct FlightRun {
       render.join();
       return problems;
     }
-    const Pose start = poseAt(o, 0);
+    const world::Pose start = poseAt(o, 0);
     ground.groundEN(start.easting, start.northing);
-    Pose previous = start;
+    world::Pose previous = start;
     double previousT = 0;
     for (std::uint32_t k = 0; k < o.output.frames; ++k) {
       if (!produce(k, previous, previousT)) break;
@@ -554,7 +554,7 @@ struct FlightRun {
     FlightReport& r = report;
     r.summary = summarize(r.frames);
     r.summary.mode = scene ? "modules" : "mesh";
-    r.summary.lod = scene ? lodModeName(o.render.lod.mode) : "";
+    r.summary.lod = scene ? scene::lodModeName(o.render.lod.mode) : "";
     r.summary.renderer = rendererName;
     r.summary.rendererDetail = rendererDetail;
     r.summary.width = o.view.width;
@@ -570,26 +570,26 @@ struct FlightRun {
   }
 };
 
-RenderSettings renderSettingsFor(const FlightOptions& o) {
-  RenderSettings rs;
+render::RenderSettings renderSettingsFor(const FlightOptions& o) {
+  render::RenderSettings rs;
   rs.width = o.view.width;
   rs.height = o.view.height;
   rs.background = o.view.background;
   rs.fog = o.view.fog;
   rs.sky = o.view.sky;
   rs.clearColour = o.view.clearColour;
-  static_cast<DrawChoices&>(rs) = o.render;
+  static_cast<render::DrawChoices&>(rs) = o.render;
   // Synchronous frames are complete frames: nothing waits for a later one.
   rs.uploadBudgetBytes = o.pager.sync ? 0 : o.render.uploadBudgetBytes;
   return rs;
 }
 
-std::vector<MaterialColour> paletteFor(const materials::Table& t) {
-  std::vector<MaterialColour> p;
+std::vector<render::MaterialColour> paletteFor(const materials::Table& t) {
+  std::vector<render::MaterialColour> p;
   for (const auto& c : t.classes) {
     if (c.id >= p.size()) p.resize(std::size_t(c.id) + 1);
     const auto rgb = [](std::uint32_t v) {
-      return Rgb{std::uint8_t(v >> 16), std::uint8_t(v >> 8), std::uint8_t(v)};
+      return render::Rgb{std::uint8_t(v >> 16), std::uint8_t(v >> 8), std::uint8_t(v)};
     };
     // Roads: the line classes at the road priority; wide ones are marked.
     const bool road = c.kind == materials::Kind::line && c.priority == module::kPriorityRoad;
@@ -602,13 +602,13 @@ std::vector<MaterialColour> paletteFor(const materials::Table& t) {
 class StraightFlight final : public FlightApplication {
  public:
   explicit StraightFlight(const FlightOptions& o) : o_(o) {}
-  std::optional<Pose> pose(std::uint32_t, double t, GroundClamp&) override { return poseAt(o_, t); }
+  std::optional<world::Pose> pose(std::uint32_t, double t, world::GroundClamp&) override { return poseAt(o_, t); }
 
  private:
   const FlightOptions& o_;
 };
 
-Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const World* world,
+Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const paging::World* world,
                              const FlightOptions& o, FlightApplication* application) {
   const Database* db = world ? &world->database() : nullptr;
   if (!g) return Problem{"fly", 0, "no grid"};
@@ -630,7 +630,7 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const W
                      "cannot create the output directory " + o.output.outDir + ": " + ec.message()};
     }
   }
-  RenderSettings rs = renderSettingsFor(o);
+  render::RenderSettings rs = renderSettingsFor(o);
   rs.grid = g;
   // Icons draw the modules' static objects (unless RenderOptions::objects
   // is off) and the application's entities, in either terrain mode.
@@ -640,9 +640,9 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const W
     rs.palette = paletteFor(*db->materials);
     rs.uncoveredMaterial = db->materials->defaultArea;
   }
-  std::unique_ptr<Pager> pager;
+  std::unique_ptr<paging::Pager> pager;
   if (modules) {
-    PagerOptions po;
+    paging::PagerOptions po;
     po.viewDistance = effectiveViewDistance(o);
     po.maxViewDistance = std::max(po.viewDistance, o.view.maxViewDistance > 0 ? o.view.maxViewDistance
                                                                         : 3 * po.viewDistance);
@@ -653,21 +653,21 @@ Result<FlightReport> flyWith(std::shared_ptr<const grid::HeightField> g, const W
     // ModuleScene derives it.
     const pack::IndexHeader& h = world->modules()->header();
     const auto nodeSquares = std::max<std::uint32_t>(h.moduleSquares >> (std::max<std::uint32_t>(h.levels, 1) - 1), 1);
-    po.prepareLevel = moduleLevelPreparer(rs, nodeSquares, h.moduleSize);
-    auto p = Pager::open(*world, po);
+    po.prepareLevel = render::moduleLevelPreparer(rs, nodeSquares, h.moduleSize);
+    auto p = paging::Pager::open(*world, po);
     if (!p) return p.problems();
     pager = std::move(p.value());
   }
   FlightRun run(o, app, g, rs);
   if (pager) {
-    ModuleSceneSettings ss;
+    scene::ModuleSceneSettings ss;
     ss.lod = o.render.lod;
     ss.imageHeight = o.view.height;
     ss.gridSpacing = g->spacing();
     ss.minElevation = g->elevationBounds().first;
     ss.moduleSquares = world->modules()->header().moduleSquares;
-    run.ground = GroundClamp(g, ss.moduleSquares, world->modules()->header().levels);
-    run.scene = std::make_unique<ModuleScene>(*pager, ss);
+    run.ground = world::GroundClamp(g, ss.moduleSquares, world->modules()->header().levels);
+    run.scene = std::make_unique<scene::ModuleScene>(*pager, ss);
     run.pager = pager.get();
     run.readyViewDistance = effectiveViewDistance(o);
   }
@@ -710,7 +710,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
     levels += std::to_string(s.levelCounts[l]);
   }
   lines.push_back("TRIS " + std::to_string(s.triangles));
-  lines.push_back(std::string("LOD ") + lodModeName(o.render.lod.mode) + "  LEVELS " + levels);
+  lines.push_back(std::string("LOD ") + scene::lodModeName(o.render.lod.mode) + "  LEVELS " + levels);
   lines.push_back("MODULES " + std::to_string(s.modulesDrawn) + "  NODES " +
                   std::to_string(s.nodesDrawn));
   lines.push_back("OBJECTS " + std::to_string(s.objectsDrawn) + "  INST " + std::to_string(s.objectInstances) +
@@ -722,7 +722,7 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o) {
   return lines;
 }
 
-Pose poseAt(const FlightOptions& o, double t) {
+world::Pose poseAt(const FlightOptions& o, double t) {
   return o.motion.path.size() >= 2 ? pathPose(o.motion.path, t) : straightPose(o, t);
 }
 
@@ -759,7 +759,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::HeightField>
   if (!(o.motion.speedKmh >= 0 && o.motion.speedKmh <= 1e5)) bad("MotionOptions::speedKmh must be 0 .. 100000 km/h");
   if (!std::isfinite(o.motion.headingDeg)) bad("MotionOptions::headingDeg must be a number");
   if (!(o.motion.heightAgl >= 0 && o.motion.heightAgl < 1e5)) bad("MotionOptions::heightAgl must be 0 .. 100000 m");
-  if (std::string e = checkLodOptions(o.render.lod); !e.empty()) bad(e);
+  if (std::string e = scene::checkLodOptions(o.render.lod); !e.empty()) bad(e);
   if (o.pager.loaders < 1 || o.pager.loaders > 4) bad("PagerSettings::loaders must be 1..4");
   if (o.render.samples > 16) bad("RenderOptions::samples must be 0..16 samples");
   if (!(o.render.objectFade >= 0 && o.render.objectFade <= 1)) bad("RenderOptions::objectFade must be 0..1");
@@ -769,7 +769,7 @@ std::vector<Problem> checkFlightOptions(std::shared_ptr<const grid::HeightField>
   if (!(o.render.objectThinPixels >= 0 && o.render.objectThinPixels <= 255)) {
     bad("RenderOptions::objectThinPixels must be 0..255");
   }
-  const Terrain terrain(std::move(g));
+  const world::Terrain terrain(std::move(g));
   if (o.motion.path.size() == 1) bad("MotionOptions::path needs at least two waypoints");
   if (o.motion.path.size() >= 2) {
     for (std::size_t k = 0; k < o.motion.path.size(); ++k) {
@@ -795,21 +795,21 @@ Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOp
   return flyWith(grid::heightField(std::move(g)), nullptr, o, app);
 }
 
-Result<FlightReport> fly(const World& world, const FlightOptions& o, FlightApplication* app) {
+Result<FlightReport> fly(const paging::World& world, const FlightOptions& o, FlightApplication* app) {
   return flyWith(world.heights(), &world, o, app);
 }
 
 Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app) {
-  const World world(db);
+  const paging::World world(db);
   return fly(world, o, app);
 }
 
-std::optional<Pose> FlightHooks::pose(std::uint32_t frame, double t, GroundClamp& ground) {
+std::optional<world::Pose> FlightHooks::pose(std::uint32_t frame, double t, world::GroundClamp& ground) {
   if (onPose) return onPose(frame, t, ground);
   return poseAt(options, t);
 }
 
-void FlightHooks::overlay(Overlay& overlay, const FrameStats& s) {
+void FlightHooks::overlay(render::Overlay& overlay, const FrameStats& s) {
   if (onOverlay) onOverlay(overlay, s);
 }
 
@@ -817,12 +817,12 @@ bool FlightHooks::wantsFrame(std::uint32_t frame) {
   return onFrame && (!onWantsFrame || onWantsFrame(frame));
 }
 
-void FlightHooks::frameDone(std::uint32_t frame, const Image& image) {
+void FlightHooks::frameDone(std::uint32_t frame, const render::Image& image) {
   if (onFrame) onFrame(frame, image);
 }
 
-void FlightHooks::frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) {
+void FlightHooks::frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) {
   if (onFrameContent) onFrameContent(frame, buf, stats);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

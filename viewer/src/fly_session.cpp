@@ -6,16 +6,16 @@
 #include <cstdio>
 #include <filesystem>
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
-using runtime::Pose;
+using world::Pose;
 
 /// The ground clamp of a database: modules' lattices when it has them.
-GroundClamp groundOf(const World& world) {
-  if (!world.modules()) return GroundClamp(world.heights());
+world::GroundClamp groundOf(const paging::World& world) {
+  if (!world.modules()) return world::GroundClamp(world.heights());
   const auto& h = world.modules()->header();
-  return GroundClamp(world.heights(), h.moduleSquares, h.levels);
+  return world::GroundClamp(world.heights(), h.moduleSquares, h.levels);
 }
 
 double wallSeconds() {
@@ -68,9 +68,9 @@ std::vector<std::uint8_t> waterMaterials(const Database& db) {
   return out;
 }
 
-FlySession::FlySession(const World& world, FlySessionSettings settings, const runtime::FlightOptions& o,
-                       std::unique_ptr<runtime::ViewerWindow> window,
-                       std::unique_ptr<runtime::VideoWriter> video)
+FlySession::FlySession(const paging::World& world, FlySessionSettings settings, const viewer::FlightOptions& o,
+                       std::unique_ptr<viewer::ViewerWindow> window,
+                       std::unique_ptr<viewer::VideoWriter> video)
     : world_(world),
       settings_(std::move(settings)),
       options_(o),
@@ -79,9 +79,9 @@ FlySession::FlySession(const World& world, FlySessionSettings settings, const ru
       video_(std::move(video)) {
   ground_.groundEN(o.motion.easting, o.motion.northing);
   // The world's one clock: the simulation's step, which the eye's keys share.
-  if (settings_.sim) clock_ = FixedStepClock(settings_.sim->stepS());
+  if (settings_.sim) clock_ = world::FixedStepClock(settings_.sim->stepS());
   if (window_) {
-    runtime::ControllerSettings cs;
+    world::ControllerSettings cs;
     cs.maxFovDeg = 90;  // the view triangle's limit (flight.h): 0 would ask 100
     cs.maxViewDistance = settings_.maxViewDistance;
     cs.minViewDistance = std::min(cs.minViewDistance, o.view.viewDistance);
@@ -90,8 +90,8 @@ FlySession::FlySession(const World& world, FlySessionSettings settings, const ru
   }
 }
 
-runtime::ViewerState FlySession::initialState(const runtime::FlightOptions& o) const {
-  runtime::ViewerState s;
+world::ViewerState FlySession::initialState(const viewer::FlightOptions& o) const {
+  world::ViewerState s;
   s.easting = o.motion.easting;
   s.northing = o.motion.northing;
   s.headingDeg = o.motion.headingDeg;
@@ -113,14 +113,14 @@ bool FlySession::wantsFrame(std::uint32_t) {
   return video_ != nullptr || current_.screenshot;
 }
 
-PresentTarget* FlySession::window() { return window_.get(); }
+render::PresentTarget* FlySession::window() { return window_.get(); }
 
-void FlySession::frameShown(const runtime::FrameStats& s) {
+void FlySession::frameShown(const viewer::FrameStats& s) {
   if (settings_.onFrameDone) settings_.onFrameDone(s.frame);
 }
 
-void FlySession::reseedController(const runtime::Pose& p) {
-  runtime::ViewerState s = controller_->state();
+void FlySession::reseedController(const world::Pose& p) {
+  world::ViewerState s = controller_->state();
   s.easting = p.easting;
   s.northing = p.northing;
   s.headingDeg = p.headingDeg;
@@ -128,14 +128,14 @@ void FlySession::reseedController(const runtime::Pose& p) {
   s.speedMs = 0;  // the stealth eye stops where the tether left it
   s.heightAgl = p.heightAgl;
   s.eyeElevation = p.altitude.value_or(s.eyeElevation);
-  const ControllerSettings cs = controller_->settings();
+  const world::ControllerSettings cs = controller_->settings();
   auto ground = [this](double e, double n) { return ground_.surfaceEN(e, n, ground_.drawn()); };
   controller_.emplace(s, ground, cs);
 }
 
 double FlySession::pollKeys() {
   SimSession* sim = settings_.sim.get();
-  const std::vector<KeyEvent> events = window_->pollEvents();
+  const std::vector<world::KeyEvent> events = window_->pollEvents();
   if (sim) {
     for (const ViewerKey k : window_->takeViewerKeys()) {
       const ViewMode before = sim->mode();
@@ -161,23 +161,23 @@ double FlySession::pollKeys() {
   return dt;
 }
 
-Pose FlySession::headlessPose(double t) {
-  Pose p = settings_.path ? runtime::samplePath(*settings_.path, t) : runtime::poseAt(options_, t);
+world::Pose FlySession::headlessPose(double t) {
+  world::Pose p = settings_.path ? world::samplePath(*settings_.path, t) : viewer::poseAt(options_, t);
   if (settings_.freeFlight) {
     // As the Controller does: free flight keeps its altitude but never goes
     // below 1 m above the ground (past the edge: the last ground seen).
-    p.altitude = GroundClamp::eyeElevation(ground_.groundEN(p.easting, p.northing), 0,
+    p.altitude = world::GroundClamp::eyeElevation(ground_.groundEN(p.easting, p.northing), 0,
                                            settings_.altitude, 1.0);
   }
   return p;
 }
 
-Pose FlySession::windowPose(double clock) const {
-  const runtime::ViewerState& s = controller_->state();
-  Pose p;
+world::Pose FlySession::windowPose(double clock) const {
+  const world::ViewerState& s = controller_->state();
+  world::Pose p;
   if (settings_.path) {
     // The path drives the eye; the keys still set FOV, view distance and map.
-    p = runtime::samplePath(*settings_.path, clock);
+    p = world::samplePath(*settings_.path, clock);
   } else {
     p = controller_->pose();
     if (!s.groundFollowing) p.altitude = s.eyeElevation;
@@ -187,14 +187,14 @@ Pose FlySession::windowPose(double clock) const {
   return p;
 }
 
-std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp& ground) {
+std::optional<world::Pose> FlySession::pose(std::uint32_t frame, double t, world::GroundClamp& ground) {
   ground_.setDrawn(ground.drawn());
   // q, Escape or closing the window: the frame with the keys pressed before
   // it is still drawn (so a last change shows), then the flight ends.
   if (failed_.load() || quitting_) return std::nullopt;
   FrameControl fc{frame, settings_.map, settings_.mapScale, false, {}, true};
   SimSession* sim = settings_.sim.get();
-  Pose p;
+  world::Pose p;
   if (window_) {
     // The world advances in fixed steps of the wall clock (world/clock.h),
     // so key repeats, turns and the simulation do not depend on the frame rate.
@@ -206,7 +206,7 @@ std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp&
     p = windowPose(clock_.timeS());
     if (sim && sim->mode() != ViewMode::stealth) {
       // The tether replaces the eye's own motion; FOV and view distance stay the keys'.
-      const Pose tether = sim->tetherPose(ground);
+      const world::Pose tether = sim->tetherPose(ground);
       const std::optional<double> fov = p.hfovDeg, view = p.viewDistance;
       p = tether;
       p.hfovDeg = fov;
@@ -235,9 +235,9 @@ std::optional<Pose> FlySession::pose(std::uint32_t frame, double t, GroundClamp&
   return p;
 }
 
-void FlySession::frameContent(std::uint32_t, DisplayBuffer& buf, FrameStats& stats) {
+void FlySession::frameContent(std::uint32_t, scene::DisplayBuffer& buf, FrameStats& stats) {
   if (!settings_.sim) return;
-  settings_.sim->setDrawn(std::make_shared<const runtime::DrawnLevels>(buf));
+  settings_.sim->setDrawn(std::make_shared<const scene::DrawnLevels>(buf));
   settings_.sim->fill(buf.dynamic);
   stats.panelLines = settings_.sim->panelLines();
   stats.extraJson.emplace_back("sim", settings_.sim->frameJson());
@@ -248,36 +248,36 @@ std::vector<std::pair<std::string, std::string>> FlySession::statsSections() {
   return {{"sim", settings_.sim->summaryJson()}};
 }
 
-void FlySession::overlay(runtime::Overlay& overlay, const runtime::FrameStats& s) {
+void FlySession::overlay(render::Overlay& overlay, const viewer::FrameStats& s) {
   current_ = controls_.take(s.frame);
   if (!current_.map) return;
   if (!map_) {
     // Built here, on the render thread that uses it (MapView caches per thread).
-    runtime::MapOptions mo;
+    render::MapOptions mo;
     mo.waterMaterials = settings_.waterMaterials;
     // The red force's arrows would read as the viewer's own: his turns yellow.
     if (settings_.sim) mo.markerFill = {255, 220, 0};
-    map_ = std::make_unique<runtime::MapView>(world_.heights(), mo);
+    map_ = std::make_unique<render::MapView>(world_.heights(), mo);
     map_->setVisible(true);
   }
   map_->setScale(current_.mapScale);
   double x = 0, z = 0;
   x = s.easting - world_.heights()->originEasting();
   z = world_.heights()->originNorthing() - s.northing;
-  const runtime::MapLayout box =
+  const render::MapLayout box =
       map_->compose(overlay.layer(), x, z, s.headingDeg, current_.marks, current_.viewerMarker);
   // The map, its label and marker inside a one-pixel border.
   if (box.drawn) overlay.drawn({box.x - 1, box.y - 1, box.width + 2, box.height + 2});
 }
 
-void FlySession::frameDone(std::uint32_t, const runtime::Image& img) {
+void FlySession::frameDone(std::uint32_t, const render::Image& img) {
   if (current_.screenshot) saveScreenshot(img);
   if (video_) {
     if (Status st = video_->write(img); !st) fail(st);
   }
 }
 
-void FlySession::saveScreenshot(const runtime::Image& img) {
+void FlySession::saveScreenshot(const render::Image& img) {
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(settings_.screenshotDir, ec);
@@ -292,7 +292,7 @@ void FlySession::saveScreenshot(const runtime::Image& img) {
   do {
     file = fs::path(settings_.screenshotDir) / screenshotName(nextShot_++);
   } while (fs::exists(file, ec));
-  if (Status st = runtime::writePng(file.string(), img); !st) {
+  if (Status st = render::writePng(file.string(), img); !st) {
     fail(Problem{"screenshot", 0, "screenshot: " + st.problems().front().message});
     return;
   }
@@ -315,4 +315,4 @@ Status FlySession::finish() {
   return error_;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

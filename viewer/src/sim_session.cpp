@@ -11,7 +11,7 @@
 #include "sandtable/sim/motion.h"
 #include "sandtable/sim/report.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 constexpr double kMsToKmh = 3.6;
@@ -20,15 +20,15 @@ constexpr double kMsToKmh = 3.6;
 constexpr double kDraftPerLength = 0.06;
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
-ObjectLook lookOf(sim::ObjectState s) {
+scene::ObjectLook lookOf(sim::ObjectState s) {
   switch (s) {
-    case sim::ObjectState::standing: return ObjectLook::standing;
-    case sim::ObjectState::knockedOver: return ObjectLook::knockedOver;
-    case sim::ObjectState::stump: return ObjectLook::stump;
-    case sim::ObjectState::ruins: return ObjectLook::ruins;
-    case sim::ObjectState::destroyed: return ObjectLook::destroyed;
+    case sim::ObjectState::standing: return scene::ObjectLook::standing;
+    case sim::ObjectState::knockedOver: return scene::ObjectLook::knockedOver;
+    case sim::ObjectState::stump: return scene::ObjectLook::stump;
+    case sim::ObjectState::ruins: return scene::ObjectLook::ruins;
+    case sim::ObjectState::destroyed: return scene::ObjectLook::destroyed;
   }
-  return ObjectLook::standing;
+  return scene::ObjectLook::standing;
 }
 
 std::string upper(std::string s) {
@@ -134,9 +134,9 @@ void SimSession::advanceToStep(std::uint64_t steps) { host_.runToStep(steps); }
 
 void SimSession::advanceToFlightTime(double t) { advanceToStep(startSteps_ + host_.stepsFor(t)); }
 
-void SimSession::setDrawn(std::shared_ptr<const DrawnLevels> drawn) {
+void SimSession::setDrawn(std::shared_ptr<const scene::DrawnLevels> drawn) {
   sim_->world().setDrawnLevel([drawn = std::move(drawn)](double x, double z) {
-    return drawn->at(x, z).value_or(DrawnLevel{});
+    return drawn->at(x, z).value_or(world::DrawnLevel{});
   });
 }
 
@@ -157,7 +157,7 @@ void SimSession::sample() {
     if (ev.kind != sim::EventKind::detonation) continue;
     const sim::Entity* munition = sim_->find(ev.entity);
     const bool guided = munition && munition->mobility == sim::Mobility::guided;
-    Flash f;
+    scene::Flash f;
     f.x = ev.position.x();
     f.y = ev.position.y();
     f.z = ev.position.z();
@@ -199,14 +199,14 @@ float SimSession::turretOf(const sim::Entity& e) const {
   return float(sim::turnBetween(e.headingDeg, e.gunAzimuthDeg));
 }
 
-void SimSession::fill(DynamicScene& out) const {
+void SimSession::fill(scene::DynamicScene& out) const {
   out.clear();
   const double now = sim_->timeS();
   const auto& icons = sim_->world().icons().icons;
   for (const sim::Entity& e : sim_->entities()) {
     if (e.domain == sim::Domain::munition && !e.alive) continue;
     if (e.icon >= icons.size()) continue;
-    DynamicInstance d;
+    scene::DynamicInstance d;
     d.icon = e.icon;
     d.dead = !e.alive;
     d.onSurface = e.domain == sim::Domain::land || e.domain == sim::Domain::sea;
@@ -229,7 +229,7 @@ void SimSession::fill(DynamicScene& out) const {
   }
   for (const auto& [id, t] : trails_) {
     if (t.points.size() < 2) continue;
-    Trail trail;
+    scene::Trail trail;
     trail.rgb = t.rgb;
     trail.lifeS = float(options_.trailS);
     for (const Passed& p : t.points) {
@@ -238,7 +238,7 @@ void SimSession::fill(DynamicScene& out) const {
     out.trails.push_back(std::move(trail));
   }
   for (const Detonation& d : flashes_) {
-    Flash f = d.flash;
+    scene::Flash f = d.flash;
     f.ageS = float(now - d.timeS);
     out.flashes.push_back(f);
   }
@@ -252,8 +252,8 @@ void SimSession::fill(DynamicScene& out) const {
   std::sort(out.objectOverrides.begin(), out.objectOverrides.end());
 }
 
-std::vector<MapMark> SimSession::mapMarks() const {
-  std::vector<MapMark> marks;
+std::vector<render::MapMark> SimSession::mapMarks() const {
+  std::vector<render::MapMark> marks;
   for (const sim::Entity& e : sim_->entities()) {
     if (!isTarget(e)) continue;
     marks.push_back({e.position.x(), e.position.z(), e.headingDeg, e.force, e.alive, attached_ == e.id});
@@ -379,12 +379,12 @@ void SimSession::detach() {
 }
 
 void SimSession::seedDrive(const sim::Entity& e) {
-  ViewerState s;
+  world::ViewerState s;
   s.headingDeg = e.commands.headingDeg;
   s.speedMs = e.commands.speedMs;
   s.groundFollowing = false;
   s.eyeElevation = e.domain == sim::Domain::air ? e.commands.altitudeM : 0;
-  ControllerSettings cs;
+  world::ControllerSettings cs;
   cs.speedStepMs = options_.driving.speedStepMs;
   cs.maxSpeedMs = std::max(e.vehicle.maxSpeedMs, 1.0);
   cs.minSpeedMs = e.domain == sim::Domain::air ? 0 : -options_.driving.reverseFraction * cs.maxSpeedMs;
@@ -393,7 +393,7 @@ void SimSession::seedDrive(const sim::Entity& e) {
   cs.climbStepM = options_.driving.climbStepM;
   cs.climbRateMS = options_.driving.climbRateMS;
   cs.minHeightAglM = 0;
-  driveKeys_.emplace(s, GroundElevationFn{}, cs);
+  driveKeys_.emplace(s, world::GroundElevationFn{}, cs);
 }
 
 void SimSession::drive(std::uint32_t id) {
@@ -420,7 +420,7 @@ void SimSession::applyDrive() {
   sim::Entity* driven = attached_ && driveKeys_ ? sim_->find(*attached_) : nullptr;
   if (!driven || !driven->alive) return;
   sim::Entity& e = *driven;
-  const ViewerState& s = driveKeys_->state();
+  const world::ViewerState& s = driveKeys_->state();
   e.commands.speedMs = s.speedMs;
   e.commands.headingDeg = s.headingDeg;
   if (e.domain == sim::Domain::air) e.commands.altitudeM = s.eyeElevation;
@@ -482,36 +482,36 @@ void SimSession::handle(ViewerKey k) {
   }
 }
 
-bool SimSession::steers(Key k) const {
+bool SimSession::steers(world::Key k) const {
   if (mode_ == ViewMode::stealth) return false;
-  return k == Key::up || k == Key::down || k == Key::left || k == Key::right || k == Key::pageUp ||
-         k == Key::pageDown;
+  return k == world::Key::up || k == world::Key::down || k == world::Key::left || k == world::Key::right || k == world::Key::pageUp ||
+         k == world::Key::pageDown;
 }
 
-void SimSession::handle(const KeyEvent& e) {
+void SimSession::handle(const world::KeyEvent& e) {
   if (!steers(e.key)) return;
   const sim::Entity* a = attached_ ? sim_->find(*attached_) : nullptr;
   const bool air = a && a->domain == sim::Domain::air;
-  const bool pages = e.key == Key::pageUp || e.key == Key::pageDown;
+  const bool pages = e.key == world::Key::pageUp || e.key == world::Key::pageDown;
   if (mode_ == ViewMode::driving && driveKeys_ && (!pages || air)) {
     driveKeys_->handle(e);
     return;
   }
   if (!e.pressed) return;
   switch (e.key) {
-    case Key::up: zoom_ = std::max(0.25, zoom_ / 1.25); break;
-    case Key::down: zoom_ = std::min(8.0, zoom_ * 1.25); break;
-    case Key::left: orbitDeg_ = sim::wrapDeg(orbitDeg_ - 15); break;
-    case Key::right: orbitDeg_ = sim::wrapDeg(orbitDeg_ + 15); break;
-    case Key::pageUp: heightRatio_ = std::min(2.0, heightRatio_ + 0.1); break;
-    case Key::pageDown: heightRatio_ = std::max(0.05, heightRatio_ - 0.1); break;
+    case world::Key::up: zoom_ = std::max(0.25, zoom_ / 1.25); break;
+    case world::Key::down: zoom_ = std::min(8.0, zoom_ * 1.25); break;
+    case world::Key::left: orbitDeg_ = sim::wrapDeg(orbitDeg_ - 15); break;
+    case world::Key::right: orbitDeg_ = sim::wrapDeg(orbitDeg_ + 15); break;
+    case world::Key::pageUp: heightRatio_ = std::min(2.0, heightRatio_ + 0.1); break;
+    case world::Key::pageDown: heightRatio_ = std::max(0.05, heightRatio_ - 0.1); break;
     default: break;
   }
 }
 
-Pose SimSession::tetherPose(GroundClamp& ground) {
+world::Pose SimSession::tetherPose(world::GroundClamp& ground) {
   const sim::Entity* attached = attached_ ? sim_->find(*attached_) : nullptr;
-  if (!attached) return Pose{};
+  if (!attached) return world::Pose{};
   const sim::Entity& e = *attached;
   const TetherSettings& t = options_.tether;
   const double now = sim_->timeS();
@@ -529,7 +529,7 @@ Pose SimSession::tetherPose(GroundClamp& ground) {
   const Eigen::Vector3d back = sim::headingVector(*tetherHeading_);
   const Eigen::Vector3d eye = e.position - back * distance + Eigen::Vector3d(0, heightRatio_ * distance, 0);
   const double originE = sim_->world().originEasting(), originN = sim_->world().originNorthing();
-  Pose p;
+  world::Pose p;
   p.easting = originE + eye.x();
   p.northing = originN - eye.z();
   const double g = ground.groundEN(p.easting, p.northing);
@@ -545,4 +545,4 @@ Pose SimSession::tetherPose(GroundClamp& ground) {
   return p;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -18,7 +18,7 @@
 
 extern char** environ;
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 bool executable(const std::string& path) {
@@ -134,7 +134,7 @@ Result<std::unique_ptr<VideoWriter>> VideoWriter::open(const std::string& path, 
   return v;
 }
 
-Status VideoWriter::write(const Image& frame) {
+Status VideoWriter::write(const render::Image& frame) {
   const auto fail = [](std::string m) { return Problem{kVideoProblem, 0, std::move(m)}; };
   if (fd_ < 0) return fail("video " + path_ + ": already finished");
   if (frame.width != width_ || frame.height != height_ || frame.rgba.size() != std::size_t(width_) * height_ * 4) {
@@ -172,4 +172,4 @@ Status VideoWriter::finish() {
 
 VideoWriter::~VideoWriter() { (void)finish(); }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -21,10 +21,10 @@
 
 #include "sandtable/render/gl_program.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 struct ViewerWindow::Gl {
-  GlProgram program;
+  render::GlProgram program;
   GLuint vao = 0, texture = 0;
   std::uint32_t texW = 0, texH = 0;
 };
@@ -78,24 +78,24 @@ class SavedEgl {
   EGLContext context_;
 };
 
-std::optional<Key> keyForSym(KeySym s) {
-  if (s >= XK_0 && s <= XK_9) return Key(int(Key::digit0) + int(s - XK_0));
-  if (s >= XK_KP_0 && s <= XK_KP_9) return Key(int(Key::digit0) + int(s - XK_KP_0));
+std::optional<world::Key> keyForSym(KeySym s) {
+  if (s >= XK_0 && s <= XK_9) return world::Key(int(world::Key::digit0) + int(s - XK_0));
+  if (s >= XK_KP_0 && s <= XK_KP_9) return world::Key(int(world::Key::digit0) + int(s - XK_KP_0));
   switch (s) {
-    case XK_Up: case XK_KP_Up: return Key::up;
-    case XK_Down: case XK_KP_Down: return Key::down;
-    case XK_Left: case XK_KP_Left: return Key::left;
-    case XK_Right: case XK_KP_Right: return Key::right;
-    case XK_plus: case XK_equal: case XK_KP_Add: return Key::plus;  // '=' is unshifted '+' on US keyboards
-    case XK_minus: case XK_KP_Subtract: return Key::minus;
-    case XK_m: case XK_M: return Key::map;
-    case XK_bracketleft: return Key::mapZoomOut;
-    case XK_bracketright: return Key::mapZoomIn;
-    case XK_Page_Up: case XK_KP_Page_Up: return Key::pageUp;
-    case XK_Page_Down: case XK_KP_Page_Down: return Key::pageDown;
-    case XK_f: case XK_F: return Key::groundFollow;
-    case XK_p: case XK_P: case XK_F12: return Key::screenshot;
-    case XK_Escape: case XK_q: case XK_Q: return Key::quit;
+    case XK_Up: case XK_KP_Up: return world::Key::up;
+    case XK_Down: case XK_KP_Down: return world::Key::down;
+    case XK_Left: case XK_KP_Left: return world::Key::left;
+    case XK_Right: case XK_KP_Right: return world::Key::right;
+    case XK_plus: case XK_equal: case XK_KP_Add: return world::Key::plus;  // '=' is unshifted '+' on US keyboards
+    case XK_minus: case XK_KP_Subtract: return world::Key::minus;
+    case XK_m: case XK_M: return world::Key::map;
+    case XK_bracketleft: return world::Key::mapZoomOut;
+    case XK_bracketright: return world::Key::mapZoomIn;
+    case XK_Page_Up: case XK_KP_Page_Up: return world::Key::pageUp;
+    case XK_Page_Down: case XK_KP_Page_Down: return world::Key::pageDown;
+    case XK_f: case XK_F: return world::Key::groundFollow;
+    case XK_p: case XK_P: case XK_F12: return world::Key::screenshot;
+    case XK_Escape: case XK_q: case XK_Q: return world::Key::quit;
     default: return std::nullopt;
   }
 }
@@ -268,14 +268,14 @@ Status ViewerWindow::makeGl() {
   }
   if (const auto* r = glGetString(GL_RENDERER)) renderer_ = reinterpret_cast<const char*>(r);
   gl_ = std::make_unique<Gl>();
-  auto program = GlProgram::build("window", kFullScreenVertexGlsl, kFragment);
+  auto program = render::GlProgram::build("window", render::kFullScreenVertexGlsl, kFragment);
   if (!program) return program.problems();
   gl_->program = std::move(program.value());
   glCreateVertexArrays(1, &gl_->vao);
   return {};
 }
 
-PresentTarget::EglSurface ViewerWindow::eglSurface() const {
+render::PresentTarget::EglSurface ViewerWindow::eglSurface() const {
   std::lock_guard lock(mutex_);
   return {eglDisplay_, eglConfig_, eglSurface_};
 }
@@ -295,11 +295,11 @@ std::uint32_t ViewerWindow::height() const {
   return height_;
 }
 
-std::vector<KeyEvent> ViewerWindow::pollEvents() {
+std::vector<world::KeyEvent> ViewerWindow::pollEvents() {
   std::lock_guard lock(mutex_);
-  std::vector<KeyEvent> out;
+  std::vector<world::KeyEvent> out;
   Display* dpy = dpyOf(display_);
-  auto emit = [&](Key k, bool pressed) {
+  auto emit = [&](world::Key k, bool pressed) {
     const std::uint32_t bit = 1u << unsigned(k);
     if (pressed) downMask_ |= bit;
     else downMask_ &= ~bit;
@@ -311,7 +311,7 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
     switch (ev.type) {
       case KeyPress:
       case KeyRelease: {
-        std::optional<Key> k = keyForSym(XLookupKeysym(&ev.xkey, 0));
+        std::optional<world::Key> k = keyForSym(XLookupKeysym(&ev.xkey, 0));
         if (!k) k = keyForSym(XLookupKeysym(&ev.xkey, 1));  // shifted: '+' and keypad digits
         if (k) {
           emit(*k, ev.type == KeyPress);
@@ -325,8 +325,8 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
       case FocusOut:
         // A key released in another window never reaches us; release
         // everything so no key stays "held" (and repeating) for ever.
-        for (std::size_t k = 0; k < kKeyCount; ++k) {
-          if (downMask_ & (1u << k)) emit(Key(k), false);
+        for (std::size_t k = 0; k < world::kKeyCount; ++k) {
+          if (downMask_ & (1u << k)) emit(world::Key(k), false);
         }
         break;
       case ConfigureNotify:
@@ -336,7 +336,7 @@ std::vector<KeyEvent> ViewerWindow::pollEvents() {
       case ClientMessage:
         if (Atom(ev.xclient.data.l[0]) == Atom(wmDelete_)) {
           closeRequested_ = true;
-          out.push_back({Key::quit, true});
+          out.push_back({world::Key::quit, true});
         }
         break;
       default: break;
@@ -352,7 +352,7 @@ std::vector<ViewerKey> ViewerWindow::takeViewerKeys() {
   return out;
 }
 
-Status ViewerWindow::present(const Image& frame) {
+Status ViewerWindow::present(const render::Image& frame) {
   auto fail = [](const std::string& m) { return Problem{kWindowProblem, 0, "window: " + m}; };
   if (frame.width == 0 || frame.height == 0 || frame.rgba.size() != std::size_t(frame.width) * frame.height * 4) {
     return fail("present() needs a non-empty RGBA frame");
@@ -403,7 +403,7 @@ Status ViewerWindow::present(const Image& frame) {
   return st;
 }
 
-Result<Image> ViewerWindow::capture() {
+Result<render::Image> ViewerWindow::capture() {
   std::lock_guard lock(mutex_);
   Display* dpy = dpyOf(display_);
   XSync(dpy, False);
@@ -413,7 +413,7 @@ Result<Image> ViewerWindow::capture() {
   maskShape(xi->red_mask, rs, rb);
   maskShape(xi->green_mask, gs, gb);
   maskShape(xi->blue_mask, bs, bb);
-  Image img;
+  render::Image img;
   img.width = width_;
   img.height = height_;
   img.rgba.resize(std::size_t(width_) * height_ * 4);
@@ -463,4 +463,4 @@ ViewerWindow::~ViewerWindow() {
   XCloseDisplay(dpy);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -23,7 +23,7 @@
 #include "sandtable/world/ground.h"
 #include "sandtable/world/terrain.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 constexpr std::uint32_t kPosts = 101;
@@ -104,8 +104,8 @@ TEST(HeightFieldReaders, theGroundClampAndSamplesSeeThePatchAndNothingElse) {
   const Fields f;
   // The clamp as the flight and the simulator build it (module mode: 16
   // squares a module, 3 levels) and level 0 as `sample` reads it.
-  const GroundClamp rawClamp(f.raised, 16, 3), baseClamp(f.base, 16, 3);
-  const Terrain raw(f.raised), base(f.file);
+  const world::GroundClamp rawClamp(f.raised, 16, 3), baseClamp(f.base, 16, 3);
+  const world::Terrain raw(f.raised), base(f.file);
   int inside = 0, outside = 0;
   for (std::uint32_t j = 0; j + 1 < kPosts; ++j) {
     for (std::uint32_t i = 0; i + 1 < kPosts; ++i) {
@@ -145,20 +145,20 @@ TEST(HeightFieldReaders, theGroundClampAndSamplesSeeThePatchAndNothingElse) {
 
 TEST(HeightFieldReaders, meshModeDrawsThePatchAndNothingElse) {
   const Fields f;
-  Camera cam;
+  scene::Camera cam;
   cam.x = 420;
   cam.z = 900;
   cam.y = 400;
   cam.headingDeg = 0;  // looking north over the patch
   cam.viewDistance = 800;
-  DisplayBuffer raised, base;
+  scene::DisplayBuffer raised, base;
   fillDisplayBuffer(*f.raised, cam, 1, raised);
   fillDisplayBuffer(*f.base, cam, 1, base);
   ASSERT_EQ(raised.vertices.size(), base.vertices.size());
   int moved = 0;
   for (std::size_t k = 0; k < raised.vertices.size(); ++k) {
-    const TerrainVertex& a = raised.vertices[k];
-    const TerrainVertex& b = base.vertices[k];
+    const scene::TerrainVertex& a = raised.vertices[k];
+    const scene::TerrainVertex& b = base.vertices[k];
     const auto i = std::uint32_t(std::lround((a.x + raised.originX) / kSpacing));
     const auto j = std::uint32_t(std::lround((a.z + raised.originZ) / kSpacing));
     ASSERT_EQ(a.x, b.x);
@@ -173,18 +173,18 @@ TEST(HeightFieldReaders, meshModeDrawsThePatchAndNothingElse) {
 TEST(HeightFieldReaders, theMapRedrawsThePatchWhenTheFieldChangesAndNothingElse) {
   const Fields f;
   const auto field = std::make_shared<RaisedPatch>(f.base);  // not yet raised
-  MapView map(field);
-  MapView reference(f.base);
+  render::MapView map(field);
+  render::MapView reference(f.base);
   map.setVisible(true);
-  Image frame;
+  render::Image frame;
   frame.width = frame.height = 400;
   frame.rgba.assign(400 * 400 * 4, 0);
   map.compose(frame, 500, 500, 0);
   EXPECT_EQ(map.overview().rgba, reference.overview().rgba);
   field->raise();
   map.compose(frame, 500, 500, 0);  // sees the new generation
-  const Image& a = map.overview();
-  const Image& b = reference.overview();
+  const render::Image& a = map.overview();
+  const render::Image& b = reference.overview();
   ASSERT_EQ(a.width, kPosts);  // one pixel per post
   int changed = 0;
   for (std::uint32_t y = 0; y < a.height; ++y) {
@@ -226,4 +226,4 @@ TEST(HeightFieldReaders, anEntityStandsOnThePatchAndOneBesideItOnTheGrid) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

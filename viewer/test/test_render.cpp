@@ -20,7 +20,7 @@
 #include "sandtable/world/terrain.h"
 #include "sandtable/testing/require.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 namespace fs = std::filesystem;
@@ -136,18 +136,18 @@ class RenderTest : public ::testing::Test {
 };
 
 TEST_F(RenderTest, StripsReproduceTheTerrainTriangles) {
-  Camera cam;
+  scene::Camera cam;
   cam.x = 3000;
   cam.z = 6000;
   cam.y = 500;
   cam.viewDistance = 2000;
-  DisplayBuffer buf;
+  scene::DisplayBuffer buf;
   fillDisplayBuffer(grid::GridHeightField(*grid_), cam, 7, buf);
   ASSERT_FALSE(buf.spans.empty());
   EXPECT_EQ(buf.frame, 7u);
   EXPECT_EQ(buf.firsts.size(), buf.spans.size());
-  EXPECT_EQ(buf.triangles, 2 * countSquares(buf.spans));
-  const Terrain terrain(grid_);
+  EXPECT_EQ(buf.triangles, 2 * paging::countSquares(buf.spans));
+  const world::Terrain terrain(grid_);
   // Every strip triangle's centroid lies on the surface Terrain samples.
   for (std::size_t s = 0; s < buf.spans.size(); s += 7) {
     for (std::int32_t k = 0; k + 2 < buf.counts[s]; ++k) {
@@ -175,7 +175,7 @@ TEST(FlightPath, StraightAlongHeading) {
   o.motion.northing = 2000;
   o.motion.headingDeg = 90;
   o.motion.speedKmh = 36;  // 10 m/s
-  const Pose p = poseAt(o, 1.5);
+  const world::Pose p = poseAt(o, 1.5);
   EXPECT_NEAR(p.easting, 1015, 1e-9);
   EXPECT_NEAR(p.northing, 2000, 1e-9);
   o.motion.headingDeg = 0;
@@ -185,7 +185,7 @@ TEST(FlightPath, StraightAlongHeading) {
 TEST(FlightPath, FollowsWaypointLegsAndStops) {
   FlightOptions o;
   o.motion.path = {{0, 0, 100, 36}, {100, 0, 300, 72}, {100, 100, 300, 10}};
-  Pose p = poseAt(o, 5);  // half of the first leg (10 m/s)
+  world::Pose p = poseAt(o, 5);  // half of the first leg (10 m/s)
   EXPECT_NEAR(p.easting, 50, 1e-9);
   EXPECT_NEAR(p.heightAgl, 200, 1e-9);
   EXPECT_NEAR(p.headingDeg, 90, 1e-9);
@@ -215,31 +215,31 @@ TEST_F(RenderTest, RejectsBadOptions) {
 }
 
 TEST(HudFont, GlyphsAndText) {
-  EXPECT_EQ(glyphFor(U'a'), glyphFor(U'A'));
-  EXPECT_EQ(glyphFor(U'~'), glyphFor(U'?'));
-  EXPECT_NE(glyphFor(U'0'), glyphFor(U'O'));
-  EXPECT_EQ(decodeHudText("5\xC2\xB0").size(), 2u);
-  EXPECT_EQ(textWidth("AB", 2), (2 * kGlyphAdvance - 1) * 2);
-  Image img{40, 20, std::vector<std::uint8_t>(40 * 20 * 4, 0)};
-  drawText(img, 1, 1, "H", 1, Rgb{255, 255, 255});
+  EXPECT_EQ(render::glyphFor(U'a'), render::glyphFor(U'A'));
+  EXPECT_EQ(render::glyphFor(U'~'), render::glyphFor(U'?'));
+  EXPECT_NE(render::glyphFor(U'0'), render::glyphFor(U'O'));
+  EXPECT_EQ(render::decodeHudText("5\xC2\xB0").size(), 2u);
+  EXPECT_EQ(render::textWidth("AB", 2), (2 * render::kGlyphAdvance - 1) * 2);
+  render::Image img{40, 20, std::vector<std::uint8_t>(40 * 20 * 4, 0)};
+  render::drawText(img, 1, 1, "H", 1, render::Rgb{255, 255, 255});
   EXPECT_EQ(img.at(1, 1).r, 255);  // H's top-left dot
   EXPECT_EQ(img.at(2, 1).r, 0);
   EXPECT_EQ(img.at(3, 4).r, 255);  // the crossbar
 }
 
-double distance(Rgb a, Rgb b) {
+double distance(render::Rgb a, render::Rgb b) {
   const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
   return std::sqrt(dr * dr + dg * dg + db * db);
 }
 
 TEST_F(RenderTest, RendersSkyAboveTerrain) {
   std::string why;
-  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   FlightOptions o = southLookingNorth();
   o.output.outDir = (root_ / "frames").string();
-  std::vector<Image> frames;
+  std::vector<render::Image> frames;
   FlightHooks hooks(o);
-  hooks.onFrame = [&](std::uint32_t, const Image& img) { frames.push_back(img); };
+  hooks.onFrame = [&](std::uint32_t, const render::Image& img) { frames.push_back(img); };
   auto r = fly(grid_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(frames.size(), 2u);
@@ -256,13 +256,13 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
   EXPECT_EQ(stats["summary"]["frames"], 2);
   EXPECT_EQ(stats["frames"].size(), 2u);
 
-  const Image& img = frames[1];
+  const render::Image& img = frames[1];
   ASSERT_EQ(img.width, 320u);
   ASSERT_EQ(img.height, 240u);
-  const Rgb sky = o.view.background;
+  const render::Rgb sky = o.view.background;
   // Top rows, right of the panel: sky, near the background colour.
   for (std::uint32_t x = 200; x < 320; x += 10) {
-    const Rgb p = img.at(x, 2);
+    const render::Rgb p = img.at(x, 2);
     EXPECT_LT(distance(p, sky), 90) << "x " << x;
     EXPECT_GT(p.b, p.r);
   }
@@ -276,46 +276,46 @@ TEST_F(RenderTest, RendersSkyAboveTerrain) {
   int lo = 3 * 255, hi = 0;
   for (std::uint32_t y = 120; y < 240; y += 3) {
     for (std::uint32_t x = 0; x < 320; x += 3) {
-      const Rgb p = img.at(x, y);
+      const render::Rgb p = img.at(x, y);
       lo = std::min(lo, p.r + p.g + p.b);
       hi = std::max(hi, p.r + p.g + p.b);
     }
   }
   EXPECT_GT(hi - lo, 15);
   // The panel darkens the top-left corner.
-  EXPECT_LT(distance(img.at(1, 1), Rgb{0, 0, 0}), distance(img.at(300, 1), Rgb{0, 0, 0}));
+  EXPECT_LT(distance(img.at(1, 1), render::Rgb{0, 0, 0}), distance(img.at(300, 1), render::Rgb{0, 0, 0}));
 }
 
 TEST_F(RenderTest, ControllerAndCompositeHooksDriveTheLoop) {
   std::string why;
-  SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
   FlightOptions o = southLookingNorth();
   o.output.frames = 10;
-  const Pose start = poseAt(o, 0);
+  const world::Pose start = poseAt(o, 0);
   // The controller steers three frames, then ends the flight.
   FlightHooks hooks(o);
-  hooks.onPose = [&](std::uint32_t frame, double, GroundClamp&) -> std::optional<Pose> {
+  hooks.onPose = [&](std::uint32_t frame, double, world::GroundClamp&) -> std::optional<world::Pose> {
     if (frame == 3) return std::nullopt;
-    Pose p = start;
+    world::Pose p = start;
     p.headingDeg = 10.0 * frame;
     p.hfovDeg = 30;
     p.viewDistance = 5000;
     return p;
   };
   std::vector<std::uint32_t> composited;
-  hooks.onOverlay = [&](Overlay& overlay, const FrameStats& s) {
+  hooks.onOverlay = [&](render::Overlay& overlay, const FrameStats& s) {
     composited.push_back(s.frame);
-    Image& layer = overlay.layer();
+    render::Image& layer = overlay.layer();
     layer.rgba[0] = 255, layer.rgba[1] = 0, layer.rgba[2] = 0, layer.rgba[3] = 255;  // a map would go here
     overlay.drawn({0, 0, 1, 1});
   };
-  std::vector<Rgb> corners;
-  hooks.onFrame = [&](std::uint32_t, const Image& img) { corners.push_back(img.at(0, 0)); };
+  std::vector<render::Rgb> corners;
+  hooks.onFrame = [&](std::uint32_t, const render::Image& img) { corners.push_back(img.at(0, 0)); };
   auto r = fly(grid_, o, &hooks);
   ASSERT_TRUE(r.ok()) << r.error();
   ASSERT_EQ(r->frames.size(), 3u);
   EXPECT_EQ(composited, (std::vector<std::uint32_t>{0, 1, 2}));
-  for (const Rgb& c : corners) EXPECT_EQ(c.r, 255);
+  for (const render::Rgb& c : corners) EXPECT_EQ(c.r, 255);
   for (const auto& f : r->frames) {
     EXPECT_EQ(f.hfovDeg, 30);
     EXPECT_EQ(f.viewDistance, 5000);
@@ -335,4 +335,4 @@ TEST_F(RenderTest, FailsCleanlyOutsideTheGrid) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -17,7 +17,7 @@
 #include "sandtable/testing/fixtures.h"
 #include "sandtable/viewer/sim_session.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 constexpr double kGround = 100, kSpacing = 10;
@@ -115,7 +115,7 @@ TEST(SimSession, instancesCarryTheOrientationAndTheTurretRelativeToTheHull) {
   sim::Simulation& sim = s->simulation();
   // A tank that never aimed keeps its turret forward, whatever its heading.
   sim.entity(1).headingDeg = 180;
-  DynamicScene d;
+  scene::DynamicScene d;
   s->fill(d);
   ASSERT_EQ(d.instances.size(), 2u);
   EXPECT_FLOAT_EQ(d.instances[1].turretAzimuthDeg, 0);
@@ -152,7 +152,7 @@ TEST(SimSession, aMissileLeavesAFadingTrailAndFlashesWhereItGoesOff) {
     s->advanceToFlightTime(t);
     EXPECT_EQ(sim.steps(), std::uint64_t(std::llround(t * 60)));  // whole steps of the flight's time
     s->sample();
-    DynamicScene d;
+    scene::DynamicScene d;
     s->fill(d);
     if (!wentOff && sim.counters().detonations > 0) {
       for (const sim::Event& e : sim.events()) {
@@ -161,10 +161,10 @@ TEST(SimSession, aMissileLeavesAFadingTrailAndFlashesWhereItGoesOff) {
     }
     if (!wentOff) {
       ASSERT_EQ(d.flashes.size(), 0u);
-      for (const DynamicInstance& i : d.instances) sawMissile = sawMissile || i.icon == missileIcon;
+      for (const scene::DynamicInstance& i : d.instances) sawMissile = sawMissile || i.icon == missileIcon;
       if (d.trails.size() == 1) {
         sawTrail = true;
-        const Trail& tr = d.trails[0];
+        const scene::Trail& tr = d.trails[0];
         // Oldest first, none older than two seconds, the newest just passed.
         for (std::size_t k = 1; k < tr.points.size(); ++k) EXPECT_LT(tr.points[k].ageS, tr.points[k - 1].ageS);
         EXPECT_LE(tr.points.front().ageS, 2.0f);
@@ -189,14 +189,14 @@ TEST(SimSession, aMissileLeavesAFadingTrailAndFlashesWhereItGoesOff) {
       EXPECT_TRUE(d.trails.empty()) << since;
     }
     // The dead missile is not drawn; the tank it hit is, dead.
-    for (const DynamicInstance& i : d.instances) EXPECT_NE(i.icon, missileIcon);
+    for (const scene::DynamicInstance& i : d.instances) EXPECT_NE(i.icon, missileIcon);
   }
   ASSERT_TRUE(wentOff.has_value());
   EXPECT_TRUE(sawTrail);
   EXPECT_TRUE(sawMissile);
   EXPECT_FALSE(sim.entity(1).alive);
   // The shooter aimed: its turret now points along its fire, relative to the hull.
-  DynamicScene d;
+  scene::DynamicScene d;
   s->fill(d);
   EXPECT_NEAR(d.instances[0].turretAzimuthDeg, sim::turnBetween(sim.entity(0).headingDeg, sim.entity(0).gunAzimuthDeg),
               1e-4);
@@ -227,11 +227,11 @@ TEST(SimSession, objectsTheSimulationChangedGetTheirLook) {
   sim->entity(0).mobility = sim::Mobility::simple;
   sim->entity(0).speedMs = sim->entity(0).commands.speedMs = 15;
   auto s = session(std::move(sim));
-  DynamicScene d;
+  scene::DynamicScene d;
   s->fill(d);
   ASSERT_EQ(d.objectOverrides.size(), 1u);
   EXPECT_EQ(d.objectOverrides[0].index, 2u);
-  EXPECT_EQ(d.objectOverrides[0].look, ObjectLook::ruins);
+  EXPECT_EQ(d.objectOverrides[0].look, scene::ObjectLook::ruins);
   // b1 drives into the tree: the collision's event says which object changed.
   s->advanceToFlightTime(6);
   s->sample();
@@ -240,16 +240,16 @@ TEST(SimSession, objectsTheSimulationChangedGetTheirLook) {
   s->fill(d);
   ASSERT_EQ(d.objectOverrides.size(), 2u);
   // Sorted by module (z, then x), then index: the tree's module (3, 4) first.
-  const ObjectOverride& o = d.objectOverrides[0];
+  const scene::ObjectOverride& o = d.objectOverrides[0];
   EXPECT_EQ(o.moduleX, 3u);
   EXPECT_EQ(o.moduleZ, 4u);
   EXPECT_EQ(o.index, 7u);
-  const ObjectLook want = state == sim::ObjectState::knockedOver ? ObjectLook::knockedOver
-                          : state == sim::ObjectState::stump     ? ObjectLook::stump
-                          : state == sim::ObjectState::ruins     ? ObjectLook::ruins
-                                                                 : ObjectLook::destroyed;
+  const scene::ObjectLook want = state == sim::ObjectState::knockedOver ? scene::ObjectLook::knockedOver
+                          : state == sim::ObjectState::stump     ? scene::ObjectLook::stump
+                          : state == sim::ObjectState::ruins     ? scene::ObjectLook::ruins
+                                                                 : scene::ObjectLook::destroyed;
   EXPECT_EQ(o.look, want);
-  const auto [first, last] = overridesOfModule(d.objectOverrides, 3, 4);
+  const auto [first, last] = scene::overridesOfModule(d.objectOverrides, 3, 4);
   EXPECT_EQ(last - first, 1);
 }
 
@@ -287,8 +287,8 @@ TEST(SimSession, theTetheredEyeFollowsBehindAndAbove) {
   ASSERT_EQ(s->mode(), ViewMode::attached);
   sim::Entity& e = s->simulation().entity(0);
   e.headingDeg = 90;  // east
-  GroundClamp ground(grid);
-  const Pose p = s->tetherPose(ground);
+  world::GroundClamp ground(grid);
+  const world::Pose p = s->tetherPose(ground);
   const double ex = p.easting - kOriginE, ez = kOriginN - p.northing;
   // Behind (west of) the tank, on its line, above it, looking down at it.
   const double back = e.position.x() - ex;
@@ -303,7 +303,7 @@ TEST(SimSession, theTetheredEyeFollowsBehindAndAbove) {
   // after a turn to 180 it has come 1 - 1/e of the way.
   s->advanceToStep(36);
   e.headingDeg = 180;  // after the steps, which take the heading from the orientation
-  const Pose q = s->tetherPose(ground);
+  const world::Pose q = s->tetherPose(ground);
   EXPECT_NEAR(q.headingDeg, 90 + 90 * (1 - std::exp(-1.0)), 0.5);
 }
 
@@ -315,15 +315,15 @@ TEST(SimSession, drivingFeedsTheCommandsAndAllStopStops) {
   sim::Entity& e = s->simulation().entity(0);
   EXPECT_EQ(e.controller, sim::Controller::driven);
   EXPECT_TRUE(e.autopilot);
-  EXPECT_TRUE(s->steers(Key::up));
-  EXPECT_FALSE(s->steers(Key::map));
+  EXPECT_TRUE(s->steers(world::Key::up));
+  EXPECT_FALSE(s->steers(world::Key::map));
   // Four presses of Up: 10 m/s commanded; one of Left: 5 degrees to port.
   for (int k = 0; k < 4; ++k) {
-    s->handle(KeyEvent{Key::up, true});
-    s->handle(KeyEvent{Key::up, false});
+    s->handle(world::KeyEvent{world::Key::up, true});
+    s->handle(world::KeyEvent{world::Key::up, false});
   }
-  s->handle(KeyEvent{Key::left, true});
-  s->handle(KeyEvent{Key::left, false});
+  s->handle(world::KeyEvent{world::Key::left, true});
+  s->handle(world::KeyEvent{world::Key::left, false});
   s->step();
   EXPECT_DOUBLE_EQ(e.commands.speedMs, 10);
   EXPECT_DOUBLE_EQ(e.commands.headingDeg, 355);
@@ -341,7 +341,7 @@ TEST(SimSession, drivingFeedsTheCommandsAndAllStopStops) {
   EXPECT_EQ(s->mode(), ViewMode::attached);
   s->handle(ViewerKey::stealth);
   EXPECT_EQ(s->mode(), ViewMode::stealth);
-  EXPECT_FALSE(s->steers(Key::up));
+  EXPECT_FALSE(s->steers(world::Key::up));
 }
 
 TEST(SimSession, tabCyclesThroughTheEntitiesButTheMunitions) {
@@ -423,4 +423,4 @@ TEST(SimSession, removingTheDrivenEntityFromAStepHookLeavesTheStealthEye) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

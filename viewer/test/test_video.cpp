@@ -8,13 +8,13 @@
 #include "sandtable/viewer/video.h"
 #include "sandtable/testing/require.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 namespace fs = std::filesystem;
 
-Image frame(std::uint32_t w, std::uint32_t h, std::uint8_t shade) {
-  Image img;
+render::Image frame(std::uint32_t w, std::uint32_t h, std::uint8_t shade) {
+  render::Image img;
   img.width = w;
   img.height = h;
   img.rgba.assign(std::size_t(w) * h * 4, shade);
@@ -77,4 +77,4 @@ TEST(Video, FfmpegFailureIsReported) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -18,7 +18,7 @@
 #include "sandtable/testing/fixtures.h"
 #include "sandtable/testing/require.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 namespace fs = std::filesystem;
@@ -146,7 +146,7 @@ class ViewerModules : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string why;
-    SANDTABLE_REQUIRE(headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+    SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
     dir_ = (fs::temp_directory_path() / ("sandtable-viewer-" + std::to_string(::getpid()))).string();
     db_ = planarDatabase(dir_);
   }
@@ -159,7 +159,7 @@ class ViewerModules : public ::testing::Test {
 };
 
 TEST_F(ViewerModules, FliesThroughThePagerOnTwoThreads) {
-  for (const LodMode mode : {LodMode::rings, LodMode::sse, LodMode::full}) {
+  for (const scene::LodMode mode : {scene::LodMode::rings, scene::LodMode::sse, scene::LodMode::full}) {
     FlightOptions o;
     o.view.width = 160;
     o.view.height = 90;
@@ -176,21 +176,21 @@ TEST_F(ViewerModules, FliesThroughThePagerOnTwoThreads) {
     o.view.hud = true;
     std::uint32_t images = 0;
     FlightHooks hooks(o);
-    hooks.onFrame = [&](std::uint32_t, const Image& img) { images += img.width == 160; };
+    hooks.onFrame = [&](std::uint32_t, const render::Image& img) { images += img.width == 160; };
     auto r = fly(db_, o, &hooks);
     ASSERT_TRUE(r.ok()) << r.error();
     EXPECT_EQ(r->summary.mode, "modules");
     ASSERT_EQ(r->frames.size(), 40u);
     EXPECT_EQ(images, 40u);
     for (const auto& f : r->frames) {
-      EXPECT_GT(f.nodesDrawn, 0u) << lodModeName(mode) << " frame " << f.frame;
+      EXPECT_GT(f.nodesDrawn, 0u) << scene::lodModeName(mode) << " frame " << f.frame;
       EXPECT_GT(f.triangles, 0u);
       EXPECT_LE(f.cachedLevels, f.windowModules * kLevels);
     }
     const auto& last = r->frames.back();
-    if (mode == LodMode::full) {
+    if (mode == scene::LodMode::full) {
       EXPECT_EQ(last.levelCounts[1] + last.levelCounts[2], 0u);
-    } else if (mode == LodMode::rings) {
+    } else if (mode == scene::LodMode::rings) {
       EXPECT_GT(last.levelCounts[2], 0u);  // beyond 700 m: the coarsest level
     } else {
       // A plane is exact at every level: the screen-space mode takes the coarsest.
@@ -210,8 +210,8 @@ TEST_F(ViewerModules, ControllerViewDistanceGrowsThePagersWindowUpToItsMostAndIt
   o.view.viewDistance = 1500;  // the pager's window at open; it may grow to 3 x, 4500 m
   o.pager.sync = true;     // every load done before each frame
   FlightHooks hooks(o);
-  hooks.onPose = [&](std::uint32_t frame, double, GroundClamp&) -> std::optional<Pose> {
-    Pose p;
+  hooks.onPose = [&](std::uint32_t frame, double, world::GroundClamp&) -> std::optional<world::Pose> {
+    world::Pose p;
     p.easting = o.motion.easting;
     p.northing = o.motion.northing;
     p.heightAgl = 120;
@@ -229,7 +229,7 @@ TEST_F(ViewerModules, ControllerViewDistanceGrowsThePagersWindowUpToItsMostAndIt
 }
 
 /// The lowest image row (top row 0) of column x where the red column shows; -1: none.
-int lowestRed(const Image& img, std::uint32_t x) {
+int lowestRed(const render::Image& img, std::uint32_t x) {
   for (int y = int(img.height) - 1; y >= 0; --y) {
     const std::uint8_t* p = img.rgba.data() + (std::size_t(y) * img.width + x) * 4;
     if (p[0] > 60 && p[0] > 2 * p[1] && p[0] > 2 * p[2]) return y;
@@ -239,14 +239,14 @@ int lowestRed(const Image& img, std::uint32_t x) {
 
 struct ObjectView {
   FrameStats stats;
-  Image image;
+  render::Image image;
 };
 
 /// One frame looking north at the column from 500 m south (from the next
 /// module, so rings draw the column's whole module at the coarsest
 /// level), eye 30 m up, no fog.
-ObjectView viewColumn(const Database& db, LodMode mode, bool objects,
-                      double impostorPixels = kDefaultImpostorPixels) {
+ObjectView viewColumn(const Database& db, scene::LodMode mode, bool objects,
+                      double impostorPixels = render::kDefaultImpostorPixels) {
   FlightOptions o;
   o.view.width = 640;
   o.view.height = 360;
@@ -264,15 +264,15 @@ ObjectView viewColumn(const Database& db, LodMode mode, bool objects,
   o.motion.northing = kOriginN - (objectWorld() + 500);
   ObjectView v;
   FlightHooks hooks(o);
-  hooks.onPose = [&](std::uint32_t, double, GroundClamp&) -> std::optional<Pose> {
-    Pose p;
+  hooks.onPose = [&](std::uint32_t, double, world::GroundClamp&) -> std::optional<world::Pose> {
+    world::Pose p;
     p.easting = o.motion.easting;
     p.northing = o.motion.northing;
     p.heightAgl = 30;
     p.pitchDeg = 0;
     return p;
   };
-  hooks.onFrame = [&](std::uint32_t, const Image& img) { v.image = img; };
+  hooks.onFrame = [&](std::uint32_t, const render::Image& img) { v.image = img; };
   auto r = fly(db, o, &hooks);
   EXPECT_TRUE(r.ok()) << r.error();
   if (r.ok() && !r->frames.empty()) v.stats = r->frames.back();
@@ -281,8 +281,8 @@ ObjectView viewColumn(const Database& db, LodMode mode, bool objects,
 
 /// Image row of a world point (x, y, z) seen by the frame's camera,
 /// from the camera's own projection (independent of the object code).
-double projectedRow(const FrameStats& s, const Image& img, double x, double y, double z) {
-  Camera cam;
+double projectedRow(const FrameStats& s, const render::Image& img, double x, double y, double z) {
+  scene::Camera cam;
   cam.x = s.easting - kOriginE;
   cam.z = kOriginN - s.northing;
   cam.y = s.eyeElevation;
@@ -291,7 +291,7 @@ double projectedRow(const FrameStats& s, const Image& img, double x, double y, d
   cam.hfovDeg = s.hfovDeg;
   cam.aspect = double(img.width) / img.height;
   cam.viewDistance = s.viewDistance;
-  const Eigen::Vector4d c = viewProjection(cam, 0, 0) * Eigen::Vector4d(x, y, z, 1);
+  const Eigen::Vector4d c = scene::viewProjection(cam, 0, 0) * Eigen::Vector4d(x, y, z, 1);
   return (1.0 - c.y() / c.w()) / 2.0 * img.height;
 }
 
@@ -299,7 +299,7 @@ TEST_F(ViewerModules, ObjectsStandOnTheElevationOfTheLevelDrawnUnderThem) {
   db_.icons = columnIcons();
   const double x = objectWorld(), ground = planeY(x, x);
   const std::uint32_t column = 320;  // straight ahead
-  for (const auto& [mode, level] : {std::pair{LodMode::full, 0}, std::pair{LodMode::rings, int(kLevels) - 1}}) {
+  for (const auto& [mode, level] : {std::pair{scene::LodMode::full, 0}, std::pair{scene::LodMode::rings, int(kLevels) - 1}}) {
     const ObjectView v = viewColumn(db_, mode, true);
     ASSERT_EQ(v.image.width, 640u);
     EXPECT_EQ(v.stats.objectsDrawn, 1u);
@@ -308,8 +308,8 @@ TEST_F(ViewerModules, ObjectsStandOnTheElevationOfTheLevelDrawnUnderThem) {
     EXPECT_EQ(v.stats.objectTriangles, 10u);
     const double expected = projectedRow(v.stats, v.image, x, ground + level * kObjectLift, x);
     const int row = lowestRed(v.image, column);
-    ASSERT_GE(row, 0) << lodModeName(mode) << ": the column is not drawn";
-    EXPECT_NEAR(row + 0.5, expected, 1.5) << lodModeName(mode) << ": level " << level << "'s base";
+    ASSERT_GE(row, 0) << scene::lodModeName(mode) << ": the column is not drawn";
+    EXPECT_NEAR(row + 0.5, expected, 1.5) << scene::lodModeName(mode) << ": level " << level << "'s base";
     // The top, 20 m up, too: the scale and the projection.
     const double top = projectedRow(v.stats, v.image, x, ground + level * kObjectLift + 20, x - 1);
     int highest = row;
@@ -318,15 +318,15 @@ TEST_F(ViewerModules, ObjectsStandOnTheElevationOfTheLevelDrawnUnderThem) {
       if (!(p[0] > 60 && p[0] > 2 * p[1])) break;
       --highest;
     }
-    EXPECT_NEAR(highest, top, 2.0) << lodModeName(mode);
+    EXPECT_NEAR(highest, top, 2.0) << scene::lodModeName(mode);
   }
-  const ObjectView off = viewColumn(db_, LodMode::full, false);
+  const ObjectView off = viewColumn(db_, scene::LodMode::full, false);
   EXPECT_EQ(off.stats.objectsDrawn, 0u);
   EXPECT_EQ(lowestRed(off.image, column), -1) << "--no-objects still drew the column";
 }
 
 /// The red rows of image column x: first (top) and last; {-1, -1}: none.
-std::pair<int, int> redSpan(const Image& img, std::uint32_t x) {
+std::pair<int, int> redSpan(const render::Image& img, std::uint32_t x) {
   std::pair<int, int> span{-1, -1};
   for (int y = 0; y < int(img.height); ++y) {
     const std::uint8_t* p = img.rgba.data() + (std::size_t(y) * img.width + x) * 4;
@@ -342,8 +342,8 @@ TEST_F(ViewerModules, AnObjectUnderTheImpostorSizeIsOneSpriteCoveringWhereItsMes
   const double x = objectWorld(), ground = planeY(x, x);
   const std::uint32_t column = 320;
   // 20 m at 500 m projects to about 22 px: a mesh under 16 px, a sprite under 64.
-  const ObjectView mesh = viewColumn(db_, LodMode::full, true, 16);
-  const ObjectView sprite = viewColumn(db_, LodMode::full, true, 64);
+  const ObjectView mesh = viewColumn(db_, scene::LodMode::full, true, 16);
+  const ObjectView sprite = viewColumn(db_, scene::LodMode::full, true, 64);
   EXPECT_EQ(mesh.stats.objectSprites, 0u);
   EXPECT_EQ(mesh.stats.objectInstances, 1u);
   EXPECT_EQ(sprite.stats.objectsDrawn, 1u);
@@ -366,9 +366,9 @@ TEST_F(ViewerModules, AnObjectUnderTheImpostorSizeIsOneSpriteCoveringWhereItsMes
   for (std::uint32_t c = column - 10; c <= column + 10; ++c) wide += redSpan(sprite.image, c).first >= 0;
   EXPECT_GE(wide, 1);
   EXPECT_LE(wide, 5);
-  const ObjectView noSprites = viewColumn(db_, LodMode::full, true, 0);
+  const ObjectView noSprites = viewColumn(db_, scene::LodMode::full, true, 0);
   EXPECT_EQ(noSprites.stats.objectSprites, 0u);
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -35,7 +35,7 @@
 #include "sandtable/testing/require.h"
 
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 namespace {
 
 bool onPath(const std::string& program) {
@@ -50,8 +50,8 @@ bool onPath(const std::string& program) {
 
 using sandtable::testsupport::Xvfb;
 
-Image filled(std::uint32_t w, std::uint32_t h, Rgb c) {
-  Image img;
+render::Image filled(std::uint32_t w, std::uint32_t h, render::Rgb c) {
+  render::Image img;
   img.width = w;
   img.height = h;
   img.rgba.resize(std::size_t(w) * h * 4);
@@ -65,11 +65,11 @@ Image filled(std::uint32_t w, std::uint32_t h, Rgb c) {
 }
 
 /// "" when the window shows exactly `want`, else the first difference.
-std::string differs(const Image& got, const Image& want) {
+std::string differs(const render::Image& got, const render::Image& want) {
   if (got.width != want.width || got.height != want.height) return "size differs";
   for (std::uint32_t y = 0; y < want.height; ++y) {
     for (std::uint32_t x = 0; x < want.width; ++x) {
-      const Rgb a = got.at(x, y), b = want.at(x, y);
+      const render::Rgb a = got.at(x, y), b = want.at(x, y);
       if (a.r != b.r || a.g != b.g || a.b != b.b) {
         return "pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is " + std::to_string(a.r) + "," +
                std::to_string(a.g) + "," + std::to_string(a.b) + ", wanted " + std::to_string(b.r) + "," +
@@ -81,16 +81,16 @@ std::string differs(const Image& got, const Image& want) {
 }
 
 /// The panel as a flight loop would draw it over a frame.
-Image panelFrame(const ViewerState& s) {
-  Image f = filled(320, 240, {0x87, 0xCE, 0xEB});
-  drawHudPanel(f, controllerPanelLines(s));
+render::Image panelFrame(const world::ViewerState& s) {
+  render::Image f = filled(320, 240, {0x87, 0xCE, 0xEB});
+  render::drawHudPanel(f, world::controllerPanelLines(s));
   return f;
 }
 
 /// Reads events until `want` have arrived; the X server delivers them
 /// asynchronously, so this polls (up to 5 s) rather than assume a delay.
-std::vector<KeyEvent> waitForEvents(ViewerWindow& w, std::size_t want) {
-  std::vector<KeyEvent> got;
+std::vector<world::KeyEvent> waitForEvents(ViewerWindow& w, std::size_t want) {
+  std::vector<world::KeyEvent> got;
   for (int tries = 0; tries < 1000 && got.size() < want; ++tries) {
     for (const auto& e : w.pollEvents()) got.push_back(e);
     if (got.size() < want) {
@@ -140,8 +140,8 @@ TEST_F(WindowTest, KeypressChangesTheSpeedShownInThePanel) {
   XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
   XSync(keys_, False);
 
-  Controller c(ViewerState{}, {});
-  const Image before = panelFrame(c.state());
+  world::Controller c(world::ViewerState{}, {});
+  const render::Image before = panelFrame(c.state());
   ASSERT_TRUE(win.present(before).ok());
   auto shown = win.capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
@@ -151,12 +151,12 @@ TEST_F(WindowTest, KeypressChangesTheSpeedShownInThePanel) {
   sendKey(keys_, XK_Up, false);
   const auto events = waitForEvents(win, 2);
   ASSERT_EQ(events.size(), 2u);
-  EXPECT_EQ(events[0], (KeyEvent{Key::up, true}));
-  EXPECT_EQ(events[1], (KeyEvent{Key::up, false}));
+  EXPECT_EQ(events[0], (world::KeyEvent{world::Key::up, true}));
+  EXPECT_EQ(events[1], (world::KeyEvent{world::Key::up, false}));
   c.handle(events);
   EXPECT_DOUBLE_EQ(c.state().speedMs, 5);
 
-  const Image after = panelFrame(c.state());
+  const render::Image after = panelFrame(c.state());
   ASSERT_NE(differs(after, before), "") << "the panel must show the new speed";
   ASSERT_TRUE(win.present(after).ok());
   shown = win.capture();
@@ -170,18 +170,18 @@ TEST_F(WindowTest, KeysTranslate) {
   ViewerWindow& win = *opened.value();
   XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
   XSync(keys_, False);
-  const std::vector<std::pair<KeySym, Key>> keys = {
-      {XK_Down, Key::down}, {XK_Left, Key::left}, {XK_Right, Key::right}, {XK_7, Key::digit7},
-      {XK_0, Key::digit0},  {XK_minus, Key::minus}, {XK_equal, Key::plus}, {XK_m, Key::map},
-      {XK_Page_Up, Key::pageUp}, {XK_f, Key::groundFollow}, {XK_p, Key::screenshot},
-      {XK_F12, Key::screenshot}, {XK_Escape, Key::quit}};
+  const std::vector<std::pair<KeySym, world::Key>> keys = {
+      {XK_Down, world::Key::down}, {XK_Left, world::Key::left}, {XK_Right, world::Key::right}, {XK_7, world::Key::digit7},
+      {XK_0, world::Key::digit0},  {XK_minus, world::Key::minus}, {XK_equal, world::Key::plus}, {XK_m, world::Key::map},
+      {XK_Page_Up, world::Key::pageUp}, {XK_f, world::Key::groundFollow}, {XK_p, world::Key::screenshot},
+      {XK_F12, world::Key::screenshot}, {XK_Escape, world::Key::quit}};
   for (const auto& [sym, key] : keys) {
     sendKey(keys_, sym, true);
     sendKey(keys_, sym, false);
     const auto ev = waitForEvents(win, 2);
-    ASSERT_EQ(ev.size(), 2u) << keyName(key);
-    EXPECT_EQ(ev[0], (KeyEvent{key, true})) << keyName(key);
-    EXPECT_EQ(ev[1], (KeyEvent{key, false})) << keyName(key);
+    ASSERT_EQ(ev.size(), 2u) << world::keyName(key);
+    EXPECT_EQ(ev[0], (world::KeyEvent{key, true})) << world::keyName(key);
+    EXPECT_EQ(ev[1], (world::KeyEvent{key, false})) << world::keyName(key);
   }
 }
 
@@ -230,7 +230,7 @@ TEST_F(WindowTest, EntityKeysWaitForTakeViewerKeys) {
 }
 
 TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
-  auto headless = EglContext::create();
+  auto headless = render::EglContext::create();
   SANDTABLE_REQUIRE(headless.ok(), "headless GL (EGL, Mesa): " << headless.error());
   const EGLContext renderer = eglGetCurrentContext();
   const EGLSurface draw = eglGetCurrentSurface(EGL_DRAW);
@@ -238,7 +238,7 @@ TEST_F(WindowTest, PresentKeepsTheRenderersContextCurrent) {
   auto opened = ViewerWindow::open(64, 48, "contexts", xvfb_->display);
   ASSERT_TRUE(opened.ok()) << opened.error();
   EXPECT_EQ(eglGetCurrentContext(), renderer);
-  const Image frame = filled(64, 48, {200, 30, 90});
+  const render::Image frame = filled(64, 48, {200, 30, 90});
   ASSERT_TRUE(opened.value()->present(frame).ok());
   EXPECT_EQ(eglGetCurrentContext(), renderer);
   EXPECT_EQ(eglGetCurrentSurface(EGL_DRAW), draw);
@@ -257,10 +257,10 @@ TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
   ViewerWindow& win = *opened.value();
   XSetInputFocus(keys_, Window(win.xWindow()), RevertToPointerRoot, CurrentTime);
   XSync(keys_, False);
-  const Image last = filled(96, 64, {20, 40, 60});
+  const render::Image last = filled(96, 64, {20, 40, 60});
   std::string renderError;
   std::thread render([&] {
-    auto headless = EglContext::create();  // a headless renderer's own context
+    auto headless = render::EglContext::create();  // a headless renderer's own context
     for (int k = 0; k < 30 && renderError.empty(); ++k) {
       renderError = win.present(filled(96, 64, {std::uint8_t(k * 8), 0, 0})).error();
     }
@@ -272,15 +272,15 @@ TEST_F(WindowTest, RenderThreadPresentsWhileTheMainThreadPolls) {
   render.join();
   EXPECT_EQ(renderError, "");
   ASSERT_EQ(ev.size(), 2u);
-  EXPECT_EQ(ev[0], (KeyEvent{Key::right, true}));
+  EXPECT_EQ(ev[0], (world::KeyEvent{world::Key::right, true}));
   auto shown = win.capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
   EXPECT_EQ(differs(shown.value(), last), "");
 }
 
 /// Ground ahead of an eye 30 m up (no grid needed: a hand-made strip).
-DisplayBuffer groundAhead(std::uint32_t w, std::uint32_t h) {
-  DisplayBuffer b;
+scene::DisplayBuffer groundAhead(std::uint32_t w, std::uint32_t h) {
+  scene::DisplayBuffer b;
   b.camera.y = 30;
   b.camera.pitchDeg = -8;
   b.camera.aspect = double(w) / double(h);
@@ -296,24 +296,24 @@ TEST_F(WindowTest, RendererPresentsIntoTheWindowWithoutReadBack) {
   auto opened = ViewerWindow::open(160, 120, "present", xvfb_->display);
   ASSERT_TRUE(opened.ok()) << opened.error();
   ViewerWindow& win = *opened.value();
-  RenderSettings rs;
+  render::RenderSettings rs;
   rs.width = 160;
   rs.height = 120;
-  Image shownFirst, readBack, cpuPanel;
+  render::Image shownFirst, readBack, cpuPanel;
   std::string error;
   std::uint64_t readBeforeAsking = 99;
   // On its own thread, as fly()'s render thread does it.
   std::thread render([&] {
-    auto r = Renderer::create(rs, &win);
+    auto r = render::Renderer::create(rs, &win);
     if (!r) {
       error = r.error();
       return;
     }
-    Overlay overlay;
+    render::Overlay overlay;
     for (std::uint32_t k = 0; k < 3 && error.empty(); ++k) {
       error = r.value()->draw(groundAhead(160, 120)).error();
       overlay.begin(160, 120);
-      drawHudPanel(overlay, {"FRAME " + std::to_string(k)});
+      render::drawHudPanel(overlay, {"FRAME " + std::to_string(k)});
       if (error.empty()) error = r.value()->drawOverlay(overlay).error();
       if (error.empty()) error = r.value()->present().error();
     }
@@ -324,7 +324,7 @@ TEST_F(WindowTest, RendererPresentsIntoTheWindowWithoutReadBack) {
     // The same frame without the HUD pass, given the panel on the CPU.
     if (error.empty()) error = r.value()->draw(groundAhead(160, 120)).error();
     if (error.empty()) error = r.value()->readFrame(cpuPanel).error();
-    drawHudPanel(cpuPanel, {"FRAME 2"});
+    render::drawHudPanel(cpuPanel, {"FRAME 2"});
   });
   render.join();
   ASSERT_EQ(error, "");
@@ -339,10 +339,10 @@ TEST_F(WindowTest, SmallerFrameIsLetterboxed) {
   ASSERT_TRUE(opened.value()->present(filled(100, 100, {255, 255, 255})).ok());
   auto shown = opened.value()->capture();
   ASSERT_TRUE(shown.ok()) << shown.error();
-  const Rgb side = shown->at(10, 50), middle = shown->at(100, 50);
+  const render::Rgb side = shown->at(10, 50), middle = shown->at(100, 50);
   EXPECT_EQ(side.r + side.g + side.b, 0);
   EXPECT_EQ(middle.r + middle.g + middle.b, 3 * 255);
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <utility>
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 PackSource::PackSource(std::shared_ptr<const pack::PackReader> pack) : pack_(std::move(pack)) {}
 
@@ -80,4 +80,4 @@ void PackSource::willNeed(std::span<const ModuleKey> keys, bool fine) const {
   advise();
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

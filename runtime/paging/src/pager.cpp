@@ -10,7 +10,7 @@
 #include "pager_internal.h"
 #include "sandtable/paging/world.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 using namespace pager_detail;
 
@@ -1275,4 +1275,4 @@ double Pager::residentDistance(double eyeX, double eyeZ) const {
 std::uint32_t Pager::levels() const { return impl_->levels; }
 ModuleRect Pager::window() const { return impl_->window.load().window; }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -17,7 +17,7 @@
 
 #include "sandtable/paging/pager.h"
 
-namespace sandtable::runtime::pager_detail {
+namespace sandtable::paging::detail {
 
 inline std::int64_t nowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -183,13 +183,13 @@ struct Loader {
   std::thread thread;
 };
 
-}  // namespace sandtable::runtime::pager_detail
+}  // namespace sandtable::paging::detail
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 struct Pager::Impl {
-  using Slot = pager_detail::Slot;
-  using Loader = pager_detail::Loader;
+  using Slot = detail::Slot;
+  using Loader = detail::Loader;
 
   PagerOptions options;
   std::shared_ptr<const grid::GridFile> grid;
@@ -213,7 +213,7 @@ struct Pager::Impl {
   double updateInterval = 0;  ///< running mean of the time between updates (main thread)
   bool haveInterval = false;
 
-  pager_detail::SeqWindow window;
+  detail::SeqWindow window;
   std::atomic<bool> stopping{false};
   bool stopped = false;
   std::int64_t openNs = 0;
@@ -239,7 +239,7 @@ struct Pager::Impl {
   std::array<std::atomic<std::uint32_t>, kDirections> leadStrips{};
   std::atomic<std::uint32_t> maxQueueLength{0};
   std::atomic<std::uint64_t> poolBytes{0};
-  pager_detail::LatencyHistogram latency, stripLatency;
+  detail::LatencyHistogram latency, stripLatency;
 
   // mmap mode.
   std::thread prefetcher;
@@ -265,4 +265,4 @@ void runPrefetcher(Pager::Impl& impl);
 /// read, coarse and fine records.
 void hintStrip(Pager::Impl& impl, std::span<const ModuleKey> keys);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -7,7 +7,7 @@
 #include "sandtable/paging/pager.h"
 #include "sandtable/paging/view_triangle.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 const char* directionName(Direction d) {
   switch (d) {
@@ -292,4 +292,4 @@ std::vector<NeededModule> neededModules(const NeedParams& p, double moduleSize,
   return out;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -7,7 +7,7 @@
 #include "sandtable/meshing/assemble.h"
 #include "sandtable/meshing/skirts.h"
 
-namespace sandtable::runtime::pager_detail {
+namespace sandtable::paging::detail {
 
 // ------------------------------------------------------------ SeqWindow
 
@@ -191,4 +191,4 @@ void buildPlaceholder(const grid::GridFile& grid, const pack::IndexHeader& h, st
   meshing::finishLevel(lat, node, depth, material, out);
 }
 
-}  // namespace sandtable::runtime::pager_detail
+}  // namespace sandtable::paging::detail

@@ -11,7 +11,7 @@
 
 #include "pager_internal.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 namespace {
 
@@ -131,4 +131,4 @@ void runPrefetcher(Pager::Impl& im) {
   }
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -151,4 +151,4 @@ std::uint64_t countSquares(const std::vector<RowSpan>& spans) {
   return n;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

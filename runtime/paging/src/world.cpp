@@ -1,7 +1,7 @@
 // The database opened once (world.h).
 #include "sandtable/paging/world.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 namespace {
 
 std::shared_ptr<const ModuleSource> packSourceOf(const Database& db) {
@@ -25,4 +25,4 @@ World::World(Database db) : db_(std::move(db)) {
 World::World(Database db, std::shared_ptr<const grid::HeightField> heights, std::shared_ptr<const ModuleSource> modules)
     : db_(std::move(db)), heights_(std::move(heights)), modules_(std::move(modules)) {}
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

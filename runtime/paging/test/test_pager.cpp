@@ -52,7 +52,7 @@ void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 #pragma GCC diagnostic pop
 #endif
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 namespace {
 
 namespace fs = std::filesystem;
@@ -1640,4 +1640,4 @@ TEST(Pager, thePackIsASourceOfOneGeneration) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -11,7 +11,7 @@
 
 #include "sandtable/paging/view_triangle.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 namespace {
 
 constexpr double kTol = 1e-9;
@@ -302,4 +302,4 @@ TEST(ViewTriangle, CountsSquares) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <cstring>
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 std::string eglErrorText(EGLint code) {
@@ -190,4 +190,4 @@ EglContext::~EglContext() {
   eglTerminate(display_);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

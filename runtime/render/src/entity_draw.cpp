@@ -11,7 +11,7 @@
 #include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 // Appended to shadingVertexGlsl(). The turret (aPivot.w != 0) turns about
@@ -228,8 +228,8 @@ std::array<float, 4> lyingQuaternion(double headingDeg) {
   return toArray(heading * down);
 }
 
-EffectView effectViewOf(const DisplayBuffer& buf, std::uint32_t imageHeight) {
-  const Camera& cam = buf.camera;
+EffectView effectViewOf(const scene::DisplayBuffer& buf, std::uint32_t imageHeight) {
+  const scene::Camera& cam = buf.camera;
   EffectView v;
   v.originX = buf.originX;
   v.originZ = buf.originZ;
@@ -254,7 +254,7 @@ void appendQuad(const Corner& corner, std::vector<EffectVertex>& out) {
 
 }  // namespace
 
-void appendTrail(const Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
+void appendTrail(const scene::Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
   const std::size_t n = trail.points.size();
   if (n < 2 || !(trail.lifeS > 0)) return;
   struct Edge {
@@ -263,7 +263,7 @@ void appendTrail(const Trail& trail, const EffectView& view, double minPixels, s
   };
   std::vector<Edge> edges(n);
   const auto at = [&](std::size_t i) {
-    const TrailPoint& q = trail.points[i];
+    const scene::TrailPoint& q = trail.points[i];
     return Eigen::Vector3d(q.x - view.originX, q.y, q.z - view.originZ);
   };
   for (std::size_t i = 0; i < n; ++i) {
@@ -312,7 +312,7 @@ void appendShadow(const Eigen::Vector3d& origin, const std::array<float, 4>& ori
   appendQuad(corner, out);
 }
 
-void appendFlash(const Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
+void appendFlash(const scene::Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out) {
   if (!(flash.durationS > 0) || flash.ageS < 0 || flash.ageS >= flash.durationS) return;
   const double f = double(flash.ageS) / double(flash.durationS);
   double r = double(flash.radiusM) * (0.35 + 0.65 * std::sqrt(f));
@@ -414,13 +414,13 @@ Status EntityRenderer::create(const RenderSettings& s, GLuint textures) {
   return {};
 }
 
-double EntityRenderer::drawnY(const DisplayBuffer& buf, const ModuleRenderer* modules, const DynamicInstance& d) {
+double EntityRenderer::drawnY(const scene::DisplayBuffer& buf, const ModuleRenderer* modules, const scene::DynamicInstance& d) {
   if (!d.onSurface || !modules || !buf.moduleMode || !(buf.moduleSize > 0) || !settings_.grid) return d.y;
   const double kxf = std::floor(d.x / buf.moduleSize), kzf = std::floor(d.z / buf.moduleSize);
   if (kxf < 0 || kzf < 0) return d.y;
   const auto kx = std::uint32_t(kxf), kz = std::uint32_t(kzf);
   for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
-    const ModuleDraw& md = buf.modules[m];
+    const scene::ModuleDraw& md = buf.modules[m];
     if (md.kx != kx || md.kz != kz || !md.ref) continue;
     std::uint32_t level = 0;
     float morph = 0;
@@ -432,17 +432,17 @@ double EntityRenderer::drawnY(const DisplayBuffer& buf, const ModuleRenderer* mo
       clamp_.emplace(settings_.grid, squares, levels);
       clampLevels_ = levels;
     }
-    const auto drawn = clamp_->surfaceXZ(d.x, d.z, DrawnLevel{level, morph});
+    const auto drawn = clamp_->surfaceXZ(d.x, d.z, world::DrawnLevel{level, morph});
     const auto finest = clamp_->surfaceXZ(d.x, d.z);
     return drawn && finest ? d.y + (*drawn - *finest) : d.y;
   }
   return d.y;
 }
 
-void EntityRenderer::add(const DisplayBuffer& buf, const DynamicInstance& d, double y,
+void EntityRenderer::add(const scene::DisplayBuffer& buf, const scene::DynamicInstance& d, double y,
                          const std::array<Eigen::Vector4d, 5>& planes, RenderStats& stats) {
   if (d.icon >= shapes_.size()) return;
-  const Camera& cam = buf.camera;
+  const scene::Camera& cam = buf.camera;
   const Eigen::Vector3d origin(d.x - buf.originX, y, d.z - buf.originZ);
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
   const double radius = double(reach_[d.icon]) * double(d.scale);
@@ -475,22 +475,22 @@ void EntityRenderer::add(const DisplayBuffer& buf, const DynamicInstance& d, dou
   ++stats.entitiesDrawn;
 }
 
-void EntityRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer* modules,
-                             const std::vector<DynamicInstance>& diverted, RenderStats& stats) {
+void EntityRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRenderer* modules,
+                             const std::vector<scene::DynamicInstance>& diverted, RenderStats& stats) {
   draws_.clear();
   stream_.clear();
   shadowVertices_.clear();
-  auto planes = frustumPlanes(runtime::viewProjection(buf.camera, buf.originX, buf.originZ));
+  auto planes = scene::frustumPlanes(scene::viewProjection(buf.camera, buf.originX, buf.originZ));
   for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
-  for (const DynamicInstance& d : buf.dynamic.instances) add(buf, d, drawnY(buf, modules, d), planes, stats);
+  for (const scene::DynamicInstance& d : buf.dynamic.instances) add(buf, d, drawnY(buf, modules, d), planes, stats);
   // Changed static objects already stand on the drawn level (the object pass placed them).
   const std::uint32_t before = stats.entitiesDrawn;
-  for (const DynamicInstance& d : diverted) add(buf, d, d.y, planes, stats);
+  for (const scene::DynamicInstance& d : diverted) add(buf, d, d.y, planes, stats);
   stats.objectsChangedDrawn += stats.entitiesDrawn - before;
   stats.entitiesDrawn = before;
 }
 
-void EntityRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
+void EntityRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   if (stream_.empty()) return;
   glNamedBufferData(instanceBuffer_, GLsizeiptr(stream_.size() * sizeof(EntityInstanceGpu)), stream_.data(),
                     GL_STREAM_DRAW);
@@ -525,19 +525,19 @@ void EntityRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
   glBindVertexArray(0);
 }
 
-void EntityRenderer::drawEffects(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+void EntityRenderer::drawEffects(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                                  RenderStats& stats) {
-  const DynamicScene& dyn = buf.dynamic;
+  const scene::DynamicScene& dyn = buf.dynamic;
   if (dyn.trails.empty() && dyn.flashes.empty() && shadowVertices_.empty()) return;
   const EffectView view = effectViewOf(buf, settings_.height);
   trailVertices_.clear();
   flashVertices_.clear();
-  for (const Trail& t : dyn.trails) {
+  for (const scene::Trail& t : dyn.trails) {
     const std::size_t before = trailVertices_.size();
     appendTrail(t, view, kTrailMinPixels, trailVertices_);
     stats.trailsDrawn += trailVertices_.size() > before;
   }
-  for (const Flash& f : dyn.flashes) {
+  for (const scene::Flash& f : dyn.flashes) {
     const std::size_t before = flashVertices_.size();
     appendFlash(f, view, kFlashMinPixels, flashVertices_);
     stats.flashesDrawn += flashVertices_.size() > before;
@@ -583,8 +583,8 @@ void EntityRenderer::drawEffects(const DisplayBuffer& buf, const Eigen::Matrix4f
   glDepthMask(GL_TRUE);
 }
 
-void EntityRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
-                          const ModuleRenderer* modules, const std::vector<DynamicInstance>& diverted,
+void EntityRenderer::draw(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+                          const ModuleRenderer* modules, const std::vector<scene::DynamicInstance>& diverted,
                           RenderStats& stats) {
   if (settings_.colour == ColourMode::height) return;  // data pixels: terrain heights only
   collect(buf, modules, diverted, stats);
@@ -592,20 +592,20 @@ void EntityRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewP
   drawEffects(buf, viewProjection, stats);
 }
 
-void EntityRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
+void EntityRenderer::warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
   if (settings_.colour == ColourMode::height || shapes_.empty()) return;
-  DisplayBuffer b;
+  scene::DisplayBuffer b;
   b.camera = buf.camera;
   b.originX = buf.originX;
   b.originZ = buf.originZ;
-  DynamicInstance d;
+  scene::DynamicInstance d;
   d.z = -20;
   d.shadow = true;  // its shadow too
   d.orientation = headingQuaternion(30);
   d.turretAzimuthDeg = 10;
   // The tank's turret if there is one: both groups' draws compile the same program.
   b.dynamic.instances.push_back(d);
-  Trail t;
+  scene::Trail t;
   t.points = {{-2, 1, -20, 0.5f}, {2, 2, -22, 0.1f}};
   b.dynamic.trails.push_back(t);
   b.dynamic.flashes.push_back({0, 1, -20, 0.1f, 0.5f, 3});
@@ -613,4 +613,4 @@ void EntityRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
   draw(b, viewProjection, nullptr, {}, ignored);
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -48,7 +48,7 @@
 #include "sandtable/scene/display_buffer.h"
 #include "sandtable/world/ground.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 class ModuleRenderer;
 
@@ -103,11 +103,11 @@ struct EffectView {
   double focal = 1000;  ///< pixels per metre at one metre
   double originX = 0, originZ = 0;
 };
-EffectView effectViewOf(const DisplayBuffer& buf, std::uint32_t imageHeight);
+EffectView effectViewOf(const scene::DisplayBuffer& buf, std::uint32_t imageHeight);
 
 /// Appends a trail's ribbon (two triangles per segment) facing the eye,
 /// at least `minPixels` wide; alpha 0.85 falling to 0 at the trail's life.
-void appendTrail(const Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
+void appendTrail(const scene::Trail& trail, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
 /// Appends the contact shadow of an icon with footprint `bounds` (min x,
 /// y, z, max x, y, z; EntityMeshes::footprint) standing at `origin` (buffer-relative) turned by
 /// `orientation` (x, y, z, w): its footprint grown by 0.5 m, 6 cm up,
@@ -117,7 +117,7 @@ void appendShadow(const Eigen::Vector3d& origin, const std::array<float, 4>& ori
 /// Appends a flash's disc (two triangles) facing the eye: its radius grows
 /// from 35 % to 100 % of radiusM over its duration, and at least
 /// `minPixels` across; nothing once its age passes its duration.
-void appendFlash(const Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
+void appendFlash(const scene::Flash& flash, const EffectView& view, double minPixels, std::vector<EffectVertex>& out);
 
 class EntityRenderer {
  public:
@@ -132,20 +132,20 @@ class EntityRenderer {
   Status create(const RenderSettings& s, GLuint textures);
   /// The models pass's entities, diverted static objects and effects.
   /// `modules` is null in grid-mesh mode (nothing to re-base on).
-  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer* modules,
-            const std::vector<DynamicInstance>& diverted, RenderStats& stats);
+  void draw(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer* modules,
+            const std::vector<scene::DynamicInstance>& diverted, RenderStats& stats);
   /// One entity, trail and flash into the warm-up frame (llvmpipe compiles at the first draw).
-  void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
+  void warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
 
  private:
   /// The instance's y on the drawn surface (onSurface), else its own.
-  double drawnY(const DisplayBuffer& buf, const ModuleRenderer* modules, const DynamicInstance& d);
-  void collect(const DisplayBuffer& buf, const ModuleRenderer* modules, const std::vector<DynamicInstance>& diverted,
+  double drawnY(const scene::DisplayBuffer& buf, const ModuleRenderer* modules, const scene::DynamicInstance& d);
+  void collect(const scene::DisplayBuffer& buf, const ModuleRenderer* modules, const std::vector<scene::DynamicInstance>& diverted,
                RenderStats& stats);
-  void add(const DisplayBuffer& buf, const DynamicInstance& d, double y, const std::array<Eigen::Vector4d, 5>& planes,
+  void add(const scene::DisplayBuffer& buf, const scene::DynamicInstance& d, double y, const std::array<Eigen::Vector4d, 5>& planes,
            RenderStats& stats);
-  void submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
-  void drawEffects(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void drawEffects(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
 
   RenderSettings settings_;
   GlProgram program_, texturedProgram_, effectProgram_;
@@ -156,7 +156,7 @@ class EntityRenderer {
   std::vector<std::array<EntityShape, 2>> shapes_;
   std::vector<float> reach_;
   std::vector<double> farRange_;  ///< per icon: its last switch range (infinite without ranges)
-  std::optional<GroundClamp> clamp_;  ///< module mode: the surfaces of every level
+  std::optional<world::GroundClamp> clamp_;  ///< module mode: the surfaces of every level
   std::uint32_t clampLevels_ = 0;
   // Per-frame scratch (capacity kept).
   struct Draw {
@@ -169,4 +169,4 @@ class EntityRenderer {
   std::vector<std::array<float, 6>> footprint_;  ///< per icon (EntityMeshes::footprint)
 };
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <utility>
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 std::string infoLog(GLuint object, bool program) {
@@ -97,4 +97,4 @@ void GlProgram::setMatrix4(const char* name, const float* columnMajor) const {
   glProgramUniformMatrix4fv(id_, uniform(name), 1, GL_FALSE, columnMajor);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <iterator>
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 /// The arena's first size; it doubles when full.
@@ -95,4 +95,4 @@ void GpuArena::endFrame() {
   recycle();
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

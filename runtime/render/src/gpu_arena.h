@@ -8,7 +8,7 @@
 #include <map>
 #include <vector>
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 /// One persistent, coherent, write-mapped GL buffer, sub-allocated in
 /// blocks of kUnit bytes (first fit, coalescing free list). Released
@@ -51,4 +51,4 @@ class GpuArena {
   std::vector<Fenced> fenced_;
 };
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

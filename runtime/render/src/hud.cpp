@@ -2,7 +2,7 @@
 
 #include "sandtable/render/hud.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 void blendPixel(Image& img, int x, int y, Rgb c, float alpha) {
@@ -105,4 +105,4 @@ PixelBox drawHudPanel(Overlay& overlay, const std::vector<std::string>& lines) {
   return b;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -5,7 +5,7 @@
 
 #include "sandtable/render/hud.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 struct GlyphPicture {
@@ -105,4 +105,4 @@ const Glyph& glyphFor(char32_t c) {
   return font.present[k] ? font.glyphs[k] : font.glyphs['?'];
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -15,7 +15,7 @@
 #include "sandtable/render/gl_program.h"
 #include "sandtable/render/hud.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 const char* kSheetVertex = R"(#version 450 core
@@ -253,4 +253,4 @@ Result<IconSheet> renderIconSheet(const iconpack::Pack& pack, std::size_t first,
   return sheet;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -11,7 +11,7 @@
 #include <csetjmp>
 #include <cstring>
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 Problem textureProblem(const std::string& name, const std::string& why) {
@@ -228,4 +228,4 @@ GLuint uploadIconTextures(const iconpack::Pack& pack, std::vector<std::string>& 
   return tex;
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -16,7 +16,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/formats/icon_pack.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 /// Texels a side of each icon texture layer.
 inline constexpr std::uint32_t kIconTextureTexels = 256;
@@ -59,4 +59,4 @@ GLuint createTextureArray(std::uint32_t texels, std::uint32_t layers, GLenum wra
 /// their base colour) and a line in `warnings`.
 GLuint uploadIconTextures(const iconpack::Pack& pack, std::vector<std::string>& warnings);
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -8,7 +8,7 @@
 
 #include "sandtable/render/hud.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 constexpr Rgb kMarkerEdge{0, 0, 0};
@@ -341,4 +341,4 @@ void MapView::drawLabel(Image& frame, const MapLayout& box) const {
   }
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -6,7 +6,7 @@
 
 #include "module_draw.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 /// Frames a GPU copy may go unused (e.g. turned away) before it is released.
@@ -37,7 +37,7 @@ void ModuleRenderer::freeEntry(Entry& e) {
   e.bytes = e.vertexBytes = e.indexBytes = 0;
 }
 
-const LevelMesh* ModuleRenderer::preparedMesh(const ResidentRef& ref, std::uint32_t level, bool raise) {
+const LevelMesh* ModuleRenderer::preparedMesh(const paging::ResidentRef& ref, std::uint32_t level, bool raise) {
   const auto& prepared = ref.module().prepared;
   if (level >= prepared.size()) return nullptr;
   const auto* mesh = dynamic_cast<const LevelMesh*>(prepared[level].get());
@@ -51,13 +51,13 @@ const LevelMesh* ModuleRenderer::preparedMesh(const ResidentRef& ref, std::uint3
   return mesh;
 }
 
-void ModuleRenderer::upload(const ModuleDraw& d, std::uint32_t levelIndex, Entry& e, RenderStats& stats) {
+void ModuleRenderer::upload(const scene::ModuleDraw& d, std::uint32_t levelIndex, Entry& e, RenderStats& stats) {
   // Levels finer than the finest resident may be written meanwhile: the
   // feet are raised only once every level is resident.
   const bool raise = d.ref.finestLevel() == 0;
   const LevelMesh* mesh = preparedMesh(d.ref, levelIndex, raise);
   if (!mesh) {
-    const ResidentModule& m = d.ref.module();
+    const paging::ResidentModule& m = d.ref.module();
     buildLevelMesh(m, levelIndex, *meshSettings_, ownMesh_);
     ownMesh_.raised = false;
     if (raise) {
@@ -87,8 +87,8 @@ ModuleRenderer::Entry* ModuleRenderer::ready(std::uint64_t key) {
   return it != cache_.end() && it->second.resident ? &it->second : nullptr;
 }
 
-void ModuleRenderer::release(RenderStats& stats, const DisplayBuffer& buf) {
-  const ModuleRect& w = buf.pagerWindow;
+void ModuleRenderer::release(RenderStats& stats, const scene::DisplayBuffer& buf) {
+  const paging::ModuleRect& w = buf.pagerWindow;
   for (auto it = cache_.begin(); it != cache_.end();) {
     const auto kx = std::int64_t(it->first & 0xFFFFF), kz = std::int64_t((it->first >> 20) & 0xFFFFF);
     const bool freed = !w.empty() && !w.contains(kx, kz);
@@ -102,7 +102,7 @@ void ModuleRenderer::release(RenderStats& stats, const DisplayBuffer& buf) {
   }
 }
 
-void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
+void ModuleRenderer::prepare(const scene::DisplayBuffer& buf, RenderStats& stats) {
   const auto t0 = std::chrono::steady_clock::now();
   nodeSquares_ = buf.nodeSquares;
   moduleSize_ = buf.moduleSize;
@@ -120,7 +120,7 @@ void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   // is small), so a module with anything resident is never a hole; finer
   // levels wait for a later frame once the budget is spent (at least one
   // goes up each frame), and are drawn coarser meanwhile.
-  const auto ensure = [&](const ModuleDraw& d, std::uint32_t level, bool force) {
+  const auto ensure = [&](const scene::ModuleDraw& d, std::uint32_t level, bool force) {
     Entry& e = cache_[cacheKey(d.kx, d.kz, level)];
     e.lastFrame = buf.frame;
     if (e.resident && e.generation == d.ref.generation()) return;
@@ -136,7 +136,7 @@ void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   for (std::size_t i0 = 0; i0 < buf.nodes.size();) {
     std::size_t i1 = i0;
     while (i1 < buf.nodes.size() && buf.nodes[i1].module == buf.nodes[i0].module) ++i1;
-    const ModuleDraw& d = buf.modules[buf.nodes[i0].module];
+    const scene::ModuleDraw& d = buf.modules[buf.nodes[i0].module];
     const auto levels = std::uint32_t(d.ref.module().levels.size());
     ensure(d, levels - 1, true);
     for (std::size_t k = i0; k < i1; ++k) ensure(d, buf.nodes[k].level, false);
@@ -147,4 +147,4 @@ void ModuleRenderer::prepare(const DisplayBuffer& buf, RenderStats& stats) {
   buildCommands(buf);
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -15,7 +15,7 @@
 #include "sandtable/formats/terrain_rule.h"
 #include "sandtable/scene/lod.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 /// A lattice post and a skin vertex are the same point within this, metres.
@@ -333,7 +333,7 @@ constexpr double kSkirtFootMargin = 1.0;
 /// check: the pager publishes finer levels later) and `posts` built for
 /// each; where a post is missing the stored foot stays. `isFoot[k]` marks
 /// the feet; `y` holds the level's heights and gets the raised ones.
-void tightenSkirtFeet(const ResidentModule& m, std::uint32_t levelIndex, const std::vector<std::uint8_t>& isFoot,
+void tightenSkirtFeet(const paging::ResidentModule& m, std::uint32_t levelIndex, const std::vector<std::uint8_t>& isFoot,
                       const std::vector<PostMap>& posts, std::vector<float>& y) {
   if (m.levels.empty() || !(m.levels[0].spacing > 0)) return;
   const module::Level& level = m.levels[levelIndex];
@@ -369,7 +369,7 @@ void tightenSkirtFeet(const ResidentModule& m, std::uint32_t levelIndex, const s
 
 }  // namespace
 
-void buildLevelMesh(const ResidentModule& m, std::uint32_t levelIndex, const MeshSettings& s, LevelMesh& out) {
+void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, const MeshSettings& s, LevelMesh& out) {
   UploadScratch& sc = scratch();
   const module::Level& level = m.levels[levelIndex];
   const auto levels = std::uint32_t(m.levels.size());
@@ -399,7 +399,7 @@ void buildLevelMesh(const ResidentModule& m, std::uint32_t levelIndex, const Mes
   if (!flat && s.grid) {
     builder.sampleGrid(*s.grid, s.waterMaterials, m.kx * s.moduleSize, m.kz * s.moduleSize);
   }
-  const std::uint32_t side = nodesPerSide(levelIndex, levels);
+  const std::uint32_t side = scene::nodesPerSide(levelIndex, levels);
   const std::size_t nodes = std::size_t(side) * side;
   const MaterialColour fallback;
   const auto colourOf = [&](const module::Group& g) {
@@ -531,7 +531,7 @@ void buildLevelMesh(const ResidentModule& m, std::uint32_t levelIndex, const Mes
       for (std::size_t k = g0; k < g1; ++k) {
         const module::Group& g = level.groups[k];
         if (priority == module::kPrioritySkin && (g.half == module::Half::skirt) != skirts) continue;
-        sc.byNode[nodeOfSquare(level, g.square, nodeSquares, side)].push_back(&g);
+        sc.byNode[scene::nodeOfSquare(level, g.square, nodeSquares, side)].push_back(&g);
       }
       emitBlock(skirts ? kSkirtPriority : priority);
     }
@@ -548,7 +548,7 @@ void buildLevelMesh(const ResidentModule& m, std::uint32_t levelIndex, const Mes
   for (std::uint32_t q = 0; q < squares; ++q) {
     if (sc.skinTriangles[q] <= 2) continue;
     anyCut = true;
-    sc.squaresByNode[nodeOfSquare(level, q, nodeSquares, side)].push_back(q);
+    sc.squaresByNode[scene::nodeOfSquare(level, q, nodeSquares, side)].push_back(q);
   }
   if (anyCut) {
     MeshBlock b{kUnderlayPriority, std::vector<std::uint32_t>(nodes + 1, 0)};
@@ -581,7 +581,7 @@ void buildLevelMesh(const ResidentModule& m, std::uint32_t levelIndex, const Mes
   builder.takeInto(out);
 }
 
-void raiseSkirtFeet(const ResidentModule& m, const std::vector<LevelMesh*>& meshes) {
+void raiseSkirtFeet(const paging::ResidentModule& m, const std::vector<LevelMesh*>& meshes) {
   UploadScratch& sc = scratch();
   const auto levels = std::uint32_t(m.levels.size());
   sc.posts.resize(levels);
@@ -633,15 +633,15 @@ bool sameMeshSettings(const MeshSettings& a, const MeshSettings& b) {
          std::equal(a.palette.begin(), a.palette.end(), b.palette.begin(), b.palette.end(), sameColour);
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
-std::function<void(ResidentModule&, std::uint32_t)> moduleLevelPreparer(const RenderSettings& s,
+std::function<void(paging::ResidentModule&, std::uint32_t)> moduleLevelPreparer(const RenderSettings& s,
                                                                         std::uint32_t nodeSquares,
                                                                         double moduleSize) {
   auto settings = std::make_shared<const detail::MeshSettings>(detail::meshSettings(s, nodeSquares, moduleSize));
-  return [settings](ResidentModule& m, std::uint32_t level) {
+  return [settings](paging::ResidentModule& m, std::uint32_t level) {
     if (level >= m.prepared.size() || level >= m.levels.size()) return;  // the pager sizes `prepared`
     auto* mesh = dynamic_cast<detail::LevelMesh*>(m.prepared[level].get());
     if (!mesh) {
@@ -664,4 +664,4 @@ std::function<void(ResidentModule&, std::uint32_t)> moduleLevelPreparer(const Re
   };
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

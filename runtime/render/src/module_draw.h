@@ -71,7 +71,7 @@
 #include "gpu_arena.h"
 #include "module_mesh.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 /// The GPU cache's key of a module's level.
 inline std::uint64_t cacheKey(std::uint32_t kx, std::uint32_t kz, std::uint32_t level) {
@@ -99,10 +99,10 @@ class ModuleRenderer {
   /// drawTerrain() the skin, then skirts and underlay (terrain pass),
   /// drawDecals() the decal priorities and the modules' own object
   /// polygons (decals pass), finishFrame() releases what the pager let go.
-  void prepare(const DisplayBuffer& buf, RenderStats& stats);
-  void drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
-  void drawDecals(const DisplayBuffer& buf, RenderStats& stats);
-  void finishFrame(const DisplayBuffer& buf, RenderStats& stats);
+  void prepare(const scene::DisplayBuffer& buf, RenderStats& stats);
+  void drawTerrain(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void drawDecals(const scene::DisplayBuffer& buf, RenderStats& stats);
+  void finishFrame(const scene::DisplayBuffer& buf, RenderStats& stats);
 
   /// Draws `frames` frames of a plain grid of squares x squares (one
   /// vertex per post, two triangles a square, nodes of nodeSquares squares
@@ -115,7 +115,7 @@ class ModuleRenderer {
   /// finishFrame().
   bool drawnAt(std::uint32_t module, double x, double z, std::uint32_t& level, float& morph) const;
 
-  PlainGridRun drawPlainGrid(const Camera& camera, std::uint32_t squares, double spacing,
+  PlainGridRun drawPlainGrid(const scene::Camera& camera, std::uint32_t squares, double spacing,
                              std::uint32_t nodeSquares, std::uint32_t frames,
                              const std::function<void()>& beginFrame);
 
@@ -159,13 +159,13 @@ class ModuleRenderer {
   Entry* ready(std::uint64_t key);
   /// The level's mesh built on a loader thread for these settings (raised
   /// feet too when `raise`), or null.
-  const LevelMesh* preparedMesh(const ResidentRef& ref, std::uint32_t level, bool raise);
-  void upload(const ModuleDraw& d, std::uint32_t level, Entry& e, RenderStats& stats);
+  const LevelMesh* preparedMesh(const paging::ResidentRef& ref, std::uint32_t level, bool raise);
+  void upload(const scene::ModuleDraw& d, std::uint32_t level, Entry& e, RenderStats& stats);
   void storeEntry(Entry& e, const std::vector<GpuVertex>& vertices, const std::vector<std::uint32_t>& indices);
   void freeEntry(Entry& e);
-  void release(RenderStats& stats, const DisplayBuffer& buf);
-  void resolveModule(const DisplayBuffer& buf, std::size_t first, std::size_t last, RenderStats& stats);
-  void buildCommands(const DisplayBuffer& buf);
+  void release(RenderStats& stats, const scene::DisplayBuffer& buf);
+  void resolveModule(const scene::DisplayBuffer& buf, std::size_t first, std::size_t last, RenderStats& stats);
+  void buildCommands(const scene::DisplayBuffer& buf);
   /// The skirt on `side` of node `node` (dr's level) can show: a neighbour
   /// across it is another module's, not drawn, or drawn at another level
   /// or morph. Same level and morph share the edge exactly: no crack.
@@ -228,4 +228,4 @@ class ModuleRenderer {
   std::bitset<kLists> roadLists_;
 };
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

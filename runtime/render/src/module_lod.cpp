@@ -9,16 +9,16 @@
 #include "sandtable/base/morton.h"
 #include "sandtable/scene/lod.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
-void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std::size_t i1, RenderStats& stats) {
-  const ModuleDraw& d = buf.modules[buf.nodes[i0].module];
+void ModuleRenderer::resolveModule(const scene::DisplayBuffer& buf, std::size_t i0, std::size_t i1, RenderStats& stats) {
+  const scene::ModuleDraw& d = buf.modules[buf.nodes[i0].module];
   const auto levels = std::uint32_t(d.ref.module().levels.size());
   const auto entryAt = [&](std::uint32_t l) { return ready(cacheKey(d.kx, d.kz, l)); };
   spans_.clear();
   bool anyFallback = false;
   for (std::size_t k = i0; k < i1; ++k) {
-    const NodeDraw& nd = buf.nodes[k];
+    const scene::NodeDraw& nd = buf.nodes[k];
     std::uint32_t l = nd.level;
     while (l + 1 < levels && !entryAt(l)) ++l;
     if (!entryAt(l)) continue;  // nothing resident at all (cannot happen: the coarsest is forced)
@@ -58,7 +58,7 @@ void ModuleRenderer::resolveModule(const DisplayBuffer& buf, std::size_t i0, std
     spans_.resize(out);
   }
   // What covers each node of the finest level: where a skirt is needed.
-  const std::uint32_t side0 = nodesPerSide(0, levels);
+  const std::uint32_t side0 = scene::nodesPerSide(0, levels);
   const auto cells = std::uint32_t(cells_.size());
   cells_.resize(cells_.size() + std::size_t(side0) * side0);
   moduleCells_[buf.nodes[i0].module] = {cells, side0};
@@ -108,4 +108,4 @@ bool ModuleRenderer::skirtNeeded(const Drawn& dr, std::uint32_t node, std::uint3
   return false;
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -28,7 +28,7 @@
 #include "sandtable/render/renderer.h"
 #include "terrain_shading.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 // 32 bytes each.
 struct GpuVertex {
@@ -72,7 +72,7 @@ MeshSettings meshSettings(const RenderSettings& s, std::uint32_t nodeSquares, do
 bool sameMeshSettings(const MeshSettings& a, const MeshSettings& b);
 
 /// One level ready for the GPU arena.
-struct LevelMesh final : LevelExtra {
+struct LevelMesh final : paging::LevelExtra {
   std::shared_ptr<const MeshSettings> settings;  ///< what it was built with
   std::vector<GpuVertex> vertices;               ///< heights as the level stores them
   std::vector<std::uint32_t> indices;
@@ -90,12 +90,12 @@ struct LevelMesh final : LevelExtra {
 
 /// Builds level `level` of `m` (it and the next coarser one written) into
 /// `out` (its vectors keep their capacity); out.settings is left as it is.
-void buildLevelMesh(const ResidentModule& m, std::uint32_t level, const MeshSettings& s, LevelMesh& out);
+void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t level, const MeshSettings& s, LevelMesh& out);
 /// Fills `feet` of each non-null meshes[l] (built from level l of `m`) and
 /// marks it raised. Needs every level of `m` written.
-void raiseSkirtFeet(const ResidentModule& m, const std::vector<LevelMesh*>& meshes);
+void raiseSkirtFeet(const paging::ResidentModule& m, const std::vector<LevelMesh*>& meshes);
 
 std::uint32_t packColour(Rgb c, SurfaceKind kind);
 std::uint32_t packNormal(const Eigen::Vector3f& n);
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

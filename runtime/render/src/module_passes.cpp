@@ -12,7 +12,7 @@
 #include "sandtable/scene/lod.h"
 #include "terrain_shading.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 // Appended to detail::shadingVertexGlsl().
@@ -172,13 +172,13 @@ void ModuleRenderer::appendSkirts(const Drawn& dr, const Block& b, GLuint firstI
 }
 
 
-void ModuleRenderer::buildCommands(const DisplayBuffer& buf) {
+void ModuleRenderer::buildCommands(const scene::DisplayBuffer& buf) {
   for (auto& l : lists_) l.clear();
   drawData_.clear();
   framePriorities_.reset();
   roadLists_.reset();
   for (const Drawn& dr : drawn_) {
-    const ModuleDraw& d = buf.modules[dr.module];
+    const scene::ModuleDraw& d = buf.modules[dr.module];
     const auto instance = GLuint(drawData_.size());
     drawData_.push_back({float(d.kx * buf.moduleSize - buf.originX), float(d.kz * buf.moduleSize - buf.originZ),
                          dr.morph, 0.0f});
@@ -246,7 +246,7 @@ void ModuleRenderer::multiDraw(std::size_t list, RenderStats& stats) {
   for (const Command& c : l) stats.trianglesDrawn += c.count / 3;
 }
 
-void ModuleRenderer::drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+void ModuleRenderer::drawTerrain(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                                  RenderStats& stats) {
   for (GlProgram* p : {&program_, &plainProgram_}) {
     p->setMatrix4("uViewProjection", viewProjection.data());
@@ -274,7 +274,7 @@ void ModuleRenderer::drawTerrain(const DisplayBuffer& buf, const Eigen::Matrix4f
   glDisable(GL_POLYGON_OFFSET_FILL);
 }
 
-void ModuleRenderer::drawDecals(const DisplayBuffer&, RenderStats& stats) {
+void ModuleRenderer::drawDecals(const scene::DisplayBuffer&, RenderStats& stats) {
   // The terrain pass left this program, its buffers and uniforms bound.
   glEnable(GL_POLYGON_OFFSET_FILL);
   glDepthMask(GL_FALSE);
@@ -295,7 +295,7 @@ void ModuleRenderer::drawDecals(const DisplayBuffer&, RenderStats& stats) {
   multiDraw(101, stats);
 }
 
-void ModuleRenderer::finishFrame(const DisplayBuffer& buf, RenderStats& stats) {
+void ModuleRenderer::finishFrame(const scene::DisplayBuffer& buf, RenderStats& stats) {
   GLsync& f = ringFence_[ringSlot_];
   if (f) glDeleteSync(f);
   f = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
@@ -307,7 +307,7 @@ void ModuleRenderer::finishFrame(const DisplayBuffer& buf, RenderStats& stats) {
   stats.gpuBytes = gpuBytes_;
 }
 
-PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t squares, double spacing,
+PlainGridRun ModuleRenderer::drawPlainGrid(const scene::Camera& camera, std::uint32_t squares, double spacing,
                                            std::uint32_t nodeSquares, std::uint32_t frames,
                                            const std::function<void()>& beginFrame) {
   PlainGridRun run;
@@ -337,7 +337,7 @@ PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t s
   indices.reserve(std::size_t(squares) * squares * 6);
   std::vector<std::pair<std::uint32_t, std::uint32_t>> order;
   for (std::uint32_t b = 0; b < side; ++b) {
-    for (std::uint32_t a = 0; a < side; ++a) order.push_back({mortonIndex(a, b), a + b * side});
+    for (std::uint32_t a = 0; a < side; ++a) order.push_back({scene::mortonIndex(a, b), a + b * side});
   }
   std::sort(order.begin(), order.end());
   for (std::size_t k = 0; k < order.size(); ++k) {
@@ -357,7 +357,7 @@ PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t s
   e.priorities.set(module::kPrioritySkin);
   run.triangles = indices.size() / 3;
 
-  DisplayBuffer buf;
+  scene::DisplayBuffer buf;
   buf.camera = camera;
   buf.camera.y = camera.y + height(0, 0);
   buf.originX = camera.x;
@@ -365,7 +365,7 @@ PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t s
   buf.moduleSize = 0;
   buf.modules.resize(1);
   // Unqualified: camera_math.h's projection, whichever namespace holds it.
-  const Eigen::Matrix4f vp = viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+  const Eigen::Matrix4f vp = scene::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
   const auto nodes = std::uint32_t(order.size());
   drawn_.clear();
   // One draw per node, as a module drawn at full LoD.
@@ -390,4 +390,4 @@ PlainGridRun ModuleRenderer::drawPlainGrid(const Camera& camera, std::uint32_t s
   return run;
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

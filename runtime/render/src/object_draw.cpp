@@ -13,7 +13,7 @@
 #include "sandtable/scene/camera_math.h"
 #include "terrain_shading.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 // Appended to shadingVertexGlsl(). The icon turns about Y by the heading
@@ -194,13 +194,13 @@ double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
 /// of thousands of objects a frame).
 class DiscTest {
  public:
-  explicit DiscTest(const ViewTriangle& t) {
-    const std::array<GroundPoint, 3> v{t.apex, t.left, t.right};
+  explicit DiscTest(const paging::ViewTriangle& t) {
+    const std::array<paging::GroundPoint, 3> v{t.apex, t.left, t.right};
     const double area = (v[1].x - v[0].x) * (v[2].z - v[0].z) - (v[1].z - v[0].z) * (v[2].x - v[0].x);
     const double sign = area < 0 ? -1.0 : 1.0;
     for (int k = 0; k < 3; ++k) {
-      const GroundPoint& a = v[std::size_t(k)];
-      const GroundPoint& b = v[std::size_t((k + 1) % 3)];
+      const paging::GroundPoint& a = v[std::size_t(k)];
+      const paging::GroundPoint& b = v[std::size_t((k + 1) % 3)];
       const double ex = b.x - a.x, ez = b.z - a.z, len = std::sqrt(ex * ex + ez * ez);
       Edge& e = edges_[std::size_t(k)];
       if (len == 0) continue;  // a degenerate edge rejects nothing
@@ -453,19 +453,19 @@ Status ObjectRenderer::bakeImpostors() {
   return {};
 }
 
-void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
+void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
   for (auto& b : buckets_) b.clear();
   for (auto& b : spriteBuckets_) b.clear();
   diverted_.clear();
-  const std::vector<ObjectOverride>& overrides = buf.dynamic.objectOverrides;
-  const Camera& cam = buf.camera;
+  const std::vector<scene::ObjectOverride>& overrides = buf.dynamic.objectOverrides;
+  const scene::Camera& cam = buf.camera;
   // Pixels per metre at one metre: an object is a sprite where
   // size * focal < impostorPixels * distance.
   const bool sprites = impostors_ != 0 && settings_.objectLod;
   const double focal = 0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad);
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
   // The side and far planes, scaled so that n . p + w is a distance.
-  auto planes = frustumPlanes(runtime::viewProjection(cam, buf.originX, buf.originZ));
+  auto planes = scene::frustumPlanes(scene::viewProjection(cam, buf.originX, buf.originZ));
   for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
   const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
   const DiscTest triangle(buf.triangle);
@@ -477,19 +477,19 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
     farRange_[k] = std::min(far, cam.viewDistance);
   }
   for (std::uint32_t m = 0; m < buf.modules.size(); ++m) {
-    const ModuleDraw& d = buf.modules[m];
+    const scene::ModuleDraw& d = buf.modules[m];
     if (!d.ref || d.ref.placeholder()) continue;
-    const ResidentModule& rm = d.ref.module();
+    const paging::ResidentModule& rm = d.ref.module();
     if (rm.objects.empty()) continue;
     const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
     // This module's changed objects, in index order: walked beside i.
-    auto [changed, changedEnd] = overridesOfModule(overrides, d.kx, d.kz);
+    auto [changed, changedEnd] = scene::overridesOfModule(overrides, d.kx, d.kz);
     for (std::size_t i = 0; i < rm.objects.size(); ++i) {
       const module::Object& o = rm.objects[i];
       if (o.icon >= icons.size()) continue;  // validate refuses these
       while (changed != changedEnd && changed->index < i) ++changed;
-      const ObjectLook look = changed != changedEnd && changed->index == i ? changed->look : ObjectLook::standing;
-      if (look == ObjectLook::destroyed) {
+      const scene::ObjectLook look = changed != changedEnd && changed->index == i ? changed->look : scene::ObjectLook::standing;
+      if (look == scene::ObjectLook::destroyed) {
         ++stats.objectsRemoved;
         continue;
       }
@@ -518,7 +518,7 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
       bool inside = true;
       for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
       if (!inside) continue;
-      if (look != ObjectLook::standing) {
+      if (look != scene::ObjectLook::standing) {
         divert(icons[o.icon], o, look, mx + o.x, y, mz + o.z);
         continue;
       }
@@ -547,16 +547,16 @@ void ObjectRenderer::collect(const DisplayBuffer& buf, const ModuleRenderer& mod
   }
 }
 
-void ObjectRenderer::divert(const iconpack::Icon& icon, const module::Object& o, ObjectLook look, double x, double y,
+void ObjectRenderer::divert(const iconpack::Icon& icon, const module::Object& o, scene::ObjectLook look, double x, double y,
                             double z) {
-  DynamicInstance d;
+  scene::DynamicInstance d;
   d.icon = o.icon;
   d.x = x;
   d.y = y;
   d.z = z;
   d.scale = o.scale;
   const double headingDeg = module::headingRadians(o.heading) / kDegToRad;
-  if (look == ObjectLook::knockedOver) {
+  if (look == scene::ObjectLook::knockedOver) {
     // Laid forward about its base, its body z becomes its height: lifted so
     // that its lowest point (the bounds' least z) rests on the ground.
     d.orientation = lyingQuaternion(headingDeg);
@@ -568,14 +568,14 @@ void ObjectRenderer::divert(const iconpack::Icon& icon, const module::Object& o,
   diverted_.push_back(d);
 }
 
-void ObjectRenderer::draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
+void ObjectRenderer::draw(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection,
                           const ModuleRenderer& modules, RenderStats& stats) {
   if (!buf.moduleMode || settings_.colour == ColourMode::height) return;
   collect(buf, modules, stats);
   submit(buf, viewProjection, stats);
 }
 
-void ObjectRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
+void ObjectRenderer::warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection) {
   if (settings_.colour == ColourMode::height) return;
   for (auto& b : buckets_) b.clear();
   for (auto& b : spriteBuckets_) b.clear();
@@ -592,7 +592,7 @@ void ObjectRenderer::warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
   submit(buf, viewProjection, ignored);
 }
 
-void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
+void ObjectRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   stream_.clear();
   for (const auto& b : buckets_) stream_.insert(stream_.end(), b.begin(), b.end());
   for (const auto& b : spriteBuckets_) stream_.insert(stream_.end(), b.begin(), b.end());
@@ -639,13 +639,13 @@ void ObjectRenderer::submit(const DisplayBuffer& buf, const Eigen::Matrix4f& vie
   drawSprites(buf, viewProjection, baseInstance, stats);
 }
 
-void ObjectRenderer::drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint first,
+void ObjectRenderer::drawSprites(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint first,
                                  RenderStats& stats) {
   if (impostors_ == 0) return;
   bool any = false;
   for (const auto& b : spriteBuckets_) any = any || !b.empty();
   if (!any) return;
-  const Camera& cam = buf.camera;
+  const scene::Camera& cam = buf.camera;
   spriteProgram_.use();
   spriteProgram_.setMatrix4("uViewProjection", viewProjection.data());
   setFrameShading(spriteProgram_, buf);
@@ -670,4 +670,4 @@ void ObjectRenderer::drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f
   glBindVertexArray(0);
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -47,7 +47,7 @@
 #include "sandtable/render/renderer.h"
 #include "sandtable/scene/display_buffer.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 class ModuleRenderer;
 
@@ -136,31 +136,31 @@ class ObjectRenderer {
   Status create(const RenderSettings& s);
   /// The models pass's objects, after the terrain pass of the same frame
   /// (`modules` says which level is drawn where). Adds to stats' object counters.
-  void draw(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
+  void draw(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, const ModuleRenderer& modules,
             RenderStats& stats);
   /// One tiny instance drawn into the warm-up frame, so that the driver
   /// compiles the program for this state before frame 0 (llvmpipe compiles
   /// at the first draw).
-  void warmUp(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
+  void warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection);
   /// The objects of the last draw() that buf.dynamic.objectOverrides
   /// changed (knocked over, stumps, ruins), placed on the drawn ground, for
   /// the entity pass to draw with their dead model or lying down; destroyed
   /// ones are left out altogether.
-  const std::vector<DynamicInstance>& diverted() const { return diverted_; }
+  const std::vector<scene::DynamicInstance>& diverted() const { return diverted_; }
   /// The icon texture array (0: the pack has none), for the entity pass.
   GLuint textures() const { return textures_; }
 
  private:
   /// Streams the buckets and draws each (icon, level) with instances,
   /// then each icon's sprites.
-  void submit(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
+  void submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats);
   /// Renders every icon's impostor layer (create(), with the icon buffers up).
   Status bakeImpostors();
-  void drawSprites(const DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint firstInstance,
+  void drawSprites(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint firstInstance,
                    RenderStats& stats);
-  void collect(const DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
+  void collect(const scene::DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
   /// Queues a changed object for the entity pass (world x, drawn base y, world z).
-  void divert(const iconpack::Icon& icon, const module::Object& o, ObjectLook look, double x, double y, double z);
+  void divert(const iconpack::Icon& icon, const module::Object& o, scene::ObjectLook look, double x, double y, double z);
 
   RenderSettings settings_;
   GlProgram program_, texturedProgram_;  ///< the second samples the icon textures
@@ -178,7 +178,7 @@ class ObjectRenderer {
   std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon
   std::vector<ObjectInstance> stream_;
   std::vector<double> farRange_;  ///< per icon, this frame
-  std::vector<DynamicInstance> diverted_;
+  std::vector<scene::DynamicInstance> diverted_;
 };
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

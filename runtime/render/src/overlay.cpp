@@ -4,7 +4,7 @@
 #include <atomic>
 #include <cstring>
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 Overlay::Overlay() {
   static std::atomic<std::uint64_t> next{1};
@@ -96,4 +96,4 @@ void Overlay::composeOnto(Image& frame) const {
   }
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

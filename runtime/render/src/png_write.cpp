@@ -7,7 +7,7 @@
 
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 struct FileCloser {
@@ -70,4 +70,4 @@ Status writePng(const std::string& path, const Image& img) {
   return {};
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -17,7 +17,7 @@
 #include "sandtable/render/gl_program.h"
 #include "terrain_shading.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -220,15 +220,15 @@ struct Renderer::Impl {
   void createGeometry() {
     glCreateBuffers(1, &vbo);
     glCreateVertexArrays(1, &terrainVao);
-    glVertexArrayVertexBuffer(terrainVao, 0, vbo, 0, sizeof(TerrainVertex));
+    glVertexArrayVertexBuffer(terrainVao, 0, vbo, 0, sizeof(scene::TerrainVertex));
     glEnableVertexArrayAttrib(terrainVao, 0);
-    glVertexArrayAttribFormat(terrainVao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, x));
+    glVertexArrayAttribFormat(terrainVao, 0, 3, GL_FLOAT, GL_FALSE, offsetof(scene::TerrainVertex, x));
     glVertexArrayAttribBinding(terrainVao, 0, 0);
     glEnableVertexArrayAttrib(terrainVao, 1);
-    glVertexArrayAttribFormat(terrainVao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, nx));
+    glVertexArrayAttribFormat(terrainVao, 1, 3, GL_FLOAT, GL_FALSE, offsetof(scene::TerrainVertex, nx));
     glVertexArrayAttribBinding(terrainVao, 1, 0);
     glEnableVertexArrayAttrib(terrainVao, 2);
-    glVertexArrayAttribFormat(terrainVao, 2, 1, GL_FLOAT, GL_FALSE, offsetof(TerrainVertex, water));
+    glVertexArrayAttribFormat(terrainVao, 2, 1, GL_FLOAT, GL_FALSE, offsetof(scene::TerrainVertex, water));
     glVertexArrayAttribBinding(terrainVao, 2, 0);
     // Full-screen triangles need no attributes, but core GL needs a VAO.
     glCreateVertexArrays(1, &emptyVao);
@@ -269,7 +269,7 @@ struct Renderer::Impl {
     return {};
   }
 
-  void drawSky(const Camera& cam) {
+  void drawSky(const scene::Camera& cam) {
     const float tanH = float(std::tan(cam.hfovDeg * kDegToRad / 2.0));
     const float tanV = float(std::tan(cam.vfovDeg() * kDegToRad / 2.0));
     skyProgram.set("uTanHalfFov", tanH, tanV);
@@ -282,15 +282,15 @@ struct Renderer::Impl {
     glDepthMask(GL_TRUE);
   }
 
-  void drawMesh(const DisplayBuffer& buf) {
+  void drawMesh(const scene::DisplayBuffer& buf) {
     if (buf.vertices.empty()) return;
     const Eigen::Matrix4f viewProjection =
-        runtime::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+        scene::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
     terrainProgram.setMatrix4("uViewProjection", viewProjection.data());
     detail::setFrameShading(terrainProgram, buf);
     // Re-specifying the store each frame orphans last frame's copy, so the
     // driver never waits for the GPU to finish with it.
-    glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(TerrainVertex)),
+    glNamedBufferData(vbo, GLsizeiptr(buf.vertices.size() * sizeof(scene::TerrainVertex)),
                       buf.vertices.data(), GL_STREAM_DRAW);
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_GREATER);  // reversed Z
@@ -321,7 +321,7 @@ struct Renderer::Impl {
     glBlitNamedFramebuffer(fbo, resolveFbo, 0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
   }
 
-  Status runPass(RenderPass pass, const DisplayBuffer& buf, const Eigen::Matrix4f& vp) {
+  Status runPass(RenderPass pass, const scene::DisplayBuffer& buf, const Eigen::Matrix4f& vp) {
     switch (pass) {
       case RenderPass::sky:
         if (settings.sky) drawSky(buf.camera);
@@ -340,7 +340,7 @@ struct Renderer::Impl {
       case RenderPass::models:
         if (objects && buf.moduleMode) objects->draw(buf, vp, *modules, stats);
         if (entities) {
-          static const std::vector<DynamicInstance> none;
+          static const std::vector<scene::DynamicInstance> none;
           entities->draw(buf, vp, buf.moduleMode ? modules.get() : nullptr,
                          objects && buf.moduleMode ? objects->diverted() : none, stats);
         }
@@ -360,11 +360,11 @@ struct Renderer::Impl {
     return {};
   }
 
-  Status drawPasses(const DisplayBuffer& buf) {
+  Status drawPasses(const scene::DisplayBuffer& buf) {
     stats = RenderStats{};
     frame = buf.frame;
     beginFrame();
-    const Eigen::Matrix4f vp = runtime::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
+    const Eigen::Matrix4f vp = scene::viewProjection(buf.camera, buf.originX, buf.originZ).cast<float>();
     Status st;
     for (const RenderPass pass : kRenderPasses) {
       st = runPass(pass, buf, vp);
@@ -424,7 +424,7 @@ struct Renderer::Impl {
   /// llvmpipe compiles shaders for the actual state on the first draw;
   /// doing one tiny frame (with a panel) here keeps that out of frame 0's timing.
   void warmUp() {
-    DisplayBuffer b;
+    scene::DisplayBuffer b;
     b.camera.y = 10;
     b.camera.aspect = double(settings.width) / double(settings.height);
     b.vertices = {{-1, 0, -20, 0, 1, 0, 0}, {-1, 0, -19, 0, 1, 0, 0}, {1, 0, -20, 0, 1, 0, 0},
@@ -434,7 +434,7 @@ struct Renderer::Impl {
     (void)drawPasses(b);
     if (objects || entities) {
       glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-      const Eigen::Matrix4f vp = runtime::viewProjection(b.camera, b.originX, b.originZ).cast<float>();
+      const Eigen::Matrix4f vp = scene::viewProjection(b.camera, b.originX, b.originZ).cast<float>();
       if (objects) objects->warmUp(b, vp);
       if (entities) entities->warmUp(b, vp);
       resolve();
@@ -527,7 +527,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const RenderSettings& s, Pres
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }
 
-Status Renderer::draw(const DisplayBuffer& buf) {
+Status Renderer::draw(const scene::DisplayBuffer& buf) {
   Impl& m = *impl_;
   if (Status st = m.drawPasses(buf); !st) return st;
   return m.glStatus("drawing");
@@ -569,7 +569,7 @@ Status Renderer::present() {
   return st;
 }
 
-IndexedGridRate Renderer::measureIndexedGrid(const Camera& camera, std::uint32_t squares, double spacing,
+IndexedGridRate Renderer::measureIndexedGrid(const scene::Camera& camera, std::uint32_t squares, double spacing,
                                              std::uint32_t nodeSquares, std::uint32_t frames) {
   Impl& m = *impl_;
   const detail::PlainGridRun run =
@@ -618,4 +618,4 @@ bool headlessGlAvailable(std::string& why) {
   return r.ok();
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

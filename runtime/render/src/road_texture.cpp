@@ -9,7 +9,7 @@
 
 #include "module_draw.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 /// Road texture: T across (u), S along (v), one repeat per road width.
@@ -67,4 +67,4 @@ void ModuleRenderer::createRoadTexture() {
   }
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -25,7 +25,7 @@
 #include "sandtable/render/renderer.h"
 #include "sandtable/scene/camera_math.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 
 inline constexpr double kPi = 3.14159265358979323846;
 inline constexpr double kDegToRad = kPi / 180.0;
@@ -184,11 +184,11 @@ inline void setShadingUniforms(const GlProgram& p, const RenderSettings& s) {
 
 /// The uniforms of one frame: the eye (relative to the buffer's origin)
 /// and the fog that the view distance sets.
-inline void setFrameShading(const GlProgram& p, const DisplayBuffer& buf) {
-  const Camera& cam = buf.camera;
+inline void setFrameShading(const GlProgram& p, const scene::DisplayBuffer& buf) {
+  const scene::Camera& cam = buf.camera;
   p.set("uEye", float(cam.x - buf.originX), float(cam.y), float(cam.z - buf.originZ));
-  p.set("uFogDensity", float(fogDensityFor(cam.viewDistance)));
-  p.set("uFogStart", float(kFogClearFraction * cam.viewDistance));
+  p.set("uFogDensity", float(scene::fogDensityFor(cam.viewDistance)));
+  p.set("uFogStart", float(scene::kFogClearFraction * cam.viewDistance));
 }
 
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -9,7 +9,7 @@
 
 #include "../src/entity_draw.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 /// A box mesh of one triangle pair at height y over [x0, x1] x [z0, z1].
@@ -104,7 +104,7 @@ EffectView view() {
 }
 
 TEST(EntityShapes, trailsFadeWithAgeAndStayVisibleFarAway) {
-  Trail t;
+  scene::Trail t;
   t.lifeS = 2;
   t.points = {{-10, 10, -100, 1.5f}, {0, 10, -100, 1.0f}, {10, 10, -100, 0.0f}};
   std::vector<EffectVertex> out;
@@ -117,7 +117,7 @@ TEST(EntityShapes, trailsFadeWithAgeAndStayVisibleFarAway) {
   // A segment crossing the view is widened across it (up and down, here).
   EXPECT_NEAR(std::abs(out[0].y - out[1].y), 2 * 0.3, 1e-5);  // 0.3 m beats 1.5 px at 100 m
   // Ten kilometres away the ribbon is 1.5 pixels wide, not 0.6 m.
-  Trail far = t;
+  scene::Trail far = t;
   for (auto& p : far.points) p.z = -10000;
   out.clear();
   appendTrail(far, view(), 1.5, out);
@@ -132,7 +132,7 @@ TEST(EntityShapes, trailsFadeWithAgeAndStayVisibleFarAway) {
 
 TEST(EntityShapes, flashesGrowAndGoOutAfterTheirDuration) {
   std::vector<EffectVertex> out;
-  Flash f;
+  scene::Flash f;
   f.z = -50;
   f.radiusM = 6;
   f.durationS = 0.5f;
@@ -176,4 +176,4 @@ TEST(EntityShapes, contactShadowLiesOnTheFootprintInTheEntitysTilt) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

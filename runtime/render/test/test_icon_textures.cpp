@@ -20,7 +20,7 @@
 #include "../src/icon_textures.h"
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime::detail {
+namespace sandtable::render::detail {
 namespace {
 
 namespace fs = std::filesystem;
@@ -251,4 +251,4 @@ TEST(IconTextures, anImageHeaderPastTheLimitIsRefusedBeforeDecoding) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime::detail
+}  // namespace sandtable::render::detail

@@ -9,7 +9,7 @@
 
 #include "sandtable/render/map_view.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 namespace fs = std::filesystem;
@@ -310,4 +310,4 @@ TEST_F(MapViewTest, ToWorldFromProjected) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -15,15 +15,15 @@
 #include "sandtable/render/renderer.h"
 #include "sandtable/testing/require.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 constexpr std::uint32_t kW = 320, kH = 200;
 
 /// A flat 2 km square of ground in front of an eye 30 m up, looking a
 /// little down: sky above the horizon, fogged ground below it.
-DisplayBuffer groundAhead(std::uint32_t frame) {
-  DisplayBuffer b;
+scene::DisplayBuffer groundAhead(std::uint32_t frame) {
+  scene::DisplayBuffer b;
   b.frame = frame;
   b.camera.y = 30;
   b.camera.pitchDeg = -8;
@@ -178,4 +178,4 @@ TEST(RenderPasses, OverlayOfAnotherSizeIsRefused) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -9,7 +9,7 @@
 
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 namespace {
 
 namespace fs = std::filesystem;
@@ -49,4 +49,4 @@ TEST(Png, writesTheFrameUnderItsNameAndNoTemporary) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -4,7 +4,7 @@
 #include <array>
 #include <chrono>
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 namespace {
 
 /// Grid material index -> water (1) or not (0).
@@ -21,7 +21,7 @@ TerrainVertex vertexAt(const grid::HeightField& g, std::uint32_t i, std::uint32_
 /// Appends the strip for one row span: posts i = first..last+1 along rows
 /// j and j+1, north post first, so the strip's triangles are NW-SW-NE and
 /// SW-NE-SE, i.e. the upper and lower triangles of each square.
-void appendStrip(const grid::HeightField& g, const RowSpan& span, const WaterTable& water,
+void appendStrip(const grid::HeightField& g, const paging::RowSpan& span, const WaterTable& water,
                  DisplayBuffer& out) {
   const auto first = static_cast<std::int32_t>(out.vertices.size());
   for (std::uint32_t i = span.firstI; i <= span.lastI + 1; ++i) {
@@ -35,17 +35,17 @@ void appendStrip(const grid::HeightField& g, const RowSpan& span, const WaterTab
 
 }  // namespace
 
-double Camera::vfovDeg() const { return verticalFovDeg(hfovDeg, aspect); }
+double Camera::vfovDeg() const { return paging::verticalFovDeg(hfovDeg, aspect); }
 
-ViewTriangle viewTriangleFor(const Camera& cam, double spacing) {
-  ViewTriangleParams p;
+paging::ViewTriangle viewTriangleFor(const Camera& cam, double spacing) {
+  paging::ViewTriangleParams p;
   p.eyeX = cam.x;
   p.eyeZ = cam.z;
   p.headingDeg = cam.headingDeg;
-  p.halfAngleDeg = groundHalfAngleDeg(cam.hfovDeg, cam.vfovDeg(), cam.pitchDeg);
+  p.halfAngleDeg = paging::groundHalfAngleDeg(cam.hfovDeg, cam.vfovDeg(), cam.pitchDeg);
   p.viewDistance = cam.viewDistance;
   p.pullback = spacing;  // seed: one post spacing behind the eye
-  return makeViewTriangle(p);
+  return paging::makeViewTriangle(p);
 }
 
 void fillDisplayBuffer(const grid::HeightField& g, const Camera& cam, std::uint64_t frame,
@@ -56,16 +56,16 @@ void fillDisplayBuffer(const grid::HeightField& g, const Camera& cam, std::uint6
   out.originX = cam.x;
   out.originZ = cam.z;
   out.triangle = viewTriangleFor(cam, g.spacing());
-  out.spans = selectSquares(out.triangle, g.spacing(), g.postsX() - 1, g.postsZ() - 1);
+  out.spans = paging::selectSquares(out.triangle, g.spacing(), g.postsX() - 1, g.postsZ() - 1);
   out.vertices.clear();
   out.firsts.clear();
   out.counts.clear();
   out.triangles = 0;
-  out.vertices.reserve(2 * (countSquares(out.spans) + out.spans.size()));
+  out.vertices.reserve(2 * (paging::countSquares(out.spans) + out.spans.size()));
   WaterTable water{};
   for (const std::uint8_t m : waterMaterials) water[m] = 1.0f;
   for (const auto& span : out.spans) appendStrip(g, span, water, out);
   out.cpuMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -7,7 +7,7 @@
 
 #include "sandtable/formats/terrain_rule.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -235,4 +235,4 @@ double sseMorph(std::span<const double> errors, std::uint32_t level, double dist
   return std::clamp((allowed - el) / (ec - el), 0.0, 1.0);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -8,7 +8,7 @@
 
 #include "sandtable/scene/camera_math.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 namespace {
 
 std::uint64_t keyOf(std::uint32_t kx, std::uint32_t kz) { return (std::uint64_t(kz) << 32) | kx; }
@@ -33,9 +33,9 @@ struct ModuleScene::Walk {
   DisplayBuffer* out = nullptr;
 };
 
-ModuleScene::ModuleScene(const Pager& pager, const ModuleSceneSettings& s)
+ModuleScene::ModuleScene(const paging::Pager& pager, const ModuleSceneSettings& s)
     : pager_(pager), settings_(s) {
-  const PagingGeometry& g = pager.geometry();
+  const paging::PagingGeometry& g = pager.geometry();
   moduleSize_ = g.moduleSize;
   modulesX_ = g.modulesX;
   modulesZ_ = g.modulesZ;
@@ -43,8 +43,8 @@ ModuleScene::ModuleScene(const Pager& pager, const ModuleSceneSettings& s)
   nodeSquares_ = std::max<std::uint32_t>(s.moduleSquares >> (levels_ - 1), 1);
 }
 
-const ModuleScene::Info& ModuleScene::infoFor(const ResidentRef& ref) {
-  const ResidentModule& m = ref.module();
+const ModuleScene::Info& ModuleScene::infoFor(const paging::ResidentRef& ref) {
+  const paging::ResidentModule& m = ref.module();
   Info& info = info_[keyOf(m.kx, m.kz)];
   if (info.generation == ref.generation() && info.finest == ref.finestLevel() &&
       !info.errors.empty()) {
@@ -211,14 +211,14 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   // Figure 76/78 at module granularity: the modules under the triangle,
   // grown by one module so the ground round the eye is always in.
   out.triangle = viewTriangleFor(cam, settings_.gridSpacing);
-  const auto spans = selectSquares(out.triangle, moduleSize_, modulesX_, modulesZ_, 1);
+  const auto spans = paging::selectSquares(out.triangle, moduleSize_, modulesX_, modulesZ_, 1);
   const auto planes = frustumPlanes(viewProjection(cam, 0, 0));
   struct Candidate {
     std::uint32_t kx, kz;
     double distance;
   };
   std::vector<Candidate> candidates;
-  for (const RowSpan& span : spans) {
+  for (const paging::RowSpan& span : spans) {
     for (std::uint32_t kx = span.firstI; kx <= span.lastI; ++kx) {
       const double x0 = kx * moduleSize_, z0 = span.j * moduleSize_;
       const double d = rectDistance(cam.x, cam.z, x0, z0, x0 + moduleSize_, z0 + moduleSize_);
@@ -235,7 +235,7 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
   w.out = &out;
   for (const Candidate& c : candidates) {
     ++out.scene.modulesSelected;
-    ResidentRef ref = pager_.resident(c.kx, c.kz, 0);
+    paging::ResidentRef ref = pager_.resident(c.kx, c.kz, 0);
     if (!ref) {
       ++out.scene.modulesMissing;
       continue;
@@ -267,7 +267,7 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
     }
   }
   out.scene.modulesDrawn = std::uint32_t(out.modules.size());
-  const PagerMetrics pm = pager_.metrics();
+  const paging::PagerMetrics pm = pager_.metrics();
   out.scene.residentInWindow = pm.residentInWindow;
   out.scene.windowModules = pm.windowModules;
   for (auto q : pm.queueLength) out.scene.pagerQueue += q;
@@ -278,7 +278,7 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
 
   // Forget modules the pager has let go of, now and then.
   if (++frame_ % 64 == 0) {
-    const ModuleRect win = out.pagerWindow;
+    const paging::ModuleRect win = out.pagerWindow;
     std::erase_if(info_, [&](const auto& kv) {
       return !win.contains(std::int64_t(kv.first & 0xFFFFFFFFu), std::int64_t(kv.first >> 32));
     });
@@ -287,9 +287,9 @@ void ModuleScene::fill(const Camera& cam, std::uint64_t frame, DisplayBuffer& ou
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 DrawnLevels::DrawnLevels(const DisplayBuffer& buf) {
   if (!buf.moduleMode || !(buf.moduleSize > 0)) return;
@@ -303,7 +303,7 @@ DrawnLevels::DrawnLevels(const DisplayBuffer& buf) {
   std::stable_sort(nodes_.begin(), nodes_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 }
 
-std::optional<DrawnLevel> DrawnLevels::at(double x, double z) const {
+std::optional<world::DrawnLevel> DrawnLevels::at(double x, double z) const {
   if (!(moduleSize_ > 0)) return std::nullopt;
   const double kxf = std::floor(x / moduleSize_), kzf = std::floor(z / moduleSize_);
   if (kxf < 0 || kzf < 0) return std::nullopt;
@@ -316,12 +316,12 @@ std::optional<DrawnLevel> DrawnLevels::at(double x, double z) const {
     const auto a = std::min(n.side - 1, static_cast<std::uint32_t>(lx / node));
     const auto b = std::min(n.side - 1, static_cast<std::uint32_t>(lz / node));
     const std::uint32_t m = mortonIndex(a, b);
-    if (m >= n.first && m < n.last) return DrawnLevel{n.level, n.morph};
+    if (m >= n.first && m < n.last) return world::DrawnLevel{n.level, n.morph};
   }
   return std::nullopt;
 }
 
-std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z) {
+std::optional<world::DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z) {
   if (!buf.moduleMode || !(buf.moduleSize > 0)) return std::nullopt;
   const double kxf = std::floor(x / buf.moduleSize), kzf = std::floor(z / buf.moduleSize);
   if (kxf < 0 || kzf < 0) return std::nullopt;
@@ -336,9 +336,9 @@ std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, doubl
     const auto a = std::min(side - 1, static_cast<std::uint32_t>(lx / node));
     const auto b = std::min(side - 1, static_cast<std::uint32_t>(lz / node));
     const std::uint32_t m = mortonIndex(a, b);
-    if (m >= nd.first && m < nd.last) return DrawnLevel{nd.level, nd.morph};
+    if (m >= nd.first && m < nd.last) return world::DrawnLevel{nd.level, nd.morph};
   }
   return std::nullopt;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

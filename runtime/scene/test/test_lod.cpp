@@ -7,7 +7,7 @@
 
 #include "sandtable/scene/lod.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 namespace {
 
 TEST(Lod, RingsFollowTable8) {
@@ -148,4 +148,4 @@ TEST(Lod, OptionsAreChecked) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -10,7 +10,7 @@
 #include "sandtable/world/path.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace sandtable::runtime;
+  using namespace sandtable::world;
   PathOptions o;
   o.defaultSpeedKmh = 100;
   o.toProjected = [](double lon, double lat, double& e, double& n) -> std::string {

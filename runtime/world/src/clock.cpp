@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 FixedStepClock::FixedStepClock(double stepS, double maxFrameS)
     : step_(stepS > 0 ? stepS : 1.0 / 60.0), maxFrame_(std::max(maxFrameS, step_)) {}
@@ -18,4 +18,4 @@ std::uint32_t FixedStepClock::advance(double wallS) {
   return n;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

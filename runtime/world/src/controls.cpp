@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <numbers>
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 namespace {
 
 constexpr double kMsToKmh = 3.6;
@@ -191,4 +191,4 @@ std::vector<std::string> controllerPanelLines(const ViewerState& s) {
   return {buf[0], buf[1], buf[2], buf[3]};
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -6,7 +6,7 @@
 
 #include "sandtable/formats/terrain_rule.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 GroundClamp::GroundClamp(std::shared_ptr<const grid::HeightField> heights, std::uint32_t moduleSquares,
                          std::uint32_t levels)
@@ -77,4 +77,4 @@ double GroundClamp::eyeElevation(double ground, double heightAgl, std::optional<
   return ground + std::max(heightAgl, minAgl);
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -9,7 +9,7 @@
 #include <numbers>
 #include <sstream>
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 namespace {
 
 constexpr double kKmhToMs = 1.0 / 3.6;
@@ -411,4 +411,4 @@ Pose samplePath(const Path& path, double t) {
   return p;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -5,7 +5,7 @@
 
 #include "sandtable/formats/terrain_rule.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 Terrain::Terrain(std::shared_ptr<const grid::HeightField> heights) : grid_(std::move(heights)) {}
 
@@ -36,4 +36,4 @@ std::optional<TerrainSample> Terrain::sampleXZ(double x, double z) const {
   return out;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -7,7 +7,7 @@
 
 #include "sandtable/world/controls.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 namespace {
 
 KeyEvent press(Key k) { return {k, true}; }
@@ -228,4 +228,4 @@ TEST(Controls, PoseIsInKilometresPerHour) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

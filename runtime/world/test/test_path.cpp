@@ -9,7 +9,7 @@
 
 #include "sandtable/world/path.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 namespace {
 
 /// A stand-in for PROJ: 1 degree = 1 km, and lon > 50 is "outside".
@@ -262,4 +262,4 @@ TEST(Path, ReadPathFile) {
 }
 
 }  // namespace
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -50,7 +50,7 @@ Mobility mobilityOf(ScenarioMobility m) {
 /// Builds a simulation from a scenario, one entity at a time.
 class Loader {
  public:
-  Loader(std::shared_ptr<SimWorld> world, const Scenario& s, const runtime::ToProjectedFn& toProjected,
+  Loader(std::shared_ptr<SimWorld> world, const Scenario& s, const world::ToProjectedFn& toProjected,
          SimOptions options)
       : world_(world), scenario_(s), toProjected_(toProjected) {
     sim_ = std::make_unique<Simulation>(std::move(world), std::move(options));
@@ -179,7 +179,7 @@ class Loader {
 
   std::shared_ptr<SimWorld> world_;
   const Scenario& scenario_;
-  const runtime::ToProjectedFn& toProjected_;
+  const world::ToProjectedFn& toProjected_;
   std::unique_ptr<Simulation> sim_;
   std::map<std::string, ScriptFile> scripts_;
   std::map<std::string, std::uint32_t> aircraft_;
@@ -189,7 +189,7 @@ class Loader {
 }  // namespace
 
 Result<std::unique_ptr<Simulation>> makeSimulation(std::shared_ptr<SimWorld> world, const Scenario& scenario,
-                                                   const runtime::ToProjectedFn& toProjected, SimOptions options) {
+                                                   const world::ToProjectedFn& toProjected, SimOptions options) {
   return Loader(std::move(world), scenario, toProjected, std::move(options)).run();
 }
 

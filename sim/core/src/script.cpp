@@ -351,13 +351,13 @@ std::string mergeScripts(const std::vector<ScriptLine>& played, const std::vecto
 
 namespace {
 
-bool moves(const runtime::PathWaypoint& a, const runtime::PathWaypoint& b) {
+bool moves(const world::PathWaypoint& a, const world::PathWaypoint& b) {
   return a.easting != b.easting || a.northing != b.northing;
 }
 
 /// Bearing of leg k (clockwise from north, [0, 360)), or of the nearest
 /// moving leg before it, or after it; 0 when nothing moves.
-double legBearing(const std::vector<runtime::PathWaypoint>& w, std::size_t k) {
+double legBearing(const std::vector<world::PathWaypoint>& w, std::size_t k) {
   // Not headingOf (entity.h): it multiplies by kRadToDeg and wraps 360 to
   // 0, which differs from this in the last bit for about one angle in
   // nine; scripts made from paths keep their exact Direction values.
@@ -374,14 +374,14 @@ double legBearing(const std::vector<runtime::PathWaypoint>& w, std::size_t k) {
   return 0;
 }
 
-std::string waypointRef(const runtime::PathWaypoint& w, std::size_t k) {
+std::string waypointRef(const world::PathWaypoint& w, std::size_t k) {
   if (w.line > 0) return "path line " + std::to_string(w.line);
   return "waypoint " + std::to_string(k + 1);
 }
 
 }  // namespace
 
-Result<std::vector<ScriptLine>> scriptFromPath(const runtime::Path& path, std::uint32_t entity, std::uint32_t type,
+Result<std::vector<ScriptLine>> scriptFromPath(const world::Path& path, std::uint32_t entity, std::uint32_t type,
                                                double originEasting, double originNorthing) {
   const auto& w = path.waypoints;
   if (w.size() < 2) {
@@ -411,7 +411,7 @@ Result<std::vector<ScriptLine>> scriptFromPath(const runtime::Path& path, std::u
       return Problem{kScriptProblem, 0,
                      "scriptFromPath: the leg from " + waypointRef(w[k], k) + " to " + waypointRef(w[k + 1], k + 1) +
                          " is " + shortNumber(length) + " m long in " + shortNumber(duration) +
-                         " s; resolve the path (runtime::resolvePath) so times increase along moving legs"};
+                         " s; resolve the path (world::resolvePath) so times increase along moving legs"};
     }
     lineAt(k, length > 0 ? length / duration : 0.0);  // the mean speed: dead reckoning lands on w[k + 1]
   }

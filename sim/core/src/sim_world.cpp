@@ -285,17 +285,17 @@ Result<std::uint32_t> SimWorld::refresh() {
   if (!modules_) return 0u;
   const std::uint64_t now = modules_->changes();
   if (now == changesSeen_) return 0u;
-  std::vector<runtime::ModuleKey> changed;
+  std::vector<paging::ModuleKey> changed;
   changesSeen_ = modules_->changedSince(changesSeen_, changed);
   const pack::IndexHeader& h = modules_->header();
-  std::sort(changed.begin(), changed.end(), [](const runtime::ModuleKey& a, const runtime::ModuleKey& b) {
+  std::sort(changed.begin(), changed.end(), [](const paging::ModuleKey& a, const paging::ModuleKey& b) {
     return a.kz != b.kz ? a.kz < b.kz : a.kx < b.kx;
   });
   changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
   std::uint32_t read = 0;
   std::vector<Problem> problems;
   module::Module scratch;
-  for (const runtime::ModuleKey& k : changed) {
+  for (const paging::ModuleKey& k : changed) {
     if (k.kx >= h.modulesX || k.kz >= h.modulesZ) continue;
     if (modules_->generation(k.kx, k.kz) == moduleGeneration_[std::size_t(k.kz) * h.modulesX + k.kx]) continue;
     const std::size_t first = objects_.size();
@@ -316,8 +316,8 @@ Result<std::uint32_t> SimWorld::refresh() {
   return read;
 }
 
-Result<std::shared_ptr<SimWorld>> SimWorld::open(const runtime::World& w, const SimWorldOptions& options) {
-  const std::shared_ptr<const runtime::ModuleSource>& source = w.modules();
+Result<std::shared_ptr<SimWorld>> SimWorld::open(const paging::World& w, const SimWorldOptions& options) {
+  const std::shared_ptr<const paging::ModuleSource>& source = w.modules();
   const std::uint32_t squares = source ? source->header().moduleSquares : 0;
   const std::uint32_t levels = source ? source->header().levels : 1;
   auto world = std::make_shared<SimWorld>(w.heights(), squares, levels, w.materials());
@@ -332,7 +332,7 @@ Result<std::shared_ptr<SimWorld>> SimWorld::open(const runtime::World& w, const 
 }
 
 Result<std::shared_ptr<SimWorld>> SimWorld::open(const std::string& directory, const SimWorldOptions& options) {
-  auto w = runtime::World::open(directory);
+  auto w = paging::World::open(directory);
   if (!w) return w.problems();
   return open(*w.value(), options);
 }

@@ -455,7 +455,7 @@ TEST(Script, Table7PathBecomesAScript) {
       "110 30 10                         # C\n"
       "50  35 10 speed=18 time=0:00:45   # D\n"
       "0   15 10                         # E\n";
-  const auto path = runtime::parsePath(text, "table7.path", {});
+  const auto path = world::parsePath(text, "table7.path", {});
   ASSERT_TRUE(path.ok()) << path.error();
   const double oE = -1000, oN = 500;  // the grid's north-west corner
   const auto r = scriptFromPath(path.value(), 7, 1, oE, oN);
@@ -516,7 +516,7 @@ TEST(Script, Table7PathBecomesAScript) {
 
 TEST(Script, PathWithAWaitAndTooShortPathsConvert) {
   // A wait: the repeated waypoint's leg has speed 0 and keeps the bearing.
-  const auto path = runtime::parsePath("frame projected\n0 0 0 time=0\n0 100 0 time=20\n0 100 0 time=30\n",
+  const auto path = world::parsePath("frame projected\n0 0 0 time=0\n0 100 0 time=20\n0 100 0 time=30\n",
                                        "wait.path", {});
   ASSERT_TRUE(path.ok()) << path.error();
   const auto r = scriptFromPath(path.value(), 1, 1, 0, 0);
@@ -526,7 +526,7 @@ TEST(Script, PathWithAWaitAndTooShortPathsConvert) {
   EXPECT_EQ(r.value()[1].speed, 0);
   EXPECT_EQ(r.value()[1].directionDeg, 0);
   EXPECT_EQ(r.value()[1].z, -100);
-  runtime::Path one;
+  world::Path one;
   one.waypoints.resize(1);
   EXPECT_FALSE(scriptFromPath(one, 1, 1, 0, 0).ok());
 }

@@ -54,7 +54,7 @@ std::uint16_t materialOf(std::uint32_t kx, std::uint32_t kz) { return std::uint1
 
 /// Modules in memory with generations; replace() is the dynamic-terrain
 /// overlay's job in miniature.
-class MemorySource final : public runtime::ModuleSource {
+class MemorySource final : public paging::ModuleSource {
  public:
   MemorySource() {
     header_.modulesX = header_.modulesZ = kModules;
@@ -84,7 +84,7 @@ class MemorySource final : public runtime::ModuleSource {
   mutable std::atomic<int> reads{0};
 
   const pack::IndexHeader& header() const override { return header_; }
-  runtime::ModuleInfo info(std::uint32_t, std::uint32_t) const override { return {1, 1, 0}; }
+  paging::ModuleInfo info(std::uint32_t, std::uint32_t) const override { return {1, 1, 0}; }
   std::uint64_t generation(std::uint32_t kx, std::uint32_t kz) const override {
     std::lock_guard lock(m_);
     return generations_[kz * kModules + kx];
@@ -97,7 +97,7 @@ class MemorySource final : public runtime::ModuleSource {
   }
   bool missing(std::uint32_t, std::uint32_t) const override { return false; }
   std::uint64_t changes() const override { return changes_.load(std::memory_order_acquire); }
-  std::uint64_t changedSince(std::uint64_t since, std::vector<runtime::ModuleKey>& out) const override {
+  std::uint64_t changedSince(std::uint64_t since, std::vector<paging::ModuleKey>& out) const override {
     std::lock_guard lock(m_);
     for (std::size_t k = since; k < log_.size(); ++k) out.push_back(log_[k]);
     return log_.size();
@@ -108,7 +108,7 @@ class MemorySource final : public runtime::ModuleSource {
   mutable std::mutex m_;
   std::vector<module::Module> modules_;
   std::vector<std::uint64_t> generations_;
-  std::vector<runtime::ModuleKey> log_;
+  std::vector<paging::ModuleKey> log_;
   std::atomic<std::uint64_t> changes_{0};
 };
 
@@ -133,7 +133,7 @@ Opened openOverMemory() {
   o.source = std::make_shared<MemorySource>();
   Database db;
   db.grid = flatGrid();
-  const runtime::World w(db, grid::heightField(db.grid), o.source);
+  const paging::World w(db, grid::heightField(db.grid), o.source);
   auto sw = SimWorld::open(w);
   EXPECT_TRUE(sw) << sw.error();
   o.world = sw.value();

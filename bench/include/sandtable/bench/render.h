@@ -48,7 +48,7 @@ struct RenderBenchOptions {
   /// The sse cases keep one morph factor per node (LodOptions::shareMorph off).
   bool nodeMorph = false;
   /// GPU upload bytes per frame (RenderOptions::uploadBudgetBytes); 0: none.
-  std::uint64_t uploadBudgetBytes = runtime::kDefaultUploadBudgetBytes;
+  std::uint64_t uploadBudgetBytes = render::kDefaultUploadBudgetBytes;
   /// With a database that has static objects: also the cases "no-objects"
   /// (sse without them), "objects-full" (sse with every object in the view
   /// distance at full detail) and "unthinned" (sse with every sprite drawn),
@@ -79,7 +79,7 @@ struct RenderCase {
 struct RenderBenchReport {
   std::string renderer;  ///< the GL renderer's description
   /// The plain indexed grid, before and after the flights.
-  runtime::IndexedGridRate gridBefore, gridAfter;
+  render::IndexedGridRate gridBefore, gridAfter;
   double gridRate = 0;  ///< mean of the two, triangles per second
   std::vector<RenderCase> cases;
   /// What `sandtable bench render --json` prints: renderer, size ("WxH"),
@@ -93,7 +93,7 @@ struct RenderBenchReport {
 };
 
 /// Flies every case over `db`. Fails with a problem without a file when
-/// `db` has no load modules, and otherwise with runtime::fly's problems
+/// `db` has no load modules, and otherwise with viewer::fly's problems
 /// (Problem::file kFlightOptionProblem or kGlContextProblem for bad
 /// options or no GL context).
 Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOptions& options);

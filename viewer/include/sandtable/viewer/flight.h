@@ -50,7 +50,7 @@
 #include "sandtable/scene/lod.h"
 #include "sandtable/render/renderer.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 inline constexpr double kFramesPerSecond = 30.0;
 
@@ -99,18 +99,18 @@ struct ViewOptions {
   double fogDensity = 0;
   bool fog = true;
   bool hud = true;
-  Rgb background{0x87, 0xCE, 0xEB};
+  render::Rgb background{0x87, 0xCE, 0xEB};
   /// Sky behind the terrain; false shows `clearColour` (crack tests).
   bool sky = true;
-  Rgb clearColour{0xFF, 0x00, 0xFF};
+  render::Rgb clearColour{0xFF, 0x00, 0xFF};
 };
 
 /// How the terrain is drawn: the renderer's DrawChoices (renderer.h;
 /// `samples` is --msaa, and PagerSettings::sync lifts `uploadBudgetBytes`:
 /// every frame is then complete), and what the flight adds to them.
-struct RenderOptions : DrawChoices {
+struct RenderOptions : render::DrawChoices {
   TerrainMode mode = TerrainMode::automatic;
-  LodOptions lod;
+  scene::LodOptions lod;
   /// Draw the modules' static objects with the database's icons.pack.
   bool objects = true;
 };
@@ -154,28 +154,28 @@ class FlightApplication {
   /// (frame / kFramesPerSecond); nullopt ends the flight. `ground` is the
   /// flight's one ground clamp (world/ground.h), at the level drawn under
   /// the eye in the last frame: steer with it, do not sample the grid.
-  virtual std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) = 0;
+  virtual std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) = 0;
   /// Render thread: draws into the HUD pass's overlay after the panel (a
   /// 2-D map), marking what it drew (overlay.h).
-  virtual void overlay(Overlay&, const FrameStats&) {}
+  virtual void overlay(render::Overlay&, const FrameStats&) {}
   /// Render thread: whether frameDone wants frame `frame`'s pixels; each
   /// such frame is read back from the GPU (a video, a screenshot, a test).
   virtual bool wantsFrame(std::uint32_t /*frame*/) { return false; }
   /// Render thread: the pixels of each frame wantsFrame asked for, after
   /// the panel and overlay.
-  virtual void frameDone(std::uint32_t /*frame*/, const Image&) {}
+  virtual void frameDone(std::uint32_t /*frame*/, const render::Image&) {}
   /// Render thread: every frame, once it is done (e.g. progress).
   virtual void frameShown(const FrameStats&) {}
   /// The window every frame is shown in by a GPU blit (present.h), asked
   /// once before the first frame; it must outlive the flight. Null: headless.
-  virtual PresentTarget* window() { return nullptr; }
+  virtual render::PresentTarget* window() { return nullptr; }
   /// Main thread, after pose() and the scene selection of frame `frame`:
   /// what the application adds to it. `buf.dynamic` (scene/dynamic.h:
   /// entities, trails, flashes, changed static objects; empty on entry) is
   /// drawn by the models pass; `stats.panelLines` are added to the
   /// information panel and `stats.extraJson` to the frame's stats.json
   /// entry. `buf` also tells what is drawn where (drawnLevelAt).
-  virtual void frameContent(std::uint32_t /*frame*/, DisplayBuffer& /*buf*/, FrameStats& /*stats*/) {}
+  virtual void frameContent(std::uint32_t /*frame*/, scene::DisplayBuffer& /*buf*/, FrameStats& /*stats*/) {}
   /// Main thread, after the last frame: (key, JSON text) objects added to
   /// stats.json's top level (the stealth viewer's `sim` summary).
   virtual std::vector<std::pair<std::string, std::string>> statsSections() { return {}; }
@@ -187,26 +187,26 @@ class FlightApplication {
 /// on the render thread.
 struct FlightHooks final : FlightApplication {
   explicit FlightHooks(const FlightOptions& o) : options(o) {}
-  std::function<std::optional<Pose>(std::uint32_t frame, double t, GroundClamp& ground)> onPose;
-  std::function<void(Overlay&, const FrameStats&)> onOverlay;
+  std::function<std::optional<world::Pose>(std::uint32_t frame, double t, world::GroundClamp& ground)> onPose;
+  std::function<void(render::Overlay&, const FrameStats&)> onOverlay;
   /// Every frame's pixels, or those onWantsFrame picks when it is set.
-  std::function<void(std::uint32_t frame, const Image&)> onFrame;
+  std::function<void(std::uint32_t frame, const render::Image&)> onFrame;
   std::function<bool(std::uint32_t frame)> onWantsFrame;
   /// frameContent (main thread): e.g. entities placed by a test.
-  std::function<void(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats)> onFrameContent;
+  std::function<void(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats)> onFrameContent;
 
-  std::optional<Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
-  void overlay(Overlay& overlay, const FrameStats& s) override;
+  std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) override;
+  void overlay(render::Overlay& overlay, const FrameStats& s) override;
   bool wantsFrame(std::uint32_t frame) override;
-  void frameDone(std::uint32_t frame, const Image& image) override;
-  void frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) override;
+  void frameDone(std::uint32_t frame, const render::Image& image) override;
+  void frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) override;
 
   const FlightOptions& options;
 };
 
 /// Pose at simulated time `t` seconds: straight along the heading, or
 /// along the path legs at each leg's speed, stopping at the last waypoint.
-Pose poseAt(const FlightOptions& o, double t);
+world::Pose poseAt(const FlightOptions& o, double t);
 
 struct FrameStats {
   std::uint32_t frame = 0;
@@ -307,7 +307,7 @@ Result<FlightReport> fly(std::shared_ptr<const grid::GridFile> g, const FlightOp
 /// ModuleSource through the pager when it has them (or TerrainMode::modules
 /// asks), else the mesh of its posts; ground, map and shading read its
 /// HeightField. Module colours come from its material table. Opens nothing.
-Result<FlightReport> fly(const World& world, const FlightOptions& o, FlightApplication* app = nullptr);
+Result<FlightReport> fly(const paging::World& world, const FlightOptions& o, FlightApplication* app = nullptr);
 /// The same over a database already open (a World made from it).
 Result<FlightReport> fly(const Database& db, const FlightOptions& o, FlightApplication* app = nullptr);
 
@@ -317,4 +317,4 @@ std::vector<std::string> hudLines(const FrameStats& s, const FlightOptions& o);
 /// Frame file name: "frame_00042.png".
 std::string frameFileName(std::uint32_t frame);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -37,10 +37,10 @@
 #include "sandtable/viewer/video.h"
 #include "sandtable/viewer/x11_window.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 struct FlySessionSettings {
-  std::optional<runtime::Path> path;  ///< fly this instead of a straight line / the keys
+  std::optional<world::Path> path;  ///< fly this instead of a straight line / the keys
   bool freeFlight = false;
   double altitude = 0;                ///< free flight: eye above the datum, metres
   bool map = false;                   ///< map shown at the start
@@ -66,7 +66,7 @@ struct FrameControl {
   bool map = false;
   int mapScale = 0;
   bool screenshot = false;
-  std::vector<MapMark> marks;  ///< the scenario's entities on the map, as of this frame
+  std::vector<render::MapMark> marks;  ///< the scenario's entities on the map, as of this frame
   bool viewerMarker = true;    ///< false while the eye is attached (its entity's mark is selected)
 };
 
@@ -87,17 +87,17 @@ class FlySession final : public FlightApplication {
  public:
   /// `window` and `video` may be null (headless, no video). `o` must be
   /// the flight's options (start, heading, speed, height, FOV...).
-  FlySession(const World& world, FlySessionSettings settings, const runtime::FlightOptions& o,
-             std::unique_ptr<runtime::ViewerWindow> window,
-             std::unique_ptr<runtime::VideoWriter> video);
+  FlySession(const paging::World& world, FlySessionSettings settings, const viewer::FlightOptions& o,
+             std::unique_ptr<viewer::ViewerWindow> window,
+             std::unique_ptr<viewer::VideoWriter> video);
 
-  std::optional<runtime::Pose> pose(std::uint32_t frame, double t, GroundClamp& ground) override;
-  void overlay(runtime::Overlay& overlay, const runtime::FrameStats& s) override;
+  std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) override;
+  void overlay(render::Overlay& overlay, const viewer::FrameStats& s) override;
   bool wantsFrame(std::uint32_t frame) override;
-  void frameDone(std::uint32_t frame, const runtime::Image& img) override;
-  void frameShown(const runtime::FrameStats& s) override;
-  PresentTarget* window() override;
-  void frameContent(std::uint32_t frame, DisplayBuffer& buf, FrameStats& stats) override;
+  void frameDone(std::uint32_t frame, const render::Image& img) override;
+  void frameShown(const viewer::FrameStats& s) override;
+  render::PresentTarget* window() override;
+  void frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) override;
   std::vector<std::pair<std::string, std::string>> statsSections() override;
   /// The scenario's simulation, or null.
   const SimSession* sim() const { return settings_.sim.get(); }
@@ -110,29 +110,29 @@ class FlySession final : public FlightApplication {
  private:
   double pollKeys();  ///< window: handles the keys, returns the wall-clock time since the last poll
   /// The stealth eye's controller again from `p` (after detaching).
-  void reseedController(const runtime::Pose& p);
-  runtime::Pose headlessPose(double t);
-  runtime::Pose windowPose(double clock) const;
-  void saveScreenshot(const runtime::Image& img);
+  void reseedController(const world::Pose& p);
+  world::Pose headlessPose(double t);
+  world::Pose windowPose(double clock) const;
+  void saveScreenshot(const render::Image& img);
   void fail(const Status& st);
-  runtime::ViewerState initialState(const runtime::FlightOptions& o) const;
+  world::ViewerState initialState(const viewer::FlightOptions& o) const;
 
-  const World& world_;
+  const paging::World& world_;
   FlySessionSettings settings_;
-  const runtime::FlightOptions& options_;
+  const viewer::FlightOptions& options_;
   /// The viewer's own copy of the flight's ground clamp (same surface; the
   /// level drawn under the eye is copied from the flight's each frame).
-  GroundClamp ground_;
-  std::unique_ptr<runtime::ViewerWindow> window_;
-  std::unique_ptr<runtime::VideoWriter> video_;
+  world::GroundClamp ground_;
+  std::unique_ptr<viewer::ViewerWindow> window_;
+  std::unique_ptr<viewer::VideoWriter> video_;
   // main thread
-  std::optional<runtime::Controller> controller_;
+  std::optional<world::Controller> controller_;
   bool quitAfterThisFrame_ = false, quitting_ = false;
-  FixedStepClock clock_;  ///< window: flight time, advanced in fixed steps of the wall clock
+  world::FixedStepClock clock_;  ///< window: flight time, advanced in fixed steps of the wall clock
   std::optional<double> lastWall_;
-  runtime::Pose lastPose_;  ///< the pose of the last frame (a detached eye starts there)
+  world::Pose lastPose_;  ///< the pose of the last frame (a detached eye starts there)
   // render thread
-  std::unique_ptr<runtime::MapView> map_;
+  std::unique_ptr<render::MapView> map_;
   FrameControl current_;
   std::uint32_t nextShot_ = 0;
   // shared
@@ -148,4 +148,4 @@ class FlySession final : public FlightApplication {
 /// when it lists none.
 std::vector<std::uint8_t> waterMaterials(const Database& db);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

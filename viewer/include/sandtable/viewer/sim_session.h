@@ -45,7 +45,7 @@
 #include "sandtable/world/ground.h"
 #include "sandtable/world/pose.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 enum class ViewMode : std::uint8_t {
   stealth,   ///< the free eye (keys or --path or the straight line)
@@ -116,7 +116,7 @@ class SimSession {
   /// The levels the last frame drew: the entities stand on them from the
   /// next step on (seed: they follow the terrain that is drawn there).
   /// Where nothing was drawn, level 0.
-  void setDrawn(std::shared_ptr<const DrawnLevels> drawn);
+  void setDrawn(std::shared_ptr<const scene::DrawnLevels> drawn);
   /// After a frame's steps: every live munition's position joins its
   /// trail, and new events are read (detonations flash; objects that a
   /// collision or a munition changed get their new look).
@@ -125,9 +125,9 @@ class SimSession {
   // ---- what a frame shows (copies)
   /// Entities (dead munitions left out; a munition without an icon only
   /// leaves its trail), trails, flashes and the changed static objects.
-  void fill(DynamicScene& out) const;
+  void fill(scene::DynamicScene& out) const;
   /// Every entity but the munitions, the attached one selected.
-  std::vector<MapMark> mapMarks() const;
+  std::vector<render::MapMark> mapMarks() const;
   /// Entity count (alive / total), the view mode, and the attached (else
   /// the scenario's driven) entity: name, icon, force, alive or dead,
   /// speed, heading, fuel; driving: the commands.
@@ -160,16 +160,16 @@ class SimSession {
   void handle(ViewerKey k);
   /// Whether `k` steers the tether or the driven entity in this mode
   /// (arrows, Page Up / Down), instead of the stealth eye.
-  bool steers(Key k) const;
+  bool steers(world::Key k) const;
   /// An arrow or page key in attached or driving mode: driving, the
   /// commands (DriveSettings); attached, Up / Down bring the eye nearer /
   /// farther, Left / Right orbit it by 15 degrees, Page Up / Down raise or
   /// lower it.
-  void handle(const KeyEvent& e);
+  void handle(const world::KeyEvent& e);
   /// The tethered eye at the attached entity now: the eye's heading eases
   /// towards the entity's (TetherSettings::headingLagS of simulated time
   /// since the last call), `ground` keeps it above the drawn ground.
-  Pose tetherPose(GroundClamp& ground);
+  world::Pose tetherPose(world::GroundClamp& ground);
   /// The commanded speed (m/s) and heading (degrees) while driving.
   std::optional<std::pair<double, double>> driveCommands() const;
 
@@ -188,7 +188,7 @@ class SimSession {
   ViewMode mode_ = ViewMode::stealth;
   std::optional<std::uint32_t> attached_;
   std::uint64_t startSteps_ = 0;
-  std::optional<Controller> driveKeys_;  ///< driving: its speed and heading are the commands
+  std::optional<world::Controller> driveKeys_;  ///< driving: its speed and heading are the commands
   // The tether.
   std::optional<double> tetherHeading_, tetherTime_;
   double zoom_ = 1, orbitDeg_ = 0, heightRatio_ = 0.4;
@@ -204,7 +204,7 @@ class SimSession {
   };
   std::map<std::uint32_t, TrailPoints> trails_;  ///< by munition id
   struct Detonation {
-    Flash flash;  ///< its ageS is set when a frame is filled
+    scene::Flash flash;  ///< its ageS is set when a frame is filled
     double timeS = 0;
   };
   std::vector<Detonation> flashes_;
@@ -212,4 +212,4 @@ class SimSession {
   std::vector<bool> aimed_;                      ///< per entity: its gun azimuth was ever set
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -15,7 +15,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 /// Problem::file of video problems.
 inline constexpr const char* kVideoProblem = "video";
@@ -43,7 +43,7 @@ class VideoWriter {
   VideoWriter& operator=(const VideoWriter&) = delete;
 
   /// Sends one frame; it must have the size given to open().
-  Status write(const Image& frame);
+  Status write(const render::Image& frame);
   /// Closes the pipe and waits for ffmpeg. Fails with ffmpeg's exit
   /// status and the end of what it printed.
   Status finish();
@@ -61,4 +61,4 @@ class VideoWriter {
   bool finished_ = false;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

@@ -8,7 +8,7 @@
 // Thread safety: plain values.
 #include <cstdint>
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 enum class ViewerKey : std::uint8_t {
   nextEntity,      ///< Tab: attach the eye to the next entity (by id, munitions skipped)
@@ -21,4 +21,4 @@ enum class ViewerKey : std::uint8_t {
 /// "NextEntity", "AllStop", ... for logs and test messages.
 const char* viewerKeyName(ViewerKey k);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

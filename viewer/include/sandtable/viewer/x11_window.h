@@ -35,12 +35,12 @@
 #include "sandtable/render/present.h"
 #include "sandtable/viewer/viewer_keys.h"
 
-namespace sandtable::runtime {
+namespace sandtable::viewer {
 
 /// Problem::file of window problems.
 inline constexpr const char* kWindowProblem = "window";
 
-class ViewerWindow : public PresentTarget {
+class ViewerWindow : public render::PresentTarget {
  public:
   /// True when $DISPLAY is set (not a promise that the server answers).
   static bool displayConfigured();
@@ -57,7 +57,7 @@ class ViewerWindow : public PresentTarget {
   ViewerWindow& operator=(const ViewerWindow&) = delete;
 
   /// Every key event queued since the last call, oldest first; never blocks.
-  std::vector<KeyEvent> pollEvents();
+  std::vector<world::KeyEvent> pollEvents();
   /// Presses of the entity keys (viewer_keys.h: Tab, Shift+Tab, E, D,
   /// Space) that pollEvents() has read since the last call, oldest first.
   std::vector<ViewerKey> takeViewerKeys();
@@ -66,7 +66,7 @@ class ViewerWindow : public PresentTarget {
 
   /// Shows the frame scaled to fit the window (letterboxed, nearest
   /// pixels at 1:1) and swaps.
-  Status present(const Image& frame);
+  Status present(const render::Image& frame);
 
   // PresentTarget: the renderer's way into the window.
   EglSurface eglSurface() const override;
@@ -74,7 +74,7 @@ class ViewerWindow : public PresentTarget {
 
   /// The window's pixels as the X server holds them (XGetImage): what the
   /// user sees; for tests and screenshots.
-  Result<Image> capture();
+  Result<render::Image> capture();
 
   /// Current client size (follows resizes seen by pollEvents()).
   std::uint32_t width() const;
@@ -109,4 +109,4 @@ class ViewerWindow : public PresentTarget {
   std::string renderer_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::viewer

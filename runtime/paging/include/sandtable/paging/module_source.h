@@ -22,7 +22,7 @@
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 struct ModuleKey {
   std::uint32_t kx = 0;
@@ -114,4 +114,4 @@ class PackSource final : public ModuleSource {
   std::shared_ptr<const pack::PackReader> pack_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

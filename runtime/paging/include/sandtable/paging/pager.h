@@ -51,7 +51,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/paging/module_source.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 class World;
 
@@ -532,4 +532,4 @@ class Pager {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -17,7 +17,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 /// A point on the ground plane, world metres.
 struct GroundPoint {
@@ -85,4 +85,4 @@ std::vector<RowSpan> selectSquares(const ViewTriangle& t, double spacing, std::u
 /// Sum of squares over the spans (each square is two triangles).
 std::uint64_t countSquares(const std::vector<RowSpan>& spans);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

@@ -24,7 +24,7 @@
 #include "sandtable/formats/height_field.h"
 #include "sandtable/paging/module_source.h"
 
-namespace sandtable::runtime {
+namespace sandtable::paging {
 
 class World {
  public:
@@ -57,4 +57,4 @@ class World {
   std::shared_ptr<const ModuleSource> modules_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::paging

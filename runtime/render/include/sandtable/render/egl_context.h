@@ -9,7 +9,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/render/present.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 class EglContext {
  public:
@@ -41,4 +41,4 @@ class EglContext {
   std::string platform_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -11,7 +11,7 @@
 
 #include "sandtable/base/result.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 /// Problem::file of shader compile and link failures.
 inline constexpr const char* kShaderProblem = "shader";
@@ -64,4 +64,4 @@ class GlProgram {
   std::uint32_t id_ = 0;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -17,7 +17,7 @@
 #include "sandtable/render/image.h"
 #include "sandtable/render/overlay.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 inline constexpr int kGlyphWidth = 5;
 inline constexpr int kGlyphHeight = 7;
@@ -54,4 +54,4 @@ void drawHudPanel(Image& img, const std::vector<std::string>& lines);
 /// into the layer. Returns the box.
 PixelBox drawHudPanel(Overlay& overlay, const std::vector<std::string>& lines);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

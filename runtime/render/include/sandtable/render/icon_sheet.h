@@ -23,7 +23,7 @@
 #include "sandtable/formats/icon_pack.h"
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 struct IconSheetOptions {
   std::uint32_t cell = 200;          ///< pixels, square, per level
@@ -58,4 +58,4 @@ inline constexpr std::uint32_t kIconSheetMargin = 8;
 Result<IconSheet> renderIconSheet(const iconpack::Pack& pack, std::size_t first, std::size_t count,
                                   const IconSheetOptions& o = {});
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -8,7 +8,7 @@
 
 #include "sandtable/base/result.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 struct Rgb {
   std::uint8_t r = 0, g = 0, b = 0;
@@ -31,4 +31,4 @@ inline constexpr const char* kPngProblem = "png";
 /// Fast zlib level: frames are many and large.
 Status writePng(const std::string& path, const Image& img);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -35,7 +35,7 @@
 #include "sandtable/formats/height_field.h"
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 struct MapOptions {
   /// Largest side of the overview image (full-scale map, every k-th post).
@@ -158,4 +158,4 @@ class MapView {
   int baseScale_ = -1;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -17,7 +17,7 @@
 
 #include "sandtable/render/image.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 /// Columns [x, x + width) and rows [y, y + height), row 0 at the top.
 struct PixelBox {
@@ -73,4 +73,4 @@ class Overlay {
   std::vector<Darken> darken_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <functional>
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 class PresentTarget {
  public:
@@ -31,4 +31,4 @@ class PresentTarget {
   virtual void withSurface(const std::function<void(std::uint32_t width, std::uint32_t height)>& use) = 0;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

@@ -46,7 +46,7 @@
 #include "sandtable/render/overlay.h"
 #include "sandtable/render/present.h"
 
-namespace sandtable::runtime {
+namespace sandtable::render {
 
 /// Problem::file of every failure to open the headless context, so callers
 /// can tell "no GL here" from other errors.
@@ -219,7 +219,7 @@ const char* renderPassName(RenderPass p);
 /// column-major 4 x 4 matrix (positions relative to buf.originX / originZ,
 /// reversed Z; camera_math.h's viewProjection).
 struct PassContext {
-  const DisplayBuffer& buf;
+  const scene::DisplayBuffer& buf;
   std::array<float, 16> viewProjection;
 };
 
@@ -245,7 +245,7 @@ class Renderer {
   Renderer& operator=(const Renderer&) = delete;
 
   /// Runs the passes up to and including resolve for `buf`.
-  Status draw(const DisplayBuffer& buf);
+  Status draw(const scene::DisplayBuffer& buf);
   /// The HUD pass: `overlay`'s darkened boxes, then its layer, blended
   /// into the frame drawn last (uploading only its changed boxes). The
   /// overlay must have the frame's size.
@@ -265,7 +265,7 @@ class Renderer {
   /// centred under `camera`, through the module program and draw path,
   /// clear and terrain pass only, each timed to the GPU's finish. The
   /// frame's target is left undefined.
-  IndexedGridRate measureIndexedGrid(const Camera& camera, std::uint32_t squares, double spacing,
+  IndexedGridRate measureIndexedGrid(const scene::Camera& camera, std::uint32_t squares, double spacing,
                                      std::uint32_t nodeSquares, std::uint32_t frames);
 
   /// Sets the models pass (null: the slot stays empty).
@@ -300,8 +300,8 @@ bool headlessGlAvailable(std::string& why);
 /// the scene's DisplayBuffer carries them (a level built with other
 /// settings is built again on the render thread). Thread-safe: every
 /// loader may run it at once; no GL.
-std::function<void(ResidentModule& m, std::uint32_t level)> moduleLevelPreparer(const RenderSettings& s,
+std::function<void(paging::ResidentModule& m, std::uint32_t level)> moduleLevelPreparer(const RenderSettings& s,
                                                                                 std::uint32_t nodeSquares,
                                                                                 double moduleSize);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::render

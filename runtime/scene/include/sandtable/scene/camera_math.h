@@ -14,7 +14,7 @@
 
 #include "sandtable/scene/display_buffer.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 /// Reversed-Z perspective (eye looks down -Z): depth 1 at the near plane, 0 at the far.
 inline Eigen::Matrix4d perspectiveReversed(double vfovDeg, double aspect, double n, double f) {
@@ -83,4 +83,4 @@ inline bool boxInFrustum(const std::array<Eigen::Vector4d, 5>& planes, const Eig
   return true;
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -16,7 +16,7 @@
 #include "sandtable/paging/view_triangle.h"
 #include "sandtable/scene/dynamic.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 /// Where the eye is and how it looks. World frame: X east, Y up, Z south.
 struct Camera {
@@ -56,7 +56,7 @@ struct ModuleDraw {
   std::uint32_t kx = 0, kz = 0;
   double distance = 0;  ///< nearest point of the module, metres (3-D)
   std::uint64_t triangles = 0;
-  ResidentRef ref;
+  paging::ResidentRef ref;
 };
 
 /// What scene selection saw, for the panel and stats.json.
@@ -86,8 +86,8 @@ struct DisplayBuffer {
   /// Vertices store X and Z relative to this point (the eye) so that float
   /// keeps centimetres even hundreds of kilometres from the grid origin.
   double originX = 0, originZ = 0;
-  ViewTriangle triangle;
-  std::vector<RowSpan> spans;               ///< one triangle strip each
+  paging::ViewTriangle triangle;
+  std::vector<paging::RowSpan> spans;               ///< one triangle strip each
   std::vector<TerrainVertex> vertices;      ///< all strips back to back
   std::vector<std::int32_t> firsts, counts; ///< glMultiDrawArrays arguments
   std::uint64_t triangles = 0;
@@ -98,7 +98,7 @@ struct DisplayBuffer {
   std::uint32_t nodeSquares = 4;    ///< squares along a quadtree node at every level (lod.h)
   std::vector<ModuleDraw> modules;  ///< nearest first
   std::vector<NodeDraw> nodes;      ///< grouped by module, in module order
-  ModuleRect pagerWindow;           ///< GPU copies outside it are released
+  paging::ModuleRect pagerWindow;           ///< GPU copies outside it are released
   SceneStats scene;
   /// Entities, trails, flashes and changed static objects (dynamic.h),
   /// filled by the application after the selection; empty without one.
@@ -115,6 +115,6 @@ void fillDisplayBuffer(const grid::HeightField& g, const Camera& cam, std::uint6
                        DisplayBuffer& out, const std::vector<std::uint8_t>& waterMaterials = {1});
 
 /// The view triangle `fillDisplayBuffer` uses for a camera.
-ViewTriangle viewTriangleFor(const Camera& cam, double spacing);
+paging::ViewTriangle viewTriangleFor(const Camera& cam, double spacing);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 /// An entity to draw this frame.
 struct DynamicInstance {
@@ -113,4 +113,4 @@ inline std::pair<const ObjectOverride*, const ObjectOverride*> overridesOfModule
   return {first, last};
 }
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -37,7 +37,7 @@
 #include "sandtable/base/morton.h"
 #include "sandtable/formats/module.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 enum class LodMode : std::uint8_t {
   rings,  ///< seed range rings (Table 8 bins), per module
@@ -130,4 +130,4 @@ double ringMorph(const LodOptions& o, std::uint32_t level, double distance, doub
 double sseMorph(std::span<const double> errors, std::uint32_t level, double distance,
                 double pixelsPerRadian, double pixelError);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -18,7 +18,7 @@
 #include "sandtable/paging/pager.h"
 #include "sandtable/world/ground.h"
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 struct ModuleSceneSettings {
   LodOptions lod;
@@ -32,7 +32,7 @@ struct ModuleSceneSettings {
 
 class ModuleScene {
  public:
-  ModuleScene(const Pager& pager, const ModuleSceneSettings& s);
+  ModuleScene(const paging::Pager& pager, const ModuleSceneSettings& s);
 
   /// Selects the modules for `cam` (world frame, metres) into `out`,
   /// nearest first, each with its level, morph factor and read guard;
@@ -53,12 +53,12 @@ class ModuleScene {
     std::vector<std::vector<std::uint64_t>> nodeTriangles;  ///< per level, prefix sums in Morton order
   };
   struct Walk;  ///< one module being walked (module_scene.cpp)
-  const Info& infoFor(const ResidentRef& ref);
+  const Info& infoFor(const paging::ResidentRef& ref);
   void visit(const Walk& w, std::uint32_t depth, std::uint32_t a, std::uint32_t b);
   void emit(const Walk& w, std::uint32_t level, std::uint32_t depth, std::uint32_t a,
             std::uint32_t b, float morph);
 
-  const Pager& pager_;
+  const paging::Pager& pager_;
   ModuleSceneSettings settings_;
   double moduleSize_ = 0;
   std::uint32_t modulesX_ = 0, modulesZ_ = 0, levels_ = 1, nodeSquares_ = 1;
@@ -66,14 +66,14 @@ class ModuleScene {
   std::uint64_t frame_ = 0;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene
 
-namespace sandtable::runtime {
+namespace sandtable::scene {
 
 /// What `buf` draws at world (x east, z south of the grid origin): the
 /// level and morph of the quadtree node there, for the ground clamp
 /// (world/ground.h). Nullopt in grid-mesh mode or where no module is drawn.
-std::optional<DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z);
+std::optional<world::DrawnLevel> drawnLevelAt(const DisplayBuffer& buf, double x, double z);
 
 /// What a frame drew where, kept after its display buffer is reused: the
 /// simulator's entities stand on it (seed: they follow the terrain that is
@@ -83,7 +83,7 @@ class DrawnLevels {
   DrawnLevels() = default;
   explicit DrawnLevels(const DisplayBuffer& buf);
   /// As drawnLevelAt on the buffer it was made from.
-  std::optional<DrawnLevel> at(double x, double z) const;
+  std::optional<world::DrawnLevel> at(double x, double z) const;
 
  private:
   struct Node {
@@ -95,4 +95,4 @@ class DrawnLevels {
   std::vector<std::pair<std::uint64_t, Node>> nodes_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::scene

@@ -11,7 +11,7 @@
 // Thread safety: a plain value type; one clock per thread.
 #include <cstdint>
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 class FixedStepClock {
  public:
@@ -32,4 +32,4 @@ class FixedStepClock {
   std::uint64_t steps_ = 0;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

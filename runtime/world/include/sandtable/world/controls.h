@@ -44,7 +44,7 @@
 
 #include "sandtable/world/pose.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 enum class Key : std::uint8_t {
   up, down, left, right,
@@ -165,4 +165,4 @@ std::optional<double> fovForKey(Key k);
 /// the flight loop adds them to its drawHudPanel lines.
 std::vector<std::string> controllerPanelLines(const ViewerState& s);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -31,7 +31,7 @@
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/height_field.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 /// What is drawn at a point: a module level and its morph towards the next.
 struct DrawnLevel {
@@ -92,4 +92,4 @@ class GroundClamp {
   double last_ = 0;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -24,7 +24,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/world/pose.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 /// Problem::file of path problems that are not tied to a file (resolvePath
 /// on points built in code).
@@ -110,4 +110,4 @@ Result<Path> resolvePath(const std::vector<PathPoint>& points, const PathOptions
 /// last moving leg).
 Pose samplePath(const Path& path, double t);
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

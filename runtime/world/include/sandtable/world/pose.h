@@ -9,7 +9,7 @@
 // Thread safety: a plain value type.
 #include <optional>
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 /// Where the eye is at one instant.
 struct Pose {
@@ -30,4 +30,4 @@ struct Pose {
   /// prediction use it. Unset: the frame clock frame / kFramesPerSecond.
   std::optional<double> clockS;
 };
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

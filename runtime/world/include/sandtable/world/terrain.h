@@ -21,7 +21,7 @@
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/height_field.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 
 struct TerrainSample {
   double elevation = 0;       ///< metres above the vertical datum
@@ -49,4 +49,4 @@ class Terrain {
   std::shared_ptr<const grid::HeightField> grid_;
 };
 
-}  // namespace sandtable::runtime
+}  // namespace sandtable::world

@@ -27,7 +27,7 @@ VehicleParams defaultVehicle(Mobility m, Domain d);
 /// icons.pack lacks, a position off the database or a ship off water, an
 /// unreadable script or aircraft file.
 Result<std::unique_ptr<Simulation>> makeSimulation(std::shared_ptr<SimWorld> world, const Scenario& scenario,
-                                                   const runtime::ToProjectedFn& toProjected,
+                                                   const world::ToProjectedFn& toProjected,
                                                    SimOptions options = {});
 
 }  // namespace sandtable::sim

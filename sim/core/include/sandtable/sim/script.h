@@ -190,7 +190,7 @@ std::string mergeScripts(const std::vector<ScriptLine>& played, const std::vecto
 /// Problem::file of scriptFromPath's problems.
 inline constexpr const char* kScriptProblem = "script";
 
-/// A resolved path (seed Table 7, runtime::parsePath) as a script for one
+/// A resolved path (seed Table 7, world::parsePath) as a script for one
 /// entity: one line per leg at the leg's start time, at the leg's start
 /// waypoint, direction = the leg's bearing, speed = its mean speed (length
 /// / duration, so dead reckoning to the next line lands on the next
@@ -199,7 +199,7 @@ inline constexpr const char* kScriptProblem = "script";
 /// nearest moving leg. x = easting - originEasting, z = originNorthing -
 /// northing (origin: the grid's north-west corner); y = 0 (follows the
 /// ground: the path's heights are not carried), alive 1, fire 0.
-Result<std::vector<ScriptLine>> scriptFromPath(const runtime::Path& path, std::uint32_t entity,
+Result<std::vector<ScriptLine>> scriptFromPath(const world::Path& path, std::uint32_t entity,
                                                std::uint32_t type, double originEasting,
                                                double originNorthing);
 

@@ -75,7 +75,7 @@ struct StaticObject {
 };
 
 /// Which level is drawn at world (x, z).
-using DrawnLevelFn = std::function<runtime::DrawnLevel(double x, double z)>;
+using DrawnLevelFn = std::function<world::DrawnLevel(double x, double z)>;
 
 struct SimWorldOptions {
   /// Collision square edge, metres; the seed's grid square is 125 m. Raised
@@ -108,7 +108,7 @@ class SimWorld {
   /// The simulator's view of a world opened once (paging/world.h): its
   /// posts, materials and icons, and every module's objects and soil read
   /// through its ModuleSource (when it has one). Opens nothing.
-  static Result<std::shared_ptr<SimWorld>> open(const runtime::World& world, const SimWorldOptions& options = {});
+  static Result<std::shared_ptr<SimWorld>> open(const paging::World& world, const SimWorldOptions& options = {});
   /// Opens the directory as a World first (tests; one database open).
   static Result<std::shared_ptr<SimWorld>> open(const std::string& directory, const SimWorldOptions& options = {});
 
@@ -119,8 +119,8 @@ class SimWorld {
   /// the module as it was and is returned as problems.
   Result<std::uint32_t> refresh();
 
-  const runtime::GroundClamp& clamp() const { return clamp_; }
-  const runtime::Terrain& terrain() const { return terrain_; }
+  const world::GroundClamp& clamp() const { return clamp_; }
+  const world::Terrain& terrain() const { return terrain_; }
   const grid::HeightField& heights() const { return *grid_; }
   double widthM() const { return terrain_.widthMetres(); }
   double depthM() const { return terrain_.depthMetres(); }
@@ -128,7 +128,7 @@ class SimWorld {
   double originNorthing() const;
 
   void setDrawnLevel(DrawnLevelFn fn) { drawn_ = std::move(fn); }
-  runtime::DrawnLevel drawnAt(double x, double z) const { return drawn_ ? drawn_(x, z) : runtime::DrawnLevel{}; }
+  world::DrawnLevel drawnAt(double x, double z) const { return drawn_ ? drawn_(x, z) : world::DrawnLevel{}; }
   /// The drawn surface at (x, z); nullopt off the grid.
   std::optional<double> groundAt(double x, double z) const;
 
@@ -193,14 +193,14 @@ class SimWorld {
   Status loadModules();
 
   std::shared_ptr<const grid::HeightField> grid_;
-  runtime::GroundClamp clamp_;
-  runtime::Terrain terrain_;
+  world::GroundClamp clamp_;
+  world::Terrain terrain_;
   std::optional<materials::Table> materials_;
   std::vector<const materials::Class*> classById_;  ///< material id -> class (256)
   /// Level 0's class per grid triangle (2 per square, upper first), 255
   /// where no module covers it; built by open(), per module by refresh().
   std::vector<std::uint8_t> classes_;
-  std::shared_ptr<const runtime::ModuleSource> modules_;
+  std::shared_ptr<const paging::ModuleSource> modules_;
   std::vector<std::uint64_t> moduleGeneration_;  ///< the generation read, per module (row-major)
   std::uint64_t changesSeen_ = 0;                ///< modules_->changes() when last polled
   SimWorldOptions options_;
