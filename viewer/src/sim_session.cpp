@@ -221,7 +221,7 @@ void SimSession::fill(scene::DynamicScene& out) const {
       const double draft = std::clamp(kDraftPerLength * double(b[5] - b[2]), 0.3, 3.0);
       d.y = std::min(d.y, sim_->world().groundAt(d.x, d.z).value_or(d.y)) - draft;
     }
-    const Eigen::Quaterniond q = e.orientation.normalized();
+    const Eigen::Quaterniond q = e.orientation().normalized();
     d.orientation = {float(q.x()), float(q.y()), float(q.z()), float(q.w())};
     d.turretAzimuthDeg = turretOf(e);
     d.force = e.force;

@@ -126,7 +126,9 @@ TEST(SimSession, instancesCarryTheOrientationAndTheTurretRelativeToTheHull) {
   EXPECT_NEAR(d.instances[1].turretAzimuthDeg, -30, 1e-4);
   // The orientation is the entity's own quaternion, pitch and roll included.
   const Eigen::Quaterniond q = sim::orientationOf(40, 10, -5);
-  sim.entity(0).orientation = q;
+  sim.entity(0).headingDeg = 40;
+  sim.entity(0).pitchDeg = 10;
+  sim.entity(0).rollDeg = -5;
   s->fill(d);
   const auto& o = d.instances[0].orientation;
   EXPECT_NEAR(std::abs(o[0] * q.x() + o[1] * q.y() + o[2] * q.z() + o[3] * q.w()), 1.0, 1e-6);

@@ -55,4 +55,6 @@ const char* mobilityName(Mobility m) {
   return "?";
 }
 
+Eigen::Quaterniond Entity::orientation() const { return orientationOf(headingDeg, pitchDeg, rollDeg); }
+
 }  // namespace sandtable::sim

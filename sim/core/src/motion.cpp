@@ -141,7 +141,6 @@ bool stepShip(const SimWorld& world, Entity& e, double dt) {
   e.position = next;
   e.position.y() = std::max(0.0, world.groundAt(next.x(), next.z()).value_or(0.0));
   e.pitchDeg = e.rollDeg = 0;
-  e.orientation = orientationOf(e.headingDeg, 0, 0);
   e.velocity = (e.position - old) / dt;
   e.heightAgl = 0;
   return true;
@@ -171,7 +170,6 @@ bool stepSurface(const SimWorld& world, Entity& e, double dt) {
   e.position = {x, a->groundY, z};
   e.pitchDeg = a->pitchDeg;
   e.rollDeg = a->rollDeg;
-  e.orientation = orientationOf(e.headingDeg, e.pitchDeg, e.rollDeg);
   e.velocity = (e.position - old) / dt;
   e.acceleration = (e.velocity - oldVelocity) / dt;
   e.heightAgl = 0;

@@ -114,7 +114,6 @@ void stepMunition(Entity& m, const MunitionType& type, const std::optional<Eigen
   const Eigen::Vector3d f = m.velocity.normalized();
   m.headingDeg = headingOf(f.x(), f.z());
   m.pitchDeg = std::asin(std::clamp(f.y(), -1.0, 1.0)) * kRadToDeg;
-  m.orientation = orientationOf(m.headingDeg, m.pitchDeg, 0);
   m.fuseS -= dt;
 }
 

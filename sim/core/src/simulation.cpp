@@ -144,7 +144,6 @@ Result<std::uint32_t> Simulation::add(Entity e) {
         e.rollDeg = a->rollDeg;
       }
     }
-    e.orientation = orientationOf(e.headingDeg, e.pitchDeg, e.rollDeg);
     e.velocity = headingVector(e.headingDeg) * e.speedMs;
   }
   AirState air;
@@ -155,10 +154,13 @@ Result<std::uint32_t> Simulation::add(Entity e) {
         return Problem{"", 0, "simulation: aircraft " + where + " has no aircraft type; give it an aircraft file"};
       }
       air = levelFlight(aircraftTypes_[e.aircraftType], e.position, e.headingDeg, e.speedMs);
-      e.orientation = air.orientation;
+      const Euler eu = eulerFromOrientation(air.orientation);
+      e.headingDeg = eu.headingDeg;
+      e.pitchDeg = eu.pitchDeg;
+      e.rollDeg = eu.rollDeg;
       e.velocity = air.velocity;
     } else {
-      e.orientation = orientationOf(e.headingDeg, 0, 0);
+      e.pitchDeg = e.rollDeg = 0;
       e.velocity = headingVector(e.headingDeg) * e.speedMs;
     }
   }
@@ -238,7 +240,6 @@ std::uint32_t Simulation::fire(std::uint32_t shooter, double azimuthDeg, double 
   m.speedMs = t.speedMs;
   m.headingDeg = wrapDeg(azimuthDeg);
   m.pitchDeg = elevationDeg;
-  m.orientation = orientationOf(azimuthDeg, elevationDeg, 0);
   m.radius = m.sphereRadius = t.radius;
   m.height = 0;
   m.launcher = shooter;
@@ -334,7 +335,6 @@ void Simulation::moveAir(Record& r) {
     stepAircraft(aircraftTypes_[e.aircraftType], r.airControls, s, dt);
     e.position = s.position;
     e.velocity = s.velocity;
-    e.orientation = s.orientation;
     e.angularVelocity = s.angularVelocity;
     e.throttle = s.throttle;
     const Euler eu = eulerFromOrientation(s.orientation);
@@ -355,7 +355,7 @@ void Simulation::moveAir(Record& r) {
     const Eigen::Vector3d old = e.position;
     e.position += headingVector(e.headingDeg) * (e.speedMs * dt) + Eigen::Vector3d(0, climb, 0);
     e.pitchDeg = e.speedMs > 0 ? std::atan2(climb / dt, e.speedMs) * kRadToDeg : 0;
-    e.orientation = orientationOf(e.headingDeg, e.pitchDeg, 0);
+    e.rollDeg = 0;
     e.velocity = (e.position - old) / dt;
     e.angularVelocity = {0, -turnBetween(before, e.headingDeg) * kDegToRad / dt, 0};
   }
@@ -388,7 +388,6 @@ void Simulation::move(Record& r) {
     e.position = {p.x(), flying ? line.y : a->groundY, p.y()};
     e.pitchDeg = flying ? 0 : a->pitchDeg;
     e.rollDeg = flying ? 0 : a->rollDeg;
-    e.orientation = orientationOf(e.headingDeg, e.pitchDeg, e.rollDeg);
     e.velocity = (e.position - old) / dt;
     return;
   }
@@ -617,8 +616,8 @@ void Simulation::collidePair(Record& ra, Record& rb) {
   Entity& a = ra.entity;
   Entity& b = rb.entity;
   ++counters_.pairsBoxed;
-  const Eigen::Vector3d ca = a.position + a.orientation * Eigen::Vector3d(0, a.height * 0.5, 0);
-  const Eigen::Vector3d cb = b.position + b.orientation * Eigen::Vector3d(0, b.height * 0.5, 0);
+  const Eigen::Vector3d ca = a.position + a.orientation() * Eigen::Vector3d(0, a.height * 0.5, 0);
+  const Eigen::Vector3d cb = b.position + b.orientation() * Eigen::Vector3d(0, b.height * 0.5, 0);
   const Eigen::Vector3d d = cb - ca;
   const double reach = a.sphereRadius + b.sphereRadius;
   if (d.squaredNorm() >= reach * reach) return;  // Figure 61
@@ -633,8 +632,8 @@ void Simulation::collidePair(Record& ra, Record& rb) {
     const auto& tb = trianglesOf(b.icon);
     if (!ta.empty() && !tb.empty()) {
       ++counters_.raysCast;
-      const Eigen::Affine3d wa = Eigen::Translation3d(ca) * a.orientation;
-      const Eigen::Affine3d wb = Eigen::Translation3d(cb) * b.orientation;
+      const Eigen::Affine3d wa = Eigen::Translation3d(ca) * a.orientation();
+      const Eigen::Affine3d wb = Eigen::Translation3d(cb) * b.orientation();
       ray = contactPoint(ta, wa, tb, wb);  // Figures 62-63
       if (!ray.hit) return;
       contact = ray.worldPoint;

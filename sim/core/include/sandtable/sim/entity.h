@@ -91,11 +91,18 @@ struct Entity {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
   Eigen::Vector3d acceleration = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();  ///< body rates, rad/s
-  double headingDeg = 0, pitchDeg = 0, rollDeg = 0;           ///< from the orientation
+  /// The orientation, stored once: heading (clockwise from north), pitch
+  /// (nose up) and roll (right side down), as the seed's entity state and
+  /// DIS's Euler angles hold it. orientation() derives the quaternion; an
+  /// aircraft's flight model keeps its own quaternion (AirState) and mirrors
+  /// these angles from it after every step.
+  double headingDeg = 0, pitchDeg = 0, rollDeg = 0;
   double speedMs = 0;        ///< land and sea: signed speed along the heading; air: airspeed
   double heightAgl = 0;      ///< above the drawn ground
+
+  /// Body-to-world rotation of the stored angles (orientationOf).
+  Eigen::Quaterniond orientation() const;
 
   bool alive = true;
   bool armed = false, resupply = false;  ///< from the icon definition
