@@ -372,6 +372,7 @@ struct FlightRun {
       const auto [vx, vz] = velocity(pose, t, previous, previousT, k == 0);
       pager->update(cam.x, cam.z, vx, vz, t);
       if (k == 0 || o.pager.sync) pager->waitIdle(120);
+      app.paged(k, *pager);
       cam.viewDistance = drawnViewDistance(asked, cam.x, cam.z);
     }
     previous = pose;
@@ -823,6 +824,10 @@ void FlightHooks::frameDone(std::uint32_t frame, const render::Image& image) {
 
 void FlightHooks::frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) {
   if (onFrameContent) onFrameContent(frame, buf, stats);
+}
+
+void FlightHooks::paged(std::uint32_t frame, paging::Pager& pager) {
+  if (onPaged) onPaged(frame, pager);
 }
 
 }  // namespace sandtable::viewer

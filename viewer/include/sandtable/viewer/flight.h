@@ -42,6 +42,7 @@
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/height_field.h"
+#include "sandtable/paging/pager.h"
 #include "sandtable/paging/world.h"
 #include "sandtable/base/result.h"
 #include "sandtable/world/ground.h"
@@ -155,6 +156,10 @@ class FlightApplication {
   /// flight's one ground clamp (world/ground.h), at the level drawn under
   /// the eye in the last frame: steer with it, do not sample the grid.
   virtual std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) = 0;
+  /// Main thread, module flights: after the pager took frame `frame`'s eye
+  /// and view distance, before the frame is selected. A test waits here for
+  /// the loads it needs (pager.waitIdle) instead of sleeping between frames.
+  virtual void paged(std::uint32_t /*frame*/, paging::Pager& /*pager*/) {}
   /// Render thread: draws into the HUD pass's overlay after the panel (a
   /// 2-D map), marking what it drew (overlay.h).
   virtual void overlay(render::Overlay&, const FrameStats&) {}
@@ -194,12 +199,14 @@ struct FlightHooks final : FlightApplication {
   std::function<bool(std::uint32_t frame)> onWantsFrame;
   /// frameContent (main thread): e.g. entities placed by a test.
   std::function<void(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats)> onFrameContent;
+  std::function<void(std::uint32_t frame, paging::Pager& pager)> onPaged;
 
   std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) override;
   void overlay(render::Overlay& overlay, const FrameStats& s) override;
   bool wantsFrame(std::uint32_t frame) override;
   void frameDone(std::uint32_t frame, const render::Image& image) override;
   void frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) override;
+  void paged(std::uint32_t frame, paging::Pager& pager) override;
 
   const FlightOptions& options;
 };
