@@ -155,7 +155,7 @@ TEST(IconsCli, theContactSheetShowsEveryIconAtEveryLevelFramedInItsCell) {
   ASSERT_EQ(j["contact_sheets"].size(), 1u);
   const auto img = readPng(j["contact_sheets"][0].get<std::string>());
   // Layout (docs/ICONS.md 6.3): 11 icons of at most 3 levels, 200 px cells.
-  using namespace sandtable::runtime;
+  using namespace sandtable::render;
   const IconSheetOptions o;
   ASSERT_EQ(j["icons"].size(), 11u);
   ASSERT_EQ(img.width, 2 * kIconSheetMargin + 3 * (o.cell + kIconSheetMargin));
@@ -202,7 +202,7 @@ TEST(IconsCli, theContactSheetDrawsTheModelsTextures) {
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["icons"][1]["name"], "truck");
   const auto img = readPng(j["contact_sheets"][0].get<std::string>());
-  using namespace sandtable::runtime;
+  using namespace sandtable::render;
   const IconSheetOptions o;
   // The Kenney truck is white geometry coloured red by its palette texture.
   const std::uint32_t x0 = kIconSheetMargin, y0 = kIconSheetMargin + (kIconSheetHeader + o.cell + kIconSheetFooter) +

@@ -26,7 +26,7 @@
 
 #include "sandtable/base/result.h"
 
-namespace sandtable::runtime {
+namespace sandtable::world {
 struct Path;
 }
 
