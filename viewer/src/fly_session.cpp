@@ -68,9 +68,9 @@ std::vector<std::uint8_t> waterMaterials(const Database& db) {
   return out;
 }
 
-FlySession::FlySession(const paging::World& world, FlySessionSettings settings, const viewer::FlightOptions& o,
-                       std::unique_ptr<viewer::ViewerWindow> window,
-                       std::unique_ptr<viewer::VideoWriter> video)
+FlySession::FlySession(const paging::World& world, FlySessionSettings settings, const FlightOptions& o,
+                       std::unique_ptr<ViewerWindow> window,
+                       std::unique_ptr<VideoWriter> video)
     : world_(world),
       settings_(std::move(settings)),
       options_(o),
@@ -90,7 +90,7 @@ FlySession::FlySession(const paging::World& world, FlySessionSettings settings, 
   }
 }
 
-world::ViewerState FlySession::initialState(const viewer::FlightOptions& o) const {
+world::ViewerState FlySession::initialState(const FlightOptions& o) const {
   world::ViewerState s;
   s.easting = o.motion.easting;
   s.northing = o.motion.northing;
@@ -115,7 +115,7 @@ bool FlySession::wantsFrame(std::uint32_t) {
 
 render::PresentTarget* FlySession::window() { return window_.get(); }
 
-void FlySession::frameShown(const viewer::FrameStats& s) {
+void FlySession::frameShown(const FrameStats& s) {
   if (settings_.onFrameDone) settings_.onFrameDone(s.frame);
 }
 
@@ -162,7 +162,7 @@ double FlySession::pollKeys() {
 }
 
 world::Pose FlySession::headlessPose(double t) {
-  world::Pose p = settings_.path ? world::samplePath(*settings_.path, t) : viewer::poseAt(options_, t);
+  world::Pose p = settings_.path ? world::samplePath(*settings_.path, t) : poseAt(options_, t);
   if (settings_.freeFlight) {
     // As the Controller does: free flight keeps its altitude but never goes
     // below 1 m above the ground (past the edge: the last ground seen).
@@ -248,7 +248,7 @@ std::vector<std::pair<std::string, std::string>> FlySession::statsSections() {
   return {{"sim", settings_.sim->summaryJson()}};
 }
 
-void FlySession::overlay(render::Overlay& overlay, const viewer::FrameStats& s) {
+void FlySession::overlay(render::Overlay& overlay, const FrameStats& s) {
   current_ = controls_.take(s.frame);
   if (!current_.map) return;
   if (!map_) {

@@ -87,15 +87,15 @@ class FlySession final : public FlightApplication {
  public:
   /// `window` and `video` may be null (headless, no video). `o` must be
   /// the flight's options (start, heading, speed, height, FOV...).
-  FlySession(const paging::World& world, FlySessionSettings settings, const viewer::FlightOptions& o,
-             std::unique_ptr<viewer::ViewerWindow> window,
-             std::unique_ptr<viewer::VideoWriter> video);
+  FlySession(const paging::World& world, FlySessionSettings settings, const FlightOptions& o,
+             std::unique_ptr<ViewerWindow> window,
+             std::unique_ptr<VideoWriter> video);
 
   std::optional<world::Pose> pose(std::uint32_t frame, double t, world::GroundClamp& ground) override;
-  void overlay(render::Overlay& overlay, const viewer::FrameStats& s) override;
+  void overlay(render::Overlay& overlay, const FrameStats& s) override;
   bool wantsFrame(std::uint32_t frame) override;
   void frameDone(std::uint32_t frame, const render::Image& img) override;
-  void frameShown(const viewer::FrameStats& s) override;
+  void frameShown(const FrameStats& s) override;
   render::PresentTarget* window() override;
   void frameContent(std::uint32_t frame, scene::DisplayBuffer& buf, FrameStats& stats) override;
   std::vector<std::pair<std::string, std::string>> statsSections() override;
@@ -115,16 +115,16 @@ class FlySession final : public FlightApplication {
   world::Pose windowPose(double clock) const;
   void saveScreenshot(const render::Image& img);
   void fail(const Status& st);
-  world::ViewerState initialState(const viewer::FlightOptions& o) const;
+  world::ViewerState initialState(const FlightOptions& o) const;
 
   const paging::World& world_;
   FlySessionSettings settings_;
-  const viewer::FlightOptions& options_;
+  const FlightOptions& options_;
   /// The viewer's own copy of the flight's ground clamp (same surface; the
   /// level drawn under the eye is copied from the flight's each frame).
   world::GroundClamp ground_;
-  std::unique_ptr<viewer::ViewerWindow> window_;
-  std::unique_ptr<viewer::VideoWriter> video_;
+  std::unique_ptr<ViewerWindow> window_;
+  std::unique_ptr<VideoWriter> video_;
   // main thread
   std::optional<world::Controller> controller_;
   bool quitAfterThisFrame_ = false, quitting_ = false;
