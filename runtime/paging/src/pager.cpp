@@ -12,7 +12,7 @@
 
 namespace sandtable::paging {
 
-using namespace pager_detail;
+using namespace detail;
 
 // ------------------------------------------------------------ ResidentRef
 

@@ -39,7 +39,7 @@ void hintStrip(Pager::Impl& im, std::span<const ModuleKey> keys) {
 }
 
 void runPrefetcher(Pager::Impl& im) {
-  using namespace pager_detail;
+  using namespace detail;
   const grid::GridFile& g = *im.grid;
   const grid::Header& h = g.header();
   const double blockMetres = grid::kBlockPosts * g.spacing();
