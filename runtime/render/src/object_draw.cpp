@@ -484,26 +484,32 @@ struct ObjectRenderer::Frame {
 
 void ObjectRenderer::consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look,
                               RenderStats& stats) {
-  const scene::DisplayBuffer& buf = f.buf;
-  const scene::ModuleDraw& d = buf.modules[m];
+  const scene::ModuleDraw& d = f.buf.modules[m];
   const paging::ResidentModule& rm = d.ref.module();
-  const scene::Camera& cam = buf.camera;
-  const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
   const module::Object& o = rm.objects[i];
-  const double gx = mx + o.x - buf.originX - f.eye.x(), gz = mz + o.z - buf.originZ - f.eye.z();
-  if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) return;
-  const double half = 0.5 * double(o.height);
-  const double radius = std::sqrt(double(o.radius) * double(o.radius) + half * half);
-  if (!f.triangle.touches(mx + o.x, mz + o.z, radius)) return;
   std::uint32_t level = 0;
   float morph = 0;
   if (!f.modules.drawnAt(m, o.x, o.z, level, morph)) return;
   const std::vector<float>& y0 = d.ref.level(level).objectY;
   if (i >= y0.size()) return;
-  double y = y0[i];
-  if (morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()) {
-    y += double(morph) * (double(rm.levels[level + 1].objectY[i]) - y);
-  }
+  const float* y1 = morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()
+                        ? &rm.levels[level + 1].objectY[i]
+                        : nullptr;
+  place(f, d, std::uint32_t(i), o, y0[i], y1, morph, look, stats);
+}
+
+void ObjectRenderer::place(const Frame& f, const scene::ModuleDraw& d, std::uint32_t i, const module::Object& o,
+                           float y0, const float* y1, float morph, scene::ObjectLook look, RenderStats& stats) {
+  const scene::DisplayBuffer& buf = f.buf;
+  const scene::Camera& cam = buf.camera;
+  const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
+  const double gx = mx + o.x - buf.originX - f.eye.x(), gz = mz + o.z - buf.originZ - f.eye.z();
+  if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) return;
+  const double half = 0.5 * double(o.height);
+  const double radius = std::sqrt(double(o.radius) * double(o.radius) + half * half);
+  if (!f.triangle.touches(mx + o.x, mz + o.z, radius)) return;
+  double y = y0;
+  if (y1 != nullptr) y += double(morph) * (double(*y1) - y);
   const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
   float fade = 1;
   const double distance = (centre - f.eye).norm();
@@ -529,7 +535,7 @@ void ObjectRenderer::consider(const Frame& f, std::uint32_t m, std::size_t i, sc
       // the same ones stay from frame to frame; the kept grow (up to
       // twice) to keep the cover of the many they stand for.
       const double keep = (pixels / thin) * (pixels / thin);
-      if (unitHash(d.kx, d.kz, std::uint32_t(i)) >= keep) {
+      if (unitHash(d.kx, d.kz, i) >= keep) {
         ++stats.objectsThinned;
         return;
       }
@@ -563,6 +569,7 @@ ObjectRenderer::ModuleObjects* ObjectRenderer::cellsOf(const scene::DisplayBuffe
   const std::size_t n = std::size_t(mo.side) * mo.side;
   mo.cells.assign(n, {});
   mo.y.assign(rm.levels.size(), {});
+  mo.levelY.assign(rm.levels.size(), {});
   std::vector<std::uint32_t> cellOfObject(rm.objects.size(), UINT32_MAX);
   for (std::size_t i = 0; i < rm.objects.size(); ++i) {
     const module::Object& o = rm.objects[i];
@@ -614,6 +621,9 @@ ObjectRenderer::ModuleObjects* ObjectRenderer::cellsOf(const scene::DisplayBuffe
       mo.order[c.first + k] = byKey[k].second;
     }
   }
+  // In that order too, so that a frame reads them in sequence.
+  mo.objects.clear();
+  for (const std::uint32_t i : mo.order) mo.objects.push_back(rm.objects[i]);
   return &mo;
 }
 
@@ -644,28 +654,44 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
                                     double(c.maxRadius));
   if (ground < 0) return;
   // The cell's drawn objectY bounds (level, and the next coarser when morphed).
-  const auto yBounds = [&](std::uint32_t l, std::array<float, 2>& out) {
+  // Level l's objectY in the cells' order and each cell's bounds, made the
+  // first time the level is drawn; false while it has none.
+  const auto levelY = [&](std::uint32_t l) {
     const std::vector<float>& y = d.ref.level(l).objectY;
     if (y.size() < d.ref.module().objects.size()) return false;
-    auto& cache = mo.y[l];
-    if (cache.empty()) {
-      cache.assign(mo.cells.size(), {INFINITY, -INFINITY});
+    auto& bounds = mo.y[l];
+    if (bounds.empty()) {
+      bounds.assign(mo.cells.size(), {INFINITY, -INFINITY});
+      auto& ordered = mo.levelY[l];
+      ordered.resize(mo.order.size());
       for (std::size_t k = 0; k < mo.cells.size(); ++k) {
         const auto& ck = mo.cells[k];
         for (std::uint32_t j = ck.first; j < ck.first + ck.count; ++j) {
-          cache[k][0] = std::min(cache[k][0], y[mo.order[j]]);
-          cache[k][1] = std::max(cache[k][1], y[mo.order[j]]);
+          ordered[j] = y[mo.order[j]];
+          bounds[k][0] = std::min(bounds[k][0], ordered[j]);
+          bounds[k][1] = std::max(bounds[k][1], ordered[j]);
         }
       }
     }
-    out = cache[cell];
     return true;
   };
-  std::array<float, 2> yb{}, yb1{};
-  if (!yBounds(level, yb)) return all();
-  if (morph > 0 && level + 1 < d.ref.module().levels.size() && yBounds(level + 1, yb1)) {
-    yb = {std::min(yb[0], yb1[0]), std::max(yb[1], yb1[1])};
+  if (!levelY(level)) return all();
+  std::array<float, 2> yb = mo.y[level][cell];
+  // The next coarser level's, where the morph moves towards it (as consider()).
+  const std::vector<float>* ys1 = nullptr;
+  if (morph > 0 && level + 1 < d.ref.module().levels.size()) {
+    const std::size_t have = d.ref.module().levels[level + 1].objectY.size();
+    if (have > 0 && !levelY(level + 1)) return all();  // some objects morph, some not
+    if (have > 0) {
+      ys1 = &mo.levelY[level + 1];
+      yb = {std::min(yb[0], mo.y[level + 1][cell][0]), std::max(yb[1], mo.y[level + 1][cell][1])};
+    }
   }
+  const std::vector<float>& ys0 = mo.levelY[level];
+  const auto visit = [&](std::uint32_t k) {
+    place(f, d, mo.order[k], mo.objects[k], ys0[k], ys1 != nullptr ? &(*ys1)[k] : nullptr, morph,
+          scene::ObjectLook::standing, stats);
+  };
   // The centres' box; its frustum test as the objects' (n . c >= -radius).
   const double y0 = double(yb[0]) + c.minHalf, y1 = double(yb[1]) + c.maxHalf;
   bool inView = ground > 0;
@@ -688,12 +714,15 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
   const double pixels = double(c.maxSprite) * f.focal / std::max(near, 1e-3) * (1 + kSlack);
   // Wholly in range and view, every object a thinned sprite candidate: only
   // those whose hash is under the largest keep probability can stay.
-  if (!f.thinning || !inView || !(far < minFar) || !(pixels < std::min(thin, settings_.impostorPixels))) return all();
+  if (!f.thinning || !inView || !(far < minFar) || !(pixels < std::min(thin, settings_.impostorPixels))) {
+    for (std::uint32_t k = c.first; k < c.first + c.count; ++k) visit(k);
+    return;
+  }
   const double perSide = f.focal / (std::max(near, 1e-3) * thin);
   const double keep = perSide * perSide * (1 + kSlack);
   const auto begin = mo.key.begin() + c.first, end = begin + c.count;
   const auto visited = std::uint32_t(std::lower_bound(begin, end, keep) - begin);
-  for (std::uint32_t k = c.first; k < c.first + visited; ++k) consider(f, m, mo.order[k], scene::ObjectLook::standing, stats);
+  for (std::uint32_t k = c.first; k < c.first + visited; ++k) visit(k);
   stats.objectsThinned += c.count - visited;
 }
 

@@ -192,13 +192,21 @@ class ObjectRenderer {
       float minFar = 0, maxFar = 0;    ///< icons' last switch ranges (infinite: none)
     };
     std::vector<Cell> cells;
+    std::vector<module::Object> objects;  ///< the objects of order, copied (read in sequence)
     /// Per level, per cell: least and greatest objectY; empty until needed.
     std::vector<std::vector<std::array<float, 2>>> y;
+    /// Per level: objectY in order; empty until needed.
+    std::vector<std::vector<float>> levelY;
     std::uint64_t lastFrame = 0;
   };
   /// The exact tests of object i of buf.modules[m] (drawn with `look`),
   /// then its bucket or the thinned count.
   void consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look, RenderStats& stats);
+  /// The tests after the drawn level's: object i (`o`) of module `d` on its
+  /// base y0 of the drawn level, moved by `morph` towards *y1 (the next
+  /// coarser level's) where y1 is not null.
+  void place(const Frame& f, const scene::ModuleDraw& d, std::uint32_t i, const module::Object& o, float y0,
+             const float* y1, float morph, scene::ObjectLook look, RenderStats& stats);
   /// Module m's objects by cell (built at its first draw, or again when its
   /// slot holds another generation); nullptr when it has none to cell.
   ModuleObjects* cellsOf(const scene::DisplayBuffer& buf, std::uint32_t m);
