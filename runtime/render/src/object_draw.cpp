@@ -187,6 +187,9 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
 
 /// Frames a module's cells outlive its last draw (as the terrain's cache entries).
 constexpr std::uint64_t kCellsKeptFrames = 90;
+/// The cell tests' margins against rounding: relative (distances, pixels)
+/// and in metres (planes, the view triangle, far ranges).
+constexpr double kSlack = 1e-6, kSlackMetres = 1e-3;
 
 /// A fixed number in [0, 1) for object k of module (kx, kz).
 double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
@@ -222,7 +225,8 @@ class DiscTest {
     return true;
   }
   /// Whether every disc of radius <= r centred in the box [x0, x1] x [z0, z1]
-  /// misses the triangle (-1), every point of the box is inside (1), or
+  /// misses the triangle (-1), every point of the box is inside by
+  /// kSlackMetres (1), or
   /// neither (0).
   int box(double x0, double x1, double z0, double z1, double r) const {
     bool inside = true;
@@ -230,7 +234,7 @@ class DiscTest {
       const double hi = std::max(e.nx * x0, e.nx * x1) + std::max(e.nz * z0, e.nz * z1) + e.w;
       const double lo = std::min(e.nx * x0, e.nx * x1) + std::min(e.nz * z0, e.nz * z1) + e.w;
       if (hi < -r) return -1;
-      inside = inside && lo >= 0;
+      inside = inside && lo >= kSlackMetres;
     }
     return inside ? 1 : 0;
   }
@@ -641,7 +645,10 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
   std::uint32_t level = 0;
   float morph = 0;
   if (!f.modules.drawnAt(m, cx, cz, level, morph)) return;  // every object of the cell fails it
-  // The bases' box, relative to the buffer origin, and the eye's ground distance to it.
+  // The bases' box, relative to the buffer origin, and the eye's ground
+  // distance to it. The box tests keep a margin (kSlack, kSlackMetres)
+  // against rounding: they only decide what to visit, the objects' own tests
+  // decide what is drawn.
   const double mx = double(d.kx) * buf.moduleSize - buf.originX, mz = double(d.kz) * buf.moduleSize - buf.originZ;
   const double x0 = mx + c.minX, x1 = mx + c.maxX, z0 = mz + c.minZ, z1 = mz + c.maxZ;
   const auto gap = [](double v, double lo, double hi) { return std::max({lo - v, 0.0, v - hi}); };
@@ -649,11 +656,10 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
   const double gx = gap(f.eye.x(), x0, x1), gz = gap(f.eye.z(), z0, z1);
   const double vd = buf.camera.viewDistance;
   const double maxFar = std::min(settings_.objectLod ? double(c.maxFar) : INFINITY, vd);
-  if (gx * gx + gz * gz >= maxFar * maxFar) return;  // all past their far range
+  if (gx * gx + gz * gz >= (maxFar + kSlackMetres) * (maxFar + kSlackMetres)) return;  // all past their far range
   const int ground = f.triangle.box(x0 + buf.originX, x1 + buf.originX, z0 + buf.originZ, z1 + buf.originZ,
-                                    double(c.maxRadius));
+                                    double(c.maxRadius) + kSlackMetres);
   if (ground < 0) return;
-  // The cell's drawn objectY bounds (level, and the next coarser when morphed).
   // Level l's objectY in the cells' order and each cell's bounds, made the
   // first time the level is drawn; false while it has none.
   const auto levelY = [&](std::uint32_t l) {
@@ -700,11 +706,9 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
                       std::max(p.z() * z0, p.z() * z1) + p.w();
     const double lo = std::min(p.x() * x0, p.x() * x1) + std::min(p.y() * y0, p.y() * y1) +
                       std::min(p.z() * z0, p.z() * z1) + p.w();
-    if (hi < -double(c.maxRadius)) return;
-    inView = inView && lo >= 0;
+    if (hi < -double(c.maxRadius) - kSlackMetres) return;
+    inView = inView && lo >= kSlackMetres;
   }
-  // A margin against rounding: the bounds only decide what to visit.
-  constexpr double kSlack = 1e-6;
   const double gy = gap(f.eye.y(), y0, y1);
   const double near = std::sqrt(gx * gx + gy * gy + gz * gz) * (1 - kSlack);
   const double far = std::hypot(reach(f.eye.x(), x0, x1), reach(f.eye.y(), y0, y1), reach(f.eye.z(), z0, z1)) *
@@ -712,8 +716,9 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
   const double minFar = std::min(settings_.objectLod ? double(c.minFar) : INFINITY, vd);
   const double thin = settings_.objectThinPixels;
   const double pixels = double(c.maxSprite) * f.focal / std::max(near, 1e-3) * (1 + kSlack);
-  // Wholly in range and view, every object a thinned sprite candidate: only
-  // those whose hash is under the largest keep probability can stay.
+  // Wholly in range and view, every object a sprite under the thinning size:
+  // only the prefix whose key is under the bound at the nearest distance can
+  // be kept; the rest are thinned.
   if (!f.thinning || !inView || !(far < minFar) || !(pixels < std::min(thin, settings_.impostorPixels))) {
     for (std::uint32_t k = c.first; k < c.first + c.count; ++k) visit(k);
     return;
