@@ -39,9 +39,11 @@
 // and morph each), each group in ascending order of its thinning hash over
 // the square of its sprite's side (ObjectRenderer::ModuleObjects::key), with
 // the bounds the tests need. A frame then rejects a whole cell out of range
-// or view, and in a cell wholly in range and view whose sprites are all
-// thinned it visits only the prefix whose key can pass at the cell's
-// nearest distance: the rest are counted thinned without being visited.
+// or view, and in a cell wholly in range and view whose objects are all
+// sprites under the thinning size it visits only the prefix whose key can
+// pass at the cell's nearest distance: the rest are counted thinned without
+// being visited. A cell holds copies of its objects and of each drawn
+// level's objectY in its order, so that the visits read memory in sequence.
 // Only the objects visited get the exact per-object tests, so the frame
 // keeps and counts the same objects as visiting them all would.
 #include <epoxy/gl.h>
