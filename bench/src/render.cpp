@@ -168,6 +168,10 @@ Result<RenderBenchReport> runRenderBench(const Database& db, const RenderBenchOp
     cases.push_back({"objects-full", TerrainMode::modules, LodMode::sse, px, vd, Objects::full});
     cases.push_back({"unthinned", TerrainMode::modules, LodMode::sse, px, vd, Objects::unthinned});
   }
+  if (!a.only.empty()) {
+    std::erase_if(cases, [&](const Case& c) { return std::find(a.only.begin(), a.only.end(), c.name) == a.only.end(); });
+    if (cases.empty()) return Problem{"", 0, "--cases names none of this database's cases"};
+  }
   RenderBenchReport report;
   auto before = gridRate(a);
   if (!before) return before.problems();

@@ -21,6 +21,7 @@ struct Args {
   bench::RenderBenchOptions o;
   std::string size = "1280x720";
   std::string rings;
+  std::string cases;
   bool noObjectCases = false;
   bool json = false;
 };
@@ -72,6 +73,12 @@ int run(Args& a) {
     return usageError(kName, "--size must look like 1280x720");
   }
   a.o.objectCases = !a.noObjectCases;
+  a.o.only.clear();
+  for (std::size_t at = 0; at < a.cases.size();) {
+    const std::size_t comma = std::min(a.cases.find(',', at), a.cases.size());
+    if (comma > at) a.o.only.push_back(a.cases.substr(at, comma - at));
+    at = comma + 1;
+  }
   a.o.width = w;
   a.o.height = h;
   a.o.rings.clear();
@@ -130,6 +137,8 @@ void registerBenchRender(CLI::App& bench, Commands& c) {
       ->capture_default_str()->check(CLI::Range(16u, 4096u));
   sub->add_flag("--no-object-cases", args->noObjectCases,
                 "Leave out the no-objects, objects-full and unthinned cases");
+  sub->add_option("--cases", args->cases,
+                  "Only these cases, NAME,NAME,... (e.g. sse,no-objects; default all)");
   sub->add_flag("--json", args->json, "Print JSON");
   c.add(sub, [args] { return run(*args); });
 }

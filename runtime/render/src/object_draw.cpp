@@ -11,6 +11,7 @@
 #include "sandtable/base/hash.h"
 #include "module_draw.h"
 #include "sandtable/scene/camera_math.h"
+#include "sandtable/scene/lod.h"
 #include "terrain_shading.h"
 
 namespace sandtable::render::detail {
@@ -184,6 +185,12 @@ void flattenIcon(const iconpack::Icon& icon, IconMeshes& out) {
   out.textured.push_back(textured);
 }
 
+/// Frames a module's cells outlive its last draw (as the terrain's cache entries).
+constexpr std::uint64_t kCellsKeptFrames = 90;
+/// The cell tests' margins against rounding: relative (distances, pixels)
+/// and in metres (planes, the view triangle, far ranges).
+constexpr double kSlack = 1e-6, kSlackMetres = 1e-3;
+
 /// A fixed number in [0, 1) for object k of module (kx, kz).
 double unitHash(std::uint32_t kx, std::uint32_t kz, std::uint32_t k) {
   return hash::unit(hash::mix((std::uint64_t(kx) << 42) ^ (std::uint64_t(kz) << 21) ^ k));
@@ -216,6 +223,20 @@ class DiscTest {
       if (e.nx * x + e.nz * z + e.w < -r) return false;
     }
     return true;
+  }
+  /// Whether every disc of radius <= r centred in the box [x0, x1] x [z0, z1]
+  /// misses the triangle (-1), every point of the box is inside by
+  /// kSlackMetres (1), or
+  /// neither (0).
+  int box(double x0, double x1, double z0, double z1, double r) const {
+    bool inside = true;
+    for (const Edge& e : edges_) {
+      const double hi = std::max(e.nx * x0, e.nx * x1) + std::max(e.nz * z0, e.nz * z1) + e.w;
+      const double lo = std::min(e.nx * x0, e.nx * x1) + std::min(e.nz * z0, e.nz * z1) + e.w;
+      if (hi < -r) return -1;
+      inside = inside && lo >= kSlackMetres;
+    }
+    return inside ? 1 : 0;
   }
 
  private:
@@ -453,22 +474,284 @@ Status ObjectRenderer::bakeImpostors() {
   return {};
 }
 
+struct ObjectRenderer::Frame {
+  const scene::DisplayBuffer& buf;
+  const ModuleRenderer& modules;
+  const std::vector<iconpack::Icon>& icons;
+  Eigen::Vector3d eye;                    ///< relative to the buffer origin
+  std::array<Eigen::Vector4d, 5> planes;  ///< side and far planes: n . p + w is a distance
+  DiscTest triangle;
+  double focal = 0;     ///< pixels per metre at one metre
+  bool sprites = false;  ///< impostors drawn
+  bool thinning = false;  ///< and thinned
+};
+
+void ObjectRenderer::consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look,
+                              RenderStats& stats) {
+  const scene::ModuleDraw& d = f.buf.modules[m];
+  const paging::ResidentModule& rm = d.ref.module();
+  const module::Object& o = rm.objects[i];
+  std::uint32_t level = 0;
+  float morph = 0;
+  if (!f.modules.drawnAt(m, o.x, o.z, level, morph)) return;
+  const std::vector<float>& y0 = d.ref.level(level).objectY;
+  if (i >= y0.size()) return;
+  const float* y1 = morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()
+                        ? &rm.levels[level + 1].objectY[i]
+                        : nullptr;
+  place(f, d, std::uint32_t(i), o, y0[i], y1, morph, look, stats);
+}
+
+void ObjectRenderer::place(const Frame& f, const scene::ModuleDraw& d, std::uint32_t i, const module::Object& o,
+                           float y0, const float* y1, float morph, scene::ObjectLook look, RenderStats& stats) {
+  const scene::DisplayBuffer& buf = f.buf;
+  const scene::Camera& cam = buf.camera;
+  const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
+  const double gx = mx + o.x - buf.originX - f.eye.x(), gz = mz + o.z - buf.originZ - f.eye.z();
+  if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) return;
+  const double half = 0.5 * double(o.height);
+  const double radius = std::sqrt(double(o.radius) * double(o.radius) + half * half);
+  if (!f.triangle.touches(mx + o.x, mz + o.z, radius)) return;
+  double y = y0;
+  if (y1 != nullptr) y += double(morph) * (double(*y1) - y);
+  const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
+  float fade = 1;
+  const double distance = (centre - f.eye).norm();
+  const int iconLevel = settings_.objectLod
+                            ? iconLevelAt(f.icons[o.icon], distance, cam.viewDistance, settings_.objectFade, fade)
+                            : (distance < cam.viewDistance ? 0 : -1);
+  if (iconLevel < 0 || fade <= 0) return;
+  const Eigen::Vector4d c(centre.x(), centre.y(), centre.z(), 1.0);
+  for (const auto& p : f.planes) {
+    if (p.dot(c) < -radius) return;
+  }
+  if (look != scene::ObjectLook::standing) {
+    divert(f.icons[o.icon], o, look, mx + o.x, y, mz + o.z);
+    return;
+  }
+  ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
+                          float(module::headingRadians(o.heading)), o.scale, fade};
+  const double pixels = double(sprites_[o.icon].size) * double(o.scale) * f.focal / std::max(distance, 1e-3);
+  if (f.sprites && pixels < settings_.impostorPixels) {
+    const double thin = settings_.objectThinPixels;
+    if (thin > 0 && pixels < thin) {
+      // Kept with probability (pixels / thin)^2, by where it stands, so
+      // the same ones stay from frame to frame; the kept grow (up to
+      // twice) to keep the cover of the many they stand for.
+      const double keep = (pixels / thin) * (pixels / thin);
+      if (unitHash(d.kx, d.kz, i) >= keep) {
+        ++stats.objectsThinned;
+        return;
+      }
+      instance.scale *= float(std::min(thin / pixels, 2.0));
+    }
+    spriteBuckets_[o.icon].push_back(instance);
+  } else {
+    buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(instance);
+  }
+  ++stats.objectsDrawn;
+}
+
+ObjectRenderer::ModuleObjects* ObjectRenderer::cellsOf(const scene::DisplayBuffer& buf, std::uint32_t m) {
+  const scene::ModuleDraw& d = buf.modules[m];
+  const paging::ResidentModule& rm = d.ref.module();
+  if (rm.levels.empty()) return nullptr;
+  ModuleObjects& mo = cells_[(std::uint64_t(d.kx) << 32) | d.kz];
+  mo.lastFrame = frame_;
+  if (mo.module == &rm && mo.generation == d.ref.generation()) return &mo;
+  // Built once per module arrival: the only per-object work outside the
+  // objects a frame keeps.
+  const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
+  mo.module = &rm;
+  mo.generation = d.ref.generation();
+  // The cells of ModuleRenderer::drawnAt: one drawn level and morph each.
+  mo.side = scene::nodesPerSide(0, std::uint32_t(rm.levels.size()));
+  const double cellSize = buf.moduleSize / double(mo.side);
+  const auto cellOf = [&](double v) {
+    return std::uint32_t(std::clamp(std::floor(v / cellSize), 0.0, double(mo.side - 1)));
+  };
+  const std::size_t n = std::size_t(mo.side) * mo.side;
+  mo.cells.assign(n, {});
+  mo.y.assign(rm.levels.size(), {});
+  mo.levelY.assign(rm.levels.size(), {});
+  std::vector<std::uint32_t> cellOfObject(rm.objects.size(), UINT32_MAX);
+  for (std::size_t i = 0; i < rm.objects.size(); ++i) {
+    const module::Object& o = rm.objects[i];
+    if (o.icon >= icons.size()) continue;  // validate refuses these
+    cellOfObject[i] = cellOf(o.z) * mo.side + cellOf(o.x);
+    ++mo.cells[cellOfObject[i]].count;
+  }
+  std::uint32_t first = 0;
+  for (auto& c : mo.cells) {
+    c.first = first;
+    first += c.count;
+    c.count = 0;
+    c.minX = c.minZ = c.minHalf = c.minFar = INFINITY;
+    c.maxX = c.maxZ = c.maxHalf = c.maxFar = -INFINITY;
+  }
+  mo.order.assign(first, 0);
+  mo.key.assign(first, 0);
+  for (std::size_t i = 0; i < rm.objects.size(); ++i) {
+    if (cellOfObject[i] == UINT32_MAX) continue;
+    const module::Object& o = rm.objects[i];
+    ModuleObjects::Cell& c = mo.cells[cellOfObject[i]];
+    mo.order[c.first + c.count++] = std::uint32_t(i);
+    const float half = 0.5f * o.height;
+    const float far = icons[o.icon].ranges.empty() ? INFINITY : icons[o.icon].ranges.back();
+    c.minX = std::min(c.minX, o.x), c.maxX = std::max(c.maxX, o.x);
+    c.minZ = std::min(c.minZ, o.z), c.maxZ = std::max(c.maxZ, o.z);
+    c.maxRadius = std::max(c.maxRadius, float(std::sqrt(double(o.radius) * double(o.radius) + double(half) * half)));
+    c.minHalf = std::min(c.minHalf, half), c.maxHalf = std::max(c.maxHalf, half);
+    c.maxSprite = std::max(c.maxSprite, sprites_[o.icon].size * o.scale);
+    c.minFar = std::min(c.minFar, icons[o.icon].ranges.empty() ? -INFINITY : far);  // none: never drawn with LoD
+    c.maxFar = std::max(c.maxFar, far);
+  }
+  // An object is kept where hash < (s focal / (distance thin))^2, s its
+  // sprite side times its scale: where hash / s^2 < (focal / (distance
+  // thin))^2. Sorted by that key, the objects a cell can keep at its
+  // nearest distance are a prefix.
+  std::vector<std::pair<double, std::uint32_t>> byKey;
+  for (const auto& c : mo.cells) {
+    byKey.clear();
+    for (std::uint32_t k = c.first; k < c.first + c.count; ++k) {
+      const module::Object& o = rm.objects[mo.order[k]];
+      const double side = double(sprites_[o.icon].size) * double(o.scale);
+      const double hash = unitHash(d.kx, d.kz, mo.order[k]);
+      byKey.emplace_back(side > 0 ? hash / (side * side) : INFINITY, mo.order[k]);
+    }
+    std::sort(byKey.begin(), byKey.end());
+    for (std::uint32_t k = 0; k < c.count; ++k) {
+      mo.key[c.first + k] = byKey[k].first;
+      mo.order[c.first + k] = byKey[k].second;
+    }
+  }
+  // In that order too, so that a frame reads them in sequence.
+  mo.objects.clear();
+  for (const std::uint32_t i : mo.order) mo.objects.push_back(rm.objects[i]);
+  return &mo;
+}
+
+void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects& mo, std::uint32_t cell,
+                                 RenderStats& stats) {
+  const ModuleObjects::Cell& c = mo.cells[cell];
+  if (c.count == 0) return;
+  const scene::DisplayBuffer& buf = f.buf;
+  const scene::ModuleDraw& d = buf.modules[m];
+  const double cellSize = buf.moduleSize / double(mo.side);
+  const double cx = (double(cell % mo.side) + 0.5) * cellSize, cz = (double(cell / mo.side) + 0.5) * cellSize;
+  const auto all = [&] {
+    for (std::uint32_t k = c.first; k < c.first + c.count; ++k) consider(f, m, mo.order[k], scene::ObjectLook::standing, stats);
+  };
+  std::uint32_t level = 0;
+  float morph = 0;
+  if (!f.modules.drawnAt(m, cx, cz, level, morph)) return;  // every object of the cell fails it
+  // The bases' box, relative to the buffer origin, and the eye's ground
+  // distance to it. The box tests keep a margin (kSlack, kSlackMetres)
+  // against rounding: they only decide what to visit, the objects' own tests
+  // decide what is drawn.
+  const double mx = double(d.kx) * buf.moduleSize - buf.originX, mz = double(d.kz) * buf.moduleSize - buf.originZ;
+  const double x0 = mx + c.minX, x1 = mx + c.maxX, z0 = mz + c.minZ, z1 = mz + c.maxZ;
+  const auto gap = [](double v, double lo, double hi) { return std::max({lo - v, 0.0, v - hi}); };
+  const auto reach = [](double v, double lo, double hi) { return std::max(std::abs(v - lo), std::abs(v - hi)); };
+  const double gx = gap(f.eye.x(), x0, x1), gz = gap(f.eye.z(), z0, z1);
+  const double vd = buf.camera.viewDistance;
+  const double maxFar = std::min(settings_.objectLod ? double(c.maxFar) : INFINITY, vd);
+  if (gx * gx + gz * gz >= (maxFar + kSlackMetres) * (maxFar + kSlackMetres)) return;  // all past their far range
+  const int ground = f.triangle.box(x0 + buf.originX, x1 + buf.originX, z0 + buf.originZ, z1 + buf.originZ,
+                                    double(c.maxRadius) + kSlackMetres);
+  if (ground < 0) return;
+  // Level l's objectY in the cells' order and each cell's bounds, made the
+  // first time the level is drawn; false while it has none.
+  const auto levelY = [&](std::uint32_t l) {
+    const std::vector<float>& y = d.ref.level(l).objectY;
+    if (y.size() < d.ref.module().objects.size()) return false;
+    auto& bounds = mo.y[l];
+    if (bounds.empty()) {
+      bounds.assign(mo.cells.size(), {INFINITY, -INFINITY});
+      auto& ordered = mo.levelY[l];
+      ordered.resize(mo.order.size());
+      for (std::size_t k = 0; k < mo.cells.size(); ++k) {
+        const auto& ck = mo.cells[k];
+        for (std::uint32_t j = ck.first; j < ck.first + ck.count; ++j) {
+          ordered[j] = y[mo.order[j]];
+          bounds[k][0] = std::min(bounds[k][0], ordered[j]);
+          bounds[k][1] = std::max(bounds[k][1], ordered[j]);
+        }
+      }
+    }
+    return true;
+  };
+  if (!levelY(level)) return all();
+  std::array<float, 2> yb = mo.y[level][cell];
+  // The next coarser level's, where the morph moves towards it (as consider()).
+  const std::vector<float>* ys1 = nullptr;
+  if (morph > 0 && level + 1 < d.ref.module().levels.size()) {
+    const std::size_t have = d.ref.module().levels[level + 1].objectY.size();
+    if (have > 0 && !levelY(level + 1)) return all();  // some objects morph, some not
+    if (have > 0) {
+      ys1 = &mo.levelY[level + 1];
+      yb = {std::min(yb[0], mo.y[level + 1][cell][0]), std::max(yb[1], mo.y[level + 1][cell][1])};
+    }
+  }
+  const std::vector<float>& ys0 = mo.levelY[level];
+  const auto visit = [&](std::uint32_t k) {
+    place(f, d, mo.order[k], mo.objects[k], ys0[k], ys1 != nullptr ? &(*ys1)[k] : nullptr, morph,
+          scene::ObjectLook::standing, stats);
+  };
+  // The centres' box; its frustum test as the objects' (n . c >= -radius).
+  const double y0 = double(yb[0]) + c.minHalf, y1 = double(yb[1]) + c.maxHalf;
+  bool inView = ground > 0;
+  for (const auto& p : f.planes) {
+    const double hi = std::max(p.x() * x0, p.x() * x1) + std::max(p.y() * y0, p.y() * y1) +
+                      std::max(p.z() * z0, p.z() * z1) + p.w();
+    const double lo = std::min(p.x() * x0, p.x() * x1) + std::min(p.y() * y0, p.y() * y1) +
+                      std::min(p.z() * z0, p.z() * z1) + p.w();
+    if (hi < -double(c.maxRadius) - kSlackMetres) return;
+    inView = inView && lo >= kSlackMetres;
+  }
+  const double gy = gap(f.eye.y(), y0, y1);
+  const double near = std::sqrt(gx * gx + gy * gy + gz * gz) * (1 - kSlack);
+  const double far = std::hypot(reach(f.eye.x(), x0, x1), reach(f.eye.y(), y0, y1), reach(f.eye.z(), z0, z1)) *
+                     (1 + kSlack);
+  const double minFar = std::min(settings_.objectLod ? double(c.minFar) : INFINITY, vd);
+  const double thin = settings_.objectThinPixels;
+  const double pixels = double(c.maxSprite) * f.focal / std::max(near, 1e-3) * (1 + kSlack);
+  // Wholly in range and view, every object a sprite under the thinning size:
+  // only the prefix whose key is under the bound at the nearest distance can
+  // be kept; the rest are thinned.
+  if (!f.thinning || !inView || !(far < minFar) || !(pixels < std::min(thin, settings_.impostorPixels))) {
+    for (std::uint32_t k = c.first; k < c.first + c.count; ++k) visit(k);
+    return;
+  }
+  const double perSide = f.focal / (std::max(near, 1e-3) * thin);
+  const double keep = perSide * perSide * (1 + kSlack);
+  const auto begin = mo.key.begin() + c.first, end = begin + c.count;
+  const auto visited = std::uint32_t(std::lower_bound(begin, end, keep) - begin);
+  for (std::uint32_t k = c.first; k < c.first + visited; ++k) visit(k);
+  stats.objectsThinned += c.count - visited;
+}
+
 void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats) {
   for (auto& b : buckets_) b.clear();
   for (auto& b : spriteBuckets_) b.clear();
   diverted_.clear();
+  ++frame_;
   const std::vector<scene::ObjectOverride>& overrides = buf.dynamic.objectOverrides;
   const scene::Camera& cam = buf.camera;
+  const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
   // Pixels per metre at one metre: an object is a sprite where
   // size * focal < impostorPixels * distance.
-  const bool sprites = impostors_ != 0 && settings_.objectLod;
-  const double focal = 0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad);
-  const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
-  // The side and far planes, scaled so that n . p + w is a distance.
-  auto planes = scene::frustumPlanes(scene::viewProjection(cam, buf.originX, buf.originZ));
-  for (auto& p : planes) p /= std::max(p.head<3>().norm(), 1e-12);
-  const std::vector<iconpack::Icon>& icons = settings_.icons->icons;
-  const DiscTest triangle(buf.triangle);
+  Frame f{buf,
+          modules,
+          icons,
+          Eigen::Vector3d(cam.x - buf.originX, cam.y, cam.z - buf.originZ),
+          scene::frustumPlanes(scene::viewProjection(cam, buf.originX, buf.originZ)),
+          DiscTest(buf.triangle),
+          0.5 * double(settings_.height) / std::tan(0.5 * cam.vfovDeg() * kDegToRad),
+          impostors_ != 0 && settings_.objectLod,
+          false};
+  f.thinning = f.sprites && settings_.objectThinPixels > 0;
+  for (auto& p : f.planes) p /= std::max(p.head<3>().norm(), 1e-12);
   // Past its far range (capped at the view distance) an object is not
   // drawn; the ground distance is a cheap lower bound of the eye's.
   farRange_.resize(icons.size());
@@ -481,9 +764,14 @@ void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
     if (!d.ref || d.ref.placeholder()) continue;
     const paging::ResidentModule& rm = d.ref.module();
     if (rm.objects.empty()) continue;
-    const double mx = double(d.kx) * buf.moduleSize, mz = double(d.kz) * buf.moduleSize;
-    // This module's changed objects, in index order: walked beside i.
     auto [changed, changedEnd] = scene::overridesOfModule(overrides, d.kx, d.kz);
+    if (changed == changedEnd) {
+      if (ModuleObjects* mo = cellsOf(buf, m)) {
+        for (std::uint32_t c = 0; c < mo->cells.size(); ++c) collectCell(f, m, *mo, c, stats);
+        continue;
+      }
+    }
+    // A module with changed objects: each in index order, its overrides walked beside it.
     for (std::size_t i = 0; i < rm.objects.size(); ++i) {
       const module::Object& o = rm.objects[i];
       if (o.icon >= icons.size()) continue;  // validate refuses these
@@ -493,58 +781,11 @@ void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
         ++stats.objectsRemoved;
         continue;
       }
-      const double gx = mx + o.x - buf.originX - eye.x(), gz = mz + o.z - buf.originZ - eye.z();
-      if (gx * gx + gz * gz >= farRange_[o.icon] * farRange_[o.icon]) continue;
-      const double half = 0.5 * double(o.height);
-      const double radius = std::sqrt(double(o.radius) * double(o.radius) + half * half);
-      if (!triangle.touches(mx + o.x, mz + o.z, radius)) continue;
-      std::uint32_t level = 0;
-      float morph = 0;
-      if (!modules.drawnAt(m, o.x, o.z, level, morph)) continue;
-      const std::vector<float>& y0 = d.ref.level(level).objectY;
-      if (i >= y0.size()) continue;
-      double y = y0[i];
-      if (morph > 0 && level + 1 < rm.levels.size() && i < rm.levels[level + 1].objectY.size()) {
-        y += double(morph) * (double(rm.levels[level + 1].objectY[i]) - y);
-      }
-      const Eigen::Vector3d centre(mx + o.x - buf.originX, y + half, mz + o.z - buf.originZ);
-      float fade = 1;
-      const double distance = (centre - eye).norm();
-      const int iconLevel = settings_.objectLod
-                                ? iconLevelAt(icons[o.icon], distance, cam.viewDistance, settings_.objectFade, fade)
-                                : (distance < cam.viewDistance ? 0 : -1);
-      if (iconLevel < 0 || fade <= 0) continue;
-      const Eigen::Vector4d c(centre.x(), centre.y(), centre.z(), 1.0);
-      bool inside = true;
-      for (const auto& p : planes) inside = inside && p.dot(c) >= -radius;
-      if (!inside) continue;
-      if (look != scene::ObjectLook::standing) {
-        divert(icons[o.icon], o, look, mx + o.x, y, mz + o.z);
-        continue;
-      }
-      ObjectInstance instance{float(centre.x()), float(y),   float(centre.z()),
-                              float(module::headingRadians(o.heading)), o.scale, fade};
-      const double pixels = double(sprites_[o.icon].size) * double(o.scale) * focal / std::max(distance, 1e-3);
-      if (sprites && pixels < settings_.impostorPixels) {
-        const double thin = settings_.objectThinPixels;
-        if (thin > 0 && pixels < thin) {
-          // Kept with probability (pixels / thin)^2, by where it stands, so
-          // the same ones stay from frame to frame; the kept grow (up to
-          // twice) to keep the cover of the many they stand for.
-          const double keep = (pixels / thin) * (pixels / thin);
-          if (unitHash(d.kx, d.kz, std::uint32_t(i)) >= keep) {
-            ++stats.objectsThinned;
-            continue;
-          }
-          instance.scale *= float(std::min(thin / pixels, 2.0));
-        }
-        spriteBuckets_[o.icon].push_back(instance);
-      } else {
-        buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(instance);
-      }
-      ++stats.objectsDrawn;
+      consider(f, m, i, look, stats);
     }
   }
+  // Modules out of the view for a while give their cells back.
+  std::erase_if(cells_, [&](const auto& e) { return e.second.lastFrame + kCellsKeptFrames < frame_; });
 }
 
 void ObjectRenderer::divert(const iconpack::Icon& icon, const module::Object& o, scene::ObjectLook look, double x, double y,

@@ -32,12 +32,27 @@
 // one point sprite of that size with its icon's layer, alpha-tested: one
 // vertex instead of the icon's coarsest mesh (the tree's 24 triangles),
 // which is where llvmpipe spends a forest's frame time.
+//
+// Cells: the per-frame work is per cell, not per object, except for the
+// objects a frame keeps. When a module is first drawn its objects are
+// grouped once by the finest terrain node they stand on (one drawn level
+// and morph each), each group in ascending order of its thinning hash over
+// the square of its sprite's side (ObjectRenderer::ModuleObjects::key), with
+// the bounds the tests need. A frame then rejects a whole cell out of range
+// or view, and in a cell wholly in range and view whose objects are all
+// sprites under the thinning size it visits only the prefix whose key can
+// pass at the cell's nearest distance: the rest are counted thinned without
+// being visited. A cell holds copies of its objects and of each drawn
+// level's objectY in its order, so that the visits read memory in sequence.
+// Only the objects visited get the exact per-object tests, so the frame
+// keeps and counts the same objects as visiting them all would.
 #include <epoxy/gl.h>
 
 #include <Eigen/Dense>
 #include <array>
 #include <cstdint>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "sandtable/base/result.h"
@@ -159,6 +174,47 @@ class ObjectRenderer {
   void drawSprites(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, GLuint firstInstance,
                    RenderStats& stats);
   void collect(const scene::DisplayBuffer& buf, const ModuleRenderer& modules, RenderStats& stats);
+  /// What collect() sets up once a frame for the per-object tests (object_draw.cpp).
+  struct Frame;
+  /// One module's objects by the finest terrain node they stand on.
+  struct ModuleObjects {
+    const paging::ResidentModule* module = nullptr;
+    std::uint64_t generation = 0;
+    std::uint32_t side = 0;            ///< cells a side (the finest level's nodes)
+    std::vector<std::uint32_t> order;  ///< object indices, cell after cell, each by ascending key
+    /// order[k]'s thinning hash over the square of its sprite side times
+    /// its scale: kept where key < (focal / (distance * thin pixels))^2.
+    std::vector<double> key;
+    struct Cell {
+      std::uint32_t first = 0, count = 0;  ///< in order
+      float minX = 0, maxX = 0, minZ = 0, maxZ = 0;  ///< objects' bases, module metres
+      float maxRadius = 0;             ///< largest bounding sphere
+      float minHalf = 0, maxHalf = 0;  ///< half heights (the centre above the base)
+      float maxSprite = 0;             ///< largest sprite side times scale
+      float minFar = 0, maxFar = 0;    ///< icons' last switch ranges (infinite: none)
+    };
+    std::vector<Cell> cells;
+    std::vector<module::Object> objects;  ///< the objects of order, copied (read in sequence)
+    /// Per level, per cell: least and greatest objectY; empty until needed.
+    std::vector<std::vector<std::array<float, 2>>> y;
+    /// Per level: objectY in order; empty until needed.
+    std::vector<std::vector<float>> levelY;
+    std::uint64_t lastFrame = 0;
+  };
+  /// The exact tests of object i of buf.modules[m] (drawn with `look`),
+  /// then its bucket or the thinned count.
+  void consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look, RenderStats& stats);
+  /// The tests after the drawn level's: object i (`o`) of module `d` on its
+  /// base y0 of the drawn level, moved by `morph` towards *y1 (the next
+  /// coarser level's) where y1 is not null.
+  void place(const Frame& f, const scene::ModuleDraw& d, std::uint32_t i, const module::Object& o, float y0,
+             const float* y1, float morph, scene::ObjectLook look, RenderStats& stats);
+  /// Module m's objects by cell (built at its first draw, or again when its
+  /// slot holds another generation); nullptr when it has none to cell.
+  ModuleObjects* cellsOf(const scene::DisplayBuffer& buf, std::uint32_t m);
+  /// The objects of one cell of module m: all of them, or the rejected,
+  /// skipped and thinned in a block (see "Cells" above).
+  void collectCell(const Frame& f, std::uint32_t m, ModuleObjects& mo, std::uint32_t cell, RenderStats& stats);
   /// Queues a changed object for the entity pass (world x, drawn base y, world z).
   void divert(const iconpack::Icon& icon, const module::Object& o, scene::ObjectLook look, double x, double y, double z);
 
@@ -179,6 +235,8 @@ class ObjectRenderer {
   std::vector<ObjectInstance> stream_;
   std::vector<double> farRange_;  ///< per icon, this frame
   std::vector<scene::DynamicInstance> diverted_;
+  std::unordered_map<std::uint64_t, ModuleObjects> cells_;  ///< by module (kx << 32 | kz)
+  std::uint64_t frame_ = 0;                                 ///< collect() calls, for evicting cells_
 };
 
 }  // namespace sandtable::render::detail

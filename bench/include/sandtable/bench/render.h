@@ -54,6 +54,9 @@ struct RenderBenchOptions {
   /// distance at full detail) and "unthinned" (sse with every sprite drawn),
   /// to bracket the sse case's objects.
   bool objectCases = true;
+  /// Only the cases of these names (e.g. {"sse", "no-objects"}, to set the
+  /// objects against the terrain alone in one short run); empty: all.
+  std::vector<std::string> only;
   /// The plain grid: squares a side (nodes of 16 squares), frames timed.
   std::uint32_t gridSquares = 512;
   std::uint32_t gridFrames = 20;
