@@ -182,6 +182,7 @@ struct StripState {
   WorkerMosaic mosaic;
   Lattice L;
   Window win;
+  std::vector<double> taps;  ///< weighted: a batch's source posts (elevation_weighted.cpp)
 };
 inline constexpr std::uint32_t kStripRows = kMinBandRows;
 

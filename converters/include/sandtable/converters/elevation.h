@@ -177,4 +177,16 @@ bool cancelRequested();
 double weightedPlaneEstimate(const double* dx, const double* dy, const double* z, std::size_t n,
                              double radius);
 
+/// The grid stage's weighted kernel comes in instruction-set variants, all
+/// giving the same bytes: "avx512" (8 target posts at once), "avx2" (4),
+/// "sse2" (2) and "scalar" (one post at a time, the reference). Those this
+/// CPU runs, best first; a build uses the first. Exposed for tests and
+/// benchmarks.
+std::vector<std::string> weightedKernelVariants();
+
+/// Makes later builds in this process use `variant` ("" = the best this CPU
+/// runs); false, changing nothing, if the CPU cannot run it. Process-wide:
+/// not while a build runs.
+bool setWeightedKernelVariant(const std::string& variant);
+
 }  // namespace sandtable::convert
