@@ -115,21 +115,22 @@ int tapBound(const PostMap& cell) {
 }
 
 /// A batch of target posts' taps, lane by lane: dx, dy and z, each `cap`
-/// rows of `lanes` doubles (tap k of lane l at [k * lanes + l]).
+/// rows of W doubles (tap k of lane l at [k * W + l]).
 struct Taps {
-  const double* dx;
-  const double* dy;
-  const double* z;
-  int count[8];  ///< taps per lane; 0 for an unused lane
+  double* dx;
+  double* dy;
+  double* z;
+  int count[8];  ///< taps per lane
 };
 
-/// The plane sums of each lane of a batch: every tap with d2 < r2, in
-/// order. One function per instruction set (WeightedVariant).
-using SumFn = void (*)(const Taps& t, const PostMap& cell, double radius, PlaneSums* out);
+/// The estimate of each lane of a batch from its taps: the plane through
+/// every tap with d2 < r2 that is not a void, summed in order. One function
+/// per instruction set (WeightedVariant).
+using SumFn = void (*)(const Taps& t, const PostMap& cell, double radius, double* estimate);
 
 /// The one-post definition, PlaneSums::add tap by tap: the reference the
 /// vector variants must match bit for bit.
-void sumScalar(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) {
+void sumScalar(const Taps& t, const PostMap& cell, double radius, double* estimate) {
   const double r2 = radius * radius, invR2 = 1.0 / r2;
   PlaneSums s;
   for (int k = 0; k < t.count[0]; ++k) {
@@ -138,7 +139,7 @@ void sumScalar(const Taps& t, const PostMap& cell, double radius, PlaneSums* out
     const double d2 = e * e + n * n;
     if (d2 < r2 && !std::isnan(t.z[k])) s.add(e, n, t.z[k], 1.0 - d2 * invR2);
   }
-  out[0] = s;
+  estimate[0] = s.estimate();
 }
 
 /// sumScalar in W lanes at once, one target post per lane. Each lane does
@@ -154,7 +155,7 @@ struct Lanes {
 };
 
 template <int W>
-[[gnu::always_inline]] inline void sumLanes(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) {
+[[gnu::always_inline]] inline void sumLanes(const Taps& t, const PostMap& cell, double radius, double* estimate) {
   using V = typename Lanes<W>::type;
   using M = typename Lanes<W>::mask;
   const double r2 = radius * radius, invR2 = 1.0 / r2;
@@ -194,29 +195,90 @@ template <int W>
     zMax = V((M(z) & higher) | (M(zMax) & ~higher));
   }
   for (int l = 0; l < W; ++l) {
-    out[l].w = w[l], out[l].wx = wx[l], out[l].wy = wy[l], out[l].wxx = wxx[l], out[l].wxy = wxy[l];
-    out[l].wyy = wyy[l], out[l].wz = wz[l], out[l].wxz = wxz[l], out[l].wyz = wyz[l];
-    out[l].zMin = zMin[l], out[l].zMax = zMax[l];
+    estimate[l] = PlaneSums{w[l], wx[l], wy[l], wxx[l], wxy[l], wyy[l], wz[l], wxz[l], wyz[l], zMin[l], zMax[l]}.estimate();
   }
 }
 
-void sumSse2(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) { sumLanes<2>(t, cell, radius, out); }
-[[gnu::target("avx2")]] void sumAvx2(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) {
-  sumLanes<4>(t, cell, radius, out);
+void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate) {
+  sumLanes<2>(t, cell, radius, estimate);
 }
-/// sumLanes<8> written with AVX-512 intrinsics: GCC 12 turns the generic
-/// vectors' compares into scalar code at this width. Masked adds leave a
-/// lane's sums as they are where it takes no tap, as the scalar code does.
-[[gnu::target("avx512f")]] void sumAvx512(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) {
+[[gnu::target("avx2")]] void sumAvx2(const Taps& t, const PostMap& cell, double radius, double* estimate) {
+  sumLanes<4>(t, cell, radius, estimate);
+}
+// ---- AVX-512: GCC 12 turns generic 8-lane vectors' compares into scalar
+// code, so this width is written with intrinsics. Every lane does the
+// scalar code's operations in its order (as sumLanes).
+
+// static_cast<int>(std::ceil(v)) and (std::floor(v)) per lane. Here and
+// below the maskz forms with a full mask: GCC 12 warns that the plain
+// forms' undefined operand is uninitialised (-Wmaybe-uninitialized).
+[[gnu::target("avx512f")]] inline __m256i ceilToInt(__m512d v) {
+  return _mm512_maskz_cvttpd_epi32(0xff, _mm512_maskz_roundscale_pd(0xff, v, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC));
+}
+[[gnu::target("avx512f")]] inline __m256i floorToInt(__m512d v) {
+  return _mm512_maskz_cvttpd_epi32(0xff, _mm512_maskz_roundscale_pd(0xff, v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+}
+
+/// gatherTaps for 8 posts at once: the box and each row's ellipse bounds
+/// in vectors (one sqrt for 8 posts), the taps copied lane by lane.
+[[gnu::target("avx512f")]] void gatherAvx512(const Window& win, const PostMap& cell, double radius, const double* px,
+                                             const double* py, Taps& t) {
+  const __m512d vpx = _mm512_loadu_pd(px), vpy = _mm512_loadu_pd(py);
+  const __m512d hx = _mm512_set1_pd(cell.hx), hy = _mm512_set1_pd(cell.hy), qymax = _mm512_set1_pd(cell.qymax);
+  const __m256i xa = _mm256_max_epi32(_mm256_set1_epi32(win.x0), ceilToInt(_mm512_sub_pd(vpx, hx)));
+  const __m256i xb = _mm256_min_epi32(_mm256_set1_epi32(win.x0 + win.w - 1), floorToInt(_mm512_add_pd(vpx, hx)));
+  const __m256i ya = _mm256_max_epi32(_mm256_set1_epi32(win.y0), _mm256_max_epi32(ceilToInt(_mm512_sub_pd(vpy, hy)),
+                                                                                   ceilToInt(_mm512_sub_pd(vpy, qymax))));
+  const __m256i yb = _mm256_min_epi32(_mm256_set1_epi32(win.y0 + win.h - 1),
+                                      _mm256_min_epi32(floorToInt(_mm512_add_pd(vpy, hy)),
+                                                       floorToInt(_mm512_add_pd(vpy, qymax))));
+  alignas(32) int yaL[8], ybL[8], lo[8], hi[8];
+  alignas(64) double ryL[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(yaL), ya);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(ybL), yb);
+  const int yFirst = *std::min_element(yaL, yaL + 8), yLast = *std::max_element(ybL, ybL + 8);
+  const __m512d yaD = _mm512_maskz_cvtepi32_pd(0xff, ya), ybD = _mm512_maskz_cvtepi32_pd(0xff, yb);
+  const __m512d disc0 = _mm512_set1_pd(cell.qa * (radius * radius) * (1 + 1e-9)), qdet2 = _mm512_set1_pd(cell.qdet2);
+  const __m512d qinvA = _mm512_set1_pd(cell.qinvA), qb = _mm512_set1_pd(cell.qb), slack = _mm512_set1_pd(1e-6);
+  for (int l = 0; l < 8; ++l) t.count[l] = 0;
+  for (int y = yFirst; y <= yLast; ++y) {
+    const __m512d vy = _mm512_set1_pd(y), ry = _mm512_sub_pd(vy, vpy);
+    const __m512d disc = _mm512_sub_pd(disc0, _mm512_mul_pd(_mm512_mul_pd(qdet2, ry), ry));
+    const unsigned ok = _mm512_cmp_pd_mask(vy, yaD, _CMP_GE_OQ) & _mm512_cmp_pd_mask(vy, ybD, _CMP_LE_OQ) &
+                        _mm512_cmp_pd_mask(disc, _mm512_setzero_pd(), _CMP_NLT_UQ);  // !(disc < 0)
+    if (!ok) continue;
+    const __m512d half = _mm512_add_pd(_mm512_mul_pd(_mm512_maskz_sqrt_pd(0xff, disc), qinvA), slack);
+    const __m512d cx = _mm512_sub_pd(vpx, _mm512_mul_pd(_mm512_mul_pd(qb, ry), qinvA));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(lo), _mm256_max_epi32(xa, ceilToInt(_mm512_sub_pd(cx, half))));
+    _mm256_store_si256(reinterpret_cast<__m256i*>(hi), _mm256_min_epi32(xb, floorToInt(_mm512_add_pd(cx, half))));
+    _mm512_store_pd(ryL, ry);
+    const float* row = win.row(y);
+    for (int l = 0; l < 8; ++l) {
+      if (!(ok >> l & 1u)) continue;
+      std::size_t k = std::size_t(t.count[l]) * 8 + std::size_t(l);
+      for (int x = lo[l]; x <= hi[l]; ++x, k += 8) {
+        t.dx[k] = x - px[l];
+        t.dy[k] = ryL[l];
+        t.z[k] = row[x];
+      }
+      t.count[l] = static_cast<int>(k / 8);
+    }
+  }
+}
+
+/// sumLanes<8> with the plane's estimate (PlaneSums::estimate) in vectors
+/// too. Masked adds leave a lane's sums as they are where it takes no tap,
+/// as the scalar code does.
+[[gnu::target("avx512f")]] void sumAvx512(const Taps& t, const PostMap& cell, double radius, double* estimate) {
   const double r2 = radius * radius, invR2 = 1.0 / r2;
   int kEnd = 0;
   for (int l = 0; l < 8; ++l) kEnd = std::max(kEnd, t.count[l]);
-  const __m512d count = _mm512_set_pd(t.count[7], t.count[6], t.count[5], t.count[4], t.count[3], t.count[2],
-                                      t.count[1], t.count[0]);
+  const __m512d count = _mm512_maskz_cvtepi32_pd(0xff, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.count)));
   const __m512d vr2 = _mm512_set1_pd(r2), vinv = _mm512_set1_pd(invR2), one = _mm512_set1_pd(1.0);
   const __m512d m00 = _mm512_set1_pd(cell.m[0][0]), m01 = _mm512_set1_pd(cell.m[0][1]);
   const __m512d m10 = _mm512_set1_pd(cell.m[1][0]), m11 = _mm512_set1_pd(cell.m[1][1]);
-  __m512d w = _mm512_setzero_pd(), wx = w, wy = w, wxx = w, wxy = w, wyy = w, wz = w, wxz = w, wyz = w;
+  const __m512d zero = _mm512_setzero_pd();
+  __m512d w = zero, wx = zero, wy = zero, wxx = zero, wxy = zero, wyy = zero, wz = zero, wxz = zero, wyz = zero;
   __m512d zMin = _mm512_set1_pd(INFINITY), zMax = _mm512_set1_pd(-INFINITY);
   for (int k = 0; k < kEnd; ++k) {
     const std::size_t o = std::size_t(k) * 8;
@@ -241,12 +303,30 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, PlaneSums* out) 
     zMin = _mm512_mask_min_pd(zMin, take, z, zMin);  // z < zMin ? z : zMin, as std::min(zMin, z)
     zMax = _mm512_mask_max_pd(zMax, take, z, zMax);  // z > zMax ? z : zMax, as std::max(zMax, z)
   }
-  alignas(64) double s[11][8];
-  const __m512d all[11] = {w, wx, wy, wxx, wxy, wyy, wz, wxz, wyz, zMin, zMax};
-  for (int q = 0; q < 11; ++q) _mm512_store_pd(s[q], all[q]);
-  for (int l = 0; l < 8; ++l) {
-    out[l] = {s[0][l], s[1][l], s[2][l], s[3][l], s[4][l], s[5][l], s[6][l], s[7][l], s[8][l], s[9][l], s[10][l]};
-  }
+  // PlaneSums::estimate, lane by lane; each lane then takes the branch the
+  // scalar code takes.
+  const __m512d mx = _mm512_div_pd(wx, w), my = _mm512_div_pd(wy, w), mz = _mm512_div_pd(wz, w);
+  const __m512d wmx = _mm512_mul_pd(w, mx), wmy = _mm512_mul_pd(w, my);
+  const __m512d sxx = _mm512_sub_pd(wxx, _mm512_mul_pd(wmx, mx)), sxy = _mm512_sub_pd(wxy, _mm512_mul_pd(wmx, my));
+  const __m512d syy = _mm512_sub_pd(wyy, _mm512_mul_pd(wmy, my));
+  const __m512d sxz = _mm512_sub_pd(wxz, _mm512_mul_pd(wmx, mz)), syz = _mm512_sub_pd(wyz, _mm512_mul_pd(wmy, mz));
+  const __m512d det = _mm512_sub_pd(_mm512_mul_pd(sxx, syy), _mm512_mul_pd(sxy, sxy));
+  const __m512d tr = _mm512_add_pd(sxx, syy);
+  // std::max(0.0, x): max_pd gives its second operand unless x > 0.
+  const __m512d root =
+      _mm512_maskz_sqrt_pd(0xff, _mm512_maskz_max_pd(0xff, _mm512_sub_pd(_mm512_mul_pd(tr, tr), _mm512_mul_pd(_mm512_set1_pd(4.0), det)), zero));
+  const __m512d half = _mm512_set1_pd(0.5);
+  const __m512d lMin = _mm512_mul_pd(half, _mm512_sub_pd(tr, root)), lMax = _mm512_mul_pd(half, _mm512_add_pd(tr, root));
+  const __m512d b = _mm512_div_pd(_mm512_sub_pd(_mm512_mul_pd(sxz, syy), _mm512_mul_pd(syz, sxy)), det);
+  const __m512d c = _mm512_div_pd(_mm512_sub_pd(_mm512_mul_pd(syz, sxx), _mm512_mul_pd(sxz, sxy)), det);
+  __m512d v = _mm512_sub_pd(_mm512_sub_pd(mz, _mm512_mul_pd(b, mx)), _mm512_mul_pd(c, my));
+  v = _mm512_mask_mov_pd(v, _mm512_cmp_pd_mask(v, zMin, _CMP_LT_OQ), zMin);  // std::clamp(v, zMin, zMax)
+  v = _mm512_mask_mov_pd(v, _mm512_cmp_pd_mask(zMax, v, _CMP_LT_OQ), zMax);
+  const __mmask8 mean = _mm512_cmp_pd_mask(lMax, zero, _CMP_NGT_UQ) |  // !(lMax > 0)
+                        _mm512_cmp_pd_mask(lMin, _mm512_mul_pd(_mm512_set1_pd(0.05), lMax), _CMP_LT_OQ);
+  v = _mm512_mask_mov_pd(v, mean, mz);
+  v = _mm512_mask_mov_pd(v, _mm512_cmp_pd_mask(w, zero, _CMP_LE_OQ), _mm512_set1_pd(NAN));
+  _mm512_storeu_pd(estimate, v);
 }
 
 /// Every target post of lattice cell (c, r) up to column iLast and row
@@ -266,36 +346,44 @@ struct CellArgs {
   std::uint32_t rowBase;
 };
 
-template <std::size_t W, SumFn Sum>
+/// gatherTaps for each of W posts, into its lane.
+template <std::size_t W>
+[[gnu::always_inline]] inline void gatherLanes(const Window& win, const PostMap& cell, double radius, const double* px,
+                                               const double* py, Taps& t) {
+  for (std::size_t l = 0; l < W; ++l) {
+    t.count[l] = gatherTaps(win, cell, px[l], py[l], radius, t.dx + l, t.dy + l, t.z + l, W);
+  }
+}
+
+using GatherFn = void (*)(const Window&, const PostMap&, double, const double*, const double*, Taps&);
+
+template <std::size_t W, GatherFn Gather, SumFn Sum>
 [[gnu::always_inline]] inline void resampleCell(const CellArgs& a) {
   const std::size_t cap = std::size_t(tapBound(a.cell));
   if (a.taps.size() < 3 * cap * W) a.taps.resize(3 * cap * W);
-  double* dx = a.taps.data();
-  double* dy = dx + cap * W;
-  double* z = dy + cap * W;
-  Taps t{dx, dy, z, {}};
-  PlaneSums sums[W];
-  float* dst[W];
+  Taps t{a.taps.data(), a.taps.data() + cap * W, a.taps.data() + 2 * cap * W, {}};
+  double px[W], py[W], estimate[W];
+  float* dst[W] = {};
   std::uint32_t i = a.L.ci[a.c], j = a.L.rj[a.r];
   while (j <= a.jLast) {
     std::size_t lanes = 0;
     for (; lanes < W && j <= a.jLast; ++lanes) {
-      double px, py;
-      positionAt(a.L, a.c, a.r, i, j, px, py);
-      t.count[lanes] = gatherTaps(a.win, a.cell, px, py, a.radius, dx + lanes, dy + lanes, z + lanes, W);
+      positionAt(a.L, a.c, a.r, i, j, px[lanes], py[lanes]);
       dst[lanes] = a.out + std::size_t(j - a.rowBase) * a.outStride + i;
       if (++i > a.iLast) i = a.L.ci[a.c], ++j;
     }
-    for (std::size_t l = lanes; l < W; ++l) t.count[l] = 0;
-    Sum(t, a.cell, a.radius, sums);
-    for (std::size_t l = 0; l < lanes; ++l) *dst[l] = static_cast<float>(sums[l].estimate());
+    // A short last batch repeats its last post in the spare lanes.
+    for (std::size_t l = lanes; l < W; ++l) px[l] = px[lanes - 1], py[l] = py[lanes - 1];
+    Gather(a.win, a.cell, a.radius, px, py, t);
+    Sum(t, a.cell, a.radius, estimate);
+    for (std::size_t l = 0; l < lanes; ++l) *dst[l] = static_cast<float>(estimate[l]);
   }
 }
 
-void cellScalar(const CellArgs& a) { resampleCell<1, sumScalar>(a); }
-void cellSse2(const CellArgs& a) { resampleCell<2, sumSse2>(a); }
-[[gnu::target("avx2")]] void cellAvx2(const CellArgs& a) { resampleCell<4, sumAvx2>(a); }
-[[gnu::target("avx512f")]] void cellAvx512(const CellArgs& a) { resampleCell<8, sumAvx512>(a); }
+void cellScalar(const CellArgs& a) { resampleCell<1, gatherLanes<1>, sumScalar>(a); }
+void cellSse2(const CellArgs& a) { resampleCell<2, gatherLanes<2>, sumSse2>(a); }
+[[gnu::target("avx2")]] void cellAvx2(const CellArgs& a) { resampleCell<4, gatherLanes<4>, sumAvx2>(a); }
+[[gnu::target("avx512f")]] void cellAvx512(const CellArgs& a) { resampleCell<8, gatherAvx512, sumAvx512>(a); }
 
 /// The weighted kernel's instruction-set variants, best first; the build
 /// takes the first the CPU runs (or the one setWeightedKernelVariant chose).
