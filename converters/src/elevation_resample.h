@@ -177,12 +177,19 @@ struct FrameScale {
 bool frameScale(const Frame& f, OGRCoordinateTransformation& toSource, const std::array<double, 6>& geo,
                 FrameScale& out);
 
+/// The weighted kernel's source posts of a batch of target posts
+/// (elevation_weighted.cpp): column, row and value.
+struct TapScratch {
+  std::vector<std::int32_t> x, y;
+  std::vector<float> z;
+};
+
 /// A worker's state for resampling 64-row strips (jobs::Scratch).
 struct StripState {
   WorkerMosaic mosaic;
   Lattice L;
   Window win;
-  std::vector<double> taps;  ///< weighted: a batch's source posts (elevation_weighted.cpp)
+  TapScratch taps;  ///< weighted only
 };
 inline constexpr std::uint32_t kStripRows = kMinBandRows;
 

@@ -77,11 +77,12 @@ namespace {
 /// on each row, inside the radius ellipse (see mapPost; the bounds are
 /// widened a little so rounding never drops a post that the exact d2 < r2
 /// test of the sum would take, which keeps the result identical to testing
-/// the whole box), voids included (the sums skip them). Writes each post's offset in source
-/// posts and value every `stride` doubles of dx, dy and z (one lane of a
-/// batch); returns how many, at most tapBound(cell).
+/// the whole box), voids included (the sums skip them). Writes each post's
+/// column, row and value every `stride` elements of x, y and z (one lane of
+/// a batch); returns how many, at most tapBound(cell).
 [[gnu::always_inline]] inline int gatherTaps(const Window& win, const PostMap& cell, double px, double py,
-                                             double radius, double* dx, double* dy, double* z, std::size_t stride) {
+                                             double radius, std::int32_t* xs, std::int32_t* ys, float* z,
+                                             std::size_t stride) {
   const int xa = std::max(win.x0, static_cast<int>(std::ceil(px - cell.hx)));
   const int xb = std::min(win.x0 + win.w - 1, static_cast<int>(std::floor(px + cell.hx)));
   // Rows beyond qymax have disc < 0 below (mapPost): not even visited.
@@ -91,7 +92,7 @@ namespace {
                            static_cast<int>(std::floor(py + cell.qymax))});
   const double disc0 = cell.qa * (radius * radius) * (1 + 1e-9);
   std::size_t k = 0;
-  for (int y = ya; y <= yb; ++y) {
+  for (std::int32_t y = ya; y <= yb; ++y) {
     const double ry = y - py;
     const double disc = disc0 - cell.qdet2 * ry * ry;
     if (disc < 0) continue;
@@ -100,9 +101,9 @@ namespace {
     const int x0 = std::max(xa, static_cast<int>(std::ceil(cx - half)));
     const int x1 = std::min(xb, static_cast<int>(std::floor(cx + half)));
     const float* row = win.row(y);
-    for (int x = x0; x <= x1; ++x, k += stride) {
-      dx[k] = x - px;
-      dy[k] = ry;
+    for (std::int32_t x = x0; x <= x1; ++x, k += stride) {
+      xs[k] = x;
+      ys[k] = y;
       z[k] = row[x];
     }
   }
@@ -114,13 +115,15 @@ int tapBound(const PostMap& cell) {
   return (static_cast<int>(2 * cell.hx) + 2) * (static_cast<int>(2 * cell.hy) + 2);
 }
 
-/// A batch of target posts' taps, lane by lane: dx, dy and z, each `cap`
-/// rows of W doubles (tap k of lane l at [k * W + l]).
+/// A batch of target posts' taps, lane by lane: source column x, row y and
+/// value z, each `cap` rows of W (tap k of lane l at [k * W + l]). Offsets
+/// from the target post (x - px, y - py) are taken in the sums.
 struct Taps {
-  double* dx;
-  double* dy;
-  double* z;
-  int count[8];  ///< taps per lane
+  std::int32_t* x;
+  std::int32_t* y;
+  float* z;
+  int count[8];            ///< taps per lane
+  double px[8], py[8];     ///< each lane's target post, in source posts
 };
 
 /// The estimate of each lane of a batch from its taps: the plane through
@@ -134,8 +137,9 @@ void sumScalar(const Taps& t, const PostMap& cell, double radius, double* estima
   const double r2 = radius * radius, invR2 = 1.0 / r2;
   PlaneSums s;
   for (int k = 0; k < t.count[0]; ++k) {
-    const double e = cell.m[0][0] * t.dx[k] + cell.m[0][1] * t.dy[k];
-    const double n = cell.m[1][0] * t.dx[k] + cell.m[1][1] * t.dy[k];
+    const double dx = t.x[k] - t.px[0], dy = t.y[k] - t.py[0];
+    const double e = cell.m[0][0] * dx + cell.m[0][1] * dy;
+    const double n = cell.m[1][0] * dx + cell.m[1][1] * dy;
     const double d2 = e * e + n * n;
     if (d2 < r2 && !std::isnan(t.z[k])) s.add(e, n, t.z[k], 1.0 - d2 * invR2);
   }
@@ -152,18 +156,23 @@ template <int W>
 struct Lanes {
   typedef double type __attribute__((vector_size(W * sizeof(double))));
   typedef std::int64_t mask __attribute__((vector_size(W * sizeof(double))));
+  typedef std::int32_t ints __attribute__((vector_size(W * sizeof(std::int32_t))));
+  typedef float floats __attribute__((vector_size(W * sizeof(float))));
 };
 
 template <int W>
 [[gnu::always_inline]] inline void sumLanes(const Taps& t, const PostMap& cell, double radius, double* estimate) {
   using V = typename Lanes<W>::type;
   using M = typename Lanes<W>::mask;
+  using I = typename Lanes<W>::ints;
+  using F = typename Lanes<W>::floats;
   const double r2 = radius * radius, invR2 = 1.0 / r2;
   const V zero = {};
-  V count = zero;
+  V count = zero, px, py;
   int kEnd = 0;
   for (int l = 0; l < W; ++l) {
     count[l] = t.count[l];
+    px[l] = t.px[l], py[l] = t.py[l];
     kEnd = std::max(kEnd, t.count[l]);
   }
   const V vr2 = zero + r2, vinv = zero + invR2, one = zero + 1.0;
@@ -171,10 +180,13 @@ template <int W>
   V w = zero, wx = zero, wy = zero, wxx = zero, wxy = zero, wyy = zero, wz = zero, wxz = zero, wyz = zero;
   V zMin = zero + INFINITY, zMax = zero - INFINITY;
   for (int k = 0; k < kEnd; ++k) {
-    V dx, dy, z;
-    std::memcpy(&dx, t.dx + std::size_t(k) * W, sizeof(V));
-    std::memcpy(&dy, t.dy + std::size_t(k) * W, sizeof(V));
-    std::memcpy(&z, t.z + std::size_t(k) * W, sizeof(V));
+    I x, y;
+    F zf;
+    std::memcpy(&x, t.x + std::size_t(k) * W, sizeof(I));
+    std::memcpy(&y, t.y + std::size_t(k) * W, sizeof(I));
+    std::memcpy(&zf, t.z + std::size_t(k) * W, sizeof(F));
+    const V dx = __builtin_convertvector(x, V) - px, dy = __builtin_convertvector(y, V) - py;
+    const V z = __builtin_convertvector(zf, V);
     const V e = m00 * dx + m01 * dy;
     const V n = m10 * dx + m11 * dy;
     const V d2 = e * e + n * n;
@@ -221,9 +233,8 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
 
 /// gatherTaps for 8 posts at once: the box and each row's ellipse bounds
 /// in vectors (one sqrt for 8 posts), the taps copied lane by lane.
-[[gnu::target("avx512f")]] void gatherAvx512(const Window& win, const PostMap& cell, double radius, const double* px,
-                                             const double* py, Taps& t) {
-  const __m512d vpx = _mm512_loadu_pd(px), vpy = _mm512_loadu_pd(py);
+[[gnu::target("avx512f")]] void gatherAvx512(const Window& win, const PostMap& cell, double radius, Taps& t) {
+  const __m512d vpx = _mm512_loadu_pd(t.px), vpy = _mm512_loadu_pd(t.py);
   const __m512d hx = _mm512_set1_pd(cell.hx), hy = _mm512_set1_pd(cell.hy), qymax = _mm512_set1_pd(cell.qymax);
   const __m256i xa = _mm256_max_epi32(_mm256_set1_epi32(win.x0), ceilToInt(_mm512_sub_pd(vpx, hx)));
   const __m256i xb = _mm256_min_epi32(_mm256_set1_epi32(win.x0 + win.w - 1), floorToInt(_mm512_add_pd(vpx, hx)));
@@ -233,7 +244,6 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
                                       _mm256_min_epi32(floorToInt(_mm512_add_pd(vpy, hy)),
                                                        floorToInt(_mm512_add_pd(vpy, qymax))));
   alignas(32) int yaL[8], ybL[8], lo[8], hi[8];
-  alignas(64) double ryL[8];
   _mm256_store_si256(reinterpret_cast<__m256i*>(yaL), ya);
   _mm256_store_si256(reinterpret_cast<__m256i*>(ybL), yb);
   const int yFirst = *std::min_element(yaL, yaL + 8), yLast = *std::max_element(ybL, ybL + 8);
@@ -251,14 +261,13 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
     const __m512d cx = _mm512_sub_pd(vpx, _mm512_mul_pd(_mm512_mul_pd(qb, ry), qinvA));
     _mm256_store_si256(reinterpret_cast<__m256i*>(lo), _mm256_max_epi32(xa, ceilToInt(_mm512_sub_pd(cx, half))));
     _mm256_store_si256(reinterpret_cast<__m256i*>(hi), _mm256_min_epi32(xb, floorToInt(_mm512_add_pd(cx, half))));
-    _mm512_store_pd(ryL, ry);
     const float* row = win.row(y);
     for (int l = 0; l < 8; ++l) {
       if (!(ok >> l & 1u)) continue;
       std::size_t k = std::size_t(t.count[l]) * 8 + std::size_t(l);
-      for (int x = lo[l]; x <= hi[l]; ++x, k += 8) {
-        t.dx[k] = x - px[l];
-        t.dy[k] = ryL[l];
+      for (std::int32_t x = lo[l]; x <= hi[l]; ++x, k += 8) {
+        t.x[k] = x;
+        t.y[k] = y;
         t.z[k] = row[x];
       }
       t.count[l] = static_cast<int>(k / 8);
@@ -277,12 +286,14 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
   const __m512d vr2 = _mm512_set1_pd(r2), vinv = _mm512_set1_pd(invR2), one = _mm512_set1_pd(1.0);
   const __m512d m00 = _mm512_set1_pd(cell.m[0][0]), m01 = _mm512_set1_pd(cell.m[0][1]);
   const __m512d m10 = _mm512_set1_pd(cell.m[1][0]), m11 = _mm512_set1_pd(cell.m[1][1]);
-  const __m512d zero = _mm512_setzero_pd();
+  const __m512d zero = _mm512_setzero_pd(), px = _mm512_loadu_pd(t.px), py = _mm512_loadu_pd(t.py);
   __m512d w = zero, wx = zero, wy = zero, wxx = zero, wxy = zero, wyy = zero, wz = zero, wxz = zero, wyz = zero;
   __m512d zMin = _mm512_set1_pd(INFINITY), zMax = _mm512_set1_pd(-INFINITY);
   for (int k = 0; k < kEnd; ++k) {
     const std::size_t o = std::size_t(k) * 8;
-    const __m512d dx = _mm512_loadu_pd(t.dx + o), dy = _mm512_loadu_pd(t.dy + o), z = _mm512_loadu_pd(t.z + o);
+    const __m512d dx = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.x + o))), px);
+    const __m512d dy = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.y + o))), py);
+    const __m512d z = _mm512_maskz_cvtps_pd(0xff, _mm256_loadu_ps(t.z + o));
     const __m512d e = _mm512_add_pd(_mm512_mul_pd(m00, dx), _mm512_mul_pd(m01, dy));
     const __m512d n = _mm512_add_pd(_mm512_mul_pd(m10, dx), _mm512_mul_pd(m11, dy));
     const __m512d d2 = _mm512_add_pd(_mm512_mul_pd(e, e), _mm512_mul_pd(n, n));
@@ -340,7 +351,7 @@ struct CellArgs {
   const PostMap& cell;
   std::uint32_t iLast, jLast;
   double radius;
-  std::vector<double>& taps;
+  TapScratch& taps;
   float* out;
   std::size_t outStride;
   std::uint32_t rowBase;
@@ -348,33 +359,32 @@ struct CellArgs {
 
 /// gatherTaps for each of W posts, into its lane.
 template <std::size_t W>
-[[gnu::always_inline]] inline void gatherLanes(const Window& win, const PostMap& cell, double radius, const double* px,
-                                               const double* py, Taps& t) {
+[[gnu::always_inline]] inline void gatherLanes(const Window& win, const PostMap& cell, double radius, Taps& t) {
   for (std::size_t l = 0; l < W; ++l) {
-    t.count[l] = gatherTaps(win, cell, px[l], py[l], radius, t.dx + l, t.dy + l, t.z + l, W);
+    t.count[l] = gatherTaps(win, cell, t.px[l], t.py[l], radius, t.x + l, t.y + l, t.z + l, W);
   }
 }
 
-using GatherFn = void (*)(const Window&, const PostMap&, double, const double*, const double*, Taps&);
+using GatherFn = void (*)(const Window&, const PostMap&, double, Taps&);
 
 template <std::size_t W, GatherFn Gather, SumFn Sum>
 [[gnu::always_inline]] inline void resampleCell(const CellArgs& a) {
   const std::size_t cap = std::size_t(tapBound(a.cell));
-  if (a.taps.size() < 3 * cap * W) a.taps.resize(3 * cap * W);
-  Taps t{a.taps.data(), a.taps.data() + cap * W, a.taps.data() + 2 * cap * W, {}};
-  double px[W], py[W], estimate[W];
+  if (a.taps.z.size() < cap * W) a.taps.x.resize(cap * W), a.taps.y.resize(cap * W), a.taps.z.resize(cap * W);
+  Taps t{a.taps.x.data(), a.taps.y.data(), a.taps.z.data(), {}, {}, {}};
+  double estimate[W];
   float* dst[W] = {};
   std::uint32_t i = a.L.ci[a.c], j = a.L.rj[a.r];
   while (j <= a.jLast) {
     std::size_t lanes = 0;
     for (; lanes < W && j <= a.jLast; ++lanes) {
-      positionAt(a.L, a.c, a.r, i, j, px[lanes], py[lanes]);
+      positionAt(a.L, a.c, a.r, i, j, t.px[lanes], t.py[lanes]);
       dst[lanes] = a.out + std::size_t(j - a.rowBase) * a.outStride + i;
       if (++i > a.iLast) i = a.L.ci[a.c], ++j;
     }
     // A short last batch repeats its last post in the spare lanes.
-    for (std::size_t l = lanes; l < W; ++l) px[l] = px[lanes - 1], py[l] = py[lanes - 1];
-    Gather(a.win, a.cell, a.radius, px, py, t);
+    for (std::size_t l = lanes; l < W; ++l) t.px[l] = t.px[lanes - 1], t.py[l] = t.py[lanes - 1];
+    Gather(a.win, a.cell, a.radius, t);
     Sum(t, a.cell, a.radius, estimate);
     for (std::size_t l = 0; l < lanes; ++l) *dst[l] = static_cast<float>(estimate[l]);
   }
@@ -410,7 +420,7 @@ const WeightedVariant& chosenVariant() {
 
 std::string resampleStrip(const Frame& f, std::uint32_t jBegin, std::uint32_t jEnd, double radius,
                           GDALRasterBand& band, OGRCoordinateTransformation& ct,
-                          const std::array<double, 6>& g, Lattice& L, Window& win, std::vector<double>& taps,
+                          const std::array<double, 6>& g, Lattice& L, Window& win, TapScratch& taps,
                           const SourceImage& image, float* out, std::uint32_t rowBase) {
   if (!L.build(f, jBegin, jEnd, ct, g)) return "resample: PROJ failed to transform target posts to the sources";
   PostMap probe{};
