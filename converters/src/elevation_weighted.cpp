@@ -367,11 +367,27 @@ template <std::size_t W>
 
 using GatherFn = void (*)(const Window&, const PostMap&, double, Taps&);
 
+/// The estimates of a batch's first `lanes` posts (t.px, t.py); a short
+/// batch repeats its last post in the spare lanes.
+template <std::size_t W, GatherFn Gather, SumFn Sum>
+[[gnu::always_inline]] inline void runBatch(const Window& win, const PostMap& cell, double radius, Taps& t,
+                                            std::size_t lanes, double* estimate) {
+  for (std::size_t l = lanes; l < W; ++l) t.px[l] = t.px[lanes - 1], t.py[l] = t.py[lanes - 1];
+  Gather(win, cell, radius, t);
+  Sum(t, cell, radius, estimate);
+}
+
+/// Taps on the worker's scratch, room for W posts of `cell`.
+template <std::size_t W>
+Taps tapsFor(const PostMap& cell, TapScratch& s) {
+  const std::size_t cap = std::size_t(tapBound(cell));
+  if (s.z.size() < cap * W) s.x.resize(cap * W), s.y.resize(cap * W), s.z.resize(cap * W);
+  return Taps{s.x.data(), s.y.data(), s.z.data(), {}, {}, {}};
+}
+
 template <std::size_t W, GatherFn Gather, SumFn Sum>
 [[gnu::always_inline]] inline void resampleCell(const CellArgs& a) {
-  const std::size_t cap = std::size_t(tapBound(a.cell));
-  if (a.taps.z.size() < cap * W) a.taps.x.resize(cap * W), a.taps.y.resize(cap * W), a.taps.z.resize(cap * W);
-  Taps t{a.taps.x.data(), a.taps.y.data(), a.taps.z.data(), {}, {}, {}};
+  Taps t = tapsFor<W>(a.cell, a.taps);
   double estimate[W];
   float* dst[W] = {};
   std::uint32_t i = a.L.ci[a.c], j = a.L.rj[a.r];
@@ -382,11 +398,32 @@ template <std::size_t W, GatherFn Gather, SumFn Sum>
       dst[lanes] = a.out + std::size_t(j - a.rowBase) * a.outStride + i;
       if (++i > a.iLast) i = a.L.ci[a.c], ++j;
     }
-    // A short last batch repeats its last post in the spare lanes.
-    for (std::size_t l = lanes; l < W; ++l) t.px[l] = t.px[lanes - 1], t.py[l] = t.py[lanes - 1];
-    Gather(a.win, a.cell, a.radius, t);
-    Sum(t, a.cell, a.radius, estimate);
+    runBatch<W, Gather, Sum>(a.win, a.cell, a.radius, t, lanes, estimate);
     for (std::size_t l = 0; l < lanes; ++l) *dst[l] = static_cast<float>(estimate[l]);
+  }
+}
+
+/// weightedKernelProbe's posts, in batches as resampleCell runs them.
+struct ProbeArgs {
+  const Window& win;
+  const PostMap& cell;
+  double radius;
+  const double* px;
+  const double* py;
+  std::size_t n;
+  double* out;
+};
+
+template <std::size_t W, GatherFn Gather, SumFn Sum>
+[[gnu::always_inline]] inline void probePosts(const ProbeArgs& a) {
+  TapScratch scratch;
+  Taps t = tapsFor<W>(a.cell, scratch);
+  for (std::size_t k = 0; k < a.n; k += W) {
+    const std::size_t lanes = std::min(W, a.n - k);
+    for (std::size_t l = 0; l < lanes; ++l) t.px[l] = a.px[k + l], t.py[l] = a.py[k + l];
+    double estimate[W];
+    runBatch<W, Gather, Sum>(a.win, a.cell, a.radius, t, lanes, estimate);
+    std::copy(estimate, estimate + lanes, a.out + k);
   }
 }
 
@@ -394,20 +431,32 @@ void cellScalar(const CellArgs& a) { resampleCell<1, gatherLanes<1>, sumScalar>(
 void cellSse2(const CellArgs& a) { resampleCell<2, gatherLanes<2>, sumSse2>(a); }
 [[gnu::target("avx2")]] void cellAvx2(const CellArgs& a) { resampleCell<4, gatherLanes<4>, sumAvx2>(a); }
 [[gnu::target("avx512f")]] void cellAvx512(const CellArgs& a) { resampleCell<8, gatherAvx512, sumAvx512>(a); }
+void probeScalar(const ProbeArgs& a) { probePosts<1, gatherLanes<1>, sumScalar>(a); }
+void probeSse2(const ProbeArgs& a) { probePosts<2, gatherLanes<2>, sumSse2>(a); }
+[[gnu::target("avx2")]] void probeAvx2(const ProbeArgs& a) { probePosts<4, gatherLanes<4>, sumAvx2>(a); }
+[[gnu::target("avx512f")]] void probeAvx512(const ProbeArgs& a) { probePosts<8, gatherAvx512, sumAvx512>(a); }
 
 /// The weighted kernel's instruction-set variants, best first; the build
 /// takes the first the CPU runs (or the one setWeightedKernelVariant chose).
 struct WeightedVariant {
   const char* name;
   void (*cell)(const CellArgs&);
+  void (*probe)(const ProbeArgs&);
   bool (*runs)();
 };
 const WeightedVariant kVariants[] = {
-    {"avx512", cellAvx512, [] { return __builtin_cpu_supports("avx512f") != 0; }},
-    {"avx2", cellAvx2, [] { return __builtin_cpu_supports("avx2") != 0; }},
-    {"sse2", cellSse2, [] { return true; }},
-    {"scalar", cellScalar, [] { return true; }},
+    {"avx512", cellAvx512, probeAvx512, [] { return __builtin_cpu_supports("avx512f") != 0; }},
+    {"avx2", cellAvx2, probeAvx2, [] { return __builtin_cpu_supports("avx2") != 0; }},
+    {"sse2", cellSse2, probeSse2, [] { return true; }},
+    {"scalar", cellScalar, probeScalar, [] { return true; }},
 };
+
+const WeightedVariant* findVariant(const std::string& name) {
+  for (const auto& v : kVariants) {
+    if (name == v.name && v.runs()) return &v;
+  }
+  return nullptr;
+}
 std::atomic<const WeightedVariant*> gChosen{nullptr};
 
 const WeightedVariant& chosenVariant() {
@@ -486,13 +535,26 @@ bool setWeightedKernelVariant(const std::string& variant) {
     detail::gChosen.store(nullptr);
     return true;
   }
-  for (const auto& v : detail::kVariants) {
-    if (variant == v.name && v.runs()) {
-      detail::gChosen.store(&v);
-      return true;
-    }
+  const detail::WeightedVariant* v = detail::findVariant(variant);
+  if (v) detail::gChosen.store(v);
+  return v != nullptr;
+}
+
+std::vector<double> weightedKernelProbe(const std::string& variant, const WeightedProbe& probe,
+                                        const std::vector<double>& px, const std::vector<double>& py) {
+  const detail::WeightedVariant* v = detail::findVariant(variant);
+  detail::PostMap cell{};
+  if (!v || px.size() != py.size() || !probe.image || probe.w <= 0 || probe.h <= 0 ||
+      !detail::postMetric(probe.aXi, probe.aYi, probe.aXj, probe.aYj, probe.spacing, probe.radius, cell)) {
+    return {};
   }
-  return false;
+  detail::Window win;
+  win.w = probe.w, win.h = probe.h;
+  win.base = probe.image;
+  win.stride = std::size_t(probe.w);
+  std::vector<double> out(px.size());
+  v->probe({win, cell, probe.radius, px.data(), py.data(), px.size(), out.data()});
+  return out;
 }
 
 }  // namespace sandtable::convert

@@ -189,4 +189,22 @@ std::vector<std::string> weightedKernelVariants();
 /// not while a build runs.
 bool setWeightedKernelVariant(const std::string& variant);
 
+/// Source posts and target steps for weightedKernelProbe: an image of w x h
+/// source posts (row-major, NaN = void) and the source posts one target
+/// step moves along target i (aXi, aYi) and j (aXj, aYj).
+struct WeightedProbe {
+  const float* image = nullptr;
+  int w = 0, h = 0;
+  double spacing = 30, radius = 30;  ///< target spacing and kernel radius, metres
+  double aXi = 1, aYi = 0, aXj = 0, aYj = 1;
+};
+
+/// The weighted kernel's estimates as the grid stage computes them with
+/// `variant`, before they are stored as float: for target posts at source
+/// positions (px[k], py[k]) (in source posts, post x at x), one lattice
+/// cell's metric. Empty when the CPU cannot run `variant` or the metric is
+/// degenerate. Exposed for tests.
+std::vector<double> weightedKernelProbe(const std::string& variant, const WeightedProbe& probe,
+                                        const std::vector<double>& px, const std::vector<double>& py);
+
 }  // namespace sandtable::convert
