@@ -223,7 +223,7 @@ std::string fileBytes(const std::string& path) {
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
-/// The vector variants (8, 4 or 2 posts at once) against the one-post
+/// The vector variants (8 or 4 posts at once) against the one-post
 /// scalar reference: the same grid file, byte for byte, near native spacing
 /// (the radius a source post's diagonal) and coarser (the radius the
 /// spacing, many more source posts per target post), through voids.
@@ -231,7 +231,7 @@ TEST(Weighted, everyInstructionSetWritesTheSameBytes) {
   TempDir tmp("wvariants");
   const std::string src = writeRough(tmp / "rough.tif");
   const std::vector<std::string> variants = convert::weightedKernelVariants();
-  ASSERT_GE(variants.size(), 2u);
+  ASSERT_FALSE(variants.empty());
   EXPECT_EQ(variants.back(), "scalar");
   std::printf("[ weighted ] variants this CPU runs:");
   for (const auto& v : variants) std::printf(" %s", v.c_str());

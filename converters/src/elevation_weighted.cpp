@@ -151,7 +151,7 @@ void sumScalar(const Taps& t, const PostMap& cell, double radius, double* estima
 /// compiled with -ffp-contract=off), and adds +0.0 where it takes no tap,
 /// which leaves a sum unchanged (a sum from +0.0 is never -0.0), so every
 /// lane's sums are the scalar doubles. Inlined into each instruction set's
-/// wrapper below, which decides the vector instructions.
+/// wrapper below (cellAvx2), which decides the vector instructions.
 template <int W>
 struct Lanes {
   typedef double type __attribute__((vector_size(W * sizeof(double))));
@@ -211,12 +211,6 @@ template <int W>
   }
 }
 
-void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate) {
-  sumLanes<2>(t, cell, radius, estimate);
-}
-[[gnu::target("avx2")]] void sumAvx2(const Taps& t, const PostMap& cell, double radius, double* estimate) {
-  sumLanes<4>(t, cell, radius, estimate);
-}
 // ---- AVX-512: GCC 12 turns generic 8-lane vectors' compares into scalar
 // code, so this width is written with intrinsics. Every lane does the
 // scalar code's operations in its order (as sumLanes).
@@ -229,6 +223,24 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
 }
 [[gnu::target("avx512f")]] inline __m256i floorToInt(__m512d v) {
   return _mm512_maskz_cvttpd_epi32(0xff, _mm512_maskz_roundscale_pd(0xff, v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+}
+
+/// Row y's posts lo[l]..hi[l] appended to lane l's taps, for each lane
+/// whose bit is set in `ok`.
+template <std::size_t W>
+[[gnu::always_inline]] inline void appendRow(const Window& win, std::int32_t y, unsigned ok, const int* lo,
+                                             const int* hi, Taps& t) {
+  const float* row = win.row(y);
+  for (std::size_t l = 0; l < W; ++l) {
+    if (!(ok >> l & 1u)) continue;
+    std::size_t k = std::size_t(t.count[l]) * W + l;
+    for (std::int32_t x = lo[l]; x <= hi[l]; ++x, k += W) {
+      t.x[k] = x;
+      t.y[k] = y;
+      t.z[k] = row[x];
+    }
+    t.count[l] = static_cast<int>(k / W);
+  }
 }
 
 /// gatherTaps for 8 posts at once: the box and each row's ellipse bounds
@@ -261,17 +273,7 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
     const __m512d cx = _mm512_sub_pd(vpx, _mm512_mul_pd(_mm512_mul_pd(qb, ry), qinvA));
     _mm256_store_si256(reinterpret_cast<__m256i*>(lo), _mm256_max_epi32(xa, ceilToInt(_mm512_sub_pd(cx, half))));
     _mm256_store_si256(reinterpret_cast<__m256i*>(hi), _mm256_min_epi32(xb, floorToInt(_mm512_add_pd(cx, half))));
-    const float* row = win.row(y);
-    for (int l = 0; l < 8; ++l) {
-      if (!(ok >> l & 1u)) continue;
-      std::size_t k = std::size_t(t.count[l]) * 8 + std::size_t(l);
-      for (std::int32_t x = lo[l]; x <= hi[l]; ++x, k += 8) {
-        t.x[k] = x;
-        t.y[k] = y;
-        t.z[k] = row[x];
-      }
-      t.count[l] = static_cast<int>(k / 8);
-    }
+    appendRow<8>(win, y, ok, lo, hi, t);
   }
 }
 
@@ -291,8 +293,10 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
   __m512d zMin = _mm512_set1_pd(INFINITY), zMax = _mm512_set1_pd(-INFINITY);
   for (int k = 0; k < kEnd; ++k) {
     const std::size_t o = std::size_t(k) * 8;
-    const __m512d dx = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.x + o))), px);
-    const __m512d dy = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.y + o))), py);
+    const __m256i xi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.x + o));
+    const __m256i yi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(t.y + o));
+    const __m512d dx = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, xi), px);  // x - px
+    const __m512d dy = _mm512_sub_pd(_mm512_maskz_cvtepi32_pd(0xff, yi), py);
     const __m512d z = _mm512_maskz_cvtps_pd(0xff, _mm256_loadu_ps(t.z + o));
     const __m512d e = _mm512_add_pd(_mm512_mul_pd(m00, dx), _mm512_mul_pd(m01, dy));
     const __m512d n = _mm512_add_pd(_mm512_mul_pd(m10, dx), _mm512_mul_pd(m11, dy));
@@ -324,8 +328,8 @@ void sumSse2(const Taps& t, const PostMap& cell, double radius, double* estimate
   const __m512d det = _mm512_sub_pd(_mm512_mul_pd(sxx, syy), _mm512_mul_pd(sxy, sxy));
   const __m512d tr = _mm512_add_pd(sxx, syy);
   // std::max(0.0, x): max_pd gives its second operand unless x > 0.
-  const __m512d root =
-      _mm512_maskz_sqrt_pd(0xff, _mm512_maskz_max_pd(0xff, _mm512_sub_pd(_mm512_mul_pd(tr, tr), _mm512_mul_pd(_mm512_set1_pd(4.0), det)), zero));
+  const __m512d disc = _mm512_sub_pd(_mm512_mul_pd(tr, tr), _mm512_mul_pd(_mm512_set1_pd(4.0), det));
+  const __m512d root = _mm512_maskz_sqrt_pd(0xff, _mm512_maskz_max_pd(0xff, disc, zero));
   const __m512d half = _mm512_set1_pd(0.5);
   const __m512d lMin = _mm512_mul_pd(half, _mm512_sub_pd(tr, root)), lMax = _mm512_mul_pd(half, _mm512_add_pd(tr, root));
   const __m512d b = _mm512_div_pd(_mm512_sub_pd(_mm512_mul_pd(sxz, syy), _mm512_mul_pd(syz, sxy)), det);
@@ -428,13 +432,11 @@ template <std::size_t W, GatherFn Gather, SumFn Sum>
 }
 
 void cellScalar(const CellArgs& a) { resampleCell<1, gatherLanes<1>, sumScalar>(a); }
-void cellSse2(const CellArgs& a) { resampleCell<2, gatherLanes<2>, sumSse2>(a); }
-[[gnu::target("avx2")]] void cellAvx2(const CellArgs& a) { resampleCell<4, gatherLanes<4>, sumAvx2>(a); }
-[[gnu::target("avx512f")]] void cellAvx512(const CellArgs& a) { resampleCell<8, gatherAvx512, sumAvx512>(a); }
+[[gnu::target("avx2")]] void cellAvx2(const CellArgs& a) { resampleCell<4, gatherLanes<4>, sumLanes<4>>(a); }
+[[gnu::target("avx512f"), gnu::flatten]] void cellAvx512(const CellArgs& a) { resampleCell<8, gatherAvx512, sumAvx512>(a); }
 void probeScalar(const ProbeArgs& a) { probePosts<1, gatherLanes<1>, sumScalar>(a); }
-void probeSse2(const ProbeArgs& a) { probePosts<2, gatherLanes<2>, sumSse2>(a); }
-[[gnu::target("avx2")]] void probeAvx2(const ProbeArgs& a) { probePosts<4, gatherLanes<4>, sumAvx2>(a); }
-[[gnu::target("avx512f")]] void probeAvx512(const ProbeArgs& a) { probePosts<8, gatherAvx512, sumAvx512>(a); }
+[[gnu::target("avx2")]] void probeAvx2(const ProbeArgs& a) { probePosts<4, gatherLanes<4>, sumLanes<4>>(a); }
+[[gnu::target("avx512f"), gnu::flatten]] void probeAvx512(const ProbeArgs& a) { probePosts<8, gatherAvx512, sumAvx512>(a); }
 
 /// The weighted kernel's instruction-set variants, best first; the build
 /// takes the first the CPU runs (or the one setWeightedKernelVariant chose).
@@ -447,7 +449,6 @@ struct WeightedVariant {
 const WeightedVariant kVariants[] = {
     {"avx512", cellAvx512, probeAvx512, [] { return __builtin_cpu_supports("avx512f") != 0; }},
     {"avx2", cellAvx2, probeAvx2, [] { return __builtin_cpu_supports("avx2") != 0; }},
-    {"sse2", cellSse2, probeSse2, [] { return true; }},
     {"scalar", cellScalar, probeScalar, [] { return true; }},
 };
 

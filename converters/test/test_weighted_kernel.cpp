@@ -84,7 +84,7 @@ TEST(WeightedKernel, everyVariantGivesTheScalarDoublesBitForBit) {
   const int n = 64;
   const std::vector<float> img = roughImage(n);
   std::vector<double> px, py;
-  positions(n, 333, px, py);  // not a multiple of 8, 4 or 2: a short last batch
+  positions(n, 333, px, py);  // not a multiple of 8 or 4: a short last batch
   const std::vector<std::string> variants = weightedKernelVariants();
   ASSERT_FALSE(variants.empty());
   EXPECT_EQ(variants.back(), "scalar");

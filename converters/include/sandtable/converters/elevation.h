@@ -178,10 +178,10 @@ double weightedPlaneEstimate(const double* dx, const double* dy, const double* z
                              double radius);
 
 /// The grid stage's weighted kernel comes in instruction-set variants, all
-/// giving the same bytes: "avx512" (8 target posts at once), "avx2" (4),
-/// "sse2" (2) and "scalar" (one post at a time, the reference). Those this
-/// CPU runs, best first; a build uses the first. Exposed for tests and
-/// benchmarks.
+/// giving the same bytes: "avx512" (8 target posts at once), "avx2" (4) and
+/// "scalar" (one post at a time, the reference; as fast as two-lane SSE2
+/// code was). Those this CPU runs, best first; a build uses the first.
+/// Exposed for tests and benchmarks.
 std::vector<std::string> weightedKernelVariants();
 
 /// Makes later builds in this process use `variant` ("" = the best this CPU
