@@ -29,6 +29,10 @@ bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i
     aXj = -aYi;
     aYj = aXi;
   }
+  return postMetric(aXi, aYi, aXj, aYj, spacing, radius, out);
+}
+
+bool postMetric(double aXi, double aYi, double aXj, double aYj, double spacing, double radius, PostMap& out) {
   const double det = aXi * aYj - aXj * aYi;
   if (!(std::fabs(det) > 1e-15)) return false;
   out.m[0][0] = spacing * aYj / det;
@@ -44,7 +48,8 @@ bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i
   out.qdet2 = dm * dm;
   out.qinvA = 1.0 / out.qa;
   // Rows beyond |dy| = qymax have no post inside the ellipse (disc < 0 in
-  // estimatePost); a little wider, so rounding keeps every row with one.
+  // the weighted kernel's gathering); a little wider, so rounding keeps
+  // every row with one.
   out.qymax = std::sqrt(out.qa * radius * radius * (1 + 1e-9) / out.qdet2) * (1 + 1e-9) + 1e-6;
   return true;
 }

@@ -81,6 +81,11 @@ struct PostMap {
 bool mapPost(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i, std::uint32_t j,
              double spacing, double radius, PostMap& out);
 
+/// The metric, search box and ellipse terms of `out` (all but px, py) from
+/// the source posts one target step moves along target i (aXi, aYi) and j
+/// (aXj, aYj); false where they are degenerate.
+bool postMetric(double aXi, double aYi, double aXj, double aYj, double spacing, double radius, PostMap& out);
+
 /// Source position of target post (i, j) inside lattice cell (c, r).
 inline void positionAt(const Lattice& L, std::uint32_t c, std::uint32_t r, std::uint32_t i, std::uint32_t j,
                        double& px, double& py) {
@@ -177,11 +182,19 @@ struct FrameScale {
 bool frameScale(const Frame& f, OGRCoordinateTransformation& toSource, const std::array<double, 6>& geo,
                 FrameScale& out);
 
+/// The weighted kernel's source posts of a batch of target posts
+/// (elevation_weighted.cpp): column, row and value.
+struct TapScratch {
+  std::vector<std::int32_t> x, y;
+  std::vector<float> z;
+};
+
 /// A worker's state for resampling 64-row strips (jobs::Scratch).
 struct StripState {
   WorkerMosaic mosaic;
   Lattice L;
   Window win;
+  TapScratch taps;  ///< weighted only
 };
 inline constexpr std::uint32_t kStripRows = kMinBandRows;
 

@@ -177,4 +177,34 @@ bool cancelRequested();
 double weightedPlaneEstimate(const double* dx, const double* dy, const double* z, std::size_t n,
                              double radius);
 
+/// The grid stage's weighted kernel comes in instruction-set variants, all
+/// giving the same bytes: "avx512" (8 target posts at once), "avx2" (4) and
+/// "scalar" (one post at a time, the reference; as fast as two-lane SSE2
+/// code was). Those this CPU runs, best first; a build uses the first.
+/// Exposed for tests and benchmarks.
+std::vector<std::string> weightedKernelVariants();
+
+/// Makes later builds in this process use `variant` ("" = the best this CPU
+/// runs); false, changing nothing, if the CPU cannot run it. Process-wide:
+/// not while a build runs.
+bool setWeightedKernelVariant(const std::string& variant);
+
+/// Source posts and target steps for weightedKernelProbe: an image of w x h
+/// source posts (row-major, NaN = void) and the source posts one target
+/// step moves along target i (aXi, aYi) and j (aXj, aYj).
+struct WeightedProbe {
+  const float* image = nullptr;
+  int w = 0, h = 0;
+  double spacing = 30, radius = 30;  ///< target spacing and kernel radius, metres
+  double aXi = 1, aYi = 0, aXj = 0, aYj = 1;
+};
+
+/// The weighted kernel's estimates as the grid stage computes them with
+/// `variant`, before they are stored as float: for target posts at source
+/// positions (px[k], py[k]) (in source posts, post x at x), one lattice
+/// cell's metric. Empty when the CPU cannot run `variant` or the metric is
+/// degenerate. Exposed for tests.
+std::vector<double> weightedKernelProbe(const std::string& variant, const WeightedProbe& probe,
+                                        const std::vector<double>& px, const std::vector<double>& py);
+
 }  // namespace sandtable::convert
