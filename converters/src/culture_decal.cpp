@@ -79,8 +79,6 @@ DecalStats LevelWork::run() {
   out_.squaresZ = std::uint32_t(nz_);
   // The lattice posts, shared by every skin triangle with a corner there.
   out_.vertices.reserve((nx_ + 1) * (nz_ + 1) * 2);
-  out_.indices.reserve(nx_ * nz_ * 2 * 3 * 2);  // capacity only: every triangle once, room for cuts
-  out_.groups.reserve(nx_ * nz_ * 2 * 2);
   for (std::size_t j = 0; j <= nz_; ++j) {
     for (std::size_t i = 0; i <= nx_; ++i) {
       out_.vertices.push_back({float(lat_.xs[i]), lat_.heights[j * (nx_ + 1) + i], float(lat_.zs[j]),

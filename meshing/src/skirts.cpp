@@ -141,12 +141,6 @@ void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, floa
     if (cache[k] == UINT32_MAX && p.y == lat.heights[k]) cache[k] = v;
   }
   const std::size_t sx = lat.xs.size() - 1, sz = lat.zs.size() - 1;
-  // Room for every node's four sides up front (capacity only).
-  const std::size_t n = std::max<std::size_t>(node, 1);
-  const std::size_t nodes = ((sx + n - 1) / n) * ((sz + n - 1) / n);
-  groups.reserve(nodes);
-  indices.reserve(nodes * 4 * n * 6);
-  level.vertices.reserve(level.vertices.size() + nodes * 4 * (n + 1));
   std::vector<std::uint32_t> top;
   terrain::forEachSkirtNode(sx, sz, node, [&](std::uint32_t square, const std::array<terrain::SkirtSide, 4>& sides) {
     Group g;
