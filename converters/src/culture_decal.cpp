@@ -52,24 +52,6 @@ LevelWork::LevelWork(const CultureImpl& culture, const ModuleCell& cell, const L
   skinT0_ = wrap(lat.moduleZ);
 }
 
-namespace {
-thread_local bool scratchBusy = false;
-}  // namespace
-
-LevelWork::Scratch& LevelWork::acquireScratch(std::unique_ptr<Scratch>& own) {
-  thread_local Scratch scratch;
-  if (scratchBusy) {
-    own = std::make_unique<Scratch>();
-    return *own;
-  }
-  scratchBusy = true;
-  return scratch;
-}
-
-LevelWork::~LevelWork() {
-  if (!own_) scratchBusy = false;
-}
-
 DecalStats LevelWork::run() {
   out_.vertices.clear();
   out_.indices.clear();
@@ -86,13 +68,10 @@ DecalStats LevelWork::run() {
     }
   }
   const std::size_t nl = cell_.layers.size();
-  // Scratch vectors are cleared, not freed: they keep their capacity.
   layers_.resize(nl);
   centre_.resize(nl);
-  runs_.resize(nl);
-  runIndices_.resize(nl);
-  for (std::size_t l = 0; l < nl; ++l) runs_[l].clear(), runIndices_[l].clear();
-  decalVertices_.clear();
+  runs_.assign(nl, {});
+  runIndices_.assign(nl, {});
   for (std::size_t l = 0; l < nl; ++l) prepare(l);
   stats_.failures = cell_.failures;
   // Skin groups are written as each grid triangle is done (their order is

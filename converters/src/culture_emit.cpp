@@ -148,7 +148,7 @@ void LevelWork::roadST(std::size_t l, Vec2 p, float& s, float& t) const {
   if (layer.centre.empty()) return;
   const auto c = std::uint32_t(std::clamp(std::floor((p.x - ix.x0) / ix.cell), 0.0, double(ix.cols - 1)));
   const auto r = std::uint32_t(std::clamp(std::floor((p.z - ix.z0) / ix.cell), 0.0, double(ix.rows - 1)));
-  const std::size_t bucket = std::size_t(r) * ix.cols + c;
+  const auto& bucket = ix.buckets[std::size_t(r) * ix.cols + c];
   double best = std::numeric_limits<double>::infinity();
   const CentreSeg* seg = nullptr;
   double along = 0;
@@ -159,7 +159,7 @@ void LevelWork::roadST(std::size_t l, Vec2 p, float& s, float& t) const {
     const double dist = length(p - (cs.a + u * d));
     if (dist < best) best = dist, seg = &cs, along = u * std::sqrt(len2);
   };
-  for (std::uint32_t i = ix.start[bucket]; i < ix.start[bucket + 1]; ++i) consider(layer.centre[ix.segs[i]]);
+  for (std::uint32_t k : bucket) consider(layer.centre[k]);
   if (!seg) {
     for (const CentreSeg& cs : layer.centre) consider(cs);
   }

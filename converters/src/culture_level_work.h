@@ -10,7 +10,6 @@
 // Thread safety: a LevelWork belongs to one thread.
 #include <cstddef>
 #include <cstdint>
-#include <memory>
 #include <utility>
 #include <vector>
 
@@ -104,26 +103,18 @@ struct LevelLayer {
   std::vector<std::uint8_t> touched;  ///< per square: bit 0 upper, bit 1 lower
 };
 
-/// Nearest centreline for road texture coordinates: a bucket grid, CSR
-/// (bucket b holds segs[start[b] .. start[b + 1]), in segment order).
+/// Nearest centreline for road texture coordinates: a bucket grid.
 struct CentreIndex {
   double x0 = 0, z0 = 0, cell = 1;
   std::uint32_t cols = 1, rows = 1;
-  std::vector<std::uint32_t> start;
-  std::vector<std::uint32_t> segs;
-  std::vector<std::uint32_t> fill;  ///< scratch of indexCentre
+  std::vector<std::vector<std::uint32_t>> buckets;
 };
 
-/// Fills ix (its vectors keep their capacity: one index per layer per
-/// level of every module).
-void indexCentre(const ModuleCell::Layer& layer, const Box& rect, CentreIndex& ix);
+CentreIndex indexCentre(const ModuleCell::Layer& layer, const Box& rect);
 
 class LevelWork {
  public:
   LevelWork(const CultureImpl& culture, const ModuleCell& cell, const LevelLattice& lat, Level& out);
-  ~LevelWork();
-  LevelWork(const LevelWork&) = delete;
-  LevelWork& operator=(const LevelWork&) = delete;
 
 
   DecalStats run();
@@ -161,7 +152,7 @@ class LevelWork {
   struct Poly {
     std::uint32_t layer = 0;
     std::uint16_t label = 0;
-    std::uint32_t first = 0, count = 0;  ///< its points: polyIds_[first .. first + count), positive order
+    std::vector<std::uint32_t> ids;  ///< into points_, positive order
   };
   struct OutTri {
     std::uint32_t poly;
@@ -259,57 +250,23 @@ class LevelWork {
   bool stepped_ = false;  ///< vertices on CultureOptions::vertexStep
   double skinS0_ = 0, skinT0_ = 0;
   DecalStats stats_;
-
-  /// Every vector the level's run grows, kept per thread between runs (a
-  /// LevelWork is made per level of every module: allocating them afresh
-  /// each time was a large share of the cut's cost).
-  struct Scratch {
-    std::vector<LevelLayer> layers;
-    std::vector<CentreIndex> centre;
-    std::vector<std::vector<Run>> runs;
-    std::vector<std::vector<std::uint32_t>> runIndices;
-    std::vector<Vertex> decalVertices;
-    std::vector<Mode> modes;
-    std::vector<std::uint16_t> labels;
-    std::vector<CP> clipped, clipTmp;
-    std::vector<std::pair<CP, std::size_t>> flat;
-    std::vector<std::size_t> order;
-    std::vector<std::uint32_t> pointOf;
-    std::vector<SnapPoint> points;
-    std::vector<Poly> polys;
-    std::vector<std::uint32_t> polyIds;
-    std::vector<std::uint32_t> snapOrder, reps, mapped, vertexOf;
-    std::vector<OutTri> tris;
-    std::vector<bool> polyUsed;
-  };
-  /// This thread's scratch (a LevelWork belongs to one thread), or, should
-  /// the thread already be running another LevelWork, a fresh one in own.
-  static Scratch& acquireScratch(std::unique_ptr<Scratch>& own);
-
-  std::unique_ptr<Scratch> own_;
-  Scratch& s_ = acquireScratch(own_);
-  std::vector<LevelLayer>& layers_ = s_.layers;
-  std::vector<CentreIndex>& centre_ = s_.centre;
-  std::vector<std::vector<Run>>& runs_ = s_.runs;
-  std::vector<std::vector<std::uint32_t>>& runIndices_ = s_.runIndices;  ///< into decalVertices_
-  std::vector<Vertex>& decalVertices_ = s_.decalVertices;                ///< appended after all skin
+  std::vector<LevelLayer> layers_;
+  std::vector<CentreIndex> centre_;
+  std::vector<std::vector<Run>> runs_;
+  std::vector<std::vector<std::uint32_t>> runIndices_;  ///< into decalVertices_
+  std::vector<Vertex> decalVertices_;                   ///< appended after all skin
   // Scratch, reused across grid triangles.
-  std::vector<Mode>& modes_ = s_.modes;
-  std::vector<std::uint16_t>& labels_ = s_.labels;
-  std::vector<CP>& clipped_ = s_.clipped;
-  std::vector<CP>& clipTmp_ = s_.clipTmp;
-  std::vector<std::pair<CP, std::size_t>>& flat_ = s_.flat;
-  std::vector<std::size_t>& order_ = s_.order;
-  std::vector<std::uint32_t>& pointOf_ = s_.pointOf;
-  std::vector<SnapPoint>& points_ = s_.points;
-  std::vector<Poly>& polys_ = s_.polys;
-  std::vector<std::uint32_t>& polyIds_ = s_.polyIds;
-  std::vector<std::uint32_t>& snapOrder_ = s_.snapOrder;
-  std::vector<std::uint32_t>& reps_ = s_.reps;
-  std::vector<std::uint32_t>& mapped_ = s_.mapped;
-  std::vector<std::uint32_t>& vertexOf_ = s_.vertexOf;
-  std::vector<OutTri>& tris_ = s_.tris;
-  std::vector<bool>& polyUsed_ = s_.polyUsed;
+  std::vector<Mode> modes_;
+  std::vector<std::uint16_t> labels_;
+  std::vector<CP> clipped_, clipTmp_;
+  std::vector<std::pair<CP, std::size_t>> flat_;
+  std::vector<std::size_t> order_;
+  std::vector<std::uint32_t> pointOf_;
+  std::vector<SnapPoint> points_;
+  std::vector<Poly> polys_;
+  std::vector<std::uint32_t> snapOrder_, reps_, mapped_, vertexOf_;
+  std::vector<OutTri> tris_;
+  std::vector<bool> polyUsed_;
 };
 
 }  // namespace culture

@@ -10,34 +10,25 @@
 namespace sandtable::convert {
 namespace culture {
 
-void indexCentre(const ModuleCell::Layer& layer, const Box& rect, CentreIndex& ix) {
+CentreIndex indexCentre(const ModuleCell::Layer& layer, const Box& rect) {
+  CentreIndex ix;
   ix.x0 = rect.x0, ix.z0 = rect.z0;
   ix.cell = std::max({(rect.x1 - rect.x0) / 32.0, (rect.z1 - rect.z0) / 32.0, 1.0});
   ix.cols = std::uint32_t(std::ceil((rect.x1 - rect.x0) / ix.cell)) + 1;
   ix.rows = std::uint32_t(std::ceil((rect.z1 - rect.z0) / ix.cell)) + 1;
-  const auto col = [&](double x) { return std::uint32_t(std::clamp(std::floor((x - ix.x0) / ix.cell), 0.0, double(ix.cols - 1))); };
-  const auto row = [&](double z) { return std::uint32_t(std::clamp(std::floor((z - ix.z0) / ix.cell), 0.0, double(ix.rows - 1))); };
-  // Two passes over the segments (count, then fill), so each bucket lists
-  // its segments in segment order.
-  auto forEachCell = [&](auto&& fn) {
-    for (std::uint32_t k = 0; k < layer.centre.size(); ++k) {
-      const CentreSeg& s = layer.centre[k];
-      Box b;
-      b.add(s.a), b.add(s.b);
-      b = b.grown(s.width + 1.0);
-      for (std::uint32_t r = row(b.z0); r <= row(b.z1); ++r) {
-        for (std::uint32_t c = col(b.x0); c <= col(b.x1); ++c) fn(std::size_t(r) * ix.cols + c, k);
-      }
+  ix.buckets.assign(std::size_t(ix.cols) * ix.rows, {});
+  for (std::uint32_t k = 0; k < layer.centre.size(); ++k) {
+    const CentreSeg& s = layer.centre[k];
+    Box b;
+    b.add(s.a), b.add(s.b);
+    b = b.grown(s.width + 1.0);
+    const auto col = [&](double x) { return std::uint32_t(std::clamp(std::floor((x - ix.x0) / ix.cell), 0.0, double(ix.cols - 1))); };
+    const auto row = [&](double z) { return std::uint32_t(std::clamp(std::floor((z - ix.z0) / ix.cell), 0.0, double(ix.rows - 1))); };
+    for (std::uint32_t r = row(b.z0); r <= row(b.z1); ++r) {
+      for (std::uint32_t c = col(b.x0); c <= col(b.x1); ++c) ix.buckets[std::size_t(r) * ix.cols + c].push_back(k);
     }
-  };
-  const std::size_t buckets = std::size_t(ix.cols) * ix.rows;
-  ix.start.assign(buckets + 1, 0);
-  forEachCell([&](std::size_t bucket, std::uint32_t) { ++ix.start[bucket + 1]; });
-  for (std::size_t b = 0; b < buckets; ++b) ix.start[b + 1] += ix.start[b];
-  ix.segs.resize(ix.start[buckets]);
-  std::vector<std::uint32_t>& fill = ix.fill;
-  fill.assign(ix.start.begin(), ix.start.end() - 1);
-  forEachCell([&](std::size_t bucket, std::uint32_t k) { ix.segs[fill[bucket]++] = k; });
+  }
+  return ix;
 }
 
 
@@ -134,7 +125,7 @@ void LevelWork::prepare(std::size_t l) {
       for (std::size_t c = range[p][0]; c <= range[p][1]; ++c) ll.pieces[fill[r * nx_ + c]++] = std::uint32_t(p);
     }
   }
-  if (!layer.geo.skin) indexCentre(layer, cell_.rect, centre_[l]);
+  if (!layer.geo.skin) centre_[l] = indexCentre(layer, cell_.rect);
 }
 
 

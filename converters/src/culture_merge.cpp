@@ -45,11 +45,10 @@ double LevelWork::area2(const OutTri& o) const {
 /// Polygons of layers [first, end) in the triangle, points unified.
 void LevelWork::gather(std::size_t sq, const Tri& t, std::size_t first, std::size_t end) {
   polys_.clear();
-  polyIds_.clear();
   flat_.clear();
   for (std::size_t l = first; l < end; ++l) {
     if (modes_[l] == Mode::whole) {
-      polys_.push_back({std::uint32_t(l), labels_[l], 0, 0});
+      polys_.push_back({std::uint32_t(l), labels_[l], {}});
       for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]}, t);
       continue;
     }
@@ -63,13 +62,13 @@ void LevelWork::gather(std::size_t sq, const Tri& t, std::size_t first, std::siz
       clipPiece(piece.pts, t, clipped_, clipTmp_);
       if (clipped_.empty()) continue;
       any = true;
-      polys_.push_back({std::uint32_t(l), piece.label, 0, 0});
+      polys_.push_back({std::uint32_t(l), piece.label, {}});
       for (const CP& p : clipped_) addPoint(p, t);
     }
     if (!any && l == 0) {
       // No skin piece reached the triangle (never expected): the label
       // at its centroid covers it.
-      polys_.push_back({0, labelAt(0, sq, (1.0 / 3.0) * (t.c[0] + t.c[1] + t.c[2])), 0, 0});
+      polys_.push_back({0, labelAt(0, sq, (1.0 / 3.0) * (t.c[0] + t.c[1] + t.c[2])), {}});
       for (int k = 0; k < 3; ++k) addPoint({t.c[k], t.cb[k]}, t);
     }
   }
@@ -100,15 +99,12 @@ void LevelWork::gather(std::size_t sq, const Tri& t, std::size_t first, std::siz
     }
     if (!moved) break;
   }
-  // flat_ holds each polygon's points together, polygons in order: their
-  // ids are ranges of polyIds_.
   for (std::size_t k = 0; k < flat_.size(); ++k) {
-    Poly& p = polys_[flat_[k].second];
-    if (p.count == 0) p.first = std::uint32_t(polyIds_.size());
-    if (p.count == 0 || polyIds_.back() != pointOf_[k]) polyIds_.push_back(pointOf_[k]), ++p.count;
+    auto& ids = polys_[flat_[k].second].ids;
+    if (ids.empty() || ids.back() != pointOf_[k]) ids.push_back(pointOf_[k]);
   }
   for (Poly& p : polys_) {
-    while (p.count > 1 && polyIds_[p.first] == polyIds_[p.first + p.count - 1]) --p.count;
+    while (p.ids.size() > 1 && p.ids.front() == p.ids.back()) p.ids.pop_back();
   }
 }
 
@@ -184,17 +180,15 @@ bool LevelWork::triangulate() {
   for (std::uint32_t k = 0; k < polys_.size(); ++k) {
     std::vector<std::uint32_t>& m = mapped_;
     m.clear();
-    const Poly& poly = polys_[k];
-    for (std::uint32_t i = poly.first; i < poly.first + poly.count; ++i) {
-      const std::uint32_t r = points_[polyIds_[i]].rep;
+    for (std::uint32_t id : polys_[k].ids) {
+      const std::uint32_t r = points_[id].rep;
       if (m.empty() || m.back() != r) m.push_back(r);
     }
     while (m.size() > 1 && m.front() == m.back()) m.pop_back();
     if (m.size() < 3) continue;
     if (!fanOrClip(k, m)) {
       ok = false;
-      for (std::uint32_t i = poly.first; i < poly.first + poly.count; ++i) {
-        const std::uint32_t id = polyIds_[i];
+      for (std::uint32_t id : polys_[k].ids) {
         if (points_[id].rep != id) points_[id].fixed = true;
       }
     }
