@@ -21,10 +21,32 @@ std::vector<float> skirtDepths(const std::vector<LevelLattice>& lats, const Modu
   const std::uint32_t w = m.i1 - m.i0 + 1, h = m.j1 - m.j0 + 1;
   std::vector<double> lowest(std::size_t(w) * h, std::numeric_limits<double>::infinity());
   std::vector<std::vector<double>> surf(std::size_t(levels), std::vector<double>(lowest.size()));
+  // surfaceAt(lat, m, l, i, j), with each column's and row's span and
+  // fraction worked out once instead of at every post.
+  struct Axis {
+    std::size_t cell;  ///< lattice column (row) of the span's first post
+    double f;          ///< fraction along the span
+  };
+  auto axis = [](std::uint32_t first, std::uint32_t last, std::uint32_t step, std::uint32_t n) {
+    std::vector<Axis> out(n);
+    for (std::uint32_t k = 0; k < n; ++k) {
+      const terrain::LatticeSpan s = terrain::latticeSpan(first + k, first, last, step);
+      out[k] = {(s.a - first) / step, s.fraction(first + k)};
+    }
+    return out;
+  };
   for (int l = 0; l < levels; ++l) {
+    const LevelLattice& lat = lats[std::size_t(l)];
+    const std::uint32_t step = 1u << l;
+    const std::vector<Axis> xs = axis(m.i0, m.i1, step, w), zs = axis(m.j0, m.j1, step, h);
+    const std::size_t lw = m.cols[std::size_t(l)].size();
     for (std::uint32_t j = 0; j < h; ++j) {
+      const std::size_t b = zs[j].cell;
       for (std::uint32_t i = 0; i < w; ++i) {
-        const double v = surfaceAt(lats[std::size_t(l)], m, l, m.i0 + i, m.j0 + j);
+        const std::size_t a = xs[i].cell;
+        const double nw = lat.heights[b * lw + a], ne = lat.heights[b * lw + a + 1];
+        const double sw = lat.heights[(b + 1) * lw + a], se = lat.heights[(b + 1) * lw + a + 1];
+        const double v = terrain::planeHeight(xs[i].f, zs[j].f, nw, ne, sw, se);
         surf[std::size_t(l)][j * w + i] = v;
         lowest[j * w + i] = std::min(lowest[j * w + i], v);
       }
@@ -89,6 +111,20 @@ std::uint32_t latticeVertex(Level& level, const LevelLattice& lat, std::size_t a
   return cache[k];
 }
 
+/// std::lower_bound(xs, v) as an index, for lattice coordinates about
+/// `spacing` apart: starts at the guess v / spacing and steps to the
+/// answer (a binary search per vertex was most of addSkirts' time).
+std::size_t firstAtOrAbove(const std::vector<double>& xs, double spacing, double v) {
+  const std::size_t n = xs.size();
+  if (!(v > xs.front()) || !(spacing > 0)) {
+    return std::size_t(std::lower_bound(xs.begin(), xs.end(), v) - xs.begin());
+  }
+  std::size_t i = std::size_t(std::min(double(n), std::ceil((v - xs.front()) / spacing)));
+  while (i > 0 && xs[i - 1] >= v) --i;
+  while (i < n && xs[i] < v) ++i;
+  return i;
+}
+
 /// The skirt groups and their indices, apart from the level's.
 void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, float depth, std::uint16_t material,
                  std::vector<Group>& groups, std::vector<std::uint32_t>& indices) {
@@ -97,11 +133,11 @@ void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, floa
   std::vector<std::uint32_t> cache(lat.xs.size() * lat.zs.size(), UINT32_MAX);
   for (std::uint32_t v = 0; v < level.vertices.size(); ++v) {
     const Vertex& p = level.vertices[v];
-    const auto a = std::lower_bound(lat.xs.begin(), lat.xs.end(), double(p.x) - 1e-4);
-    const auto b = std::lower_bound(lat.zs.begin(), lat.zs.end(), double(p.z) - 1e-4);
-    if (a == lat.xs.end() || b == lat.zs.end()) continue;
-    if (float(*a) != p.x || float(*b) != p.z) continue;
-    const std::size_t k = std::size_t(b - lat.zs.begin()) * lat.xs.size() + std::size_t(a - lat.xs.begin());
+    const std::size_t a = firstAtOrAbove(lat.xs, lat.spacing, double(p.x) - 1e-4);
+    const std::size_t b = firstAtOrAbove(lat.zs, lat.spacing, double(p.z) - 1e-4);
+    if (a == lat.xs.size() || b == lat.zs.size()) continue;
+    if (float(lat.xs[a]) != p.x || float(lat.zs[b]) != p.z) continue;
+    const std::size_t k = b * lat.xs.size() + a;
     if (cache[k] == UINT32_MAX && p.y == lat.heights[k]) cache[k] = v;
   }
   const std::size_t sx = lat.xs.size() - 1, sz = lat.zs.size() - 1;
@@ -139,7 +175,15 @@ void mergeGroups(Level& level, const std::vector<Group>& extra, const std::vecto
   all.reserve(level.groups.size() + extra.size());
   for (const Group& g : level.groups) all.push_back({g, false});
   for (const Group& g : extra) all.push_back({g, true});
-  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return groupBefore(a.first, b.first); });
+  const auto before = [](const auto& a, const auto& b) { return groupBefore(a.first, b.first); };
+  // Both runs are usually sorted already (the skin in square order, the
+  // skirts too): a merge then gives what the stable sort would.
+  const auto mid = all.begin() + std::ptrdiff_t(level.groups.size());
+  if (std::is_sorted(all.begin(), mid, before) && std::is_sorted(mid, all.end(), before)) {
+    std::inplace_merge(all.begin(), mid, all.end(), before);
+  } else {
+    std::stable_sort(all.begin(), all.end(), before);
+  }
   std::vector<std::uint32_t> indices;
   indices.reserve(level.indices.size() + extraIndices.size());
   level.groups.clear();
