@@ -165,7 +165,9 @@ TEST_F(ViewerLod, GrowingTheViewDistanceInFlightGrowsTheWindowWithoutAHole) {
   // gets there whatever the machine's speed; the frames between race the
   // loaders, and none of them may show a hole.
   hooks.onPaged = [](std::uint32_t k, paging::Pager& pager) {
-    if (k % 10 == 9) ASSERT_TRUE(pager.waitIdle(120));
+    if (k % 10 == 9) {
+      ASSERT_TRUE(pager.waitIdle(120));
+    }
   };
   std::uint64_t worst = 0;
   hooks.onFrame = [&](std::uint32_t, const render::Image& i) {
