@@ -247,14 +247,16 @@ Status decodeObjectsV6(std::span<const std::byte> bytes, const std::string& file
     return Status(Problem{file, base + off, "module: objects: " + msg});
   };
   const std::byte* const data = bytes.data();
-  auto need = [&](std::size_t at, std::uint64_t n, const std::string& what) -> Status {
+  // `what` names the part only on failure: a sound decode builds no string
+  // (the pager's loaders decode without allocating once warm).
+  auto need = [&](std::size_t at, std::uint64_t n, auto what) -> Status {
     if (bytes.size() - at < n) {
-      return fail(bytes.size(), "truncated: " + what + " needs " + str(n) + " bytes, " + str(bytes.size() - at) +
+      return fail(bytes.size(), "truncated: " + what() + " needs " + str(n) + " bytes, " + str(bytes.size() - at) +
                                     " remain");
     }
     return {};
   };
-  if (Status st = need(pos, kObjectsHeaderBytes6, "the objects header"); !st) return st;
+  if (Status st = need(pos, kObjectsHeaderBytes6, [] { return std::string("the objects header"); }); !st) return st;
   const std::byte* h = data + pos;
   const auto n = loadLE<std::uint32_t>(h + 0);
   const auto ruleCount = loadLE<std::uint16_t>(h + 4);
@@ -278,7 +280,7 @@ Status decodeObjectsV6(std::span<const std::byte> bytes, const std::string& file
   }
   if (n > 0 && paletteCount == 0) return fail(pos + 6, "explicit objects need a palette");
   std::size_t at = pos + kObjectsHeaderBytes6;
-  if (Status st = need(at, std::uint64_t(kPaletteBytes6) * paletteCount, str(paletteCount) + " palette entries"); !st) {
+  if (Status st = need(at, std::uint64_t(kPaletteBytes6) * paletteCount, [&] { return str(paletteCount) + " palette entries"; }); !st) {
     return st;
   }
   struct Entry {
@@ -303,12 +305,12 @@ Status decodeObjectsV6(std::span<const std::byte> bytes, const std::string& file
     std::size_t list;  ///< offset of its list
     std::uint32_t listCount;
   };
-  if (Status st = need(at, std::uint64_t(kRuleBytes6) * ruleCount, str(ruleCount) + " rules"); !st) return st;
+  if (Status st = need(at, std::uint64_t(kRuleBytes6) * ruleCount, [&] { return str(ruleCount) + " rules"; }); !st) return st;
   std::vector<Stored> rules;
   rules.reserve(ruleCount);
   std::uint64_t total = n;
   for (std::uint32_t r = 0; r < ruleCount; ++r) {
-    if (Status st = need(at, kRuleBytes6, "rule " + str(r)); !st) return st;
+    if (Status st = need(at, kRuleBytes6, [&] { return "rule " + str(r); }); !st) return st;
     const std::byte* q = data + at;
     Stored x{};
     x.rule.icon = loadLE<std::uint16_t>(q);
@@ -322,49 +324,49 @@ Status decodeObjectsV6(std::span<const std::byte> bytes, const std::string& file
     x.rule.radius = loadLE<float>(q + 40);
     x.rule.height = loadLE<float>(q + 44);
     x.listCount = loadLE<std::uint32_t>(q + 48);
-    const std::string name = "rule " + str(r) + " ";
+    const auto name = [&] { return "rule " + str(r) + " "; };
     if (x.mode > kRuleBitmap || q[7] != std::byte{0} || loadLE<std::uint32_t>(q + 52) != 0) {
-      return fail(at + 6, name + "mode must be 0 or 1 and its reserved bytes 0");
+      return fail(at + 6, name() + "mode must be 0 or 1 and its reserved bytes 0");
     }
-    if (x.rule.index > 0x7fff) return fail(at + 4, name + "index " + str(x.rule.index) + " is over 32767");
+    if (x.rule.index > 0x7fff) return fail(at + 4, name() + "index " + str(x.rule.index) + " is over 32767");
     for (const Stored& y : rules) {
-      if (y.rule.index == x.rule.index) return fail(at + 4, name + "index " + str(x.rule.index) + " is repeated");
+      if (y.rule.index == x.rule.index) return fail(at + 4, name() + "index " + str(x.rule.index) + " is repeated");
     }
-    if (!(std::isfinite(x.rule.cell) && x.rule.cell > 0)) return fail(at + 8, name + "cell is not finite and positive");
+    if (!(std::isfinite(x.rule.cell) && x.rule.cell > 0)) return fail(at + 8, name() + "cell is not finite and positive");
     if (!(std::isfinite(x.rule.scaleMin) && x.rule.scaleMin > 0 && std::isfinite(x.rule.scaleMax) &&
           x.rule.scaleMax >= x.rule.scaleMin)) {
-      return fail(at + 24, name + "scale range is not finite, positive and in order");
+      return fail(at + 24, name() + "scale range is not finite, positive and in order");
     }
     if (!(std::isfinite(x.rule.radius) && x.rule.radius >= 0 && std::isfinite(x.rule.height) && x.rule.height >= 0)) {
-      return fail(at + 40, name + "cylinder is not finite and >= 0");
+      return fail(at + 40, name() + "cylinder is not finite and >= 0");
     }
     // The candidate count, in doubles before any integer is formed.
     const double columns = std::floor((s.x0 + s.width) / x.rule.cell) - std::floor(s.x0 / x.rule.cell) + 1;
     const double rows = std::floor((s.z0 + s.depth) / x.rule.cell) - std::floor(s.z0 / x.rule.cell) + 1;
     if (!(columns * rows <= double(kMaxObjects - total))) {
-      return fail(at + 8, name + "cell " + std::to_string(x.rule.cell) + " m makes " +
+      return fail(at + 8, name() + "cell " + std::to_string(x.rule.cell) + " m makes " +
                               (std::isfinite(columns * rows) ? str(std::uint64_t(columns * rows)) : std::string("too many")) +
                               " candidates; with the module's other objects over the limit of " + str(kMaxObjects));
     }
     x.range = cellRange(x.rule, s);
-    if (x.range.count() == 0) return fail(at + 8, name + "cells fall outside the ids' range (|i|, |j| < 2^23)");
+    if (x.range.count() == 0) return fail(at + 8, name() + "cells fall outside the ids' range (|i|, |j| < 2^23)");
     total += x.range.count();
     const std::uint64_t listBytes = x.mode == kRuleRegenerate ? 4ull * x.listCount : x.listCount;
     if (x.mode == kRuleBitmap && x.listCount != (x.range.count() + 7) / 8) {
-      return fail(at + 48, name + "bitmap is " + str(x.listCount) + " bytes; its " + str(x.range.count()) +
+      return fail(at + 48, name() + "bitmap is " + str(x.listCount) + " bytes; its " + str(x.range.count()) +
                                " candidates need " + str((x.range.count() + 7) / 8));
     }
     if (x.mode == kRuleRegenerate && x.listCount > x.range.count()) {
-      return fail(at + 48, name + "drops " + str(x.listCount) + " of its " + str(x.range.count()) + " candidates");
+      return fail(at + 48, name() + "drops " + str(x.listCount) + " of its " + str(x.range.count()) + " candidates");
     }
     at += kRuleBytes6;
-    if (Status st = need(at, listBytes, name + "list"); !st) return st;
+    if (Status st = need(at, listBytes, [&] { return name() + "list"; }); !st) return st;
     x.list = at;
     at += std::size_t(listBytes);
     rules.push_back(x);
   }
   const std::uint64_t explicitBytes = std::uint64_t(n) * (kExplicitBytes6 + (paletteCount > 256 ? 1 : 0));
-  if (Status st = need(at, explicitBytes, str(n) + " explicit objects"); !st) return st;
+  if (Status st = need(at, explicitBytes, [&] { return str(n) + " explicit objects"; }); !st) return st;
 
   // Everything is within the bytes and the limit: build the objects.
   m.objects.clear();
