@@ -323,3 +323,118 @@ TEST(ObjectsBuild, aPointsFilePlacesItsIconsAndRefusesUnknownOnes) {
 }
 
 }  // namespace
+
+namespace {
+
+struct Built {
+  std::vector<std::vector<sandtable::module::Object>> objects;  ///< per module
+  std::vector<std::vector<std::vector<float>>> y;                ///< per module, level, object
+  nlohmann::json info;
+};
+
+Built readBack(const std::string& db) {
+  Built b;
+  auto d = sandtable::openDatabase(db);
+  EXPECT_TRUE(d.ok());
+  if (!d) return b;
+  const auto& h = d->modules->header();
+  for (std::uint32_t kz = 0; kz < h.modulesZ; ++kz) {
+    for (std::uint32_t kx = 0; kx < h.modulesX; ++kx) {
+      auto m = d->modules->read(kx, kz);
+      EXPECT_TRUE(m.ok());
+      if (!m) continue;
+      b.objects.push_back(m->objects);
+      b.y.emplace_back();
+      for (const auto& l : m->levels) b.y.back().push_back(l.objectY);
+    }
+  }
+  const auto info = runCli({"info", db, "--json"});
+  EXPECT_EQ(info.exitCode, 0) << info.err;
+  b.info = nlohmann::json::parse(info.out);
+  return b;
+}
+
+}  // namespace
+
+// Module version 6 stores the scatter rules, not the trees (docs/FORMAT.md
+// §9.11): the same database built as version 5 and as version 6 has the
+// same objects, the scattered ones bit for bit (position, scale, heading,
+// cylinder; with exact heights the bases too), the explicit ones within
+// the documented quantisation; info and validate agree.
+TEST(ObjectsBuild, version6RegeneratesTheTreesVersion5Stored) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir t("objv6");
+  for (const char* step : {"0.01", "0"}) {
+    auto v5 = bayreuthBuild(t / "v5"), v6 = bayreuthBuild(t / "v6");
+    v5.insert(v5.end(), {"--module-version", "5", "--height-step", step});
+    v6.insert(v6.end(), {"--height-step", step});
+    ASSERT_EQ(runCli(v5).exitCode, 0);
+    ASSERT_EQ(runCli(v6).exitCode, 0);
+    EXPECT_EQ(runCli({"validate", t / "v6"}).exitCode, 0);
+    const Built a = readBack(t / "v5"), b = readBack(t / "v6");
+    EXPECT_EQ(a.info["objects"], b.info["objects"]);
+    EXPECT_EQ(a.info["objects_by_class"], b.info["objects_by_class"]);
+    ASSERT_EQ(a.objects.size(), b.objects.size());
+    const bool exact = std::string(step) == "0";
+    std::uint64_t trees = 0, points = 0;
+    for (std::size_t k = 0; k < a.objects.size(); ++k) {
+      ASSERT_EQ(a.objects[k].size(), b.objects[k].size()) << "module " << k;
+      // Both lists are sorted by (icon, z, x): trees line up one to one;
+      // an explicit point may swap with a tree of equal icon at its place.
+      for (std::size_t o = 0; o < a.objects[k].size(); ++o) {
+        const auto& p = a.objects[k][o];
+        const auto& q = b.objects[k][o];
+        ASSERT_EQ(p.icon, q.icon);
+        ASSERT_EQ(p.cls, q.cls) << "module " << k << " object " << o;
+        if (sandtable::module::isScattered(q.id)) {
+          ++trees;
+          ASSERT_TRUE(p.x == q.x && p.z == q.z && p.scale == q.scale && p.heading == q.heading && p.radius == q.radius &&
+                      p.height == q.height)
+              << "module " << k << " tree " << o;
+        } else {
+          ++points;
+          EXPECT_NEAR(p.x, q.x, 0.02);
+          EXPECT_NEAR(p.z, q.z, 0.02);
+        }
+        for (std::size_t l = 0; l < a.y[k].size(); ++l) {
+          if (exact && sandtable::module::isScattered(q.id)) {
+            ASSERT_EQ(a.y[k][l][o], b.y[k][l][o]) << "module " << k << " level " << l << " tree " << o;
+          } else if (sandtable::module::isScattered(q.id)) {
+            ASSERT_NEAR(a.y[k][l][o], b.y[k][l][o], 0.0051) << "module " << k << " level " << l << " tree " << o;
+          }
+        }
+      }
+    }
+    EXPECT_GT(trees, 1000u);
+    EXPECT_EQ(trees + points, b.info["objects"].get<std::uint64_t>());
+    const auto size = [&](const char* db) { return fs::file_size(t / (std::string(db) + "/modules.pack")); };
+    std::printf("height step %s: modules.pack v5 %ju bytes, v6 %ju bytes, %ju trees\n", step, std::uintmax_t(size("v5")),
+                std::uintmax_t(size("v6")), std::uintmax_t(trees));
+    if (exact) continue;
+    // `upgrade` turns the version 5 database into version 6 with every
+    // object explicit: the same objects within the quantisation, validated.
+    const auto up = runCli({"upgrade", t / "v5"});
+    ASSERT_EQ(up.exitCode, 0) << up.err;
+    EXPECT_EQ(runCli({"validate", t / "v5"}).exitCode, 0);
+    const Built c = readBack(t / "v5");
+    EXPECT_EQ(c.info["objects_by_class"], a.info["objects_by_class"]);
+    ASSERT_EQ(c.objects.size(), a.objects.size());
+    for (std::size_t k = 0; k < a.objects.size(); ++k) {
+      ASSERT_EQ(c.objects[k].size(), a.objects[k].size()) << "module " << k;
+      // Quantised positions may swap neighbours in the (icon, z, x) order:
+      // each version 5 object has its own within a step (1.5 cm).
+      std::vector<bool> used(c.objects[k].size(), false);
+      for (const auto& p : a.objects[k]) {
+        bool found = false;
+        for (std::size_t o = 0; o < c.objects[k].size() && !found; ++o) {
+          const auto& q = c.objects[k][o];
+          if (used[o] || q.icon != p.icon || std::fabs(p.x - q.x) > 0.015 || std::fabs(p.z - q.z) > 0.015) continue;
+          EXPECT_FALSE(sandtable::module::isScattered(q.id));
+          used[o] = found = true;
+        }
+        ASSERT_TRUE(found) << "module " << k << " object at " << p.x << ", " << p.z;
+      }
+    }
+    std::printf("upgraded v5 -> v6 (objects explicit): modules.pack %ju bytes\n", std::uintmax_t(size("v5")));
+  }
+}

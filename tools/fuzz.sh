@@ -68,21 +68,33 @@ idx = open(sys.argv[1] + "/modules.idx", "rb").read()
 pack = open(sys.argv[1] + "/modules.pack", "rb").read()
 open(sys.argv[2], "wb").write(struct.pack("<I", len(idx)) + idx + pack)
 EOF
-  # Raw modules (the pack's first records, unpacked by the zstd tool) seed the module target.
+  # Raw modules (the pack's first records, coarse and fine, unpacked by the zstd tool) seed the
+  # module target: version 6 from the default build (rules regenerated in the fine records, kept
+  # by bitmap in the coarse ones) and version 5 from a second build (every object stored).
+  "$cli" build --elevation "$data" --extent 7.40 43.725 7.42 43.74 --spacing 30 --module-version 5 \
+    --icons samples/icons.txt --materials samples/materials.txt -o "$db-v5" --force >/dev/null 2>&1 || true
   if command -v zstd >/dev/null 2>&1; then
-    python3 - "$db" "$seeds/sandtable_fuzz_module" <<'EOF'
+    for d in "$db" "$db-v5"; do
+      [ -f "$d/modules.idx" ] || continue
+      python3 - "$d" "$seeds/sandtable_fuzz_module" "$(basename "$d")" <<'EOF'
 import os, struct, subprocess, sys
-db, out = sys.argv[1], sys.argv[2]
+db, out, tag = sys.argv[1], sys.argv[2], sys.argv[3]
 os.makedirs(out, exist_ok=True)
 idx = open(db + "/modules.idx", "rb").read()
 pack = open(db + "/modules.pack", "rb").read()
 entry_bytes, count, table = struct.unpack_from("<IQQ", idx, 52)  # FORMAT.md §10: entryBytes, entryCount, tableOffset
 for k in range(min(count, 2)):
-    offset, size = struct.unpack_from("<QI", idx, table + k * entry_bytes)
-    raw = subprocess.run(["zstd", "-dcq"], input=pack[offset:offset + size], capture_output=True)
-    if raw.returncode == 0:
-        open(f"{out}/module{k}", "wb").write(raw.stdout)
+    records = [struct.unpack_from("<QI", idx, table + k * entry_bytes)]
+    if entry_bytes == 64:  # v2: the fine record too
+        records.append(struct.unpack_from("<QI", idx, table + k * entry_bytes + 24))
+    for r, (offset, size) in enumerate(records):
+        if size == 0:
+            continue
+        raw = subprocess.run(["zstd", "-dcq"], input=pack[offset:offset + size], capture_output=True)
+        if raw.returncode == 0:
+            open(f"{out}/{tag}-module{k}-{r}", "wb").write(raw.stdout)
 EOF
+    done
   fi
 else
   echo "fuzz: warning: no $cli or no $data; the binary readers start from empty seeds" >&2

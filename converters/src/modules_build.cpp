@@ -93,7 +93,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   // Each plan point belongs to the module that holds it (the east and
   // south edges to the last module).
   std::vector<std::vector<std::uint32_t>> pointsOf;
-  const bool objects = o.objects && !o.objects->empty() && o.moduleVersion >= module::kVersion5;
+  const bool objects = o.objects && !o.objects->empty() && o.moduleVersion >= module::kVersion5;  // 5 and 6
   if (objects) {
     pointsOf.resize(r.modules);
     for (std::size_t k = 0; k < o.objects->points.size(); ++k) {

@@ -125,8 +125,9 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
       report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       return report;  // already the newest version: nothing to do
     }
-    if (report.fromVersion != module::kVersion && report.fromVersion != module::kVersion2) {
-      return Problem{in.packPath(), 0, "upgrade: module (0,0) is not a version 1, 2 or 3 load module"};
+    if (report.fromVersion < module::kVersion || report.fromVersion > module::kNewestVersion) {
+      return Problem{in.packPath(), 0, "upgrade: module (0,0) is not a version 1 to " +
+                                           std::to_string(module::kNewestVersion) + " load module"};
     }
   }
   const fs::path target = fs::absolute(dir).lexically_normal();
@@ -154,6 +155,11 @@ Result<UpgradeReport> upgradeDatabase(const std::string& dir, const UpgradeOptio
     for (std::uint32_t kx = 0; kx < header.modulesX; ++kx) {
       if (cancelRequested()) return Problem{dir, 0, "upgrade: cancelled; the database is unchanged"};
       if (Status st = in.readInto(kx, kz, m); !st) return st.problems();
+      // A version 5 module's objects become version 6's explicit objects,
+      // quantised over the module's square (docs/FORMAT.md §9.11); both
+      // records get the same square, so they decode the same list.
+      m.scattering = {double(kx) * header.moduleSize, double(kz) * header.moduleSize, header.moduleSize,
+                      header.moduleSize, {}};
       auto rec = writer.value()->compress(m);
       if (!rec) return Problem{dir, 0, "upgrade: " + rec.problems().front().message};
       if (Status st = writer.value()->append(std::move(rec.value())); !st) {

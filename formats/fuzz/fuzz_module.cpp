@@ -1,4 +1,4 @@
-// libFuzzer target: module::decode (versions 1 and 2) on arbitrary bytes.
+// libFuzzer target: module::decode (versions 1 to 6) on arbitrary bytes.
 // The CRCs would stop almost every input at the header, so the fuzzer's
 // bytes are re-sealed first (both CRCs recomputed) and reach the level
 // checks. Build with clang: -DSANDTABLE_FUZZ=ON (formats/CMakeLists.txt);

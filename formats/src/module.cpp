@@ -88,7 +88,7 @@ Status checkEncodable(const Module& m) {
 std::uint64_t encodedBytes(const Module& m) {
   std::uint64_t n = kHeaderBytes;
   for (const Level& l : m.levels) n += levelBytes(l, needsU32Indices(l));
-  return m.objects.empty() ? n : n + detail::objectsBytes(m);
+  return m.objects.empty() ? n : n + std::max(detail::objectsBytes(m), detail::objectsBytesV6Bound(m));
 }
 
 namespace {
@@ -165,6 +165,7 @@ std::uint32_t encodedVersion(std::span<const std::byte> bytes) {
   if (version == kVersion3 && std::memcmp(bytes.data(), kMagic3.data(), kMagic3.size()) == 0) return version;
   if (version == kVersion4 && std::memcmp(bytes.data(), kMagic4.data(), kMagic4.size()) == 0) return version;
   if (version == kVersion5 && std::memcmp(bytes.data(), kMagic5.data(), kMagic5.size()) == 0) return version;
+  if (version == kVersion6 && std::memcmp(bytes.data(), kMagic6.data(), kMagic6.size()) == 0) return version;
   return 0;
 }
 
@@ -358,13 +359,13 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
   const std::byte* h = bytes.data();
   // "SANDMOD" then the version's digit; the version field must agree.
   if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size() - 1) != 0 ||
-      h[7] < std::byte{'1'} || h[7] > std::byte{'5'}) {
-    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD5\")");
+      h[7] < std::byte{'1'} || h[7] > std::byte{'6'}) {
+    return fail(field::magic, "bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD6\")");
   }
   const auto version = loadLE<std::uint32_t>(h + field::version);
-  if (version < kVersion || version > kVersion5) {
+  if (version < kVersion || version > kVersion6) {
     return fail(field::version, "version " + str(version) +
-                                    " is not supported (this reader knows versions 1 to 5)");
+                                    " is not supported (this reader knows versions 1 to 6)");
   }
   if (std::uint32_t(h[7]) - '0' != version) {
     return fail(field::version, "version " + str(version) + " does not match the magic's \"SANDMOD" +
@@ -417,7 +418,10 @@ Status decodeInto(std::span<const std::byte> bytes, const std::string& file, std
       return level;
     }
   }
-  if (version >= kVersion5) {
+  m.scattering = {};
+  if (version >= kVersion6) {
+    if (Status objects = detail::decodeObjectsV6(bytes, file, baseOffset, pos, m); !objects) return objects;
+  } else if (version == kVersion5) {
     if (Status objects = detail::decodeObjects(bytes, file, baseOffset, pos, m); !objects) return objects;
   } else {
     m.objects.clear();

@@ -96,4 +96,20 @@ std::uint64_t objectsBytes(const Module& m);
 Status decodeObjects(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
                      std::size_t& pos, Module& m);
 
+/// Version 6's objects section (docs/FORMAT.md §9.11; module_objects_v6.cpp).
+inline constexpr std::uint32_t kObjectsHeaderBytes6 = 48;
+inline constexpr std::uint32_t kPaletteBytes6 = 12;
+inline constexpr std::uint32_t kRuleBytes6 = 56;
+inline constexpr std::uint32_t kExplicitBytes6 = 7;  ///< x, z u16; heading, scale, palette index u8
+inline constexpr double kMaxExtent6 = 1e6;           ///< metres: a module's width and depth at most
+void encodeObjectsV6(const Module& m, std::vector<std::byte>& out);
+/// At least the bytes encodeObjectsV6 appends.
+std::uint64_t objectsBytesV6Bound(const Module& m);
+/// Reads version 6's objects section at `pos`: m.objects (explicit ones,
+/// then each rule's trees, sorted), m.scattering and every level's objectY
+/// from the levels already decoded; advances `pos`. Refuses counts the
+/// bytes or the object limit cannot hold before anything is sized.
+Status decodeObjectsV6(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
+                       std::size_t& pos, Module& m);
+
 }  // namespace sandtable::module::detail

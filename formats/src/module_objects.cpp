@@ -86,7 +86,7 @@ Status decodeObjects(std::span<const std::byte> bytes, const std::string& file, 
   const std::byte* p = bytes.data() + pos + 4;
   m.objects.resize(n);
   auto& o = m.objects;
-  getPlane<2>(p, n, [&](std::size_t i, std::uint32_t u) { o[i].icon = std::uint16_t(u); });
+  getPlane<2>(p, n, [&](std::size_t i, std::uint32_t u) { o[i].icon = std::uint16_t(u), o[i].id = i; });
   p += 2 * std::size_t(n);
   getPlane<2>(p, n, [&](std::size_t i, std::uint32_t u) { o[i].cls = std::uint16_t(u); });
   p += 2 * std::size_t(n);

@@ -122,6 +122,7 @@ void placeLevels(module::Module& part, std::uint32_t first, std::uint32_t levels
   if (out.levels.size() != levels) out.levels.resize(levels);
   for (std::size_t l = 0; l < part.levels.size(); ++l) std::swap(part.levels[l], out.levels[first + l]);
   std::swap(part.objects, out.objects);  // the records' lists are the same (validate compares them)
+  std::swap(part.scattering, out.scattering);
 }
 
 }  // namespace

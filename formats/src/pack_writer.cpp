@@ -182,7 +182,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   // level numbers; the index's coarseLevel gives them back).
   const auto split = m.levels.begin() + std::ptrdiff_t(s.header.coarseLevel);
   // Both records carry every object, each with its own levels' elevations.
-  const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end()), m.objects};
+  const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end()), m.objects, m.scattering};
   Extent c;
   if (std::string bad = compressPart(coarse, s.level, s.layout.encode, name + " (coarse record)", r.bytes, c); !bad.empty()) {
     return fail(bad);
@@ -192,7 +192,7 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   e.compressedCrc = c.compressedCrc;
   e.rawCrc = c.rawCrc;
   if (s.header.coarseLevel > 0) {
-    const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split), m.objects};
+    const module::Module fine{m.kx, m.kz, std::vector<module::Level>(m.levels.begin(), split), m.objects, m.scattering};
     if (std::string bad = compressPart(fine, s.level, s.layout.encode, name + " (fine record)", r.fineBytes, e.fine); !bad.empty()) {
       return fail(bad);
     }

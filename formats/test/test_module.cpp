@@ -4,6 +4,7 @@
 #include <meshoptimizer.h>
 
 #include <atomic>
+#include <thread>
 #include <bit>
 #include <cstdlib>
 #include <cstring>
@@ -15,6 +16,7 @@
 #include "module_samples.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/module.h"
+#include "sandtable/formats/scatter.h"
 
 // The largest single allocation since the last reset, for checking that
 // hostile counts are refused before anything is sized. Every form of
@@ -502,7 +504,7 @@ TEST(Module, checksumsAndMagicAreChecked) {
   auto bytes = encodeV1(samples::tiny());
   bytes[0] = std::byte{'X'};
   EXPECT_EQ(decode(bytes, "m").error(),
-            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD5\")");
+            "m @0: module: bad magic: not a sandtable load module (expected \"SANDMOD1\" to \"SANDMOD6\")");
   bytes = encodeV1(samples::tiny());
   bytes[field::kx] ^= std::byte{1};
   EXPECT_EQ(decode(bytes, "m").problems().front().offset, field::headerCrc);
@@ -1321,7 +1323,7 @@ Module tinyV5() {
 TEST(ModuleV5, layoutConstantsArePinned) {
   EXPECT_EQ(kObjectBytes, 26u);
   EXPECT_EQ(kObjectClassExplicit, 0xffffu);
-  EXPECT_EQ(kNewestVersion, 5u);
+  EXPECT_EQ(kNewestVersion, 6u);
   EXPECT_EQ(headingCode(headingRadians(16384)), 16384u);
   EXPECT_EQ(headingCode(-1.5707963267948966), 49152u);
   EXPECT_EQ(headingCode(6.283185307179586), 0u);
@@ -1330,7 +1332,7 @@ TEST(ModuleV5, layoutConstantsArePinned) {
 // The objects section by hand (worked out in FORMAT.md §9.10): the count,
 // then each field's byte planes; version 4's bytes before it.
 TEST(ModuleV5, version5GoldenBytes) {
-  const auto bytes = encode(tinyV5());
+  const auto bytes = encode(tinyV5(), {.version = 5});
   const auto v4 = encode(tinyV4(), {.version = 4});
   EXPECT_EQ(hex(std::span(bytes).first(16)), "53414e444d4f44350500000030000000");  // "SANDMOD5", 5, 48
   EXPECT_EQ(encodedVersion(bytes), 5u);
@@ -1353,7 +1355,7 @@ TEST(ModuleV5, version5GoldenBytes) {
   EXPECT_EQ(back->objects[1].heading, 16384u);
   EXPECT_EQ(back->objects[1].cls, kObjectClassExplicit);
   EXPECT_EQ(back->levels[0].objectY, (std::vector<float>{10.1875f, 10.625f}));
-  EXPECT_EQ(encode(back.value()), bytes);
+  EXPECT_EQ(encode(back.value(), {.version = 5}), bytes);
 }
 
 TEST(ModuleV5, olderVersionsDropObjectsAndDecodeWithNone) {
@@ -1363,7 +1365,7 @@ TEST(ModuleV5, olderVersionsDropObjectsAndDecodeWithNone) {
     EXPECT_TRUE(back->objects.empty()) << v;
     EXPECT_TRUE(back->levels[0].objectY.empty()) << v;
   }
-  auto none = decode(encode(tinyV4()), "none");  // version 5 with no objects: 4 bytes of count
+  auto none = decode(encode(tinyV4(), {.version = 5}), "none");  // version 5 with no objects: 4 bytes of count
   ASSERT_TRUE(none.ok());
   EXPECT_TRUE(none->objects.empty());
 }
@@ -1377,7 +1379,7 @@ TEST(ModuleV5, manyObjectsOnManyLevelsRoundTripBitForBit) {
   for (std::size_t li = 0; li < m.levels.size(); ++li) {
     for (std::uint32_t k = 0; k < 500; ++k) m.levels[li].objectY.push_back(100.0f + float(k) * 0.01f + float(li));
   }
-  const auto bytes = encode(m, {.heightStep = 0});
+  const auto bytes = encode(m, {.version = 5, .heightStep = 0});
   auto back = decode(bytes, "many");
   ASSERT_TRUE(back.ok()) << back.error();
   ASSERT_EQ(back->objects.size(), 500u);
@@ -1390,15 +1392,15 @@ TEST(ModuleV5, manyObjectsOnManyLevelsRoundTripBitForBit) {
         << k;
   }
   for (std::size_t li = 0; li < m.levels.size(); ++li) EXPECT_EQ(back->levels[li].objectY, m.levels[li].objectY);
-  EXPECT_EQ(encode(back.value(), {.heightStep = 0}), bytes);
+  EXPECT_EQ(encode(back.value(), {.version = 5, .heightStep = 0}), bytes);
 }
 
-TEST(ModuleV5, everyTruncatedPrefixAndFlippedByteIsCaught) { expectPrefixesAndFlipsCaught(encode(tinyV5())); }
+TEST(ModuleV5, everyTruncatedPrefixAndFlippedByteIsCaught) { expectPrefixesAndFlipsCaught(encode(tinyV5(), {.version = 5})); }
 
 /// tinyV5's encoding with the objects section's bytes at `at` (from the
 /// section's start) set to `value`, and the checksums resealed.
 std::vector<std::byte> withObjectField(std::size_t at, std::uint32_t value, unsigned width = 4) {
-  auto bytes = encode(tinyV5());
+  auto bytes = encode(tinyV5(), {.version = 5});
   std::byte* p = bytes.data() + bytes.size() - 64 + at;
   if (width == 2) {
     storeLE<std::uint16_t>(p, std::uint16_t(value));
@@ -1410,7 +1412,7 @@ std::vector<std::byte> withObjectField(std::size_t at, std::uint32_t value, unsi
 }
 
 TEST(ModuleV5, hostileObjectFieldsAreRefusedBeforeAllocating) {
-  const std::size_t section = encode(tinyV5()).size() - 64;
+  const std::size_t section = encode(tinyV5(), {.version = 5}).size() - 64;
   struct Case {
     std::size_t at;
     std::uint32_t value;
@@ -1431,7 +1433,7 @@ TEST(ModuleV5, hostileObjectFieldsAreRefusedBeforeAllocating) {
     EXPECT_EQ(m.problems().front().offset, c.offset) << c.message;
   }
   // Bytes after the section.
-  auto longer = encode(tinyV5());
+  auto longer = encode(tinyV5(), {.version = 5});
   longer.resize(longer.size() + 3, std::byte{0});
   storeLE<std::uint64_t>(longer.data() + field::totalBytes, longer.size());
   reseal(longer);
@@ -1447,7 +1449,7 @@ TEST(ModuleV5, hostileObjectFieldsAreRefusedBeforeAllocating) {
       {56, "module: objects: object 0 elevation on level 0 is not finite"},
   };
   for (const auto& [at, message] : nanFields) {
-    auto bytes = encode(tinyV5());
+    auto bytes = encode(tinyV5(), {.version = 5});
     std::byte* p = bytes.data() + section + at;
     const auto u = std::bit_cast<std::uint32_t>(std::numeric_limits<float>::quiet_NaN());
     for (unsigned k = 0; k < 4; ++k) p[2 * k] = std::byte((u >> (8 * k)) & 0xff);
@@ -1461,7 +1463,7 @@ TEST(ModuleV5, hostileObjectFieldsAreRefusedBeforeAllocating) {
     m.objects[0].scale = 0;
     return m;
   }();
-  EXPECT_FALSE(decode(encode(negative), "zero").ok());
+  EXPECT_FALSE(decode(encode(negative, {.version = 5}), "zero").ok());
 }
 
 TEST(ModuleV5, checkEncodableWantsOneElevationPerObjectOnEveryLevel) {
@@ -1487,6 +1489,349 @@ TEST(ModuleV5, tallestObjectIsFoundPerSquare) {
   EXPECT_EQ(t[1], kNoObject);
   m.levels[0].objectY = {20.0f, 9.0f, 3.0f};           // now the first is taller
   EXPECT_EQ(tallestObjects(m, 0)[0], 0u);
+}
+
+// ------------------------------------------------------------- version 6
+
+Module forest(std::uint32_t kx, std::uint32_t kz);
+
+constexpr ScatterRule kTinyRule{2, 3, 0, 16.0, 7, 0.8, 1.2, 0.5f, 6.0f};
+
+/// The rule's trees on `m`'s level 0, plus `extra`; sorted, with bases.
+void plantTrees(Module& m, std::vector<Object> extra = {}) {
+  const Surface surface(m.levels.front(), true);
+  m.objects = std::move(extra);
+  for (std::size_t r = 0; r < m.scattering.rules.size(); ++r) {
+    const auto trees = scatter(m.scattering, r, surface);
+    m.objects.insert(m.objects.end(), trees.begin(), trees.end());
+  }
+  sortObjects(m.objects);
+  placeBases(m);
+}
+
+/// tinyV4 (one 32 m square of class 3 with a decal of class 9) with a
+/// 16 m scatter rule of class 3 and one explicit object.
+Module tinyV6() {
+  Module m = tinyV4();
+  m.scattering = {0, 0, 32, 32, {kTinyRule}};
+  plantTrees(m, {{3, kObjectClassExplicit, 24.0f, 28.0f, 16384, 2.5f, 1.25f, 15.0f, 0}});
+  return m;
+}
+
+bool sameObject(const Object& a, const Object& b) {
+  return a.icon == b.icon && a.cls == b.cls && sameBits(a.x, b.x) && sameBits(a.z, b.z) && a.heading == b.heading &&
+         sameBits(a.scale, b.scale) && sameBits(a.radius, b.radius) && sameBits(a.height, b.height) && a.id == b.id;
+}
+
+void expectSameObjects(const std::vector<Object>& a, const std::vector<Object>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) ASSERT_TRUE(sameObject(a[k], b[k])) << "object " << k;
+}
+
+TEST(ModuleV6, layoutConstantsArePinned) {
+  EXPECT_EQ(kNewestVersion, 6u);
+  EXPECT_EQ(kRuleRegenerate, 0u);
+  EXPECT_EQ(kRuleBitmap, 1u);
+  EXPECT_EQ(scatteredId(5, -1, 2), 0x8005ffffff000002ull);
+  EXPECT_EQ(idRule(scatteredId(5, -1, 2)), 5u);
+  EXPECT_EQ(idCellI(scatteredId(5, -1, 2)), -1);
+  EXPECT_EQ(idCellJ(scatteredId(5, -1, 2)), 2);
+  EXPECT_EQ(idCellI(scatteredId(0, kMaxCellIndex, -kMaxCellIndex - 1)), kMaxCellIndex);
+  EXPECT_EQ(idCellJ(scatteredId(0, kMaxCellIndex, -kMaxCellIndex - 1)), -kMaxCellIndex - 1);
+}
+
+// The objects section by hand (worked out in FORMAT.md §9.11): header,
+// palette, the rule with an empty drop list, the explicit object's planes.
+TEST(ModuleV6, version6GoldenBytes) {
+  const Module m = tinyV6();
+  ASSERT_GE(m.objects.size(), 2u) << "the rule must keep a tree on tinyV4";
+  const auto bytes = encode(m);
+  const auto v4 = encode(tinyV4(), {.version = 4});
+  EXPECT_EQ(hex(std::span(bytes).first(16)), "53414e444d4f44360600000030000000");  // "SANDMOD6", 6, 48
+  EXPECT_EQ(encodedVersion(bytes), 6u);
+  ASSERT_EQ(bytes.size(), v4.size() + 123);
+  EXPECT_TRUE(std::equal(bytes.begin() + kHeaderBytes, bytes.end() - 123, v4.begin() + kHeaderBytes));
+  EXPECT_EQ(hex(std::span(bytes).last(123)),
+            "01000000"                                  // 1 explicit object
+            "0100" "0100"                               // 1 rule, 1 palette entry
+            "0000000000000000" "0000000000000000"       // corner x0 0, z0 0
+            "0000000000004040" "0000000000004040"       // width 32, depth 32
+            "00002040" "00002040"                       // explicit scales 2.5 .. 2.5
+            "0300" "ffff" "0000003f" "0000c040"         // palette: icon 3, class 65535, cylinder 0.5 x 6
+            "0200" "0300" "0000" "00" "00"              // rule: icon 2, class 3, index 0, regenerate
+            "0000000000003040" "0700000000000000"       // cell 16, seed 7
+            "9a9999999999e93f" "333333333333f33f"       // scale 0.8 .. 1.2
+            "0000003f" "0000c040"                       // cylinder 0.5 x 6
+            "00000000" "00000000"                       // drops none; reserved
+            "00c0" "00e0"                               // x 24 = 49152 / 65536 * 32, z 28
+            "40" "00" "00");                            // heading 64 * 256 (east), scale code 0, palette 0
+  auto back = decode(bytes, "golden");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectSameObjects(back->objects, m.objects);
+  EXPECT_EQ(back->scattering, m.scattering);
+  ASSERT_EQ(back->levels[0].objectY.size(), m.objects.size());
+  for (std::size_t k = 0; k < m.objects.size(); ++k) {
+    EXPECT_TRUE(withinStep(back->levels[0].objectY[k], m.levels[0].objectY[k], kDefaultHeightStep)) << k;
+  }
+  EXPECT_EQ(encode(back.value()), bytes);
+  // Exact heights: the bases come back bit for bit.
+  auto exact = decode(encode(m, {.heightStep = 0}), "exact");
+  ASSERT_TRUE(exact.ok()) << exact.error();
+  EXPECT_EQ(exact->levels[0].objectY, m.levels[0].objectY);
+}
+
+TEST(ModuleV6, everyTruncatedPrefixAndFlippedByteIsCaught) {
+  expectPrefixesAndFlipsCaught(encode(tinyV6()));
+  Module bitmap = tinyV6();
+  bitmap.levels[0].groups[0].material = 4;  // the rule cannot regenerate: a bitmap
+  expectPrefixesAndFlipsCaught(encode(bitmap));
+}
+
+TEST(ModuleV6, aRemovedTreeIsAnExceptionAndStaysRemoved) {
+  Module m = forest(2, 3);
+  const std::size_t before = encode(m).size();
+  const auto tree = std::find_if(m.objects.begin(), m.objects.end(), [](const Object& o) { return isScattered(o.id); });
+  ASSERT_NE(tree, m.objects.end());
+  const std::uint64_t gone = tree->id;
+  m.objects.erase(tree);
+  placeBases(m);
+  const auto bytes = encode(m);
+  EXPECT_EQ(bytes.size(), before + 4);  // one candidate number in its rule's drop list
+  auto back = decode(bytes, "edit");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectSameObjects(back->objects, m.objects);
+  for (const Object& o : back->objects) EXPECT_NE(o.id, gone);
+  // On a rule of 9 candidates a 2-byte bitmap is smaller than a drop list.
+  Module tiny = tinyV6();
+  tiny.objects.erase(std::find_if(tiny.objects.begin(), tiny.objects.end(), [](const Object& o) { return isScattered(o.id); }));
+  placeBases(tiny);
+  const auto small = encode(tiny);
+  EXPECT_EQ(std::to_integer<int>(small[encode(tiny, {.version = 4}).size() + 60 + 6]), kRuleBitmap);
+  auto smallBack = decode(small, "edit");
+  ASSERT_TRUE(smallBack.ok()) << smallBack.error();
+  expectSameObjects(smallBack->objects, tiny.objects);
+}
+
+TEST(ModuleV6, aRecordWithoutItsSkinKeepsTreesByBitmap) {
+  Module m = tinyV6();
+  Module other = m;
+  other.levels[0].groups[0].material = 4;  // level 0 no longer says class 3 there
+  const auto bytes = encode(other);
+  const std::size_t rule = encode(other, {.version = 4}).size() + 60;
+  EXPECT_EQ(std::to_integer<int>(bytes[rule + 6]), kRuleBitmap);
+  EXPECT_EQ(loadLE<std::uint32_t>(bytes.data() + rule + 48), 2u);  // 9 candidates (3 x 3 cells): 2 bytes
+  auto back = decode(bytes, "bitmap");
+  ASSERT_TRUE(back.ok()) << back.error();
+  expectSameObjects(back->objects, m.objects);
+}
+
+TEST(ModuleV6, explicitObjectsAreQuantisedAsDocumented) {
+  Module m = tinyV4();
+  m.scattering = {0, 0, 32, 32, {}};
+  std::vector<Object> objects;
+  for (std::uint32_t k = 0; k < 300; ++k) {
+    objects.push_back({std::uint16_t(k % 5), kObjectClassExplicit, float(k % 31) + 0.37f, float(k % 29) + 0.61f,
+                       std::uint16_t(k * 977), 0.5f + float(k % 7) * 0.5f, 0.0f, 0.0f, k});
+    objects.back().radius = 0.25f * objects.back().scale;
+    objects.back().height = 3.0f * objects.back().scale;
+  }
+  plantTrees(m, objects);
+  auto back = decode(encode(m), "q");
+  ASSERT_TRUE(back.ok()) << back.error();
+  ASSERT_EQ(back->objects.size(), m.objects.size());
+  const double step = 32.0 / 65536, ratio = std::pow(3.5 / 0.5, 1.0 / 510.0);
+  for (const Object& b : back->objects) {
+    const Object& a = objects[std::size_t(b.id)];
+    EXPECT_EQ(a.icon, b.icon);
+    EXPECT_LE(std::fabs(double(a.x) - b.x), step / 2 + 1e-6);
+    EXPECT_LE(std::fabs(double(a.z) - b.z), step / 2 + 1e-6);
+    const int dh = std::abs(int(std::int16_t(std::uint16_t(a.heading - b.heading))));
+    EXPECT_LE(dh, 128);
+    EXPECT_LE(std::max(a.scale / b.scale, b.scale / a.scale), ratio * (1 + 1e-6));
+    EXPECT_FLOAT_EQ(b.radius, 0.25f * b.scale);
+  }
+}
+
+struct HostileV6 {
+  std::size_t at;  ///< from the section's start
+  std::uint64_t value;
+  unsigned width;
+  std::size_t offset;  ///< expected, from the section's start (SIZE_MAX: the input's end)
+  const char* message;
+};
+
+TEST(ModuleV6, hostileRulesAndCountsAreRefusedBeforeAllocating) {
+  const auto good = encode(tinyV6());
+  const std::size_t section = good.size() - 123, rule = 60;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto f64 = [](double d) { return std::bit_cast<std::uint64_t>(d); };
+  const HostileV6 cases[] = {
+      {0, 0xffffffffu, 4, 0, "explicit count 4294967295 is over the limit of 1048576 objects per module"},
+      {0, 1u << 20, 4, rule + 8,
+       "rule 0 cell 16.000000 m makes 9 candidates; with the module's other objects over the limit of 1048576"},
+      {0, (1u << 20) - 9, 4, SIZE_MAX, "truncated: 1048567 explicit objects needs 7339969 bytes, 7 remain"},
+      {4, 0xffff, 2, SIZE_MAX, "truncated: 65535 rules needs 3669960 bytes, 63 remain"},
+      {6, 0xffff, 2, SIZE_MAX, "truncated: 65535 palette entries needs 786420 bytes, 75 remain"},
+      {24, f64(-32), 8, 8, "the module's corner and extent must be finite, the extent in (0, 1000000] metres"},
+      {40, std::bit_cast<std::uint32_t>(0.0f), 4, 40, "the explicit scale range must be finite, positive and in order"},
+      {rule + 8, f64(1e-3), 8, rule + 8,
+       "rule 0 cell 0.001000 m makes 1024064001 candidates; with the module's other objects over the limit of 1048576"},
+      {rule + 8, f64(nan), 8, rule + 8, "rule 0 cell is not finite and positive"},
+      {rule + 8, f64(-16), 8, rule + 8, "rule 0 cell is not finite and positive"},
+      {rule + 24, f64(0), 8, rule + 24, "rule 0 scale range is not finite, positive and in order"},
+      {rule + 32, f64(0.5), 8, rule + 24, "rule 0 scale range is not finite, positive and in order"},
+      {rule + 4, 0x8000, 2, rule + 4, "rule 0 index 32768 is over 32767"},
+      {rule + 6, 2, 1, rule + 6, "rule 0 mode must be 0 or 1 and its reserved bytes 0"},
+      {rule + 48, 10, 4, rule + 48, "rule 0 drops 10 of its 9 candidates"},
+      {rule + 48, 2, 4, SIZE_MAX, "truncated: rule 0 list needs 8 bytes, 7 remain"},
+      {116 + 6, 1, 1, 116 + 6, "explicit object 0 names palette entry 1 of 1"},
+  };
+  for (const HostileV6& c : cases) {
+    auto bytes = good;
+    std::byte* p = bytes.data() + section + c.at;
+    if (c.width == 1) *p = std::byte(c.value);
+    else if (c.width == 2) storeLE<std::uint16_t>(p, std::uint16_t(c.value));
+    else if (c.width == 4) storeLE<std::uint32_t>(p, std::uint32_t(c.value));
+    else storeLE<std::uint64_t>(p, c.value);
+    reseal(bytes);
+    gLargestAllocation = 0;
+    auto m = decode(bytes, "h.bin");
+    ASSERT_FALSE(m.ok()) << c.message;
+    EXPECT_LT(gLargestAllocation.load(), std::size_t(1) << 20) << c.message;
+    EXPECT_EQ(m.problems().front().message, std::string("module: objects: ") + c.message);
+    EXPECT_EQ(m.problems().front().offset, c.offset == SIZE_MAX ? bytes.size() : section + c.offset) << c.message;
+  }
+}
+
+// ---- an independent generator: the rule of docs/ICONS.md §8 written from
+// the text, brute force over every triangle, no library call.
+
+std::uint64_t bruteMix(std::uint64_t z) {
+  z += 0x9e3779b97f4a7c15ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+double bruteUnit(std::uint64_t h) { return double(h >> 11) / 9007199254740992.0; }
+
+/// The smallest barycentric coordinate of (x, z) in the triangle (as the
+/// rule computes it), or -inf for a degenerate one.
+double bruteInside(const Level& l, std::uint32_t k, double x, double z) {
+  const Vertex& a = l.vertices[l.indices[k]];
+  const Vertex& b = l.vertices[l.indices[k + 1]];
+  const Vertex& c = l.vertices[l.indices[k + 2]];
+  const double d = (double(b.z) - c.z) * (double(a.x) - c.x) + (double(c.x) - b.x) * (double(a.z) - c.z);
+  if (d == 0) return -std::numeric_limits<double>::infinity();
+  const double wa = ((double(b.z) - c.z) * (x - c.x) + (double(c.x) - b.x) * (z - c.z)) / d;
+  const double wb = ((double(c.z) - a.z) * (x - c.x) + (double(a.x) - c.x) * (z - c.z)) / d;
+  return std::min({wa, wb, 1 - wa - wb});
+}
+
+std::vector<Object> bruteTrees(const Level& l0, const Scattering& s) {
+  std::vector<Object> out;
+  for (const ScatterRule& r : s.rules) {
+    for (auto j = std::int64_t(std::floor(s.z0 / r.cell)); j <= std::int64_t(std::floor((s.z0 + s.depth) / r.cell)); ++j) {
+      for (auto i = std::int64_t(std::floor(s.x0 / r.cell)); i <= std::int64_t(std::floor((s.x0 + s.width) / r.cell)); ++i) {
+        const std::uint64_t key = bruteMix(std::uint64_t(i) * 0x100000001b3ull ^ bruteMix(std::uint64_t(j))) ^
+                                  bruteMix(r.seed + r.index);
+        const double x = (double(i) + bruteUnit(bruteMix(key))) * r.cell - s.x0;
+        const double z = (double(j) + bruteUnit(bruteMix(key + 1))) * r.cell - s.z0;
+        if (x < 0 || x >= s.width || z < 0 || z >= s.depth) continue;
+        double skin = -std::numeric_limits<double>::infinity();
+        std::uint16_t material = 0;
+        bool covered = false;
+        for (const Group& g : l0.groups) {
+          if (g.half == Half::skirt) continue;
+          for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount; k += 3) {
+            const double in = bruteInside(l0, k, x, z);
+            if (g.priority == kPrioritySkin && in > skin) skin = in, material = g.material;
+            if (g.priority > kPrioritySkin && in >= -1e-6) covered = true;  // a decal or a roof
+          }
+        }
+        if (skin < -1e-6 || material != r.classId || covered) continue;
+        const std::uint64_t h = bruteMix(r.seed ^ bruteMix(key));
+        Object o{r.icon, r.classId, float(x), float(z), std::uint16_t(bruteMix(h) & 0xffff),
+                 float(r.scaleMin + (r.scaleMax - r.scaleMin) * bruteUnit(h)), 0, 0, 0};
+        o.radius = r.radius * o.scale;
+        o.height = r.height * o.scale;
+        o.id = 1ull << 63 | std::uint64_t(r.index) << 48 | (std::uint64_t(i) & 0xffffff) << 24 | (std::uint64_t(j) & 0xffffff);
+        out.push_back(o);
+      }
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const Object& a, const Object& b) { return a.id < b.id; });
+  return out;
+}
+
+std::vector<Object> byId(std::vector<Object> v) {
+  std::sort(v.begin(), v.end(), [](const Object& a, const Object& b) { return a.id < b.id; });
+  return v;
+}
+
+/// A realistic module (classes 1..4, a road of class 20) at (kx, kz) of a
+/// grid of 240 m modules, with a rule for each class.
+Module forest(std::uint32_t kx, std::uint32_t kz) {
+  Module m = samples::realistic(kx, kz, 8, 3);
+  m.scattering = {kx * 240.0, kz * 240.0, 240, 240, {}};
+  for (std::uint16_t c = 1; c <= 4; ++c) {
+    m.scattering.rules.push_back({std::uint16_t(10 + c), c, std::uint16_t(c * 3), 3.0 + c, 11u * c, 0.7, 1.3, 1, 8});
+  }
+  plantTrees(m);
+  return m;
+}
+
+TEST(ModuleV6, treesMatchAnIndependentGeneratorWhateverTheOrderThreadsAndCut) {
+  for (const auto& [kx, kz] : {std::pair{0u, 0u}, std::pair{3u, 1u}, std::pair{7u, 5u}}) {
+    const Module m = forest(kx, kz);
+    const auto brute = bruteTrees(m.levels[0], m.scattering);
+    ASSERT_GT(brute.size(), 100u);
+    expectSameObjects(byId(m.objects), brute);
+    const auto bytes = encode(m);
+    // Decoded on four threads at once, each the same trees as the generator.
+    std::vector<Module> decoded(4);
+    std::vector<std::thread> threads;
+    for (Module& d : decoded) {
+      threads.emplace_back([&bytes, &d] { d = decode(bytes, "t").value(); });
+    }
+    for (std::thread& t : threads) t.join();
+    for (const Module& d : decoded) {
+      expectSameObjects(byId(d.objects), brute);
+      expectSameObjects(d.objects, decoded[0].objects);
+    }
+    // A coarse record (levels 1 and 2 only) keeps the same trees by bitmap,
+    // each on its own levels' triangles.
+    Module coarse{m.kx, m.kz, {m.levels[1], m.levels[2]}, m.objects, m.scattering};
+    auto c = decode(encode(coarse), "coarse");
+    ASSERT_TRUE(c.ok()) << c.error();
+    expectSameObjects(c->objects, decoded[0].objects);
+    for (std::size_t k = 0; k < c->objects.size(); ++k) {
+      ASSERT_EQ(c->levels[1].objectY[k], decoded[0].levels[2].objectY[k]) << k;
+    }
+    // Cut in two halves, every candidate of the module is a candidate of
+    // exactly one half, with the same id, scale and heading.
+    for (const ScatterRule& r : m.scattering.rules) {
+      const CellRange range = cellRange(r, m.scattering);
+      for (std::int64_t j = range.j0; j <= range.j1; ++j) {
+        for (std::int64_t i = range.i0; i <= range.i1; ++i) {
+          const Candidate full = candidate(r, m.scattering, i, j);
+          int owners = 0;
+          for (int h = 0; h < 2; ++h) {
+            Scattering half = m.scattering;
+            half.width = 120;
+            half.x0 += 120.0 * h;
+            const Candidate part = candidate(r, half, i, j);
+            if (!part.inside) continue;
+            ++owners;
+            EXPECT_EQ(part.object.id, full.object.id);
+            EXPECT_EQ(part.object.heading, full.object.heading);
+            EXPECT_TRUE(sameBits(part.object.scale, full.object.scale));
+            EXPECT_NEAR(part.x + half.x0, full.x + m.scattering.x0, 1e-9);
+          }
+          EXPECT_EQ(owners, full.inside ? 1 : 0);
+        }
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -218,13 +218,14 @@ void registerBuild(CLI::App& root, Commands& c) {
                 "Build only the elevation grid (no load modules)");
   sub->add_option("--zstd-level", a->o.zstdLevel, "Module compression level (1..22)")->default_val(9);
   sub->add_option("--module-version", a->o.moduleVersion,
-                  "Load-module format: 5 (version 4 with static objects), 4 (compact: lattice heights, implicit "
+                  "Load-module format: 6 (version 4 with static objects as rules: scatter rules, exceptions and "
+                  "compact explicit objects), 5 (version 4 with every static object stored), 4 (compact: lattice heights, implicit "
                   "skirts, culture heights on the lattice "
                   "plane, integer decal texture, meshopt streams, optional normals), 3 (culture heights re-quantised, "
                   "float decal texture), 2 (the same without implicit skirts and plane heights) or 1 (the original "
                   "float planes); docs/FORMAT.md section 9")
-      ->default_val(5)
-      ->check(CLI::Range(1, 5));
+      ->default_val(6)
+      ->check(CLI::Range(1, 6));
   sub->add_option("--height-step", a->o.heightStep,
                   "Module version 2 to 4 height quantisation step in metres; every module height is within half a "
                   "step of the grid's (0 keeps exact float heights)")

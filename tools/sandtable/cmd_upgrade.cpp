@@ -50,11 +50,11 @@ int runUpgrade(const UpgradeArgs& a) {
 
 void registerUpgrade(CLI::App& root, Commands& c) {
   auto a = std::make_shared<UpgradeArgs>();
-  auto* sub = root.add_subcommand("upgrade", "Rewrite a database's load modules in format version 5");
+  auto* sub = root.add_subcommand("upgrade", "Rewrite a database's load modules in format version 6");
   sub->footer(
       "Example:\n  sandtable upgrade db\n"
       "The new modules, index and manifest are assembled beside DB and swapped in with one atomic rename;\n"
-      "an interrupted upgrade leaves the old database in place. A version 5 database is left as it is.");
+      "an interrupted upgrade leaves the old database in place. A version 6 database is left as it is; version 5 objects become explicit objects.");
   sub->add_option("database", a->dir, "Database directory to upgrade")->required();
   sub->add_option("--height-step", a->o.heightStep,
                   "Height quantisation step in metres; every module height stays within half a step "

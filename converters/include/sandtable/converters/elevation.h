@@ -78,7 +78,7 @@ struct ElevationOptions {
   std::vector<std::string> objects;
   bool modules = true;         ///< false: grid only (no load modules)
   int zstdLevel = 9;           ///< module compression level
-  std::uint32_t moduleVersion = module::kNewestVersion;  ///< load-module format version (1 to 5; objects need 5; ModuleOptions)
+  std::uint32_t moduleVersion = module::kNewestVersion;  ///< load-module format version (1 to 6; objects need 5 or 6; ModuleOptions)
   double heightStep = kBuildHeightStep;  ///< version 2 height step, metres (0: exact; ModuleOptions)
   bool moduleNormals = false;  ///< version 2: store octahedral normals (ModuleOptions::normals)
   double maxScaleError = 0.01; ///< reject CRSs distorting more than this over the extent

@@ -110,21 +110,23 @@ struct UpgradeOptions {
 };
 
 struct UpgradeReport {
-  bool upgraded = false;     ///< false: the modules already were the newest version, 4 (nothing written)
+  bool upgraded = false;     ///< false: the modules already were the newest version, 6 (nothing written)
   std::uint32_t fromVersion = 0;
   std::uint64_t modules = 0;
   std::uint64_t packBytesBefore = 0, packBytesAfter = 0;
   double seconds = 0;
 };
 
-/// Rewrites the load modules of database `directory` in the newest version (3): a new
+/// Rewrites the load modules of database `directory` (versions 1 to 5) in
+/// the newest version (6; a version 5 module's objects become explicit
+/// objects, docs/FORMAT.md §9.11): a new
 /// database is assembled beside it in `DIR.upgrade.<pid>/` (grid and
 /// material table hard-linked or copied, modules re-encoded, manifest
 /// files[] and build.modules updated), fsynced, and swapped with the old
 /// directory in one renameat2(RENAME_EXCHANGE); the old one is then
 /// removed. Interrupted at any point, `directory` is the old database or
 /// the new one, each complete. A database whose modules are already
-/// version 3 is left untouched (upgraded = false). Problems name the file.
+/// version 6 is left untouched (upgraded = false). Problems name the file.
 Result<UpgradeReport> upgradeDatabase(const std::string& directory, const UpgradeOptions& options,
                                       const ProgressFn& progress);
 

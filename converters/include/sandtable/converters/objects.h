@@ -72,9 +72,11 @@ struct ObjectTotals {
 /// Adds to `m` the objects of `plan` that lie in it: `points` are the
 /// indices into plan.points of the module's points; scatters are generated
 /// over the module's rectangle (x0, z0: its north-west corner in the frame)
-/// on the level-0 skin of their class and off every decal. Each object gets
-/// its base height on every level (Level::objectY). Objects are sorted by
-/// icon, then z, then x. Thread-safe.
+/// on the level-0 skin of their class and off every decal, by the rule of
+/// formats/scatter.h, and m.scattering gets the rules that placed a tree
+/// (module version 6 stores them instead of the trees). Each object gets
+/// its base height on every level (Level::objectY) and a stable id
+/// (Object::id). Objects are sorted by icon, z, x, then id. Thread-safe.
 void placeObjects(const ObjectPlan& plan, const std::vector<std::uint32_t>& points, double x0, double z0,
                   module::Module& m, ObjectTotals& totals);
 

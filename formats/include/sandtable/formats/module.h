@@ -53,8 +53,13 @@ inline constexpr std::uint32_t kVersion4 = 4;
 /// every level of detail (seed chapter V.F, obslocstruct yloc[], Figure 87).
 inline constexpr std::array<char, 8> kMagic5 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '5'};
 inline constexpr std::uint32_t kVersion5 = 5;
+/// Version 6 (docs/FORMAT.md §9.11): version 5 with objects as rules: the
+/// scatter rules that regenerate the module's trees, their exceptions, and
+/// the explicit objects in a compact encoding; no stored elevations.
+inline constexpr std::array<char, 8> kMagic6 = {'S', 'A', 'N', 'D', 'M', 'O', 'D', '6'};
+inline constexpr std::uint32_t kVersion6 = 6;
 /// The version writers produce by default.
-inline constexpr std::uint32_t kNewestVersion = kVersion5;
+inline constexpr std::uint32_t kNewestVersion = kVersion6;
 /// Default height quantisation step of version 2, metres (1 cm).
 inline constexpr double kDefaultHeightStep = 0.01;
 
@@ -227,6 +232,16 @@ inline constexpr std::uint32_t kMaxPlaceLines = 0xff;
 inline constexpr std::uint32_t kMaxObjects = 1u << 20;
 static_assert(kObjectBytes == 26, "object plane widths");
 
+// ------------------------------------------------------- layout, version 6
+// After the last level, the objects section of docs/FORMAT.md §9.11: a
+// 48-byte header, the explicit objects' palette, the scatter rules (each a
+// 56-byte record and its list), and the explicit objects' planes. A rule
+// either regenerates its trees on the record's first level (mode 0, its
+// list the candidates to drop) or lists the candidates it keeps (mode 1, a
+// bitmap: a coarse record has no level 0 to regenerate on).
+inline constexpr std::uint8_t kRuleRegenerate = 0;
+inline constexpr std::uint8_t kRuleBitmap = 1;
+
 /// Which part of a grid square a group of triangles belongs to.
 enum class Half : std::uint8_t {
   upper = 0,  ///< NW, NE, SW corners
@@ -314,7 +329,47 @@ struct Object {
   std::uint16_t heading = 0;                      ///< clockwise from north, 65536 per turn
   float scale = 1;                                ///< times the icon's size
   float radius = 0, height = 0;                   ///< bounding cylinder, scaled
+  /// Stable name (version 6; docs/FORMAT.md §9.11): a scattered tree's is
+  /// scatteredId(rule, i, j) (bit 63 set), an explicit object's is its rank
+  /// in the module's explicit list. Version 5 decodes give the list index.
+  std::uint64_t id = 0;
 };
+
+/// One scatter rule as a module stores it (version 6): everything that
+/// regenerates its trees from the level-0 skin (scatter.h).
+struct ScatterRule {
+  std::uint16_t icon = 0;
+  std::uint16_t classId = 0;  ///< area class scattered over (Object::cls of its trees)
+  std::uint16_t index = 0;    ///< the rule's number in the build's scatter list: in every key and id, <= 0x7fff
+  double cell = 10;           ///< jitter cell edge, metres, world-anchored
+  std::uint64_t seed = 1;
+  double scaleMin = 1, scaleMax = 1;  ///< materials::Variation
+  float radius = 0, height = 0;       ///< the icon's bounding cylinder at scale 1
+  bool operator==(const ScatterRule&) const = default;
+};
+
+/// The rules of a module and the rectangle they fill: the module's
+/// north-west corner in the database frame and the extent in which a
+/// candidate is the module's (0 <= x < width, 0 <= z < depth).
+struct Scattering {
+  double x0 = 0, z0 = 0;
+  double width = 0, depth = 0;
+  std::vector<ScatterRule> rules;
+  bool operator==(const Scattering&) const = default;
+};
+
+/// Bit 63 of Object::id: a scattered tree; bits 48..62 the rule's index,
+/// 24..47 the cell column i and 0..23 the row j (two's complement, 24 bits).
+inline constexpr std::uint64_t kScatteredId = 1ull << 63;
+inline constexpr std::int64_t kMaxCellIndex = (1 << 23) - 1;  ///< |i|, |j| of an id, and -kMaxCellIndex - 1
+inline constexpr std::uint64_t scatteredId(std::uint16_t rule, std::int64_t i, std::int64_t j) {
+  return kScatteredId | std::uint64_t(rule & 0x7fff) << 48 | (std::uint64_t(i) & 0xffffff) << 24 |
+         (std::uint64_t(j) & 0xffffff);
+}
+inline constexpr bool isScattered(std::uint64_t id) { return (id & kScatteredId) != 0; }
+inline constexpr std::uint16_t idRule(std::uint64_t id) { return std::uint16_t(id >> 48 & 0x7fff); }
+inline constexpr std::int64_t idCellI(std::uint64_t id) { return std::int64_t((id >> 24 & 0xffffff) ^ 0x800000) - 0x800000; }
+inline constexpr std::int64_t idCellJ(std::uint64_t id) { return std::int64_t((id & 0xffffff) ^ 0x800000) - 0x800000; }
 
 /// Heading in radians of an Object::heading code.
 inline double headingRadians(std::uint16_t code) { return double(code) * (6.283185307179586 / 65536.0); }
@@ -331,6 +386,10 @@ struct Module {
   /// Static objects (version 5; empty from older versions): each level's
   /// objectY has one elevation per object.
   std::vector<Object> objects;
+  /// Version 6: the rules whose trees are among `objects` (empty rules: the
+  /// objects are all explicit). Decode fills it; encode to version 6 stores
+  /// a rule for the objects it reproduces bit for bit, the rest explicit.
+  Scattering scattering = {};
 };
 
 /// The tallest object of every level-0 grid square of `level`, row-major
@@ -357,7 +416,7 @@ Status checkEncodable(const Module& m);
 std::uint64_t encodedBytes(const Module& m);
 
 struct EncodeOptions {
-  std::uint32_t version = kNewestVersion;  ///< 1 to 5 (objects need 5; older versions drop them)
+  std::uint32_t version = kNewestVersion;  ///< 1 to 6 (objects need 5 or 6; older versions drop them)
   double heightStep = kDefaultHeightStep;  ///< versions 2 to 4; <= 0 stores exact float heights
 };
 

@@ -1,0 +1,200 @@
+// The scatter rule and object bases (scatter.h): moved from the
+// converter's placement so that version 6 decodes the very trees the
+// converter placed. Compiled without fused multiply-add (CMakeLists.txt):
+// a tree's position and scale must come out the same on every build.
+#include "sandtable/formats/scatter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include "sandtable/base/hash.h"
+
+namespace sandtable::module {
+
+namespace {
+
+using hash::mix;
+using hash::unit;
+
+std::uint64_t cellKey(std::int64_t i, std::int64_t j) {
+  return mix(std::uint64_t(i) * 0x100000001b3ull ^ mix(std::uint64_t(j)));
+}
+
+bool skinGroup(const Group& g) { return g.priority == kPrioritySkin && g.half != Half::skirt; }
+bool decalGroup(const Group& g) {
+  return g.priority > kPrioritySkin && g.priority < kPriorityObject && g.half != Half::skirt;
+}
+
+/// The group indices of each square of a level that pass `keep`.
+std::vector<std::vector<std::uint32_t>> groupsBySquare(const Level& l, bool (*keep)(const Group&)) {
+  std::vector<std::vector<std::uint32_t>> out(std::size_t(l.squaresX) * l.squaresZ);
+  for (std::size_t g = 0; g < l.groups.size(); ++g) {
+    if (keep(l.groups[g]) && l.groups[g].square < out.size()) out[l.groups[g].square].push_back(std::uint32_t(g));
+  }
+  return out;
+}
+
+using Hit = Surface::Hit;
+
+void search(const Level& l, const std::vector<std::uint32_t>& groups, double x, double z, Hit& best) {
+  for (const std::uint32_t gi : groups) {
+    const Group& g = l.groups[gi];
+    for (std::uint32_t k = g.firstIndex; k + 3 <= g.firstIndex + g.indexCount; k += 3) {
+      const Vertex& a = l.vertices[l.indices[k]];
+      const Vertex& b = l.vertices[l.indices[k + 1]];
+      const Vertex& c = l.vertices[l.indices[k + 2]];
+      const double d = (double(b.z) - c.z) * (double(a.x) - c.x) + (double(c.x) - b.x) * (double(a.z) - c.z);
+      if (d == 0) continue;
+      const double wa = ((double(b.z) - c.z) * (x - c.x) + (double(c.x) - b.x) * (z - c.z)) / d;
+      const double wb = ((double(c.z) - a.z) * (x - c.x) + (double(a.x) - c.x) * (z - c.z)) / d;
+      const double wc = 1 - wa - wb;
+      const double inside = std::min({wa, wb, wc});
+      if (inside > best.inside) {
+        best.inside = inside;
+        best.y = float(wa * a.y + wb * b.y + wc * c.y);
+        best.material = g.material;
+      }
+    }
+  }
+}
+
+std::uint32_t squareOf(double c, double spacing, std::uint32_t n) {
+  return std::uint32_t(std::clamp(std::floor(c / spacing), 0.0, double(n - 1)));
+}
+
+/// The best hit among the square holding (x, z) and, when the point is on
+/// its edge or outside it, its neighbours.
+Hit locate(const Level& l, const std::vector<std::vector<std::uint32_t>>& bySquare, double x, double z) {
+  Hit best;
+  if (l.squaresX == 0 || l.squaresZ == 0 || !(l.spacing > 0) || bySquare.empty()) return best;
+  const std::uint32_t sx = squareOf(x, l.spacing, l.squaresX), sz = squareOf(z, l.spacing, l.squaresZ);
+  search(l, bySquare[std::size_t(sz) * l.squaresX + sx], x, z, best);
+  constexpr double kEdge = 1e-7;
+  if (best.inside >= kEdge) return best;
+  for (std::uint32_t j = sz > 0 ? sz - 1 : 0; j <= std::min(sz + 1, l.squaresZ - 1); ++j) {
+    for (std::uint32_t i = sx > 0 ? sx - 1 : 0; i <= std::min(sx + 1, l.squaresX - 1); ++i) {
+      if (i != sx || j != sz) search(l, bySquare[std::size_t(j) * l.squaresX + i], x, z, best);
+    }
+  }
+  return best;
+}
+
+constexpr double kOnTriangle = -1e-6;  ///< barycentric slack for points on an edge
+
+}  // namespace
+
+CellRange cellRange(const ScatterRule& rule, const Scattering& s) {
+  CellRange r;
+  if (!(std::isfinite(rule.cell) && rule.cell > 0) || !std::isfinite(s.x0) || !std::isfinite(s.z0) ||
+      !(std::isfinite(s.width) && s.width > 0) || !(std::isfinite(s.depth) && s.depth > 0)) {
+    return r;
+  }
+  const double lo[2] = {std::floor(s.x0 / rule.cell), std::floor(s.z0 / rule.cell)};
+  const double hi[2] = {std::floor((s.x0 + s.width) / rule.cell), std::floor((s.z0 + s.depth) / rule.cell)};
+  for (int a = 0; a < 2; ++a) {
+    // Compared as doubles before any conversion: an id holds 24-bit cells.
+    if (!(lo[a] >= double(-kMaxCellIndex - 1) && hi[a] <= double(kMaxCellIndex))) return r;
+  }
+  return {std::int64_t(lo[0]), std::int64_t(hi[0]), std::int64_t(lo[1]), std::int64_t(hi[1])};
+}
+
+void vary(double scaleMin, double scaleMax, std::uint64_t seed, std::uint64_t key, float& scale,
+          std::uint16_t& heading) {
+  const std::uint64_t h = mix(seed ^ mix(key));
+  scale = float(scaleMin + (scaleMax - scaleMin) * unit(h));
+  heading = std::uint16_t(mix(h) & 0xffff);
+}
+
+Candidate candidate(const ScatterRule& rule, const Scattering& s, std::int64_t i, std::int64_t j) {
+  // One candidate per cell, jittered: the density is exact on average and
+  // the candidates do not depend on where modules are cut.
+  const std::uint64_t key = cellKey(i, j) ^ mix(rule.seed + rule.index);
+  const double X = (double(i) + unit(mix(key))) * rule.cell, Z = (double(j) + unit(mix(key + 1))) * rule.cell;
+  Candidate c;
+  c.x = X - s.x0;
+  c.z = Z - s.z0;
+  c.inside = c.x >= 0 && c.x < s.width && c.z >= 0 && c.z < s.depth;
+  Object& o = c.object;
+  o.icon = rule.icon;
+  o.cls = rule.classId;
+  o.x = float(c.x);
+  o.z = float(c.z);
+  vary(rule.scaleMin, rule.scaleMax, rule.seed, key, o.scale, o.heading);
+  o.radius = rule.radius * o.scale;
+  o.height = rule.height * o.scale;
+  o.id = scatteredId(rule.index, i, j);
+  return c;
+}
+
+Surface::Surface(const Level& level, bool cover) : level_(&level), skin_(groupsBySquare(level, skinGroup)) {
+  if (!cover) return;
+  decals_ = groupsBySquare(level, decalGroup);
+  // A building's groups (priority 99: walls and roof) sit in the square of
+  // its centre, not in every square it covers, so they are found by box.
+  for (std::uint32_t g = 0; g < level.groups.size(); ++g) {
+    const Group& gr = level.groups[g];
+    if (gr.priority != kPriorityObject || gr.half == Half::skirt) continue;
+    Box b{std::numeric_limits<float>::max(), std::numeric_limits<float>::max(), std::numeric_limits<float>::lowest(),
+          std::numeric_limits<float>::lowest(), g};
+    for (std::uint32_t k = gr.firstIndex; k < gr.firstIndex + gr.indexCount && k < level.indices.size(); ++k) {
+      const Vertex& v = level.vertices[level.indices[k]];
+      b.x0 = std::min(b.x0, v.x), b.x1 = std::max(b.x1, v.x);
+      b.z0 = std::min(b.z0, v.z), b.z1 = std::max(b.z1, v.z);
+    }
+    buildings_.push_back(b);
+  }
+}
+
+Surface::Hit Surface::skin(double x, double z) const { return locate(*level_, skin_, x, z); }
+
+bool Surface::accepts(std::uint16_t cls, double x, double z) const {
+  const Hit s = skin(x, z);
+  if (s.inside < kOnTriangle || s.material != cls) return false;
+  if (locate(*level_, decals_, x, z).inside >= kOnTriangle) return false;
+  // Under a building's roof (walls are edge-on from above).
+  for (const Box& b : buildings_) {
+    if (x < b.x0 || x > b.x1 || z < b.z0 || z > b.z1) continue;
+    Hit hit;
+    search(*level_, {b.group}, x, z, hit);
+    if (hit.inside >= kOnTriangle) return false;
+  }
+  return true;
+}
+
+float Surface::base(double x, double z) const {
+  const Hit hit = skin(x, z);
+  return std::isfinite(hit.y) ? hit.y : 0.0f;
+}
+
+std::vector<Object> scatter(const Scattering& s, std::size_t r, const Surface& surface, std::uint64_t* refused) {
+  std::vector<Object> out;
+  const ScatterRule& rule = s.rules[r];
+  const CellRange range = cellRange(rule, s);
+  for (std::int64_t j = range.j0; j <= range.j1; ++j) {
+    for (std::int64_t i = range.i0; i <= range.i1; ++i) {
+      const Candidate c = candidate(rule, s, i, j);
+      if (!c.inside) continue;  // another module's
+      if (surface.accepts(rule.classId, c.x, c.z)) out.push_back(c.object);
+      else if (refused) ++*refused;
+    }
+  }
+  return out;
+}
+
+void sortObjects(std::vector<Object>& objects) {
+  std::sort(objects.begin(), objects.end(), [](const Object& a, const Object& b) {
+    return std::tie(a.icon, a.z, a.x, a.id) < std::tie(b.icon, b.z, b.x, b.id);
+  });
+}
+
+void placeBases(Module& m) {
+  for (Level& l : m.levels) {
+    l.objectY.resize(m.objects.size());
+    if (m.objects.empty()) continue;
+    const Surface surface(l, false);
+    for (std::size_t k = 0; k < m.objects.size(); ++k) l.objectY[k] = surface.base(m.objects[k].x, m.objects[k].z);
+  }
+}
+
+}  // namespace sandtable::module
