@@ -84,7 +84,12 @@ Database planarDatabase(const std::string& dir) {
   h.levels = kLevels;
   h.moduleSquares = kSquares;
   h.moduleSize = kSquares * kSpacing;
-  auto pw = pack::PackWriter::create(dir, h, 1);
+  // Module version 5 stores each level's object base as given, so the
+  // column's lift per level survives; version 6 computes the bases from the
+  // level's own triangles, which would hide which level the viewer used.
+  pack::PackLayout layout;
+  layout.encode.version = 5;
+  auto pw = pack::PackWriter::create(dir, h, 1, layout);
   EXPECT_TRUE(pw.ok()) << pw.error();
   for (std::uint32_t kz = 0; kz < kModules; ++kz) {
     for (std::uint32_t kx = 0; kx < kModules; ++kx) EXPECT_EQ(pw.value()->add(planarModule(kx, kz)).message(), "");
