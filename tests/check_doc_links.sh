@@ -36,6 +36,11 @@ while IFS= read -r hit; do
   ref=${ref#[][[:space:]\`\"(<,;:*]}
   [[ $ref =~ [^A-Za-z0-9_]$ ]] && ref=${ref%?}
   [[ -z $ref ]] && continue
+  # The test data is not beside this checkout: locally that is allowed (as
+  # SANDTABLE_REQUIRE skips), in CI (SANDTABLE_REQUIRE_ALL=1) it still fails.
+  if [[ $ref == ../shared/* && ! -d ../shared && -z ${SANDTABLE_REQUIRE_ALL:-} ]]; then
+    continue
+  fi
   dir=${file%/*}
   [[ $dir == "$file" ]] && dir=.
   lib=${ref%%/*}
