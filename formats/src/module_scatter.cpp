@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <tuple>
 
 #include "sandtable/base/hash.h"
@@ -26,18 +27,26 @@ bool decalGroup(const Group& g) {
   return g.priority > kPrioritySkin && g.priority < kPriorityObject && g.half != Half::skirt;
 }
 
-/// The group indices of each square of a level that pass `keep`.
-std::vector<std::vector<std::uint32_t>> groupsBySquare(const Level& l, bool (*keep)(const Group&)) {
-  std::vector<std::vector<std::uint32_t>> out(std::size_t(l.squaresX) * l.squaresZ);
-  for (std::size_t g = 0; g < l.groups.size(); ++g) {
-    if (keep(l.groups[g]) && l.groups[g].square < out.size()) out[l.groups[g].square].push_back(std::uint32_t(g));
+/// The group indices of each square of a level that pass `keep`, in group order.
+Surface::Buckets groupsBySquare(const Level& l, bool (*keep)(const Group&)) {
+  const std::size_t squares = std::size_t(l.squaresX) * l.squaresZ;
+  Surface::Buckets b;
+  b.start.assign(squares + 1, 0);
+  for (const Group& g : l.groups) {
+    if (keep(g) && g.square < squares) ++b.start[g.square + 1];
   }
-  return out;
+  for (std::size_t s = 0; s < squares; ++s) b.start[s + 1] += b.start[s];
+  b.groups.resize(b.start[squares]);
+  std::vector<std::uint32_t> fill(b.start.begin(), b.start.end() - 1);
+  for (std::size_t g = 0; g < l.groups.size(); ++g) {
+    if (keep(l.groups[g]) && l.groups[g].square < squares) b.groups[fill[l.groups[g].square]++] = std::uint32_t(g);
+  }
+  return b;
 }
 
 using Hit = Surface::Hit;
 
-void search(const Level& l, const std::vector<std::uint32_t>& groups, double x, double z, Hit& best) {
+void search(const Level& l, std::span<const std::uint32_t> groups, double x, double z, Hit& best) {
   for (const std::uint32_t gi : groups) {
     const Group& g = l.groups[gi];
     for (std::uint32_t k = g.firstIndex; k + 3 <= g.firstIndex + g.indexCount; k += 3) {
@@ -59,25 +68,49 @@ void search(const Level& l, const std::vector<std::uint32_t>& groups, double x, 
   }
 }
 
+std::span<const std::uint32_t> square(const Surface::Buckets& b, std::size_t s) {
+  return {b.groups.data() + b.start[s], b.start[s + 1] - b.start[s]};
+}
+
 std::uint32_t squareOf(double c, double spacing, std::uint32_t n) {
   return std::uint32_t(std::clamp(std::floor(c / spacing), 0.0, double(n - 1)));
 }
 
 /// The best hit among the square holding (x, z) and, when the point is on
 /// its edge or outside it, its neighbours.
-Hit locate(const Level& l, const std::vector<std::vector<std::uint32_t>>& bySquare, double x, double z) {
+Hit locate(const Level& l, const Surface::Buckets& bySquare, double x, double z) {
   Hit best;
-  if (l.squaresX == 0 || l.squaresZ == 0 || !(l.spacing > 0) || bySquare.empty()) return best;
+  if (l.squaresX == 0 || l.squaresZ == 0 || !(l.spacing > 0) || bySquare.groups.empty()) return best;
   const std::uint32_t sx = squareOf(x, l.spacing, l.squaresX), sz = squareOf(z, l.spacing, l.squaresZ);
-  search(l, bySquare[std::size_t(sz) * l.squaresX + sx], x, z, best);
+  search(l, square(bySquare, std::size_t(sz) * l.squaresX + sx), x, z, best);
   constexpr double kEdge = 1e-7;
   if (best.inside >= kEdge) return best;
   for (std::uint32_t j = sz > 0 ? sz - 1 : 0; j <= std::min(sz + 1, l.squaresZ - 1); ++j) {
     for (std::uint32_t i = sx > 0 ? sx - 1 : 0; i <= std::min(sx + 1, l.squaresX - 1); ++i) {
-      if (i != sx || j != sz) search(l, bySquare[std::size_t(j) * l.squaresX + i], x, z, best);
+      if (i != sx || j != sz) search(l, square(bySquare, std::size_t(j) * l.squaresX + i), x, z, best);
     }
   }
   return best;
+}
+
+/// Surface::nearMaterials_ (scatter.h): the 3 x 3 neighbourhood that
+/// locate() searches, as a material bit set per square.
+std::vector<std::uint64_t> nearMaterials(const Level& l, const Surface::Buckets& skin) {
+  const std::size_t nx = l.squaresX, nz = l.squaresZ;
+  std::vector<std::uint64_t> own(nx * nz, 0), out(nx * nz, 0);
+  for (std::size_t s = 0; s < own.size(); ++s) {
+    for (const std::uint32_t g : square(skin, s)) own[s] |= 1ull << (l.groups[g].material % 64);
+  }
+  for (std::size_t j = 0; j < nz; ++j) {
+    for (std::size_t i = 0; i < nx; ++i) {
+      std::uint64_t m = 0;
+      for (std::size_t jj = j > 0 ? j - 1 : 0; jj <= std::min(j + 1, nz - 1); ++jj) {
+        for (std::size_t ii = i > 0 ? i - 1 : 0; ii <= std::min(i + 1, nx - 1); ++ii) m |= own[jj * nx + ii];
+      }
+      out[j * nx + i] = m;
+    }
+  }
+  return out;
 }
 
 constexpr double kOnTriangle = -1e-6;  ///< barycentric slack for points on an edge
@@ -130,6 +163,7 @@ Candidate candidate(const ScatterRule& rule, const Scattering& s, std::int64_t i
 Surface::Surface(const Level& level, bool cover) : level_(&level), skin_(groupsBySquare(level, skinGroup)) {
   if (!cover) return;
   decals_ = groupsBySquare(level, decalGroup);
+  nearMaterials_ = nearMaterials(level, skin_);
   // A building's groups (priority 99: walls and roof) sit in the square of
   // its centre, not in every square it covers, so they are found by box.
   for (std::uint32_t g = 0; g < level.groups.size(); ++g) {
@@ -149,6 +183,10 @@ Surface::Surface(const Level& level, bool cover) : level_(&level), skin_(groupsB
 Surface::Hit Surface::skin(double x, double z) const { return locate(*level_, skin_, x, z); }
 
 bool Surface::accepts(std::uint16_t cls, double x, double z) const {
+  const Level& l = *level_;
+  if (l.squaresX == 0 || l.squaresZ == 0 || !(l.spacing > 0)) return false;
+  const std::size_t at = std::size_t(squareOf(z, l.spacing, l.squaresZ)) * l.squaresX + squareOf(x, l.spacing, l.squaresX);
+  if (at < nearMaterials_.size() && !(nearMaterials_[at] >> (cls % 64) & 1)) return false;
   const Hit s = skin(x, z);
   if (s.inside < kOnTriangle || s.material != cls) return false;
   if (locate(*level_, decals_, x, z).inside >= kOnTriangle) return false;
@@ -156,7 +194,7 @@ bool Surface::accepts(std::uint16_t cls, double x, double z) const {
   for (const Box& b : buildings_) {
     if (x < b.x0 || x > b.x1 || z < b.z0 || z > b.z1) continue;
     Hit hit;
-    search(*level_, {b.group}, x, z, hit);
+    search(*level_, std::span<const std::uint32_t>(&b.group, 1), x, z, hit);
     if (hit.inside >= kOnTriangle) return false;
   }
   return true;

@@ -62,13 +62,25 @@ class Surface {
   /// An object's base on this level: the skin's height at (x, z), 0 off it.
   float base(double x, double z) const;
 
+  /// Group indices per square in one array (square s: groups[start[s]] ..
+  /// groups[start[s + 1]]), in group order: one allocation per level, not
+  /// one per square, since a loader builds these for every module it decodes.
+  struct Buckets {
+    std::vector<std::uint32_t> start, groups;
+  };
+
  private:
   struct Box {
     float x0, z0, x1, z1;
     std::uint32_t group;
   };
   const Level* level_;
-  std::vector<std::vector<std::uint32_t>> skin_, decals_;
+  Buckets skin_, decals_;
+  /// Per square: bit (material % 64) set when a skin group of that material
+  /// lies in the square or one of its eight neighbours, the only squares a
+  /// lookup searches. A clear bit proves the skin there is not the class, so
+  /// most refused candidates cost one load instead of two triangle searches.
+  std::vector<std::uint64_t> nearMaterials_;
   std::vector<Box> buildings_;
 };
 
