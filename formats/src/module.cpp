@@ -154,7 +154,7 @@ std::vector<std::byte> encodeV1(const Module& m) {
 
 std::vector<std::byte> encode(const Module& m, const EncodeOptions& options) {
   assert(checkEncodable(m).ok());
-  return options.version == kVersion ? encodeV1(m) : detail::encodeV2(m, options.heightStep, options.version);
+  return options.version == kVersion ? encodeV1(m) : detail::encodeV2(m, options);
 }
 
 std::uint32_t encodedVersion(std::span<const std::byte> bytes) {

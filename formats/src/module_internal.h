@@ -82,7 +82,7 @@ inline std::uint64_t groupKey(std::uint8_t priority, std::uint32_t square, std::
 
 /// Version 2 and 3 codec (module_v2.cpp): the whole module, and one level
 /// at `pos` (advanced past it). Problems as decode's.
-std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_t version);
+std::vector<std::byte> encodeV2(const Module& m, const EncodeOptions& options);
 Status decodeLevelV2(std::span<const std::byte> bytes, const std::string& file, std::uint64_t base,
                      std::size_t li, std::size_t& pos, Level& l, std::uint32_t version);
 
@@ -102,7 +102,7 @@ inline constexpr std::uint32_t kPaletteBytes6 = 12;
 inline constexpr std::uint32_t kRuleBytes6 = 56;
 inline constexpr std::uint32_t kExplicitBytes6 = 7;  ///< x, z u16; heading, scale, palette index u8
 inline constexpr double kMaxExtent6 = 1e6;           ///< metres: a module's width and depth at most
-void encodeObjectsV6(const Module& m, std::vector<std::byte>& out);
+void encodeObjectsV6(const Module& m, bool regenerateRules, std::vector<std::byte>& out);
 /// At least the bytes encodeObjectsV6 appends.
 std::uint64_t objectsBytesV6Bound(const Module& m);
 /// Reads version 6's objects section at `pos`: m.objects (explicit ones,

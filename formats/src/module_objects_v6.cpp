@@ -83,7 +83,7 @@ std::uint64_t objectsBytesV6Bound(const Module& m) {
   return n;
 }
 
-void encodeObjectsV6(const Module& m, std::vector<std::byte>& out) {
+void encodeObjectsV6(const Module& m, bool regenerateRules, std::vector<std::byte>& out) {
   const Scattering frame = frameOf(m);
   // Scattered objects: those a rule of the module reproduces bit for bit.
   std::map<std::uint16_t, std::size_t> ruleOf;  // rule index -> position in m.scattering.rules
@@ -144,7 +144,7 @@ void encodeObjectsV6(const Module& m, std::vector<std::byte>& out) {
     }
     RulePlan p{m.scattering.rules[r], kRuleRegenerate, {}, {}};
     const CellRange& range = ranges[r];
-    bool regenerate = !m.levels.empty();
+    bool regenerate = regenerateRules && !m.levels.empty();
     if (regenerate) {
       if (!surface) surface.emplace(m.levels.front(), true);
       Scattering one = m.scattering;

@@ -519,13 +519,14 @@ void encodeLevel(const Level& l, double heightStep, std::uint32_t version, std::
 
 }  // namespace
 
-std::vector<std::byte> encodeV2(const Module& m, double heightStep, std::uint32_t version) {
+std::vector<std::byte> encodeV2(const Module& m, const EncodeOptions& options) {
+  const double heightStep = options.heightStep;
   std::vector<std::byte> out(kHeaderBytes, std::byte{0});
-  const std::uint32_t v = std::clamp(version, kVersion2, kVersion6);
+  const std::uint32_t v = std::clamp(options.version, kVersion2, kVersion6);
   const std::uint32_t levelVersion = std::min(v, kVersion4);  // version 5's and 6's levels are version 4's
   for (const Level& l : m.levels) encodeLevel(l, heightStep, levelVersion, out);
   if (v == kVersion5) encodeObjects(m, out);
-  if (v == kVersion6) encodeObjectsV6(m, out);
+  if (v == kVersion6) encodeObjectsV6(m, options.regenerateRules, out);
   std::byte* const h = out.data();
   const auto& magic = v == kVersion6   ? kMagic6
                       : v == kVersion5 ? kMagic5

@@ -184,7 +184,9 @@ Result<PackWriter::Record> PackWriter::compress(const module::Module& m) const {
   // Both records carry every object, each with its own levels' elevations.
   const module::Module coarse{m.kx, m.kz, std::vector<module::Level>(split, m.levels.end()), m.objects, m.scattering};
   Extent c;
-  if (std::string bad = compressPart(coarse, s.level, s.layout.encode, name + " (coarse record)", r.bytes, c); !bad.empty()) {
+  module::EncodeOptions coarseEncode = s.layout.encode;
+  if (s.header.coarseLevel > 0) coarseEncode.regenerateRules = false;  // the hole path decodes it (module.h)
+  if (std::string bad = compressPart(coarse, s.level, coarseEncode, name + " (coarse record)", r.bytes, c); !bad.empty()) {
     return fail(bad);
   }
   e.compressedBytes = c.compressedBytes;

@@ -418,6 +418,13 @@ std::uint64_t encodedBytes(const Module& m);
 struct EncodeOptions {
   std::uint32_t version = kNewestVersion;  ///< 1 to 6 (objects need 5 or 6; older versions drop them)
   double heightStep = kDefaultHeightStep;  ///< versions 2 to 4; <= 0 stores exact float heights
+  /// Version 6: a scatter rule may be stored as "regenerate on the first
+  /// level, less these" (small on disk, costly to decode: a skin search per
+  /// candidate) when that reproduces its trees; false stores every rule as a
+  /// bitmap of its kept candidates (a hash per tree to decode). A pack's
+  /// coarse record is written with false: the pager reads it on the hole
+  /// path, and its first level is not level 0 anyway (docs/FORMAT.md §9.11).
+  bool regenerateRules = true;
 };
 
 /// Uncompressed bytes of a module (little-endian, layout above and in
