@@ -390,13 +390,17 @@ void BM_ModuleDecode(benchmark::State& state) {
     state.SkipWithError(db.error.c_str());
     return;
   }
-  // One iteration decodes one whole module: all of its records.
+  // One iteration decodes one whole module: all of its records (arg 0), or
+  // only its coarse record (1) or its fine one (2), as the pager's
+  // coarse-first loads and fine jobs do.
   const std::size_t records = db.reader->coarseLevel() == 0 ? 1 : 2;
   const std::size_t modules = db.raw.size() / records;
+  const std::size_t first = state.range(0) == 2 && records == 2 ? 1 : 0;
+  const std::size_t last = state.range(0) == 1 ? 1 : records;
   std::array<module::Module, 2> m;
   std::size_t k = 0;
   for (auto _ : state) {
-    for (std::size_t r = 0; r < records; ++r) {
+    for (std::size_t r = first; r < last; ++r) {
       const Status st = module::decodeInto(db.raw[k * records + r], "bench", 0, m[r]);
       if (!st) {
         state.SkipWithError(st.error().c_str());
@@ -411,7 +415,7 @@ void BM_ModuleDecode(benchmark::State& state) {
   state.counters["raw_bytes_per_module"] = double(db.rawBytes) / double(modules);
   state.counters["version"] = double(module::encodedVersion(db.raw.front()));
 }
-BENCHMARK(BM_ModuleDecode)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ModuleDecode)->ArgName("part")->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 
 void BM_ModuleReadInto(benchmark::State& state) {
   const BenchDb& db = BenchDb::get();
