@@ -484,6 +484,13 @@ struct ObjectRenderer::Frame {
   double focal = 0;     ///< pixels per metre at one metre
   bool sprites = false;  ///< impostors drawn
   bool thinning = false;  ///< and thinned
+  double fogDensity = 0, fogStart = 0;  ///< fogWeight()'s, 0 density: no fog
+  /// The share of an object's own colour left by the fog at `distance`:
+  /// the shaders' fogWeight() (terrain_shading.h).
+  double fogWeight(double distance) const {
+    const double k = fogDensity * std::max(distance - fogStart, 0.0);
+    return std::exp(-k * k);
+  }
 };
 
 void ObjectRenderer::consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look,
@@ -537,8 +544,12 @@ void ObjectRenderer::place(const Frame& f, const scene::ModuleDraw& d, std::uint
     if (thin > 0 && pixels < thin) {
       // Kept with probability (pixels / thin)^2, by where it stands, so
       // the same ones stay from frame to frame; the kept grow (up to
-      // twice) to keep the cover of the many they stand for.
-      const double keep = (pixels / thin) * (pixels / thin);
+      // twice) to keep the cover of the many they stand for. Times the
+      // share of its colour the fog leaves: a tree at fog weight 0.1 shows
+      // a tenth of its contrast, so nine in ten are not worth llvmpipe's
+      // setup and shading; the kept are not grown for those, and the
+      // forest fades into the fog by density as each tree does by colour.
+      const double keep = (pixels / thin) * (pixels / thin) * f.fogWeight(distance);
       if (unitHash(d.kx, d.kz, i) >= keep) {
         ++stats.objectsThinned;
         return;
@@ -723,8 +734,10 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
     for (std::uint32_t k = c.first; k < c.first + c.count; ++k) visit(k);
     return;
   }
+  // The fog only lowers the chance (place()): its weight at the nearest
+  // distance bounds the cell's.
   const double perSide = f.focal / (std::max(near, 1e-3) * thin);
-  const double keep = perSide * perSide * (1 + kSlack);
+  const double keep = perSide * perSide * f.fogWeight(near) * (1 + kSlack);
   const auto begin = mo.key.begin() + c.first, end = begin + c.count;
   const auto visited = std::uint32_t(std::lower_bound(begin, end, keep) - begin);
   for (std::uint32_t k = c.first; k < c.first + visited; ++k) visit(k);
@@ -751,6 +764,10 @@ void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
           impostors_ != 0 && settings_.objectLod,
           false};
   f.thinning = f.sprites && settings_.objectThinPixels > 0;
+  if (settings_.fog) {
+    f.fogDensity = scene::fogDensityFor(cam.viewDistance);
+    f.fogStart = scene::kFogClearFraction * cam.viewDistance;
+  }
   for (auto& p : f.planes) p /= std::max(p.head<3>().norm(), 1e-12);
   // Past its far range (capped at the view distance) an object is not
   // drawn; the ground distance is a cheap lower bound of the eye's.
