@@ -70,6 +70,8 @@ void main() {
 // Appended to shadingVertexGlsl(). One point per object, at the centre of
 // its icon's sprite square, as many pixels wide as the square projects to.
 // (Upright instanced quads, tried instead, cost llvmpipe a third more.)
+// vLevel: the impostor's mipmap level with the fewest texels still at
+// least the point's pixels (64 texels at level 0).
 const char* kSpriteVertexMain = R"(
 layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
 layout(location = 4) in vec2 aScaleFade;
@@ -80,25 +82,35 @@ uniform float uSize;     // the square's side, icon units
 uniform float uFocal;    // pixels per unit at unit depth
 out float vFog;
 flat out float vFade;
+flat out int vLevel;
 void main() {
   vec3 c = aPlace.xyz + vec3(0.0, uCentre * aScaleFade.x, 0.0);
   gl_Position = uViewProjection * vec4(c, 1.0);
   gl_PointSize = max(uFocal * uSize * aScaleFade.x / max(gl_Position.w, 1e-3), 1.0);
+  vLevel = clamp(int(floor(log2(64.0 / gl_PointSize))), 0, 6);
   vFog = fogWeight(distance(c, uEye));
   vFade = aScaleFade.y;
 }
 )";
 
 // Appended to iconFragmentGlsl(). The impostor's texel, alpha-tested,
-// screen-door faded as the meshes are, fogged.
+// screen-door faded as the meshes are, fogged. One texelFetch of the
+// point's level, nearest, rather than a filtered texture(): llvmpipe
+// computes every fragment's derivatives and mipmap level and blends eight
+// texels for a trilinear fetch from an array, which was a third of the
+// trees' CPU time (docs/VIEWER.md, "Trees in view").
+static_assert(kImpostorTexels == 64, "the sprite shaders' mipmap levels count from 64 texels");
 const char* kSpriteFragmentMain = R"(
 uniform sampler2DArray uImpostors;
 uniform float uLayer;
 in float vFog;
 flat in float vFade;
+flat in int vLevel;
 out vec4 fragColor;
 void main() {
-  vec4 t = texture(uImpostors, vec3(gl_PointCoord.x, 1.0 - gl_PointCoord.y, uLayer));
+  int n = 64 >> vLevel;
+  ivec2 q = min(ivec2(vec2(gl_PointCoord.x, 1.0 - gl_PointCoord.y) * float(n)), ivec2(n - 1));
+  vec4 t = texelFetch(uImpostors, ivec3(q, int(uLayer)), vLevel);
   if (t.a < 0.5 || fadedOut(vFade)) discard;
   fragColor = vec4(mix(uFogColor, t.rgb, vFog), 1.0);
 }
