@@ -97,8 +97,9 @@ void main() {
 // screen-door faded as the meshes are, fogged. One texelFetch of the
 // point's level, nearest, rather than a filtered texture(): llvmpipe
 // computes every fragment's derivatives and mipmap level and blends eight
-// texels for a trilinear fetch from an array, which was a third of the
-// trees' CPU time (docs/VIEWER.md, "Trees in view").
+// texels for a trilinear fetch from an array (the rasteriser threads' JIT
+// samples for the trees fell by a fifth without it: docs/VIEWER.md,
+// "Trees in view").
 static_assert(kImpostorTexels == 64, "the sprite shaders' mipmap levels count from 64 texels");
 const char* kSpriteFragmentMain = R"(
 uniform sampler2DArray uImpostors;
