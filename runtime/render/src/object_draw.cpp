@@ -70,6 +70,8 @@ void main() {
 // Appended to shadingVertexGlsl(). One point per object, at the centre of
 // its icon's sprite square, as many pixels wide as the square projects to.
 // (Upright instanced quads, tried instead, cost llvmpipe a third more.)
+// vLevel: the impostor's mipmap level with the fewest texels still at
+// least the point's pixels (64 texels at level 0).
 const char* kSpriteVertexMain = R"(
 layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
 layout(location = 4) in vec2 aScaleFade;
@@ -80,25 +82,36 @@ uniform float uSize;     // the square's side, icon units
 uniform float uFocal;    // pixels per unit at unit depth
 out float vFog;
 flat out float vFade;
+flat out int vLevel;
 void main() {
   vec3 c = aPlace.xyz + vec3(0.0, uCentre * aScaleFade.x, 0.0);
   gl_Position = uViewProjection * vec4(c, 1.0);
   gl_PointSize = max(uFocal * uSize * aScaleFade.x / max(gl_Position.w, 1e-3), 1.0);
+  vLevel = clamp(int(floor(log2(64.0 / gl_PointSize))), 0, 6);
   vFog = fogWeight(distance(c, uEye));
   vFade = aScaleFade.y;
 }
 )";
 
 // Appended to iconFragmentGlsl(). The impostor's texel, alpha-tested,
-// screen-door faded as the meshes are, fogged.
+// screen-door faded as the meshes are, fogged. One texelFetch of the
+// point's level, nearest, rather than a filtered texture(): llvmpipe
+// computes every fragment's derivatives and mipmap level and blends eight
+// texels for a trilinear fetch from an array (the rasteriser threads' JIT
+// samples for the trees fell by a fifth without it: docs/VIEWER.md,
+// "Trees in view").
+static_assert(kImpostorTexels == 64, "the sprite shaders' mipmap levels count from 64 texels");
 const char* kSpriteFragmentMain = R"(
 uniform sampler2DArray uImpostors;
 uniform float uLayer;
 in float vFog;
 flat in float vFade;
+flat in int vLevel;
 out vec4 fragColor;
 void main() {
-  vec4 t = texture(uImpostors, vec3(gl_PointCoord.x, 1.0 - gl_PointCoord.y, uLayer));
+  int n = 64 >> vLevel;
+  ivec2 q = min(ivec2(vec2(gl_PointCoord.x, 1.0 - gl_PointCoord.y) * float(n)), ivec2(n - 1));
+  vec4 t = texelFetch(uImpostors, ivec3(q, int(uLayer)), vLevel);
   if (t.a < 0.5 || fadedOut(vFade)) discard;
   fragColor = vec4(mix(uFogColor, t.rgb, vFog), 1.0);
 }
@@ -484,6 +497,13 @@ struct ObjectRenderer::Frame {
   double focal = 0;     ///< pixels per metre at one metre
   bool sprites = false;  ///< impostors drawn
   bool thinning = false;  ///< and thinned
+  double fogDensity = 0, fogStart = 0;  ///< fogWeight()'s, 0 density: no fog
+  /// The share of an object's own colour left by the fog at `distance`:
+  /// the shaders' fogWeight() (terrain_shading.h).
+  double fogWeight(double distance) const {
+    const double k = fogDensity * std::max(distance - fogStart, 0.0);
+    return std::exp(-k * k);
+  }
 };
 
 void ObjectRenderer::consider(const Frame& f, std::uint32_t m, std::size_t i, scene::ObjectLook look,
@@ -537,8 +557,12 @@ void ObjectRenderer::place(const Frame& f, const scene::ModuleDraw& d, std::uint
     if (thin > 0 && pixels < thin) {
       // Kept with probability (pixels / thin)^2, by where it stands, so
       // the same ones stay from frame to frame; the kept grow (up to
-      // twice) to keep the cover of the many they stand for.
-      const double keep = (pixels / thin) * (pixels / thin);
+      // twice) to keep the cover of the many they stand for. Times the
+      // share of its colour the fog leaves: a tree at fog weight 0.1 shows
+      // a tenth of its contrast, so nine in ten are not worth llvmpipe's
+      // setup and shading; the kept are not grown for those, and the
+      // forest fades into the fog by density as each tree does by colour.
+      const double keep = (pixels / thin) * (pixels / thin) * f.fogWeight(distance);
       if (unitHash(d.kx, d.kz, i) >= keep) {
         ++stats.objectsThinned;
         return;
@@ -723,8 +747,10 @@ void ObjectRenderer::collectCell(const Frame& f, std::uint32_t m, ModuleObjects&
     for (std::uint32_t k = c.first; k < c.first + c.count; ++k) visit(k);
     return;
   }
+  // The fog only lowers the chance (place()): its weight at the nearest
+  // distance bounds the cell's.
   const double perSide = f.focal / (std::max(near, 1e-3) * thin);
-  const double keep = perSide * perSide * (1 + kSlack);
+  const double keep = perSide * perSide * f.fogWeight(near) * (1 + kSlack);
   const auto begin = mo.key.begin() + c.first, end = begin + c.count;
   const auto visited = std::uint32_t(std::lower_bound(begin, end, keep) - begin);
   for (std::uint32_t k = c.first; k < c.first + visited; ++k) visit(k);
@@ -751,6 +777,10 @@ void ObjectRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
           impostors_ != 0 && settings_.objectLod,
           false};
   f.thinning = f.sprites && settings_.objectThinPixels > 0;
+  if (settings_.fog) {
+    f.fogDensity = scene::fogDensityFor(cam.viewDistance);
+    f.fogStart = scene::kFogClearFraction * cam.viewDistance;
+  }
   for (auto& p : f.planes) p /= std::max(p.head<3>().norm(), 1e-12);
   // Past its far range (capped at the view distance) an object is not
   // drawn; the ground distance is a cheap lower bound of the eye's.

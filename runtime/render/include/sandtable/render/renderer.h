@@ -132,9 +132,9 @@ struct DrawChoices {
   /// 0: always meshes. Only with objectLod.
   double impostorPixels = kDefaultImpostorPixels;
   /// Sprites under this many pixels are thinned: each is kept with
-  /// probability (pixels / objectThinPixels)^2, fixed per object, and the
-  /// kept ones are drawn up to twice their size (docs/VIEWER.md,
-  /// "Impostors"); 0: every sprite is drawn.
+  /// probability (pixels / objectThinPixels)^2 times its fog weight, fixed
+  /// per object, and the kept ones are drawn up to twice their size for
+  /// the first factor (docs/VIEWER.md, "Thinning"); 0: every sprite is drawn.
   double objectThinPixels = kDefaultObjectThinPixels;
 };
 
