@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "sandtable/base/hash.h"
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::module {
 
@@ -114,6 +115,55 @@ std::vector<std::uint64_t> nearMaterials(const Level& l, const Surface::Buckets&
 }
 
 constexpr double kOnTriangle = -1e-6;  ///< barycentric slack for points on an edge
+
+/// Whether vertices 0 .. P-1 of `l` are its lattice posts, row by row: the
+/// test the encoder makes before it flags a level's lattice (docs/FORMAT.md
+/// §9), on x and z alone, which every version decodes bit for bit. Fills the
+/// posts' column x and row z.
+bool latticePosts(const Level& l, std::vector<double>& xs, std::vector<double>& zs) {
+  const std::uint32_t nx = l.squaresX, nz = l.squaresZ;
+  const std::size_t w = std::size_t(nx) + 1;
+  if (nx == 0 || nz == 0 || !(l.spacing > 0) || w * (std::size_t(nz) + 1) > l.vertices.size()) return false;
+  const auto& v = l.vertices;
+  const double lastX = v[nx].x, lastZ = v[std::size_t(nz) * w].z;
+  xs.resize(w);
+  zs.resize(std::size_t(nz) + 1);
+  for (std::uint32_t a = 0; a <= nx; ++a) xs[a] = a < nx ? double(a) * l.spacing : lastX;
+  for (std::uint32_t b = 0; b <= nz; ++b) zs[b] = b < nz ? double(b) * l.spacing : lastZ;
+  for (std::uint32_t b = 0; b <= nz; ++b) {
+    const float z = float(zs[b]);
+    for (std::uint32_t a = 0; a <= nx; ++a) {
+      const Vertex& q = v[b * w + a];
+      if (q.x != float(xs[a]) || q.z != z) return false;
+    }
+  }
+  return xs[nx] > xs[nx - 1] && zs[nz] > zs[nz - 1];
+}
+
+/// Every object's base on the plane of the lattice triangle under it
+/// (terrain::planeHeight, the rule the grid, the sampler and validate use):
+/// one lookup per object instead of a search of the square's skin triangles,
+/// which are pieces of that same plane (culture is cut into the lattice
+/// triangles, its vertices' heights the plane's to the height step). The
+/// difference from the skin's interpolation is float rounding; validate
+/// holds bases to the grid's lattice plane within 1 cm. False when the
+/// level has no lattice posts (the caller searches the skin then).
+bool latticeBases(Level& l, const std::vector<Object>& objects) {
+  thread_local std::vector<double> xs, zs;  // a loader decodes without allocating once warm
+  if (!latticePosts(l, xs, zs)) return false;
+  const std::uint32_t nx = l.squaresX, nz = l.squaresZ;
+  const std::size_t w = std::size_t(nx) + 1;
+  for (std::size_t k = 0; k < objects.size(); ++k) {
+    const double x = std::clamp(double(objects[k].x), 0.0, xs[nx]);
+    const double z = std::clamp(double(objects[k].z), 0.0, zs[nz]);
+    const std::uint32_t i = squareOf(x, l.spacing, nx), j = squareOf(z, l.spacing, nz);
+    const double fx = (x - xs[i]) / (xs[i + 1] - xs[i]), fz = (z - zs[j]) / (zs[j + 1] - zs[j]);
+    const Vertex* nw = &l.vertices[j * w + i];
+    const Vertex* sw = nw + w;
+    l.objectY[k] = float(terrain::planeHeight(fx, fz, nw[0].y, nw[1].y, sw[0].y, sw[1].y));
+  }
+  return true;
+}
 
 }  // namespace
 
@@ -230,6 +280,7 @@ void placeBases(Module& m) {
   for (Level& l : m.levels) {
     l.objectY.resize(m.objects.size());
     if (m.objects.empty()) continue;
+    if (latticeBases(l, m.objects)) continue;
     const Surface surface(l, false);
     for (std::size_t k = 0; k < m.objects.size(); ++k) l.objectY[k] = surface.base(m.objects[k].x, m.objects[k].z);
   }
