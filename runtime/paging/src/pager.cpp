@@ -281,6 +281,13 @@ struct PublishTimer {
 
 void publishFinerLevels(Impl& im, Slot& s, const module::Module& m, std::uint32_t from, std::uint32_t to);
 
+/// Publishes a loader's backlog counts; called with its pendingMutex held.
+void storeBacklog(Loader& ld) {
+  ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+  const auto coarse = std::count_if(ld.pending.begin(), ld.pending.end(), [](const Pending& q) { return q.fine == 0; });
+  ld.coarseBacklog.store(std::uint32_t(coarse), std::memory_order_relaxed);
+}
+
 /// PagerOptions::prepareLevel on level l of d, written and not yet
 /// published (the worker phase of the load).
 void prepareLevel(Impl& im, ResidentModule& d, std::uint32_t l) {
@@ -463,7 +470,7 @@ void loadModule(Impl& im, Loader& ld, const Pending& p) {
     if (ld.pending.size() < ld.pending.capacity()) {
       im.outstanding.fetch_add(1);
       ld.pending.push_back({p.key, p.refill, 1, p.requestNs});
-      ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+      storeBacklog(ld);
       return;
     }
   }
@@ -580,7 +587,7 @@ void freeModule(Impl& im, std::uint32_t key) {
 }
 
 void noteBacklog(Impl& im, Loader& ld) {
-  ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+  storeBacklog(ld);
   const auto n = std::uint32_t(ld.pending.size() + ld.queue->size());
   std::uint32_t m = im.maxQueueLength.load(std::memory_order_relaxed);
   while (n > m && !im.maxQueueLength.compare_exchange_weak(m, n, std::memory_order_relaxed)) {
@@ -616,7 +623,7 @@ void resync(Impl& im, Loader& ld) {
 
 /// Takes the pending module nearest the eye, dropping those that left the
 /// window (cancelled before their read began).
-std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
+std::optional<Pending> takeNearest(Impl& im, Loader& ld, bool coarseOnly = false) {
   const WindowState ws = im.window.load();
   const double e = im.geometry.moduleSize;
   std::optional<Pending> best;
@@ -637,6 +644,10 @@ std::optional<Pending> takeNearest(Impl& im, Loader& ld) {
     // nearest first.
     const double d = dx * dx + dz * dz;
     const bool fine = ld.pending[i].fine != 0;
+    if (fine && coarseOnly) {
+      ++i;
+      continue;
+    }
     if (!best || fine < bestFine || (fine == bestFine && d < bestD)) {
       best = ld.pending[i];
       bestD = d;
@@ -705,8 +716,36 @@ std::optional<Pending> steal(Impl& im, const Loader& self) {
   if (victim == nullptr) return std::nullopt;
   const std::lock_guard lock(victim->pendingMutex);
   std::optional<Pending> p = takeNearest(im, *victim);
-  victim->backlog.store(std::uint32_t(victim->pending.size()), std::memory_order_relaxed);
+  storeBacklog(*victim);
   return p;
+}
+
+/// Work stealing of a coarse load only: the nearest coarse load pending at
+/// the loader with the most of them.
+std::optional<Pending> stealCoarse(Impl& im, const Loader& self) {
+  Loader* victim = nullptr;
+  std::uint32_t most = 0;
+  for (const auto& l : im.loaders) {
+    const std::uint32_t b = l->coarseBacklog.load(std::memory_order_relaxed);
+    if (l.get() != &self && b > most) {
+      most = b;
+      victim = l.get();
+    }
+  }
+  if (victim == nullptr) return std::nullopt;
+  const std::lock_guard lock(victim->pendingMutex);
+  std::optional<Pending> p = takeNearest(im, *victim, true);
+  storeBacklog(*victim);
+  return p;
+}
+
+/// Another loader has coarse loads pending, or requests it has not drained
+/// yet (most of which are coarse loads).
+bool coarseElsewhere(const Impl& im, const Loader& self) {
+  return std::any_of(im.loaders.begin(), im.loaders.end(), [&](const auto& l) {
+    return l.get() != &self &&
+           (l->coarseBacklog.load(std::memory_order_relaxed) > 0 || l->queue->size() > 0);
+  });
 }
 
 /// Another loader has modules queued or pending.
@@ -743,7 +782,7 @@ void loaderLoop(Impl& im, Loader& ld) {
       noteBacklog(im, ld);
       if (!ld.pending.empty()) {
         p = takeNearest(im, ld);
-        ld.backlog.store(std::uint32_t(ld.pending.size()), std::memory_order_relaxed);
+        storeBacklog(ld);
       }
     }
     if (!fresh.empty()) {
@@ -751,6 +790,25 @@ void loaderLoop(Impl& im, Loader& ld) {
       im.count.readaheadHints.fetch_add(1, std::memory_order_relaxed);
     }
     bool stolen = false;
+    if (p && p->fine && stealing && coarseElsewhere(im, ld)) {
+      // Coarse first across loaders too: a fine record (a tenth of the
+      // module's bytes but most of its decode, trees included) read here
+      // would take a core from another loader's coarse loads, the ones
+      // whose lateness is a hole. Put it back and help with those instead.
+      {
+        const std::lock_guard lock(ld.pendingMutex);
+        ld.pending.push_back(*p);
+        storeBacklog(ld);
+      }
+      p = stealCoarse(im, ld);
+      stolen = p.has_value();
+      if (!p) {
+        // Only undrained queues: their owners take them after their
+        // current load; leave them the core meanwhile.
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+        continue;
+      }
+    }
     if (!p && stealing) {
       p = steal(im, ld);
       stolen = p.has_value();

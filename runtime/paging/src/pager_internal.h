@@ -175,6 +175,9 @@ struct Loader {
   std::atomic<std::uint32_t> signal{0};
   std::atomic<bool> resync{false};
   std::atomic<std::uint32_t> backlog{0};  ///< pending (drained, not yet loaded), for metrics
+  /// The coarse loads among `pending` (coarse-first): other loaders read
+  /// no fine record while this or a queue is nonzero (loaderLoop).
+  std::atomic<std::uint32_t> coarseBacklog{0};
   std::atomic<std::uint64_t> published{0};
   /// Guards `pending`: its loader, and thieves (work stealing). Loaders
   /// only; the main thread and readers never take it.
