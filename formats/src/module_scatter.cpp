@@ -153,11 +153,17 @@ bool latticeBases(Level& l, const std::vector<Object>& objects) {
   if (!latticePosts(l, xs, zs)) return false;
   const std::uint32_t nx = l.squaresX, nz = l.squaresZ;
   const std::size_t w = std::size_t(nx) + 1;
+  // Fractions by multiplying: every square but the last of a row or
+  // column is `spacing` wide; the last may be narrower (an edge module).
+  const double inv = 1.0 / l.spacing;
+  const double lastX = 1.0 / (xs[nx] - xs[nx - 1]), lastZ = 1.0 / (zs[nz] - zs[nz - 1]);
   for (std::size_t k = 0; k < objects.size(); ++k) {
     const double x = std::clamp(double(objects[k].x), 0.0, xs[nx]);
     const double z = std::clamp(double(objects[k].z), 0.0, zs[nz]);
-    const std::uint32_t i = squareOf(x, l.spacing, nx), j = squareOf(z, l.spacing, nz);
-    const double fx = (x - xs[i]) / (xs[i + 1] - xs[i]), fz = (z - zs[j]) / (zs[j + 1] - zs[j]);
+    const auto i = std::uint32_t(std::min(x * inv, double(nx - 1)));
+    const auto j = std::uint32_t(std::min(z * inv, double(nz - 1)));
+    const double fx = (x - xs[i]) * (i + 1 == nx ? lastX : inv);
+    const double fz = (z - zs[j]) * (j + 1 == nz ? lastZ : inv);
     const Vertex* nw = &l.vertices[j * w + i];
     const Vertex* sw = nw + w;
     l.objectY[k] = float(terrain::planeHeight(fx, fz, nw[0].y, nw[1].y, sw[0].y, sw[1].y));
@@ -271,9 +277,31 @@ std::vector<Object> scatter(const Scattering& s, std::size_t r, const Surface& s
 }
 
 void sortObjects(std::vector<Object>& objects) {
-  std::sort(objects.begin(), objects.end(), [](const Object& a, const Object& b) {
+  const auto less = [](const Object& a, const Object& b) {
     return std::tie(a.icon, a.z, a.x, a.id) < std::tie(b.icon, b.z, b.x, b.id);
-  });
+  };
+  // A decoded rule's trees come in cell order, row by row, so they are
+  // sorted by z but for the jitter within a row: an insertion sort moves
+  // each only a few places. Any sort gives the same order (ids make it
+  // total); past a budget of moves (explicit objects in any order, a
+  // hostile module) the rest goes to std::sort.
+  const std::size_t budget = 8 * objects.size() + 64;
+  std::size_t moves = 0;
+  for (std::size_t i = 1; i < objects.size(); ++i) {
+    if (!less(objects[i], objects[i - 1])) continue;
+    const Object t = objects[i];
+    std::size_t j = i;
+    do {
+      objects[j] = objects[j - 1];
+      --j;
+      ++moves;
+    } while (j > 0 && less(t, objects[j - 1]));
+    objects[j] = t;
+    if (moves > budget) {
+      std::sort(objects.begin(), objects.end(), less);
+      return;
+    }
+  }
 }
 
 void placeBases(Module& m) {

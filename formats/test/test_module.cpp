@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 #include <meshoptimizer.h>
 
+#include <algorithm>
 #include <atomic>
 #include <thread>
+#include <tuple>
 #include <bit>
 #include <cstdlib>
 #include <cstring>
@@ -1831,6 +1833,48 @@ TEST(ModuleV6, treesMatchAnIndependentGeneratorWhateverTheOrderThreadsAndCut) {
         }
       }
     }
+  }
+}
+
+}  // namespace
+}  // namespace sandtable::module
+
+namespace sandtable::module {
+namespace {
+
+// sortObjects takes a shortcut for the nearly sorted lists decoding makes
+// and falls back past a budget of moves; either way its order must be the
+// one a plain sort by (icon, z, x, id) gives.
+TEST(SortObjects, givesThePlainSortsOrderForNearlySortedReversedAndShuffledLists) {
+  const auto plain = [](std::vector<Object> v) {
+    std::sort(v.begin(), v.end(), [](const Object& a, const Object& b) {
+      return std::tie(a.icon, a.z, a.x, a.id) < std::tie(b.icon, b.z, b.x, b.id);
+    });
+    return v;
+  };
+  std::vector<Object> rows;  // cell order: rows of 40 cells, z jittered within a row
+  std::uint64_t h = 12345;
+  for (std::uint64_t j = 0; j < 40; ++j) {
+    for (std::uint64_t i = 0; i < 40; ++i) {
+      h = h * 6364136223846793005ull + 1442695040888963407ull;
+      Object o;
+      o.icon = std::uint16_t(h >> 62);  // four icons, interleaved
+      o.z = float(j * 25 + (h >> 40) % 25);
+      o.x = float(i * 25 + (h >> 20) % 25);
+      o.id = j * 40 + i;
+      rows.push_back(o);
+    }
+  }
+  std::vector<Object> reversed = plain(rows);
+  std::reverse(reversed.begin(), reversed.end());
+  std::vector<Object> oneIcon = rows;
+  for (Object& o : oneIcon) o.icon = 7;
+  for (const auto& input : {rows, reversed, oneIcon, std::vector<Object>{}, std::vector<Object>(1)}) {
+    std::vector<Object> v = input;
+    sortObjects(v);
+    const std::vector<Object> want = plain(input);
+    ASSERT_EQ(v.size(), want.size());
+    for (std::size_t k = 0; k < v.size(); ++k) EXPECT_EQ(v[k].id, want[k].id) << k;
   }
 }
 
