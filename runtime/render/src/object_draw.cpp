@@ -70,26 +70,25 @@ void main() {
 // Appended to shadingVertexGlsl(). One point per object, at the centre of
 // its icon's sprite square, as many pixels wide as the square projects to.
 // (Upright instanced quads, tried instead, cost llvmpipe a third more.)
-// vLevel: the impostor's mipmap level with the fewest texels still at
-// least the point's pixels (64 texels at level 0).
+// A sprite's instance holds that centre, the square's side (times the
+// object's scale) and its impostor's layer (place()), so that one draw
+// takes every icon's sprites. The fragment shader gets one flat vec4: fog
+// weight, fade, layer and vLevel, the impostor's mipmap level with the
+// fewest texels still at least the point's pixels (64 texels at level 0);
+// llvmpipe sets up each point's inputs one by one on the render thread.
 const char* kSpriteVertexMain = R"(
-layout(location = 3) in vec4 aPlace;       // base x, y, z and heading (radians)
-layout(location = 4) in vec2 aScaleFade;
+layout(location = 3) in vec4 aPlace;       // centre x, y, z and impostor layer
+layout(location = 4) in vec2 aScaleFade;   // side and fade
 uniform mat4 uViewProjection;
 uniform vec3 uEye;
-uniform float uCentre;   // the square's centre above the base, icon units
-uniform float uSize;     // the square's side, icon units
 uniform float uFocal;    // pixels per unit at unit depth
-out float vFog;
-flat out float vFade;
-flat out int vLevel;
+flat out vec4 vSprite;   // fog weight, fade, layer, mipmap level
 void main() {
-  vec3 c = aPlace.xyz + vec3(0.0, uCentre * aScaleFade.x, 0.0);
+  vec3 c = aPlace.xyz;
   gl_Position = uViewProjection * vec4(c, 1.0);
-  gl_PointSize = max(uFocal * uSize * aScaleFade.x / max(gl_Position.w, 1e-3), 1.0);
-  vLevel = clamp(int(floor(log2(64.0 / gl_PointSize))), 0, 6);
-  vFog = fogWeight(distance(c, uEye));
-  vFade = aScaleFade.y;
+  gl_PointSize = max(uFocal * aScaleFade.x / max(gl_Position.w, 1e-3), 1.0);
+  float level = float(clamp(int(floor(log2(64.0 / gl_PointSize))), 0, 6));
+  vSprite = vec4(fogWeight(distance(c, uEye)), aScaleFade.y, aPlace.w, level);
 }
 )";
 
@@ -103,17 +102,15 @@ void main() {
 static_assert(kImpostorTexels == 64, "the sprite shaders' mipmap levels count from 64 texels");
 const char* kSpriteFragmentMain = R"(
 uniform sampler2DArray uImpostors;
-uniform float uLayer;
-in float vFog;
-flat in float vFade;
-flat in int vLevel;
+flat in vec4 vSprite;
 out vec4 fragColor;
 void main() {
-  int n = 64 >> vLevel;
+  int level = int(vSprite.w);
+  int n = 64 >> level;
   ivec2 q = min(ivec2(vec2(gl_PointCoord.x, 1.0 - gl_PointCoord.y) * float(n)), ivec2(n - 1));
-  vec4 t = texelFetch(uImpostors, ivec3(q, int(uLayer)), vLevel);
-  if (t.a < 0.5 || fadedOut(vFade)) discard;
-  fragColor = vec4(mix(uFogColor, t.rgb, vFog), 1.0);
+  vec4 t = texelFetch(uImpostors, ivec3(q, int(vSprite.z)), level);
+  if (t.a < 0.5 || fadedOut(vSprite.y)) discard;
+  fragColor = vec4(mix(uFogColor, t.rgb, vSprite.x), 1.0);
 }
 )";
 
@@ -569,7 +566,9 @@ void ObjectRenderer::place(const Frame& f, const scene::ModuleDraw& d, std::uint
       }
       instance.scale *= float(std::min(thin / pixels, 2.0));
     }
-    spriteBuckets_[o.icon].push_back(instance);
+    const IconSprite& sp = sprites_[o.icon];
+    spriteBuckets_[o.icon].push_back({instance.x, instance.y + sp.centre * instance.scale, instance.z, float(o.icon),
+                             sp.size * instance.scale, instance.fade});
   } else {
     buckets_[levelBase_[o.icon] + std::uint32_t(iconLevel)].push_back(instance);
   }
@@ -855,7 +854,7 @@ void ObjectRenderer::warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix
       // In front of the warm-up eye and big enough to shade fragments, both
       // the kept and the discarded (faded) kind; a sprite too.
       buckets_[levelBase_[icon]].push_back({0.0f, 0.0f, -20.0f, 0.0f, 1.0f, 0.5f});
-      spriteBuckets_[icon].push_back({0.0f, 0.0f, -20.0f, 0.0f, 1.0f, 0.5f});
+      spriteBuckets_[icon].push_back({0.0f, sprites_[icon].centre, -20.0f, float(icon), sprites_[icon].size, 0.5f});
       break;
     }
   }
@@ -925,18 +924,11 @@ void ObjectRenderer::drawSprites(const scene::DisplayBuffer& buf, const Eigen::M
   glVertexArrayVertexBuffer(spriteVao_, 0, instanceBuffer_, 0, sizeof(ObjectInstance));
   glBindVertexArray(spriteVao_);
   glEnable(GL_PROGRAM_POINT_SIZE);
-  for (std::size_t icon = 0; icon < spriteBuckets_.size(); ++icon) {
-    const auto n = GLsizei(spriteBuckets_[icon].size());
-    if (n > 0) {
-      spriteProgram_.set("uCentre", sprites_[icon].centre);
-      spriteProgram_.set("uSize", sprites_[icon].size);
-      spriteProgram_.set("uLayer", float(icon));
-      glDrawArrays(GL_POINTS, GLint(first), n);
-      ++stats.objectDraws;
-      stats.objectSprites += std::uint32_t(n);
-    }
-    first += GLuint(n);
-  }
+  GLsizei n = 0;
+  for (const auto& b : spriteBuckets_) n += GLsizei(b.size());
+  glDrawArrays(GL_POINTS, GLint(first), n);
+  ++stats.objectDraws;
+  stats.objectSprites += std::uint32_t(n);
   glDisable(GL_PROGRAM_POINT_SIZE);
   glBindVertexArray(0);
 }

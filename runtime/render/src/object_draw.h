@@ -97,7 +97,9 @@ IconVertex iconVertex(const iconpack::Icon& icon, const iconpack::Mesh& m, std::
 /// normal 1, colour 2, texture coordinates 5, texture layer 6.
 void bindIconVertex(GLuint vao);
 
-/// One drawn object: 24 bytes, divisor 1.
+/// One drawn object: 24 bytes, divisor 1. A sprite's (one point, place())
+/// holds its square's centre in x, y, z, its impostor layer in heading and
+/// the square's side times its scale in scale.
 struct ObjectInstance {
   float x, y, z;   ///< base, relative to the buffer origin
   float heading;   ///< radians clockwise from north
@@ -231,7 +233,7 @@ class ObjectRenderer {
   std::vector<std::uint32_t> levelBase_;             ///< first bucket of each icon
   // Per-frame scratch (capacity kept).
   std::vector<std::vector<ObjectInstance>> buckets_;  ///< levelBase_[icon] + level
-  std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon
+  std::vector<std::vector<ObjectInstance>> spriteBuckets_;  ///< per icon, drawn by one glDrawArrays
   std::vector<ObjectInstance> stream_;
   std::vector<double> farRange_;  ///< per icon, this frame
   std::vector<scene::DynamicInstance> diverted_;
