@@ -702,12 +702,13 @@ void collectFaults(Impl& im, Loader& ld) {
 }
 
 /// Work stealing: the nearest pending module of the loader with the
-/// largest backlog, taken under that loader's pending mutex.
-std::optional<Pending> steal(Impl& im, const Loader& self) {
+/// largest backlog, taken under that loader's pending mutex; with
+/// `coarseOnly`, the nearest coarse load of the loader with the most of them.
+std::optional<Pending> steal(Impl& im, const Loader& self, bool coarseOnly = false) {
   Loader* victim = nullptr;
   std::uint32_t most = 0;
   for (const auto& l : im.loaders) {
-    const std::uint32_t b = l->backlog.load(std::memory_order_relaxed);
+    const std::uint32_t b = (coarseOnly ? l->coarseBacklog : l->backlog).load(std::memory_order_relaxed);
     if (l.get() != &self && b > most) {
       most = b;
       victim = l.get();
@@ -715,26 +716,7 @@ std::optional<Pending> steal(Impl& im, const Loader& self) {
   }
   if (victim == nullptr) return std::nullopt;
   const std::lock_guard lock(victim->pendingMutex);
-  std::optional<Pending> p = takeNearest(im, *victim);
-  storeBacklog(*victim);
-  return p;
-}
-
-/// Work stealing of a coarse load only: the nearest coarse load pending at
-/// the loader with the most of them.
-std::optional<Pending> stealCoarse(Impl& im, const Loader& self) {
-  Loader* victim = nullptr;
-  std::uint32_t most = 0;
-  for (const auto& l : im.loaders) {
-    const std::uint32_t b = l->coarseBacklog.load(std::memory_order_relaxed);
-    if (l.get() != &self && b > most) {
-      most = b;
-      victim = l.get();
-    }
-  }
-  if (victim == nullptr) return std::nullopt;
-  const std::lock_guard lock(victim->pendingMutex);
-  std::optional<Pending> p = takeNearest(im, *victim, true);
+  std::optional<Pending> p = takeNearest(im, *victim, coarseOnly);
   storeBacklog(*victim);
   return p;
 }
@@ -800,7 +782,7 @@ void loaderLoop(Impl& im, Loader& ld) {
         ld.pending.push_back(*p);
         storeBacklog(ld);
       }
-      p = stealCoarse(im, ld);
+      p = steal(im, ld, true);
       stolen = p.has_value();
       if (!p) {
         // Only undrained queues: their owners take them after their
