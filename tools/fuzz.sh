@@ -6,7 +6,7 @@
 # leak, sanitizer report or timeout fails the script (exit 1); the input
 # that did it is kept under BUILD_DIR/crashes/. Run by .ci/run.
 # Usage: tools/fuzz.sh [BUILD_DIR]   (default build-fuzz)
-# Environment: SANDTABLE_FUZZ_SECONDS (per target, default 6: 9 targets, about a minute),
+# Environment: SANDTABLE_FUZZ_SECONDS (per target, default 6: 10 targets, about a minute),
 #   SANDTABLE_FUZZ_RUNS (most inputs per target, default 200000),
 #   SANDTABLE_CLI (the CLI that builds the seed database, default build/tools/sandtable).
 set -euo pipefail
@@ -42,6 +42,14 @@ seed() {  # seed NAME FILE... : copy files into NAME's seed directory
 seed sandtable_fuzz_materials samples/materials.txt
 seed sandtable_fuzz_icon_definitions samples/icons.txt samples/icons-models.txt
 seed sandtable_fuzz_path samples/demo.path
+# The DIS target starts from the Entity State PDU of docs/DIS.md §3 (the golden bytes).
+mkdir -p "$seeds/sandtable_fuzz_dis"
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/entity-state" \
+  070301018000000100b000000001000203040202010100e10101030000000000000000003f800000bf000000 \
+  402000004090000000000000c00000000000000040080000000000003f000000bf8000003e80000000000018 \
+  040000000000000000000000000000000000000000000000c0000000000000003e0000000000000001543732 \
+  204100000000000000000000000100000000100b3fc00000000000000100000000000001020900e102010000
 # The sim text target's first byte picks the reader: 0 script, 1 scenario,
 # 2 aircraft, 3 collision table.
 mkdir -p "$seeds/sandtable_fuzz_sim_text"

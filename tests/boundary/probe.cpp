@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "sandtable/base/jobs.h"
+#include "sandtable/dis/pdu.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/paging/view_triangle.h"
 #include "sandtable/scene/lod.h"
@@ -19,6 +20,7 @@ int main(int argc, char**) {
   auto g = grid::GridFile::open("/nonexistent");
   scene::LodOptions lod;
   std::printf("%d %s\n", g.ok() ? 1 : 0, scene::checkLodOptions(lod).c_str());
+  std::printf("%zu\n", dis::encode(dis::Header{}, dis::EntityState{}).size());
 #ifdef SANDTABLE_PROBE_RENDER
   std::printf("%s\n", render::writePng("/nonexistent/x.png", render::Image{}).error().c_str());
 #endif

@@ -1,0 +1,200 @@
+#pragma once
+// DIS protocol data units on the wire (IEEE 1278.1-2012, DIS version 7;
+// version 6, IEEE 1278.1a-1998, accepted on receive), as docs/DIS.md lays
+// them out byte by byte. Every field is big-endian ("network order") at the
+// offset the standard gives; the offsets are pinned with static_asserts in
+// pdu.cpp and golden bytes in test/test_pdu.cpp.
+//
+// Built so far: the PDU header, the timestamp, and the Entity State PDU
+// (type 1) with its variable parameter records (articulated and attached
+// parts). Other PDU types decode their header and are reported as such
+// (Pdu::entityState empty), so a receiver can count them.
+//
+// Decoding never trusts the bytes: the header's length, the record count
+// and every fixed part are checked against what arrived before anything is
+// read or sized, and a problem names the sender and the byte offset.
+//
+// Thread safety: pure functions over values; call from any thread.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "sandtable/base/result.h"
+
+namespace sandtable::dis {
+
+inline constexpr std::size_t kHeaderBytes = 12;
+inline constexpr std::size_t kEntityStateBytes = 144;  ///< without variable parameter records
+inline constexpr std::size_t kParameterBytes = 16;     ///< one variable parameter record
+/// The largest PDU the standard allows (IEEE 1278.2: 8,192 bytes); a
+/// header claiming more is refused.
+inline constexpr std::size_t kMaxPduBytes = 8192;
+
+inline constexpr std::uint8_t kVersion6 = 6;  ///< IEEE 1278.1a-1998
+inline constexpr std::uint8_t kVersion7 = 7;  ///< IEEE 1278.1-2012
+
+/// PDU types this library knows by name (the standard's enumeration).
+enum class PduType : std::uint8_t {
+  entityState = 1,
+  fire = 2,
+  detonation = 3,
+  createEntity = 11,
+  removeEntity = 12,
+  pointObjectState = 43,
+  linearObjectState = 44,
+};
+
+/// Protocol families of those types.
+enum class Family : std::uint8_t {
+  entityInformation = 1,
+  warfare = 2,
+  simulationManagement = 5,
+  syntheticEnvironment = 9,
+};
+
+/// The 12-byte header every PDU starts with.
+struct Header {
+  std::uint8_t version = kVersion7;
+  std::uint8_t exercise = 1;
+  std::uint8_t type = 0;
+  std::uint8_t family = 0;
+  std::uint32_t timestamp = 0;  ///< see timestamp() below
+  std::uint16_t length = 0;     ///< bytes of the whole PDU, header included
+  std::uint8_t status = 0;      ///< version 7's PDU status; version 6 has padding here
+  bool operator==(const Header&) const = default;
+};
+
+/// Site, application, entity: unique within an exercise.
+struct EntityId {
+  std::uint16_t site = 0, application = 0, entity = 0;
+  bool operator==(const EntityId&) const = default;
+};
+
+/// Kind, domain, country, category, subcategory, specific, extra (SISO-REF-010).
+struct EntityType {
+  std::uint8_t kind = 0, domain = 0;
+  std::uint16_t country = 0;
+  std::uint8_t category = 0, subcategory = 0, specific = 0, extra = 0;
+  bool operator==(const EntityType&) const = default;
+};
+
+struct Vec3f {
+  float x = 0, y = 0, z = 0;
+  bool operator==(const Vec3f&) const = default;
+};
+struct Vec3d {
+  double x = 0, y = 0, z = 0;
+  bool operator==(const Vec3d&) const = default;
+};
+
+/// Euler angles psi, theta, phi in radians, relative to the geocentric
+/// (WGS-84 ECEF) frame, as the standard defines them.
+struct Euler {
+  float psi = 0, theta = 0, phi = 0;
+  bool operator==(const Euler&) const = default;
+};
+
+/// The 40-byte dead reckoning parameters record.
+struct DeadReckoning {
+  std::uint8_t algorithm = 1;                ///< 1 static ... 9 FVB (IEEE 1278.1 Annex E)
+  std::array<std::uint8_t, 15> other{};      ///< "other parameters", kept as sent
+  Vec3f acceleration;                        ///< m/s^2 (world or body axes by algorithm)
+  Vec3f angularVelocity;                     ///< rad/s, body axes
+  bool operator==(const DeadReckoning&) const = default;
+};
+
+/// The entity marking: a character set and 11 characters (zero-padded).
+struct Marking {
+  std::uint8_t characterSet = 1;  ///< 1: ASCII
+  std::array<char, 11> chars{};
+  /// The characters up to the first zero.
+  std::string text() const;
+  /// ASCII marking of `s`, cut to 11 characters.
+  static Marking ascii(std::string_view s);
+  bool operator==(const Marking&) const = default;
+};
+
+/// One 16-byte variable parameter record (version 6: articulation
+/// parameter): its type and the 15 bytes after it, kept as sent.
+struct VariableParameter {
+  std::uint8_t recordType = 0;  ///< 0 articulated part, 1 attached part (others kept, not read)
+  std::array<std::uint8_t, 15> data{};
+  bool operator==(const VariableParameter&) const = default;
+};
+
+/// Record type 0: one articulated part (a turret's azimuth, a gun's
+/// elevation): parameterType is the part class times 32 plus the metric
+/// (SISO-REF-010: 4096 + 11 is the primary turret's azimuth).
+struct ArticulatedPart {
+  std::uint8_t change = 0;      ///< change indicator, bumped by the sender on each change
+  std::uint16_t attachedTo = 0; ///< 0: the entity itself, else another part's record number
+  std::uint32_t parameterType = 0;
+  float value = 0;              ///< radians, metres or m/s by metric
+  bool operator==(const ArticulatedPart&) const = default;
+};
+
+/// Record type 1: an attached part (a store on a station).
+struct AttachedPart {
+  std::uint8_t detached = 0;    ///< 0 attached, 1 detached
+  std::uint16_t attachedTo = 0;
+  std::uint32_t station = 0;    ///< attached part parameter type (station)
+  EntityType type;
+  bool operator==(const AttachedPart&) const = default;
+};
+
+VariableParameter toParameter(const ArticulatedPart& p);
+VariableParameter toParameter(const AttachedPart& p);
+/// The record as an articulated (attached) part; empty for other types.
+std::optional<ArticulatedPart> articulatedPart(const VariableParameter& v);
+std::optional<AttachedPart> attachedPart(const VariableParameter& v);
+
+/// The Entity State PDU's body (type 1, family 1).
+struct EntityState {
+  EntityId id;
+  std::uint8_t force = 0;  ///< 0 other, 1 friendly, 2 opposing, 3 neutral
+  EntityType type, alternativeType;
+  Vec3f velocity;          ///< m/s (world axes for algorithms 1-5, body for 6-9)
+  Vec3d location;          ///< metres, WGS-84 geocentric
+  Euler orientation;
+  std::uint32_t appearance = 0;
+  DeadReckoning deadReckoning;
+  Marking marking;
+  std::uint32_t capabilities = 0;
+  std::vector<VariableParameter> parameters;  ///< at most 255
+  bool operator==(const EntityState&) const = default;
+};
+
+/// The timestamp field: time past the hour in units of 3600 s / 2^31 in
+/// bits 31..1, and bit 0 set for absolute time (a clock synchronised to
+/// UTC), clear for relative. `secondsPastHour` is taken modulo 3600.
+std::uint32_t timestamp(double secondsPastHour, bool absolute);
+double timestampSeconds(std::uint32_t stamp);
+inline bool timestampAbsolute(std::uint32_t stamp) { return (stamp & 1u) != 0; }
+
+/// An Entity State PDU: `header`'s version, exercise, timestamp and status
+/// are written as given, its type, family and length as the PDU needs.
+/// Empty when there are more than 255 parameters.
+std::vector<std::byte> encode(const Header& header, const EntityState& state);
+
+/// One decoded PDU: the header, and the body when the type is one this
+/// library decodes (entityState for type 1); otherwise only the header,
+/// which a receiver counts as an unknown type, not as an error.
+struct Pdu {
+  Header header;
+  std::optional<EntityState> entityState;
+};
+
+/// Decodes the PDU at the start of `bytes` (a datagram may carry more than
+/// one: header.length says where the next starts). Refuses, naming
+/// `sender` and the offset: fewer than 12 bytes; a version other than 6 or
+/// 7; a length under 12, over kMaxPduBytes or over what arrived; for an
+/// Entity State PDU, a length other than 144 + 16 per record its count
+/// names. Reads nothing past header.length.
+Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender);
+
+}  // namespace sandtable::dis

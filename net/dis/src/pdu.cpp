@@ -1,0 +1,304 @@
+// DIS PDU encoding and decoding (pdu.h, docs/DIS.md). Big-endian by the
+// standard; every offset below is the standard's, pinned by static_asserts
+// so that a slip in one field moves no other.
+#include "sandtable/dis/pdu.h"
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+namespace sandtable::dis {
+
+namespace {
+
+// ------------------------------------------------- big-endian scalars
+
+template <typename T>
+T loadBE(const std::byte* p) {
+  using U = std::conditional_t<sizeof(T) == 1, std::uint8_t,
+                               std::conditional_t<sizeof(T) == 2, std::uint16_t,
+                                                  std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>>>;
+  U u = 0;
+  for (std::size_t k = 0; k < sizeof(T); ++k) u = U((u << 8) | U(std::to_integer<std::uint8_t>(p[k])));
+  return std::bit_cast<T>(u);
+}
+
+template <typename T>
+void storeBE(std::byte* p, T value) {
+  using U = std::conditional_t<sizeof(T) == 1, std::uint8_t,
+                               std::conditional_t<sizeof(T) == 2, std::uint16_t,
+                                                  std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>>>;
+  U u = std::bit_cast<U>(value);
+  for (std::size_t k = sizeof(T); k-- > 0;) {
+    p[k] = std::byte(u & 0xff);
+    u = U(u >> 8);
+  }
+}
+
+// ------------------------------------------------------------ offsets
+
+namespace header {
+constexpr std::size_t version = 0, exercise = 1, type = 2, family = 3, timestamp = 4, length = 8, status = 10;
+}
+static_assert(header::status + 2 == kHeaderBytes);  // byte 11: padding
+
+// Entity State PDU (IEEE 1278.1-2012 7.2.2; the same bytes in 1278.1a-1998 5.3.3.1).
+namespace es {
+constexpr std::size_t id = 12, force = 18, parameterCount = 19, type = 20, alternativeType = 28, velocity = 36,
+                      location = 48, orientation = 72, appearance = 84, deadReckoning = 88, marking = 128,
+                      capabilities = 140, parameters = 144;
+}
+static_assert(es::force == es::id + 6 && es::type == es::parameterCount + 1);
+static_assert(es::alternativeType == es::type + 8 && es::velocity == es::alternativeType + 8);
+static_assert(es::location == es::velocity + 12 && es::orientation == es::location + 24);
+static_assert(es::appearance == es::orientation + 12 && es::deadReckoning == es::appearance + 4);
+static_assert(es::marking == es::deadReckoning + 40 && es::capabilities == es::marking + 12);
+static_assert(es::parameters == es::capabilities + 4 && es::parameters == kEntityStateBytes);
+
+// Dead reckoning parameters, within their 40 bytes.
+namespace dr {
+constexpr std::size_t algorithm = 0, other = 1, acceleration = 16, angularVelocity = 28, bytes = 40;
+}
+static_assert(dr::acceleration == dr::other + 15 && dr::bytes == dr::angularVelocity + 12);
+
+// ------------------------------------------------------------ records
+
+void putType(std::byte* p, const EntityType& t) {
+  storeBE(p + 0, t.kind);
+  storeBE(p + 1, t.domain);
+  storeBE(p + 2, t.country);
+  storeBE(p + 4, t.category);
+  storeBE(p + 5, t.subcategory);
+  storeBE(p + 6, t.specific);
+  storeBE(p + 7, t.extra);
+}
+
+EntityType getType(const std::byte* p) {
+  return {loadBE<std::uint8_t>(p), loadBE<std::uint8_t>(p + 1), loadBE<std::uint16_t>(p + 2),
+          loadBE<std::uint8_t>(p + 4), loadBE<std::uint8_t>(p + 5), loadBE<std::uint8_t>(p + 6),
+          loadBE<std::uint8_t>(p + 7)};
+}
+
+void putVec(std::byte* p, const Vec3f& v) {
+  storeBE(p, v.x);
+  storeBE(p + 4, v.y);
+  storeBE(p + 8, v.z);
+}
+Vec3f getVecF(const std::byte* p) { return {loadBE<float>(p), loadBE<float>(p + 4), loadBE<float>(p + 8)}; }
+
+void putBytes(std::byte* p, std::span<const std::uint8_t> b) {
+  for (std::size_t k = 0; k < b.size(); ++k) p[k] = std::byte(b[k]);
+}
+template <std::size_t N>
+std::array<std::uint8_t, N> getBytes(const std::byte* p) {
+  std::array<std::uint8_t, N> a{};
+  for (std::size_t k = 0; k < N; ++k) a[k] = std::to_integer<std::uint8_t>(p[k]);
+  return a;
+}
+
+void putHeader(std::byte* p, const Header& h) {
+  storeBE(p + header::version, h.version);
+  storeBE(p + header::exercise, h.exercise);
+  storeBE(p + header::type, h.type);
+  storeBE(p + header::family, h.family);
+  storeBE(p + header::timestamp, h.timestamp);
+  storeBE(p + header::length, h.length);
+  // Version 6 has 16 bits of padding where version 7 has the status.
+  storeBE(p + header::status, h.version >= kVersion7 ? h.status : std::uint8_t(0));
+}
+
+Header getHeader(const std::byte* p) {
+  Header h;
+  h.version = loadBE<std::uint8_t>(p + header::version);
+  h.exercise = loadBE<std::uint8_t>(p + header::exercise);
+  h.type = loadBE<std::uint8_t>(p + header::type);
+  h.family = loadBE<std::uint8_t>(p + header::family);
+  h.timestamp = loadBE<std::uint32_t>(p + header::timestamp);
+  h.length = loadBE<std::uint16_t>(p + header::length);
+  h.status = h.version >= kVersion7 ? loadBE<std::uint8_t>(p + header::status) : std::uint8_t(0);
+  return h;
+}
+
+EntityState getEntityState(const std::byte* p, std::size_t count) {
+  EntityState e;
+  e.id = {loadBE<std::uint16_t>(p + es::id), loadBE<std::uint16_t>(p + es::id + 2),
+          loadBE<std::uint16_t>(p + es::id + 4)};
+  e.force = loadBE<std::uint8_t>(p + es::force);
+  e.type = getType(p + es::type);
+  e.alternativeType = getType(p + es::alternativeType);
+  e.velocity = getVecF(p + es::velocity);
+  e.location = {loadBE<double>(p + es::location), loadBE<double>(p + es::location + 8),
+                loadBE<double>(p + es::location + 16)};
+  e.orientation = {loadBE<float>(p + es::orientation), loadBE<float>(p + es::orientation + 4),
+                   loadBE<float>(p + es::orientation + 8)};
+  e.appearance = loadBE<std::uint32_t>(p + es::appearance);
+  const std::byte* d = p + es::deadReckoning;
+  e.deadReckoning.algorithm = loadBE<std::uint8_t>(d + dr::algorithm);
+  e.deadReckoning.other = getBytes<15>(d + dr::other);
+  e.deadReckoning.acceleration = getVecF(d + dr::acceleration);
+  e.deadReckoning.angularVelocity = getVecF(d + dr::angularVelocity);
+  e.marking.characterSet = loadBE<std::uint8_t>(p + es::marking);
+  for (std::size_t k = 0; k < e.marking.chars.size(); ++k) {
+    e.marking.chars[k] = char(std::to_integer<std::uint8_t>(p[es::marking + 1 + k]));
+  }
+  e.capabilities = loadBE<std::uint32_t>(p + es::capabilities);
+  e.parameters.resize(count);  // count <= 255, and its bytes were checked by the caller
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::byte* r = p + es::parameters + k * kParameterBytes;
+    e.parameters[k].recordType = loadBE<std::uint8_t>(r);
+    e.parameters[k].data = getBytes<15>(r + 1);
+  }
+  return e;
+}
+
+std::string str(std::uint64_t v) { return std::to_string(v); }
+
+}  // namespace
+
+std::string Marking::text() const {
+  std::size_t n = 0;
+  while (n < chars.size() && chars[n] != '\0') ++n;
+  return std::string(chars.data(), n);
+}
+
+Marking Marking::ascii(std::string_view s) {
+  Marking m;
+  for (std::size_t k = 0; k < m.chars.size() && k < s.size(); ++k) m.chars[k] = s[k];
+  return m;
+}
+
+// Both part records: byte 0 the record type, then one byte, a 16-bit
+// part-attached-to, a 32-bit type, and 8 bytes of value (articulated: a
+// 32-bit float and 32 bits of padding; attached: an entity type).
+VariableParameter toParameter(const ArticulatedPart& p) {
+  std::array<std::byte, kParameterBytes> b{};
+  storeBE(b.data() + 1, p.change);
+  storeBE(b.data() + 2, p.attachedTo);
+  storeBE(b.data() + 4, p.parameterType);
+  storeBE(b.data() + 8, p.value);
+  VariableParameter v;
+  v.recordType = 0;
+  v.data = getBytes<15>(b.data() + 1);
+  return v;
+}
+
+VariableParameter toParameter(const AttachedPart& p) {
+  std::array<std::byte, kParameterBytes> b{};
+  storeBE(b.data() + 1, p.detached);
+  storeBE(b.data() + 2, p.attachedTo);
+  storeBE(b.data() + 4, p.station);
+  putType(b.data() + 8, p.type);
+  VariableParameter v;
+  v.recordType = 1;
+  v.data = getBytes<15>(b.data() + 1);
+  return v;
+}
+
+namespace {
+std::array<std::byte, kParameterBytes> recordBytes(const VariableParameter& v) {
+  std::array<std::byte, kParameterBytes> b{};
+  b[0] = std::byte(v.recordType);
+  putBytes(b.data() + 1, v.data);
+  return b;
+}
+}  // namespace
+
+std::optional<ArticulatedPart> articulatedPart(const VariableParameter& v) {
+  if (v.recordType != 0) return std::nullopt;
+  const auto b = recordBytes(v);
+  return ArticulatedPart{loadBE<std::uint8_t>(b.data() + 1), loadBE<std::uint16_t>(b.data() + 2),
+                         loadBE<std::uint32_t>(b.data() + 4), loadBE<float>(b.data() + 8)};
+}
+
+std::optional<AttachedPart> attachedPart(const VariableParameter& v) {
+  if (v.recordType != 1) return std::nullopt;
+  const auto b = recordBytes(v);
+  return AttachedPart{loadBE<std::uint8_t>(b.data() + 1), loadBE<std::uint16_t>(b.data() + 2),
+                      loadBE<std::uint32_t>(b.data() + 4), getType(b.data() + 8)};
+}
+
+std::uint32_t timestamp(double secondsPastHour, bool absolute) {
+  double s = std::fmod(secondsPastHour, 3600.0);
+  if (!(s >= 0)) s = std::isfinite(s) ? s + 3600.0 : 0.0;
+  // 2^31 units per hour, rounded down; an hour's last fraction stays in range.
+  const auto units = std::min<std::uint64_t>(std::uint64_t(s * (2147483648.0 / 3600.0)), 0x7fffffffu);
+  return std::uint32_t(units << 1) | (absolute ? 1u : 0u);
+}
+
+double timestampSeconds(std::uint32_t stamp) { return double(stamp >> 1) * (3600.0 / 2147483648.0); }
+
+std::vector<std::byte> encode(const Header& header, const EntityState& e) {
+  if (e.parameters.size() > 255) return {};
+  const std::size_t bytes = kEntityStateBytes + kParameterBytes * e.parameters.size();
+  std::vector<std::byte> out(bytes, std::byte{0});
+  Header h = header;
+  h.type = std::uint8_t(PduType::entityState);
+  h.family = std::uint8_t(Family::entityInformation);
+  h.length = std::uint16_t(bytes);
+  std::byte* p = out.data();
+  putHeader(p, h);
+  storeBE(p + es::id, e.id.site);
+  storeBE(p + es::id + 2, e.id.application);
+  storeBE(p + es::id + 4, e.id.entity);
+  storeBE(p + es::force, e.force);
+  storeBE(p + es::parameterCount, std::uint8_t(e.parameters.size()));
+  putType(p + es::type, e.type);
+  putType(p + es::alternativeType, e.alternativeType);
+  putVec(p + es::velocity, e.velocity);
+  storeBE(p + es::location, e.location.x);
+  storeBE(p + es::location + 8, e.location.y);
+  storeBE(p + es::location + 16, e.location.z);
+  storeBE(p + es::orientation, e.orientation.psi);
+  storeBE(p + es::orientation + 4, e.orientation.theta);
+  storeBE(p + es::orientation + 8, e.orientation.phi);
+  storeBE(p + es::appearance, e.appearance);
+  std::byte* d = p + es::deadReckoning;
+  storeBE(d + dr::algorithm, e.deadReckoning.algorithm);
+  putBytes(d + dr::other, e.deadReckoning.other);
+  putVec(d + dr::acceleration, e.deadReckoning.acceleration);
+  putVec(d + dr::angularVelocity, e.deadReckoning.angularVelocity);
+  storeBE(p + es::marking, e.marking.characterSet);
+  for (std::size_t k = 0; k < e.marking.chars.size(); ++k) p[es::marking + 1 + k] = std::byte(e.marking.chars[k]);
+  storeBE(p + es::capabilities, e.capabilities);
+  for (std::size_t k = 0; k < e.parameters.size(); ++k) {
+    const auto r = recordBytes(e.parameters[k]);
+    std::memcpy(p + es::parameters + k * kParameterBytes, r.data(), r.size());
+  }
+  return out;
+}
+
+Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender) {
+  auto fail = [&](std::size_t offset, const std::string& message) {
+    return Problem{sender, offset, "dis: " + message};
+  };
+  if (bytes.size() < kHeaderBytes) {
+    return fail(bytes.size(), "truncated: a PDU header needs 12 bytes, " + str(bytes.size()) + " arrived");
+  }
+  Pdu pdu;
+  pdu.header = getHeader(bytes.data());
+  const Header& h = pdu.header;
+  if (h.version != kVersion6 && h.version != kVersion7) {
+    return fail(header::version, "protocol version " + str(h.version) + " is not supported (6 or 7)");
+  }
+  if (h.length < kHeaderBytes || h.length > kMaxPduBytes) {
+    return fail(header::length, "length " + str(h.length) + " is outside 12.." + str(kMaxPduBytes) + " bytes");
+  }
+  if (h.length > bytes.size()) {
+    return fail(bytes.size(), "truncated: the header gives " + str(h.length) + " bytes, " + str(bytes.size()) +
+                                  " arrived");
+  }
+  if (h.type != std::uint8_t(PduType::entityState)) return pdu;  // counted by the receiver, not an error
+  if (h.length < kEntityStateBytes) {
+    return fail(header::length, "an Entity State PDU needs at least 144 bytes; the length is " + str(h.length));
+  }
+  const std::size_t count = std::to_integer<std::uint8_t>(bytes[es::parameterCount]);
+  const std::size_t want = kEntityStateBytes + kParameterBytes * count;
+  if (h.length != want) {
+    return fail(es::parameterCount, str(count) + " variable parameter records need a length of " + str(want) +
+                                        " bytes; the header gives " + str(h.length));
+  }
+  pdu.entityState = getEntityState(bytes.data(), count);
+  return pdu;
+}
+
+}  // namespace sandtable::dis

@@ -1,0 +1,136 @@
+// Wireshark's DIS dissector (tshark, Debian's 4.0) reads what we encode:
+// the example Entity State PDU, in a pcap as one UDP datagram to port 3000,
+// is dissected without a malformed mark and every field reads back as the
+// value written into it (docs/DIS.md §3). tshark is an independent
+// implementation of the standard; tools/setup.sh installs it.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "dis_example.h"
+
+namespace sandtable::dis {
+namespace {
+
+void put16(std::vector<unsigned char>& o, unsigned v) {
+  o.push_back((unsigned char)(v >> 8));
+  o.push_back((unsigned char)v);
+}
+void le32(std::vector<unsigned char>& o, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) o.push_back((unsigned char)(v >> (8 * k)));
+}
+
+/// A pcap (Ethernet, IPv4 loopback, UDP 3000 -> 3000) of one datagram.
+void writePcap(const std::filesystem::path& path, const std::vector<std::byte>& pdu) {
+  std::vector<unsigned char> udp;
+  put16(udp, 3000);
+  put16(udp, 3000);
+  put16(udp, unsigned(8 + pdu.size()));
+  put16(udp, 0);  // no checksum (allowed over IPv4)
+  for (std::byte b : pdu) udp.push_back((unsigned char)b);
+  std::vector<unsigned char> ip = {0x45, 0, 0, 0, 0, 0, 0, 0, 64, 17, 0, 0, 127, 0, 0, 1, 127, 0, 0, 1};
+  ip[2] = (unsigned char)((20 + udp.size()) >> 8);
+  ip[3] = (unsigned char)(20 + udp.size());
+  std::uint32_t sum = 0;
+  for (std::size_t k = 0; k < ip.size(); k += 2) sum += (ip[k] << 8) | ip[k + 1];
+  while (sum >> 16) sum = (sum & 0xffff) + (sum >> 16);
+  ip[10] = (unsigned char)(~sum >> 8);
+  ip[11] = (unsigned char)(~sum);
+  std::vector<unsigned char> frame(12, 0);  // MAC addresses
+  put16(frame, 0x0800);                     // IPv4
+  frame.insert(frame.end(), ip.begin(), ip.end());
+  frame.insert(frame.end(), udp.begin(), udp.end());
+  std::vector<unsigned char> out;
+  le32(out, 0xa1b2c3d4);
+  put16(out, 0x0200);  // version 2.4, little-endian
+  put16(out, 0x0400);
+  le32(out, 0);
+  le32(out, 0);
+  le32(out, 65535);
+  le32(out, 1);  // LINKTYPE_ETHERNET
+  le32(out, 0);
+  le32(out, 0);
+  le32(out, std::uint32_t(frame.size()));
+  le32(out, std::uint32_t(frame.size()));
+  out.insert(out.end(), frame.begin(), frame.end());
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
+}
+
+std::string run(const std::string& command) {
+  std::string out;
+  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(command.c_str(), "r"), pclose);
+  if (!p) return out;
+  std::array<char, 4096> buf{};
+  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p.get())) out.append(buf.data(), n);
+  return out;
+}
+
+TEST(DisTshark, wiresharkReadsEveryFieldOfOurEntityStatePdu) {
+  ASSERT_EQ(std::system("command -v tshark >/dev/null 2>&1"), 0) << "tshark is missing: run tools/setup.sh";
+  const auto dir = std::filesystem::temp_directory_path() / ("sandtable_dis_tshark_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto pcap = dir / "es.pcap";
+  writePcap(pcap, encode(testexample::exampleHeader(), testexample::example()));
+  const std::string read = "tshark -r '" + pcap.string() + "' 2>/dev/null ";
+  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  // First occurrences: the entity type's fields come before the alternative type's.
+  const std::vector<std::pair<std::string, std::string>> want = {
+      {"dis.proto_ver", "7"},
+      {"dis.exer_id", "3"},
+      {"dis.pdu_type", "1"},
+      {"dis.pdu_length", "176"},
+      {"dis.entity_id_site", "1"},
+      {"dis.entity_id_application", "2"},
+      {"dis.entity_id_entity", "772"},
+      {"dis.force_id", "2"},
+      {"dis.num_articulation_params", "2"},
+      {"dis.entityKind", "1"},
+      {"dis.entityDomain", "1"},
+      {"dis.country", "225"},
+      {"dis.subcategory", "1"},
+      {"dis.specific", "3"},
+      {"dis.entity_linear_velocity.x", "1"},
+      {"dis.entity_linear_velocity.y", "-0.5"},
+      {"dis.entity_linear_velocity.z", "2.5"},
+      {"dis.entity_location.x", "1024"},
+      {"dis.entity_location.y", "-2"},
+      {"dis.entity_location.z", "3"},
+      {"dis.entity_orientation.psi", "0.5"},
+      {"dis.entity_orientation.theta", "-1"},
+      {"dis.entity_orientation.phi", "0.25"},
+      {"dis.entity_linear_acceleration.z", "-2"},
+      {"dis.entity_angular_velocity.y", "0.125"},
+      {"dis.entity_marking", "T72 A"},
+      {"dis.vp.artic_param_type", "4107"},
+      {"dis.vp.parameter_value", "1.5"},
+  };
+  std::string command = read + "-T fields -E occurrence=f -E separator=/t";
+  for (const auto& [field, value] : want) command += " -e " + field;
+  const std::string line = run(command);
+  std::vector<std::string> got;
+  std::string cell;
+  for (char c : line) {
+    if (c == '\t' || c == '\n') {
+      got.push_back(cell);
+      cell.clear();
+      if (c == '\n') break;
+    } else {
+      cell += c;
+    }
+  }
+  ASSERT_EQ(got.size(), want.size()) << line;
+  for (std::size_t k = 0; k < want.size(); ++k) EXPECT_EQ(got[k], want[k].second) << want[k].first;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace sandtable::dis
