@@ -167,31 +167,28 @@ Marking Marking::ascii(std::string_view s) {
   return m;
 }
 
+namespace {
 // Both part records: byte 0 the record type, then one byte, a 16-bit
 // part-attached-to, a 32-bit type, and 8 bytes of value (articulated: a
 // 32-bit float and 32 bits of padding; attached: an entity type).
-VariableParameter toParameter(const ArticulatedPart& p) {
+template <typename FillValue>
+VariableParameter partRecord(std::uint8_t recordType, std::uint8_t flag, std::uint16_t attachedTo, std::uint32_t type,
+                             FillValue fillValue) {
   std::array<std::byte, kParameterBytes> b{};
-  storeBE(b.data() + 1, p.change);
-  storeBE(b.data() + 2, p.attachedTo);
-  storeBE(b.data() + 4, p.parameterType);
-  storeBE(b.data() + 8, p.value);
-  VariableParameter v;
-  v.recordType = 0;
-  v.data = getBytes<15>(b.data() + 1);
-  return v;
+  storeBE(b.data() + 1, flag);
+  storeBE(b.data() + 2, attachedTo);
+  storeBE(b.data() + 4, type);
+  fillValue(b.data() + 8);
+  return {recordType, getBytes<15>(b.data() + 1)};
+}
+}  // namespace
+
+VariableParameter toParameter(const ArticulatedPart& p) {
+  return partRecord(0, p.change, p.attachedTo, p.parameterType, [&](std::byte* q) { storeBE(q, p.value); });
 }
 
 VariableParameter toParameter(const AttachedPart& p) {
-  std::array<std::byte, kParameterBytes> b{};
-  storeBE(b.data() + 1, p.detached);
-  storeBE(b.data() + 2, p.attachedTo);
-  storeBE(b.data() + 4, p.station);
-  putType(b.data() + 8, p.type);
-  VariableParameter v;
-  v.recordType = 1;
-  v.data = getBytes<15>(b.data() + 1);
-  return v;
+  return partRecord(1, p.detached, p.attachedTo, p.station, [&](std::byte* q) { putType(q, p.type); });
 }
 
 namespace {
