@@ -292,4 +292,31 @@ Result<FramePoint> DatabaseFrame::fromEcef(const Ecef& e) const {
   return fromLonLatHeight(g.value());
 }
 
+Result<DatabaseFrame::LocalAxes> DatabaseFrame::localAxes(const FramePoint& p) const {
+  auto g = toLonLatHeight(p);
+  if (!g) return g.problems();
+  constexpr double kDegree = 3.14159265358979323846 / 180.0;
+  const double lat = g->lat * kDegree, lon = g->lon * kDegree;
+  // The ellipsoid's normal at the geodetic latitude, closed form.
+  const Ecef up{std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat)};
+  // Grid north by a central difference of 1 m along -Z through PROJ: the
+  // second-order terms cancel, leaving an angle error far under 1e-6 rad.
+  auto ahead = toEcef({p.x, p.y, p.z - 1.0});
+  if (!ahead) return ahead.problems();
+  auto behind = toEcef({p.x, p.y, p.z + 1.0});
+  if (!behind) return behind.problems();
+  Ecef n{ahead->x - behind->x, ahead->y - behind->y, ahead->z - behind->z};
+  const double along = n.x * up.x + n.y * up.y + n.z * up.z;
+  n = {n.x - along * up.x, n.y - along * up.y, n.z - along * up.z};
+  const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+  if (!(length > 0)) {
+    return Problem{"", 0, "geodesy: grid north is undefined at frame point (" + std::to_string(p.x) + ", " +
+                              std::to_string(p.z) + ") (a pole?)"};
+  }
+  n = {n.x / length, n.y / length, n.z / length};
+  // east = north x up, so that north, east, down is right-handed.
+  const Ecef e{n.y * up.z - n.z * up.y, n.z * up.x - n.x * up.z, n.x * up.y - n.y * up.x};
+  return LocalAxes{n, e, {-up.x, -up.y, -up.z}};
+}
+
 }  // namespace sandtable::geodesy

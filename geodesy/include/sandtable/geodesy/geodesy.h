@@ -126,6 +126,16 @@ class DatabaseFrame {
   Result<FramePoint> fromLonLatHeight(const LonLatHeight& g) const;
   Result<Ecef> toEcef(const FramePoint& p) const;
   Result<FramePoint> fromEcef(const Ecef& e) const;
+  /// Unit vectors in geocentric (ECEF) axes at `p`: down along the
+  /// ellipsoid's normal, grid north (the frame's -Z) turned into the plane
+  /// normal to it, and east completing north, east, down. A heading in the
+  /// frame (clockwise from grid north) is a rotation about `down` from
+  /// `north`: these axes carry the projection's convergence, so headings
+  /// convert to and from geocentric orientations (DIS) exactly.
+  struct LocalAxes {
+    Ecef north, east, down;
+  };
+  Result<LocalAxes> localAxes(const FramePoint& p) const;
 
   const Projection& projection() const { return projection_; }
   double originEasting() const { return originEasting_; }
