@@ -11,9 +11,24 @@
 // this library stays free of geodesy (docs/DIS.md §5).
 //
 // Thread safety: pure functions; call from any thread.
+#include <array>
+
 #include "sandtable/dis/pdu.h"
 
 namespace sandtable::dis {
+
+/// A 3 x 3 matrix, row-major; as an orientation, its columns are the body's
+/// x, y, z axes in the reference axes (body to world).
+using Matrix3 = std::array<std::array<double, 3>, 3>;
+
+/// Rz(yaw) Ry(pitch) Rx(roll) (radians): a DIS orientation (psi, theta,
+/// phi) relative to ECEF, or an attitude relative to north, east, down.
+Matrix3 rotationMatrix(double yaw, double pitch, double roll);
+/// Its angles back, {yaw, pitch, roll}; past |sin pitch| = 1 - 1e-12
+/// (gimbal lock) the roll is 0 and the yaw carries the turn.
+std::array<double, 3> rotationAngles(const Matrix3& r);
+/// The product a b.
+Matrix3 multiply(const Matrix3& a, const Matrix3& b);
 
 /// Unit vectors of local north, east and down in ECEF, right-handed.
 struct LocalAxes {
