@@ -42,7 +42,7 @@ seed() {  # seed NAME FILE... : copy files into NAME's seed directory
 seed sandtable_fuzz_materials samples/materials.txt
 seed sandtable_fuzz_icon_definitions samples/icons.txt samples/icons-models.txt
 seed sandtable_fuzz_path samples/demo.path
-# The DIS target starts from the Entity State PDU of docs/DIS.md §3 (the golden bytes).
+# The DIS target starts from the Entity State, Fire and Detonation PDUs of docs/DIS.md §3 (the golden bytes).
 mkdir -p "$seeds/sandtable_fuzz_dis"
 python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
   "$seeds/sandtable_fuzz_dis/entity-state" \
@@ -50,6 +50,16 @@ python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.
   402000004090000000000000c00000000000000040080000000000003f000000bf8000003e80000000000018 \
   040000000000000000000000000000000000000000000000c0000000000000003e0000000000000001543732 \
   204100000000000000000000000100000000100b3fc00000000000000100000000000001020900e102010000
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/fire" \
+  0703020280000001006000000001000200030001000200040000000000000001000200090000000040900000 \
+  00000000c0000000000000004008000000000000020900e10201000003e803e8000100003f800000bf000000 \
+  4020000040000000
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/detonation" \
+  0703030280000001007800000001000200030001000200040000000000000001000200093f800000bf000000 \
+  402000004090000000000000c0000000000000004008000000000000020900e10201000003e803e800010000 \
+  3f000000bf8000003e80000001010000000000000000100b3fc0000000000000
 # The sim text target's first byte picks the reader: 0 script, 1 scenario,
 # 2 aircraft, 3 collision table.
 mkdir -p "$seeds/sandtable_fuzz_sim_text"

@@ -55,6 +55,27 @@ static_assert(es::appearance == es::orientation + 12 && es::deadReckoning == es:
 static_assert(es::marking == es::deadReckoning + 40 && es::capabilities == es::marking + 12);
 static_assert(es::parameters == es::capabilities + 4 && es::parameters == kEntityStateBytes);
 
+// Fire PDU (IEEE 1278.1-2012 7.3.2; 1278.1a-1998 5.3.4.1).
+namespace fire {
+constexpr std::size_t firing = 12, target = 18, munition = 24, event = 30, missionIndex = 36, location = 40,
+                      descriptor = 64, velocity = 80, range = 92;
+}
+static_assert(fire::target == fire::firing + 6 && fire::munition == fire::target + 6 && fire::event == fire::munition + 6);
+static_assert(fire::missionIndex == fire::event + 6 && fire::location == fire::missionIndex + 4);
+static_assert(fire::descriptor == fire::location + 24 && fire::velocity == fire::descriptor + 16);
+static_assert(fire::range == fire::velocity + 12 && fire::range + 4 == kFireBytes);
+
+// Detonation PDU (IEEE 1278.1-2012 7.3.3; 1278.1a-1998 5.3.4.2).
+namespace det {
+constexpr std::size_t firing = 12, target = 18, munition = 24, event = 30, velocity = 36, location = 48,
+                      descriptor = 72, entityLocation = 88, result = 100, parameterCount = 101, padding = 102,
+                      parameters = 104;
+}
+static_assert(det::velocity == det::event + 6 && det::location == det::velocity + 12);
+static_assert(det::descriptor == det::location + 24 && det::entityLocation == det::descriptor + 16);
+static_assert(det::result == det::entityLocation + 12 && det::parameters == det::padding + 2);
+static_assert(det::parameters == kDetonationBytes);
+
 // Dead reckoning parameters, within their 40 bytes.
 namespace dr {
 constexpr std::size_t algorithm = 0, other = 1, acceleration = 16, angularVelocity = 28, bytes = 40;
@@ -85,6 +106,39 @@ void putVec(std::byte* p, const Vec3f& v) {
   storeBE(p + 8, v.z);
 }
 Vec3f getVecF(const std::byte* p) { return {loadBE<float>(p), loadBE<float>(p + 4), loadBE<float>(p + 8)}; }
+
+void putVec(std::byte* p, const Vec3d& v) {
+  storeBE(p, v.x);
+  storeBE(p + 8, v.y);
+  storeBE(p + 16, v.z);
+}
+Vec3d getVecD(const std::byte* p) { return {loadBE<double>(p), loadBE<double>(p + 8), loadBE<double>(p + 16)}; }
+
+/// Entity ids and event ids: three 16-bit numbers.
+void putTriple(std::byte* p, std::uint16_t a, std::uint16_t b, std::uint16_t c) {
+  storeBE(p, a);
+  storeBE(p + 2, b);
+  storeBE(p + 4, c);
+}
+void putId(std::byte* p, const EntityId& id) { putTriple(p, id.site, id.application, id.entity); }
+EntityId getId(const std::byte* p) {
+  return {loadBE<std::uint16_t>(p), loadBE<std::uint16_t>(p + 2), loadBE<std::uint16_t>(p + 4)};
+}
+EventId getEvent(const std::byte* p) {
+  return {loadBE<std::uint16_t>(p), loadBE<std::uint16_t>(p + 2), loadBE<std::uint16_t>(p + 4)};
+}
+
+void putDescriptor(std::byte* p, const MunitionDescriptor& d) {
+  putType(p, d.munition);
+  storeBE(p + 8, d.warhead);
+  storeBE(p + 10, d.fuse);
+  storeBE(p + 12, d.quantity);
+  storeBE(p + 14, d.rate);
+}
+MunitionDescriptor getDescriptor(const std::byte* p) {
+  return {getType(p), loadBE<std::uint16_t>(p + 8), loadBE<std::uint16_t>(p + 10), loadBE<std::uint16_t>(p + 12),
+          loadBE<std::uint16_t>(p + 14)};
+}
 
 void putBytes(std::byte* p, std::span<const std::uint8_t> b) {
   for (std::size_t k = 0; k < b.size(); ++k) p[k] = std::byte(b[k]);
@@ -119,16 +173,54 @@ Header getHeader(const std::byte* p) {
   return h;
 }
 
+/// `count` variable parameter records (<= 255; their bytes checked by the caller).
+std::vector<VariableParameter> getRecords(const std::byte* p, std::size_t count) {
+  std::vector<VariableParameter> out(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::byte* r = p + k * kParameterBytes;
+    out[k].recordType = loadBE<std::uint8_t>(r);
+    out[k].data = getBytes<15>(r + 1);
+  }
+  return out;
+}
+
+Fire getFire(const std::byte* p) {
+  Fire f;
+  f.firing = getId(p + fire::firing);
+  f.target = getId(p + fire::target);
+  f.munition = getId(p + fire::munition);
+  f.event = getEvent(p + fire::event);
+  f.fireMissionIndex = loadBE<std::uint32_t>(p + fire::missionIndex);
+  f.location = getVecD(p + fire::location);
+  f.descriptor = getDescriptor(p + fire::descriptor);
+  f.velocity = getVecF(p + fire::velocity);
+  f.range = loadBE<float>(p + fire::range);
+  return f;
+}
+
+Detonation getDetonation(const std::byte* p, std::size_t count) {
+  Detonation d;
+  d.firing = getId(p + det::firing);
+  d.target = getId(p + det::target);
+  d.munition = getId(p + det::munition);
+  d.event = getEvent(p + det::event);
+  d.velocity = getVecF(p + det::velocity);
+  d.location = getVecD(p + det::location);
+  d.descriptor = getDescriptor(p + det::descriptor);
+  d.entityLocation = getVecF(p + det::entityLocation);
+  d.result = loadBE<std::uint8_t>(p + det::result);
+  d.parameters = getRecords(p + det::parameters, count);
+  return d;
+}
+
 EntityState getEntityState(const std::byte* p, std::size_t count) {
   EntityState e;
-  e.id = {loadBE<std::uint16_t>(p + es::id), loadBE<std::uint16_t>(p + es::id + 2),
-          loadBE<std::uint16_t>(p + es::id + 4)};
+  e.id = getId(p + es::id);
   e.force = loadBE<std::uint8_t>(p + es::force);
   e.type = getType(p + es::type);
   e.alternativeType = getType(p + es::alternativeType);
   e.velocity = getVecF(p + es::velocity);
-  e.location = {loadBE<double>(p + es::location), loadBE<double>(p + es::location + 8),
-                loadBE<double>(p + es::location + 16)};
+  e.location = getVecD(p + es::location);
   e.orientation = {loadBE<float>(p + es::orientation), loadBE<float>(p + es::orientation + 4),
                    loadBE<float>(p + es::orientation + 8)};
   e.appearance = loadBE<std::uint32_t>(p + es::appearance);
@@ -142,12 +234,7 @@ EntityState getEntityState(const std::byte* p, std::size_t count) {
     e.marking.chars[k] = char(std::to_integer<std::uint8_t>(p[es::marking + 1 + k]));
   }
   e.capabilities = loadBE<std::uint32_t>(p + es::capabilities);
-  e.parameters.resize(count);  // count <= 255, and its bytes were checked by the caller
-  for (std::size_t k = 0; k < count; ++k) {
-    const std::byte* r = p + es::parameters + k * kParameterBytes;
-    e.parameters[k].recordType = loadBE<std::uint8_t>(r);
-    e.parameters[k].data = getBytes<15>(r + 1);
-  }
+  e.parameters = getRecords(p + es::parameters, count);
   return e;
 }
 
@@ -198,6 +285,20 @@ std::array<std::byte, kParameterBytes> recordBytes(const VariableParameter& v) {
   putBytes(b.data() + 1, v.data);
   return b;
 }
+void putRecords(std::byte* p, const std::vector<VariableParameter>& records) {
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    const auto r = recordBytes(records[k]);
+    std::memcpy(p + k * kParameterBytes, r.data(), r.size());
+  }
+}
+
+Header typed(const Header& header, PduType type, Family family, std::size_t bytes) {
+  Header h = header;
+  h.type = std::uint8_t(type);
+  h.family = std::uint8_t(family);
+  h.length = std::uint16_t(bytes);
+  return h;
+}
 }  // namespace
 
 std::optional<ArticulatedPart> articulatedPart(const VariableParameter& v) {
@@ -228,23 +329,15 @@ std::vector<std::byte> encode(const Header& header, const EntityState& e) {
   if (e.parameters.size() > 255) return {};
   const std::size_t bytes = kEntityStateBytes + kParameterBytes * e.parameters.size();
   std::vector<std::byte> out(bytes, std::byte{0});
-  Header h = header;
-  h.type = std::uint8_t(PduType::entityState);
-  h.family = std::uint8_t(Family::entityInformation);
-  h.length = std::uint16_t(bytes);
   std::byte* p = out.data();
-  putHeader(p, h);
-  storeBE(p + es::id, e.id.site);
-  storeBE(p + es::id + 2, e.id.application);
-  storeBE(p + es::id + 4, e.id.entity);
+  putHeader(p, typed(header, PduType::entityState, Family::entityInformation, bytes));
+  putId(p + es::id, e.id);
   storeBE(p + es::force, e.force);
   storeBE(p + es::parameterCount, std::uint8_t(e.parameters.size()));
   putType(p + es::type, e.type);
   putType(p + es::alternativeType, e.alternativeType);
   putVec(p + es::velocity, e.velocity);
-  storeBE(p + es::location, e.location.x);
-  storeBE(p + es::location + 8, e.location.y);
-  storeBE(p + es::location + 16, e.location.z);
+  putVec(p + es::location, e.location);
   storeBE(p + es::orientation, e.orientation.psi);
   storeBE(p + es::orientation + 4, e.orientation.theta);
   storeBE(p + es::orientation + 8, e.orientation.phi);
@@ -257,10 +350,43 @@ std::vector<std::byte> encode(const Header& header, const EntityState& e) {
   storeBE(p + es::marking, e.marking.characterSet);
   for (std::size_t k = 0; k < e.marking.chars.size(); ++k) p[es::marking + 1 + k] = std::byte(e.marking.chars[k]);
   storeBE(p + es::capabilities, e.capabilities);
-  for (std::size_t k = 0; k < e.parameters.size(); ++k) {
-    const auto r = recordBytes(e.parameters[k]);
-    std::memcpy(p + es::parameters + k * kParameterBytes, r.data(), r.size());
-  }
+  putRecords(p + es::parameters, e.parameters);
+  return out;
+}
+
+std::vector<std::byte> encode(const Header& header, const Fire& f) {
+  std::vector<std::byte> out(kFireBytes, std::byte{0});
+  std::byte* p = out.data();
+  putHeader(p, typed(header, PduType::fire, Family::warfare, kFireBytes));
+  putId(p + fire::firing, f.firing);
+  putId(p + fire::target, f.target);
+  putId(p + fire::munition, f.munition);
+  putTriple(p + fire::event, f.event.site, f.event.application, f.event.event);
+  storeBE(p + fire::missionIndex, f.fireMissionIndex);
+  putVec(p + fire::location, f.location);
+  putDescriptor(p + fire::descriptor, f.descriptor);
+  putVec(p + fire::velocity, f.velocity);
+  storeBE(p + fire::range, f.range);
+  return out;
+}
+
+std::vector<std::byte> encode(const Header& header, const Detonation& d) {
+  if (d.parameters.size() > 255) return {};
+  const std::size_t bytes = kDetonationBytes + kParameterBytes * d.parameters.size();
+  std::vector<std::byte> out(bytes, std::byte{0});
+  std::byte* p = out.data();
+  putHeader(p, typed(header, PduType::detonation, Family::warfare, bytes));
+  putId(p + det::firing, d.firing);
+  putId(p + det::target, d.target);
+  putId(p + det::munition, d.munition);
+  putTriple(p + det::event, d.event.site, d.event.application, d.event.event);
+  putVec(p + det::velocity, d.velocity);
+  putVec(p + det::location, d.location);
+  putDescriptor(p + det::descriptor, d.descriptor);
+  putVec(p + det::entityLocation, d.entityLocation);
+  storeBE(p + det::result, d.result);
+  storeBE(p + det::parameterCount, std::uint8_t(d.parameters.size()));
+  putRecords(p + det::parameters, d.parameters);
   return out;
 }
 
@@ -283,6 +409,24 @@ Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender) 
   if (h.length > bytes.size()) {
     return fail(bytes.size(), "truncated: the header gives " + str(h.length) + " bytes, " + str(bytes.size()) +
                                   " arrived");
+  }
+  if (h.type == std::uint8_t(PduType::fire)) {
+    if (h.length != kFireBytes) return fail(header::length, "a Fire PDU is 96 bytes; the length is " + str(h.length));
+    pdu.fire = getFire(bytes.data());
+    return pdu;
+  }
+  if (h.type == std::uint8_t(PduType::detonation)) {
+    if (h.length < kDetonationBytes) {
+      return fail(header::length, "a Detonation PDU needs at least 104 bytes; the length is " + str(h.length));
+    }
+    const std::size_t n = std::to_integer<std::uint8_t>(bytes[det::parameterCount]);
+    if (h.length != kDetonationBytes + kParameterBytes * n) {
+      return fail(det::parameterCount, str(n) + " variable parameter records need a length of " +
+                                           str(kDetonationBytes + kParameterBytes * n) + " bytes; the header gives " +
+                                           str(h.length));
+    }
+    pdu.detonation = getDetonation(bytes.data(), n);
+    return pdu;
   }
   if (h.type != std::uint8_t(PduType::entityState)) return pdu;  // counted by the receiver, not an error
   if (h.length < kEntityStateBytes) {

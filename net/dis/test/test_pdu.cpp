@@ -141,12 +141,125 @@ TEST(DisEntityState, hostileHeadersAndCountsAreRefusedWithTheirOffset) {
 }
 
 TEST(DisPdu, otherTypesDecodeTheirHeaderOnly) {
-  std::vector<std::byte> fire = kGolden;
-  fire[2] = std::byte{2};  // Fire: not decoded yet, counted by the receiver
-  auto pdu = decode(fire, "s");
+  std::vector<std::byte> data = kGolden;
+  data[2] = std::byte{20};  // a Data PDU: not decoded, counted by the receiver
+  data[3] = std::byte{5};
+  auto pdu = decode(data, "s");
   ASSERT_TRUE(pdu.ok()) << pdu.error();
-  EXPECT_EQ(pdu->header.type, 2);
+  EXPECT_EQ(pdu->header.type, 20);
   EXPECT_FALSE(pdu->entityState.has_value());
+  EXPECT_FALSE(pdu->fire.has_value());
+  EXPECT_FALSE(pdu->detonation.has_value());
+}
+
+// docs/DIS.md §3.1: a round 1:2:9 fired by 1:2:3 at 1:2:4, and its detonation on the target.
+MunitionDescriptor exampleDescriptor() { return {{2, 9, 225, 2, 1, 0, 0}, 1000, 1000, 1, 0}; }
+
+Fire exampleFire() {
+  Fire f;
+  f.firing = {1, 2, 3};
+  f.target = {1, 2, 4};
+  f.event = {1, 2, 9};
+  f.location = {1024.0, -2.0, 3.0};
+  f.descriptor = exampleDescriptor();
+  f.velocity = {1.0f, -0.5f, 2.5f};
+  f.range = 2.0f;
+  return f;
+}
+
+Detonation exampleDetonation() {
+  Detonation d;
+  d.firing = {1, 2, 3};
+  d.target = {1, 2, 4};
+  d.event = {1, 2, 9};
+  d.velocity = {1.0f, -0.5f, 2.5f};
+  d.location = {1024.0, -2.0, 3.0};
+  d.descriptor = exampleDescriptor();
+  d.entityLocation = {0.5f, -1.0f, 0.25f};
+  d.result = 1;  // entity impact
+  d.parameters.push_back(toParameter(ArticulatedPart{0, 0, 4096 + 11, 1.5f}));
+  return d;
+}
+
+const std::vector<std::byte> kFireGolden = bytesOf({
+    // header: version 7, exercise 3, type 2 (Fire), family 2 (warfare), 30:00 absolute, 96 bytes
+    0x07, 0x03, 0x02, 0x02, 0x80, 0x00, 0x00, 0x01, 0x00, 0x60, 0x00, 0x00,
+    // firing 1:2:3, target 1:2:4, munition 0:0:0 (none tracked), event 1:2:9
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x00, 0x02, 0x00, 0x04, 0, 0, 0, 0, 0, 0,
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x09,
+    // fire mission index 0
+    0, 0, 0, 0,
+    // location 1024.0, -2.0, 3.0
+    0x40, 0x90, 0, 0, 0, 0, 0, 0, 0xC0, 0x00, 0, 0, 0, 0, 0, 0, 0x40, 0x08, 0, 0, 0, 0, 0, 0,
+    // descriptor: munition 2.9.225.2.1.0.0, warhead 1000, fuse 1000, quantity 1, rate 0
+    0x02, 0x09, 0x00, 0xE1, 0x02, 0x01, 0x00, 0x00, 0x03, 0xE8, 0x03, 0xE8, 0x00, 0x01, 0x00, 0x00,
+    // velocity 1.0f, -0.5f, 2.5f; range 2.0f
+    0x3F, 0x80, 0x00, 0x00, 0xBF, 0x00, 0x00, 0x00, 0x40, 0x20, 0x00, 0x00, 0x40, 0x00, 0x00, 0x00,
+});
+
+const std::vector<std::byte> kDetonationGolden = bytesOf({
+    // header: version 7, exercise 3, type 3 (Detonation), family 2, 30:00 absolute, 120 = 104 + 16 bytes
+    0x07, 0x03, 0x03, 0x02, 0x80, 0x00, 0x00, 0x01, 0x00, 0x78, 0x00, 0x00,
+    // firing 1:2:3, target 1:2:4, munition 0:0:0, event 1:2:9
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x03, 0x00, 0x01, 0x00, 0x02, 0x00, 0x04, 0, 0, 0, 0, 0, 0,
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x09,
+    // velocity 1.0f, -0.5f, 2.5f
+    0x3F, 0x80, 0x00, 0x00, 0xBF, 0x00, 0x00, 0x00, 0x40, 0x20, 0x00, 0x00,
+    // location 1024.0, -2.0, 3.0
+    0x40, 0x90, 0, 0, 0, 0, 0, 0, 0xC0, 0x00, 0, 0, 0, 0, 0, 0, 0x40, 0x08, 0, 0, 0, 0, 0, 0,
+    // descriptor as in the Fire PDU
+    0x02, 0x09, 0x00, 0xE1, 0x02, 0x01, 0x00, 0x00, 0x03, 0xE8, 0x03, 0xE8, 0x00, 0x01, 0x00, 0x00,
+    // location in the target's axes 0.5f, -1.0f, 0.25f
+    0x3F, 0x00, 0x00, 0x00, 0xBF, 0x80, 0x00, 0x00, 0x3E, 0x80, 0x00, 0x00,
+    // result 1 (entity impact), one record, padding
+    0x01, 0x01, 0x00, 0x00,
+    // articulated part: change 0, on the entity, 4107, 1.5f
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x10, 0x0B, 0x3F, 0xC0, 0x00, 0x00, 0, 0, 0, 0,
+});
+
+TEST(DisFire, encodesAndDecodesTheGoldenBytes) {
+  ASSERT_EQ(kFireGolden.size(), 96u);
+  EXPECT_EQ(encode(exampleHeader(), exampleFire()), kFireGolden);
+  auto pdu = decode(kFireGolden, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  ASSERT_TRUE(pdu->fire.has_value());
+  EXPECT_EQ(*pdu->fire, exampleFire());
+  EXPECT_FALSE(pdu->entityState.has_value());
+}
+
+TEST(DisDetonation, encodesAndDecodesTheGoldenBytes) {
+  ASSERT_EQ(kDetonationGolden.size(), 120u);
+  EXPECT_EQ(encode(exampleHeader(), exampleDetonation()), kDetonationGolden);
+  auto pdu = decode(kDetonationGolden, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  ASSERT_TRUE(pdu->detonation.has_value());
+  EXPECT_EQ(*pdu->detonation, exampleDetonation());
+}
+
+TEST(DisFire, truncatedAndHostileFireAndDetonationPdusAreRefused) {
+  for (const auto* golden : {&kFireGolden, &kDetonationGolden}) {
+    for (std::size_t n = 0; n < golden->size(); ++n) {
+      auto pdu = decode(std::span(*golden).first(n), "s");
+      ASSERT_FALSE(pdu.ok()) << n;
+      EXPECT_EQ(pdu.problems().front().offset, n);
+    }
+  }
+  std::vector<std::byte> b = kFireGolden;
+  b.resize(100);
+  b[9] = std::byte{100};  // a Fire PDU of 100 bytes
+  auto pdu = decode(b, "s");
+  ASSERT_FALSE(pdu.ok());
+  EXPECT_EQ(pdu.problems().front().offset, 8u);
+  b = kDetonationGolden;
+  b[101] = std::byte{200};  // 200 records in 120 bytes
+  pdu = decode(b, "s");
+  ASSERT_FALSE(pdu.ok());
+  EXPECT_EQ(pdu.problems().front().offset, 101u);
+  b = std::vector<std::byte>(kDetonationGolden.begin(), kDetonationGolden.begin() + 100);
+  b[9] = std::byte{100};
+  pdu = decode(b, "s");
+  ASSERT_FALSE(pdu.ok());
+  EXPECT_EQ(pdu.problems().front().offset, 8u);
 }
 
 TEST(DisPdu, aDatagramOfTwoPdusDecodesTheFirstAndSaysWhereTheNextStarts) {

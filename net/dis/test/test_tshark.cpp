@@ -74,6 +74,26 @@ std::string run(const std::string& command) {
   return out;
 }
 
+/// tshark's first value of each field in the capture `read` opens, against `want`.
+void expectFields(const std::string& read, const std::vector<std::pair<std::string, std::string>>& want) {
+  std::string command = read + "-T fields -E occurrence=f -E separator=/t";
+  for (const auto& [field, value] : want) command += " -e " + field;
+  const std::string line = run(command);
+  std::vector<std::string> got;
+  std::string cell;
+  for (char c : line) {
+    if (c == '\t' || c == '\n') {
+      got.push_back(cell);
+      cell.clear();
+      if (c == '\n') break;
+    } else {
+      cell += c;
+    }
+  }
+  ASSERT_EQ(got.size(), want.size()) << line;
+  for (std::size_t k = 0; k < want.size(); ++k) EXPECT_EQ(got[k], want[k].second) << want[k].first;
+}
+
 TEST(DisTshark, wiresharkReadsEveryFieldOfOurEntityStatePdu) {
   ASSERT_EQ(std::system("command -v tshark >/dev/null 2>&1"), 0) << "tshark is missing: run tools/setup.sh";
   const auto dir = std::filesystem::temp_directory_path() / ("sandtable_dis_tshark_" + std::to_string(::getpid()));
@@ -113,22 +133,58 @@ TEST(DisTshark, wiresharkReadsEveryFieldOfOurEntityStatePdu) {
       {"dis.vp.artic_param_type", "4107"},
       {"dis.vp.parameter_value", "1.5"},
   };
-  std::string command = read + "-T fields -E occurrence=f -E separator=/t";
-  for (const auto& [field, value] : want) command += " -e " + field;
-  const std::string line = run(command);
-  std::vector<std::string> got;
-  std::string cell;
-  for (char c : line) {
-    if (c == '\t' || c == '\n') {
-      got.push_back(cell);
-      cell.clear();
-      if (c == '\n') break;
-    } else {
-      cell += c;
-    }
-  }
-  ASSERT_EQ(got.size(), want.size()) << line;
-  for (std::size_t k = 0; k < want.size(); ++k) EXPECT_EQ(got[k], want[k].second) << want[k].first;
+  expectFields(read, want);
+  std::filesystem::remove_all(dir);
+}
+
+// The Fire and Detonation PDUs of test_pdu.cpp's golden bytes, as Wireshark reads them.
+TEST(DisTshark, wiresharkReadsOurFireAndDetonationPdus) {
+  ASSERT_EQ(std::system("command -v tshark >/dev/null 2>&1"), 0) << "tshark is missing: run tools/setup.sh";
+  const auto dir = std::filesystem::temp_directory_path() / ("sandtable_dis_tshark_fd_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  Fire f;
+  f.firing = {1, 2, 3};
+  f.target = {1, 2, 4};
+  f.event = {1, 2, 9};
+  f.location = {1024.0, -2.0, 3.0};
+  f.descriptor = {{2, 9, 225, 2, 1, 0, 0}, 1000, 1000, 1, 0};
+  f.velocity = {1.0f, -0.5f, 2.5f};
+  f.range = 2.0f;
+  writePcap(dir / "fire.pcap", encode(testexample::exampleHeader(), f));
+  std::string read = "tshark -r '" + (dir / "fire.pcap").string() + "' 2>/dev/null ";
+  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  expectFields(read, {{"dis.pdu_type", "2"},
+                      {"dis.pdu_length", "96"},
+                      {"dis.entity_id_site", "1"},
+                      {"dis.entity_id_entity", "3"},
+                      {"dis.event_number", "9"},
+                      {"dis.entityKind", "2"},
+                      {"dis.country", "225"},
+                      {"dis.warhead", "1000"},
+                      {"dis.fuse", "1000"},
+                      {"dis.quality", "1"},
+                      {"dis.range", "2"}});
+  Detonation d;
+  d.firing = f.firing;
+  d.target = f.target;
+  d.event = f.event;
+  d.velocity = f.velocity;
+  d.location = f.location;
+  d.descriptor = f.descriptor;
+  d.entityLocation = {0.5f, -1.0f, 0.25f};
+  d.result = 1;
+  d.parameters.push_back(toParameter(ArticulatedPart{0, 0, 4096 + 11, 1.5f}));
+  writePcap(dir / "detonation.pcap", encode(testexample::exampleHeader(), d));
+  read = "tshark -r '" + (dir / "detonation.pcap").string() + "' 2>/dev/null ";
+  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  expectFields(read, {{"dis.pdu_type", "3"},
+                      {"dis.pdu_length", "120"},
+                      {"dis.event_number", "9"},
+                      {"dis.warhead", "1000"},
+                      {"dis.detonation.result", "1"},
+                      {"dis.num_articulation_params", "1"},
+                      {"dis.vp.artic_param_type", "4107"},
+                      {"dis.vp.parameter_value", "1.5"}});
   std::filesystem::remove_all(dir);
 }
 

@@ -5,10 +5,10 @@
 // offset the standard gives; the offsets are pinned with static_asserts in
 // pdu.cpp and golden bytes in test/test_pdu.cpp.
 //
-// Built so far: the PDU header, the timestamp, and the Entity State PDU
-// (type 1) with its variable parameter records (articulated and attached
-// parts). Other PDU types decode their header and are reported as such
-// (Pdu::entityState empty), so a receiver can count them.
+// Built so far: the PDU header, the timestamp, the Entity State PDU (type
+// 1) with its variable parameter records (articulated and attached parts),
+// the Fire PDU (2) and the Detonation PDU (3). Other PDU types decode their
+// header and are reported as such (no body), so a receiver can count them.
 //
 // Decoding never trusts the bytes: the header's length, the record count
 // and every fixed part are checked against what arrived before anything is
@@ -31,6 +31,8 @@ namespace sandtable::dis {
 inline constexpr std::size_t kHeaderBytes = 12;
 inline constexpr std::size_t kEntityStateBytes = 144;  ///< without variable parameter records
 inline constexpr std::size_t kParameterBytes = 16;     ///< one variable parameter record
+inline constexpr std::size_t kFireBytes = 96;
+inline constexpr std::size_t kDetonationBytes = 104;   ///< without variable parameter records
 /// The largest PDU the standard allows (IEEE 1278.2: 8,192 bytes); a
 /// header claiming more is refused.
 inline constexpr std::size_t kMaxPduBytes = 8192;
@@ -169,6 +171,45 @@ struct EntityState {
   bool operator==(const EntityState&) const = default;
 };
 
+/// Site, application and a number the firing simulation counts up: ties a
+/// Detonation to its Fire.
+struct EventId {
+  std::uint16_t site = 0, application = 0, event = 0;
+  bool operator==(const EventId&) const = default;
+};
+
+/// The munition descriptor (version 6: burst descriptor), 16 bytes.
+struct MunitionDescriptor {
+  EntityType munition;
+  std::uint16_t warhead = 0, fuse = 0, quantity = 0, rate = 0;
+  bool operator==(const MunitionDescriptor&) const = default;
+};
+
+/// The Fire PDU's body (type 2, family 2): 96 bytes in all.
+struct Fire {
+  EntityId firing, target, munition;  ///< target and munition 0:0:0 when none
+  EventId event;
+  std::uint32_t fireMissionIndex = 0;
+  Vec3d location;                     ///< where it was fired, ECEF metres
+  MunitionDescriptor descriptor;
+  Vec3f velocity;                     ///< the round's, ECEF m/s
+  float range = 0;                    ///< metres, 0 when unknown
+  bool operator==(const Fire&) const = default;
+};
+
+/// The Detonation PDU's body (type 3, family 2): 104 bytes plus 16 per record.
+struct Detonation {
+  EntityId firing, target, munition;
+  EventId event;
+  Vec3f velocity;                     ///< the round's at impact, ECEF m/s
+  Vec3d location;                     ///< ECEF metres
+  MunitionDescriptor descriptor;
+  Vec3f entityLocation;               ///< in the target's body axes, metres
+  std::uint8_t result = 0;            ///< 1 entity impact, 3 ground impact, 5 detonation, ... (SISO-REF-010)
+  std::vector<VariableParameter> parameters;  ///< at most 255
+  bool operator==(const Detonation&) const = default;
+};
+
 /// The timestamp field: time past the hour in units of 3600 s / 2^31 in
 /// bits 31..1, and bit 0 set for absolute time (a clock synchronised to
 /// UTC), clear for relative. `secondsPastHour` is taken modulo 3600.
@@ -181,12 +222,20 @@ inline bool timestampAbsolute(std::uint32_t stamp) { return (stamp & 1u) != 0; }
 /// Empty when there are more than 255 parameters.
 std::vector<std::byte> encode(const Header& header, const EntityState& state);
 
+/// A Fire PDU (96 bytes), and a Detonation PDU (empty past 255 records);
+/// as for the Entity State PDU, the header's type, family and length are
+/// written as the PDU needs.
+std::vector<std::byte> encode(const Header& header, const Fire& fire);
+std::vector<std::byte> encode(const Header& header, const Detonation& detonation);
+
 /// One decoded PDU: the header, and the body when the type is one this
-/// library decodes (entityState for type 1); otherwise only the header,
-/// which a receiver counts as an unknown type, not as an error.
+/// library decodes (Entity State 1, Fire 2, Detonation 3); otherwise only
+/// the header, which a receiver counts as an unknown type, not an error.
 struct Pdu {
   Header header;
   std::optional<EntityState> entityState;
+  std::optional<Fire> fire;
+  std::optional<Detonation> detonation;
 };
 
 /// Decodes the PDU at the start of `bytes` (a datagram may carry more than
@@ -194,7 +243,8 @@ struct Pdu {
 /// `sender` and the offset: fewer than 12 bytes; a version other than 6 or
 /// 7; a length under 12, over kMaxPduBytes or over what arrived; for an
 /// Entity State PDU, a length other than 144 + 16 per record its count
-/// names. Reads nothing past header.length.
+/// names; for a Fire PDU, a length other than 96; for a Detonation PDU, a
+/// length other than 104 + 16 per record. Reads nothing past header.length.
 Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender);
 
 }  // namespace sandtable::dis
