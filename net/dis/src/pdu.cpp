@@ -75,6 +75,9 @@ static_assert(det::velocity == det::event + 6 && det::location == det::velocity 
 static_assert(det::descriptor == det::location + 24 && det::entityLocation == det::descriptor + 16);
 static_assert(det::result == det::entityLocation + 12 && det::parameters == det::padding + 2);
 static_assert(det::parameters == kDetonationBytes);
+// Both warfare PDUs open with the same four ids at the same offsets.
+static_assert(det::firing == fire::firing && det::target == fire::target && det::munition == fire::munition &&
+              det::event == fire::event);
 
 // Dead reckoning parameters, within their 40 bytes.
 namespace dr {
@@ -184,12 +187,19 @@ std::vector<VariableParameter> getRecords(const std::byte* p, std::size_t count)
   return out;
 }
 
+/// The firing, target and munition ids and the event id of a Fire or
+/// Detonation PDU (the same offsets in both).
+template <typename Warfare>
+void getWarfareIds(const std::byte* p, Warfare& w) {
+  w.firing = getId(p + fire::firing);
+  w.target = getId(p + fire::target);
+  w.munition = getId(p + fire::munition);
+  w.event = getEvent(p + fire::event);
+}
+
 Fire getFire(const std::byte* p) {
   Fire f;
-  f.firing = getId(p + fire::firing);
-  f.target = getId(p + fire::target);
-  f.munition = getId(p + fire::munition);
-  f.event = getEvent(p + fire::event);
+  getWarfareIds(p, f);
   f.fireMissionIndex = loadBE<std::uint32_t>(p + fire::missionIndex);
   f.location = getVecD(p + fire::location);
   f.descriptor = getDescriptor(p + fire::descriptor);
@@ -200,10 +210,7 @@ Fire getFire(const std::byte* p) {
 
 Detonation getDetonation(const std::byte* p, std::size_t count) {
   Detonation d;
-  d.firing = getId(p + det::firing);
-  d.target = getId(p + det::target);
-  d.munition = getId(p + det::munition);
-  d.event = getEvent(p + det::event);
+  getWarfareIds(p, d);
   d.velocity = getVecF(p + det::velocity);
   d.location = getVecD(p + det::location);
   d.descriptor = getDescriptor(p + det::descriptor);
@@ -292,6 +299,14 @@ void putRecords(std::byte* p, const std::vector<VariableParameter>& records) {
   }
 }
 
+template <typename Warfare>
+void putWarfareIds(std::byte* p, const Warfare& w) {
+  putId(p + fire::firing, w.firing);
+  putId(p + fire::target, w.target);
+  putId(p + fire::munition, w.munition);
+  putTriple(p + fire::event, w.event.site, w.event.application, w.event.event);
+}
+
 Header typed(const Header& header, PduType type, Family family, std::size_t bytes) {
   Header h = header;
   h.type = std::uint8_t(type);
@@ -358,10 +373,7 @@ std::vector<std::byte> encode(const Header& header, const Fire& f) {
   std::vector<std::byte> out(kFireBytes, std::byte{0});
   std::byte* p = out.data();
   putHeader(p, typed(header, PduType::fire, Family::warfare, kFireBytes));
-  putId(p + fire::firing, f.firing);
-  putId(p + fire::target, f.target);
-  putId(p + fire::munition, f.munition);
-  putTriple(p + fire::event, f.event.site, f.event.application, f.event.event);
+  putWarfareIds(p, f);
   storeBE(p + fire::missionIndex, f.fireMissionIndex);
   putVec(p + fire::location, f.location);
   putDescriptor(p + fire::descriptor, f.descriptor);
@@ -376,10 +388,7 @@ std::vector<std::byte> encode(const Header& header, const Detonation& d) {
   std::vector<std::byte> out(bytes, std::byte{0});
   std::byte* p = out.data();
   putHeader(p, typed(header, PduType::detonation, Family::warfare, bytes));
-  putId(p + det::firing, d.firing);
-  putId(p + det::target, d.target);
-  putId(p + det::munition, d.munition);
-  putTriple(p + det::event, d.event.site, d.event.application, d.event.event);
+  putWarfareIds(p, d);
   putVec(p + det::velocity, d.velocity);
   putVec(p + det::location, d.location);
   putDescriptor(p + det::descriptor, d.descriptor);
