@@ -721,20 +721,13 @@ std::optional<Pending> steal(Impl& im, const Loader& self, bool coarseOnly = fal
   return p;
 }
 
-/// Another loader has coarse loads pending, or requests it has not drained
-/// yet (most of which are coarse loads).
-bool coarseElsewhere(const Impl& im, const Loader& self) {
+/// Another loader has requests it has not drained yet, or loads pending:
+/// any, or with `coarseOnly` coarse ones (most undrained requests are
+/// coarse loads, so they count either way).
+bool workElsewhere(const Impl& im, const Loader& self, bool coarseOnly = false) {
   return std::any_of(im.loaders.begin(), im.loaders.end(), [&](const auto& l) {
-    return l.get() != &self &&
-           (l->coarseBacklog.load(std::memory_order_relaxed) > 0 || l->queue->size() > 0);
-  });
-}
-
-/// Another loader has modules queued or pending.
-bool workElsewhere(const Impl& im, const Loader& self) {
-  return std::any_of(im.loaders.begin(), im.loaders.end(), [&](const auto& l) {
-    return l.get() != &self &&
-           (l->backlog.load(std::memory_order_relaxed) > 0 || l->queue->size() > 0);
+    const auto& pending = coarseOnly ? l->coarseBacklog : l->backlog;
+    return l.get() != &self && (pending.load(std::memory_order_relaxed) > 0 || l->queue->size() > 0);
   });
 }
 
@@ -772,7 +765,7 @@ void loaderLoop(Impl& im, Loader& ld) {
       im.count.readaheadHints.fetch_add(1, std::memory_order_relaxed);
     }
     bool stolen = false;
-    if (p && p->fine && stealing && coarseElsewhere(im, ld)) {
+    if (p && p->fine && stealing && workElsewhere(im, ld, true)) {
       // Coarse first across loaders too: a fine record (a tenth of the
       // module's bytes but most of its decode, trees included) read here
       // would take a core from another loader's coarse loads, the ones
