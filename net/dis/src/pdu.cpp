@@ -124,12 +124,12 @@ void putTriple(std::byte* p, std::uint16_t a, std::uint16_t b, std::uint16_t c) 
   storeBE(p + 4, c);
 }
 void putId(std::byte* p, const EntityId& id) { putTriple(p, id.site, id.application, id.entity); }
-EntityId getId(const std::byte* p) {
+/// An EntityId or an EventId.
+template <typename Triple>
+Triple getTriple(const std::byte* p) {
   return {loadBE<std::uint16_t>(p), loadBE<std::uint16_t>(p + 2), loadBE<std::uint16_t>(p + 4)};
 }
-EventId getEvent(const std::byte* p) {
-  return {loadBE<std::uint16_t>(p), loadBE<std::uint16_t>(p + 2), loadBE<std::uint16_t>(p + 4)};
-}
+EntityId getId(const std::byte* p) { return getTriple<EntityId>(p); }
 
 void putDescriptor(std::byte* p, const MunitionDescriptor& d) {
   putType(p, d.munition);
@@ -194,7 +194,7 @@ void getWarfareIds(const std::byte* p, Warfare& w) {
   w.firing = getId(p + fire::firing);
   w.target = getId(p + fire::target);
   w.munition = getId(p + fire::munition);
-  w.event = getEvent(p + fire::event);
+  w.event = getTriple<EventId>(p + fire::event);
 }
 
 Fire getFire(const std::byte* p) {
