@@ -11,6 +11,7 @@
 
 #include "sandtable/base/hash.h"
 #include "sandtable/formats/terrain_rule.h"
+#include "module_v2_internal.h"
 
 namespace sandtable::module {
 
@@ -128,8 +129,8 @@ bool latticePosts(const Level& l, std::vector<double>& xs, std::vector<double>& 
   const double lastX = v[nx].x, lastZ = v[std::size_t(nz) * w].z;
   xs.resize(w);
   zs.resize(std::size_t(nz) + 1);
-  for (std::uint32_t a = 0; a <= nx; ++a) xs[a] = a < nx ? double(a) * l.spacing : lastX;
-  for (std::uint32_t b = 0; b <= nz; ++b) zs[b] = b < nz ? double(b) * l.spacing : lastZ;
+  for (std::uint32_t a = 0; a <= nx; ++a) xs[a] = detail::latticeCoord(a, nx, l.spacing, lastX);
+  for (std::uint32_t b = 0; b <= nz; ++b) zs[b] = detail::latticeCoord(b, nz, l.spacing, lastZ);
   for (std::uint32_t b = 0; b <= nz; ++b) {
     const float z = float(zs[b]);
     for (std::uint32_t a = 0; a <= nx; ++a) {
