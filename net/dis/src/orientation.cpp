@@ -57,7 +57,11 @@ Euler toEuler(const LocalAxes& axes, const Attitude& a) {
 }
 
 Attitude toAttitude(const LocalAxes& axes, const Euler& e) {
-  const auto a = rotationAngles(multiply(transpose(basis(axes)), rotationMatrix(e.psi, e.theta, e.phi)));
+  return attitudeOf(axes, rotationMatrix(e.psi, e.theta, e.phi));
+}
+
+Attitude attitudeOf(const LocalAxes& axes, const Matrix3& bodyToEcef) {
+  const auto a = rotationAngles(multiply(transpose(basis(axes)), bodyToEcef));
   return {a[0], a[1], a[2]};
 }
 

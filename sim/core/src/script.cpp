@@ -10,6 +10,7 @@
 #include <unordered_set>
 
 #include "sandtable/sim/units.h"
+#include "sandtable/sim/update_rule.h"
 #include "sandtable/world/path.h"
 #include "text.h"
 
@@ -296,19 +297,18 @@ bool ScriptRecorder::changed(const ScriptLine& last, const ScriptLine& now) cons
   if (now.entity != last.entity || now.type != last.type || now.fire != last.fire || now.alive != last.alive) {
     return true;
   }
-  if (options_.maxIntervalS > 0 && now.timeS - last.timeS >= options_.maxIntervalS - 1e-9) return true;
-  if (std::abs(angleDelta(last.directionDeg, now.directionDeg)) > options_.angleToleranceDeg ||
-      std::abs(angleDelta(last.viewDirectionDeg, now.viewDirectionDeg)) > options_.angleToleranceDeg ||
-      std::abs(now.gunElevation - last.gunElevation) > options_.angleToleranceDeg) {
-    return true;
-  }
   if (std::abs(now.speed - last.speed) > options_.speedToleranceMs) return true;
   if (std::abs(now.y - last.y) > options_.heightToleranceM ||
       std::abs(now.aboveGroundLevel - last.aboveGroundLevel) > options_.heightToleranceM) {
     return true;
   }
+  const double angleError = std::max({std::abs(angleDelta(last.directionDeg, now.directionDeg)),
+                                      std::abs(angleDelta(last.viewDirectionDeg, now.viewDirectionDeg)),
+                                      std::abs(now.gunElevation - last.gunElevation)});
   const Eigen::Vector2d predicted = deadReckon(last, now.timeS);
-  return (predicted - Eigen::Vector2d(now.x, now.z)).norm() > options_.toleranceM;
+  const double positionError = (predicted - Eigen::Vector2d(now.x, now.z)).norm();
+  const UpdateThresholds rule{options_.toleranceM, options_.angleToleranceDeg, options_.maxIntervalS};
+  return updateDue(rule, positionError, angleError, now.timeS - last.timeS);
 }
 
 bool ScriptRecorder::record(const ScriptLine& state) {

@@ -129,7 +129,7 @@ Result<std::uint32_t> Simulation::add(Entity e) {
   if (!world_->onGrid(e.position.x(), e.position.z())) {
     return Problem{"", 0, "simulation: " + where + " stands off the database; place it inside the grid"};
   }
-  if (e.domain == Domain::sea && !world_->navigable(e.position.x(), e.position.z())) {
+  if (e.domain == Domain::sea && e.controller != Controller::remote && !world_->navigable(e.position.x(), e.position.z())) {
     return Problem{"", 0, "simulation: ship " + where + " is not on water; place it on the sea or a lake"};
   }
   e.commands.speedMs = e.speedMs;
@@ -212,12 +212,20 @@ void Simulation::kill(std::uint32_t id, std::uint32_t by, const std::string& det
   Entity* found = find(id);
   if (!found || !found->alive) return;
   Entity& e = *found;
+  if (e.controller == Controller::remote) return;  // its owner decides (a Detonation PDU names it)
   e.alive = false;
   e.speedMs = 0;
   e.velocity.setZero();
   e.commands.speedMs = 0;
   e.controls = {};
   if (!isMunition(e)) emit({0, EventKind::kill, id, by, UINT32_MAX, e.position, {}, detail});
+}
+
+bool Simulation::destroy(std::uint32_t id, std::uint32_t by, const std::string& detail) {
+  const Entity* e = find(id);
+  if (!e || !e->alive || e->controller == Controller::remote) return false;
+  kill(id, by, detail);
+  return true;
 }
 
 std::uint32_t Simulation::fire(std::uint32_t shooter, double azimuthDeg, double elevationDeg, std::uint16_t type,
@@ -436,6 +444,7 @@ void Simulation::step() {
     Entity& e = r.entity;
     if (!e.alive) continue;
     ++counters_.entitySteps;
+    if (e.controller == Controller::remote) continue;  // placed by the network before the step
     if (isMunition(e)) {
       flyMunition(e);
       continue;
@@ -653,6 +662,7 @@ void Simulation::collidePair(Record& ra, Record& rb) {
   emit(std::move(ev));
   auto apply = [&](Record& r, bool killed, bool stopped, const Eigen::Vector2d& v, double heading) {
     Entity& e = r.entity;
+    if (e.controller == Controller::remote) return;  // its owner answers the collision
     if (killed) {
       kill(e.id, e.id == a.id ? b.id : a.id, "collision");
       return;

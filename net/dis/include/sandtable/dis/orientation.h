@@ -48,6 +48,9 @@ Euler toEuler(const LocalAxes& axes, const Attitude& a);
 /// At pitch +-90 degrees heading and roll turn about the same axis; the
 /// roll is then 0 and the heading carries the turn.
 Attitude toAttitude(const LocalAxes& axes, const Euler& e);
+/// The same for an orientation held as a matrix (body to ECEF), as dead
+/// reckoning carries it: no rounding to the PDU's single-precision angles.
+Attitude attitudeOf(const LocalAxes& axes, const Matrix3& bodyToEcef);
 
 /// North, east and down at geodetic latitude and longitude (radians) on
 /// the WGS-84 ellipsoid, for callers with no database frame (true north).

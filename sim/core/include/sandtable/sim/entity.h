@@ -26,8 +26,12 @@ enum class Domain : std::uint8_t { land, sea, air, munition };
 enum class Mobility : std::uint8_t { simple, tracked, wheeled, ship, aircraft, ballistic, guided };
 
 /// Who decides what it does (VIII): nothing, the reactive behaviours of the
-/// computer-generated forces, a script, or the user.
-enum class Controller : std::uint8_t { none, behaviour, script, driven };
+/// computer-generated forces, a script, the user, or another simulation on
+/// the network (`remote`, seed VIII.C's network entity: the DIS gateway
+/// sets its state before every step; this simulation never moves, steers,
+/// bounces or kills it, since its owner does that and says so in its PDUs,
+/// but local entities see it, collide with it and shoot at it).
+enum class Controller : std::uint8_t { none, behaviour, script, driven, remote };
 
 /// The four reactive behaviours of seed VIII.A, each on or off.
 struct Behaviours {

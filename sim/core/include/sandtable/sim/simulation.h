@@ -177,6 +177,18 @@ class Simulation {
   /// False when no entity has that id (never added, or removed before).
   bool remove(std::uint32_t id);
 
+  /// Kills entity `id` between steps as a munition or collision in the
+  /// step would (a kill event naming `by`): how a Detonation PDU from the
+  /// network that names a local entity takes effect. Remote entities are
+  /// left alone (their owner kills them). False when `id` is not a live
+  /// entity of this simulation.
+  bool destroy(std::uint32_t id, std::uint32_t by, const std::string& detail);
+
+  /// An event that happened in another simulation (a remote detonation,
+  /// from the network): stamped with this simulation's time, counted and
+  /// listed with the step's own, so viewers and reports show it alike.
+  void addEvent(Event ev) { emit(std::move(ev)); }
+
   /// An aircraft type for air entities (Entity::aircraftType indexes it).
   std::uint32_t addAircraftType(AircraftParams params);
   /// The aircraft state of an air entity (position, velocity and

@@ -1,0 +1,125 @@
+#pragma once
+// The simulation on a DIS network (seed VIII.C "network entity" and X;
+// docs/DIS.md §8): before each step the gateway applies every PDU that
+// arrived (remote entities appear, move, die and leave; remote fires fly
+// as munitions; a Detonation that names a local entity kills it), and
+// after each step it publishes the local entities that need a PDU and the
+// step's fires and detonations.
+//
+// The transport is the caller's: `drain` hands over the datagrams that
+// arrived (a dis::Receiver's, a capture's, a test's) and `send` takes one
+// encoded PDU. A gateway with publish off is a stealth watcher (fly --dis).
+// Remote entities are simulation entities with Controller::remote, so
+// local ones collide with them, see their munitions and shoot at them.
+//
+// Thread safety: the gateway belongs to the thread that steps its
+// simulation; its hooks run there (sim::StepHost).
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "sandtable/dis/datagram.h"
+#include "sandtable/dis/pdu.h"
+#include "sandtable/sim/simulation.h"
+#include "sandtable/sim/step_host.h"
+#include "sandtable/sim_dis/publisher.h"
+#include "sandtable/sim_dis/remote.h"
+
+namespace sandtable::sim_dis {
+
+struct GatewayOptions {
+  std::uint8_t exercise = 1;
+  std::uint16_t site = 1, application = 1;  ///< this simulation's DIS address
+  bool publish = true;                      ///< false: watch only (the stealth viewer)
+  /// Timestamps: absolute (UTC time past the hour, real-time runs with
+  /// synchronised clocks; receivers then dead reckon from the PDU's own
+  /// time) or relative (simulation time past the hour; receivers use the
+  /// arrival time).
+  bool absoluteTime = false;
+  PublishOptions publishing;
+  RemoteOptions remote;
+};
+
+/// Why PDUs were not applied, and what was.
+struct GatewayCounters {
+  std::uint64_t datagrams = 0, pdus = 0;
+  std::uint64_t otherExercise = 0;  ///< ignored: another exercise
+  std::uint64_t own = 0;            ///< ignored: our own site and application (a broadcast echo)
+  std::uint64_t malformed = 0;      ///< refused by the decoder
+  std::uint64_t unknownType = 0;    ///< a type the gateway does not apply (counted, not an error)
+  std::uint64_t entityStates = 0, fires = 0, detonations = 0, removes = 0;
+  std::uint64_t hitsTaken = 0;      ///< local entities killed by remote detonations
+  std::uint64_t unknownIcons = 0;   ///< remote types no icon's `dis` field matched
+  std::uint64_t notAdded = 0;       ///< remote entities off this database
+  std::uint64_t sentPdus = 0, sentBytes = 0;
+  std::string lastMalformed;        ///< the decoder's last message (sender and offset)
+};
+
+class Gateway {
+ public:
+  using Drain = std::function<void(std::vector<dis::Datagram>&)>;
+  using Send = std::function<void(std::span<const std::byte>)>;
+
+  Gateway(sim::Simulation& simulation, DisFrame frame, GatewayOptions options, Drain drain, Send send);
+
+  /// Adds the gateway's hooks to `host`: beforeStep, afterStep.
+  void attach(sim::StepHost& host);
+  void beforeStep();
+  void afterStep();
+  /// Applies datagrams now (what beforeStep does with the drained ones).
+  void apply(const std::vector<dis::Datagram>& datagrams);
+  /// Sends a deactivating PDU for every local entity published (the end of a run).
+  void retireAll();
+
+  /// The wall clock in seconds past the hour (absolute timestamps); tests
+  /// replace it.
+  void setWallClock(std::function<double()> secondsPastHour) { wall_ = std::move(secondsPastHour); }
+
+  const GatewayCounters& counters() const { return counters_; }
+  const RemoteEntities& remotes() const { return remotes_; }
+  RemoteEntities& remotes() { return remotes_; }
+  const Publisher& publisher() const { return publisher_; }
+  /// The DIS id of a local entity, and the simulation id behind a DIS id
+  /// (local or remote; UINT32_MAX when none).
+  dis::EntityId disId(std::uint32_t simId) const;
+  std::uint32_t simIdOf(const dis::EntityId& id) const;
+
+ private:
+  void applyPdu(const dis::Pdu& pdu, const dis::Address& sender);
+  void applyEntityState(const dis::Pdu& pdu, const dis::Address& sender);
+  void applyFire(const dis::Fire& f);
+  void applyDetonation(const dis::Detonation& d);
+  void syncRemotes();
+  void placeRemote(RemoteEntity& r);
+  void flyRemoteMunitions();
+  void publishEntities();
+  void publishEvents();
+  void sendPdu(const std::vector<std::byte>& bytes);
+  dis::Header header() const;
+  double pduTime(const dis::Header& h) const;
+  Identity identityOf(const sim::Entity& e) const;
+  std::uint16_t iconFor(const dis::EntityType& t);
+
+  sim::Simulation& sim_;
+  GatewayOptions options_;
+  Drain drain_;
+  Send send_;
+  RemoteEntities remotes_;
+  Publisher publisher_;
+  DisFrame frame_;
+  GatewayCounters counters_;
+  std::function<double()> wall_;
+  std::vector<dis::Datagram> inbox_;
+  std::size_t eventCursor_ = 0;
+  std::uint16_t nextEvent_ = 1;
+  /// Remote munitions in flight, by their Fire's event id.
+  std::map<std::uint64_t, std::uint32_t> remoteRounds_;
+  std::map<std::uint32_t, double> roundLaunchedS_;
+  /// Local entities published, to retire the ones removed.
+  std::map<std::uint32_t, bool> published_;
+};
+
+}  // namespace sandtable::sim_dis

@@ -1,0 +1,393 @@
+#include "sandtable/sim_dis/gateway.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "sandtable/sim/motion.h"
+#include "sandtable/sim/sim_world.h"
+#include "sandtable/sim/units.h"
+
+namespace sandtable::sim_dis {
+namespace {
+
+constexpr double kGravity = 9.81;
+constexpr double kRoundLifeS = 60;  ///< a remote round whose Detonation never comes
+
+std::uint64_t eventKey(const dis::EventId& e) {
+  return (std::uint64_t(e.site) << 32) | (std::uint64_t(e.application) << 16) | e.event;
+}
+
+std::uint64_t typeKey(const dis::EntityType& t) {
+  return (std::uint64_t(t.kind) << 56) | (std::uint64_t(t.domain) << 48) | (std::uint64_t(t.country) << 32) |
+         (std::uint64_t(t.category) << 24) | (std::uint64_t(t.subcategory) << 16) | (std::uint64_t(t.specific) << 8) |
+         t.extra;
+}
+
+double systemSecondsPastHour() {
+  const auto now = std::chrono::system_clock::now().time_since_epoch();
+  return std::fmod(std::chrono::duration<double>(now).count(), 3600.0);
+}
+
+std::uint8_t disDomain(sim::Domain d) {
+  switch (d) {
+    case sim::Domain::land: return 1;
+    case sim::Domain::air: return 2;
+    case sim::Domain::sea: return 3;
+    case sim::Domain::munition: return 0;
+  }
+  return 0;
+}
+
+/// The munition type a Fire PDU names for the simulator's rounds: kind 2
+/// (munition), domain 1 (anti-land), USA, guided or ballistic.
+dis::EntityType munitionType(bool guided) { return {2, 1, 225, std::uint8_t(guided ? 1 : 2), 1, 0, 0}; }
+
+dis::Vec3f toFloat(const dis::Vec3d& v) { return {float(v.x), float(v.y), float(v.z)}; }
+dis::Vec3d toDouble(const dis::Vec3f& v) { return {v.x, v.y, v.z}; }
+
+}  // namespace
+
+Gateway::Gateway(sim::Simulation& simulation, DisFrame frame, GatewayOptions options, Drain drain, Send send)
+    : sim_(simulation),
+      options_(options),
+      drain_(std::move(drain)),
+      send_(std::move(send)),
+      remotes_(frame, options.remote),
+      publisher_(frame, options.publishing),
+      frame_(std::move(frame)),
+      wall_(systemSecondsPastHour) {}
+
+void Gateway::attach(sim::StepHost& host) {
+  host.addBeforeStep([this](sim::Simulation&) { beforeStep(); });
+  host.addAfterStep([this](sim::Simulation&) { afterStep(); });
+}
+
+void Gateway::beforeStep() {
+  if (drain_) drain_(inbox_);
+  apply(inbox_);
+  inbox_.clear();
+  flyRemoteMunitions();
+  syncRemotes();
+}
+
+void Gateway::afterStep() {
+  if (!options_.publish) {
+    eventCursor_ = sim_.events().size();
+    return;
+  }
+  publishEntities();
+  publishEvents();
+}
+
+void Gateway::apply(const std::vector<dis::Datagram>& datagrams) {
+  for (const dis::Datagram& d : datagrams) {
+    ++counters_.datagrams;
+    std::span<const std::byte> rest(d.bytes);
+    while (!rest.empty()) {
+      auto pdu = dis::decode(rest, d.sender.text());
+      if (!pdu) {
+        ++counters_.malformed;
+        counters_.lastMalformed = pdu.error();
+        break;  // the rest of the datagram cannot be framed
+      }
+      applyPdu(pdu.value(), d.sender);
+      rest = rest.subspan(std::min<std::size_t>(pdu->header.length, rest.size()));
+    }
+  }
+}
+
+void Gateway::applyPdu(const dis::Pdu& pdu, const dis::Address& sender) {
+  ++counters_.pdus;
+  if (pdu.header.exercise != options_.exercise) {
+    ++counters_.otherExercise;
+    return;
+  }
+  auto ours = [&](const dis::EntityId& id) { return id.site == options_.site && id.application == options_.application; };
+  if (pdu.entityState) {
+    if (ours(pdu.entityState->id)) {
+      ++counters_.own;
+      return;
+    }
+    applyEntityState(pdu, sender);
+  } else if (pdu.fire) {
+    if (ours(pdu.fire->firing)) {
+      ++counters_.own;
+      return;
+    }
+    applyFire(*pdu.fire);
+  } else if (pdu.detonation) {
+    if (ours(pdu.detonation->firing)) {
+      ++counters_.own;
+      return;
+    }
+    applyDetonation(*pdu.detonation);
+  } else {
+    ++counters_.unknownType;
+  }
+}
+
+double Gateway::pduTime(const dis::Header& h) const {
+  const double now = sim_.timeS();
+  if (!options_.absoluteTime || !dis::timestampAbsolute(h.timestamp)) return now;
+  double age = wall_() - dis::timestampSeconds(h.timestamp);
+  age -= 3600 * std::floor((age + 1800) / 3600);  // into [-1800, 1800): the hour may have turned
+  return now - std::clamp(age, 0.0, options_.remote.timeoutS);
+}
+
+void Gateway::applyEntityState(const dis::Pdu& pdu, const dis::Address& sender) {
+  ++counters_.entityStates;
+  const dis::EntityState& s = *pdu.entityState;
+  const RemoteEntity* before = remotes_.find(s.id);
+  const std::uint32_t hadSim = before ? before->simId : UINT32_MAX;
+  const RemoteEntity* after = remotes_.update(s, sender, pduTime(pdu.header), sim_.timeS());
+  if (!after && hadSim != UINT32_MAX) sim_.remove(hadSim);  // deactivated
+}
+
+void Gateway::syncRemotes() {
+  for (const RemoteEntity& gone : remotes_.expire(sim_.timeS())) {
+    if (gone.simId != UINT32_MAX) sim_.remove(gone.simId);
+  }
+  for (auto& [key, r] : remotes_.all()) placeRemote(r);
+}
+
+std::uint16_t Gateway::iconFor(const dis::EntityType& t) {
+  const auto& icons = sim_.world().icons().icons;
+  int best = -1, bestScore = -1;
+  for (std::size_t i = 0; i < icons.size(); ++i) {
+    const auto& d = icons[i].dis;
+    if (!icons[i].hasDis || d.kind != t.kind || d.domain != t.domain) continue;
+    const int score = 1 + (d.country == t.country) + (d.country == t.country && d.category == t.category) * 2 +
+                      (d == iconpack::DisType{t.kind, t.domain, t.country, t.category, t.subcategory, t.specific,
+                                              t.extra}) * 4;
+    if (score > bestScore) best = int(i), bestScore = score;
+  }
+  if (best < 0) {
+    ++counters_.unknownIcons;
+    return 0;
+  }
+  static_cast<void>(typeKey);
+  return std::uint16_t(best);
+}
+
+void Gateway::placeRemote(RemoteEntity& r) {
+  auto state = remotes_.stateAt(r, sim_.timeS());
+  if (!state) return;
+  const RemoteState& s = state.value();
+  sim::Entity* e = r.simId == UINT32_MAX ? nullptr : sim_.find(r.simId);
+  if (!e) {
+    if (r.offDatabase) return;
+    sim::Entity fresh;
+    fresh.controller = sim::Controller::remote;
+    fresh.domain = r.domain;
+    fresh.icon = iconFor(r.last.type);
+    fresh.name = r.last.marking.text();
+    fresh.force = r.last.force;
+    fresh.position = s.pose.position;
+    fresh.headingDeg = s.pose.headingDeg;
+    auto id = sim_.add(fresh);
+    if (!id) {
+      r.offDatabase = true;
+      ++counters_.notAdded;
+      return;
+    }
+    r.simId = id.value();
+    e = sim_.find(r.simId);
+  }
+  e->position = s.pose.position;
+  e->headingDeg = s.pose.headingDeg;
+  e->pitchDeg = s.pose.pitchDeg;
+  e->rollDeg = s.pose.rollDeg;
+  e->velocity = s.velocity;
+  e->speedMs = Eigen::Vector2d(s.velocity.x(), s.velocity.z()).norm();
+  e->alive = s.alive;
+  e->name = r.last.marking.text();
+  if (r.domain == sim::Domain::land && options_.publishing.alignToGround) {
+    // Align to ground (seed X.C): the drawn ground's height and slope.
+    if (auto g = sim_.world().groundAt(e->position.x(), e->position.z())) e->position.y() = *g;
+    if (auto a = sim::projectedPointAttitude(sim_.world(), e->position.x(), e->position.z(), e->headingDeg,
+                                             e->halfLength, e->halfWidth)) {
+      e->pitchDeg = a->pitchDeg;
+      e->rollDeg = a->rollDeg;
+    }
+  }
+  for (const dis::VariableParameter& v : r.last.parameters) {
+    const auto part = dis::articulatedPart(v);
+    if (!part) continue;
+    if (part->parameterType == kTurretAzimuth) e->gunAzimuthDeg = sim::wrapDeg(e->headingDeg + part->value * sim::kRadToDeg);
+    if (part->parameterType == kGunElevation) e->gunElevationDeg = part->value * sim::kRadToDeg;
+  }
+}
+
+void Gateway::applyFire(const dis::Fire& f) {
+  ++counters_.fires;
+  auto anchor = frame_.anchorAtEcef(f.location);
+  if (!anchor) return;
+  sim::Entity m;
+  m.controller = sim::Controller::remote;
+  m.domain = sim::Domain::munition;
+  m.name = "remote round";
+  m.position = anchor->frame;
+  m.velocity = frameVector(anchor.value(), toDouble(f.velocity));
+  m.speedMs = m.velocity.norm();
+  m.headingDeg = sim::headingOf(m.velocity.x(), m.velocity.z());
+  m.launcher = simIdOf(f.firing);
+  auto id = sim_.add(m);
+  if (!id) return;
+  remoteRounds_[eventKey(f.event)] = id.value();
+  roundLaunchedS_[id.value()] = sim_.timeS();
+  sim_.addEvent({0, sim::EventKind::fire, id.value(), m.launcher, UINT32_MAX, m.position, "remote", {}});
+}
+
+void Gateway::flyRemoteMunitions() {
+  const double dt = sim_.options().stepS;
+  for (auto it = remoteRounds_.begin(); it != remoteRounds_.end();) {
+    sim::Entity* m = sim_.find(it->second);
+    const double age = m ? sim_.timeS() - roundLaunchedS_[it->second] : kRoundLifeS;
+    const bool gone = !m || age >= kRoundLifeS || !sim_.world().onGrid(m->position.x(), m->position.z()) ||
+                      m->position.y() < sim_.world().groundAt(m->position.x(), m->position.z()).value_or(-1e9);
+    if (gone) {
+      if (m) sim_.remove(it->second);
+      roundLaunchedS_.erase(it->second);
+      it = remoteRounds_.erase(it);
+      continue;
+    }
+    m->velocity.y() -= kGravity * dt;
+    m->position += m->velocity * dt;
+    m->headingDeg = sim::headingOf(m->velocity.x(), m->velocity.z());
+    ++it;
+  }
+}
+
+void Gateway::applyDetonation(const dis::Detonation& d) {
+  ++counters_.detonations;
+  if (auto it = remoteRounds_.find(eventKey(d.event)); it != remoteRounds_.end()) {
+    sim_.remove(it->second);
+    roundLaunchedS_.erase(it->second);
+    remoteRounds_.erase(it);
+  }
+  auto anchor = frame_.anchorAtEcef(d.location);
+  const Eigen::Vector3d at = anchor ? anchor->frame : Eigen::Vector3d::Zero();
+  const std::uint32_t shooter = simIdOf(d.firing);
+  const bool ourTarget = d.target.site == options_.site && d.target.application == options_.application;
+  const std::uint32_t target = simIdOf(d.target);
+  if (anchor) {
+    sim_.addEvent({0, sim::EventKind::detonation, UINT32_MAX, target, UINT32_MAX, at, "remote",
+                   d.result == 1 ? "entity" : d.result == 3 ? "terrain" : "air"});
+  }
+  // Result 1 is an entity impact, 2 an entity proximate detonation (SISO-REF-010).
+  if (ourTarget && target != UINT32_MAX && (d.result == 1 || d.result == 2)) {
+    if (sim_.destroy(target, shooter, "munition")) ++counters_.hitsTaken;
+  }
+}
+
+dis::EntityId Gateway::disId(std::uint32_t simId) const {
+  const sim::Entity* e = sim_.find(simId);
+  if (e && e->controller == sim::Controller::remote) {
+    for (const auto& [key, r] : remotes_.all()) {
+      if (r.simId == simId) return r.id;
+    }
+  }
+  return {options_.site, options_.application, std::uint16_t(simId + 1)};
+}
+
+std::uint32_t Gateway::simIdOf(const dis::EntityId& id) const {
+  if (id.site == options_.site && id.application == options_.application) {
+    return id.entity == 0 ? UINT32_MAX : std::uint32_t(id.entity) - 1;
+  }
+  auto it = remotes_.all().find(RemoteEntities::key(id));
+  return it == remotes_.all().end() ? UINT32_MAX : it->second.simId;
+}
+
+Identity Gateway::identityOf(const sim::Entity& e) const {
+  Identity who;
+  who.id = disId(e.id);
+  who.force = e.force;
+  const auto& icons = sim_.world().icons().icons;
+  if (e.icon < icons.size() && icons[e.icon].hasDis) {
+    const auto& d = icons[e.icon].dis;
+    who.type = {d.kind, d.domain, d.country, d.category, d.subcategory, d.specific, d.extra};
+  } else {
+    who.type = {1, disDomain(e.domain), 0, 0, 0, 0, 0};
+  }
+  return who;
+}
+
+dis::Header Gateway::header() const {
+  dis::Header h;
+  h.exercise = options_.exercise;
+  h.timestamp = options_.absoluteTime ? dis::timestamp(wall_(), true)
+                                      : dis::timestamp(std::fmod(sim_.timeS(), 3600.0), false);
+  return h;
+}
+
+void Gateway::sendPdu(const std::vector<std::byte>& bytes) {
+  if (bytes.empty() || !send_) return;
+  send_(bytes);
+  ++counters_.sentPdus;
+  counters_.sentBytes += bytes.size();
+}
+
+void Gateway::publishEntities() {
+  const double now = sim_.timeS();
+  for (const sim::Entity& e : sim_.entities()) {
+    if (e.controller == sim::Controller::remote || e.domain == sim::Domain::munition) continue;
+    const bool first = published_.emplace(e.id, true).second;
+    if (auto s = publisher_.offer(e, identityOf(e), now, first)) sendPdu(dis::encode(header(), *s));
+  }
+  for (auto it = published_.begin(); it != published_.end();) {
+    if (sim_.find(it->first)) {
+      ++it;
+      continue;
+    }
+    if (auto s = publisher_.retire(it->first, now)) sendPdu(dis::encode(header(), *s));
+    it = published_.erase(it);
+  }
+}
+
+void Gateway::retireAll() {
+  for (const auto& [id, _] : published_) {
+    if (auto s = publisher_.retire(id, sim_.timeS())) sendPdu(dis::encode(header(), *s));
+  }
+  published_.clear();
+}
+
+void Gateway::publishEvents() {
+  const auto& events = sim_.events();
+  for (; eventCursor_ < events.size(); ++eventCursor_) {
+    const sim::Event& ev = events[eventCursor_];
+    if (ev.kind != sim::EventKind::fire && ev.kind != sim::EventKind::detonation) continue;
+    const sim::Entity* round = sim_.find(ev.entity);
+    if (!round || round->controller == sim::Controller::remote) continue;
+    auto anchor = frame_.anchorAtFrame(ev.position);
+    if (!anchor) continue;
+    const std::uint32_t launcher = round->launcher;
+    const dis::EventId event{options_.site, options_.application, std::uint16_t(ev.entity + 1)};
+    const bool guided = round->munitionType < sim_.munitions().size() && sim_.munitions()[round->munitionType].guided;
+    dis::MunitionDescriptor descriptor{munitionType(guided), 1000, 1000, 1, 0};
+    const dis::Vec3f velocity = toFloat(ecefVector(anchor.value(), round->velocity));
+    if (ev.kind == sim::EventKind::fire) {
+      dis::Fire f;
+      f.firing = disId(launcher);
+      if (round->target != UINT32_MAX) f.target = disId(round->target);
+      f.munition = disId(ev.entity);
+      f.event = event;
+      f.location = anchor->ecef;
+      f.descriptor = descriptor;
+      f.velocity = velocity;
+      sendPdu(dis::encode(header(), f));
+    } else {
+      dis::Detonation d;
+      d.firing = disId(launcher);
+      if (ev.other != UINT32_MAX) d.target = disId(ev.other);
+      d.munition = disId(ev.entity);
+      d.event = event;
+      d.velocity = velocity;
+      d.location = anchor->ecef;
+      d.descriptor = descriptor;
+      d.result = ev.other != UINT32_MAX ? 1 : ev.detail == "terrain" ? 3 : 5;
+      sendPdu(dis::encode(header(), d));
+    }
+  }
+}
+
+}  // namespace sandtable::sim_dis
