@@ -42,7 +42,8 @@ seed() {  # seed NAME FILE... : copy files into NAME's seed directory
 seed sandtable_fuzz_materials samples/materials.txt
 seed sandtable_fuzz_icon_definitions samples/icons.txt samples/icons-models.txt
 seed sandtable_fuzz_path samples/demo.path
-# The DIS target starts from the Entity State, Fire and Detonation PDUs of docs/DIS.md §3 (the golden bytes).
+# The DIS target starts from the golden bytes of every PDU type it decodes (docs/DIS.md §3-3.5):
+# Entity State, Fire and Detonation first.
 mkdir -p "$seeds/sandtable_fuzz_dis"
 python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
   "$seeds/sandtable_fuzz_dis/entity-state" \
@@ -60,6 +61,24 @@ python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.
   0703030280000001007800000001000200030001000200040000000000000001000200093f800000bf000000 \
   402000004090000000000000c0000000000000004008000000000000020900e10201000003e803e800010000 \
   3f000000bf8000003e80000001010000000000000000100b3fc0000000000000
+# Create Entity (docs/DIS.md §3.3; Remove Entity is the same with byte 2 = 0c), Point Object
+# State (§3.4) and Linear Object State (§3.5), the golden bytes of test_pdu.cpp.
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/create-entity" \
+  07030b0580000001001c00000001000300000001000203040a0b0c0d
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/remove-entity" \
+  07030c0580000001001c00000001000300000001000203040a0b0c0d
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/point-object" \
+  07032b09800000010058000000010002001100000000000000050101010203044090000000000000c0000000 \
+  0000000040080000000000003f000000bf8000003e800000010203040506070800010002ffffffff00000000
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_dis/linear-object" \
+  07032c098000000100a800000001000200120000000000000001020200010002ffffffff0105020101001234 \
+  89abcdef4090000000000000c00000000000000040080000000000003f000000bf8000003e80000042c80000 \
+  40800000402000003f00000000000000020100000000000040a0000000000000c00000000000000040080000 \
+  000000000000000000000000000000004248000040800000000000000000000000000000
 # The sim text target's first byte picks the reader: 0 script, 1 scenario,
 # 2 aircraft, 3 collision table.
 mkdir -p "$seeds/sandtable_fuzz_sim_text"

@@ -79,6 +79,49 @@ static_assert(det::parameters == kDetonationBytes);
 static_assert(det::firing == fire::firing && det::target == fire::target && det::munition == fire::munition &&
               det::event == fire::event);
 
+// Create Entity and Remove Entity PDUs (IEEE 1278.1-2012 7.5.2, 7.5.3;
+// 1278.1a-1998 5.3.6.1, 5.3.6.2: the same bytes).
+namespace req {
+constexpr std::size_t originating = 12, receiving = 18, requestId = 24;
+}
+static_assert(req::receiving == req::originating + 6 && req::requestId == req::receiving + 6);
+static_assert(req::requestId + 4 == kEntityRequestBytes);
+
+// Point Object State PDU (IEEE 1278.1-2012 7.10.4).
+namespace po {
+constexpr std::size_t id = 12, referenced = 18, updateNumber = 24, force = 26, modifications = 27, type = 28,
+                      location = 32, orientation = 56, appearance = 68, requester = 76, receiver = 80, padding = 84;
+}
+static_assert(po::referenced == po::id + 6 && po::updateNumber == po::referenced + 6);
+static_assert(po::force == po::updateNumber + 2 && po::modifications == po::force + 1 && po::type == po::modifications + 1);
+static_assert(po::location == po::type + 4 && po::orientation == po::location + 24);
+static_assert(po::appearance == po::orientation + 12 && po::requester == po::appearance + 8);
+static_assert(po::receiver == po::requester + 4 && po::padding == po::receiver + 4 && po::padding + 4 == kPointObjectBytes);
+
+// Linear Object State PDU (IEEE 1278.1-2012 7.10.5) and its 64-byte linear
+// segment parameter records (6.2.52).
+namespace lo {
+constexpr std::size_t id = 12, referenced = 18, updateNumber = 24, force = 26, segmentCount = 27, requester = 28,
+                      receiver = 32, type = 36, segments = 40;
+}
+static_assert(lo::referenced == lo::id + 6 && lo::updateNumber == lo::referenced + 6 && lo::force == lo::updateNumber + 2);
+static_assert(lo::segmentCount == lo::force + 1 && lo::requester == lo::segmentCount + 1);
+static_assert(lo::receiver == lo::requester + 4 && lo::type == lo::receiver + 4 && lo::segments == lo::type + 4);
+static_assert(lo::segments == kLinearObjectBytes);
+// Both object PDUs open with the same ids, update number and force.
+static_assert(lo::id == po::id && lo::referenced == po::referenced && lo::updateNumber == po::updateNumber &&
+              lo::force == po::force);
+namespace seg {
+constexpr std::size_t number = 0, modification = 1, generalAppearance = 2, specificAppearance = 4, location = 8,
+                      orientation = 32, length = 44, width = 48, height = 52, depth = 56, padding = 60;
+}
+static_assert(seg::specificAppearance == seg::generalAppearance + 2 && seg::location == seg::specificAppearance + 4);
+static_assert(seg::orientation == seg::location + 24 && seg::length == seg::orientation + 12);
+static_assert(seg::width == seg::length + 4 && seg::height == seg::width + 4 && seg::depth == seg::height + 4);
+static_assert(seg::padding == seg::depth + 4 && seg::padding + 4 == kSegmentBytes);
+static_assert(kLinearObjectBytes + kSegmentBytes * kMaxSegments <= kMaxPduBytes &&
+              kLinearObjectBytes + kSegmentBytes * (kMaxSegments + 1) > kMaxPduBytes);
+
 // Dead reckoning parameters, within their 40 bytes.
 namespace dr {
 constexpr std::size_t algorithm = 0, other = 1, acceleration = 16, angularVelocity = 28, bytes = 40;
@@ -141,6 +184,30 @@ void putDescriptor(std::byte* p, const MunitionDescriptor& d) {
 MunitionDescriptor getDescriptor(const std::byte* p) {
   return {getType(p), loadBE<std::uint16_t>(p + 8), loadBE<std::uint16_t>(p + 10), loadBE<std::uint16_t>(p + 12),
           loadBE<std::uint16_t>(p + 14)};
+}
+
+void putEuler(std::byte* p, const Euler& e) {
+  storeBE(p, e.psi);
+  storeBE(p + 4, e.theta);
+  storeBE(p + 8, e.phi);
+}
+Euler getEuler(const std::byte* p) { return {loadBE<float>(p), loadBE<float>(p + 4), loadBE<float>(p + 8)}; }
+
+void putAddress(std::byte* p, const SimulationAddress& a) {
+  storeBE(p, a.site);
+  storeBE(p + 2, a.application);
+}
+SimulationAddress getAddress(const std::byte* p) { return {loadBE<std::uint16_t>(p), loadBE<std::uint16_t>(p + 2)}; }
+
+void putObjectType(std::byte* p, const ObjectType& t) {
+  storeBE(p, t.domain);
+  storeBE(p + 1, t.kind);
+  storeBE(p + 2, t.category);
+  storeBE(p + 3, t.subcategory);
+}
+ObjectType getObjectType(const std::byte* p) {
+  return {loadBE<std::uint8_t>(p), loadBE<std::uint8_t>(p + 1), loadBE<std::uint8_t>(p + 2),
+          loadBE<std::uint8_t>(p + 3)};
 }
 
 void putBytes(std::byte* p, std::span<const std::uint8_t> b) {
@@ -228,8 +295,7 @@ EntityState getEntityState(const std::byte* p, std::size_t count) {
   e.alternativeType = getType(p + es::alternativeType);
   e.velocity = getVecF(p + es::velocity);
   e.location = getVecD(p + es::location);
-  e.orientation = {loadBE<float>(p + es::orientation), loadBE<float>(p + es::orientation + 4),
-                   loadBE<float>(p + es::orientation + 8)};
+  e.orientation = getEuler(p + es::orientation);
   e.appearance = loadBE<std::uint32_t>(p + es::appearance);
   const std::byte* d = p + es::deadReckoning;
   e.deadReckoning.algorithm = loadBE<std::uint8_t>(d + dr::algorithm);
@@ -243,6 +309,61 @@ EntityState getEntityState(const std::byte* p, std::size_t count) {
   e.capabilities = loadBE<std::uint32_t>(p + es::capabilities);
   e.parameters = getRecords(p + es::parameters, count);
   return e;
+}
+
+template <typename Request>
+Request getRequest(const std::byte* p) {
+  Request r;
+  r.originating = getId(p + req::originating);
+  r.receiving = getId(p + req::receiving);
+  r.requestId = loadBE<std::uint32_t>(p + req::requestId);
+  return r;
+}
+
+PointObjectState getPointObject(const std::byte* p) {
+  PointObjectState o;
+  o.id = getTriple<ObjectId>(p + po::id);
+  o.referenced = getTriple<ObjectId>(p + po::referenced);
+  o.updateNumber = loadBE<std::uint16_t>(p + po::updateNumber);
+  o.force = loadBE<std::uint8_t>(p + po::force);
+  o.modifications = loadBE<std::uint8_t>(p + po::modifications);
+  o.type = getObjectType(p + po::type);
+  o.location = getVecD(p + po::location);
+  o.orientation = getEuler(p + po::orientation);
+  o.appearance = loadBE<std::uint64_t>(p + po::appearance);
+  o.requester = getAddress(p + po::requester);
+  o.receiver = getAddress(p + po::receiver);
+  return o;
+}
+
+LinearSegment getSegment(const std::byte* r) {
+  LinearSegment s;
+  s.number = loadBE<std::uint8_t>(r + seg::number);
+  s.modification = loadBE<std::uint8_t>(r + seg::modification);
+  s.generalAppearance = loadBE<std::uint16_t>(r + seg::generalAppearance);
+  s.specificAppearance = loadBE<std::uint32_t>(r + seg::specificAppearance);
+  s.location = getVecD(r + seg::location);
+  s.orientation = getEuler(r + seg::orientation);
+  s.length = loadBE<float>(r + seg::length);
+  s.width = loadBE<float>(r + seg::width);
+  s.height = loadBE<float>(r + seg::height);
+  s.depth = loadBE<float>(r + seg::depth);
+  return s;
+}
+
+/// `count` segments (<= kMaxSegments; their bytes checked by the caller).
+LinearObjectState getLinearObject(const std::byte* p, std::size_t count) {
+  LinearObjectState o;
+  o.id = getTriple<ObjectId>(p + lo::id);
+  o.referenced = getTriple<ObjectId>(p + lo::referenced);
+  o.updateNumber = loadBE<std::uint16_t>(p + lo::updateNumber);
+  o.force = loadBE<std::uint8_t>(p + lo::force);
+  o.requester = getAddress(p + lo::requester);
+  o.receiver = getAddress(p + lo::receiver);
+  o.type = getObjectType(p + lo::type);
+  o.segments.reserve(count);
+  for (std::size_t k = 0; k < count; ++k) o.segments.push_back(getSegment(p + lo::segments + k * kSegmentBytes));
+  return o;
 }
 
 std::string str(std::uint64_t v) { return std::to_string(v); }
@@ -353,9 +474,7 @@ std::vector<std::byte> encode(const Header& header, const EntityState& e) {
   putType(p + es::alternativeType, e.alternativeType);
   putVec(p + es::velocity, e.velocity);
   putVec(p + es::location, e.location);
-  storeBE(p + es::orientation, e.orientation.psi);
-  storeBE(p + es::orientation + 4, e.orientation.theta);
-  storeBE(p + es::orientation + 8, e.orientation.phi);
+  putEuler(p + es::orientation, e.orientation);
   storeBE(p + es::appearance, e.appearance);
   std::byte* d = p + es::deadReckoning;
   storeBE(d + dr::algorithm, e.deadReckoning.algorithm);
@@ -399,6 +518,77 @@ std::vector<std::byte> encode(const Header& header, const Detonation& d) {
   return out;
 }
 
+namespace {
+std::vector<std::byte> encodeRequest(const Header& header, PduType type, const EntityRequest& r) {
+  std::vector<std::byte> out(kEntityRequestBytes, std::byte{0});
+  std::byte* p = out.data();
+  putHeader(p, typed(header, type, Family::simulationManagement, kEntityRequestBytes));
+  putId(p + req::originating, r.originating);
+  putId(p + req::receiving, r.receiving);
+  storeBE(p + req::requestId, r.requestId);
+  return out;
+}
+
+void putObjectId(std::byte* p, const ObjectId& id) { putTriple(p, id.site, id.application, id.object); }
+
+void putSegment(std::byte* r, const LinearSegment& s) {
+  storeBE(r + seg::number, s.number);
+  storeBE(r + seg::modification, s.modification);
+  storeBE(r + seg::generalAppearance, s.generalAppearance);
+  storeBE(r + seg::specificAppearance, s.specificAppearance);
+  putVec(r + seg::location, s.location);
+  putEuler(r + seg::orientation, s.orientation);
+  storeBE(r + seg::length, s.length);
+  storeBE(r + seg::width, s.width);
+  storeBE(r + seg::height, s.height);
+  storeBE(r + seg::depth, s.depth);
+}
+}  // namespace
+
+std::vector<std::byte> encode(const Header& header, const CreateEntity& c) {
+  return encodeRequest(header, PduType::createEntity, c);
+}
+
+std::vector<std::byte> encode(const Header& header, const RemoveEntity& r) {
+  return encodeRequest(header, PduType::removeEntity, r);
+}
+
+std::vector<std::byte> encode(const Header& header, const PointObjectState& o) {
+  std::vector<std::byte> out(kPointObjectBytes, std::byte{0});
+  std::byte* p = out.data();
+  putHeader(p, typed(header, PduType::pointObjectState, Family::syntheticEnvironment, kPointObjectBytes));
+  putObjectId(p + po::id, o.id);
+  putObjectId(p + po::referenced, o.referenced);
+  storeBE(p + po::updateNumber, o.updateNumber);
+  storeBE(p + po::force, o.force);
+  storeBE(p + po::modifications, o.modifications);
+  putObjectType(p + po::type, o.type);
+  putVec(p + po::location, o.location);
+  putEuler(p + po::orientation, o.orientation);
+  storeBE(p + po::appearance, o.appearance);
+  putAddress(p + po::requester, o.requester);
+  putAddress(p + po::receiver, o.receiver);
+  return out;
+}
+
+std::vector<std::byte> encode(const Header& header, const LinearObjectState& o) {
+  if (o.segments.size() > kMaxSegments) return {};
+  const std::size_t bytes = kLinearObjectBytes + kSegmentBytes * o.segments.size();
+  std::vector<std::byte> out(bytes, std::byte{0});
+  std::byte* p = out.data();
+  putHeader(p, typed(header, PduType::linearObjectState, Family::syntheticEnvironment, bytes));
+  putObjectId(p + lo::id, o.id);
+  putObjectId(p + lo::referenced, o.referenced);
+  storeBE(p + lo::updateNumber, o.updateNumber);
+  storeBE(p + lo::force, o.force);
+  storeBE(p + lo::segmentCount, std::uint8_t(o.segments.size()));
+  putAddress(p + lo::requester, o.requester);
+  putAddress(p + lo::receiver, o.receiver);
+  putObjectType(p + lo::type, o.type);
+  for (std::size_t k = 0; k < o.segments.size(); ++k) putSegment(p + lo::segments + k * kSegmentBytes, o.segments[k]);
+  return out;
+}
+
 Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender) {
   auto fail = [&](std::size_t offset, const std::string& message) {
     return Problem{sender, offset, "dis: " + message};
@@ -418,6 +608,40 @@ Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender) 
   if (h.length > bytes.size()) {
     return fail(bytes.size(), "truncated: the header gives " + str(h.length) + " bytes, " + str(bytes.size()) +
                                   " arrived");
+  }
+  if (h.type == std::uint8_t(PduType::createEntity) || h.type == std::uint8_t(PduType::removeEntity)) {
+    // Versions 6 and 7 lay both out alike (1278.1a-1998 5.3.6.1-2): decoded in either.
+    if (h.length != kEntityRequestBytes) {
+      return fail(header::length, std::string(h.type == std::uint8_t(PduType::createEntity) ? "a Create" : "a Remove") +
+                                      " Entity PDU is 28 bytes; the length is " + str(h.length));
+    }
+    if (h.type == std::uint8_t(PduType::createEntity)) pdu.createEntity = getRequest<CreateEntity>(bytes.data());
+    else pdu.removeEntity = getRequest<RemoveEntity>(bytes.data());
+    return pdu;
+  }
+  // Version 6's object PDUs have another layout (a 6-byte object type, other
+  // segment records): their header only, counted like an unknown type.
+  if (h.type == std::uint8_t(PduType::pointObjectState) && h.version == kVersion7) {
+    if (h.length != kPointObjectBytes) {
+      return fail(header::length, "a Point Object State PDU is 88 bytes; the length is " + str(h.length));
+    }
+    pdu.pointObject = getPointObject(bytes.data());
+    return pdu;
+  }
+  if (h.type == std::uint8_t(PduType::linearObjectState) && h.version == kVersion7) {
+    if (h.length < kLinearObjectBytes) {
+      return fail(header::length, "a Linear Object State PDU needs at least 40 bytes; the length is " + str(h.length));
+    }
+    // The count is one byte (255 at most) and must match the length, which is
+    // at most kMaxPduBytes: at most kMaxSegments are read and allocated.
+    const std::size_t n = std::to_integer<std::uint8_t>(bytes[lo::segmentCount]);
+    if (h.length != kLinearObjectBytes + kSegmentBytes * n) {
+      return fail(lo::segmentCount, str(n) + " linear segments need a length of " +
+                                        str(kLinearObjectBytes + kSegmentBytes * n) + " bytes; the header gives " +
+                                        str(h.length));
+    }
+    pdu.linearObject = getLinearObject(bytes.data(), n);
+    return pdu;
   }
   if (h.type == std::uint8_t(PduType::fire)) {
     if (h.length != kFireBytes) return fail(header::length, "a Fire PDU is 96 bytes; the length is " + str(h.length));

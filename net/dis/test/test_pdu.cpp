@@ -150,6 +150,10 @@ TEST(DisPdu, otherTypesDecodeTheirHeaderOnly) {
   EXPECT_FALSE(pdu->entityState.has_value());
   EXPECT_FALSE(pdu->fire.has_value());
   EXPECT_FALSE(pdu->detonation.has_value());
+  EXPECT_FALSE(pdu->createEntity.has_value());
+  EXPECT_FALSE(pdu->removeEntity.has_value());
+  EXPECT_FALSE(pdu->pointObject.has_value());
+  EXPECT_FALSE(pdu->linearObject.has_value());
 }
 
 // docs/DIS.md §3.1: a round 1:2:9 fired by 1:2:3 at 1:2:4, and its detonation on the target.
@@ -271,6 +275,275 @@ TEST(DisPdu, aDatagramOfTwoPdusDecodesTheFirstAndSaysWhereTheNextStarts) {
   auto second = decode(std::span(two).subspan(first->header.length), "s");
   ASSERT_TRUE(second.ok()) << second.error();
   EXPECT_EQ(*second->entityState, example());
+}
+
+// docs/DIS.md §3.3: the simulation manager 1:3:0 asks for entity 1:2:772 to be created
+// (then removed), request id 0x0A0B0C0D (its bytes in order show the byte order).
+CreateEntity exampleCreate() {
+  CreateEntity c;
+  c.originating = {1, 3, 0};
+  c.receiving = {1, 2, 0x0304};
+  c.requestId = 0x0A0B0C0Du;
+  return c;
+}
+RemoveEntity exampleRemove() {
+  RemoveEntity r;
+  static_cast<EntityRequest&>(r) = exampleCreate();
+  return r;
+}
+
+const std::vector<std::byte> kCreateGolden = bytesOf({
+    // header: version 7, exercise 3, type 11 (Create Entity), family 5 (simulation management),
+    // 30:00 absolute, 28 bytes
+    0x07, 0x03, 0x0B, 0x05, 0x80, 0x00, 0x00, 0x01, 0x00, 0x1C, 0x00, 0x00,
+    // originating 1:3:0, receiving 1:2:772
+    0x00, 0x01, 0x00, 0x03, 0x00, 0x00, 0x00, 0x01, 0x00, 0x02, 0x03, 0x04,
+    // request id 0x0A0B0C0D
+    0x0A, 0x0B, 0x0C, 0x0D,
+});
+
+// The same body with type 12 (Remove Entity).
+std::vector<std::byte> removeGolden() {
+  std::vector<std::byte> b = kCreateGolden;
+  b[2] = std::byte{0x0C};
+  return b;
+}
+
+// docs/DIS.md §3.4: object 1:2:17, a land (domain 1) object of kind 2, category 3, subcategory
+// 4, at §3's location and orientation; the appearance 0x0102030405060708 shows the byte order.
+PointObjectState examplePoint() {
+  PointObjectState o;
+  o.id = {1, 2, 17};
+  o.updateNumber = 5;
+  o.force = 1;
+  o.modifications = 1;  // location modified
+  o.type = {1, 2, 3, 4};
+  o.location = {1024.0, -2.0, 3.0};
+  o.orientation = {0.5f, -1.0f, 0.25f};
+  o.appearance = 0x0102030405060708u;
+  o.requester = {1, 2};
+  o.receiver = {0xFFFF, 0xFFFF};  // all simulations
+  return o;
+}
+
+const std::vector<std::byte> kPointGolden = bytesOf({
+    // header: version 7, exercise 3, type 43 (0x2B), family 9 (synthetic environment), 30:00 absolute,
+    // 88 (0x58) bytes
+    0x07, 0x03, 0x2B, 0x09, 0x80, 0x00, 0x00, 0x01, 0x00, 0x58, 0x00, 0x00,
+    // object 1:2:17, referenced object 0:0:0
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x11, 0, 0, 0, 0, 0, 0,
+    // update number 5, force 1, modifications 1; object type: domain 1, kind 2, category 3, subcategory 4
+    0x00, 0x05, 0x01, 0x01, 0x01, 0x02, 0x03, 0x04,
+    // location 1024.0, -2.0, 3.0
+    0x40, 0x90, 0, 0, 0, 0, 0, 0, 0xC0, 0x00, 0, 0, 0, 0, 0, 0, 0x40, 0x08, 0, 0, 0, 0, 0, 0,
+    // orientation psi 0.5f, theta -1.0f, phi 0.25f
+    0x3F, 0x00, 0x00, 0x00, 0xBF, 0x80, 0x00, 0x00, 0x3E, 0x80, 0x00, 0x00,
+    // appearance, 64 bits as sent
+    0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08,
+    // requester 1:2, receiver 65535:65535, padding
+    0x00, 0x01, 0x00, 0x02, 0xFF, 0xFF, 0xFF, 0xFF, 0, 0, 0, 0,
+});
+
+// docs/DIS.md §3.5: object 1:2:18 (domain 1, kind 5, category 2, subcategory 1) in two segments.
+LinearObjectState exampleLinear() {
+  LinearObjectState o;
+  o.id = {1, 2, 18};
+  o.updateNumber = 1;
+  o.force = 2;
+  o.requester = {1, 2};
+  o.receiver = {0xFFFF, 0xFFFF};
+  o.type = {1, 5, 2, 1};
+  LinearSegment a;
+  a.number = 1;
+  a.generalAppearance = 0x1234;
+  a.specificAppearance = 0x89ABCDEFu;
+  a.location = {1024.0, -2.0, 3.0};
+  a.orientation = {0.5f, -1.0f, 0.25f};
+  a.length = 100.0f;
+  a.width = 4.0f;
+  a.height = 2.5f;
+  a.depth = 0.5f;
+  LinearSegment b;
+  b.number = 2;
+  b.modification = 1;
+  b.location = {2048.0, -2.0, 3.0};
+  b.length = 50.0f;
+  b.width = 4.0f;
+  o.segments = {a, b};
+  return o;
+}
+
+const std::vector<std::byte> kLinearGolden = bytesOf({
+    // header: version 7, exercise 3, type 44 (0x2C), family 9, 30:00 absolute, 168 = 40 + 2 x 64 (0xA8) bytes
+    0x07, 0x03, 0x2C, 0x09, 0x80, 0x00, 0x00, 0x01, 0x00, 0xA8, 0x00, 0x00,
+    // object 1:2:18, referenced object 0:0:0
+    0x00, 0x01, 0x00, 0x02, 0x00, 0x12, 0, 0, 0, 0, 0, 0,
+    // update number 1, force 2, two segments
+    0x00, 0x01, 0x02, 0x02,
+    // requester 1:2, receiver 65535:65535, object type 1.5.2.1
+    0x00, 0x01, 0x00, 0x02, 0xFF, 0xFF, 0xFF, 0xFF, 0x01, 0x05, 0x02, 0x01,
+    // segment 1: number 1, modification 0, general appearance 0x1234, specific 0x89ABCDEF
+    0x01, 0x00, 0x12, 0x34, 0x89, 0xAB, 0xCD, 0xEF,
+    // location 1024.0, -2.0, 3.0; orientation 0.5f, -1.0f, 0.25f
+    0x40, 0x90, 0, 0, 0, 0, 0, 0, 0xC0, 0x00, 0, 0, 0, 0, 0, 0, 0x40, 0x08, 0, 0, 0, 0, 0, 0,
+    0x3F, 0x00, 0x00, 0x00, 0xBF, 0x80, 0x00, 0x00, 0x3E, 0x80, 0x00, 0x00,
+    // length 100.0f (1.5625 x 2^6: 0x42C8...), width 4.0f, height 2.5f, depth 0.5f, padding
+    0x42, 0xC8, 0x00, 0x00, 0x40, 0x80, 0x00, 0x00, 0x40, 0x20, 0x00, 0x00, 0x3F, 0x00, 0x00, 0x00, 0, 0, 0, 0,
+    // segment 2: number 2, modification 1, appearances 0
+    0x02, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+    // location 2048.0 (2^11: exponent 0x40A), -2.0, 3.0; orientation 0, 0, 0
+    0x40, 0xA0, 0, 0, 0, 0, 0, 0, 0xC0, 0x00, 0, 0, 0, 0, 0, 0, 0x40, 0x08, 0, 0, 0, 0, 0, 0,
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+    // length 50.0f (1.5625 x 2^5: 0x4248...), width 4.0f, height 0, depth 0, padding
+    0x42, 0x48, 0x00, 0x00, 0x40, 0x80, 0x00, 0x00, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+});
+
+TEST(DisEntityRequest, createAndRemoveEncodeAndDecodeTheGoldenBytes) {
+  ASSERT_EQ(kCreateGolden.size(), 28u);
+  EXPECT_EQ(encode(exampleHeader(), exampleCreate()), kCreateGolden);
+  EXPECT_EQ(encode(exampleHeader(), exampleRemove()), removeGolden());
+  auto pdu = decode(kCreateGolden, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  EXPECT_EQ(pdu->header.family, 5);
+  ASSERT_TRUE(pdu->createEntity.has_value());
+  EXPECT_EQ(*pdu->createEntity, exampleCreate());
+  EXPECT_FALSE(pdu->removeEntity.has_value());
+  pdu = decode(removeGolden(), "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  ASSERT_TRUE(pdu->removeEntity.has_value());
+  EXPECT_EQ(*pdu->removeEntity, exampleRemove());
+  EXPECT_FALSE(pdu->createEntity.has_value());
+  EXPECT_EQ(pdu->removeEntity->receiving, (EntityId{1, 2, 772}));
+}
+
+TEST(DisEntityRequest, version6IsDecodedToo) {
+  // 1278.1a-1998 lays both out alike: VBS's Remove Entity must remove the entity.
+  for (std::vector<std::byte> b : {kCreateGolden, removeGolden()}) {
+    b[0] = std::byte{6};
+    b[10] = std::byte{0x5A};  // padding in version 6
+    auto pdu = decode(b, "vbs");
+    ASSERT_TRUE(pdu.ok()) << pdu.error();
+    EXPECT_EQ(pdu->header.status, 0);
+    EXPECT_TRUE(pdu->createEntity.has_value() || pdu->removeEntity.has_value());
+    const EntityRequest& r = pdu->createEntity ? static_cast<const EntityRequest&>(*pdu->createEntity)
+                                               : static_cast<const EntityRequest&>(*pdu->removeEntity);
+    EXPECT_EQ(r, static_cast<const EntityRequest&>(exampleCreate()));
+    Header h = exampleHeader();
+    h.version = 6;
+    b[10] = std::byte{0};
+    EXPECT_EQ(pdu->createEntity ? encode(h, *pdu->createEntity) : encode(h, *pdu->removeEntity), b);
+  }
+}
+
+TEST(DisObjectState, pointAndLinearEncodeAndDecodeTheGoldenBytes) {
+  ASSERT_EQ(kPointGolden.size(), 88u);
+  ASSERT_EQ(kLinearGolden.size(), 168u);
+  EXPECT_EQ(encode(exampleHeader(), examplePoint()), kPointGolden);
+  EXPECT_EQ(encode(exampleHeader(), exampleLinear()), kLinearGolden);
+  auto pdu = decode(kPointGolden, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  ASSERT_TRUE(pdu->pointObject.has_value());
+  EXPECT_EQ(*pdu->pointObject, examplePoint());
+  EXPECT_FALSE(pdu->linearObject.has_value());
+  pdu = decode(kLinearGolden, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  ASSERT_TRUE(pdu->linearObject.has_value());
+  EXPECT_EQ(*pdu->linearObject, exampleLinear());
+  EXPECT_EQ(pdu->linearObject->segments[0].length, 100.0f);
+}
+
+TEST(DisObjectState, version6ObjectPdusDecodeTheirHeaderOnly) {
+  // Version 6's layout differs (a 6-byte object type, 16-bit segment sizes): counted, not read.
+  for (std::vector<std::byte> b : {kPointGolden, kLinearGolden}) {
+    b[0] = std::byte{6};
+    auto pdu = decode(b, "s");
+    ASSERT_TRUE(pdu.ok()) << pdu.error();
+    EXPECT_FALSE(pdu->pointObject.has_value());
+    EXPECT_FALSE(pdu->linearObject.has_value());
+  }
+}
+
+TEST(DisNewPdus, everyTruncatedPrefixIsRefusedAtItsLength) {
+  for (const auto& golden : {kCreateGolden, removeGolden(), kPointGolden, kLinearGolden}) {
+    for (std::size_t n = 0; n < golden.size(); ++n) {
+      auto pdu = decode(std::span(golden).first(n), "10.0.0.7:3000");
+      ASSERT_FALSE(pdu.ok()) << n;
+      const Problem& p = pdu.problems().front();
+      EXPECT_EQ(p.file, "10.0.0.7:3000");
+      EXPECT_EQ(p.offset, n) << p.message;
+      EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
+    }
+  }
+}
+
+TEST(DisNewPdus, hostileLengthsAndCountsAreRefusedWithTheirOffset) {
+  const auto refusal = [](const std::vector<std::byte>& b) {
+    auto pdu = decode(b, "s");
+    EXPECT_FALSE(pdu.ok());
+    return pdu.ok() ? Problem{} : pdu.problems().front();
+  };
+  // Create and Remove Entity of 32 bytes (four bytes past the request id).
+  for (std::vector<std::byte> b : {kCreateGolden, removeGolden()}) {
+    b.resize(32);
+    b[9] = std::byte{32};
+    const Problem p = refusal(b);
+    EXPECT_EQ(p.offset, 8u);
+    EXPECT_NE(p.message.find("28 bytes"), std::string::npos) << p.message;
+  }
+  // A Point Object State PDU cut to 80 bytes by its own length.
+  std::vector<std::byte> b(kPointGolden.begin(), kPointGolden.begin() + 80);
+  b[9] = std::byte{80};
+  EXPECT_EQ(refusal(b).offset, 8u);
+  // Linear: 255 segments claimed in 168 bytes (they would need 16,360), one segment in two's
+  // bytes, and a PDU too short for the fixed part.
+  b = kLinearGolden;
+  b[27] = std::byte{255};
+  Problem p = refusal(b);
+  EXPECT_EQ(p.offset, 27u);
+  EXPECT_NE(p.message.find("16360"), std::string::npos) << p.message;
+  b[27] = std::byte{1};
+  EXPECT_EQ(refusal(b).offset, 27u);
+  b[27] = std::byte{0};
+  EXPECT_EQ(refusal(b).offset, 27u);
+  b = std::vector<std::byte>(kLinearGolden.begin(), kLinearGolden.begin() + 36);
+  b[9] = std::byte{36};
+  EXPECT_EQ(refusal(b).offset, 8u);
+  // A count that matches its length but not what arrived: truncated, nothing allocated.
+  b = kLinearGolden;
+  b[27] = std::byte{127};
+  b[8] = std::byte{0x1F};  // 8168 = 40 + 127 x 64 = 0x1FE8
+  b[9] = std::byte{0xE8};
+  p = refusal(b);
+  EXPECT_EQ(p.offset, kLinearGolden.size());
+  EXPECT_NE(p.message.find("truncated"), std::string::npos) << p.message;
+}
+
+TEST(DisNewPdus, roundTripsAndTheLargestLinearObject) {
+  LinearObjectState o = exampleLinear();
+  o.segments.assign(kMaxSegments, o.segments[0]);
+  for (std::size_t k = 0; k < o.segments.size(); ++k) o.segments[k].number = std::uint8_t(k);
+  const auto bytes = encode(exampleHeader(), o);
+  ASSERT_EQ(bytes.size(), 40u + 64u * 127u);
+  auto pdu = decode(bytes, "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  EXPECT_EQ(*pdu->linearObject, o);
+  o.segments.push_back(o.segments[0]);  // 128 segments: past 8,192 bytes
+  EXPECT_TRUE(encode(exampleHeader(), o).empty());
+  o.segments.clear();
+  pdu = decode(encode(exampleHeader(), o), "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  EXPECT_EQ(*pdu->linearObject, o);
+  PointObjectState point = examplePoint();
+  point.appearance = 0xFFFFFFFFFFFFFFFFu;  // every bit survives (no float reading)
+  pdu = decode(encode(exampleHeader(), point), "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  EXPECT_EQ(*pdu->pointObject, point);
+  RemoveEntity r;
+  r.originating = {0xFFFF, 0xFFFF, 0xFFFF};
+  r.requestId = 0xFFFFFFFFu;
+  pdu = decode(encode(exampleHeader(), r), "s");
+  ASSERT_TRUE(pdu.ok()) << pdu.error();
+  EXPECT_EQ(*pdu->removeEntity, r);
 }
 
 TEST(DisTimestamp, unitsOfTwoToTheThirtyOnePerHourWithTheAbsoluteBit) {

@@ -5,10 +5,12 @@
 // offset the standard gives; the offsets are pinned with static_asserts in
 // pdu.cpp and golden bytes in test/test_pdu.cpp.
 //
-// Built so far: the PDU header, the timestamp, the Entity State PDU (type
-// 1) with its variable parameter records (articulated and attached parts),
-// the Fire PDU (2) and the Detonation PDU (3). Other PDU types decode their
-// header and are reported as such (no body), so a receiver can count them.
+// Built: the PDU header, the timestamp, the Entity State PDU (type 1) with
+// its variable parameter records (articulated and attached parts), the Fire
+// PDU (2), the Detonation PDU (3), Create Entity (11) and Remove Entity
+// (12), and the synthetic environment's Point Object State (43) and Linear
+// Object State (44). Other PDU types decode their header and are reported as
+// such (no body), so a receiver can count them.
 //
 // Decoding never trusts the bytes: the header's length, the record count
 // and every fixed part are checked against what arrived before anything is
@@ -33,6 +35,10 @@ inline constexpr std::size_t kEntityStateBytes = 144;  ///< without variable par
 inline constexpr std::size_t kParameterBytes = 16;     ///< one variable parameter record
 inline constexpr std::size_t kFireBytes = 96;
 inline constexpr std::size_t kDetonationBytes = 104;   ///< without variable parameter records
+inline constexpr std::size_t kEntityRequestBytes = 28; ///< Create Entity and Remove Entity
+inline constexpr std::size_t kPointObjectBytes = 88;
+inline constexpr std::size_t kLinearObjectBytes = 40;  ///< without segment records
+inline constexpr std::size_t kSegmentBytes = 64;       ///< one linear segment parameter record
 /// The largest PDU the standard allows (IEEE 1278.2: 8,192 bytes); a
 /// header claiming more is refused.
 inline constexpr std::size_t kMaxPduBytes = 8192;
@@ -50,6 +56,10 @@ enum class PduType : std::uint8_t {
   pointObjectState = 43,
   linearObjectState = 44,
 };
+
+/// The most linear segments a Linear Object State PDU can carry within
+/// kMaxPduBytes: (8192 - 40) / 64.
+inline constexpr std::size_t kMaxSegments = (kMaxPduBytes - kLinearObjectBytes) / kSegmentBytes;
 
 /// Protocol families of those types.
 enum class Family : std::uint8_t {
@@ -210,6 +220,79 @@ struct Detonation {
   bool operator==(const Detonation&) const = default;
 };
 
+/// The body of a Create Entity PDU (type 11) or a Remove Entity PDU (12),
+/// family 5 (simulation management): 28 bytes in all, the same in version 6
+/// and 7. The receiving id names the entity to create or remove.
+struct EntityRequest {
+  EntityId originating, receiving;
+  std::uint32_t requestId = 0;  ///< the sender's, echoed by the Acknowledge PDU
+  bool operator==(const EntityRequest&) const = default;
+};
+struct CreateEntity : EntityRequest {
+  bool operator==(const CreateEntity&) const = default;
+};
+struct RemoveEntity : EntityRequest {
+  bool operator==(const RemoveEntity&) const = default;
+};
+
+/// A synthetic environment object's id: site, application, object number.
+struct ObjectId {
+  std::uint16_t site = 0, application = 0, object = 0;
+  bool operator==(const ObjectId&) const = default;
+};
+
+/// Site and application (the simulation address record).
+struct SimulationAddress {
+  std::uint16_t site = 0, application = 0;
+  bool operator==(const SimulationAddress&) const = default;
+};
+
+/// The object type record of IEEE 1278.1-2012 (4 bytes, in this order;
+/// SISO-REF-010 section 12 names the values).
+struct ObjectType {
+  std::uint8_t domain = 0, kind = 0, category = 0, subcategory = 0;
+  bool operator==(const ObjectType&) const = default;
+};
+
+/// The Point Object State PDU's body (type 43, family 9): 88 bytes in all.
+struct PointObjectState {
+  ObjectId id;
+  ObjectId referenced;             ///< the object this one is placed relative to; 0:0:0 when none
+  std::uint16_t updateNumber = 0;  ///< counts up with each change
+  std::uint8_t force = 0;
+  std::uint8_t modifications = 0;  ///< bit 0 location, bit 1 orientation modified
+  ObjectType type;
+  Vec3d location;                  ///< ECEF metres
+  Euler orientation;
+  std::uint64_t appearance = 0;    ///< the 64-bit object appearance field, kept as sent (docs/DIS.md §3.4)
+  SimulationAddress requester, receiver;
+  bool operator==(const PointObjectState&) const = default;
+};
+
+/// One linear segment parameter record: 64 bytes.
+struct LinearSegment {
+  std::uint8_t number = 0;
+  std::uint8_t modification = 0;
+  std::uint16_t generalAppearance = 0;
+  std::uint32_t specificAppearance = 0;
+  Vec3d location;                  ///< ECEF metres
+  Euler orientation;
+  float length = 0, width = 0, height = 0, depth = 0;  ///< metres
+  bool operator==(const LinearSegment&) const = default;
+};
+
+/// The Linear Object State PDU's body (type 44, family 9): 40 bytes plus
+/// 64 per segment, at most kMaxSegments.
+struct LinearObjectState {
+  ObjectId id, referenced;
+  std::uint16_t updateNumber = 0;
+  std::uint8_t force = 0;
+  SimulationAddress requester, receiver;
+  ObjectType type;
+  std::vector<LinearSegment> segments;
+  bool operator==(const LinearObjectState&) const = default;
+};
+
 /// The timestamp field: time past the hour in units of 3600 s / 2^31 in
 /// bits 31..1, and bit 0 set for absolute time (a clock synchronised to
 /// UTC), clear for relative. `secondsPastHour` is taken modulo 3600.
@@ -228,14 +311,29 @@ std::vector<std::byte> encode(const Header& header, const EntityState& state);
 std::vector<std::byte> encode(const Header& header, const Fire& fire);
 std::vector<std::byte> encode(const Header& header, const Detonation& detonation);
 
+/// Create Entity and Remove Entity PDUs (28 bytes), a Point Object State
+/// PDU (88 bytes) and a Linear Object State PDU (empty past kMaxSegments
+/// segments); the header's type, family and length as the PDU needs.
+std::vector<std::byte> encode(const Header& header, const CreateEntity& create);
+std::vector<std::byte> encode(const Header& header, const RemoveEntity& remove);
+std::vector<std::byte> encode(const Header& header, const PointObjectState& object);
+std::vector<std::byte> encode(const Header& header, const LinearObjectState& object);
+
 /// One decoded PDU: the header, and the body when the type is one this
-/// library decodes (Entity State 1, Fire 2, Detonation 3); otherwise only
-/// the header, which a receiver counts as an unknown type, not an error.
+/// library decodes (Entity State 1, Fire 2, Detonation 3, Create Entity
+/// 11, Remove Entity 12 in version 6 or 7; Point Object State 43 and
+/// Linear Object State 44 in version 7 only, their version 6 layout being
+/// another); otherwise only the header, which a receiver counts as an
+/// unknown type, not an error. At most one body is set.
 struct Pdu {
   Header header;
   std::optional<EntityState> entityState;
   std::optional<Fire> fire;
   std::optional<Detonation> detonation;
+  std::optional<CreateEntity> createEntity;
+  std::optional<RemoveEntity> removeEntity;
+  std::optional<PointObjectState> pointObject;
+  std::optional<LinearObjectState> linearObject;
 };
 
 /// Decodes the PDU at the start of `bytes` (a datagram may carry more than
@@ -244,7 +342,11 @@ struct Pdu {
 /// 7; a length under 12, over kMaxPduBytes or over what arrived; for an
 /// Entity State PDU, a length other than 144 + 16 per record its count
 /// names; for a Fire PDU, a length other than 96; for a Detonation PDU, a
-/// length other than 104 + 16 per record. Reads nothing past header.length.
+/// length other than 104 + 16 per record; for Create and Remove Entity, a
+/// length other than 28; for a version 7 Point Object State PDU, a length
+/// other than 88; for a version 7 Linear Object State PDU, a length other
+/// than 40 + 64 per segment its count names. Reads nothing past
+/// header.length.
 Result<Pdu> decode(std::span<const std::byte> bytes, const std::string& sender);
 
 }  // namespace sandtable::dis
