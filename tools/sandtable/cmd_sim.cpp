@@ -12,6 +12,7 @@
 
 #include "commands.h"
 #include "db_util.h"
+#include "dis_link.h"
 #include "progress.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/sim/collision_response.h"
@@ -34,6 +35,7 @@ struct SimArgs {
   double duration = 120;
   std::optional<std::uint64_t> seed;
   bool json = false, bruteForce = false, realTime = false;
+  DisArgs dis;
 };
 
 /// The recorded script: the played scripts' lines merged with the driven
@@ -68,13 +70,19 @@ int runSim(const SimArgs& a) {
     if (!s.driven) return usageError("sim", "--record needs a driven entity: mark one `driven` in " + a.scenario);
     s.record(*s.driven, *s.driven + 1, s.entity(*s.driven).icon);
   }
+  std::unique_ptr<DisLink> link;
+  if (!a.dis.endpoint.empty()) {
+    link = openDisLink("sim", world->manifest(), s, a.dis);
+    if (!link) return kUsage;
+  }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   Progress progress(a.json);
   const auto start = std::chrono::steady_clock::now();
   sim::StepHost host(s);
   host.setCancel(&gCancel);
-  if (a.realTime) host.setPacing(sim::Pacing::realTime);
+  if (a.realTime || link) host.setPacing(sim::Pacing::realTime);  // a networked run keeps the exercise's time
+  if (link) link->gateway->attach(host);
   const std::uint64_t steps = host.stepsFor(a.duration);
   host.addAfterStep([&](const sim::Simulation& at) {
     const std::uint64_t k = at.steps();
@@ -86,7 +94,9 @@ int runSim(const SimArgs& a) {
                   at.timeS(), a.duration, n.alive, n.munitionsInFlight, wall > 0 ? at.timeS() / wall : 0.0);
     progress.update(double(k) / double(steps), "simulating", detail);
   });
-  if (host.runToStep(steps).cancelled) {
+  const bool cancelled = host.runToStep(steps).cancelled;
+  if (link) link->gateway->retireAll();  // receivers drop our entities now, not 12 s later
+  if (cancelled) {
     progress.done();
     return usageError("sim", "cancelled at " + std::to_string(s.timeS()) + " s; nothing was written");
   }
@@ -100,11 +110,13 @@ int runSim(const SimArgs& a) {
     nlohmann::json j = {{"database", a.db}, {"scenario", a.scenario}, {"seed", s.options().seed},
                         {"wall_s", wall},   {"summary", sim::summaryJson(s)}, {"events", sim::eventsJson(s)}};
     if (!a.record.empty()) j["recorded"] = a.record;
+    if (link) j["dis"] = disJson(*link, s);
     std::printf("%s\n", j.dump(1).c_str());
   } else {
     std::printf("%s", sim::summaryText(s).c_str());
     std::printf("wall time %.2f s (%.1fx real time)\n", wall, wall > 0 ? s.timeS() / wall : 0.0);
     if (!a.record.empty()) std::printf("recorded %s\n", a.record.c_str());
+    if (link) std::printf("%s", disSummary(*link).c_str());
   }
   return kOk;
 }
@@ -119,7 +131,8 @@ void registerSim(CLI::App& root, Commands& c) {
       "behaviours and scripts (docs/SIM.md). Progress goes to stderr; Ctrl-C stops (exit 2, nothing written).\n"
       "Examples:\n"
       "  sandtable sim db --scenario samples/demo.scenario --duration 300\n"
-      "  sandtable sim db --scenario s.scenario --record drive.script --json > events.json");
+      "  sandtable sim db --scenario s.scenario --record drive.script --json > events.json\n"
+      "  sandtable sim db --scenario s.scenario --dis 3000 --site 2 --duration 600   (a DIS participant)");
   sub->add_option("DB", a->db, "Database directory")->required();
   sub->add_option("--scenario", a->scenario, "Scenario file (docs/SCRIPTS.md)")->required();
   sub->add_option("--duration", a->duration, "Simulated seconds, above 0 and at most 604800 (7 days; default 120)");
@@ -129,7 +142,9 @@ void registerSim(CLI::App& root, Commands& c) {
   sub->add_option("--collisions", a->collisions, "Collision response table (default: seed Table 6, samples/collisions.txt)");
   sub->add_flag("--brute-force", a->bruteForce, "Test every object and entity pair (a baseline; same results, slower)");
   sub->add_flag("--json", a->json, "Print the summary and the event log as JSON");
-  sub->add_flag("--real-time", a->realTime, "Pace the steps to the wall clock instead of running as fast as possible");
+  sub->add_flag("--real-time", a->realTime,
+                "Pace the steps to the wall clock instead of running as fast as possible (always, with --dis)");
+  addDisOptions(sub, a->dis);
   c.add(sub, [a] { return runSim(*a); });
 }
 

@@ -9,6 +9,10 @@ namespace {
 /// Longest first where one field name starts another.
 constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::sources", "--elevation"},
+    {"SocketOptions::address", "--dis"},
+    {"SocketOptions::port", "--dis"},
+    {"SocketOptions::interface", "--dis-interface"},
+    {"SocketOptions::multicastTtl", "--dis (multicast TTL)"},
     {"ElevationOptions::output", "-o"},
     {"ElevationOptions::crs", "--crs"},
     {"ElevationOptions::spacing", "--spacing"},

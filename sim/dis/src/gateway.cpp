@@ -121,6 +121,8 @@ void Gateway::applyPdu(const dis::Pdu& pdu, const dis::Address& sender) {
       return;
     }
     applyDetonation(*pdu.detonation);
+  } else if (pdu.removeEntity) {
+    applyRemove(pdu.removeEntity->receiving);
   } else {
     ++counters_.unknownType;
   }
@@ -138,13 +140,41 @@ void Gateway::applyEntityState(const dis::Pdu& pdu, const dis::Address& sender) 
   ++counters_.entityStates;
   const dis::EntityState& s = *pdu.entityState;
   const RemoteEntity* before = remotes_.find(s.id);
+  if (before && (s.appearance & kAppearanceDeactivated) != 0) depart(*before, s, "deactivated");
   const std::uint32_t hadSim = before ? before->simId : UINT32_MAX;
   const RemoteEntity* after = remotes_.update(s, sender, pduTime(pdu.header), sim_.timeS());
   if (!after && hadSim != UINT32_MAX) sim_.remove(hadSim);  // deactivated
 }
 
+void Gateway::depart(const RemoteEntity& r, const dis::EntityState& last, const char* why) {
+  Departed d;
+  d.id = r.id;
+  d.marking = last.marking.text();
+  d.position = frameOf(r.anchor, last.location);
+  if (auto a = frame_.anchorAtEcef(last.location)) d.position = a->frame;
+  d.why = why;
+  if (departed_.size() == kDepartedKept) departed_.erase(departed_.begin());
+  departed_.push_back(std::move(d));
+}
+
+void Gateway::applyRemove(const dis::EntityId& id) {
+  ++counters_.removes;
+  if (id.site == options_.site && id.application == options_.application) {
+    // A simulation manager asks us to remove one of ours (IEEE 1278.1 5.6.5.3).
+    if (id.entity != 0) sim_.remove(std::uint32_t(id.entity) - 1);
+    return;
+  }
+  const RemoteEntity* r = remotes_.find(id);
+  if (!r) return;
+  depart(*r, r->last, "removed");
+  const std::uint32_t simId = r->simId;
+  remotes_.remove(id);
+  if (simId != UINT32_MAX) sim_.remove(simId);
+}
+
 void Gateway::syncRemotes() {
   for (const RemoteEntity& gone : remotes_.expire(sim_.timeS())) {
+    depart(gone, gone.last, "timed out");
     if (gone.simId != UINT32_MAX) sim_.remove(gone.simId);
   }
   for (auto& [key, r] : remotes_.all()) placeRemote(r);
@@ -339,15 +369,27 @@ void Gateway::publishEntities() {
       ++it;
       continue;
     }
-    if (auto s = publisher_.retire(it->first, now)) sendPdu(dis::encode(header(), *s));
+    retire(it->first);
     it = published_.erase(it);
   }
 }
 
-void Gateway::retireAll() {
-  for (const auto& [id, _] : published_) {
-    if (auto s = publisher_.retire(id, sim_.timeS())) sendPdu(dis::encode(header(), *s));
+void Gateway::retire(std::uint32_t simId) {
+  const dis::EntityId id = disId(simId);
+  if (const sim::Entity* e = sim_.find(simId)) {
+    // Still here (the end of a run): the last PDU says where it really is.
+    static_cast<void>(publisher_.offer(*e, identityOf(*e), sim_.timeS(), true));
   }
+  if (auto s = publisher_.retire(simId, sim_.timeS())) sendPdu(dis::encode(header(), *s));
+  dis::RemoveEntity r;
+  r.originating = {options_.site, options_.application, 0};
+  r.receiving = id;
+  r.requestId = ++requests_;
+  sendPdu(dis::encode(header(), r));
+}
+
+void Gateway::retireAll() {
+  for (const auto& [id, _] : published_) retire(id);
   published_.clear();
 }
 

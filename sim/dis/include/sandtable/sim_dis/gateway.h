@@ -58,6 +58,15 @@ struct GatewayCounters {
   std::string lastMalformed;        ///< the decoder's last message (sender and offset)
 };
 
+/// A remote entity that left (deactivated, removed or silent): where its
+/// last PDU put it.
+struct Departed {
+  dis::EntityId id;
+  std::string marking;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< frame; the last PDU's location, not dead reckoned
+  const char* why = "";                                 ///< "deactivated", "removed", "timed out"
+};
+
 class Gateway {
  public:
   using Drain = std::function<void(std::vector<dis::Datagram>&)>;
@@ -71,7 +80,8 @@ class Gateway {
   void afterStep();
   /// Applies datagrams now (what beforeStep does with the drained ones).
   void apply(const std::vector<dis::Datagram>& datagrams);
-  /// Sends a deactivating PDU for every local entity published (the end of a run).
+  /// Retires every local entity published (the end of a run): a
+  /// deactivating Entity State PDU and a Remove Entity PDU each.
   void retireAll();
 
   /// The wall clock in seconds past the hour (absolute timestamps); tests
@@ -82,6 +92,9 @@ class Gateway {
   const RemoteEntities& remotes() const { return remotes_; }
   RemoteEntities& remotes() { return remotes_; }
   const Publisher& publisher() const { return publisher_; }
+  /// The last kDepartedKept remote entities that left, oldest first.
+  const std::vector<Departed>& departed() const { return departed_; }
+  static constexpr std::size_t kDepartedKept = 4096;
   /// The DIS id of a local entity, and the simulation id behind a DIS id
   /// (local or remote; UINT32_MAX when none).
   dis::EntityId disId(std::uint32_t simId) const;
@@ -92,6 +105,10 @@ class Gateway {
   void applyEntityState(const dis::Pdu& pdu, const dis::Address& sender);
   void applyFire(const dis::Fire& f);
   void applyDetonation(const dis::Detonation& d);
+  void applyRemove(const dis::EntityId& id);
+  void depart(const RemoteEntity& r, const dis::EntityState& last, const char* why);
+  /// A deactivating Entity State PDU and a Remove Entity PDU for a local entity.
+  void retire(std::uint32_t simId);
   void syncRemotes();
   void placeRemote(RemoteEntity& r);
   void flyRemoteMunitions();
@@ -114,12 +131,13 @@ class Gateway {
   std::function<double()> wall_;
   std::vector<dis::Datagram> inbox_;
   std::size_t eventCursor_ = 0;
-  std::uint16_t nextEvent_ = 1;
+  std::uint32_t requests_ = 0;
   /// Remote munitions in flight, by their Fire's event id.
   std::map<std::uint64_t, std::uint32_t> remoteRounds_;
   std::map<std::uint32_t, double> roundLaunchedS_;
   /// Local entities published, to retire the ones removed.
   std::map<std::uint32_t, bool> published_;
+  std::vector<Departed> departed_;
 };
 
 }  // namespace sandtable::sim_dis

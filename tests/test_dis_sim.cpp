@@ -1,0 +1,108 @@
+// Two `sandtable sim` processes on one DIS exercise over loopback
+// (docs/DIS.md §10): one publishes the README demo's scenario, the other
+// watches with no entities of its own. Every entity the publisher had
+// reaches the watcher, and where the watcher last had each (its final,
+// deactivating PDU, converted frame -> geocentric -> frame across the two
+// processes) agrees with where the publisher's simulation left it.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <thread>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "test_support.h"
+
+namespace sandtable::test {
+namespace {
+
+/// The README demo's 20 km synthetic square, built once (62.5 m posts: quick).
+class DisTwoProcesses : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = new TempDir("dis-two");
+    auto synth = runCli({"synth", "-o", *tmp_ / "in", "--size-km", "20", "--force"});
+    ASSERT_EQ(synth.exitCode, 0) << synth.err;
+    const auto bounds = nlohmann::json::parse(slurpFile(*tmp_ / "in/synth.json"));
+    auto build = runCli({"build", "--elevation", *tmp_ / "in/dted2", "--extent",
+                         std::to_string(double(bounds["bounds"]["west"])), std::to_string(double(bounds["bounds"]["south"])),
+                         std::to_string(double(bounds["bounds"]["east"])), std::to_string(double(bounds["bounds"]["north"])),
+                         "--spacing", "62.5", "--icons", std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt",
+                         "-o", *tmp_ / "db"});
+    ASSERT_EQ(build.exitCode, 0) << build.err;
+    spit(*tmp_ / "empty.scenario", "sandtable-scenario 1\n");
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    tmp_ = nullptr;
+  }
+  static std::string db() { return *tmp_ / "db"; }
+  static std::string empty() { return *tmp_ / "empty.scenario"; }
+  static TempDir* tmp_;
+};
+TempDir* DisTwoProcesses::tmp_ = nullptr;
+
+TEST_F(DisTwoProcesses, aWatcherSeesEveryPublishedEntityWhereThePublisherLeftIt) {
+  const std::string src = SANDTABLE_SOURCE_DIR;
+  const std::string address = "127.255.255.255:" + std::to_string(20000 + ::getpid() % 20000);
+  CommandResult watcher;
+  std::thread watch([&] {
+    watcher = runCli({"sim", db(), "--scenario", empty(), "--dis", address, "--site", "2",
+                      "--duration", "9", "--json"});
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // the watcher is listening
+  const auto publisher = runCli({"sim", db(), "--scenario", src + "/samples/demo.scenario", "--dis", address,
+                                 "--site", "1", "--duration", "5", "--json"});
+  watch.join();
+  ASSERT_EQ(publisher.exitCode, 0) << publisher.err;
+  ASSERT_EQ(watcher.exitCode, 0) << watcher.err;
+  const auto pub = nlohmann::json::parse(publisher.out)["dis"];
+  const auto seen = nlohmann::json::parse(watcher.out)["dis"];
+  std::map<std::string, nlohmann::json> local;
+  for (const auto& e : pub["local_entities"]) local[e["id"]] = e;
+  ASSERT_GT(local.size(), 30u);
+  EXPECT_EQ(seen["malformed"], 0);
+  EXPECT_EQ(seen["conflicts"], 0);
+  EXPECT_EQ(seen["other_exercise"], 0);
+  EXPECT_EQ(std::size_t(seen["removes"]), local.size());
+  std::size_t matched = 0;
+  double worst = 0;
+  for (const auto& d : seen["departed"]) {
+    if (d["why"] != "deactivated") continue;
+    auto it = local.find(d["id"]);
+    ASSERT_NE(it, local.end()) << d.dump();
+    const auto& p = it->second["position"];
+    const auto& q = d["position"];
+    worst = std::max(worst, std::hypot(double(p[0]) - double(q[0]), double(p[1]) - double(q[1]),
+                                       double(p[2]) - double(q[2])));
+    EXPECT_EQ(d["marking"], std::string(it->second["name"]).substr(0, 11));
+    ++matched;
+  }
+  EXPECT_EQ(matched, local.size());
+  EXPECT_LT(worst, 0.01);  // metres: ECEF doubles both ways through PROJ
+  EXPECT_EQ(pub["send_errors"], 0);
+}
+
+TEST_F(DisTwoProcesses, aBadAddressInterfaceOrPortIsAClearErrorWithExitTwo) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--dis", "300.1.2.3:3000"}, "--dis"},
+      {{"--dis", "127.0.0.1:0"}, "--dis"},
+      {{"--dis", "3000", "--dis-interface", "nosuch0"}, "--dis-interface"},
+      {{"--dis", "3000", "--exercise", "0"}, "--exercise"},
+      {{"--dis", "3000", "--site", "65535"}, "--site"},
+  };
+  for (const auto& [flags, named] : cases) {
+    std::vector<std::string> args = {"sim", db(), "--scenario", empty(), "--duration", "1"};
+    args.insert(args.end(), flags.begin(), flags.end());
+    const auto r = runCli(args);
+    EXPECT_EQ(r.exitCode, 2) << flags[1];
+    EXPECT_NE(r.err.find(named), std::string::npos) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace sandtable::test
