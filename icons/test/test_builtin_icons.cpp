@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/formats/dis_icons.h"
 #include "sandtable/icons/builtin_models.h"
 #include "sandtable/icons/icon_build.h"
 
@@ -405,8 +406,10 @@ TEST(BuiltinIcons, theSampleFileBuildsEveryIconWithoutWarnings) {
   EXPECT_EQ(iconpack::triangleCount(tree, 0), 80u);
   EXPECT_EQ(iconpack::triangleCount(tree, 0, iconpack::State::dead), 28u);  // the stump
   const iconpack::Icon& tank = *find(p, "tank");
-  EXPECT_TRUE(tank.armed && !tank.resupply && tank.hasDis);
-  EXPECT_EQ(tank.dis, (iconpack::DisType{1, 1, 225, 1, 1, 3, 0}));
+  EXPECT_TRUE(tank.armed && !tank.resupply);
+  ASSERT_EQ(tank.dis.size(), 4u);
+  EXPECT_EQ(tank.dis[0], (iconpack::DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}));
+  EXPECT_EQ(iconpack::disText(tank.dis[1]), "1.1.*.1");
   ASSERT_GE(tank.parts.size(), 3u);
   EXPECT_EQ(tank.parts[1].name, "turret");
   EXPECT_EQ(iconpack::triangleCount(tank, 0, iconpack::State::dead), 36u);
