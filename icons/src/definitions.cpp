@@ -276,7 +276,7 @@ void parseDis(Parser& p, const Line& l, IconDef& icon) {
   }
   const auto [it, fresh] = p.disOwners.emplace(std::pair(iconpack::packedDisType(d->type), d->wild), icon.name);
   if (!fresh) {
-    return p.fail(l, "dis " + iconpack::disText(*d) + " is already given for icon " + quoted(it->second) +
+    return p.fail(l, "dis " + iconpack::disText(*d) + " is already given for icon " + quoted(std::string_view(it->second)) +
                          "; a pattern names one icon");
   }
   icon.dis.push_back(*d);
@@ -331,7 +331,7 @@ void parseLines(Parser& p, const std::vector<Line>& lines, Definitions& out) {
 
 Result<Definitions> parseDefinitions(std::span<const std::byte> text, const std::string& file,
                                      const std::string& baseDir) {
-  Parser p{file, {}};
+  Parser p{file, {}, {}};
   const std::string_view s(reinterpret_cast<const char*>(text.data()), text.size());
   const std::vector<Line> lines = tokenize(s, p);
   if (!p.problems.empty()) return p.problems;
