@@ -1,4 +1,5 @@
-// The icon database icons.pack, version 1 (docs/FORMAT.md §12).
+// The icon database icons.pack, version 2, and the reading of version 1
+// (docs/FORMAT.md §12).
 //
 // Every rule a pack keeps is written once below, as a function of values
 // that says what is wrong and where within the field. The decoder applies
@@ -41,18 +42,21 @@ constexpr std::uint32_t kMaxVertices = 1u << 24;
 
 constexpr std::uint32_t kIconArmed = 1u << 0;
 constexpr std::uint32_t kIconResupply = 1u << 1;
-constexpr std::uint32_t kIconHasDis = 1u << 2;
-constexpr std::uint32_t kIconFlags = kIconArmed | kIconResupply | kIconHasDis;
+constexpr std::uint32_t kIconHasDisV1 = 1u << 2;  // version 1 only: the icon has its one DIS type
+constexpr std::uint32_t kIconFlags = kIconArmed | kIconResupply;
+constexpr std::uint32_t kIconFlagsV1 = kIconFlags | kIconHasDisV1;
 constexpr std::uint32_t kMeshTexcoords = 1u << 0;
 
 // The smallest encoding of each record, to check a count against the bytes
 // left before anything is sized by it.
 constexpr std::uint64_t kMinTextureBytes = 2 + 4;                 // empty name, no bytes
 constexpr std::uint64_t kMinPartBytes = 2 + 4 + 4 + 12 + 4;       // empty name, no meshes
-constexpr std::uint64_t kMinIconBytes = (2 + 1) + 4 + 8 + 24 + 8  // name of 1 byte ... cylinder
-                                        + 4 + 8                   // one material
-                                        + 4 + 4                   // one level
-                                        + 4 + kMinPartBytes;      // one part
+constexpr std::uint64_t kDisPatternBytes = 1 + 8;  // wildcard mask, then the type
+/// An icon of a 1-byte name, no DIS pattern (version 2) or its 8 DIS bytes
+/// (version 1), bounds and cylinder, one material, one level, one part.
+constexpr std::uint64_t minIconBytes(std::uint32_t version) {
+  return (2 + 1) + 4 + (version == 1 ? 8 : 2) + 24 + 8 + 4 + 8 + 4 + 4 + 4 + kMinPartBytes;
+}
 constexpr std::uint64_t kMaterialBytes = 4 + 4;
 constexpr std::uint64_t minMeshBytes(std::uint64_t levels) { return 4 + 4 + 4 + 24 + 4 * levels; }
 constexpr std::uint64_t vertexBytes(bool texcoords) { return texcoords ? 32 : 24; }
@@ -150,12 +154,34 @@ Check nameRule(std::string_view s, bool required) {
   return {};
 }
 
-Check disRule(bool hasDis, const DisType& d) {
+/// Version 1's one DIS type.
+Check disV1Rule(bool hasDis, const DisType& d) {
   if (hasDis || d == DisType{}) {
     return {};
   }
   return Fault{"has DIS type bytes that are not zero but flag bit 2 (has DIS type) is clear; an icon without a "
                "DIS type stores zeros"};
+}
+
+/// Offset of each DIS field in a pattern record (after the mask byte).
+constexpr std::uint64_t kDisFieldAt[kDisFields] = {1, 2, 3, 5, 6, 7, 8};
+
+/// DIS pattern `d` (the record's first byte, its wildcard mask): bit 7
+/// clear, and every wildcard field stored as 0 (one form per pattern).
+Check disPatternRule(std::size_t d, const DisPattern& p) {
+  if ((p.wild & ~kDisAllWild) != 0) {
+    return Fault{"DIS pattern " + str(d) + " wildcard mask 0x" + hex32(p.wild).substr(8) +
+                 " has bit 7 set; bits 0 to 6 are kind to extra"};
+  }
+  for (std::size_t k = 0; k < kDisFields; ++k) {
+    const std::uint32_t v = disField(p.type, k);
+    if (((p.wild >> k) & 1) != 0 && v != 0) {
+      return Fault{"DIS pattern " + str(d) + " " + disFieldName(k) + " is a wildcard but stores " + str(v) +
+                       "; a wildcard field stores 0",
+                   kDisFieldAt[k]};
+    }
+  }
+  return {};
 }
 
 /// The first value of `v` that is not finite; `per` values make an item
@@ -384,10 +410,11 @@ class Decoder {
     if (std::memcmp(h + field::magic, kMagic.data(), kMagic.size()) != 0) {
       return fail(field::magic, "icons.pack: bad magic: not a sandtable icon database (expected \"STICONS\\0\")");
     }
-    const auto version = loadLE<std::uint32_t>(h + field::version);
-    if (version != kVersion) {
-      return fail(field::version, "icons.pack: version " + str(version) +
-                                      " is not supported (this reader knows version 1); use a matching sandtable");
+    version_ = loadLE<std::uint32_t>(h + field::version);
+    if (version_ < kOldestVersion || version_ > kVersion) {
+      return fail(field::version, "icons.pack: version " + str(version_) +
+                                      " is not supported (this reader knows versions 1 and 2); use a matching "
+                                      "sandtable");
     }
     const auto headerBytes = loadLE<std::uint32_t>(h + field::headerBytes);
     if (headerBytes != kHeaderBytes) {
@@ -432,7 +459,7 @@ class Decoder {
       }
     }
     where_ = Where{};
-    if (!fits(field::iconCount, icons, kMinIconBytes, "icons", "icon count")) {
+    if (!fits(field::iconCount, icons, minIconBytes(version_), "icons", "icon count")) {
       return false;
     }
     pack.icons.reserve(icons);
@@ -483,26 +510,16 @@ class Decoder {
     if (!read(flags, "flags")) {
       return false;
     }
-    if ((flags & ~kIconFlags) != 0) {
+    if ((flags & ~(version_ == 1 ? kIconFlagsV1 : kIconFlags)) != 0) {
       return fail(flagsAt, message(where_, "flags " + hex32(flags) +
-                                               " have bits set other than bit 0 (armed), 1 (resupply) and 2 "
-                                               "(has DIS type)"));
+                                               (version_ == 1 ? " have bits set other than bit 0 (armed), 1 "
+                                                                "(resupply) and 2 (has DIS type)"
+                                                              : " have bits set other than bit 0 (armed) and 1 "
+                                                                "(resupply)")));
     }
     icon.armed = (flags & kIconArmed) != 0;
     icon.resupply = (flags & kIconResupply) != 0;
-    icon.hasDis = (flags & kIconHasDis) != 0;
-    const std::uint64_t disAt = pos_;
-    if (!need(8, "DIS type")) {
-      return false;
-    }
-    icon.dis.kind = take<std::uint8_t>();
-    icon.dis.domain = take<std::uint8_t>();
-    icon.dis.country = take<std::uint16_t>();
-    icon.dis.category = take<std::uint8_t>();
-    icon.dis.subcategory = take<std::uint8_t>();
-    icon.dis.specific = take<std::uint8_t>();
-    icon.dis.extra = take<std::uint8_t>();
-    if (!check(disAt, disRule(icon.hasDis, icon.dis))) {
+    if (!(version_ == 1 ? disV1(icon, (flags & kIconHasDisV1) != 0) : disPatterns(icon))) {
       return false;
     }
     const std::uint64_t boundsAt = pos_;
@@ -526,6 +543,57 @@ class Decoder {
       return false;
     }
     return materials(icon, textures) && ranges(icon) && parts(icon);
+  }
+
+  DisType takeDisType() {
+    DisType t;
+    t.kind = take<std::uint8_t>();
+    t.domain = take<std::uint8_t>();
+    t.country = take<std::uint16_t>();
+    t.category = take<std::uint8_t>();
+    t.subcategory = take<std::uint8_t>();
+    t.specific = take<std::uint8_t>();
+    t.extra = take<std::uint8_t>();
+    return t;
+  }
+
+  /// Version 1: 8 bytes of one exact type, zeros without flag bit 2; read
+  /// as one pattern without wildcards.
+  bool disV1(Icon& icon, bool hasDis) {
+    const std::uint64_t disAt = pos_;
+    if (!need(8, "DIS type")) {
+      return false;
+    }
+    const DisType t = takeDisType();
+    if (!check(disAt, disV1Rule(hasDis, t))) {
+      return false;
+    }
+    if (hasDis) {
+      icon.dis.push_back({t, 0});
+    }
+    return true;
+  }
+
+  /// Version 2: a u16 count, then 9 bytes a pattern.
+  bool disPatterns(Icon& icon) {
+    const std::uint64_t countAt = pos_;
+    std::uint16_t n = 0;
+    if (!read(n, "DIS pattern count") ||
+        !check(countAt, countRule("DIS pattern count", n, 0, kMaxDisPatterns)) ||
+        !fits(countAt, n, kDisPatternBytes, "DIS patterns", "DIS pattern count", true)) {
+      return false;
+    }
+    icon.dis.resize(n);
+    for (std::size_t d = 0; d < n; ++d) {
+      const std::uint64_t at = pos_;
+      DisPattern& p = icon.dis[d];
+      p.wild = take<std::uint8_t>();
+      p.type = takeDisType();
+      if (!check(at, disPatternRule(d, p))) {
+        return false;
+      }
+    }
+    return true;
   }
 
   bool materials(Icon& icon, std::uint64_t textures) {
@@ -695,6 +763,7 @@ class Decoder {
   std::span<const std::byte> b_;
   const std::string& file_;
   std::uint64_t pos_ = 0;
+  std::uint32_t version_ = kVersion;
   Where where_;
   std::unordered_map<std::string_view, std::size_t> names_;  // icon names (views into the input)
   std::optional<Problem> problem_;
@@ -805,18 +874,25 @@ class Encoder {
   }
 
   bool iconFields(const Icon& icon) {
-    put<std::uint32_t>((icon.armed ? kIconArmed : 0) | (icon.resupply ? kIconResupply : 0) |
-                       (icon.hasDis ? kIconHasDis : 0));
-    if (!check(at(), disRule(icon.hasDis, icon.dis))) {
+    put<std::uint32_t>((icon.armed ? kIconArmed : 0) | (icon.resupply ? kIconResupply : 0));
+    if (!check(at(), countRule("DIS pattern count", icon.dis.size(), 0, kMaxDisPatterns))) {
       return false;
     }
-    put(icon.dis.kind);
-    put(icon.dis.domain);
-    put(icon.dis.country);
-    put(icon.dis.category);
-    put(icon.dis.subcategory);
-    put(icon.dis.specific);
-    put(icon.dis.extra);
+    put<std::uint16_t>(static_cast<std::uint16_t>(icon.dis.size()));
+    for (std::size_t d = 0; d < icon.dis.size(); ++d) {
+      const DisPattern& p = icon.dis[d];
+      if (!check(at(), disPatternRule(d, p))) {
+        return false;
+      }
+      put(p.wild);
+      put(p.type.kind);
+      put(p.type.domain);
+      put(p.type.country);
+      put(p.type.category);
+      put(p.type.subcategory);
+      put(p.type.specific);
+      put(p.type.extra);
+    }
     if (!check(at(), boundsRule(icon.bounds))) {
       return false;
     }
@@ -964,6 +1040,24 @@ class Encoder {
 };
 
 }  // namespace
+
+std::uint32_t disField(const DisType& t, std::size_t k) {
+  switch (k) {
+    case 0: return t.kind;
+    case 1: return t.domain;
+    case 2: return t.country;
+    case 3: return t.category;
+    case 4: return t.subcategory;
+    case 5: return t.specific;
+    default: return t.extra;
+  }
+}
+
+const char* disFieldName(std::size_t k) {
+  static const char* const names[kDisFields] = {"kind",        "domain",   "country", "category",
+                                                "subcategory", "specific", "extra"};
+  return k < kDisFields ? names[k] : "?";
+}
 
 std::array<float, 3> partOrigin(const Icon& icon, std::size_t part) {
   std::array<float, 3> o{0, 0, 0};

@@ -1,4 +1,5 @@
-// icons.pack v1 (docs/FORMAT.md §12): golden bytes, round trips, every
+// icons.pack v2 (docs/FORMAT.md §12), and v1 still read: golden bytes of
+// both, round trips, every
 // truncated prefix, hostile fields (with re-sealed CRCs, and hostile counts
 // decoded under a memory limit), random mutations, and encode refusing
 // what decode refuses with the same message and offset.
@@ -71,16 +72,25 @@ void reseal(std::vector<std::byte>& b) {
 
 void setU32(std::vector<std::byte>& b, std::size_t at, std::uint32_t v) { storeLE<std::uint32_t>(b.data() + at, v); }
 void setF32(std::vector<std::byte>& b, std::size_t at, float v) { storeLE<float>(b.data() + at, v); }
+void setU16(std::vector<std::byte>& b, std::size_t at, std::uint16_t v) { storeLE<std::uint16_t>(b.data() + at, v); }
 
-/// One texture of 3 bytes; one icon "box" (armed, no DIS type) with one
-/// material, two levels and one part (the alive hull) holding one mesh of 3
-/// vertices with texcoords: one triangle at level 0, none at level 1.
-Pack goldenPack() {
+/// The golden pack's one DIS pattern, 1.1.225.*.2: category, specific and
+/// extra are wildcards (bits 3, 5, 6 of the mask: 0x68).
+DisPattern goldenDis() { return DisPattern{{1, 1, 225, 0, 2, 0, 0}, 0x68}; }
+
+/// One texture of 3 bytes; one icon "box" (armed, DIS pattern goldenDis())
+/// with one material, two levels and one part (the alive hull) holding one
+/// mesh of 3 vertices with texcoords: one triangle at level 0, none at level 1.
+/// Version 1 stored no pattern: `v1` leaves it out.
+Pack goldenPack(bool v1 = false) {
   Pack p;
   p.textures.push_back({"a", {std::byte{0x89}, std::byte{0x50}, std::byte{0x4e}}});
   Icon icon;
   icon.name = "box";
   icon.armed = true;
+  if (!v1) {
+    icon.dis = {goldenDis()};
+  }
   icon.bounds = {0, 0, 0, 1, 1, 0};
   icon.cylinderRadius = 1;
   icon.cylinderHeight = 1;
@@ -99,31 +109,41 @@ Pack goldenPack() {
   return p;
 }
 
-// Field offsets in the golden pack's 281 bytes (FORMAT.md §12.6).
+// Field offsets in the version 2 golden pack's 284 bytes (FORMAT.md §12.9).
 namespace at {
 constexpr std::size_t textureBytes = 43;  // texture 0 byte_count
 constexpr std::size_t iconName = 50;      // icon 0 name length
 constexpr std::size_t iconFlags = 55;
+constexpr std::size_t disCount = 59;
+constexpr std::size_t disPattern = 61;    // its wildcard mask; the type's 8 bytes follow
+constexpr std::size_t bounds = 70;
+constexpr std::size_t radius = 94;
+constexpr std::size_t materialCount = 102;
+constexpr std::size_t materialTexture = 110;
+constexpr std::size_t levelCount = 114;
+constexpr std::size_t ranges = 118;
+constexpr std::size_t partCount = 126;
+constexpr std::size_t state = 132;
+constexpr std::size_t parent = 136;
+constexpr std::size_t meshCount = 152;
+constexpr std::size_t meshMaterial = 156;
+constexpr std::size_t vertexCount = 160;
+constexpr std::size_t meshFlags = 164;
+constexpr std::size_t positions = 168;
+constexpr std::size_t normals = 204;
+constexpr std::size_t level0Count = 264;
+constexpr std::size_t level0Indices = 268;
+constexpr std::size_t end = 284;
+}  // namespace at
+
+// The version 1 golden pack's 281 bytes: the icon's 8 DIS bytes where
+// version 2 has its pattern count and patterns.
+namespace at1 {
+constexpr std::size_t iconFlags = 55;
 constexpr std::size_t dis = 59;
 constexpr std::size_t bounds = 67;
-constexpr std::size_t radius = 91;
-constexpr std::size_t materialCount = 99;
-constexpr std::size_t materialTexture = 107;
-constexpr std::size_t levelCount = 111;
-constexpr std::size_t ranges = 115;
-constexpr std::size_t partCount = 123;
-constexpr std::size_t state = 129;
-constexpr std::size_t parent = 133;
-constexpr std::size_t meshCount = 149;
-constexpr std::size_t meshMaterial = 153;
-constexpr std::size_t vertexCount = 157;
-constexpr std::size_t meshFlags = 161;
-constexpr std::size_t positions = 165;
-constexpr std::size_t normals = 201;
-constexpr std::size_t level0Count = 261;
-constexpr std::size_t level0Indices = 265;
 constexpr std::size_t end = 281;
-}  // namespace at
+}  // namespace at1
 
 /// A mesh of `n` vertices on a fan: level l keeps every (l+1)th triangle.
 Mesh fan(std::uint32_t material, std::uint32_t n, bool texcoords, std::size_t levels, float shift) {
@@ -156,8 +176,8 @@ Pack richPack() {
   Icon tank;
   tank.name = "M1A1 tank";
   tank.armed = true;
-  tank.hasDis = true;
-  tank.dis = {1, 1, 225, 1, 1, 3, 0};
+  tank.dis = {DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}, DisPattern{{1, 1, 0, 1, 0, 0, 0}, 0x74},
+              DisPattern{{}, kDisAllWild}};
   tank.bounds = {-2, 0, -4.5f, 2, 2.5f, 4.5f};
   tank.cylinderRadius = 4.9f;
   tank.cylinderHeight = 2.5f;
@@ -205,11 +225,8 @@ std::vector<std::byte> encoded(const Pack& p) {
 
 bool startsWith(const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; }
 
-// Golden bytes of version 1. If this fails, the format changed: bump
-// kVersion, keep a reader for version 1, and add a new golden test. The
-// fields are written out by hand; both CRCs are computed here with zlib
-// over the bytes FORMAT.md §12 says they cover.
-TEST(IconPack, version1GoldenBytes) {
+/// The version 1 golden pack (FORMAT.md §12.10), as version 1 wrote it.
+std::vector<std::byte> version1Bytes() {
   const std::string body =
       // texture 0: name "a", byte_count 3, the bytes
       "0100"
@@ -270,24 +287,110 @@ TEST(IconPack, version1GoldenBytes) {
       "01000000"
       "02000000"
       "00000000";
-  const std::vector<std::byte> bodyBytes = fromHex(body);
-  ASSERT_EQ(bodyBytes.size(), 241u);
-  const std::uint32_t bodyCrc = zlibCrc(bodyBytes);
-  EXPECT_EQ(bodyCrc, 0xd147c6c1u);  // the value FORMAT.md §12.6 quotes
-  // Header: magic "STICONS\0", version 1, header_bytes 40, 1 icon, 1
-  // texture, body_bytes 241 (0xf1), body_crc, then the CRC of bytes 0..35.
   const std::string fields = "535449434f4e5300"
                              "01000000"
                              "28000000"
                              "01000000"
                              "01000000"
                              "f100000000000000" +
+                             leHex(zlibCrc(fromHex(body)));
+  return fromHex(fields + leHex(zlibCrc(fromHex(fields))) + body);
+}
+
+// Golden bytes of version 2. If this fails, the format changed: bump
+// kVersion, keep a reader for versions 1 and 2, and add a new golden test.
+// The fields are written out by hand; both CRCs are computed here with zlib
+// over the bytes FORMAT.md §12 says they cover.
+TEST(IconPack, version2GoldenBytes) {
+  const std::string body =
+      // texture 0: name "a", byte_count 3, the bytes
+      "0100"
+      "61"
+      "03000000"
+      "89504e"
+      // icon 0: name "box", flags 1 (armed)
+      "0300"
+      "626f78"
+      "01000000"
+      // 1 DIS pattern: mask 0x68 (category, specific, extra are wildcards),
+      // kind 1, domain 1, country 225 (0x00e1), category 0, subcategory 2,
+      // specific 0, extra 0: "1.1.225.*.2"
+      "0100"
+      "68"
+      "01"
+      "01"
+      "e100"
+      "00"
+      "02"
+      "00"
+      "00"
+      // bounds: min 0 0 0, max 1 1 0 (1.0f = 0x3f800000); cylinder radius 1, height 1
+      "00000000"
+      "00000000"
+      "00000000"
+      "0000803f"
+      "0000803f"
+      "00000000"
+      "0000803f"
+      "0000803f"
+      // 1 material: rgba ff 00 00 ff, texture 0
+      "01000000"
+      "ff0000ff"
+      "00000000"
+      // 2 levels: ranges 100 (0x42c80000), 500 (0x43fa0000)
+      "02000000"
+      "0000c842"
+      "0000fa43"
+      // 1 part: name "", state 0 (alive), reserved u8 0 and u16 0, parent -1,
+      // offset 0 0 0, 1 mesh
+      "01000000"
+      "0000"
+      "00"
+      "00"
+      "0000"
+      "ffffffff"
+      "000000000000000000000000"
+      "01000000"
+      // mesh 0: material 0, 3 vertices, flags 1 (has texcoords)
+      "00000000"
+      "03000000"
+      "01000000"
+      // positions (0,0,0) (1,0,0) (0,1,0)
+      "000000000000000000000000"
+      "0000803f0000000000000000"
+      "000000000000803f00000000"
+      // normals (0,0,1) three times
+      "00000000000000000000803f"
+      "00000000000000000000803f"
+      "00000000000000000000803f"
+      // texcoords (0,0) (1,0) (0,1)
+      "0000000000000000"
+      "0000803f00000000"
+      "000000000000803f"
+      // level 0: 3 indices 0 1 2; level 1: no index
+      "03000000"
+      "00000000"
+      "01000000"
+      "02000000"
+      "00000000";
+  const std::vector<std::byte> bodyBytes = fromHex(body);
+  ASSERT_EQ(bodyBytes.size(), 244u);
+  const std::uint32_t bodyCrc = zlibCrc(bodyBytes);
+  EXPECT_EQ(bodyCrc, 0x80f191ddu);  // the value FORMAT.md §12.9 quotes
+  // Header: magic "STICONS\0", version 2, header_bytes 40, 1 icon, 1
+  // texture, body_bytes 244 (0xf4), body_crc, then the CRC of bytes 0..35.
+  const std::string fields = "535449434f4e5300"
+                             "02000000"
+                             "28000000"
+                             "01000000"
+                             "01000000"
+                             "f400000000000000" +
                              leHex(bodyCrc);
   ASSERT_EQ(fromHex(fields).size(), 36u);
   const std::uint32_t headerCrc = zlibCrc(fromHex(fields));
-  EXPECT_EQ(headerCrc, 0x488134ebu);  // the value FORMAT.md §12.6 quotes
+  EXPECT_EQ(headerCrc, 0x0f33fc92u);  // the value FORMAT.md §12.9 quotes
   const std::vector<std::byte> expected = fromHex(fields + leHex(headerCrc) + body);
-  ASSERT_EQ(expected.size(), 281u);
+  ASSERT_EQ(expected.size(), 284u);
 
   EXPECT_EQ(hex(encoded(goldenPack())), hex(expected));
   auto back = decode(expected, "golden.pack");
@@ -299,6 +402,73 @@ TEST(IconPack, version1GoldenBytes) {
   EXPECT_EQ(triangleCount(back->icons[0], 0, State::dead), 0u);
 }
 
+// Version 1 packs (written before DIS patterns) still read: the golden
+// bytes of version 1, worked out by hand when it was current, give the same
+// pack less its pattern; a version 1 DIS type (flag bit 2) reads as one
+// pattern without wildcards. encode writes version 2.
+TEST(IconPack, version1PacksStillRead) {
+  const std::vector<std::byte> v1 = version1Bytes();
+  ASSERT_EQ(v1.size(), at1::end);
+  EXPECT_EQ(zlibCrc(std::span(v1).subspan(40)), 0xd147c6c1u);  // as FORMAT.md quoted for version 1
+  EXPECT_EQ(zlibCrc(std::span(v1).first(36)), 0x488134ebu);
+  auto back = decode(v1, "v1.pack");
+  ASSERT_TRUE(back.ok()) << back.error();
+  EXPECT_EQ(back.value(), goldenPack(true));
+  const auto upgraded = encoded(back.value());
+  EXPECT_EQ(loadLE<std::uint32_t>(upgraded.data() + 8), kVersion);
+  EXPECT_EQ(upgraded.size(), at1::end - 6);  // 8 DIS bytes become a pattern count of 0
+  // With a DIS type: flags armed | has DIS type, the type 1.1.225.1.1.3.0.
+  std::vector<std::byte> withDis = v1;
+  setU32(withDis, at1::iconFlags, 0x5);
+  const std::vector<std::byte> type = fromHex("0101e10001010300");
+  std::copy(type.begin(), type.end(), withDis.begin() + at1::dis);
+  reseal(withDis);
+  auto dis = decode(withDis, "v1.pack");
+  ASSERT_TRUE(dis.ok()) << dis.error();
+  ASSERT_EQ(dis->icons[0].dis.size(), 1u);
+  EXPECT_EQ(dis->icons[0].dis[0], (DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}));
+  // Version 1's own rules still hold.
+  struct V1Case {
+    const char* name;
+    std::function<void(std::vector<std::byte>&)> change;
+    std::string message;
+    std::uint64_t offset;
+  };
+  const std::vector<V1Case> cases = {
+      {"DIS bytes without the flag", [](auto& b) { b[at1::dis + 1] = std::byte{1}; },
+       "icon 0 'box' has DIS type bytes that are not zero but flag bit 2 (has DIS type) is clear", at1::dis},
+      {"unknown flag bits", [](auto& b) { setU32(b, at1::iconFlags, 0x9); },
+       "icon 0 'box' flags 0x00000009 have bits set other than bit 0 (armed), 1 (resupply) and 2 (has DIS type)",
+       at1::iconFlags},
+      {"icon count past the body", [](auto& b) { setU32(b, 16, 65535); },
+       "truncated in icons: icon count 65535 needs at least 6356895 bytes, the body has 231 left", 16},
+  };
+  for (const V1Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    std::vector<std::byte> b = v1;
+    c.change(b);
+    reseal(b);
+    auto p = decode(b, "v1.pack");
+    ASSERT_FALSE(p.ok());
+    EXPECT_NE(p.message().find(c.message), std::string::npos) << p.message();
+    EXPECT_EQ(p.problems().front().offset, c.offset) << p.message();
+  }
+  // Every prefix of a version 1 pack fails, as of version 2.
+  for (std::size_t n = 0; n < v1.size(); ++n) {
+    auto p = decode(std::span(v1).first(n), "cut.pack");
+    ASSERT_FALSE(p.ok()) << "prefix " << n;
+    EXPECT_LE(p.problems().front().offset, n);
+    EXPECT_NE(p.message().find("truncated"), std::string::npos) << "prefix " << n << ": " << p.message();
+  }
+  for (std::size_t n = kHeaderBytes; n < v1.size(); ++n) {
+    std::vector<std::byte> cut(v1.begin(), v1.begin() + static_cast<std::ptrdiff_t>(n));
+    reseal(cut);
+    auto p = decode(cut, "cut.pack");
+    ASSERT_FALSE(p.ok()) << "prefix " << n;
+    EXPECT_TRUE(startsWith(p.message(), "icons.pack: truncated in ")) << "prefix " << n << ": " << p.message();
+  }
+}
+
 TEST(IconPack, roundTripsARichPack) {
   const Pack p = richPack();
   const auto bytes = encoded(p);
@@ -307,15 +477,16 @@ TEST(IconPack, roundTripsARichPack) {
   EXPECT_EQ(back.value(), p);
   EXPECT_EQ(encoded(back.value()), bytes);  // bit for bit (-0.0 included)
   const Icon& tank = back->icons[0];
-  EXPECT_TRUE(tank.hasDis);
-  EXPECT_EQ(tank.dis.country, 225);
+  ASSERT_EQ(tank.dis.size(), 3u);
+  EXPECT_EQ(tank.dis[0].type.country, 225);
+  EXPECT_EQ(tank.dis[1].wild, 0x74);
   EXPECT_EQ(tank.materials[1].texture, kNoTexture);
   EXPECT_EQ(tank.parts[2].parent, 1);
   EXPECT_TRUE(std::signbit(tank.parts[2].offset[0]));
   EXPECT_EQ(tank.parts[3].state, State::dead);
   EXPECT_TRUE(tank.parts[1].meshes[0].texcoords.size() == 12);
   EXPECT_TRUE(back->icons[1].resupply);
-  EXPECT_FALSE(back->icons[1].hasDis);
+  EXPECT_TRUE(back->icons[1].dis.empty());
   EXPECT_TRUE(back->icons[1].parts[1].meshes.empty());
   EXPECT_TRUE(back->textures[1].bytes.empty());
   // Fans of 8, 5, 6 and 4 vertices alive; 7 dead. Level 1 keeps every other triangle.
@@ -466,25 +637,26 @@ std::vector<Hostile> hostileCases() {
       // Header, in check order.
       {"short header", [](auto& b) { b.resize(39); }, false, "truncated header: the header needs 40 bytes", 39},
       {"bad magic", u8(0, 'X'), true, "bad magic: not a sandtable icon database", 0},
-      {"wrong version", u32(8, 2), true, "version 2 is not supported (this reader knows version 1)", 8},
+      {"version too new", u32(8, 3), true, "version 3 is not supported (this reader knows versions 1 and 2)", 8},
+      {"version 0", u32(8, 0), true, "version 0 is not supported (this reader knows versions 1 and 2)", 8},
       {"header size", u32(12, 48), true, "header size 48 must be 40", 12},
       {"header CRC", u8(36, 0x5a), false, "header checksum mismatch (stored 0x", 36},
       {"body size: truncated", [](auto& b) { b.pop_back(); }, false,
-       "file is 280 bytes but the header says 40 + 241: truncated", 280},
+       "file is 283 bytes but the header says 40 + 244: truncated", 283},
       {"body size: trailing bytes", [](auto& b) { b.push_back(std::byte{0}); }, false,
-       "file is 282 bytes but the header says 40 + 241: trailing bytes", 281},
+       "file is 285 bytes but the header says 40 + 244: trailing bytes", 284},
       {"body CRC", [](auto& b) { b[200] ^= std::byte{1}; }, false, "body checksum mismatch (stored 0x", 32},
       // Counts, checked against the bytes left before anything is sized.
       {"icon count out of range", u32(16, huge), true, "icon count 4294967295 is out of range (0 to 65535)", 16,
        true},
       {"icon count past the body", u32(16, 65535), true,
-       "truncated in icons: icon count 65535 needs at least 6356895 bytes, the body has 231 left", 16, true},
+       "truncated in icons: icon count 65535 needs at least 5963685 bytes, the body has 234 left", 16, true},
       {"texture count past the body", u32(20, huge), true,
-       "truncated in textures: texture count 4294967295 needs at least 25769803770 bytes, the body has 241 "
+       "truncated in textures: texture count 4294967295 needs at least 25769803770 bytes, the body has 244 "
        "left", 20,
        true},
       {"texture byte count", u32(at::textureBytes, huge), true,
-       "truncated in texture 0 'a' bytes: needs 4294967295 bytes, the body has 234 left", at::textureBytes, true},
+       "truncated in texture 0 'a' bytes: needs 4294967295 bytes, the body has 237 left", at::textureBytes, true},
       {"material count out of range", u32(at::materialCount, huge), true,
        "icon 0 'box' material count 4294967295 is out of range (1 to 65535)", at::materialCount, true},
       {"material count past the body", u32(at::materialCount, 65535), true,
@@ -535,13 +707,25 @@ std::vector<Hostile> hostileCases() {
        at::ranges},
       // Flags and reserved bits.
       {"unknown icon flag bits", u32(at::iconFlags, 0x11), true,
-       "icon 0 'box' flags 0x00000011 have bits set other than bit 0 (armed), 1 (resupply) and 2 (has DIS type)",
-       at::iconFlags},
+       "icon 0 'box' flags 0x00000011 have bits set other than bit 0 (armed) and 1 (resupply)", at::iconFlags},
+      {"version 1's DIS flag in version 2", u32(at::iconFlags, 0x5), true,
+       "icon 0 'box' flags 0x00000005 have bits set other than bit 0 (armed) and 1 (resupply)", at::iconFlags},
       {"unknown mesh flag bits", u32(at::meshFlags, 3), true,
        "icon 0 'box', part 0, mesh 0 flags 0x00000003 have bits set other than bit 0 (has texcoords)",
        at::meshFlags},
-      {"DIS bytes without the flag", u8(at::dis + 1, 1), true, "icon 0 'box' has DIS type bytes that are not zero",
-       at::dis},
+      // DIS patterns.
+      {"DIS pattern count out of range", [](auto& b) { setU16(b, at::disCount, 65); }, true,
+       "icon 0 'box' DIS pattern count 65 is out of range (0 to 64)", at::disCount},
+      {"DIS pattern count past the body", [](auto& b) { setU16(b, at::disCount, 64); }, true,
+       "truncated in icon 0 'box' DIS patterns: DIS pattern count 64 needs 576 bytes, the body has 223 left",
+       at::disCount},
+      {"DIS wildcard mask bit 7", u8(at::disPattern, 0xe8), true,
+       "icon 0 'box' DIS pattern 0 wildcard mask 0xe8 has bit 7 set; bits 0 to 6 are kind to extra", at::disPattern},
+      {"DIS wildcard field not zero", u8(at::disPattern + 5, 3), true,
+       "icon 0 'box' DIS pattern 0 category is a wildcard but stores 3; a wildcard field stores 0",
+       at::disPattern + 5},
+      {"DIS wildcard extra not zero", u8(at::disPattern + 8, 1), true,
+       "DIS pattern 0 extra is a wildcard but stores 1", at::disPattern + 8},
       {"state not alive or dead", u8(at::state, 2), true, "icon 0 'box', part 0 state 2 is not 0 (alive) or 1 (dead)",
        at::state},
       {"reserved byte", u8(at::state + 2, 1), true, "icon 0 'box', part 0 reserved bytes after the state are not zero",
@@ -565,7 +749,7 @@ std::vector<Hostile> hostileCases() {
        "icon 0 'box' has no alive hull: one part must have state alive (0), parent -1 and an empty name",
        at::partCount},
       {"trailing bytes after the last icon", [](auto& b) { b.push_back(std::byte{0}); }, true,
-       "trailing bytes: the last icon ends at byte 281, the body at byte 282", at::end},
+       "trailing bytes: the last icon ends at byte 284, the body at byte 285", at::end},
   };
 }
 
@@ -596,7 +780,7 @@ TEST(IconPack, hostileBytesGiveTheirMessages) {
 // crashes, and either fails with problems in the file or accepts a pack
 // that encodes back to the very same bytes (one encoding per pack).
 TEST(IconPack, randomMutationsNeverCrash) {
-  const std::vector<std::vector<std::byte>> bases = {encoded(goldenPack()), encoded(richPack())};
+  const std::vector<std::vector<std::byte>> bases = {encoded(goldenPack()), encoded(richPack()), version1Bytes()};
   std::mt19937 rng(20260501);
   int accepted = 0;
   for (int iter = 0; iter < 4000; ++iter) {
@@ -629,7 +813,13 @@ TEST(IconPack, randomMutationsNeverCrash) {
       ++accepted;
       auto again = encode(p.value());
       ASSERT_TRUE(again.ok()) << "iteration " << iter << ": decode accepts what encode refuses: " << again.error();
-      ASSERT_EQ(hex(again.value()), hex(b)) << "iteration " << iter;
+      if (loadLE<std::uint32_t>(b.data() + 8) == kVersion) {
+        ASSERT_EQ(hex(again.value()), hex(b)) << "iteration " << iter;
+      } else {  // a mutated version field: an older version is rewritten in the newest, same pack
+        auto twice = decode(again.value(), "again.pack");
+        ASSERT_TRUE(twice.ok()) << twice.error();
+        ASSERT_EQ(twice.value(), p.value()) << "iteration " << iter;
+      }
     } else {
       ASSERT_FALSE(p.problems().empty());
       const Problem& q = p.problems().front();
@@ -664,8 +854,10 @@ TEST(IconPack, encodeRefusesWhatDecodeRefuses) {
       {"non-increasing ranges", [](Pack& p) { p.icons[0].ranges[1] = 100; },
        [](auto& b) { setF32(b, at::ranges + 4, 100); }},
       {"bounds", [](Pack& p) { p.icons[0].bounds[0] = 2; }, [](auto& b) { setF32(b, at::bounds, 2); }},
-      {"DIS type without the flag", [](Pack& p) { p.icons[0].dis.domain = 1; },
-       [](auto& b) { b[at::dis + 1] = std::byte{1}; }},
+      {"DIS wildcard field not zero", [](Pack& p) { p.icons[0].dis[0].type.category = 3; },
+       [](auto& b) { b[at::disPattern + 5] = std::byte{3}; }},
+      {"DIS wildcard mask bit 7", [](Pack& p) { p.icons[0].dis[0].wild |= 0x80; },
+       [](auto& b) { b[at::disPattern] = std::byte{0xe8}; }},
       {"state", [](Pack& p) { p.icons[0].parts[0].state = static_cast<State>(2); },
        [](auto& b) { b[at::state] = std::byte{2}; }},
       {"no alive hull", [](Pack& p) { p.icons[0].parts[0].state = State::dead; },
@@ -740,6 +932,8 @@ TEST(IconPack, encodeRefusesMisshapenPacks) {
        "icons.pack: icon 0 'box', part 0 name is 70000 bytes, more than 255"},
       {"texture name", [](Pack& p) { p.textures[0].name = "a\tb"; },
        "icons.pack: texture 0 name has control byte 0x09 at byte 1; names are printable text"},
+      {"too many DIS patterns", [](Pack& p) { p.icons[0].dis.resize(65); },
+       "icons.pack: icon 0 'box' DIS pattern count 65 is out of range (0 to 64)"},
       {"too many icons", [](Pack& p) { p.icons.resize(65536); },
        "icons.pack: icon count 65536 is out of range (0 to 65535)"},
   };

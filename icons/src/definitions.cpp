@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/dis_icons.h"
 
 namespace sandtable::icons {
 namespace {
@@ -27,6 +28,9 @@ struct Line {
 struct Parser {
   std::string file;
   std::vector<Problem> problems;
+  /// Every `dis` pattern so far (packed type, wildcard mask) and its icon:
+  /// one pattern for two icons would leave the choice to file order.
+  std::map<std::pair<std::uint64_t, std::uint8_t>, std::string> disOwners;
   void fail(const Line& l, const std::string& what) {
     problems.push_back({file, l.offset, "icon definitions: " + what});
   }
@@ -116,21 +120,6 @@ std::optional<std::array<float, 3>> triple(std::string_view s) {
     if (k < 2) s.remove_prefix(comma + 1);
   }
   return v;
-}
-
-/// "1.1.225.1.1.3.0" -> a DIS entity type, each field in its range.
-std::optional<iconpack::DisType> disType(std::string_view s) {
-  std::array<std::uint32_t, 7> f{};
-  for (std::size_t k = 0; k < 7; ++k) {
-    const std::size_t dot = s.find('.');
-    if ((k < 6) == (dot == std::string_view::npos)) return std::nullopt;
-    const auto v = integer<std::uint32_t>(k < 6 ? s.substr(0, dot) : s);
-    if (!v || *v > (k == 2 ? 65535u : 255u)) return std::nullopt;
-    f[k] = *v;
-    if (k < 6) s.remove_prefix(dot + 1);
-  }
-  auto b = [&](std::size_t k) { return static_cast<std::uint8_t>(f[k]); };
-  return iconpack::DisType{b(0), b(1), static_cast<std::uint16_t>(f[2]), b(3), b(4), b(5), b(6)};
 }
 
 bool wantArgs(Parser& p, const Line& l, std::size_t lo, std::size_t hi, const char* usage) {
@@ -271,10 +260,26 @@ void parseModel(Parser& p, const Line& l, IconDef& icon) {
 }
 
 void parseDis(Parser& p, const Line& l, IconDef& icon) {
-  if (!wantArgs(p, l, 1, 1, "KIND.DOMAIN.COUNTRY.CATEGORY.SUBCATEGORY.SPECIFIC.EXTRA")) return;
-  const auto d = disType(l.tokens[1]);
-  if (!d) return p.fail(l, "dis must be seven dot-separated integers (country 0-65535, the others 0-255)");
-  icon.dis = *d;
+  if (!wantArgs(p, l, 1, 1,
+                "one pattern KIND.DOMAIN.COUNTRY.CATEGORY.SUBCATEGORY.SPECIFIC.EXTRA (each a number or *; "
+                "trailing fields may be left off); give several types on several dis lines")) {
+    return;
+  }
+  std::string why;
+  const auto d = iconpack::parseDisPattern(l.tokens[1], why);
+  if (!d) {
+    return p.fail(l, "dis " + quoted(l.tokens[1]) + ": " + why +
+                         " (write e.g. 1.1.225.1.1.3.0, 1.1.225.1 or 1.2.*.1: country 0-65535, the others 0-255)");
+  }
+  if (icon.dis.size() == iconpack::kMaxDisPatterns) {
+    return p.fail(l, "at most " + std::to_string(iconpack::kMaxDisPatterns) + " dis lines per icon");
+  }
+  const auto [it, fresh] = p.disOwners.emplace(std::pair(iconpack::packedDisType(d->type), d->wild), icon.name);
+  if (!fresh) {
+    return p.fail(l, "dis " + iconpack::disText(*d) + " is already given for icon " + quoted(std::string_view(it->second)) +
+                         "; a pattern names one icon");
+  }
+  icon.dis.push_back(*d);
 }
 
 using Directive = std::function<void(Parser&, const Line&, IconDef&)>;
@@ -326,7 +331,7 @@ void parseLines(Parser& p, const std::vector<Line>& lines, Definitions& out) {
 
 Result<Definitions> parseDefinitions(std::span<const std::byte> text, const std::string& file,
                                      const std::string& baseDir) {
-  Parser p{file, {}};
+  Parser p{file, {}, {}};
   const std::string_view s(reinterpret_cast<const char*>(text.data()), text.size());
   const std::vector<Line> lines = tokenize(s, p);
   if (!p.problems.empty()) return p.problems;

@@ -280,8 +280,7 @@ Result<iconpack::Icon> buildIcon(Builder& b, const IconDef& d) {
   icon.name = d.name;
   icon.armed = d.armed;
   icon.resupply = d.resupply;
-  icon.hasDis = d.dis.has_value();
-  if (d.dis) icon.dis = *d.dis;
+  icon.dis = d.dis;
   std::vector<float> errors(ratios.size(), 0.0f);
   if (Status st = addState(b, icon, d, iconpack::State::alive, d.alive, ratios, errors); !st) return st.problems();
   if (!d.dead.empty()) {

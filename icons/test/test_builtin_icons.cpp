@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/formats/dis_icons.h"
 #include "sandtable/icons/builtin_models.h"
 #include "sandtable/icons/icon_build.h"
 
@@ -405,8 +406,10 @@ TEST(BuiltinIcons, theSampleFileBuildsEveryIconWithoutWarnings) {
   EXPECT_EQ(iconpack::triangleCount(tree, 0), 80u);
   EXPECT_EQ(iconpack::triangleCount(tree, 0, iconpack::State::dead), 28u);  // the stump
   const iconpack::Icon& tank = *find(p, "tank");
-  EXPECT_TRUE(tank.armed && !tank.resupply && tank.hasDis);
-  EXPECT_EQ(tank.dis, (iconpack::DisType{1, 1, 225, 1, 1, 3, 0}));
+  EXPECT_TRUE(tank.armed && !tank.resupply);
+  ASSERT_EQ(tank.dis.size(), 4u);
+  EXPECT_EQ(tank.dis[0], (iconpack::DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}));
+  EXPECT_EQ(iconpack::disText(tank.dis[1]), "1.1.*.1");
   ASSERT_GE(tank.parts.size(), 3u);
   EXPECT_EQ(tank.parts[1].name, "turret");
   EXPECT_EQ(iconpack::triangleCount(tank, 0, iconpack::State::dead), 36u);
@@ -427,6 +430,44 @@ TEST(BuiltinIcons, theSampleFileBuildsEveryIconWithoutWarnings) {
   auto back = iconpack::decode(bytes.value(), "icons.pack");
   ASSERT_TRUE(back) << back.error();
   EXPECT_EQ(back.value(), p);
+}
+
+// The sample's dis lines put each kind of vehicle on the network to the
+// icon a reader expects (SISO-REF-010 types; docs/ICONS.md §3.1).
+TEST(BuiltinIcons, theSampleMapsDisTypesToItsVehicles) {
+  auto defs = readDefinitions(kSource + "/samples/icons.txt");
+  ASSERT_TRUE(defs) << defs.error();
+  auto r = buildPack(defs.value());
+  ASSERT_TRUE(r) << r.error();
+  const iconpack::Pack& p = r.value();
+  const iconpack::DisIconMap map(p);
+  struct Case {
+    iconpack::DisType type;
+    const char* icon;
+    iconpack::DisMatchBy by;
+  };
+  using By = iconpack::DisMatchBy;
+  const Case cases[] = {
+      {{1, 1, 225, 1, 1, 3, 0}, "tank", By::pattern},   // the US tank of the tank's own line
+      {{1, 1, 222, 1, 2, 1, 0}, "tank", By::pattern},   // a Russian tank: 1.1.*.1
+      {{1, 1, 222, 2, 1, 0, 0}, "tank", By::pattern},   // a Russian armoured fighting vehicle
+      {{1, 1, 225, 3, 1, 0, 0}, "tank", By::pattern},   // a US armoured utility vehicle (APC)
+      {{1, 1, 225, 7, 1, 2, 0}, "truck", By::pattern},  // a US large wheeled utility vehicle
+      {{1, 1, 222, 6, 1, 0, 0}, "jeep", By::pattern},   // a small wheeled utility vehicle
+      {{1, 2, 225, 1, 3, 0, 0}, "jet", By::pattern},    // any air platform
+      {{1, 3, 222, 6, 1, 0, 0}, "boat", By::pattern},   // any surface platform
+      {{2, 2, 225, 1, 1, 0, 0}, "missile", By::pattern},  // any munition
+      {{1, 1, 225, 4, 1, 0, 0}, "tank", By::kindDomain},  // self-propelled artillery: no line, a land default
+      {{1, 4, 225, 1, 1, 0, 0}, "boat", By::defaultName},  // a submarine: no pattern, the "boat" default
+      {{3, 1, 225, 1, 0, 0, 0}, "tree", By::firstIcon},    // a life form: nothing fits, icon 0
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.icon);
+    const iconpack::DisMatch m = map.match(c.type);
+    ASSERT_LT(m.icon, p.icons.size());
+    EXPECT_EQ(p.icons[m.icon].name, c.icon);
+    EXPECT_EQ(m.by, c.by);
+  }
 }
 
 }  // namespace

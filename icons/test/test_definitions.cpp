@@ -35,6 +35,8 @@ const char* kFull =
     "  lod 0.4\n"
     "  lod 0.1 2000\n"
     "  dis 1.1.225.1.1.3.0\n"
+    "  dis 1.1.*.1   # any country's tank\n"
+    "  dis 1.2.225.*.*.*.*\n"
     "icon rock   # a second icon, all defaults\n"
     "  model fels.3ds\n";
 
@@ -65,13 +67,15 @@ TEST(Definitions, everyDirectiveLandsInItsField) {
   EXPECT_EQ(t.levels[1].ratio, 0.4f);
   EXPECT_EQ(t.levels[1].range, 0.0f);
   EXPECT_EQ(t.levels[2].range, 2000.0f);
-  ASSERT_TRUE(t.dis);
-  EXPECT_EQ(t.dis->kind, 1);
-  EXPECT_EQ(t.dis->country, 225);
-  EXPECT_EQ(t.dis->specific, 3);
+  // Several dis lines; `*` and left-off trailing fields are wildcards
+  // (bit k of the mask for field k, kind first), stored as 0.
+  ASSERT_EQ(t.dis.size(), 3u);
+  EXPECT_EQ(t.dis[0], (iconpack::DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}));
+  EXPECT_EQ(t.dis[1], (iconpack::DisPattern{{1, 1, 0, 1, 0, 0, 0}, 0x04 | 0x10 | 0x20 | 0x40}));
+  EXPECT_EQ(t.dis[2], (iconpack::DisPattern{{1, 2, 225, 0, 0, 0, 0}, 0x78}));
   const IconDef& rock = r->icons[1];
   EXPECT_EQ(rock.alive, "fels.3ds");
-  EXPECT_FALSE(rock.armed || rock.resupply || rock.bounds || rock.cylinder || rock.dis);
+  EXPECT_FALSE(rock.armed || rock.resupply || rock.bounds || rock.cylinder || !rock.dis.empty());
   EXPECT_TRUE(rock.levels.empty());
   EXPECT_EQ(rock.import.up, UpAxis::kFromFile);
 }
@@ -96,7 +100,18 @@ TEST(Definitions, badLinesNameTheirOffsetAndTheFix) {
       {"  cylinder 0 2\n", "radius and height must be positive"},
       {"  cylinder 1 nan\n", "'nan' is not a finite number"},
       {"  capabilities flying\n", "capability 'flying' is not armed"},
-      {"  dis 1.1.70000.1.1.1.0\n", "dis must be seven dot-separated integers"},
+      {"  dis 1.1.70000.1.1.1.0\n",
+       "dis '1.1.70000.1.1.1.0': field 3 (country) '70000' is not a number from 0 to 65535 or * (write e.g. "},
+      {"  dis 256\n", "field 1 (kind) '256' is not a number from 0 to 255 or *"},
+      {"  dis 1.x\n", "field 2 (domain) 'x' is not a number"},
+      {"  dis 1..2\n", "field 2 (domain) '' is not a number"},
+      {"  dis 1.2.\n", "field 3 (country) '' is not a number"},
+      {"  dis -1\n", "field 1 (kind) '-1' is not a number"},
+      {"  dis 1.1.225.1.1.3.0.0\n", "has more than 7 fields"},
+      {"  dis 1.1 1.2\n", "'dis' takes one pattern KIND.DOMAIN"},
+      {"  dis\n", "'dis' takes one pattern"},
+      {"  dis 1.1\n  dis 1.1.*.*\n", "dis 1.1 is already given for icon 'a'; a pattern names one icon"},
+      {"  dis 1.1\nicon b\n  model b.glb\n  dis 1.1.*\n", "dis 1.1 is already given for icon 'a'"},
       {"  up x\n", "up must be auto, y or z"},
       {"  scale -1\n", "scale must be a positive number"},
       {"  max-triangles 0\n", "max-triangles must be a positive integer"},
@@ -119,6 +134,20 @@ TEST(Definitions, badLinesNameTheirOffsetAndTheFix) {
     const std::size_t last = text.rfind('\n', text.size() - 2) + 1;
     EXPECT_EQ(p.offset, last) << c.body << " gave " << p.message;
   }
+}
+
+TEST(Definitions, anIconTakesAtMost64DisLines) {
+  std::string text = "sandtable-icons 1\nicon a\n  model a.glb\n";
+  for (int k = 0; k < 64; ++k) text += "  dis 1.1.225." + std::to_string(k) + "\n";
+  auto ok = parse(text);
+  ASSERT_TRUE(ok) << ok.error();
+  EXPECT_EQ(ok->icons[0].dis.size(), 64u);
+  const std::size_t last = text.size();
+  text += "  dis 1.1.225.64\n";
+  auto r = parse(text);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.problems().front().offset, last);
+  EXPECT_NE(r.error().find("at most 64 dis lines per icon"), std::string::npos) << r.error();
 }
 
 TEST(Definitions, theHeaderAndTheModelAreRequired) {

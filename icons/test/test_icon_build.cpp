@@ -199,8 +199,10 @@ TEST(BuildPack, realModelsWithStatesComponentsAndTextures) {
 
   const iconpack::Icon* jeep = find(p, "jeep");
   ASSERT_TRUE(jeep);
-  EXPECT_TRUE(jeep->armed && jeep->hasDis);
-  EXPECT_EQ(jeep->dis.country, 225);
+  EXPECT_TRUE(jeep->armed);
+  ASSERT_EQ(jeep->dis.size(), 2u);
+  EXPECT_EQ(jeep->dis[0].type.country, 225);
+  EXPECT_EQ(jeep->dis[1].wild, 0x74);  // 1.1.*.6: country, subcategory, specific, extra
   // Hull alive, its rock component, the dead hull.
   ASSERT_EQ(jeep->parts.size(), 3u);
   EXPECT_EQ(jeep->parts[1].name, "rock");

@@ -4,15 +4,16 @@
 #include <set>
 #include <string>
 
+#include "sandtable/formats/dis_icons.h"
+
 namespace sandtable::cli {
 namespace {
 
+/// The icon's DIS patterns, "1.1.225.1, 1.1.*.1".
 std::string disText(const iconpack::Icon& i) {
-  if (!i.hasDis) return "";
-  const auto& d = i.dis;
-  return std::to_string(d.kind) + "." + std::to_string(d.domain) + "." + std::to_string(d.country) + "." +
-         std::to_string(d.category) + "." + std::to_string(d.subcategory) + "." + std::to_string(d.specific) + "." +
-         std::to_string(d.extra);
+  std::string s;
+  for (const auto& p : i.dis) s += (s.empty() ? "" : ", ") + iconpack::disText(p);
+  return s;
 }
 
 /// The textures an icon's materials use, by pack index.
@@ -57,7 +58,9 @@ nlohmann::json iconsJson(const iconpack::Pack& p) {
                      {"resupply", i.resupply},
                      {"materials", i.materials.size()},
                      {"textures", tex}};
-    j["dis"] = i.hasDis ? nlohmann::json(disText(i)) : nlohmann::json(nullptr);
+    nlohmann::json dis = nlohmann::json::array();
+    for (const auto& pattern : i.dis) dis.push_back(iconpack::disText(pattern));
+    j["dis"] = dis;
     j["triangles_dead"] = hasDead(i) ? nlohmann::json(iconpack::triangleCount(i, 0, iconpack::State::dead))
                                      : nlohmann::json(nullptr);
     out.push_back(std::move(j));
@@ -88,7 +91,7 @@ void printIcons(const iconpack::Pack& p) {
     std::printf("%s\n", hasDead(i) ? "; has a dead state" : "");
     std::printf("  caps     %s%s%s", i.armed ? "armed " : "", i.resupply ? "resupply " : "",
                 !i.armed && !i.resupply ? "none " : "");
-    if (i.hasDis) std::printf("; DIS %s", disText(i).c_str());
+    if (!i.dis.empty()) std::printf("; DIS %s", disText(i).c_str());
     std::printf("; %zu materials", i.materials.size());
     for (const std::uint32_t t : texturesOf(i)) {
       std::printf(", texture %s (%zu bytes)", p.textures[t].name.c_str(), p.textures[t].bytes.size());

@@ -1,10 +1,12 @@
 #pragma once
-// The icon database (icons.pack), version 1 (seed V.E, Figure 19): every
+// The icon database (icons.pack), version 2 (seed V.E, Figure 19): every
 // icon a database places, with its states (alive, dead), its articulated
 // components, its materials and textures, and its levels of detail as
 // index lists over one vertex set per mesh. Written by the build, listed in
 // the manifest, read by validate, info and the viewer. Byte layout:
-// docs/FORMAT.md §12. All integers and floats little-endian.
+// docs/FORMAT.md §12. All integers and floats little-endian. Version 2
+// stores DIS entity-type patterns (with wildcards) where version 1 stored one
+// exact type; decode reads both, encode writes version 2.
 //
 // Thread safety: encode and decode are reentrant; a Pack is a value type.
 #include <array>
@@ -20,7 +22,9 @@ namespace sandtable::iconpack {
 
 inline constexpr const char* kFileName = "icons.pack";
 inline constexpr std::array<char, 8> kMagic{'S', 'T', 'I', 'C', 'O', 'N', 'S', '\0'};
-inline constexpr std::uint32_t kVersion = 1;
+inline constexpr std::uint32_t kVersion = 2;
+/// The oldest version decode still reads (one exact DIS type per icon).
+inline constexpr std::uint32_t kOldestVersion = 1;
 inline constexpr std::size_t kHeaderBytes = 40;
 /// Largest icons.pack readFile accepts (textures are embedded).
 inline constexpr std::uint64_t kMaxFileBytes = 1ull << 30;
@@ -28,6 +32,8 @@ inline constexpr std::uint64_t kMaxFileBytes = 1ull << 30;
 inline constexpr std::uint32_t kMaxIcons = 65535;
 inline constexpr std::uint32_t kMaxLevels = 8;
 inline constexpr std::uint32_t kMaxNameBytes = 255;
+/// DIS patterns per icon (`dis` lines): a model stands for a few types.
+inline constexpr std::uint32_t kMaxDisPatterns = 64;
 /// Material::texture when the material has none.
 inline constexpr std::uint32_t kNoTexture = 0xFFFFFFFFu;
 /// Part::parent of a part attached to the icon's own frame.
@@ -81,12 +87,28 @@ struct DisType {
   bool operator==(const DisType&) const = default;
 };
 
+/// The seven fields of a DisType in their order, numbered as the bits of
+/// DisPattern::wild: kind is bit 0, extra bit 6.
+enum class DisField : std::uint8_t { kind, domain, country, category, subcategory, specific, extra };
+inline constexpr std::size_t kDisFields = 7;
+inline constexpr std::uint8_t kDisAllWild = 0x7F;
+
+/// A `dis` line of the definition file: a DIS type whose fields with their
+/// bit set in `wild` match any value (docs/ICONS.md §3). A wildcard field
+/// stores 0, so each pattern has one form.
+struct DisPattern {
+  DisType type;
+  std::uint8_t wild = 0;
+  bool operator==(const DisPattern&) const = default;
+};
+
 struct Icon {
   std::string name;
   bool armed = false;
   bool resupply = false;
-  bool hasDis = false;
-  DisType dis;
+  /// The DIS types this icon stands for (at most kMaxDisPatterns); the
+  /// matcher (dis_icons.h) picks the best icon for a type.
+  std::vector<DisPattern> dis;
   std::array<float, 6> bounds{0, 0, 0, 0, 0, 0};  ///< min x, y, z, max x, y, z of the alive state
   float cylinderRadius = 0;           ///< about the Y axis through the origin
   float cylinderHeight = 0;           ///< from y = 0 up
@@ -104,6 +126,10 @@ struct Pack {
   bool operator==(const Pack&) const = default;
 };
 
+/// Field k (DisField order: 0 kind ... 6 extra) of a type, and its name.
+std::uint32_t disField(const DisType& t, std::size_t k);
+const char* disFieldName(std::size_t k);
+
 /// The origin of part `part`'s frame in the icon's body frame: its offsets
 /// summed up the parent chain (a static object never turns its turret).
 std::array<float, 3> partOrigin(const Icon& icon, std::size_t part);
@@ -111,11 +137,11 @@ std::array<float, 3> partOrigin(const Icon& icon, std::size_t part);
 /// Triangles of `icon` at `level`, summed over every part of `state`.
 std::uint64_t triangleCount(const Icon& icon, std::size_t level, State state = State::alive);
 
-/// The whole file. Fails (naming the icon and the field) when the pack
+/// The whole file, in version kVersion. Fails (naming the icon and the field) when the pack
 /// breaks a rule decode would reject, so a written pack always reads back.
 Result<std::vector<std::byte>> encode(const Pack& p);
 
-/// Parses and checks every byte: magic, version, both CRCs, every count
+/// Parses and checks every byte: magic, version (1 or 2), both CRCs, every count
 /// against the bytes left before allocating, indices inside their vertex
 /// set, material, texture and parent references, finite floats. Every
 /// problem names `file` and the byte offset where it was found.

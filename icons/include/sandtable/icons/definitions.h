@@ -3,8 +3,8 @@
 // dynamic entity definition file, extended. Per icon: its model for each
 // state (alive, dead), articulated components with the offset of their
 // frames, capabilities, optional bounds and bounding cylinder, scale, units
-// and up axis of the source, levels of detail with switch ranges, and a DIS
-// entity type. Grammar: docs/ICONS.md, "The definition file".
+// and up axis of the source, levels of detail with switch ranges, and the
+// DIS entity types (patterns with wildcards) it stands for. Grammar: docs/ICONS.md, "The definition file".
 //
 // Thread safety: parse and readFile are reentrant; Definitions is a value.
 #include <array>
@@ -65,7 +65,9 @@ struct IconDef {
   /// vehicle built-ins and model files, whose lowest points may be wheels or
   /// hooves that would stretch into spikes.
   std::optional<float> baseBelow;
-  std::optional<iconpack::DisType> dis;
+  /// `dis` lines: the DIS entity types this icon stands for, with
+  /// wildcards (docs/ICONS.md §3.1); at most iconpack::kMaxDisPatterns.
+  std::vector<iconpack::DisPattern> dis;
 };
 
 struct Definitions {
