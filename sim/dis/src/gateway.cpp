@@ -17,12 +17,6 @@ std::uint64_t eventKey(const dis::EventId& e) {
   return (std::uint64_t(e.site) << 32) | (std::uint64_t(e.application) << 16) | e.event;
 }
 
-std::uint64_t typeKey(const dis::EntityType& t) {
-  return (std::uint64_t(t.kind) << 56) | (std::uint64_t(t.domain) << 48) | (std::uint64_t(t.country) << 32) |
-         (std::uint64_t(t.category) << 24) | (std::uint64_t(t.subcategory) << 16) | (std::uint64_t(t.specific) << 8) |
-         t.extra;
-}
-
 double systemSecondsPastHour() {
   const auto now = std::chrono::system_clock::now().time_since_epoch();
   return std::fmod(std::chrono::duration<double>(now).count(), 3600.0);
@@ -55,7 +49,8 @@ Gateway::Gateway(sim::Simulation& simulation, DisFrame frame, GatewayOptions opt
       remotes_(frame, options.remote),
       publisher_(frame, options.publishing),
       frame_(std::move(frame)),
-      wall_(systemSecondsPastHour) {}
+      wall_(systemSecondsPastHour),
+      icons_(simulation.world().icons()) {}
 
 void Gateway::attach(sim::StepHost& host) {
   host.addBeforeStep([this](sim::Simulation&) { beforeStep(); });
@@ -181,22 +176,10 @@ void Gateway::syncRemotes() {
 }
 
 std::uint16_t Gateway::iconFor(const dis::EntityType& t) {
-  const auto& icons = sim_.world().icons().icons;
-  int best = -1, bestScore = -1;
-  for (std::size_t i = 0; i < icons.size(); ++i) {
-    const auto& d = icons[i].dis;
-    if (!icons[i].hasDis || d.kind != t.kind || d.domain != t.domain) continue;
-    const int score = 1 + (d.country == t.country) + (d.country == t.country && d.category == t.category) * 2 +
-                      (d == iconpack::DisType{t.kind, t.domain, t.country, t.category, t.subcategory, t.specific,
-                                              t.extra}) * 4;
-    if (score > bestScore) best = int(i), bestScore = score;
-  }
-  if (best < 0) {
-    ++counters_.unknownIcons;
-    return 0;
-  }
-  static_cast<void>(typeKey);
-  return std::uint16_t(best);
+  const iconpack::DisMatch m =
+      icons_.lookup({t.kind, t.domain, t.country, t.category, t.subcategory, t.specific, t.extra});
+  if (m.fallback()) ++counters_.unknownIcons;
+  return m.icon == iconpack::kNoIcon ? 0 : std::uint16_t(m.icon);
 }
 
 void Gateway::placeRemote(RemoteEntity& r) {
@@ -333,9 +316,13 @@ Identity Gateway::identityOf(const sim::Entity& e) const {
   who.id = disId(e.id);
   who.force = e.force;
   const auto& icons = sim_.world().icons().icons;
-  if (e.icon < icons.size() && icons[e.icon].hasDis) {
-    const auto& d = icons[e.icon].dis;
-    who.type = {d.kind, d.domain, d.country, d.category, d.subcategory, d.specific, d.extra};
+  if (e.icon < icons.size() && !icons[e.icon].dis.empty()) {
+    // The icon's first pattern, its wildcards sent as 0 ("other").
+    const iconpack::DisPattern& p = icons[e.icon].dis.front();
+    const iconpack::DisType d = p.type;
+    auto field = [&](int k, auto v) { return (p.wild >> k) & 1 ? decltype(v){0} : v; };
+    who.type = {field(0, d.kind),     field(1, d.domain),      field(2, d.country), field(3, d.category),
+                field(4, d.subcategory), field(5, d.specific), field(6, d.extra)};
   } else {
     who.type = {1, disDomain(e.domain), 0, 0, 0, 0, 0};
   }

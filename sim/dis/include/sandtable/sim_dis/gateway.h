@@ -23,6 +23,7 @@
 
 #include "sandtable/dis/datagram.h"
 #include "sandtable/dis/pdu.h"
+#include "sandtable/formats/dis_icons.h"
 #include "sandtable/sim/simulation.h"
 #include "sandtable/sim/step_host.h"
 #include "sandtable/sim_dis/publisher.h"
@@ -52,7 +53,7 @@ struct GatewayCounters {
   std::uint64_t unknownType = 0;    ///< a type the gateway does not apply (counted, not an error)
   std::uint64_t entityStates = 0, fires = 0, detonations = 0, removes = 0;
   std::uint64_t hitsTaken = 0;      ///< local entities killed by remote detonations
-  std::uint64_t unknownIcons = 0;   ///< remote types no icon's `dis` field matched
+  std::uint64_t unknownIcons = 0;   ///< remote entities given a fallback icon (no `dis` pattern matched)
   std::uint64_t notAdded = 0;       ///< remote entities off this database
   std::uint64_t sentPdus = 0, sentBytes = 0;
   std::string lastMalformed;        ///< the decoder's last message (sender and offset)
@@ -129,6 +130,7 @@ class Gateway {
   DisFrame frame_;
   GatewayCounters counters_;
   std::function<double()> wall_;
+  iconpack::DisIconMap icons_;
   std::vector<dis::Datagram> inbox_;
   std::size_t eventCursor_ = 0;
   std::uint32_t requests_ = 0;
