@@ -8,12 +8,16 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 #include <ogr_spatialref.h>
@@ -279,6 +283,34 @@ TEST(DisMonitorCli, theExerciseFilterAndErrorsExitTwo) {
   EXPECT_NE(r.err.find("text.pcap"), std::string::npos) << r.err;
   r = test::runCli({"dis", "inspect", pcap, "--at", "-1"});
   EXPECT_EQ(r.exitCode, 2);
+}
+
+// The data logger on loopback multicast: `record` hears what `play` sends
+// and writes it again; `inspect` reads the same PDUs at the same pace.
+TEST(DisMonitorCli, recordHearsWhatPlaySendsAtTheRecordedPace) {
+  test::TempDir dir("dis_record");
+  const std::string pcap = dir / "exercise.pcap", again = dir / "again.pcap";
+  writeCapture(pcap);
+  const std::string where = "239.255.36.1:" + std::to_string(20000 + ::getpid() % 20000);
+  test::CommandResult recorded;
+  std::thread recorder([&] { recorded = test::runCli({"dis", "record", "--dis", where, "-o", again, "--seconds", "4"}); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));  // the recorder's socket is up
+  const auto played = test::runCli({"dis", "play", pcap, "--dis", where, "--speed", "2", "--json"});
+  recorder.join();
+  ASSERT_EQ(played.exitCode, 0) << played.err;
+  EXPECT_EQ(nlohmann::json::parse(played.out)["datagrams_sent"], 5);
+  ASSERT_EQ(recorded.exitCode, 0) << recorded.err;
+  const auto r = test::runCli({"dis", "inspect", again, "--json"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["datagrams"], 5);
+  EXPECT_EQ(j["pdus"], 5);
+  EXPECT_EQ(j["malformed"]["count"], 1);
+  ASSERT_EQ(j["entities"].size(), 2u);
+  EXPECT_EQ(j["entities"][0]["marking"], "ALPHA");
+  EXPECT_EQ(j["entities"][1]["marking"], "BRAVO");
+  // 4 s of capture at twice the pace: 2 s, give or take the scheduler.
+  EXPECT_NEAR(j["window_s"].get<double>(), 2.0, 0.2);
 }
 
 }  // namespace

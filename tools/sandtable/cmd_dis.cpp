@@ -24,6 +24,7 @@
 #include "sandtable/dis/monitor.h"
 #include "sandtable/dis/orientation.h"
 #include "sandtable/dis/pcap.h"
+#include "sandtable/dis/socket.h"
 #include "sandtable/geodesy/geodesy.h"
 
 namespace sandtable::cli {
@@ -34,7 +35,7 @@ constexpr double kDeg = 180.0 / kPi;
 
 std::atomic<bool> gStop{false};
 void onSignal(int) { gStop.store(true); }
-[[maybe_unused]] void stopOnSignals() {
+void stopOnSignals() {
   gStop.store(false);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
@@ -74,6 +75,7 @@ std::string typeName(std::uint8_t type) {
 }
 
 std::string fixed(double v, int decimals) {
+  if (std::fabs(v) < 0.5 * std::pow(10.0, -decimals)) v = 0;  // no "-0.0"
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", decimals, v);
   return b;
@@ -100,7 +102,8 @@ Placed place(const dis::Vec3d& ecef, const dis::Euler& e) {
 double headingDeg(double radians) {
   double h = std::fmod(radians * kDeg, 360.0);
   if (h < 0) h += 360.0;
-  return h;
+  // -0 and a hair under 360 (a rounding of north) both read as 0.
+  return h >= 360.0 - 1e-9 ? 0.0 : h + 0.0;
 }
 
 nlohmann::json vecJson(double x, double y, double z) { return {{"x", x}, {"y", y}, {"z", z}}; }
@@ -270,6 +273,10 @@ nlohmann::json reportJson(const dis::Report& r, const StatesAt* at) {
 
 /// Prints rows as left-aligned columns two spaces apart, the first row a header.
 void printTable(std::FILE* out, const std::vector<std::vector<std::string>>& rows, const std::string& indent = "  ") {
+  if (rows.size() <= 1) {
+    std::fprintf(out, "%s(none)\n", indent.c_str());
+    return;
+  }
   std::vector<std::size_t> width;
   for (const auto& row : rows) {
     width.resize(std::max(width.size(), row.size()), 0);
@@ -293,7 +300,7 @@ std::string typesText(const dis::SenderReport& s) {
     if (!out.empty()) out += "  ";
     out += name + " " + std::to_string(t.count);
   }
-  return out;
+  return out.empty() ? "-" : out;
 }
 
 std::string partsText(const dis::EntityReport& e) {
@@ -462,12 +469,290 @@ void registerInspect(CLI::App& dis, Commands& c) {
   c.add(sub, [a] { return runInspect(*a); });
 }
 
+// -------------------------------------------------------------- live
+
+/// Problems of the socket layer: each names its option field in the
+/// message, which withFlags turns into the flag; exit 2.
+int socketProblems(const std::string& cmd, const std::vector<Problem>& problems) {
+  for (const Problem& p : problems) usageError(cmd, p.message);
+  return kUsage;
+}
+
+/// The socket for `--dis [ADDR:]PORT` and `--interface`.
+Result<dis::UdpSocket> openSocket(const std::string& endpoint, const std::string& interface) {
+  dis::SocketOptions base;
+  base.interface = interface;
+  auto o = dis::parseDisEndpoint(endpoint, base);
+  if (!o) return o.problems();
+  return dis::UdpSocket::open(o.value());
+}
+
+double steadyNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+bool validSeconds(std::optional<double> s) { return !s || (*s > 0 && std::isfinite(*s)); }
+
+struct LiveArgs {
+  std::string dis = "3000", interface, output;
+  std::optional<double> seconds;
+  std::optional<int> exercise;
+  bool json = false;
+};
+
+nlohmann::json receiverJson(const dis::ReceiverCounters& c) {
+  return {{"datagrams", c.datagrams},
+          {"bytes", c.bytes},
+          {"queue_dropped", c.queueDropped},
+          {"kernel_dropped", c.kernelDropped},
+          {"errors", c.errors}};
+}
+
+int runMonitor(const LiveArgs& a) {
+  const std::string cmd = "dis monitor";
+  dis::MonitorOptions options;
+  if (auto bad = monitorOptions(a.exercise, options)) return usageError(cmd, *bad);
+  if (!validSeconds(a.seconds)) return usageError(cmd, "--seconds must be above 0");
+  auto socket = openSocket(a.dis, a.interface);
+  if (!socket) return socketProblems(cmd, socket.problems());
+  const std::string where = socket->endpoint().text();
+  auto receiver = dis::Receiver::start(std::move(socket.value()));
+  if (!receiver) return socketProblems(cmd, receiver.problems());
+  dis::Receiver& rx = *receiver.value();
+  stopOnSignals();
+  const bool tty = !a.json && ::isatty(STDOUT_FILENO) == 1;
+  std::fprintf(stderr, "sandtable %s: listening (%s); Ctrl-C stops\n", cmd.c_str(), where.c_str());
+  dis::Monitor monitor(options);
+  std::vector<dis::Datagram> batch;
+  const double start = steadyNow();
+  double nextTick = start + 1.0;
+  std::uint64_t lastPdus = 0, lastDatagrams = 0;
+  while (!gStop.load()) {
+    const double now = steadyNow();
+    if (a.seconds && now - start >= *a.seconds) break;
+    rx.waitPending(100);
+    rx.drain(batch);
+    for (const dis::Datagram& d : batch) monitor.add(d);
+    if (steadyNow() < nextTick) continue;
+    nextTick += 1.0;
+    if (a.json) continue;
+    const dis::Report r = monitor.report(steadyNow());
+    const auto c = rx.counters();
+    if (tty) {
+      std::printf("\x1b[H\x1b[2J");  // home and clear: the table is redrawn in place
+      std::printf("%s  %.0f s  last second: %llu datagrams, %llu PDUs  (dropped: %llu queue, %llu kernel)\n",
+                  where.c_str(), steadyNow() - start, (unsigned long long)(r.datagrams - lastDatagrams),
+                  (unsigned long long)(r.pdus - lastPdus), (unsigned long long)c.queueDropped,
+                  (unsigned long long)c.kernelDropped);
+      printReport(stdout, r, nullptr);
+    } else {
+      std::printf("%.0f s  datagrams %llu (+%llu)  PDUs %llu (+%llu)  senders %zu  entities %zu  malformed %llu  "
+                  "other exercise %llu  dropped %llu\n",
+                  steadyNow() - start, (unsigned long long)r.datagrams, (unsigned long long)(r.datagrams - lastDatagrams),
+                  (unsigned long long)r.pdus, (unsigned long long)(r.pdus - lastPdus), r.senders.size(),
+                  r.entities.size(), (unsigned long long)r.malformed, (unsigned long long)r.otherExercise,
+                  (unsigned long long)(c.queueDropped + c.kernelDropped));
+    }
+    std::fflush(stdout);
+    lastPdus = r.pdus;
+    lastDatagrams = r.datagrams;
+  }
+  rx.drain(batch);
+  for (const dis::Datagram& d : batch) monitor.add(d);
+  const dis::Report r = monitor.report(steadyNow());
+  const auto c = rx.counters();
+  if (a.json) {
+    nlohmann::json j = reportJson(r, nullptr);
+    j["listening"] = where;
+    j["receiver"] = receiverJson(c);
+    std::printf("%s\n", j.dump(1).c_str());
+  } else {
+    std::printf("final report (%s; receiver dropped %llu in its queue, %llu in the kernel)\n", where.c_str(),
+                (unsigned long long)c.queueDropped, (unsigned long long)c.kernelDropped);
+    printReport(stdout, r, nullptr);
+  }
+  return kOk;
+}
+
+int runRecord(const LiveArgs& a) {
+  const std::string cmd = "dis record";
+  if (!validSeconds(a.seconds)) return usageError(cmd, "--seconds must be above 0");
+  auto socket = openSocket(a.dis, a.interface);
+  if (!socket) return socketProblems(cmd, socket.problems());
+  const std::string where = socket->endpoint().text();
+  auto writer = dis::PcapWriter::create(a.output);
+  if (!writer) return reportProblems(cmd, writer.problems());
+  auto receiver = dis::Receiver::start(std::move(socket.value()));
+  if (!receiver) return socketProblems(cmd, receiver.problems());
+  dis::Receiver& rx = *receiver.value();
+  stopOnSignals();
+  // Received datagrams carry the steady clock; a pcap wants seconds since
+  // 1970: one offset, taken now, keeps the recorded intervals exact.
+  const double toUnix =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() - steadyNow();
+  std::fprintf(stderr, "sandtable %s: recording (%s) to %s; Ctrl-C stops\n", cmd.c_str(), where.c_str(),
+               a.output.c_str());
+  const bool tty = ::isatty(STDERR_FILENO) == 1;
+  std::vector<dis::Datagram> batch;
+  const double start = steadyNow();
+  double nextTick = start + 1.0;
+  std::uint64_t bytes = 0;
+  auto writeBatch = [&]() -> Status {
+    for (dis::Datagram& d : batch) {
+      d.timeS += toUnix;
+      bytes += d.bytes.size();
+      if (Status st = writer->write(d); !st) return st;
+    }
+    return {};
+  };
+  while (!gStop.load()) {
+    if (a.seconds && steadyNow() - start >= *a.seconds) break;
+    rx.waitPending(100);
+    rx.drain(batch);
+    if (Status st = writeBatch(); !st) return reportProblems(cmd, st.problems());
+    if (steadyNow() >= nextTick) {
+      nextTick += 1.0;
+      std::fprintf(stderr, tty ? "\r%.0f s  %llu datagrams  %llu bytes   " : "%.0f s  %llu datagrams  %llu bytes\n",
+                   steadyNow() - start, (unsigned long long)writer->count(), (unsigned long long)bytes);
+    }
+  }
+  rx.drain(batch);
+  if (Status st = writeBatch(); !st) return reportProblems(cmd, st.problems());
+  if (tty) std::fprintf(stderr, "\n");
+  const auto c = rx.counters();
+  const std::uint64_t n = writer->count();
+  if (Status st = writer->close(); !st) return reportProblems(cmd, st.problems());
+  if (a.json) {
+    nlohmann::json j = {{"file", a.output}, {"listening", where}, {"datagrams", n}, {"bytes", bytes},
+                        {"seconds", steadyNow() - start}, {"receiver", receiverJson(c)}};
+    std::printf("%s\n", j.dump(1).c_str());
+  } else {
+    std::printf("recorded %llu datagrams (%llu bytes) in %.1f s to %s; dropped %llu in the queue, %llu in the "
+                "kernel\n",
+                (unsigned long long)n, (unsigned long long)bytes, steadyNow() - start, a.output.c_str(),
+                (unsigned long long)c.queueDropped, (unsigned long long)c.kernelDropped);
+  }
+  return kOk;
+}
+
+struct PlayArgs {
+  std::string file, dis = "3000", interface;
+  double speed = 1.0;
+  bool loop = false, json = false;
+};
+
+/// Sleeps until `when` (steady seconds) or a stop; false on a stop.
+bool sleepUntil(double when) {
+  while (!gStop.load()) {
+    const double left = when - steadyNow();
+    if (left <= 0) return true;
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(left, 0.1)));
+  }
+  return false;
+}
+
+int runPlay(const PlayArgs& a) {
+  const std::string cmd = "dis play";
+  if (!(a.speed > 0 && std::isfinite(a.speed))) return usageError(cmd, "--speed must be above 0 (1: recorded pace)");
+  Warnings warnings;
+  auto capture = dis::readPcap(a.file, &warnings);
+  if (!capture) return reportProblems(cmd, capture.problems());
+  for (const Problem& w : warnings) std::fprintf(stderr, "sandtable %s: warning: %s\n", cmd.c_str(), w.str().c_str());
+  if (capture->empty()) return usageError(cmd, a.file + " holds no UDP datagrams to play");
+  auto socket = openSocket(a.dis, a.interface);
+  if (!socket) return socketProblems(cmd, socket.problems());
+  const std::string where = socket->endpoint().text();
+  stopOnSignals();
+  std::fprintf(stderr, "sandtable %s: %zu datagrams from %s (%s) at %gx%s; Ctrl-C stops\n", cmd.c_str(),
+               capture->size(), a.file.c_str(), where.c_str(), a.speed, a.loop ? ", looping" : "");
+  const double t0 = capture->front().timeS;
+  const double started = steadyNow();
+  std::uint64_t sent = 0, failed = 0, passes = 0;
+  std::string firstFailure;
+  do {
+    // Each pass keeps the capture's intervals (divided by --speed) from
+    // its own start, so a long loop does not drift.
+    const double passStart = steadyNow();
+    for (const dis::Datagram& d : capture.value()) {
+      if (!sleepUntil(passStart + std::max(0.0, d.timeS - t0) / a.speed)) break;
+      if (Status st = socket->send(d.bytes); st) {
+        ++sent;
+      } else if (failed++ == 0) {
+        firstFailure = st.error();
+      }
+    }
+    if (!gStop.load()) ++passes;
+  } while (a.loop && !gStop.load());
+  const double wall = steadyNow() - started;
+  if (!firstFailure.empty()) {
+    std::fprintf(stderr, "sandtable %s: %llu datagrams not sent; the first: %s\n", cmd.c_str(),
+                 (unsigned long long)failed, firstFailure.c_str());
+  }
+  if (a.json) {
+    nlohmann::json j = {{"file", a.file}, {"sending", where}, {"datagrams_sent", sent}, {"send_failures", failed},
+                        {"passes", passes}, {"seconds", wall}, {"speed", a.speed}};
+    std::printf("%s\n", j.dump(1).c_str());
+  } else {
+    std::printf("sent %llu datagrams (%llu complete passes) in %.1f s (%s)\n", (unsigned long long)sent,
+                (unsigned long long)passes, wall, where.c_str());
+  }
+  return failed > 0 && sent == 0 ? kProblems : kOk;
+}
+
+void addLiveOptions(CLI::App* sub, LiveArgs& a) {
+  sub->add_option("--dis", a.dis, "[ADDR:]PORT to listen on: 3000, 239.1.2.3:3000 (multicast), ... (default 3000)");
+  sub->add_option("--interface", a.interface, "Network interface (default: the routing table's choice)");
+  sub->add_option("--seconds", a.seconds, "Stop after this many seconds (default: at Ctrl-C)");
+  sub->add_flag("--json", a.json, "Print the final report as JSON");
+}
+
+void registerLive(CLI::App& dis, Commands& c) {
+  auto m = std::make_shared<LiveArgs>();
+  auto* sub = dis.add_subcommand("monitor", "Watch a DIS port live: who sends what, how often, and what is wrong");
+  sub->footer(
+      "On a terminal the report is redrawn every second; otherwise one line a second. Ctrl-C (or --seconds)\n"
+      "stops with a final report (docs/DIS.md, 'The network monitor').\n"
+      "Examples:\n"
+      "  sandtable dis monitor --dis 3000\n"
+      "  sandtable dis monitor --dis 239.1.2.3:3000 --exercise 1 --seconds 60 --json > exercise.json");
+  addLiveOptions(sub, *m);
+  sub->add_option("--exercise", m->exercise, "Only this exercise's PDUs (0..255); others are counted, not read");
+  c.add(sub, [m] { return runMonitor(*m); });
+
+  auto r = std::make_shared<LiveArgs>();
+  sub = dis.add_subcommand("record", "Record a DIS port to a pcap file that Wireshark opens (the data logger)");
+  sub->footer(
+      "Every UDP datagram that arrives, with its sender, destination and arrival time; the file appears when\n"
+      "recording stops (Ctrl-C or --seconds).\n"
+      "Example:\n"
+      "  sandtable dis record --dis 3000 -o exercise.pcap --seconds 600");
+  addLiveOptions(sub, *r);
+  sub->add_option("-o,--output", r->output, "The pcap file to write")->required();
+  c.add(sub, [r] { return runRecord(*r); });
+
+  auto p = std::make_shared<PlayArgs>();
+  sub = dis.add_subcommand("play", "Send a capture's datagrams to a DIS port again, at the recorded pace");
+  sub->footer(
+      "Every UDP datagram of the capture, its payload as recorded, to --dis (the recorded destination is not\n"
+      "used). --speed 2 plays twice as fast; --loop starts again at the end until Ctrl-C.\n"
+      "Example:\n"
+      "  sandtable dis play exercise.pcap --dis 3000 --speed 2 --loop");
+  sub->add_option("FILE", p->file, "Capture file (pcap or pcapng)")->required();
+  sub->add_option("--dis", p->dis, "[ADDR:]PORT to send to (default 3000: the default broadcast)");
+  sub->add_option("--interface", p->interface, "Network interface (default: the routing table's choice)");
+  sub->add_option("--speed", p->speed, "Pace: 1 as recorded, 2 twice as fast (default 1)");
+  sub->add_flag("--loop", p->loop, "Start again at the end, until Ctrl-C");
+  sub->add_flag("--json", p->json, "Print the summary as JSON");
+  c.add(sub, [p] { return runPlay(*p); });
+}
+
 }  // namespace
 
 void registerDis(CLI::App& root, Commands& c) {
   auto* dis = root.add_subcommand("dis", "DIS network tools: the monitor and the data logger");
   dis->require_subcommand(1);
   registerInspect(*dis, c);
+  registerLive(*dis, c);
 }
 
 }  // namespace sandtable::cli
