@@ -34,6 +34,7 @@ void registerUpgrade(CLI::App& root, Commands& c);
 void registerIcons(CLI::App& root, Commands& c);
 void registerSim(CLI::App& root, Commands& c);
 void registerScript(CLI::App& root, Commands& c);
+void registerDis(CLI::App& root, Commands& c);
 
 /// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage. When the
 /// command was given --json, main also prints every error of the run as one

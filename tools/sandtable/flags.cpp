@@ -69,6 +69,9 @@ constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"FlySessionSettings::freeFlight", "--free-flight"},
     {"ImportOptions::maxTriangles", "--max-triangles"},
     {"FlySessionSettings::map", "--map"},
+    {"SocketOptions::address", "--dis"},
+    {"SocketOptions::port", "--dis"},
+    {"SocketOptions::interface", "--interface"},
 };
 
 }  // namespace

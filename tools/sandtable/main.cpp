@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
   registerIcons(app, commands);
   registerSim(app, commands);
   registerScript(app, commands);
+  registerDis(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
