@@ -9,9 +9,10 @@
 // | "detonation", "raw"}]}. The main part is Open-DIS's fields, moved into
 // that layout with two conversions, both spelled out below (docs/DIS.md §7):
 // - Open-DIS 6 reads the appearance, the capabilities, the fire mission
-//   index and a record's parameter type as signed 32-bit integers, and
-//   every build reads the marking and Open-DIS 6 the dead reckoning
-//   parameters as signed bytes: they are taken modulo 2^32 and 2^8 here;
+//   index and a record's parameter type as signed 32-bit integers, the
+//   Entity State record count and the dead reckoning parameters as signed
+//   bytes, and both builds read the marking as signed bytes: they are taken
+//   modulo 2^32 and 2^8 here;
 // - neither build reads the standard's variable parameter records: version
 //   6 reads the value field as one float64, version 7 reads a record as a
 //   generic layout (a float64 over bytes 1-8, a u32, a u16, a u8). The

@@ -405,7 +405,7 @@ void expectRaw(const json& raw, int version, const std::vector<VariableParameter
     const std::string at = "raw.records[" + std::to_string(k) + "]";
     if (version == 6) {
       // One float64 over the value field: a float32 and its padding read
-      // as a double (1.25 comes out as 0.0625; docs/DIS.md §7).
+      // as a double (1.25 comes out as 0.03125; docs/DIS.md §7).
       expectD(r["parameterValue"], std::bit_cast<double>(recordBytes(records[k], 8, 8)), at + ".parameterValue");
       if (records[k].recordType == 0) {
         EXPECT_NE(r["parameterValue"].get<double>(), double(articulatedPart(records[k])->value)) << at;
