@@ -23,6 +23,7 @@ packages=(
   libjpeg-dev                     # JPEG icon textures in the renderer (libjpeg62-turbo; already there with libgdal-dev)
   libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test
   ffmpeg                          # fly --video; installed so its tests run (CI fails a test that would skip)
+  libpcap-dev                     # libpcap: DIS capture files, pcap and pcapng (net/dis/)
   tshark                          # Wireshark's DIS dissector: an independent reader of our PDUs (net/dis tests)
   clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
   zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds

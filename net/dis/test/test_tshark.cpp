@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,52 +16,18 @@
 #include <unistd.h>
 
 #include "dis_example.h"
+#include "sandtable/dis/pcap.h"
 
 namespace sandtable::dis {
 namespace {
 
-void put16(std::vector<unsigned char>& o, unsigned v) {
-  o.push_back((unsigned char)(v >> 8));
-  o.push_back((unsigned char)v);
-}
-void le32(std::vector<unsigned char>& o, std::uint32_t v) {
-  for (int k = 0; k < 4; ++k) o.push_back((unsigned char)(v >> (8 * k)));
-}
-
-/// A pcap (Ethernet, IPv4 loopback, UDP 3000 -> 3000) of one datagram.
+/// A pcap (Ethernet, IPv4 loopback, UDP 3000 -> 3000) of one datagram, by PcapWriter.
 void writePcap(const std::filesystem::path& path, const std::vector<std::byte>& pdu) {
-  std::vector<unsigned char> udp;
-  put16(udp, 3000);
-  put16(udp, 3000);
-  put16(udp, unsigned(8 + pdu.size()));
-  put16(udp, 0);  // no checksum (allowed over IPv4)
-  for (std::byte b : pdu) udp.push_back((unsigned char)b);
-  std::vector<unsigned char> ip = {0x45, 0, 0, 0, 0, 0, 0, 0, 64, 17, 0, 0, 127, 0, 0, 1, 127, 0, 0, 1};
-  ip[2] = (unsigned char)((20 + udp.size()) >> 8);
-  ip[3] = (unsigned char)(20 + udp.size());
-  std::uint32_t sum = 0;
-  for (std::size_t k = 0; k < ip.size(); k += 2) sum += (ip[k] << 8) | ip[k + 1];
-  while (sum >> 16) sum = (sum & 0xffff) + (sum >> 16);
-  ip[10] = (unsigned char)(~sum >> 8);
-  ip[11] = (unsigned char)(~sum);
-  std::vector<unsigned char> frame(12, 0);  // MAC addresses
-  put16(frame, 0x0800);                     // IPv4
-  frame.insert(frame.end(), ip.begin(), ip.end());
-  frame.insert(frame.end(), udp.begin(), udp.end());
-  std::vector<unsigned char> out;
-  le32(out, 0xa1b2c3d4);
-  put16(out, 0x0200);  // version 2.4, little-endian
-  put16(out, 0x0400);
-  le32(out, 0);
-  le32(out, 0);
-  le32(out, 65535);
-  le32(out, 1);  // LINKTYPE_ETHERNET
-  le32(out, 0);
-  le32(out, 0);
-  le32(out, std::uint32_t(frame.size()));
-  le32(out, std::uint32_t(frame.size()));
-  out.insert(out.end(), frame.begin(), frame.end());
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(out.data()), std::streamsize(out.size()));
+  Result<PcapWriter> w = PcapWriter::create(path);
+  ASSERT_TRUE(w) << w.error();
+  const Address loopback{0x7f000001u, 3000};
+  ASSERT_TRUE(w->write({0, loopback, loopback, pdu}));
+  ASSERT_TRUE(w->close());
 }
 
 std::string run(const std::string& command) {
