@@ -5,7 +5,9 @@
 //   sandtable::dis::decode reads every field as set, and encoding what it
 //   decoded gives Open-DIS's bytes back;
 // - sandtable::dis::encode writes them; Open-DIS decodes them (read_pdus.js)
-//   and every field, floats exactly, is what was encoded.
+//   and every field, floats exactly, is what was encoded;
+// - Node sends Open-DIS's PDUs over UDP on loopback (send_pdus.js) to a
+//   dis::Receiver, and what it queues decodes to every field as set.
 // The package is installed into the build tree by the CTest fixture
 // OpenDis.npmInstall (tests/opendis/CMakeLists.txt). A missing node or
 // package fails these tests; they never skip.
@@ -25,11 +27,15 @@
 #include <string>
 #include <vector>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <nlohmann/json.hpp>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include "sandtable/dis/pdu.h"
+#include "sandtable/dis/socket.h"
 
 namespace sandtable::dis {
 namespace {
@@ -40,7 +46,7 @@ using nlohmann::json;
 const fs::path kScripts = SANDTABLE_OPENDIS_SCRIPTS;  // tests/opendis in the source tree
 const fs::path kModules = SANDTABLE_OPENDIS_MODULES;  // node_modules in the build tree
 
-std::string quoted(const fs::path& p) {
+std::string shellQuoted(const fs::path& p) {
   std::string q(1, '\'');  // appended, not "'" + ...: GCC 12's -Wrestrict misfires on that
   q += p.string();
   q += '\'';
@@ -80,9 +86,9 @@ std::pair<std::string, bool> capture(const std::string& command) {
 /// parses what it prints; empty (and the test failed) when it fails.
 std::optional<json> node(const std::string& script, const std::string& args) {
   std::string command = "NODE_PATH=";
-  command += quoted(kModules);
+  command += shellQuoted(kModules);
   command += " node ";
-  command += quoted(kScripts / script);
+  command += shellQuoted(kScripts / script);
   command += ' ';
   command += args;
   const auto [out, ok] = capture(command);
@@ -288,12 +294,26 @@ void expectDetonation(const json& j, const Detonation& d) {
 
 // ------------------------------------------- Open-DIS -> Sandtable
 
+/// The body of a decoded PDU against the JSON of what Open-DIS set.
+void expectBody(const json& p, const Pdu& pdu) {
+  if (p.contains("entityState")) {
+    ASSERT_TRUE(pdu.entityState);
+    expectEntityState(p["entityState"], *pdu.entityState);
+  } else if (p.contains("fire")) {
+    ASSERT_TRUE(pdu.fire);
+    expectFire(p["fire"], *pdu.fire);
+  } else {
+    ASSERT_TRUE(pdu.detonation);
+    expectDetonation(p["detonation"], *pdu.detonation);
+  }
+}
+
 /// write_pdus.js builds the three PDUs in `version`; decode reads every
 /// field as set, and encoding the result gives Open-DIS's bytes back.
 void checkOpenDisBuilds(int version) {
   ASSERT_TRUE(haveOpenDis());
   const fs::path dir = scratchDir("write" + std::to_string(version));
-  const auto set = node("write_pdus.js", std::to_string(version) + " " + quoted(dir));
+  const auto set = node("write_pdus.js", std::to_string(version) + " " + shellQuoted(dir));
   ASSERT_TRUE(set);
   ASSERT_EQ((*set)["pdus"].size(), 3u);
   for (const json& p : (*set)["pdus"]) {
@@ -304,20 +324,11 @@ void checkOpenDisBuilds(int version) {
     ASSERT_TRUE(pdu.ok()) << pdu.error();
     expectHeader(p["header"], pdu->header);
     EXPECT_EQ(pdu->header.length, bytes.size());
-    std::vector<std::byte> again;
-    if (p.contains("entityState")) {
-      ASSERT_TRUE(pdu->entityState);
-      expectEntityState(p["entityState"], *pdu->entityState);
-      again = encode(pdu->header, *pdu->entityState);
-    } else if (p.contains("fire")) {
-      ASSERT_TRUE(pdu->fire);
-      expectFire(p["fire"], *pdu->fire);
-      again = encode(pdu->header, *pdu->fire);
-    } else {
-      ASSERT_TRUE(pdu->detonation);
-      expectDetonation(p["detonation"], *pdu->detonation);
-      again = encode(pdu->header, *pdu->detonation);
-    }
+    expectBody(p, pdu.value());
+    const std::vector<std::byte> again = pdu->entityState ? encode(pdu->header, *pdu->entityState)
+                                         : pdu->fire      ? encode(pdu->header, *pdu->fire)
+                                         : pdu->detonation ? encode(pdu->header, *pdu->detonation)
+                                                           : std::vector<std::byte>{};
     EXPECT_EQ(hex(again), hex(bytes)) << "our encoding of what we decoded differs from Open-DIS's bytes";
   }
   fs::remove_all(dir);
@@ -325,6 +336,69 @@ void checkOpenDisBuilds(int version) {
 
 TEST(OpenDis, sandtableDecodesEveryFieldOpenDis7Sets) { checkOpenDisBuilds(7); }
 TEST(OpenDis, sandtableDecodesEveryFieldOpenDis6Sets) { checkOpenDisBuilds(6); }
+
+/// A UDP port nobody holds now (the kernel's pick for an ephemeral bind).
+std::uint16_t freePort() {
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in s{};
+  s.sin_family = AF_INET;
+  ::bind(fd, reinterpret_cast<sockaddr*>(&s), sizeof s);
+  socklen_t len = sizeof s;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&s), &len);
+  ::close(fd);
+  return ntohs(s.sin_port);
+}
+
+/// Node sends Open-DIS's three PDUs over UDP to 127.0.0.1; a Receiver on
+/// that port queues them, and each decodes to every field as set.
+void checkOpenDisSendsOverUdp(int version) {
+  ASSERT_TRUE(haveOpenDis());
+  const fs::path dir = scratchDir("udp" + std::to_string(version));
+  const auto set = node("write_pdus.js", std::to_string(version) + " " + shellQuoted(dir));
+  ASSERT_TRUE(set);
+  const json& pdus = (*set)["pdus"];
+  ASSERT_EQ(pdus.size(), 3u);
+  SocketOptions o;
+  o.address = "127.0.0.1";
+  o.port = freePort();
+  auto socket = UdpSocket::open(o);
+  ASSERT_TRUE(socket.ok()) << socket.error();
+  auto receiver = Receiver::start(std::move(socket.value()));
+  ASSERT_TRUE(receiver.ok()) << receiver.error();
+  std::string command = "node ";
+  command += shellQuoted(kScripts / "send_pdus.js");
+  command += " 127.0.0.1 ";
+  command += std::to_string(o.port);
+  for (const json& p : pdus) {
+    command += ' ';
+    command += shellQuoted(p["file"].get<std::string>());
+  }
+  const auto [out, ok] = capture(command + " 2>&1");
+  ASSERT_TRUE(ok) << out;
+  std::vector<Datagram> got, batch;
+  for (int wait = 0; wait < 50 && got.size() < pdus.size(); ++wait) {
+    if (receiver.value()->waitPending(100)) {
+      receiver.value()->drain(batch);
+      got.insert(got.end(), batch.begin(), batch.end());
+    }
+  }
+  ASSERT_EQ(got.size(), pdus.size()) << "datagrams received from node on 127.0.0.1:" << o.port;
+  // Loopback keeps the order one sender sent in.
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    SCOPED_TRACE(pdus[k]["file"].get<std::string>());
+    EXPECT_EQ(got[k].sender.ip, 0x7f000001u) << got[k].sender.text();
+    EXPECT_EQ(got[k].bytes, readBytes(pdus[k]["file"].get<std::string>()));
+    const auto pdu = decode(got[k].bytes, got[k].sender.text());
+    ASSERT_TRUE(pdu.ok()) << pdu.error();
+    expectHeader(pdus[k]["header"], pdu->header);
+    expectBody(pdus[k], pdu.value());
+  }
+  EXPECT_EQ(receiver.value()->counters().queueDropped, 0u);
+  fs::remove_all(dir);
+}
+
+TEST(OpenDis, receiverDecodesOpenDis7PdusSentOverUdp) { checkOpenDisSendsOverUdp(7); }
+TEST(OpenDis, receiverDecodesOpenDis6PdusSentOverUdp) { checkOpenDisSendsOverUdp(6); }
 
 // ------------------------------------------- Sandtable -> Open-DIS
 
@@ -438,7 +512,7 @@ void checkOpenDisReads(int version) {
                                     .append(std::to_string(k)).append(".bin");
     writeBytes(file, pdus[k]);
     args += ' ';
-    args += quoted(file);
+    args += shellQuoted(file);
   }
   const auto read = node("read_pdus.js", args);
   ASSERT_TRUE(read);
