@@ -33,6 +33,11 @@ while IFS= read -r hit; do
   rest=${hit#*:}
   line=${rest%%:*}
   ref=${rest#*:}
+  # A system header (#include <net/if.h>) is not one of ours, though net/ is a top folder.
+  if [[ $ref == '<'* ]]; then
+    sys=${ref#<}
+    [[ -e /usr/include/${sys%>} ]] && continue
+  fi
   ref=${ref#[][[:space:]\`\"(<,;:*]}
   [[ $ref =~ [^A-Za-z0-9_]$ ]] && ref=${ref%?}
   [[ -z $ref ]] && continue

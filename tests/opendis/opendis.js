@@ -1,5 +1,5 @@
 // Shared by write_pdus.js and read_pdus.js: loading one Open-DIS build, and
-// the bit conversions its record classes need (docs/DIS.md §7).
+// the bit conversions its record classes need (docs/DIS.md §9).
 //
 // One build per process: both dist files assign a global `dis` and their
 // classes set their prototypes from that global when constructed, so a

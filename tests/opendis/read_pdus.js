@@ -7,7 +7,7 @@
 //
 // Prints {"version": V, "pdus": [{"file", "header", "entityState" | "fire"
 // | "detonation", "raw"}]}. The main part is Open-DIS's fields, moved into
-// that layout with two conversions, both spelled out below (docs/DIS.md §7):
+// that layout with two conversions, both spelled out below (docs/DIS.md §9):
 // - Open-DIS 6 reads the appearance, the capabilities, the fire mission
 //   index and a record's parameter type as signed 32-bit integers, the
 //   Entity State record count and the dead reckoning parameters as signed

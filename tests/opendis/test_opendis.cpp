@@ -1,5 +1,5 @@
 // Sandtable's DIS PDUs against Open-DIS for JavaScript (npm open-dis 1.3.6,
-// from the seed's school; docs/DIS.md §7), an implementation nobody here
+// from the seed's school; docs/DIS.md §9), an implementation nobody here
 // wrote, in both of its builds (DIS 6 and DIS 7), both ways:
 // - Open-DIS builds Entity State, Fire and Detonation PDUs (write_pdus.js);
 //   sandtable::dis::decode reads every field as set, and encoding what it
@@ -194,7 +194,7 @@ void expectHeader(const json& j, const Header& h) {
 }
 
 /// The float32 a standard reader finds in the first 4 bytes of a float64:
-/// what Open-DIS 6's value `d` reads as (docs/DIS.md §7).
+/// what Open-DIS 6's value `d` reads as (docs/DIS.md §9).
 float highHalfAsFloat(double d) { return std::bit_cast<float>(std::uint32_t(std::bit_cast<std::uint64_t>(d) >> 32)); }
 
 void expectRecords(const json& j, const std::vector<VariableParameter>& records, const std::string& what) {
@@ -479,7 +479,7 @@ void expectRaw(const json& raw, int version, const std::vector<VariableParameter
     const std::string at = "raw.records[" + std::to_string(k) + "]";
     if (version == 6) {
       // One float64 over the value field: a float32 and its padding read
-      // as a double (1.25 comes out as 0.03125; docs/DIS.md §7).
+      // as a double (1.25 comes out as 0.03125; docs/DIS.md §9).
       expectD(r["parameterValue"], std::bit_cast<double>(recordBytes(records[k], 8, 8)), at + ".parameterValue");
       if (records[k].recordType == 0) {
         EXPECT_NE(r["parameterValue"].get<double>(), double(articulatedPart(records[k])->value)) << at;

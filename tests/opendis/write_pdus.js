@@ -12,7 +12,7 @@
 //
 // Open-DIS leaves the PDU length and the record counts to the caller; they
 // are set here from the standard's sizes. The records are built the way the
-// standard lays them out, through what each build offers (docs/DIS.md §7):
+// standard lays them out, through what each build offers (docs/DIS.md §9):
 // - version 7: ArticulatedParts and AttachedParts, whose 64-bit value is a
 //   decimal string of a signed integer (the float32 in its high half, or
 //   the attached entity type's 8 bytes);
