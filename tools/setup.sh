@@ -30,6 +30,17 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )
 
+# Node.js and npm run the Open-DIS for JavaScript check (tests/opendis; its
+# ctest fixture installs the npm package). Checked by command, not by
+# package: a node from elsewhere (NodeSource's nodejs, which bundles npm and
+# conflicts with Debian's npm package) is used as it is. Debian 12's nodejs
+# is 18 and its npm 9.
+if ! command -v node >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+elif ! command -v npm >/dev/null 2>&1; then
+  packages+=(npm)
+fi
+
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

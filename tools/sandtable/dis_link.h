@@ -1,7 +1,7 @@
 #pragma once
 // What `sim --dis` and `fly --dis` share: the socket and its receive
 // thread, the database frame from the manifest, and the simulation's DIS
-// gateway on them (docs/DIS.md §10). Problems are printed; nullptr means
+// gateway on them (docs/DIS.md §11). Problems are printed; nullptr means
 // exit 2.
 #include <cstdint>
 #include <memory>

@@ -1,5 +1,5 @@
 #pragma once
-// The database frame and DIS's geocentric states (docs/DIS.md §8.1).
+// The database frame and DIS's geocentric states (docs/DIS.md §11.1).
 //
 // A DIS location is WGS-84 geocentric (ECEF) and its orientation is taken
 // relative to the geocentric axes; the simulation works in the database

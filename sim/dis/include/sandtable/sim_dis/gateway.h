@@ -1,6 +1,6 @@
 #pragma once
 // The simulation on a DIS network (seed VIII.C "network entity" and X;
-// docs/DIS.md §8): before each step the gateway applies every PDU that
+// docs/DIS.md §11): before each step the gateway applies every PDU that
 // arrived (remote entities appear, move, die and leave; remote fires fly
 // as munitions; a Detonation that names a local entity kills it), and
 // after each step it publishes the local entities that need a PDU and the
