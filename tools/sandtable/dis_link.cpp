@@ -101,11 +101,18 @@ nlohmann::json disJson(const DisLink& link, const sim::Simulation& s) {
   const dis::ReceiverCounters rc = link.receiver->counters();
   nlohmann::json remotes = nlohmann::json::array();
   for (const auto& [key, e] : link.gateway->remotes().all()) {
+    const sim::Entity* shown = e.simId == UINT32_MAX ? nullptr : s.find(e.simId);
     nlohmann::json j = {{"id", idText(e.id)},
                         {"marking", e.last.marking.text()},
                         {"sender", e.sender.text()},
                         {"updates", e.updates},
                         {"sim_id", e.simId == UINT32_MAX ? nlohmann::json(nullptr) : nlohmann::json(e.simId)}};
+    if (shown) {
+      j["position"] = xyz(shown->position);  // as this simulation shows it at its last step
+      j["heading_deg"] = shown->headingDeg;
+      j["alive"] = shown->alive;
+      j["icon"] = shown->icon;
+    }
     remotes.push_back(std::move(j));
   }
   nlohmann::json departed = nlohmann::json::array();
