@@ -5,6 +5,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <thread>
+
+#include "sandtable/render/hud.h"
+#include "sandtable/scene/camera_math.h"
 
 namespace sandtable::viewer {
 namespace {
@@ -219,6 +223,13 @@ std::optional<world::Pose> FlySession::pose(std::uint32_t frame, double t, world
     quitting_ = quitAfterThisFrame_;
   } else {
     if (sim) {
+      if (settings_.realTimeHeadless) {
+        // On a network the simulation keeps the exercise's time: frame k
+        // waits for k / 30 s of the wall clock (a slow frame is caught up).
+        if (!paceStart_) paceStart_ = wallSeconds() - t;
+        const double wait = *paceStart_ + t - wallSeconds();
+        if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(wait));
+      }
       // Frame k shows the world at k / 30 s: whole steps, so a headless
       // flight replays the same simulation frame for frame.
       sim->advanceToFlightTime(t);
@@ -235,11 +246,38 @@ std::optional<world::Pose> FlySession::pose(std::uint32_t frame, double t, world
   return p;
 }
 
+namespace {
+
+/// Each label's point on the frame, where it is in front of the eye.
+std::vector<FrameStats::ScreenLabel> project(const std::vector<EntityLabel>& labels, const scene::DisplayBuffer& buf,
+                                             std::uint32_t width, std::uint32_t height) {
+  std::vector<FrameStats::ScreenLabel> out;
+  const Eigen::Matrix4d m = scene::viewProjection(buf.camera, buf.originX, buf.originZ);
+  for (const EntityLabel& l : labels) {
+    const Eigen::Vector4d c = m * Eigen::Vector4d(l.position.x() - buf.originX, l.position.y(),
+                                                  l.position.z() - buf.originZ, 1.0);
+    if (c.w() <= 1e-6) continue;
+    const double x = c.x() / c.w(), y = c.y() / c.w();
+    if (std::abs(x) > 1.1 || std::abs(y) > 1.1) continue;
+    FrameStats::ScreenLabel s;
+    s.x = int(std::lround((x * 0.5 + 0.5) * width));
+    s.y = int(std::lround((0.5 - y * 0.5) * height));
+    s.text = l.text;
+    s.rgb = l.alive ? render::forceColour(l.force) : render::deadColour(l.force);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+}  // namespace
+
 void FlySession::frameContent(std::uint32_t, scene::DisplayBuffer& buf, FrameStats& stats) {
   if (!settings_.sim) return;
   settings_.sim->setDrawn(std::make_shared<const scene::DrawnLevels>(buf));
   settings_.sim->fill(buf.dynamic);
   stats.panelLines = settings_.sim->panelLines();
+  const Eigen::Vector3d eye(buf.camera.x, buf.camera.y, buf.camera.z);
+  stats.labels = project(settings_.sim->labels(eye), buf, options_.view.width, options_.view.height);
   stats.extraJson.emplace_back("sim", settings_.sim->frameJson());
 }
 
@@ -250,6 +288,16 @@ std::vector<std::pair<std::string, std::string>> FlySession::statsSections() {
 
 void FlySession::overlay(render::Overlay& overlay, const FrameStats& s) {
   current_ = controls_.take(s.frame);
+  const int scale = options_.view.width >= 1600 ? 2 : 1;
+  for (const FrameStats::ScreenLabel& l : s.labels) {
+    // A dark outline under the force's colour, so a label reads on sky and ground alike.
+    const int w = render::textWidth(l.text, scale), x = l.x - w / 2, y = l.y - render::kGlyphHeight * scale;
+    for (const auto& [dx, dy] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
+      render::drawText(overlay.layer(), x + dx, y + dy, l.text, scale, {0, 0, 0});
+    }
+    render::drawText(overlay.layer(), x, y, l.text, scale, l.rgb);
+    overlay.drawn({x - 1, y - 1, w + 2, render::kGlyphHeight * scale + 2});
+  }
   if (!current_.map) return;
   if (!map_) {
     // Built here, on the render thread that uses it (MapView caches per thread).

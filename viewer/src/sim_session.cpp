@@ -91,10 +91,8 @@ Result<std::unique_ptr<SimSession>> SimSession::create(std::unique_ptr<sim::Simu
   const auto entities = s->sim_->entities();
   std::optional<std::uint32_t> named;
   if (!s->options_.attach.empty()) {
-    for (const sim::Entity& e : entities) {
-      if (e.name == s->options_.attach) named = e.id;
-    }
-    if (!named) {
+    named = s->named(s->options_.attach);
+    if (!named && !s->options_.attachWhenSeen) {
       std::string some;
       std::size_t k = 0;
       for (auto it = entities.begin(); it != entities.end() && k < 8; ++it, ++k) some += (k ? ", " : "") + it->name;
@@ -142,7 +140,48 @@ void SimSession::setDrawn(std::shared_ptr<const scene::DrawnLevels> drawn) {
 
 void SimSession::step() { host_.step(); }
 
+std::optional<std::uint32_t> SimSession::named(const std::string& text) const {
+  std::optional<std::uint32_t> found;
+  for (const sim::Entity& e : sim_->entities()) {
+    if (e.name == text) found = e.id;
+  }
+  if (!found && options_.findEntity) found = options_.findEntity(text);
+  if (found && !sim_->find(*found)) found.reset();
+  return found;
+}
+
+void SimSession::attachAwaited() {
+  if (!options_.attachWhenSeen || options_.attach.empty() || attachedOnce_) return;
+  if (auto id = named(options_.attach)) {
+    attach(*id);
+    attachedOnce_ = true;
+  }
+}
+
+std::vector<EntityLabel> SimSession::labels(const Eigen::Vector3d& eye) const {
+  std::vector<std::pair<double, EntityLabel>> near;
+  if (!options_.labels) return {};
+  for (const sim::Entity& e : sim_->entities()) {
+    if (e.domain == sim::Domain::munition || e.name.empty()) continue;
+    const double d = (e.position - eye).norm();
+    if (d > options_.labelRangeM) continue;
+    EntityLabel l;
+    l.position = e.position + Eigen::Vector3d(0, std::max(2.0, e.height) + 1.5, 0);
+    l.text = upper(e.name);
+    l.force = e.force;
+    l.alive = e.alive;
+    near.emplace_back(d, std::move(l));
+  }
+  std::sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  if (near.size() > options_.maxLabels) near.resize(options_.maxLabels);
+  std::vector<EntityLabel> out;
+  out.reserve(near.size());
+  for (auto& [d, l] : near) out.push_back(std::move(l));
+  return out;
+}
+
 void SimSession::sample() {
+  attachAwaited();
   const double now = sim_->timeS();
   // The attached entity may have been removed (Simulation::remove, from a
   // step hook): back to the stealth eye.
@@ -271,6 +310,9 @@ std::vector<std::string> SimSession::panelLines() const {
   std::snprintf(buf, sizeof buf, "SIM %.1f S  ENTITIES %u/%u ALIVE", sim_->timeS(), alive, total);
   lines.emplace_back(buf);
   if (flying > 0) lines.back() += "  MUNITIONS " + std::to_string(flying);
+  if (options_.extraPanel) {
+    for (std::string& l : options_.extraPanel()) lines.push_back(std::move(l));
+  }
   std::string view = mode_ == ViewMode::stealth    ? "VIEW STEALTH"
                      : mode_ == ViewMode::attached ? "VIEW ATTACHED TO "
                                                    : "DRIVING ";

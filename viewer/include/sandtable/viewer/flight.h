@@ -269,6 +269,14 @@ struct FrameStats {
   /// objects for the frame's stats.json entry.
   std::vector<std::string> panelLines;
   std::vector<std::pair<std::string, std::string>> extraJson;
+  /// Text the application draws over the frame at pixel (x, y) (its
+  /// bottom centre), e.g. the markings over networked entities.
+  struct ScreenLabel {
+    int x = 0, y = 0;
+    std::string text;
+    render::Rgb rgb{255, 255, 255};
+  };
+  std::vector<ScreenLabel> labels;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;

@@ -58,6 +58,9 @@ struct FlySessionSettings {
   /// flight's clock: headless, frame k at k / 30 s; in a window, one step
   /// per fixed step of the wall clock.
   std::unique_ptr<SimSession> sim;
+  /// Headless frames wait for the wall clock (frame k at k / 30 s after
+  /// the first): fly --dis, where remote entities move in real time.
+  bool realTimeHeadless = false;
 };
 
 /// Per frame, what the render thread needs of the controller's state.
@@ -130,6 +133,7 @@ class FlySession final : public FlightApplication {
   bool quitAfterThisFrame_ = false, quitting_ = false;
   world::FixedStepClock clock_;  ///< window: flight time, advanced in fixed steps of the wall clock
   std::optional<double> lastWall_;
+  std::optional<double> paceStart_;  ///< realTimeHeadless: the wall time of flight time 0
   world::Pose lastPose_;  ///< the pose of the last frame (a detached eye starts there)
   // render thread
   std::unique_ptr<render::MapView> map_;

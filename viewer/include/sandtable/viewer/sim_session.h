@@ -24,6 +24,7 @@
 // steps the simulation and reads it. What it hands out (DynamicScene, map
 // marks, panel lines, JSON text) are copies for the render thread.
 #include <array>
+#include <functional>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -88,6 +89,29 @@ struct SimSessionOptions {
   double startS = 0;
   TetherSettings tether;
   DriveSettings driving;
+  /// Networked (fly --dis): an --attach name no entity has yet is not an
+  /// error; the eye attaches when one appears (remote entities arrive with
+  /// their first PDU).
+  bool attachWhenSeen = false;
+  /// Finds the entity an --attach text names when no entity has that name
+  /// (fly --dis: a DIS id "site:application:entity"); may be empty.
+  std::function<std::optional<std::uint32_t>(const std::string&)> findEntity;
+  /// Lines added to the panel (fly --dis: the network's figures); may be empty.
+  std::function<std::vector<std::string>()> extraPanel;
+  /// Names drawn over the entities within labelRangeM of the eye (fly
+  /// --dis: the DIS markings), nearest first, at most maxLabels.
+  bool labels = false;
+  double labelRangeM = 4000;
+  std::size_t maxLabels = 64;
+};
+
+/// A name to draw over an entity: where (world metres, above its top) and
+/// what, in its force's colour.
+struct EntityLabel {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  std::string text;
+  std::uint8_t force = 0;
+  bool alive = true;
 };
 
 class SimSession {
@@ -128,6 +152,9 @@ class SimSession {
   void fill(scene::DynamicScene& out) const;
   /// Every entity but the munitions, the attached one selected.
   std::vector<render::MapMark> mapMarks() const;
+  /// With SimSessionOptions::labels: the named entities within range of
+  /// `eye`, nearest first; else none.
+  std::vector<EntityLabel> labels(const Eigen::Vector3d& eye) const;
   /// Entity count (alive / total), the view mode, and the attached (else
   /// the scenario's driven) entity: name, icon, force, alive or dead,
   /// speed, heading, fuel; driving: the commands.
@@ -176,6 +203,10 @@ class SimSession {
  private:
   SimSession(std::unique_ptr<sim::Simulation> simulation, SimSessionOptions options);
   void applyDrive();
+  /// attachWhenSeen: attaches when the awaited entity has appeared.
+  void attachAwaited();
+  /// The entity an --attach text names (its name, else findEntity).
+  std::optional<std::uint32_t> named(const std::string& text) const;
   void seedDrive(const sim::Entity& e);
   bool isTarget(const sim::Entity& e) const { return e.domain != sim::Domain::munition; }
   float turretOf(const sim::Entity& e) const;
@@ -188,6 +219,7 @@ class SimSession {
   ViewMode mode_ = ViewMode::stealth;
   std::optional<std::uint32_t> attached_;
   std::uint64_t startSteps_ = 0;
+  bool attachedOnce_ = false;  ///< attachWhenSeen: the awaited entity was attached (a later detach stays)
   std::optional<world::Controller> driveKeys_;  ///< driving: its speed and heading are the commands
   // The tether.
   std::optional<double> tetherHeading_, tetherTime_;
