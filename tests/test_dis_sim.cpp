@@ -3,7 +3,8 @@
 // watches with no entities of its own. Every entity the publisher had
 // reaches the watcher, and where the watcher last had each (its final,
 // deactivating PDU, converted frame -> geocentric -> frame across the two
-// processes) agrees with where the publisher's simulation left it.
+// processes) agrees with where the publisher's simulation left it. Bad
+// endpoints and a port another program holds exit 2 naming the flag.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -11,6 +12,9 @@
 #include <map>
 #include <thread>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
@@ -102,6 +106,25 @@ TEST_F(DisTwoProcesses, aBadAddressInterfaceOrPortIsAClearErrorWithExitTwo) {
     EXPECT_EQ(r.exitCode, 2) << flags[1];
     EXPECT_NE(r.err.find(named), std::string::npos) << r.err;
   }
+}
+
+TEST_F(DisTwoProcesses, aPortInUseIsAClearErrorWithExitTwo) {
+  // A program that holds the port without SO_REUSEADDR: nobody may share it.
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in at{};
+  at.sin_family = AF_INET;
+  at.sin_addr.s_addr = htonl(INADDR_ANY);
+  at.sin_port = 0;  // the kernel picks a free one
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&at), sizeof at), 0);
+  socklen_t len = sizeof at;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&at), &len), 0);
+  const std::string port = std::to_string(ntohs(at.sin_port));
+  const auto r = runCli({"sim", db(), "--scenario", empty(), "--duration", "1", "--dis", "127.0.0.1:" + port});
+  ::close(fd);
+  EXPECT_EQ(r.exitCode, 2) << r.err;
+  EXPECT_NE(r.err.find("--dis"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("port " + port + " is taken"), std::string::npos) << r.err;
 }
 
 }  // namespace

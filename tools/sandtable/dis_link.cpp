@@ -146,6 +146,9 @@ nlohmann::json disJson(const DisLink& link, const sim::Simulation& s) {
           {"largest_correction_m", r.maxCorrectionM},
           {"timed_out", r.timedOut},
           {"conflicts", r.conflicts},
+          {"stale", r.stale},
+          {"duplicates", r.duplicates},
+          {"non_finite", r.nonFinite},
           {"remote_entities", remotes},
           {"departed", departed},
           {"local_entities", local}};

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 #include "sandtable/sim/motion.h"
 #include "sandtable/sim/sim_world.h"
@@ -134,11 +135,16 @@ double Gateway::pduTime(const dis::Header& h) const {
 void Gateway::applyEntityState(const dis::Pdu& pdu, const dis::Address& sender) {
   ++counters_.entityStates;
   const dis::EntityState& s = *pdu.entityState;
-  const RemoteEntity* before = remotes_.find(s.id);
-  if (before && (s.appearance & kAppearanceDeactivated) != 0) depart(*before, s, "deactivated");
-  const std::uint32_t hadSim = before ? before->simId : UINT32_MAX;
-  const RemoteEntity* after = remotes_.update(s, sender, pduTime(pdu.header), sim_.timeS());
-  if (!after && hadSim != UINT32_MAX) sim_.remove(hadSim);  // deactivated
+  const RemoteEntity* known = remotes_.find(s.id);
+  const std::uint32_t hadSim = known ? known->simId : UINT32_MAX;
+  // A copy for depart(): update() erases the entity when the PDU deactivates it.
+  std::optional<RemoteEntity> leaving;
+  if (known && (s.appearance & kAppearanceDeactivated) != 0) leaving = *known;
+  // Null: deactivated, or its location cannot be placed. A stale or
+  // duplicate deactivation comes back as the entity, which stays.
+  if (remotes_.update(s, sender, pduTime(pdu.header), sim_.timeS(), pdu.header.timestamp)) return;
+  if (leaving) depart(*leaving, s, "deactivated");
+  if (hadSim != UINT32_MAX) sim_.remove(hadSim);
 }
 
 void Gateway::depart(const RemoteEntity& r, const dis::EntityState& last, const char* why) {

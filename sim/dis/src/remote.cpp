@@ -13,6 +13,18 @@ dis::Vec3d rotate(const dis::Matrix3& r, const dis::Vec3d& v) {
 
 bool bodyAxes(std::uint8_t algorithm) { return algorithm >= 6 && algorithm <= 9; }
 
+bool finite(const dis::Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const dis::Vec3f& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+/// Every number dead reckoning reads. The decoder takes any bit pattern (a
+/// monitor shows what was sent); a NaN here would become the simulation
+/// entity's position, and grid lookups index with it.
+bool finiteKinematics(const dis::EntityState& s) {
+  return finite(s.location) && finite(s.velocity) && finite(s.deadReckoning.acceleration) &&
+         finite(s.deadReckoning.angularVelocity) && std::isfinite(s.orientation.psi) &&
+         std::isfinite(s.orientation.theta) && std::isfinite(s.orientation.phi);
+}
+
 }  // namespace
 
 sim::Domain domainOf(const dis::EntityType& t) {
@@ -52,8 +64,59 @@ Eigen::Vector3d RemoteEntities::reckoned(RemoteEntity& e, double t) {
   return frameOf(e.anchor, m.position);
 }
 
-RemoteEntity* RemoteEntities::update(const dis::EntityState& s, const dis::Address& sender, double pduS, double nowS) {
+RemoteEntities::Order RemoteEntities::orderOf(const RemoteEntity& e, const dis::EntityState& s,
+                                              std::uint32_t timestamp) const {
+  if (!e.timestamp || dis::timestampAbsolute(*e.timestamp) != dis::timestampAbsolute(timestamp)) return Order::newer;
+  // Time past the hour in 2^31 units a lap: the signed difference, so the
+  // hour turning between two PDUs reads as a step forward.
+  std::int64_t ahead = std::int64_t(timestamp >> 1) - std::int64_t(*e.timestamp >> 1);
+  constexpr std::int64_t lap = std::int64_t(1) << 31;
+  if (ahead >= lap / 2) ahead -= lap;
+  if (ahead < -lap / 2) ahead += lap;
+  if (ahead > 0) return Order::newer;
+  if (ahead == 0) {
+    // The same time: a copy, unless the state differs (a sender that does
+    // not advance its timestamps still moves its entities).
+    const bool same = s.location == e.last.location && s.velocity == e.last.velocity &&
+                      s.orientation == e.last.orientation && s.appearance == e.last.appearance;
+    return same ? Order::duplicate : Order::newer;
+  }
+  if (-double(ahead) * (3600.0 / double(lap)) > options_.staleWindowS) return Order::newer;  // a new clock
+  return Order::stale;
+}
+
+RemoteEntity* RemoteEntities::update(const dis::EntityState& s, const dis::Address& sender, double pduS, double nowS,
+                                     std::optional<std::uint32_t> timestamp) {
   const std::uint64_t k = key(s.id);
+  if (!finiteKinematics(s)) {
+    ++counters_.nonFinite;
+    auto it = entities_.find(k);
+    return it == entities_.end() ? nullptr : &it->second;
+  }
+  if (auto it = entities_.find(k); it != entities_.end()) {
+    if (!(it->second.sender == sender)) {
+      // Another address claims the id (a second simulation given the same
+      // site and application, or a spoof). Applying both would make the
+      // entity jump between them every PDU: the sender that created it
+      // keeps it (the monitor keeps the first owner too) until it falls
+      // silent and the entity times out.
+      ++counters_.conflicts;
+      return &it->second;
+    }
+    // Timestamps are one sender's clock: compared with that sender's only.
+    const Order order = timestamp ? orderOf(it->second, s, *timestamp) : Order::newer;
+    if (order == Order::stale) {
+      ++counters_.stale;
+      return &it->second;
+    }
+    if (order == Order::duplicate) {
+      // A copy proves the sender alive (one that never advances its
+      // timestamps heartbeats a parked entity with copies); an older PDU does not.
+      ++counters_.duplicates;
+      it->second.heardS = nowS;
+      return &it->second;
+    }
+  }
   if ((s.appearance & kAppearanceDeactivated) != 0) {
     if (entities_.erase(k) != 0) ++counters_.removed;
     return nullptr;
@@ -82,7 +145,6 @@ RemoteEntity* RemoteEntities::update(const dis::EntityState& s, const dis::Addre
   }
   ++counters_.pdus;
   if (known) {
-    if (!(e->sender == sender)) ++counters_.conflicts;
     // Figure 91: where the old motion (and any smoothing still running)
     // shows the entity now, against where the new one puts it.
     Eigen::Vector3d shown = reckoned(*e, nowS);
@@ -113,6 +175,7 @@ RemoteEntity* RemoteEntities::update(const dis::EntityState& s, const dis::Addre
   e->last = s;
   e->domain = domainOf(s.type);
   e->heardS = nowS;
+  e->timestamp = timestamp;
   e->offDatabase = false;
   ++e->updates;
   return e;

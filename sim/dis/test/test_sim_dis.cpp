@@ -4,35 +4,17 @@
 // Truth is the publishing simulation's own entity state at every step.
 #include <gtest/gtest.h>
 
-#include <deque>
 #include <memory>
 
-#include "../../core/test/sim_fixture.h"
-#include "sandtable/dis/pdu.h"
-#include "sandtable/sim/simulation.h"
-#include "sandtable/sim/step_host.h"
-#include "sandtable/sim_dis/gateway.h"
+#include "sim_dis_support.h"
 
 namespace sandtable::sim_dis {
 namespace {
 
-// UTM 33N, north-west corner at E 300 km, N 5,600 km (about 12.2 E, 50.5 N).
-DisFrame testFrame() {
-  auto f = geodesy::DatabaseFrame::create("EPSG:32633", 300000.0, 5600000.0);
-  EXPECT_TRUE(f.ok()) << f.error();
-  return DisFrame(f.value());
-}
-
-double horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return Eigen::Vector2d(a.x() - b.x(), a.z() - b.z()).norm();
-}
-
-/// The PDU as a receiver gets it: encoded and decoded (floats rounded).
-dis::EntityState overTheWire(const dis::EntityState& s) {
-  auto pdu = dis::decode(dis::encode(dis::Header{}, s), "test");
-  EXPECT_TRUE(pdu.ok()) << pdu.error();
-  return *pdu->entityState;
-}
+using test::horizontal;
+using test::overTheWire;
+using test::testFrame;
+using test::TwoSims;
 
 TEST(SimDisFrame, anchorsMapNearbyPointsWithinTwoCentimetres) {
   const DisFrame frame = testFrame();
@@ -211,48 +193,12 @@ TEST(SimDisRemote, silenceRemovesAfterTwelveSecondsAndDeactivationAtOnce) {
   EXPECT_EQ(x.remote->counters().conflicts, 1u);
   auto retired = x.publisher.retire(e.id, 14);
   ASSERT_TRUE(retired);
-  EXPECT_EQ(x.remote->update(overTheWire(*retired), {2, 3000}, 14, 14), nullptr);
+  EXPECT_NE(x.remote->update(overTheWire(*retired), {2, 3000}, 14, 14), nullptr);  // not its entity
+  EXPECT_EQ(x.remote->counters().conflicts, 2u);
+  EXPECT_EQ(x.remote->update(overTheWire(*retired), {1, 3000}, 14, 14), nullptr);
   EXPECT_EQ(x.remote->size(), 0u);
   EXPECT_EQ(x.remote->counters().removed, 1u);
 }
-
-/// Two simulations on one flat world, joined by a queue per direction.
-struct TwoSims {
-  std::shared_ptr<sim::SimWorld> world = sim::test::makeWorld([](double, double) { return 100.0; }, 201, 10);
-  sim::Simulation a{world}, b{world};
-  std::deque<dis::Datagram> toA, toB;
-  std::unique_ptr<Gateway> ga, gb;
-  sim::StepHost ha{a}, hb{b};
-
-  TwoSims() {
-    GatewayOptions oa, ob;
-    oa.site = 1;
-    ob.site = 2;
-    oa.remote.blendLandS = ob.remote.blendLandS = 0;
-    ga = std::make_unique<Gateway>(a, testFrame(), oa, drainer(toA), sender(toB));
-    gb = std::make_unique<Gateway>(b, testFrame(), ob, drainer(toB), sender(toA));
-    ga->attach(ha);
-    gb->attach(hb);
-  }
-  static Gateway::Drain drainer(std::deque<dis::Datagram>& q) {
-    return [&q](std::vector<dis::Datagram>& out) {
-      out.assign(q.begin(), q.end());
-      q.clear();
-    };
-  }
-  static Gateway::Send sender(std::deque<dis::Datagram>& q) {
-    return [&q](std::span<const std::byte> bytes) {
-      dis::Datagram d;
-      d.sender = {0x7f000001, 3000};
-      d.bytes.assign(bytes.begin(), bytes.end());
-      q.push_back(std::move(d));
-    };
-  }
-  void step() {
-    ha.step();
-    hb.step();
-  }
-};
 
 TEST(SimDisGateway, aWatcherSeesThePublishersEntitiesWithinTheThreshold) {
   TwoSims t;

@@ -3,7 +3,12 @@
 // owns, known from its Entity State PDUs and dead reckoned between them.
 //
 // Each PDU replaces the entity's motion (dead_reckoning.h: the algorithm
-// the PDU names, from the PDU's time). The jump between where the old
+// the PDU names, from the PDU's time). UDP may reorder and duplicate: a
+// PDU whose timestamp is older than the one applied (stale), or a copy of
+// it (same timestamp, same state: a duplicate), is counted and dropped,
+// since applying it would move the entity back to where it was. The
+// address that created an entity owns it: another address's PDUs for the
+// id are conflicts, counted and dropped, until the entity times out. The jump between where the old
 // motion had it and where the new one puts it is a correction: it snaps
 // (munitions, jumps past snapBeyondM) or is smoothed back over a blend time
 // chosen per domain (Figure 91's smooth-back: the offset shrinks linearly
@@ -37,6 +42,10 @@ struct RemoteOptions {
   double blendMunitionS = 0;
   double snapBeyondM = 100;  ///< a correction longer than this snaps whatever the domain
   double reanchorM = 500;    ///< see frame.h: the linear map is off by ~2 cm at 500 m
+  /// A PDU older than the applied one by more than this is not a late
+  /// arrival (no network holds a datagram that long) but a new clock: the
+  /// sender restarted, or its clock jumped. It is applied.
+  double staleWindowS = 12;
 };
 
 /// The simulator's domain of a DIS entity type (kind 1 platform: domain 1
@@ -60,6 +69,7 @@ struct RemoteEntity {
   dis::Motion motion;      ///< its dead reckoning, valid at motionS
   double motionS = 0;
   double heardS = 0;       ///< when the latest PDU arrived
+  std::optional<std::uint32_t> timestamp;  ///< the applied PDU's header timestamp, when the caller gave it
   Anchor anchor;
   sim::Domain domain = sim::Domain::land;
   Eigen::Vector3d offset = Eigen::Vector3d::Zero();  ///< smooth-back: shrinks to zero
@@ -82,8 +92,11 @@ struct RemoteCounters {
   std::uint64_t corrections = 0;  ///< PDUs for an entity already known
   std::uint64_t snaps = 0, smooths = 0;
   std::uint64_t timedOut = 0, removed = 0;
-  std::uint64_t conflicts = 0;    ///< one entity id from two sender addresses
+  std::uint64_t conflicts = 0;    ///< dropped: a PDU for an id another sender address owns
+  std::uint64_t stale = 0;        ///< dropped: older than the PDU applied (reordered)
+  std::uint64_t duplicates = 0;   ///< dropped: the PDU applied, again
   std::uint64_t unplaceable = 0;  ///< locations PROJ could not bring into the frame
+  std::uint64_t nonFinite = 0;    ///< dropped: a NaN or infinite location, velocity, orientation or rate
   double lastCorrectionM = 0, maxCorrectionM = 0;
 };
 
@@ -93,10 +106,18 @@ class RemoteEntities {
 
   /// Applies an Entity State PDU that arrived at `nowS` and describes the
   /// entity at `pduS` (the caller's clock; equal to nowS when the PDU's
-  /// timestamp cannot be compared with it). Returns the entity, or null
-  /// when its location cannot be placed (counted) or the PDU deactivates
-  /// it (removed, counted).
-  RemoteEntity* update(const dis::EntityState& s, const dis::Address& sender, double pduS, double nowS);
+  /// timestamp cannot be compared with it). `timestamp` is the PDU
+  /// header's: given, a PDU older than the one applied (by up to
+  /// staleWindowS) or a duplicate of it is counted and changes nothing.
+  /// A PDU from another address than the one that created the entity is a
+  /// conflict: counted, and it changes nothing.
+  /// A PDU with a non-finite location, orientation, velocity, acceleration
+  /// or angular velocity is counted and changes nothing. Returns the entity
+  /// (unchanged when the PDU is dropped), or null when the PDU names no
+  /// known entity and is dropped, its location cannot be placed (counted)
+  /// or it deactivates the entity (removed, counted).
+  RemoteEntity* update(const dis::EntityState& s, const dis::Address& sender, double pduS, double nowS,
+                       std::optional<std::uint32_t> timestamp = std::nullopt);
   /// Drops an entity (Remove Entity PDU); false when unknown.
   bool remove(const dis::EntityId& id);
   /// Drops every entity silent for timeoutS at `nowS` and returns them.
@@ -118,6 +139,9 @@ class RemoteEntities {
 
  private:
   double blendFor(sim::Domain d) const;
+  enum class Order { newer, stale, duplicate };
+  /// `s` at `timestamp` against what `e` applied.
+  Order orderOf(const RemoteEntity& e, const dis::EntityState& s, std::uint32_t timestamp) const;
   /// The motion's position at `t` in the frame, without smoothing.
   Eigen::Vector3d reckoned(RemoteEntity& e, double t);
 
