@@ -28,6 +28,7 @@
 #include "sandtable/viewer/sim_session.h"
 #include "sandtable/viewer/video.h"
 #include "sandtable/viewer/x11_window.h"
+#include "dis_link.h"
 #include "sim_setup.h"
 
 namespace sandtable::cli {
@@ -89,6 +90,7 @@ struct FlyArgs {
   std::string attach;
   bool drive = false;
   double simStart = 0;
+  DisArgs dis;  ///< --dis: the stealth viewer on a DIS exercise (watches, publishes nothing)
   CLI::Option* framesOption = nullptr;  ///< to tell an explicit --frames from the default
   CLI::Option* headingOption = nullptr;
   CLI::Option* atOption = nullptr;
@@ -135,6 +137,15 @@ Attached, the arrows bring the eye nearer / farther and orbit it, PageUp /
 PageDown raise / lower it; driving, Up/Down step the commanded speed
 (2.5 m/s), Left/Right turn the commanded heading, PageUp/PageDown an
 aircraft's altitude. stats.json gains `sim` (the summary, as `sandtable sim`).
+
+--dis [ADDR:]PORT makes the viewer a stealth watcher of a DIS exercise
+(docs/DIS.md §11, §13): it publishes nothing; networked entities are drawn with
+their icons (the icon file's dis patterns), turrets, markings over them,
+munition trails and detonation flashes; the map shows them by force and the
+panel PDUs per second, entities tracked, dead-reckoning corrections and
+dropped PDUs. --attach MARKING (or SITE:APP:ENTITY) tethers the eye to a
+networked entity when it appears. Headless, frames keep to the wall clock.
+With --scenario too, the scenario's entities run beside the networked ones.
 
 --map shows the 2-D map (seed Figures 40, 41) in the top-right corner, at
 --map-scale full, half, quarter, eighth or sixteenth of the database.
@@ -427,7 +438,9 @@ std::string checkArgs(const FlyArgs& a) {
     return "--free-flight with --path: a path's heights are above the ground; leave out --free-flight";
   }
   if (a.scenario.empty()) {
-    if (!a.attach.empty()) return "--attach needs --scenario FILE (the entities come from a scenario)";
+    if (!a.attach.empty() && a.dis.endpoint.empty()) {
+      return "--attach needs --scenario FILE or --dis PORT (the entities come from a scenario or the network)";
+    }
     if (a.drive) return "--drive needs --scenario FILE (the entities come from a scenario)";
     if (a.seed) return "--seed needs --scenario FILE (it seeds the scenario's simulation)";
     if (a.simStart != 0) return "--sim-start needs --scenario FILE";
@@ -438,10 +451,31 @@ std::string checkArgs(const FlyArgs& a) {
   return {};
 }
 
+/// The session's side of --dis: remote entities attached to by marking or
+/// DIS id, labelled with their markings, and the network's panel line.
+void watchNetwork(DisLink& link, viewer::SimSessionOptions& so) {
+  so.attachWhenSeen = true;
+  so.labels = true;
+  sim_dis::Gateway* g = link.gateway.get();
+  so.findEntity = [g](const std::string& text) -> std::optional<std::uint32_t> {
+    unsigned site = 0, app = 0, entity = 0;
+    char tail = 0;
+    if (std::sscanf(text.c_str(), "%u:%u:%u%c", &site, &app, &entity, &tail) != 3) return std::nullopt;
+    if (site > 65535 || app > 65535 || entity > 65535) return std::nullopt;
+    const std::uint32_t id = g->simIdOf({std::uint16_t(site), std::uint16_t(app), std::uint16_t(entity)});
+    if (id == UINT32_MAX) return std::nullopt;
+    return id;
+  };
+  so.extraPanel = [&link, last = std::make_shared<std::pair<double, std::uint64_t>>(-1.0, 0)]() {
+    return std::vector<std::string>{disPanelLine(link, *last)};
+  };
+}
+
 /// The scenario's simulation for the session, and the stealth eye's start
 /// near its entities; "" or a usage error (kUsage with the problem printed
 /// when the text is "-").
-std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightOptions& o, FlySessionSettings& ss) {
+std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightOptions& o, FlySessionSettings& ss,
+                          std::unique_ptr<DisLink>& link) {
   auto setup = setUpSimulation(kName, shared, a.scenario, a.seed);
   if (!setup) return "-";
   viewer::SimSessionOptions so;
@@ -449,9 +483,18 @@ std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightO
   so.drive = a.drive;
   so.scenario = a.scenario;
   so.startS = a.simStart;
+  if (!a.dis.endpoint.empty()) {
+    DisArgs watch = a.dis;
+    watch.publish = false;
+    link = openDisLink(kName, shared.manifest(), *setup->sim, watch);
+    if (!link) return "-";
+    watchNetwork(*link, so);
+    ss.realTimeHeadless = true;
+  }
   const std::shared_ptr<sim::SimWorld> world = setup->world;
   auto session = viewer::SimSession::create(std::move(setup->sim), so);
   if (!session) return session.problems().front().message;
+  if (link) link->gateway->attach(session.value()->stepHost());
   const sim::Simulation& s = session.value()->simulation();
   // Unless told where, the stealth eye starts behind the scenario's focus.
   std::optional<std::uint32_t> focus = session.value()->focus();
@@ -512,8 +555,9 @@ int run(FlyArgs& a) {
     return usageError(kName, err);
   }
   FlySessionSettings ss;
-  if (!a.scenario.empty()) {
-    const std::string err = setUpScenario(a, *world, o, ss);
+  std::unique_ptr<DisLink> link;  // outlives the flight: the session's hooks call its gateway
+  if (!a.scenario.empty() || !a.dis.endpoint.empty()) {
+    const std::string err = setUpScenario(a, *world, o, ss, link);
     if (err == "-") return kUsage;  // setUpSimulation printed the problems
     if (!err.empty()) return usageError(kName, err);
   }
@@ -656,6 +700,7 @@ void registerFly(CLI::App& root, Commands& c) {
       ->check(CLI::Range(0.0, 1e6));
   sub->add_flag("--drive", args->drive,
                 "--scenario: drive the scenario's driven entity (or --attach NAME's) from the keys");
+  addDisOptions(sub, args->dis);
   c.add(sub, [args] { return run(*args); });
 }
 

@@ -1,5 +1,6 @@
 #include "dis_link.h"
 
+#include <chrono>
 #include <cstdio>
 
 #include "commands.h"
@@ -59,6 +60,25 @@ std::unique_ptr<DisLink> openDisLink(const std::string& cmd, const manifest::Man
                link->receiver->socket().endpoint().text().c_str(), a.exercise, a.site, a.application,
                a.publish ? "" : " (watching only)");
   return link;
+}
+
+std::string disPanelLine(const DisLink& link, std::pair<double, std::uint64_t>& last) {
+  const sim_dis::GatewayCounters& c = link.gateway->counters();
+  const dis::ReceiverCounters rc = link.receiver->counters();
+  const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  static thread_local double rate = 0;
+  if (last.first < 0) {
+    last = {now, c.pdus};
+  } else if (now - last.first >= 1.0) {
+    rate = double(c.pdus - last.second) / (now - last.first);
+    last = {now, c.pdus};
+  }
+  const std::uint64_t dropped = rc.queueDropped + rc.kernelDropped + c.malformed;
+  char line[200];
+  std::snprintf(line, sizeof line, "DIS %.0f PDU/S  %zu TRACKED  %llu CORRECTIONS  %llu DROPPED", rate,
+                link.gateway->remotes().size(), (unsigned long long)link.gateway->remotes().counters().corrections,
+                (unsigned long long)dropped);
+  return line;
 }
 
 std::string disSummary(const DisLink& link) {

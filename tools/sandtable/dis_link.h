@@ -37,6 +37,9 @@ std::unique_ptr<DisLink> openDisLink(const std::string& cmd, const manifest::Man
                                      const DisArgs& a);
 /// One line on what the gateway did, for the summary.
 std::string disSummary(const DisLink& link);
+/// The panel's line: "DIS 31 PDU/S  40 TRACKED  12 CORRECTIONS  0 DROPPED";
+/// `last` keeps (wall seconds, PDUs) of the previous call for the rate.
+std::string disPanelLine(const DisLink& link, std::pair<double, std::uint64_t>& last);
 /// The same as JSON, with every remote entity tracked at the end, those
 /// that left, and this simulation's own entities where they are now.
 nlohmann::json disJson(const DisLink& link, const sim::Simulation& s);

@@ -13,7 +13,8 @@ namespace sandtable::cli {
 std::optional<SimSetup> setUpSimulation(const std::string& cmd, const paging::World& w,
                                         const std::string& scenario, std::optional<std::uint64_t> seed,
                                         sim::SimOptions options) {
-  auto scen = sim::readScenarioFile(scenario);
+  // No scenario: a simulation with no entities of its own (a DIS watcher).
+  auto scen = scenario.empty() ? Result<sim::Scenario>(sim::Scenario{}) : sim::readScenarioFile(scenario);
   if (!scen) {
     reportProblems(cmd, scen.problems());
     return std::nullopt;

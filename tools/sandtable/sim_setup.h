@@ -20,7 +20,8 @@ struct SimSetup {
 };
 
 /// Reads `scenario` (and its scripts and aircraft files) and places its
-/// entities in `world`. `seed` overrides the scenario's.
+/// entities in `world`. `seed` overrides the scenario's. An empty
+/// `scenario` makes a simulation with no entities (`fly --dis` watching).
 std::optional<SimSetup> setUpSimulation(const std::string& cmd, const paging::World& world,
                                         const std::string& scenario, std::optional<std::uint64_t> seed,
                                         sim::SimOptions options = {});
