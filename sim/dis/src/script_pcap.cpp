@@ -26,6 +26,13 @@ dis::EntityType patternType(const iconpack::DisPattern& p) {
           field(4, d.subcategory), field(5, d.specific), field(6, d.extra)};
 }
 
+/// A bearing in [0, 360) that the writer's "%f" does not print as
+/// 360.000000 (a hair under 360 is north).
+double bearing(double deg) {
+  const double b = sim::wrapDeg(deg);
+  return b >= 360.0 - 5e-7 ? 0.0 : b;
+}
+
 dis::Header headerAt(std::uint8_t exercise, double t) {
   dis::Header h;
   h.exercise = exercise;
@@ -311,7 +318,7 @@ sim::ScriptLine ScriptLogger::lineOf(const Incoming& in, const RemoteState& st, 
   if (!onGround && o_.groundAt) {
     if (auto g = o_.groundAt(p.x(), p.z())) l.aboveGroundLevel = p.y() - *g;
   }
-  l.directionDeg = sim::wrapDeg(st.pose.headingDeg);
+  l.directionDeg = bearing(st.pose.headingDeg);
   const Eigen::Vector2d v(st.velocity.x(), st.velocity.z());
   const Eigen::Vector3d ahead = sim::headingVector(l.directionDeg);
   l.speed = v.norm() * (v.dot(Eigen::Vector2d(ahead.x(), ahead.z())) < 0 ? -1 : 1);
@@ -319,7 +326,7 @@ sim::ScriptLine ScriptLogger::lineOf(const Incoming& in, const RemoteState& st, 
     const auto part = dis::articulatedPart(vp);
     if (!part || part->attachedTo != 0) continue;
     if (part->parameterType == kTurretAzimuth) {
-      l.viewDirectionDeg = sim::wrapDeg(l.directionDeg + part->value * sim::kRadToDeg);
+      l.viewDirectionDeg = bearing(l.directionDeg + part->value * sim::kRadToDeg);
     } else if (part->parameterType == kGunElevation) {
       l.gunElevation = part->value;
     }
