@@ -12,7 +12,6 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/sim/script.h"
-#include "sandtable/sim_dis/script_pcap.h"
 #include "test_support.h"
 
 namespace sandtable::test {
@@ -50,6 +49,22 @@ std::string shell(const std::string& command) {
     ::pclose(p);
   }
   return out;
+}
+
+/// Where a script puts `entity` at `t`, as the simulator plays it (the same
+/// rule as sim_dis::scriptPosition, which this target does not link): the
+/// last line at or before t dead reckoned, held from an Alive_Flag 0 line on.
+std::optional<Eigen::Vector2d> positionAt(const std::vector<sim::ScriptLine>& lines, std::uint32_t entity, double t) {
+  const sim::ScriptLine* last = nullptr;
+  for (const sim::ScriptLine& l : lines) {
+    if (l.timeS > t + sim::kScriptTimeResolutionS / 2) break;
+    if (l.entity != entity) continue;
+    if (last && !last->alive) break;
+    last = &l;
+  }
+  if (!last) return std::nullopt;
+  if (!last->alive) return Eigen::Vector2d(last->x, last->z);
+  return sim::deadReckon(*last, t);
 }
 
 std::size_t lineCount(const std::string& text) { return std::size_t(std::count(text.begin(), text.end(), '\n')); }
@@ -99,8 +114,8 @@ TEST_F(DisScripts, aScriptBecomesACaptureWiresharkReadsAndComesBackWithinTheThre
   for (std::uint32_t entity : {59u, 60u}) {
     double worst = 0;
     for (double t = entity == 59 ? 0 : 5; t <= 200; t += 0.05) {
-      const auto p = sim_dis::scriptPosition(original.value(), entity, t);
-      const auto q = sim_dis::scriptPosition(replayed.value(), entity, t);
+      const auto p = positionAt(original.value(), entity, t);
+      const auto q = positionAt(replayed.value(), entity, t);
       ASSERT_TRUE(p && q) << entity << " at " << t;
       worst = std::max(worst, (*p - *q).norm());
     }
