@@ -2,8 +2,10 @@
 // seed XI.B.2, NPSStealth's "when, who, how often, and what types of
 // packets"). `inspect` reads a capture, `monitor` watches a port live,
 // `record` writes what arrives to a pcap, `play` sends a capture again at
-// its recorded pace. The monitor itself is net/dis's Monitor; this file
-// parses flags, converts coordinates for printing (geodesy) and prints.
+// its recorded pace, `to-script` / `from-script` convert between a capture
+// and a seed Figure 71 script. The monitor itself is net/dis's Monitor and
+// the conversions are sim_dis/script_pcap.h; this file parses flags,
+// converts coordinates for printing (geodesy) and prints.
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,11 +23,16 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "db_util.h"
 #include "sandtable/dis/monitor.h"
 #include "sandtable/dis/orientation.h"
 #include "sandtable/dis/pcap.h"
 #include "sandtable/dis/socket.h"
+#include "sandtable/formats/bytes.h"
+#include "sandtable/formats/dis_icons.h"
 #include "sandtable/geodesy/geodesy.h"
+#include "sandtable/sim/sim_world.h"
+#include "sandtable/sim_dis/script_pcap.h"
 
 namespace sandtable::cli {
 namespace {
@@ -746,6 +753,284 @@ void registerLive(CLI::App& dis, Commands& c) {
   c.add(sub, [p] { return runPlay(*p); });
 }
 
+// ------------------------------------------------- scripts <-> captures
+
+/// What both conversions take from the database: its frame (the CRS and
+/// the grid's north-west corner), its icons and its drawn ground.
+struct ScriptDb {
+  std::shared_ptr<const paging::World> world;
+  std::shared_ptr<sim::SimWorld> sim;
+  std::optional<sim_dis::DisFrame> frame;
+  std::span<const iconpack::Icon> icons() const {
+    return world->icons() ? std::span<const iconpack::Icon>(world->icons()->icons) : std::span<const iconpack::Icon>();
+  }
+  sim_dis::GroundFn ground() const {
+    auto w = sim;
+    return [w](double x, double z) { return w->groundAt(x, z); };
+  }
+};
+
+std::optional<ScriptDb> openScriptDb(const std::string& cmd, const std::string& dir) {
+  ScriptDb db;
+  db.world = openWorldOrReport(cmd, dir);
+  if (!db.world) return std::nullopt;
+  const manifest::Manifest& m = db.world->manifest();
+  auto frame = geodesy::DatabaseFrame::create(m.crsWkt, m.originEasting, m.originNorthing);
+  if (!frame) {
+    usageError(cmd, "DB " + dir + " has no usable coordinate system (scripts are in its frame, DIS is geocentric): " +
+                        frame.message() + "; rebuild the database with a CRS (--crs)");
+    return std::nullopt;
+  }
+  db.frame.emplace(frame.value());
+  auto simWorld = sim::SimWorld::open(*db.world);
+  if (!simWorld) {
+    reportProblems(cmd, simWorld.problems());
+    return std::nullopt;
+  }
+  db.sim = simWorld.value();
+  return db;
+}
+
+bool validRate(double hz) { return hz > 0 && hz <= 10000 && std::isfinite(hz); }
+
+std::string iconText(const sim_dis::EntityMapping& e) { return e.icon.empty() ? "-" : e.icon; }
+
+struct ToScriptArgs {
+  std::string file, db, output;
+  std::optional<int> exercise;
+  std::optional<double> origin;
+  int port = 0;
+  double rate = 60;
+  bool json = false;
+};
+
+int runToScript(const ToScriptArgs& a) {
+  const std::string cmd = "dis to-script";
+  sim_dis::ToScriptOptions o;
+  if (a.exercise) {
+    if (*a.exercise < 0 || *a.exercise > 255) return usageError(cmd, "--exercise must be 0..255");
+    o.exercise = std::uint8_t(*a.exercise);
+  }
+  if (!validRate(a.rate)) return usageError(cmd, "--rate must be above 0 and at most 10000 (samples per second)");
+  if (a.origin && !std::isfinite(*a.origin)) return usageError(cmd, "--origin must be seconds since 1970");
+  if (a.port < 0 || a.port > 65535) return usageError(cmd, "--port must be 0..65535");
+  o.rateHz = a.rate;
+  o.originUnixS = a.origin;
+  dis::PcapReadOptions readOptions;
+  readOptions.port = std::uint16_t(a.port);
+  Warnings warnings;
+  auto capture = dis::readPcap(a.file, &warnings, readOptions);
+  if (!capture) return reportProblems(cmd, capture.problems());
+  for (const Problem& w : warnings) std::fprintf(stderr, "sandtable %s: warning: %s\n", cmd.c_str(), w.str().c_str());
+  auto db = openScriptDb(cmd, a.db);
+  if (!db) return kUsage;
+  o.groundAt = db->ground();
+  auto result = sim_dis::toScript(capture.value(), *db->frame, db->icons(), o);
+  if (!result) return reportProblems(cmd, result.problems());
+  const sim_dis::ToScriptResult& r = result.value();
+  if (r.lines.empty()) {
+    return usageError(cmd, a.file + " holds no Entity State PDU" +
+                               (a.exercise ? " of exercise " + std::to_string(*a.exercise) : std::string()) +
+                               " to make a script of");
+  }
+  const std::string text = "# sandtable dis to-script " + a.file + " (docs/DIS.md §9; format docs/SCRIPTS.md)\n" +
+                           sim::formatScript(r.lines);
+  if (Status st = writeFileAtomic(a.output, std::as_bytes(std::span(text.data(), text.size()))); !st) {
+    return reportProblems(cmd, st.problems());
+  }
+  if (r.malformed > 0) {
+    std::fprintf(stderr, "sandtable %s: warning: %llu malformed PDUs skipped; the first: %s\n", cmd.c_str(),
+                 (unsigned long long)r.malformed, r.firstMalformed.c_str());
+  }
+  if (a.json) {
+    nlohmann::json entities = nlohmann::json::array();
+    for (const sim_dis::EntityMapping& e : r.entities) {
+      entities.push_back({{"id", idText(e.id)}, {"marking", e.marking}, {"type", typeText(e.type)},
+                          {"script_entity", e.scriptEntity}, {"script_type", e.scriptType}, {"icon", e.icon},
+                          {"icon_fallback", e.fallback}, {"entity_states", e.entityStates}, {"lines", e.lines}});
+    }
+    nlohmann::json j = {{"file", a.file}, {"database", a.db}, {"output", a.output}, {"exercise", r.exercise},
+                        {"datagrams", r.datagrams}, {"pdus", r.pdus}, {"entity_states", r.entityStates},
+                        {"fires", r.fires}, {"removes", r.removes}, {"other_exercise", r.otherExercise},
+                        {"other_types", r.otherTypes}, {"malformed", r.malformed},
+                        {"before_origin", r.beforeOrigin}, {"unplaceable", r.unplaceable},
+                        {"timed_out", r.timedOut}, {"renumbered", r.renumbered}, {"lines", r.lines.size()},
+                        {"rate_hz", a.rate}, {"entities", entities}};
+    std::printf("%s\n", j.dump(1).c_str());
+    return kOk;
+  }
+  std::printf("%s: %llu datagrams, %llu PDUs: %llu Entity State (exercise %u), %llu Fire, %llu Remove Entity; "
+              "skipped %llu of other exercises, %llu of other types, %llu malformed, %llu before --origin\n",
+              a.file.c_str(), (unsigned long long)r.datagrams, (unsigned long long)r.pdus,
+              (unsigned long long)r.entityStates, unsigned(r.exercise), (unsigned long long)r.fires,
+              (unsigned long long)r.removes, (unsigned long long)r.otherExercise, (unsigned long long)r.otherTypes,
+              (unsigned long long)r.malformed, (unsigned long long)r.beforeOrigin);
+  std::printf("wrote %s: %zu lines, %zu entities (sampled at %g Hz; %llu timed out)%s\n", a.output.c_str(),
+              r.lines.size(), r.entities.size(), a.rate, (unsigned long long)r.timedOut,
+              r.renumbered ? "; entity numbers 1, 2, ... (two DIS ids share an entity field)" : "");
+  std::vector<std::vector<std::string>> rows = {
+      {"DIS ID", "MARKING", "DIS TYPE", "ENTITY_NUMBER", "ENTITY_TYPE", "ICON", "PDUS", "LINES"}};
+  for (const sim_dis::EntityMapping& e : r.entities) {
+    rows.push_back({idText(e.id), e.marking.empty() ? "-" : e.marking, typeText(e.type),
+                    std::to_string(e.scriptEntity), std::to_string(e.scriptType),
+                    iconText(e) + (e.fallback ? " (fallback)" : ""), std::to_string(e.entityStates),
+                    std::to_string(e.lines)});
+  }
+  printTable(stdout, rows);
+  return kOk;
+}
+
+struct FromScriptArgs {
+  std::string file, db, output;
+  int exercise = 1, site = 1, application = 1;
+  double rate = 60, start = 0;
+  std::vector<std::string> types;
+  bool json = false;
+};
+
+/// --type N=K.D.C.CAT.SUB.SPEC.EXTRA, omitted fields and `*` sent as 0.
+std::optional<std::string> parseTypeFlag(const std::string& text, std::map<std::uint32_t, dis::EntityType>& out) {
+  const auto eq = text.find('=');
+  const std::string bad = "--type \"" + text + "\" must be ENTITY_TYPE=KIND.DOMAIN.COUNTRY.CATEGORY.SUBCATEGORY."
+                          "SPECIFIC.EXTRA, such as 2=1.1.225.1.1.3.0";
+  if (eq == std::string::npos || eq == 0) return bad;
+  std::uint32_t n = 0;
+  for (char c : text.substr(0, eq)) {
+    if (c < '0' || c > '9' || n > 429496729u) return bad;
+    n = n * 10 + std::uint32_t(c - '0');
+  }
+  std::string why;
+  auto p = iconpack::parseDisPattern(text.substr(eq + 1), why);
+  if (!p) return bad + ": " + why;
+  auto field = [&](int k, auto v) { return (p->wild >> k) & 1 ? decltype(v){0} : v; };
+  const iconpack::DisType& d = p->type;
+  out[n] = {field(0, d.kind),        field(1, d.domain),   field(2, d.country), field(3, d.category),
+            field(4, d.subcategory), field(5, d.specific), field(6, d.extra)};
+  return std::nullopt;
+}
+
+int runFromScript(const FromScriptArgs& a) {
+  const std::string cmd = "dis from-script";
+  sim_dis::FromScriptOptions o;
+  if (a.exercise < 1 || a.exercise > 255) return usageError(cmd, "--exercise must be 1 to 255");
+  if (a.site < 1 || a.site > 65534 || a.application < 1 || a.application > 65534) {
+    return usageError(cmd, "--site and --application must be 1 to 65534 (0 and 65535 mean none and all in DIS)");
+  }
+  if (!validRate(a.rate)) return usageError(cmd, "--rate must be above 0 and at most 10000 (samples per second)");
+  if (!(a.start >= 0 && a.start < 4e9)) return usageError(cmd, "--start must be seconds since 1970, 0 or more");
+  for (const std::string& t : a.types) {
+    if (auto bad = parseTypeFlag(t, o.types)) return usageError(cmd, *bad);
+  }
+  o.exercise = std::uint8_t(a.exercise);
+  o.site = std::uint16_t(a.site);
+  o.application = std::uint16_t(a.application);
+  o.rateHz = a.rate;
+  o.startUnixS = a.start;
+  auto lines = sim::readScriptFile(a.file);
+  if (!lines) return reportProblems(cmd, lines.problems());
+  if (lines->empty()) return usageError(cmd, a.file + " has no script lines to publish");
+  auto db = openScriptDb(cmd, a.db);
+  if (!db) return kUsage;
+  o.groundAt = db->ground();
+  auto result = sim_dis::fromScript(lines.value(), *db->frame, db->icons(), o);
+  if (!result) return reportProblems(cmd, result.problems());
+  const sim_dis::FromScriptResult& r = result.value();
+  auto writer = dis::PcapWriter::create(a.output);
+  if (!writer) return reportProblems(cmd, writer.problems());
+  for (const dis::Datagram& d : r.datagrams) {
+    if (Status st = writer->write(d); !st) return reportProblems(cmd, st.problems());
+  }
+  if (Status st = writer->close(); !st) return reportProblems(cmd, st.problems());
+  for (const sim_dis::EntityMapping& e : r.entities) {
+    if (e.fallback) {
+      std::fprintf(stderr,
+                   "sandtable %s: warning: Entity_Type %u has no DIS type (no --type, and icon %u %s): entity %u "
+                   "goes out as 1.1.0.0.0.0.0 (a land platform)\n",
+                   cmd.c_str(), e.scriptType, e.scriptType,
+                   e.icon.empty() ? "is not in the database" : ("\"" + e.icon + "\" has no dis pattern").c_str(),
+                   e.scriptEntity);
+    }
+  }
+  auto typeFrom = [](const sim_dis::EntityMapping& e) {
+    return e.fallback ? "default" : e.typeByIcon ? "icon" : "--type";
+  };
+  if (a.json) {
+    nlohmann::json entities = nlohmann::json::array();
+    for (const sim_dis::EntityMapping& e : r.entities) {
+      entities.push_back({{"script_entity", e.scriptEntity}, {"script_type", e.scriptType}, {"id", idText(e.id)},
+                          {"type", typeText(e.type)}, {"type_from", typeFrom(e)}, {"icon", e.icon},
+                          {"marking", e.marking}, {"lines", e.lines}, {"entity_states", e.entityStates}});
+    }
+    nlohmann::json j = {{"file", a.file}, {"database", a.db}, {"output", a.output},
+                        {"datagrams", r.datagrams.size()}, {"entity_states", r.entityStates}, {"fires", r.fires},
+                        {"removes", r.removes}, {"unplaceable", r.unplaceable}, {"end_s", r.endS},
+                        {"rate_hz", a.rate}, {"exercise", a.exercise}, {"entities", entities}};
+    std::printf("%s\n", j.dump(1).c_str());
+    return kOk;
+  }
+  std::printf("%s: %zu lines, %zu entities, 0 to %s s\n", a.file.c_str(), lines->size(), r.entities.size(),
+              fixed(r.endS, 3).c_str());
+  std::printf("wrote %s: %zu datagrams (%llu Entity State, %llu Fire, %llu Remove Entity PDUs), exercise %d, "
+              "from %s to %s; %llu states off the frame\n",
+              a.output.c_str(), r.datagrams.size(), (unsigned long long)r.entityStates,
+              (unsigned long long)r.fires, (unsigned long long)r.removes, a.exercise, o.sender.text().c_str(),
+              o.destination.text().c_str(), (unsigned long long)r.unplaceable);
+  std::vector<std::vector<std::string>> rows = {
+      {"ENTITY_NUMBER", "ENTITY_TYPE", "DIS ID", "DIS TYPE", "FROM", "ICON", "LINES", "PDUS"}};
+  for (const sim_dis::EntityMapping& e : r.entities) {
+    rows.push_back({std::to_string(e.scriptEntity), std::to_string(e.scriptType), idText(e.id), typeText(e.type),
+                    typeFrom(e), iconText(e), std::to_string(e.lines), std::to_string(e.entityStates)});
+  }
+  printTable(stdout, rows);
+  return kOk;
+}
+
+void registerScripts(CLI::App& dis, Commands& c) {
+  auto t = std::make_shared<ToScriptArgs>();
+  auto* sub = dis.add_subcommand("to-script", "Convert a capture's Entity State PDUs into a script (seed Figure 71)");
+  sub->footer(
+      "Each entity is dead reckoned between its PDUs and sampled at --rate; a script line is kept by the script\n"
+      "recorder's rule. Positions are in DB's frame (x east, z south of its north-west corner); Entity_Number is\n"
+      "the DIS entity field, Entity_Type the icon DB draws the DIS type with (docs/DIS.md §9).\n"
+      "Examples:\n"
+      "  sandtable dis to-script exercise.pcap db -o exercise.script\n"
+      "  sandtable dis to-script exercise.pcap db -o exercise.script --exercise 3 --json");
+  sub->add_option("FILE", t->file, "Capture file (pcap or pcapng)")->required();
+  sub->add_option("DB", t->db, "Database directory (its CRS and origin set the script's frame)")->required();
+  sub->add_option("-o,--output", t->output, "The script to write")->required();
+  sub->add_option("--exercise", t->exercise, "Only this exercise (0..255; default: the first Entity State PDU's)");
+  sub->add_option("--port", t->port, "Only UDP datagrams to this port (default: every port)");
+  sub->add_option("--rate", t->rate, "Samples per second between PDUs (default 60)");
+  sub->add_option("--origin", t->origin,
+                  "Capture time (seconds since 1970) of script time 0 (default: the first packet's)");
+  sub->add_flag("--json", t->json, "Print the summary and the id and type mapping as JSON");
+  c.add(sub, [t] { return runToScript(*t); });
+
+  auto f = std::make_shared<FromScriptArgs>();
+  sub = dis.add_subcommand("from-script", "Convert a script (seed Figure 71) into a capture of Entity State PDUs");
+  sub->footer(
+      "The script is played at --rate and each entity published as `sim --dis` would: an Entity State PDU when\n"
+      "its dead-reckoned copy passes 1 m or 3 degrees, at least every 5 s; a Fire PDU per Fire_Flag; a\n"
+      "deactivating PDU and a Remove Entity PDU per entity at the script's end. One PDU per datagram from\n"
+      "127.0.0.1:3000 to 127.255.255.255:3000, stamped --start + the script's time (docs/DIS.md §9).\n"
+      "Examples:\n"
+      "  sandtable dis from-script samples/demo.script db -o demo.pcap\n"
+      "  sandtable dis from-script run.script db -o run.pcap --type 2=1.1.225.1.1.3.0 --site 5");
+  sub->add_option("FILE", f->file, "Script file (docs/SCRIPTS.md)")->required();
+  sub->add_option("DB", f->db, "Database directory (its CRS and origin place the script's frame)")->required();
+  sub->add_option("-o,--output", f->output, "The pcap file to write")->required();
+  sub->add_option("--exercise", f->exercise, "DIS exercise id, 1-255 (default 1)");
+  sub->add_option("--site", f->site, "DIS site number, 1-65534 (default 1)");
+  sub->add_option("--application", f->application, "DIS application number, 1-65534 (default 1)");
+  sub->add_option("--rate", f->rate, "Samples per second the publisher is offered (default 60)");
+  sub->add_option("--start", f->start, "Capture time of script time 0, seconds since 1970 (default 0)");
+  sub->add_option("--type", f->types,
+                  "ENTITY_TYPE=K.D.C.CAT.SUB.SPEC.EXTRA: the DIS type of a script Entity_Type (default: the DB "
+                  "icon's first dis pattern); repeatable");
+  sub->add_flag("--json", f->json, "Print the summary and the id and type mapping as JSON");
+  c.add(sub, [f] { return runFromScript(*f); });
+}
+
 }  // namespace
 
 void registerDis(CLI::App& root, Commands& c) {
@@ -753,6 +1038,7 @@ void registerDis(CLI::App& root, Commands& c) {
   dis->require_subcommand(1);
   registerInspect(*dis, c);
   registerLive(*dis, c);
+  registerScripts(*dis, c);
 }
 
 }  // namespace sandtable::cli
