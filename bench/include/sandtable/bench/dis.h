@@ -2,6 +2,10 @@
 // The DIS benchmark (`sandtable bench dis`; docs/DIS.md §12): the issue's
 // network figures, each beside a baseline measured in the same run.
 //
+// Timing: the one-core parts (1, 3, 5) count the measuring thread's CPU
+// time (CLOCK_THREAD_CPUTIME_ID), so that a shared machine charges them
+// only for the time they ran; the loopback part counts wall time.
+//
 // 1. Memory: a pre-encoded stream of Entity State PDUs (one per datagram,
 //    two articulation parameters each) for `entities` remote entities,
 //    `pdusPerEntity` each, applied by a sim_dis::Gateway over a Simulation
