@@ -64,8 +64,9 @@ void printHuman(const nlohmann::json& j) {
   }
   std::printf("\n4. Table 9: PDUs and receivers' position error (errors at 10 Hz; land FPW 2, aircraft as named)\n");
   for (const auto& e : j["table9"]["exercises"]) {
-    std::printf("   %u entities (%u aircraft), %.0f s:\n", e["entities"].get<unsigned>(), e["air_entities"].get<unsigned>(),
-                d(e, "seconds"));
+    std::printf("   %u entities (%u aircraft), %.0f s, %llu entity collisions:\n", e["entities"].get<unsigned>(),
+                e["air_entities"].get<unsigned>(), d(e, "seconds"),
+                (unsigned long long)e["entity_collisions"].get<std::uint64_t>());
     std::printf("     %-22s %10s %9s %10s %10s %10s %10s\n", "sending", "PDUs/s", "/entity/s", "mean m", "max m",
                 "air mean", "air max");
     for (const auto& c : e["error_based"]) {
