@@ -66,7 +66,7 @@ TEST(Cli, helpForEverySubcommand) {
   const auto bench = runCli({"bench", "--help"});
   EXPECT_EQ(bench.exitCode, 0);
   const auto benches = subcommandsIn(bench.out);
-  for (const char* known : {"build", "make-db", "modules", "paging", "render"}) {
+  for (const char* known : {"build", "make-db", "modules", "paging", "render", "sim", "dis"}) {
     EXPECT_NE(std::find(benches.begin(), benches.end(), known), benches.end()) << known << " in\n" << bench.out;
   }
   for (const auto& b : benches) expectHelp({"bench", b});

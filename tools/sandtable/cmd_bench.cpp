@@ -62,6 +62,7 @@ void registerBench(CLI::App& root, Commands& c) {
   registerBenchPaging(*bench, c);
   registerBenchMakeDb(*bench, c);
   registerBenchSim(*bench, c);
+  registerBenchDis(*bench, c);
 }
 
 }  // namespace sandtable::cli

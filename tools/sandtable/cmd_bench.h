@@ -35,5 +35,6 @@ void registerBenchRender(CLI::App& bench, Commands& c);
 void registerBenchPaging(CLI::App& bench, Commands& c);
 void registerBenchMakeDb(CLI::App& bench, Commands& c);
 void registerBenchSim(CLI::App& bench, Commands& c);
+void registerBenchDis(CLI::App& bench, Commands& c);
 
 }  // namespace sandtable::cli
