@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <tuple>
 
 #include "icon_textures.h"
 #include "module_draw.h"
@@ -559,7 +560,20 @@ void EntityRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
 
 void EntityRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   if (stream_.empty()) return;
-  glNamedBufferData(instanceBuffer_, GLsizeiptr(stream_.size() * sizeof(EntityInstanceGpu)), stream_.data(),
+  // Instances of one group (one icon state's body, turret or gun) side by
+  // side, so that each group is one instanced draw however many entities
+  // show it; the untextured program's first. Stable: equal groups keep
+  // the order the entities came in.
+  order_.resize(stream_.size());
+  for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = std::uint32_t(k);
+  const auto key = [&](std::uint32_t k) {
+    const Draw& d = draws_[k];
+    return std::tuple(d.textured, d.range.baseVertex, d.range.firstIndex);
+  };
+  std::stable_sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
+  sorted_.clear();
+  for (const std::uint32_t k : order_) sorted_.push_back(stream_[k]);
+  glNamedBufferData(instanceBuffer_, GLsizeiptr(sorted_.size() * sizeof(EntityInstanceGpu)), sorted_.data(),
                     GL_STREAM_DRAW);
   glVertexArrayVertexBuffer(vao_, 1, instanceBuffer_, 0, sizeof(EntityInstanceGpu));
   for (const GlProgram* p : {&program_, &texturedProgram_}) {
@@ -576,18 +590,22 @@ void EntityRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix
   glDisable(GL_CULL_FACE);  // imported models need not be closed
   glBindVertexArray(vao_);
   const GlProgram* current = nullptr;
-  for (std::size_t k = 0; k < draws_.size(); ++k) {
-    const Draw& d = draws_[k];
+  for (std::size_t first = 0; first < order_.size();) {
+    std::size_t last = first + 1;
+    while (last < order_.size() && key(order_[last]) == key(order_[first])) ++last;
+    const Draw& d = draws_[order_[first]];
     const GlProgram* wanted = d.textured && textures_ != 0 ? &texturedProgram_ : &program_;
     if (wanted != current) {
       wanted->use();
       current = wanted;
     }
+    const auto instances = GLsizei(last - first);
     glDrawElementsInstancedBaseVertexBaseInstance(
         GL_TRIANGLES, GLsizei(d.range.count), GL_UNSIGNED_INT,
-        reinterpret_cast<const void*>(std::uintptr_t(d.range.firstIndex) * sizeof(std::uint32_t)), 1,
-        d.range.baseVertex, GLuint(k));
-    stats.entityTriangles += d.range.count / 3;
+        reinterpret_cast<const void*>(std::uintptr_t(d.range.firstIndex) * sizeof(std::uint32_t)), instances,
+        d.range.baseVertex, GLuint(first));
+    stats.entityTriangles += std::uint64_t(d.range.count / 3) * std::uint64_t(instances);
+    first = last;
   }
   glBindVertexArray(0);
 }

@@ -22,7 +22,8 @@
 // X at its trunnion (in the turret's frame), turns it with the turret about
 // Y at the ring (the hull's gun does not turn), then rotates by the
 // quaternion (full pitch, roll and heading, where static objects take a
-// heading only). One draw per group of each entity.
+// heading only). Instances are sorted by group: one instanced draw per
+// (icon state, group) in view, however many entities show it.
 //
 // Ground. An instance marked onSurface stands on the finest surface (the
 // simulator's); it is moved by the difference between the surface drawn
@@ -174,8 +175,10 @@ class EntityRenderer {
     IconLevelRange range;
     bool textured = false;
   };
-  std::vector<Draw> draws_;
-  std::vector<EntityInstanceGpu> stream_;
+  std::vector<Draw> draws_;                ///< per instance of stream_: its group
+  std::vector<EntityInstanceGpu> stream_;  ///< in the order the entities came
+  std::vector<std::uint32_t> order_;       ///< stream_ sorted by group
+  std::vector<EntityInstanceGpu> sorted_;  ///< what is uploaded: stream_ in order_
   std::vector<EffectVertex> shadowVertices_, trailVertices_, flashVertices_;
   std::vector<std::array<float, 6>> footprint_;  ///< per icon (EntityMeshes::footprint)
 };
