@@ -352,15 +352,23 @@ void addTankHull(Shape& s) {
           -1.75f, 1.75f);
 }
 
-/// Turret (a hexagonal prism narrowing to the front), mantlet, a 4 m gun
-/// barrel and a cupola; its origin is the turret ring's centre on the roof.
+/// Turret (a hexagonal prism narrowing to the front) and a cupola; its
+/// origin is the turret ring's centre on the roof. The gun is apart
+/// (addTankGun), so that it can elevate.
 void addTankTurret(Shape& s) {
   const std::uint32_t armour = s.material("armour", kOlive);
   s.prism(armour, Axis::y, {{-0.9f, -1.9f}, {0.9f, -1.9f}, {1.4f, -0.8f}, {1.4f, 1.6f}, {-1.4f, 1.6f}, {-1.4f, -0.8f}},
           0.0f, 0.7f);
+  s.cylinder(armour, Axis::y, {0.6f, 0.6f}, 0.35f, 0.7f, 0.9f, 8);
+}
+
+/// The mantlet and a 4 m gun barrel, written in the turret's frame (the
+/// barrel's axis 0.4 m up, its muzzle at z = -6.0); kTankGunTrunnion, on
+/// that axis at the turret's front face, is where it elevates.
+void addTankGun(Shape& s) {
+  const std::uint32_t armour = s.material("armour", kOlive);
   s.box(armour, {-0.35f, 0.15f, -2.1f}, {0.35f, 0.65f, -1.85f});
   s.cylinder(armour, Axis::z, {0.0f, 0.4f}, 0.12f, -6.0f, -2.0f, 8);
-  s.cylinder(armour, Axis::y, {0.6f, 0.6f}, 0.35f, 0.7f, 0.9f, 8);
 }
 
 Model tankHullModel() {
@@ -375,11 +383,20 @@ Model tankTurretModel() {
   return s.finish();
 }
 
+/// The gun in its own frame: the trunnion at the origin.
+Model tankGunModel() {
+  Shape s("builtin:tank-gun");
+  s.moveTo({-kTankGunTrunnion[0], -kTankGunTrunnion[1], -kTankGunTrunnion[2]});
+  addTankGun(s);
+  return s.finish();
+}
+
 Model tankModel() {
   Shape s("builtin:tank");
   addTankHull(s);
   s.moveTo({0, kTankTurretRingHeight, 0});
   addTankTurret(s);
+  addTankGun(s);
   return s.finish();
 }
 
@@ -569,12 +586,13 @@ Model stumpModel() {
   return s.finish();
 }
 
-constexpr std::array<BuiltinModel, 14> kBuiltins{{
+constexpr std::array<BuiltinModel, 15> kBuiltins{{
     {"builtin:tree", true, treeModel},
     {"builtin:stump", true, stumpModel},
     {"builtin:tank", false, tankModel},
     {"builtin:tank-hull", false, tankHullModel},
     {"builtin:tank-turret", false, tankTurretModel},
+    {"builtin:tank-gun", false, tankGunModel},
     {"builtin:truck", false, truckModel},
     {"builtin:jeep", false, jeepModel},
     {"builtin:boat", false, boatModel},

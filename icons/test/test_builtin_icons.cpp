@@ -41,11 +41,14 @@ const std::vector<Expected>& expected() {
   static const std::vector<Expected> e{
       // 8-sided cylinder: radius 0.25 (corners at 0, 90, 180, 270 degrees), 0 to 0.8 m.
       {"builtin:stump", 28, {-0.25, 0, -0.25}, {0.25, 0.8, 0.25}},
-      // Hull 2 x 20 (hexagonal tracks) + 12 + 12; turret 20 + 12 + 28 + 28. Barrel tip at z -6,
+      // Hull 2 x 20 (hexagonal tracks) + 12 + 12; turret 20 + 28; gun 12 + 28. Barrel tip at z -6,
       // cupola top 1.6 + 0.9, tracks and hull +-1.75 wide, 3.5 m behind.
       {"builtin:tank", 152, {-1.75, 0, -6.0}, {1.75, 2.5, 3.5}},
       {"builtin:tank-hull", 64, {-1.75, 0, -3.5}, {1.75, 1.6, 3.5}},
-      {"builtin:tank-turret", 88, {-1.4, 0, -6.0}, {1.4, 0.9, 1.6}},
+      {"builtin:tank-turret", 48, {-1.4, 0, -1.9}, {1.4, 0.9, 1.6}},
+      // The mantlet (0.7 x 0.5 x 0.25, from 0.2 ahead of the trunnion to 0.05 behind) and the
+      // barrel from 0.1 to 4.1 m ahead, both about the trunnion (0, 0.4, -1.9 of the turret).
+      {"builtin:tank-gun", 40, {-0.35, -0.25, -4.1}, {0.35, 0.25, 0.05}},
       {"builtin:truck", 11 * 12, {-1.25, 0, -3.5}, {1.25, 3.0, 3.5}},
       {"builtin:jeep", 6 * 12, {-0.85, 0, -1.7}, {0.85, 1.5, 1.7}},
       // Loft: 2 x (7 - 2) caps + 2 x 7 sides; 6 boxes; mast top at 9 m.
@@ -116,9 +119,9 @@ TEST(BuiltinModels, everyNameLoadsAndTheTreeIsTheTreeModel) {
   std::vector<std::string> names;
   for (const BuiltinModel& b : builtinModels()) names.emplace_back(b.name);
   EXPECT_EQ(names, (std::vector<std::string>{"builtin:tree", "builtin:stump", "builtin:tank", "builtin:tank-hull",
-                                             "builtin:tank-turret", "builtin:truck", "builtin:jeep", "builtin:boat",
-                                             "builtin:jet", "builtin:missile", "builtin:wreck", "builtin:house",
-                                             "builtin:ruins", "builtin:rock"}));
+                                             "builtin:tank-turret", "builtin:tank-gun", "builtin:truck", "builtin:jeep",
+                                             "builtin:boat", "builtin:jet", "builtin:missile", "builtin:wreck",
+                                             "builtin:house", "builtin:ruins", "builtin:rock"}));
   for (const std::string& n : names) {
     const auto m = builtinModel(n);
     ASSERT_TRUE(m) << n;
@@ -175,10 +178,10 @@ TEST(BuiltinModels, trianglesAndBoundsAreTheHandWorkedOnes) {
   EXPECT_EQ(triangles(rock.value()), triangles(builtinModel("builtin:rock").value()));  // the same rock every time
 }
 
-TEST(BuiltinModels, theTankIsItsHullWithTheTurretOnTheRoof) {
+TEST(BuiltinModels, theTankIsItsHullWithTheTurretOnTheRoofAndTheGunOnTheTurret) {
   const auto tank = builtinModel("builtin:tank"), hull = builtinModel("builtin:tank-hull"),
-             turret = builtinModel("builtin:tank-turret");
-  ASSERT_TRUE(tank && hull && turret);
+             turret = builtinModel("builtin:tank-turret"), gun = builtinModel("builtin:tank-gun");
+  ASSERT_TRUE(tank && hull && turret && gun);
   auto sorted = [](std::vector<std::array<V3, 3>> t) {
     std::sort(t.begin(), t.end());
     return t;
@@ -186,6 +189,12 @@ TEST(BuiltinModels, theTankIsItsHullWithTheTurretOnTheRoof) {
   std::vector<std::array<V3, 3>> joined = triangles(hull.value());
   for (auto t : triangles(turret.value())) {
     for (V3& c : t) c[1] += double(kTankTurretRingHeight);
+    joined.push_back(t);
+  }
+  for (auto t : triangles(gun.value())) {
+    for (V3& c : t) {
+      for (int a = 0; a < 3; ++a) c[a] += double(kTankGunTrunnion[a]) + (a == 1 ? double(kTankTurretRingHeight) : 0.0);
+    }
     joined.push_back(t);
   }
   const auto a = sorted(triangles(tank.value())), b = sorted(joined);
@@ -197,6 +206,10 @@ TEST(BuiltinModels, theTankIsItsHullWithTheTurretOnTheRoof) {
   }
   EXPECT_FLOAT_EQ(kTankTurretRingHeight, 1.6f);
   EXPECT_FLOAT_EQ(hull->bounds.max[1], kTankTurretRingHeight);  // the turret sits on the roof
+  // The trunnion on the barrel's axis at the turret's front face.
+  EXPECT_EQ(kTankGunTrunnion, (std::array<float, 3>{0.0f, 0.4f, -1.9f}));
+  EXPECT_FLOAT_EQ(turret->bounds.min[2], kTankGunTrunnion[2]);
+  EXPECT_NEAR(0.5 * (gun->bounds.min[1] + gun->bounds.max[1]), 0, 1e-6);
 }
 
 /// The vertex of a model with the most negative z.
@@ -259,9 +272,13 @@ TEST(BuiltinModels, normalsAreUnitAndOutwardOnClosedSolids) {
     if (b.name == "builtin:tree") continue;  // its trunk is an open tube (TreeModel tests it)
     SCOPED_TRACE(std::string(b.name));
     const Model m = b.make();
-    EXPECT_NEAR(m.bounds.min[1], 0, 1e-6);  // stands on the ground
+    // Stands on the ground, but for the gun: its origin is its trunnion.
+    if (b.name != "builtin:tank-gun") {
+      EXPECT_NEAR(m.bounds.min[1], 0, 1e-6);
+    }
     EXPECT_NEAR(0.5 * (m.bounds.min[0] + m.bounds.max[0]), 0, 1e-5);  // centred on its footprint
-    if (b.name != "builtin:tank" && b.name != "builtin:tank-turret") {  // the gun overhangs the hull
+    // The gun overhangs the hull; the turret narrows to the front.
+    if (b.name != "builtin:tank" && b.name != "builtin:tank-turret" && b.name != "builtin:tank-gun") {
       EXPECT_NEAR(0.5 * (m.bounds.min[2] + m.bounds.max[2]), 0, 1e-5);
     }
     const auto tris = triangles(m);
@@ -351,6 +368,7 @@ TEST(BuiltinIcons, namesResolveOnModelDeadAndComponentLines) {
   const std::string text =
       "sandtable-icons 1\n"
       "icon tank\n  model builtin:tank-hull\n  component turret builtin:tank-turret offset=0,1.6,0\n"
+      "  component gun builtin:tank-gun offset=0,0.4,-1.9 parent=turret\n"
       "  dead builtin:wreck\n  component hatch builtin:rock offset=0,1.25,0 state=dead\n"
       "icon house\n  model builtin:house\n  dead builtin:ruins\n  lod 1\n";
   auto r = buildText(text);
@@ -358,10 +376,13 @@ TEST(BuiltinIcons, namesResolveOnModelDeadAndComponentLines) {
   const iconpack::Icon* tank = find(r.value(), "tank");
   const iconpack::Icon* house = find(r.value(), "house");
   ASSERT_TRUE(tank && house);
-  ASSERT_EQ(tank->parts.size(), 4u);  // hull, turret; wreck, its component
+  ASSERT_EQ(tank->parts.size(), 5u);  // hull, turret, gun; wreck, its component
   EXPECT_EQ(tank->parts[1].name, "turret");
   EXPECT_EQ(tank->parts[1].offset, (std::array<float, 3>{0, 1.6f, 0}));
-  EXPECT_EQ(tank->parts[2].state, iconpack::State::dead);
+  EXPECT_EQ(tank->parts[2].name, "gun");
+  EXPECT_EQ(tank->parts[2].parent, 1);
+  EXPECT_EQ(tank->parts[2].offset, kTankGunTrunnion);
+  EXPECT_EQ(tank->parts[3].state, iconpack::State::dead);
   EXPECT_EQ(iconpack::triangleCount(*tank, 0), 152u);
   EXPECT_EQ(iconpack::triangleCount(*tank, 0, iconpack::State::dead), 36u + 80u);
   // The articulated tank's alive bounds are the one-piece tank's; a vehicle keeps its foot.
@@ -410,8 +431,12 @@ TEST(BuiltinIcons, theSampleFileBuildsEveryIconWithoutWarnings) {
   ASSERT_EQ(tank.dis.size(), 4u);
   EXPECT_EQ(tank.dis[0], (iconpack::DisPattern{{1, 1, 225, 1, 1, 3, 0}, 0}));
   EXPECT_EQ(iconpack::disText(tank.dis[1]), "1.1.*.1");
-  ASSERT_GE(tank.parts.size(), 3u);
+  ASSERT_GE(tank.parts.size(), 4u);
   EXPECT_EQ(tank.parts[1].name, "turret");
+  EXPECT_EQ(tank.parts[2].name, "gun");  // on the turret, at its trunnion
+  EXPECT_EQ(tank.parts[2].parent, 1);
+  EXPECT_EQ(tank.parts[2].offset, kTankGunTrunnion);
+  EXPECT_EQ(iconpack::triangleCount(tank, 0), 152u);  // the one-piece tank's
   EXPECT_EQ(iconpack::triangleCount(tank, 0, iconpack::State::dead), 36u);
   EXPECT_TRUE(find(p, "truck")->resupply && !find(p, "truck")->armed);
   EXPECT_TRUE(!find(p, "jeep")->armed && !find(p, "jeep")->resupply);

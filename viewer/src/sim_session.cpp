@@ -238,6 +238,14 @@ float SimSession::turretOf(const sim::Entity& e) const {
   return float(sim::turnBetween(e.headingDeg, e.gunAzimuthDeg));
 }
 
+float SimSession::gunOf(const sim::Entity& e) {
+  // Unlike the azimuth, the elevation is relative to the hull and its 0 is
+  // the gun's rest (level): no "aimed" guard is needed, an entity that
+  // never set it shows its gun level. A non-finite value (a hostile PDU's
+  // float) draws level rather than poisoning the vertex stage.
+  return std::isfinite(e.gunElevationDeg) ? float(e.gunElevationDeg) : 0.0f;
+}
+
 void SimSession::fill(scene::DynamicScene& out) const {
   out.clear();
   const double now = sim_->timeS();
@@ -263,6 +271,7 @@ void SimSession::fill(scene::DynamicScene& out) const {
     const Eigen::Quaterniond q = e.orientation().normalized();
     d.orientation = {float(q.x()), float(q.y()), float(q.z()), float(q.w())};
     d.turretAzimuthDeg = turretOf(e);
+    d.gunElevationDeg = gunOf(e);
     d.force = e.force;
     out.instances.push_back(d);
   }

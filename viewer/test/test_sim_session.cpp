@@ -110,7 +110,7 @@ std::unique_ptr<SimSession> session(std::unique_ptr<sim::Simulation> s, SimSessi
   return r.ok() ? std::move(r.value()) : nullptr;
 }
 
-TEST(SimSession, instancesCarryTheOrientationAndTheTurretRelativeToTheHull) {
+TEST(SimSession, instancesCarryTheOrientationTheTurretRelativeToTheHullAndTheGunsElevation) {
   auto s = session(twoTanks());
   sim::Simulation& sim = s->simulation();
   // A tank that never aimed keeps its turret forward, whatever its heading.
@@ -124,6 +124,14 @@ TEST(SimSession, instancesCarryTheOrientationAndTheTurretRelativeToTheHull) {
   s->sample();
   s->fill(d);
   EXPECT_NEAR(d.instances[1].turretAzimuthDeg, -30, 1e-4);
+  // The gun's elevation is drawn as it is, aimed or not: its 0 is level.
+  EXPECT_FLOAT_EQ(d.instances[0].gunElevationDeg, 0);
+  sim.entity(0).gunElevationDeg = 12.5;
+  sim.entity(1).gunElevationDeg = std::nan("");  // a hostile PDU's float draws level
+  s->fill(d);
+  EXPECT_FLOAT_EQ(d.instances[0].gunElevationDeg, 12.5f);
+  EXPECT_FLOAT_EQ(d.instances[0].turretAzimuthDeg, 0);  // elevating is not aiming
+  EXPECT_FLOAT_EQ(d.instances[1].gunElevationDeg, 0);
   // The orientation is the entity's own quaternion, pitch and roll included.
   const Eigen::Quaterniond q = sim::orientationOf(40, 10, -5);
   sim.entity(0).headingDeg = 40;

@@ -4,7 +4,9 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
+#include <tuple>
 
 #include "icon_textures.h"
 #include "module_draw.h"
@@ -14,8 +16,11 @@
 namespace sandtable::render::detail {
 namespace {
 
-// Appended to shadingVertexGlsl(). The turret (aPivot.w != 0) turns about
-// Y at its ring; then the quaternion takes the body to the world.
+// Appended to shadingVertexGlsl(). The gun (aGun.w != 0) pitches about X
+// at its trunnion, in the turret's frame; the turret (aPivot.w != 0) turns
+// about Y at its ring; then the quaternion takes the body to the world.
+// Zero angles and pivots leave a vertex exactly as it was (cos 0 = 1,
+// sin 0 = 0): the body and the turret draw as they did before the gun.
 const char* kEntityVertexMain = R"(
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
@@ -25,6 +30,7 @@ layout(location = 4) in vec4 aRotation;  // body to world quaternion (x, y, z, w
 layout(location = 5) in vec2 aUv;
 layout(location = 6) in float aLayer;
 layout(location = 7) in vec4 aPivot;     // turret ring x, y, z (body frame) and angle (radians)
+layout(location = 8) in vec4 aGun;       // gun trunnion x, y, z (turret frame) and elevation (radians)
 uniform mat4 uViewProjection;
 uniform vec3 uEye;
 out vec3 vColour;
@@ -41,10 +47,16 @@ vec3 turnY(vec3 v, float a) {
   float c = cos(a), s = sin(a);
   return vec3(v.x * c - v.z * s, v.y, v.x * s + v.z * c);
 }
+// Up for a positive angle, as an elevation raises the muzzle (forward -Z to +Y).
+vec3 pitchX(vec3 v, float a) {
+  float c = cos(a), s = sin(a);
+  return vec3(v.x, v.y * c - v.z * s, v.y * s + v.z * c);
+}
 void main() {
-  vec3 body = turnY(aPosition, aPivot.w) + aPivot.xyz;
+  vec3 turret = pitchX(aPosition, aGun.w) + aGun.xyz;
+  vec3 body = turnY(turret, aPivot.w) + aPivot.xyz;
   vec3 w = rotateQ(aRotation, body * aPlace.w) + aPlace.xyz;
-  vec3 n = rotateQ(aRotation, turnY(aNormal, aPivot.w));
+  vec3 n = rotateQ(aRotation, turnY(pitchX(aNormal, aGun.w), aPivot.w));
   gl_Position = uViewProjection * vec4(w, 1.0);
   vColour = aColour.rgb;
   vLight = sunLight(n);
@@ -116,46 +128,77 @@ void main() {
 }
 )";
 
-bool isTurret(const std::string& name) {
+bool named(const std::string& name, const char* want) {
   std::string lower = name;
   for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return lower == "turret";
+  return lower == want;
 }
 
-/// Whether part p is the turret or hangs from it.
-bool inTurret(const iconpack::Icon& icon, std::size_t p) {
+/// Whether part p is part `root` or hangs from it.
+bool under(const iconpack::Icon& icon, std::size_t p, std::size_t root) {
   for (auto k = std::int32_t(p); k != iconpack::kBody && std::size_t(k) < icon.parts.size();
        k = icon.parts[std::size_t(k)].parent) {
-    if (isTurret(icon.parts[std::size_t(k)].name)) return true;
+    if (std::size_t(k) == root) return true;
     if (icon.parts[std::size_t(k)].parent >= k) break;  // decode forbids it; never loop
   }
   return false;
+}
+
+/// The origin of part p (which hangs from `root`) in root's frame: the
+/// offsets summed up to it, so that a child's own offset comes out exact.
+std::array<float, 3> originIn(const iconpack::Icon& icon, std::size_t p, std::size_t root) {
+  std::array<float, 3> o{0, 0, 0};
+  for (auto k = std::int32_t(p); std::size_t(k) != root; k = icon.parts[std::size_t(k)].parent) {
+    for (std::size_t a = 0; a < 3; ++a) o[a] += icon.parts[std::size_t(k)].offset[a];
+  }
+  return o;
+}
+
+/// The first part of `state` named `want` (any case), or none.
+std::optional<std::size_t> findPart(const iconpack::Icon& icon, iconpack::State state, const char* want) {
+  for (std::size_t p = 0; p < icon.parts.size(); ++p) {
+    if (icon.parts[p].state == state && named(icon.parts[p].name, want)) return p;
+  }
+  return std::nullopt;
 }
 
 bool hasState(const iconpack::Icon& icon, iconpack::State s) {
   return std::any_of(icon.parts.begin(), icon.parts.end(), [s](const iconpack::Part& p) { return p.state == s; });
 }
 
-/// One state of one icon: body and turret index ranges over one vertex run.
+double length(const std::array<float, 3>& v) { return std::hypot(double(v[0]), double(v[1]), double(v[2])); }
+
+/// One state of one icon: body, turret and gun index ranges over one vertex run.
 EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, EntityMeshes& out, float& reach,
                          std::array<float, 6>& body3) {
   EntityShape shape;
   const auto base = std::int32_t(out.vertices.size());
-  std::vector<std::uint32_t> body, turret;
-  for (std::size_t p = 0; p < icon.parts.size(); ++p) {
-    const iconpack::Part& part = icon.parts[p];
-    if (part.state != state || !inTurret(icon, p) || !isTurret(part.name)) continue;
-    shape.pivot = iconpack::partOrigin(icon, p);
-    break;
+  const std::optional<std::size_t> turretPart = findPart(icon, state, "turret");
+  const std::optional<std::size_t> gunPart = findPart(icon, state, "gun");
+  if (turretPart) shape.pivot = iconpack::partOrigin(icon, *turretPart);
+  if (gunPart) {
+    shape.gunTurns = turretPart && under(icon, *gunPart, *turretPart);
+    shape.gunPivot = shape.gunTurns ? originIn(icon, *gunPart, *turretPart) : iconpack::partOrigin(icon, *gunPart);
   }
-  const double pivotLength = std::hypot(shape.pivot[0], shape.pivot[1], shape.pivot[2]);
+  enum Group { kBodyGroup, kTurretGroup, kGunGroup };
+  std::array<std::vector<std::uint32_t>, 3> groups;
   for (std::size_t p = 0; p < icon.parts.size(); ++p) {
     const iconpack::Part& part = icon.parts[p];
     if (part.state != state) continue;
-    const bool turning = inTurret(icon, p);
+    // The gun's own frame first: it may hang from the turret.
+    const Group group = gunPart && under(icon, p, *gunPart)           ? kGunGroup
+                        : turretPart && under(icon, p, *turretPart) ? kTurretGroup
+                                                                     : kBodyGroup;
+    // The part's origin in its group's frame, and how far that frame's
+    // origin can be from the body's, turned anywhere.
     std::array<float, 3> offset = iconpack::partOrigin(icon, p);
-    if (turning) {
-      for (int k = 0; k < 3; ++k) offset[std::size_t(k)] -= shape.pivot[std::size_t(k)];
+    double pivotLength = 0;
+    if (group == kGunGroup) {
+      offset = originIn(icon, p, *gunPart);
+      pivotLength = length(shape.gunPivot) + (shape.gunTurns ? length(shape.pivot) : 0.0);
+    } else if (group == kTurretGroup) {
+      for (std::size_t k = 0; k < 3; ++k) offset[k] -= shape.pivot[k];
+      pivotLength = length(shape.pivot);
     }
     for (const iconpack::Mesh& m : part.meshes) {
       const auto first = std::uint32_t(out.vertices.size() - std::size_t(base));
@@ -163,8 +206,8 @@ EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, Enti
         const IconVertex iv = iconVertex(icon, m, v, offset, shape.textured);
         out.vertices.push_back(iv);
         const double r = std::hypot(double(iv.x), double(iv.y), double(iv.z));
-        reach = std::max(reach, float(turning ? r + pivotLength : r));
-        if (turning) continue;
+        reach = std::max(reach, float(r + pivotLength));
+        if (group != kBodyGroup) continue;
         const std::array<float, 3> at{iv.x, iv.y, iv.z};
         for (std::size_t k = 0; k < 3; ++k) {
           body3[k] = std::min(body3[k], at[k]);
@@ -172,13 +215,17 @@ EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, Enti
         }
       }
       if (m.levels.empty()) continue;
-      for (const std::uint32_t i : m.levels[0]) (turning ? turret : body).push_back(first + i);
+      for (const std::uint32_t i : m.levels[0]) groups[group].push_back(first + i);
     }
   }
-  shape.body = {std::uint32_t(out.indices.size()), std::uint32_t(body.size()), base};
-  out.indices.insert(out.indices.end(), body.begin(), body.end());
-  shape.turret = {std::uint32_t(out.indices.size()), std::uint32_t(turret.size()), base};
-  out.indices.insert(out.indices.end(), turret.begin(), turret.end());
+  const auto append = [&](const std::vector<std::uint32_t>& indices) {
+    const IconLevelRange range{std::uint32_t(out.indices.size()), std::uint32_t(indices.size()), base};
+    out.indices.insert(out.indices.end(), indices.begin(), indices.end());
+    return range;
+  };
+  shape.body = append(groups[kBodyGroup]);
+  shape.turret = append(groups[kTurretGroup]);
+  shape.gun = append(groups[kGunGroup]);
   return shape;
 }
 
@@ -399,6 +446,7 @@ Status EntityRenderer::create(const RenderSettings& s, GLuint textures) {
   instanceAttrib(3, offsetof(EntityInstanceGpu, x));
   instanceAttrib(4, offsetof(EntityInstanceGpu, q));
   instanceAttrib(7, offsetof(EntityInstanceGpu, px));
+  instanceAttrib(8, offsetof(EntityInstanceGpu, gx));
   glVertexArrayBindingDivisor(vao_, 1, 1);
 
   glCreateBuffers(1, &effectBuffer_);
@@ -457,20 +505,40 @@ void EntityRenderer::add(const scene::DisplayBuffer& buf, const scene::DynamicIn
     appendShadow(origin, d.orientation, d.scale, footprint_[d.icon], shadowVertices_);
   }
   const EntityShape& shape = shapes_[d.icon][d.dead ? 1 : 0];
-  EntityInstanceGpu g{float(origin.x()), float(origin.y()), float(origin.z()), d.scale,
-                      {d.orientation[0], d.orientation[1], d.orientation[2], d.orientation[3]},
-                      0.0f, 0.0f, 0.0f, 0.0f};
+  EntityInstanceGpu g{};
+  g.x = float(origin.x());
+  g.y = float(origin.y());
+  g.z = float(origin.z());
+  g.scale = d.scale;
+  std::copy(d.orientation.begin(), d.orientation.end(), g.q);
   if (shape.body.count > 0) {
     stream_.push_back(g);
     draws_.push_back({shape.body, shape.textured});
   }
-  if (shape.turret.count > 0) {
+  const auto turretTurn = [&] {
     g.px = shape.pivot[0];
     g.py = shape.pivot[1];
     g.pz = shape.pivot[2];
     g.turretRad = float(double(d.turretAzimuthDeg) * kDegToRad);
+  };
+  if (shape.turret.count > 0) {
+    turretTurn();
     stream_.push_back(g);
     draws_.push_back({shape.turret, shape.textured});
+  }
+  if (shape.gun.count > 0) {
+    // A gun on the hull (no turret above it) keeps the hull's frame.
+    if (shape.gunTurns) {
+      turretTurn();
+    } else {
+      g.px = g.py = g.pz = g.turretRad = 0;
+    }
+    g.gx = shape.gunPivot[0];
+    g.gy = shape.gunPivot[1];
+    g.gz = shape.gunPivot[2];
+    g.gunRad = float(double(d.gunElevationDeg) * kDegToRad);
+    stream_.push_back(g);
+    draws_.push_back({shape.gun, shape.textured});
   }
   ++stats.entitiesDrawn;
 }
@@ -492,7 +560,20 @@ void EntityRenderer::collect(const scene::DisplayBuffer& buf, const ModuleRender
 
 void EntityRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix4f& viewProjection, RenderStats& stats) {
   if (stream_.empty()) return;
-  glNamedBufferData(instanceBuffer_, GLsizeiptr(stream_.size() * sizeof(EntityInstanceGpu)), stream_.data(),
+  // Instances of one group (one icon state's body, turret or gun) side by
+  // side, so that each group is one instanced draw however many entities
+  // show it; the untextured program's first. Stable: equal groups keep
+  // the order the entities came in.
+  order_.resize(stream_.size());
+  for (std::size_t k = 0; k < order_.size(); ++k) order_[k] = std::uint32_t(k);
+  const auto key = [&](std::uint32_t k) {
+    const Draw& d = draws_[k];
+    return std::tuple(d.textured, d.range.baseVertex, d.range.firstIndex);
+  };
+  std::stable_sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) { return key(a) < key(b); });
+  sorted_.clear();
+  for (const std::uint32_t k : order_) sorted_.push_back(stream_[k]);
+  glNamedBufferData(instanceBuffer_, GLsizeiptr(sorted_.size() * sizeof(EntityInstanceGpu)), sorted_.data(),
                     GL_STREAM_DRAW);
   glVertexArrayVertexBuffer(vao_, 1, instanceBuffer_, 0, sizeof(EntityInstanceGpu));
   for (const GlProgram* p : {&program_, &texturedProgram_}) {
@@ -509,18 +590,22 @@ void EntityRenderer::submit(const scene::DisplayBuffer& buf, const Eigen::Matrix
   glDisable(GL_CULL_FACE);  // imported models need not be closed
   glBindVertexArray(vao_);
   const GlProgram* current = nullptr;
-  for (std::size_t k = 0; k < draws_.size(); ++k) {
-    const Draw& d = draws_[k];
+  for (std::size_t first = 0; first < order_.size();) {
+    std::size_t last = first + 1;
+    while (last < order_.size() && key(order_[last]) == key(order_[first])) ++last;
+    const Draw& d = draws_[order_[first]];
     const GlProgram* wanted = d.textured && textures_ != 0 ? &texturedProgram_ : &program_;
     if (wanted != current) {
       wanted->use();
       current = wanted;
     }
+    const auto instances = GLsizei(last - first);
     glDrawElementsInstancedBaseVertexBaseInstance(
         GL_TRIANGLES, GLsizei(d.range.count), GL_UNSIGNED_INT,
-        reinterpret_cast<const void*>(std::uintptr_t(d.range.firstIndex) * sizeof(std::uint32_t)), 1,
-        d.range.baseVertex, GLuint(k));
-    stats.entityTriangles += d.range.count / 3;
+        reinterpret_cast<const void*>(std::uintptr_t(d.range.firstIndex) * sizeof(std::uint32_t)), instances,
+        d.range.baseVertex, GLuint(first));
+    stats.entityTriangles += std::uint64_t(d.range.count / 3) * std::uint64_t(instances);
+    first = last;
   }
   glBindVertexArray(0);
 }
@@ -603,7 +688,8 @@ void EntityRenderer::warmUp(const scene::DisplayBuffer& buf, const Eigen::Matrix
   d.shadow = true;  // its shadow too
   d.orientation = headingQuaternion(30);
   d.turretAzimuthDeg = 10;
-  // The tank's turret if there is one: both groups' draws compile the same program.
+  d.gunElevationDeg = 5;
+  // The tank's turret and gun if there are: every group's draws compile the same program.
   b.dynamic.instances.push_back(d);
   scene::Trail t;
   t.points = {{-2, 1, -20, 0.5f}, {2, 2, -22, 0.1f}};

@@ -6,18 +6,24 @@
 // Private to the renderer; every GL call on the render thread.
 //
 // Meshes. At create() every icon is flattened per state (alive, dead) into
-// two groups at full detail (level 0): the body (every part but the turret)
-// and the turret (the part named "turret" and its children), the turret's
-// vertices in its own frame so that it turns about its ring (its origin,
-// iconpack::partOrigin). An icon without dead parts draws its alive parts
-// when dead. Entities are few: no coarser levels, no impostors, no
+// three groups at full detail (level 0): the body (every part but these
+// two), the turret (the first part named "turret" and its children), and
+// the gun (the first part named "gun" and its children, taken out of the
+// turret when it hangs from it). The turret's vertices are in its own frame
+// so that it turns about its ring (its origin, iconpack::partOrigin), the
+// gun's in its own so that it elevates about its trunnion (its origin). An
+// icon without dead parts draws its alive parts when dead. Entities are few: no coarser levels, no impostors, no
 // thinning; each is drawn out to its icon's far range (capped at the view
 // distance).
 //
-// Instances. Each draw has its origin, scale, a body-to-world quaternion
-// and the turret's pivot and angle; the vertex stage turns the turret
-// about Y at its pivot, then rotates by the quaternion (full pitch, roll
-// and heading, where static objects take a heading only).
+// Instances. Each draw has its origin, scale, a body-to-world quaternion,
+// the turret's pivot and angle and the gun's trunnion and elevation (zero
+// where the group does not move so); the vertex stage pitches the gun about
+// X at its trunnion (in the turret's frame), turns it with the turret about
+// Y at the ring (the hull's gun does not turn), then rotates by the
+// quaternion (full pitch, roll and heading, where static objects take a
+// heading only). Instances are sorted by group: one instanced draw per
+// (icon state, group) in view, however many entities show it.
 //
 // Ground. An instance marked onSurface stands on the finest surface (the
 // simulator's); it is moved by the difference between the surface drawn
@@ -52,10 +58,14 @@ namespace sandtable::render::detail {
 
 class ModuleRenderer;
 
-/// One icon state's two groups in the entity buffers.
+/// One icon state's three groups in the entity buffers.
 struct EntityShape {
-  IconLevelRange body, turret;          ///< count 0: none
+  IconLevelRange body, turret, gun;     ///< count 0: none
   std::array<float, 3> pivot{0, 0, 0};  ///< the turret's ring, body frame
+  /// The gun's trunnion: in the turret's frame (relative to `pivot`) when
+  /// the gun hangs from the turret (gunTurns), else in the body frame.
+  std::array<float, 3> gunPivot{0, 0, 0};
+  bool gunTurns = false;
   bool textured = false;
 };
 
@@ -67,7 +77,7 @@ struct EntityMeshes {
   std::vector<std::array<EntityShape, 2>> shapes;
   std::vector<float> reach;  ///< per icon: farthest vertex from the origin (bounding sphere), unscaled
   /// Per icon: its alive body's extent (min x, y, z, max x, y, z), the
-  /// turret left out (its gun overhangs): the contact shadow's footprint.
+  /// turret and gun left out (the gun overhangs): the contact shadow's footprint.
   std::vector<std::array<float, 6>> footprint;
 };
 EntityMeshes flattenEntityIcons(const iconpack::Pack& pack);
@@ -79,14 +89,16 @@ std::array<float, 4> headingQuaternion(double headingDeg);
 /// -90 degrees about its right axis), so its top points along the heading.
 std::array<float, 4> lyingQuaternion(double headingDeg);
 
-/// One entity draw: 48 bytes, divisor 1.
+/// One entity draw: 64 bytes, divisor 1.
 struct EntityInstanceGpu {
   float x, y, z, scale;    ///< origin relative to the buffer origin
   float q[4];              ///< body to world
   float px, py, pz;        ///< turret pivot, body frame (0 for the body)
   float turretRad;         ///< turret angle, clockwise from above (0 for the body)
+  float gx, gy, gz;        ///< gun trunnion, turret frame (0 for the body and turret)
+  float gunRad;            ///< gun elevation, muzzle up (0 for the body and turret)
 };
-static_assert(sizeof(EntityInstanceGpu) == 48, "instance layout is shared with the shader");
+static_assert(sizeof(EntityInstanceGpu) == 64, "instance layout is shared with the shader");
 
 /// A trail or flash vertex: 24 bytes.
 struct EffectVertex {
@@ -163,8 +175,10 @@ class EntityRenderer {
     IconLevelRange range;
     bool textured = false;
   };
-  std::vector<Draw> draws_;
-  std::vector<EntityInstanceGpu> stream_;
+  std::vector<Draw> draws_;                ///< per instance of stream_: its group
+  std::vector<EntityInstanceGpu> stream_;  ///< in the order the entities came
+  std::vector<std::uint32_t> order_;       ///< stream_ sorted by group
+  std::vector<EntityInstanceGpu> sorted_;  ///< what is uploaded: stream_ in order_
   std::vector<EffectVertex> shadowVertices_, trailVertices_, flashVertices_;
   std::vector<std::array<float, 6>> footprint_;  ///< per icon (EntityMeshes::footprint)
 };

@@ -1,5 +1,6 @@
 // What the entity pass builds on the CPU (entity_draw.h): icons split into
-// a body and a turret that turns about its ring, dead states falling back
+// a body, a turret that turns about its ring and a gun that elevates about
+// its trunnion (on the turret or on the hull), dead states falling back
 // to the living, the quaternions of headings and of knocked-over objects,
 // trails that fade with age and stay at least a pixel or so wide, flashes
 // that grow and go out, and contact shadows under the footprint.
@@ -77,6 +78,52 @@ TEST(EntityShapes, theTurretTurnsAboutItsRingAndTheDeadFallBackToTheLiving) {
   // The shadow's footprint is the hull's, not the gun's overhang.
   EXPECT_FLOAT_EQ(m.footprint[0][2], -3.5f);
   EXPECT_FLOAT_EQ(m.footprint[0][5], 3.5f);
+}
+
+TEST(EntityShapes, theGunElevatesAboutItsTrunnionOnTheTurretOrOnTheHull) {
+  // A tank: hull, turret at the ring 1.6 m up, gun on the turret at its
+  // trunnion (0.4 m up, 1.9 m ahead of the ring), a 4 m barrel. A tank
+  // destroyer: the gun on the hull, no turret.
+  iconpack::Pack p = pack();
+  iconpack::Icon& tank = p.icons[0];
+  tank.parts[1].meshes = {quad(-1.4f, 1.4f, 0.7f, -1.9f, 1.6f)};  // the turret's roof only
+  iconpack::Part gun;
+  gun.name = "Gun";  // any case
+  gun.parent = 1;
+  gun.offset = {0, 0.4f, -1.9f};
+  gun.meshes = {quad(-0.1f, 0.1f, 0.1f, -4.1f, -0.1f)};
+  tank.parts.insert(tank.parts.begin() + 2, gun);
+  iconpack::Icon destroyer = p.icons[1];
+  destroyer.name = "destroyer";
+  gun.parent = 0;
+  gun.offset = {0, 1.2f, -2.0f};
+  destroyer.parts.push_back(gun);
+  p.icons.push_back(destroyer);
+  const EntityMeshes m = flattenEntityIcons(p);
+  const EntityShape& t = m.shapes[0][0];
+  EXPECT_EQ(t.body.count, 6u);
+  EXPECT_EQ(t.turret.count, 6u);  // the gun is not the turret's any more
+  EXPECT_EQ(t.gun.count, 6u);
+  EXPECT_TRUE(t.gunTurns);
+  EXPECT_EQ(t.gunPivot, (std::array<float, 3>{0, 0.4f, -1.9f}));  // in the turret's frame
+  EXPECT_FLOAT_EQ(t.pivot[1], 1.6f);
+  // The gun's vertices are in its own frame: the trunnion at the origin.
+  const IconVertex& g = m.vertices[std::size_t(t.gun.baseVertex) + m.indices[t.gun.firstIndex]];
+  EXPECT_FLOAT_EQ(g.y, 0.1f);
+  EXPECT_FLOAT_EQ(g.z, -4.1f);
+  // Reach: the muzzle from the trunnion, plus the trunnion from the ring, plus the ring.
+  EXPECT_GE(m.reach[0], std::hypot(4.1f, 0.1f));
+  EXPECT_GE(m.reach[0] + 1e-5f, std::hypot(4.1f, 0.1f) + std::hypot(0.4f, 1.9f) + 1.6f);
+  // The dead wreck has no gun.
+  EXPECT_EQ(m.shapes[0][1].gun.count, 0u);
+  // The destroyer's gun hangs from the hull: it pitches in the body frame and never turns.
+  const EntityShape& d = m.shapes[2][0];
+  EXPECT_EQ(d.turret.count, 0u);
+  EXPECT_EQ(d.gun.count, 6u);
+  EXPECT_FALSE(d.gunTurns);
+  EXPECT_EQ(d.gunPivot, (std::array<float, 3>{0, 1.2f, -2.0f}));
+  // Neither gun widens the shadow's footprint.
+  EXPECT_FLOAT_EQ(m.footprint[2][2], -3.5f);
 }
 
 Eigen::Vector3d rotate(const std::array<float, 4>& q, const Eigen::Vector3d& v) {

@@ -7,12 +7,14 @@
 //
 // Every built-in is in metres with Y up, faces north (-Z is forward, +X is
 // right), and has its origin on the ground at the centre of its footprint:
-// its lowest point is at y = 0. Sizes, triangles and colours: docs/ICONS.md
-// §4. The articulated tank is `builtin:tank-hull` with `builtin:tank-turret`
-// as a component at (0, kTankTurretRingHeight, 0); `builtin:tank` is the two
-// in one mesh.
+// its lowest point is at y = 0, except the tank's gun, whose origin is its
+// trunnion. Sizes, triangles and colours: docs/ICONS.md §4. The articulated
+// tank is `builtin:tank-hull` with `builtin:tank-turret` as a component at
+// (0, kTankTurretRingHeight, 0) and `builtin:tank-gun` as the turret's
+// component at kTankGunTrunnion; `builtin:tank` is the three in one mesh.
 //
 // Thread safety: every function is reentrant; the table is immutable.
+#include <array>
 #include <optional>
 #include <span>
 #include <string>
@@ -28,6 +30,12 @@ inline constexpr std::string_view kBuiltinPrefix = "builtin:";
 /// Height of the tank hull's roof, where the turret's frame sits: the
 /// offset of `component turret builtin:tank-turret offset=0,1.6,0`.
 inline constexpr float kTankTurretRingHeight = 1.6f;
+
+/// Where the tank's gun elevates, in the turret's frame: on the barrel's
+/// axis (0.4 m up) at the turret's front face (1.9 m ahead of the ring).
+/// The offset of `component gun builtin:tank-gun offset=0,0.4,-1.9
+/// parent=turret`; the gun model's origin.
+inline constexpr std::array<float, 3> kTankGunTrunnion{0.0f, 0.4f, -1.9f};
 
 struct BuiltinModel {
   std::string_view name;  ///< as a definition file writes it: "builtin:tank"

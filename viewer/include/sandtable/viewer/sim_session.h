@@ -3,7 +3,7 @@
 // DB --scenario FILE`, docs/VIEWER.md "Entities (fly --scenario)"): a
 // sim::Simulation stepped on the application's fixed-step clock, turned
 // each frame into what the renderer draws (scene/dynamic.h: entities with
-// icons, full orientation and turret angle, munition trails, detonation
+// icons, full orientation, turret angle and gun elevation, munition trails, detonation
 // flashes, the static objects the simulation changed), the 2-D map's marks,
 // the panel's lines and stats.json's `sim` objects; and the three ways of
 // looking: the stealth eye, an eye tethered behind and above an entity,
@@ -210,6 +210,7 @@ class SimSession {
   void seedDrive(const sim::Entity& e);
   bool isTarget(const sim::Entity& e) const { return e.domain != sim::Domain::munition; }
   float turretOf(const sim::Entity& e) const;
+  static float gunOf(const sim::Entity& e);
   /// An entity's name (a removed one's too), or null.
   nlohmann::json nameJson(std::optional<std::uint32_t> id) const;
 

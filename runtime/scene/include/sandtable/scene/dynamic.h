@@ -37,6 +37,10 @@ struct DynamicInstance {
   /// The icon's `turret` part (and its children) turned about its ring,
   /// degrees clockwise seen from above, relative to the hull.
   float turretAzimuthDeg = 0;
+  /// The icon's `gun` part (and its children) pitched about its own X
+  /// axis at its origin (the trunnion), degrees, positive raising the
+  /// muzzle; in the turret's frame when the gun hangs from the turret.
+  float gunElevationDeg = 0;
   std::uint8_t force = 0;  ///< 0 neutral, 1 blue, 2 red, 3 green
   float scale = 1;
 };
