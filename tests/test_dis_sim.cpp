@@ -19,6 +19,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/render/renderer.h"
+#include "sandtable/testing/require.h"
 #include "test_support.h"
 
 namespace sandtable::test {
@@ -89,6 +91,46 @@ TEST_F(DisTwoProcesses, aWatcherSeesEveryPublishedEntityWhereThePublisherLeftIt)
   EXPECT_EQ(matched, local.size());
   EXPECT_LT(worst, 0.01);  // metres: ECEF doubles both ways through PROJ
   EXPECT_EQ(pub["send_errors"], 0);
+}
+
+TEST_F(DisTwoProcesses, theStealthViewerDrawsAndFollowsANetworkedEntity) {
+  // `fly --dis` headless beside a publishing `sim --dis`: the viewer
+  // publishes nothing, tracks the publisher's entities, attaches its eye to
+  // one by DIS id once it appears and draws them (frames on the wall clock).
+  std::string why;
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  const std::string src = SANDTABLE_SOURCE_DIR;
+  const std::string address = "127.255.255.255:" + std::to_string(20000 + (::getpid() + 7) % 20000);
+  const std::string png = *tmp_ / "fly";
+  CommandResult viewer;
+  std::thread fly([&] {
+    viewer = runCli({"fly", db(), "--dis", address, "--site", "2", "--headless", "--png", png, "--frames", "150",
+                     "--size", "320x180", "--attach", "1:1:2"});
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const auto publisher = runCli({"sim", db(), "--scenario", src + "/samples/demo.scenario", "--dis", address,
+                                 "--site", "1", "--duration", "6", "--json"});
+  fly.join();
+  ASSERT_EQ(publisher.exitCode, 0) << publisher.err;
+  ASSERT_EQ(viewer.exitCode, 0) << viewer.err;
+  EXPECT_NE(viewer.out.find("dis: sent 0 PDUs"), std::string::npos) << viewer.out;  // passive
+  const auto stats = nlohmann::json::parse(slurpFile(png + "/stats.json"));
+  const auto pub = nlohmann::json::parse(publisher.out)["dis"];
+  std::string attachedName;
+  for (const auto& e : pub["local_entities"]) {
+    if (e["id"] == "1:1:2") attachedName = e["name"];
+  }
+  ASSERT_FALSE(attachedName.empty());
+  bool sawAll = false, drew = false, attached = false;
+  for (const auto& f : stats["frames"]) {
+    const auto& s = f["sim"];
+    sawAll = sawAll || std::size_t(s["entities"]) == pub["local_entities"].size();
+    drew = drew || int(f["dynamic"]["entities_drawn"]) > 0;
+    attached = attached || (s.contains("attached") && s["attached"] == attachedName);
+  }
+  EXPECT_TRUE(sawAll);
+  EXPECT_TRUE(drew);
+  EXPECT_TRUE(attached) << attachedName;
 }
 
 TEST_F(DisTwoProcesses, aBadAddressInterfaceOrPortIsAClearErrorWithExitTwo) {

@@ -603,6 +603,7 @@ int run(FlyArgs& a) {
     return kProblems;
   }
   printSummary(o, report.value(), session, a);
+  if (link) std::printf("  %s", disSummary(*link).c_str());
   return kOk;
 }
 

@@ -495,7 +495,7 @@ struct FlightRun {
       // A height frame holds data in its pixels: nothing is drawn over it.
       const bool data = o.render.colour == render::ColourMode::height;
       overlay.begin(o.view.width, o.view.height);
-      if (o.view.hud && !data) render::drawHudPanel(overlay, hudLines(s, o));
+      if (o.view.hud && !data) s.hudPanel = render::drawHudPanel(overlay, hudLines(s, o));
       if (!data) app.overlay(overlay, s);
       Status shown = renderer.drawOverlay(overlay);
       const bool sink = app.wantsFrame(s.frame);

@@ -286,18 +286,37 @@ std::vector<std::pair<std::string, std::string>> FlySession::statsSections() {
   return {{"sim", settings_.sim->summaryJson()}};
 }
 
+namespace {
+
+bool overlaps(const render::PixelBox& a, const render::PixelBox& b) {
+  return !a.empty() && !b.empty() && a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height &&
+         b.y < a.y + a.height;
+}
+
+/// The labels, nearest first; one that would cover the panel or a nearer
+/// label is left out, so a crowd far away does not turn into a smudge.
+void drawLabels(render::Overlay& overlay, const FrameStats& s) {
+  const int scale = overlay.layer().width >= 1600 ? 2 : 1;
+  std::vector<render::PixelBox> taken{s.hudPanel};
+  for (const FrameStats::ScreenLabel& l : s.labels) {
+    const int w = render::textWidth(l.text, scale), h = render::kGlyphHeight * scale;
+    const render::PixelBox box{l.x - w / 2 - 1, l.y - h - 1, w + 2, h + 2};
+    if (std::any_of(taken.begin(), taken.end(), [&](const render::PixelBox& t) { return overlaps(t, box); })) continue;
+    taken.push_back(box);
+    // A dark outline under the force's colour reads on sky and ground alike.
+    for (const auto& [dx, dy] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
+      render::drawText(overlay.layer(), box.x + 1 + dx, box.y + 1 + dy, l.text, scale, {0, 0, 0});
+    }
+    render::drawText(overlay.layer(), box.x + 1, box.y + 1, l.text, scale, l.rgb);
+    overlay.drawn(box);
+  }
+}
+
+}  // namespace
+
 void FlySession::overlay(render::Overlay& overlay, const FrameStats& s) {
   current_ = controls_.take(s.frame);
-  const int scale = options_.view.width >= 1600 ? 2 : 1;
-  for (const FrameStats::ScreenLabel& l : s.labels) {
-    // A dark outline under the force's colour, so a label reads on sky and ground alike.
-    const int w = render::textWidth(l.text, scale), x = l.x - w / 2, y = l.y - render::kGlyphHeight * scale;
-    for (const auto& [dx, dy] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
-      render::drawText(overlay.layer(), x + dx, y + dy, l.text, scale, {0, 0, 0});
-    }
-    render::drawText(overlay.layer(), x, y, l.text, scale, l.rgb);
-    overlay.drawn({x - 1, y - 1, w + 2, render::kGlyphHeight * scale + 2});
-  }
+  drawLabels(overlay, s);
   if (!current_.map) return;
   if (!map_) {
     // Built here, on the render thread that uses it (MapView caches per thread).

@@ -277,6 +277,9 @@ struct FrameStats {
     render::Rgb rgb{255, 255, 255};
   };
   std::vector<ScreenLabel> labels;
+  /// Where the information panel was drawn (set before the application's
+  /// overlay, which keeps its labels off it).
+  render::PixelBox hudPanel;
   double easting = 0, northing = 0;
   std::optional<double> lon, lat;
   double eyeElevation = 0, heightAgl = 0, headingDeg = 0;
