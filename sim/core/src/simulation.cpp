@@ -444,7 +444,10 @@ void Simulation::step() {
     Entity& e = r.entity;
     if (!e.alive) continue;
     ++counters_.entitySteps;
-    if (e.controller == Controller::remote) continue;  // placed by the network before the step
+    if (e.controller == Controller::remote) {  // placed by the network before the step
+      if (isMunition(e)) senseRemoteMunition(e);
+      continue;
+    }
     if (isMunition(e)) {
       flyMunition(e);
       continue;
@@ -689,6 +692,39 @@ void Simulation::collidePair(Record& ra, Record& rb) {
   apply(rb, out.killB, out.stopB, out.newVelocityB, out.newHeadingB);
 }
 
+void Simulation::sense(Entity& e, const Entity& m, const Eigen::Vector3d& at) {
+  const BehaviourOptions& o = options_.behaviour;
+  if (!e.behaviours.fight || e.lastSensed == m.id || !inBox(e, at, o.nearMissBoxM)) return;
+  if (e.controller == Controller::remote) return;  // its owner's behaviours react
+  e.lastSensed = m.id;
+  const Reaction r = fightOrFlight(e, m.velocity, o);
+  // Fire back at an enemy launcher, when reloaded (a volley of replies to
+  // replies would never end).
+  const Entity* launcher = find(m.launcher);  // removed or unknown: nobody to fire back at
+  const bool enemy = launcher && launcher->force != e.force;
+  if (r.fire && enemy && timeS() >= e.nextShotS) {
+    e.nextShotS = timeS() + o.engageReloadS;
+    pendingFire_.push_back({e.id, r.fireAzimuthDeg, 2.0, 0, m.launcher});
+  }
+}
+
+void Simulation::senseRemoteMunition(const Entity& m) {
+  // A round another simulation flies: its owner decides what it hits (a
+  // Detonation PDU), but our entities see it go by (Figure 70's near miss).
+  const auto key = cellKey(m.position.x(), m.position.z(), options_.entityBoxM);
+  const auto cx = std::int64_t(key >> 32), cz = std::int64_t(key & 0xffffffffu);
+  for (std::int64_t dx = -1; dx <= 1; ++dx) {
+    for (std::int64_t dz = -1; dz <= 1; ++dz) {
+      const std::uint64_t k = (std::uint64_t(cx + dx) << 32) | std::uint64_t(cz + dz);
+      for (auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(k, 0u));
+           it != cells_.end() && it->first == k; ++it) {
+        Entity& e = records_[it->second].entity;
+        if (e.alive && e.id != m.launcher) sense(e, m, m.position);
+      }
+    }
+  }
+}
+
 void Simulation::flyMunition(Entity& m) {
   const MunitionType& type = munitionTypes_[m.munitionType];
   std::optional<Eigen::Vector3d> target;
@@ -751,18 +787,8 @@ void Simulation::flyMunition(Entity& m) {
           hitEntity = e.id;
           best = std::min(best, 1.0);
           detail = "kill box";
-        } else if (e.behaviours.fight && e.lastSensed != m.id && inBox(e, b, o.nearMissBoxM)) {
-          Entity& sensing = e;
-          sensing.lastSensed = m.id;
-          const Reaction r = fightOrFlight(sensing, m.velocity, o);
-          // Fire back at an enemy launcher, when reloaded (a volley of
-          // replies to replies would never end).
-          const Entity* launcher = find(m.launcher);  // removed: nobody to fire back at
-          const bool enemy = launcher && launcher->force != sensing.force;
-          if (r.fire && enemy && timeS() >= sensing.nextShotS) {
-            sensing.nextShotS = timeS() + o.engageReloadS;
-            pendingFire_.push_back({sensing.id, r.fireAzimuthDeg, 2.0, 0, m.launcher});
-          }
+        } else {
+          sense(e, m, b);
         }
       }
     }

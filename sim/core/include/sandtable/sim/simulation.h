@@ -266,6 +266,10 @@ class Simulation {
   void move(Record& r);
   void moveAir(Record& r);
   void flyMunition(Entity& m);
+  /// Figure 70's near miss: entity `e` with fight or flight senses munition
+  /// `m` at `at` once, turns, and may fire back.
+  void sense(Entity& e, const Entity& m, const Eigen::Vector3d& at);
+  void senseRemoteMunition(const Entity& m);
   void detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hitEntity, std::uint32_t hitObject,
                 const std::string& detail);
   void collideStatic(Record& r);
