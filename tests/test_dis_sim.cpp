@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/testing/require.h"
 #include "test_support.h"
@@ -131,6 +132,87 @@ TEST_F(DisTwoProcesses, theStealthViewerDrawsAndFollowsANetworkedEntity) {
   EXPECT_TRUE(sawAll);
   EXPECT_TRUE(drew);
   EXPECT_TRUE(attached) << attachedName;
+}
+
+/// tshark's fields of every packet of `pcap` that `filter` passes, one row
+/// each; UDP `port` is dissected as DIS (tshark does so only on 3000 by itself).
+std::vector<std::vector<std::string>> tsharkRows(const std::string& pcap, unsigned port, const std::string& filter,
+                                                 const std::vector<std::string>& fields) {
+  std::string command = "tshark -r '" + pcap + "' -d udp.port==" + std::to_string(port) + ",dis -Y '" + filter +
+                        "' -T fields -E separator=/t";
+  for (const auto& f : fields) command += " -e " + f;
+  std::vector<std::vector<std::string>> rows;
+  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(command.c_str(), "r"), pclose);
+  if (!p) return rows;
+  char line[4096];
+  while (std::fgets(line, sizeof line, p.get())) {
+    std::vector<std::string> row;
+    std::string cell;
+    for (const char* c = line; *c && *c != '\n'; ++c) {
+      if (*c == '\t') {
+        row.push_back(cell);
+        cell.clear();
+      } else {
+        cell += *c;
+      }
+    }
+    row.push_back(cell);
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+TEST_F(DisTwoProcesses, aRecordedRunReadsInWiresharkAsItWasSent) {
+  // `dis record` logs a publishing `sim --dis`; Wireshark's dissector (an
+  // implementation nobody here wrote) finds nothing malformed, counts the
+  // PDUs the publisher says it sent, and reads every entity's last Entity
+  // State PDU (deactivating, with its true final state) at the place the
+  // publisher's simulation left it: tshark's geocentric location taken
+  // into the database frame with PROJ.
+  const std::string src = SANDTABLE_SOURCE_DIR;
+  const unsigned port = 20000 + unsigned(::getpid() + 13) % 20000;
+  const std::string address = "127.255.255.255:" + std::to_string(port);
+  const std::string pcap = *tmp_ / "run.pcap";
+  CommandResult recorder;
+  std::thread record([&] { recorder = runCli({"dis", "record", "--dis", address, "-o", pcap, "--seconds", "7"}); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  const auto publisher = runCli({"sim", db(), "--scenario", src + "/samples/demo.scenario", "--dis", address,
+                                 "--site", "1", "--duration", "4", "--json"});
+  record.join();
+  ASSERT_EQ(publisher.exitCode, 0) << publisher.err;
+  ASSERT_EQ(recorder.exitCode, 0) << recorder.err;
+  EXPECT_TRUE(tsharkRows(pcap, port, "_ws.malformed && dis", {"frame.number"}).empty());
+  const auto pub = nlohmann::json::parse(publisher.out)["dis"];
+  const auto all = tsharkRows(pcap, port, "dis", {"dis.pdu_type"});
+  EXPECT_EQ(all.size(), std::size_t(pub["sent_pdus"]));
+  const auto frame = geodesy::DatabaseFrame::create(
+      nlohmann::json::parse(slurpFile(db() + "/manifest.json"))["crs"]["wkt"],
+      double(nlohmann::json::parse(slurpFile(db() + "/manifest.json"))["grid"]["origin_easting"]),
+      double(nlohmann::json::parse(slurpFile(db() + "/manifest.json"))["grid"]["origin_northing"]));
+  ASSERT_TRUE(frame.ok()) << frame.error();
+  std::map<std::string, std::vector<std::string>> last;  // entity id -> its last Entity State PDU
+  for (auto& row : tsharkRows(pcap, port, "dis.pdu_type == 1",
+                              {"dis.entity_id_site", "dis.entity_id_application", "dis.entity_id_entity",
+                               "dis.entity_location.x", "dis.entity_location.y", "dis.entity_location.z",
+                               "dis.entity_marking"})) {
+    ASSERT_EQ(row.size(), 7u);
+    last[row[0] + ":" + row[1] + ":" + row[2]] = row;
+  }
+  std::size_t matched = 0;
+  double worst = 0;
+  for (const auto& e : pub["local_entities"]) {
+    auto it = last.find(e["id"]);
+    ASSERT_NE(it, last.end()) << e.dump();
+    const auto& r = it->second;
+    auto p = frame->fromEcef({std::stod(r[3]), std::stod(r[4]), std::stod(r[5])});
+    ASSERT_TRUE(p.ok()) << p.error();
+    const auto& q = e["position"];
+    worst = std::max(worst, std::hypot(p->x - double(q[0]), p->y - double(q[1]), p->z - double(q[2])));
+    EXPECT_EQ(r[6], std::string(e["name"]).substr(0, 11));
+    ++matched;
+  }
+  EXPECT_EQ(matched, pub["local_entities"].size());
+  EXPECT_LT(worst, 0.01);
 }
 
 TEST_F(DisTwoProcesses, aBadAddressInterfaceOrPortIsAClearErrorWithExitTwo) {
