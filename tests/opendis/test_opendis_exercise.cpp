@@ -224,7 +224,7 @@ TEST(OpenDisExercise, sandtableTracksOpenDisEntitiesWhereTheSenderHasThem) {
     const double grid = double(in["heading_deg"]) - convergenceDeg(zone, double(got["lon"]), double(got["lat"]));
     const double turn = std::remainder(double(got["heading_deg"]) - grid, 360.0);
     EXPECT_LT(std::abs(turn), kHeadingDeg) << "heading " << got["heading_deg"] << ", want " << grid;
-    std::printf("opendis exercise: %-11s DIS %d %-4s %5.1f m/s, %s timestamps: %s error %.3f m (tolerance %.2f m), "
+    std::printf("opendis exercise: %-11s DIS %d %-4s %5.1f m/s, %s timestamps: %s error %.4f m (tolerance %.2f m), "
                 "heading error %.4f deg\n",
                 want["marking"].get<std::string>().c_str(), int(spec1["version"]), air ? "air" : "land",
                 double(spec1["speed_ms"]), spec1["timestamp"].get<std::string>().c_str(), air ? "3-D" : "horizontal",
