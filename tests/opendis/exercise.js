@@ -87,6 +87,10 @@ function readSpec(text) {
     od.versionArg(String(x.version));
     return x;
   });
+  if (s.fire) {
+    const known = new Set(s.entities.map((e) => e.entity));
+    if (!known.has(s.fire.firing) || !known.has(s.fire.target)) fail('SPEC fire.firing and fire.target must be entities');
+  }
   return s;
 }
 
