@@ -1,5 +1,6 @@
-// Shared by write_pdus.js and read_pdus.js: loading one Open-DIS build, and
-// the bit conversions its record classes need (docs/DIS.md §10).
+// Shared by write_pdus.js, read_pdus.js and exercise.js: loading one
+// Open-DIS build, setting the fields whose names differ between its two
+// builds, and the bit conversions its record classes need (docs/DIS.md §10).
 //
 // One build per process: both dist files assign a global `dis` and their
 // classes set their prototypes from that global when constructed, so a
@@ -18,6 +19,56 @@ function versionArg(text) {
   const v = Number(text);
   if (v !== 6 && v !== 7) throw new Error('opendis: version "' + text + '" is not 6 or 7');
   return v;
+}
+
+/** Setters for the fields whose names differ between the builds of
+ * `version`: ids [site, application, entity], event ids, entity types
+ * (7 numbers), vectors [x, y, z] and munition descriptors. */
+function fields(version) {
+  function setId(target, v) {
+    if (version === 7) {
+      target.siteID = v[0];
+      target.applicationID = v[1];
+      target.entityID = v[2];
+    } else {
+      target.site = v[0];
+      target.application = v[1];
+      target.entity = v[2];
+    }
+  }
+  function setEventId(target, v) {
+    if (version === 7) {
+      target.simulationAddress.site = v[0];
+      target.simulationAddress.application = v[1];
+    } else {
+      target.site = v[0];
+      target.application = v[1];
+    }
+    target.eventNumber = v[2];
+  }
+  function setType(target, t) {
+    target.entityKind = t[0];
+    target.domain = t[1];
+    target.country = t[2];
+    target.category = t[3];
+    target.subcategory = t[4];
+    if (version === 7) target.specific = t[5];
+    else target.spec = t[5];
+    target.extra = t[6];
+  }
+  function setVec(target, v) {
+    target.x = v[0];
+    target.y = v[1];
+    target.z = v[2];
+  }
+  function setDescriptor(target, d) {
+    setType(version === 7 ? target.munitionType : target.munition, d.munition);
+    target.warhead = d.warhead;
+    target.fuse = d.fuse;
+    target.quantity = d.quantity;
+    target.rate = d.rate;
+  }
+  return {setId, setEventId, setType, setVec, setDescriptor};
 }
 
 const scratch = new DataView(new ArrayBuffer(8));
@@ -93,6 +144,6 @@ function entityTypeOfField(field) {
 }
 
 module.exports = {
-  load, versionArg, float32Field, entityTypeField, asFloat64, asLongString, fromFloat64, fromLongString,
+  load, versionArg, fields, float32Field, entityTypeField, asFloat64, asLongString, fromFloat64, fromLongString,
   float32OfField, entityTypeOfField,
 };

@@ -94,45 +94,7 @@ const detonation = {
 
 // ------------------------------------------------------- Open-DIS objects
 
-function setId(target, v) {
-  if (version === 7) {
-    target.siteID = v[0];
-    target.applicationID = v[1];
-    target.entityID = v[2];
-  } else {
-    target.site = v[0];
-    target.application = v[1];
-    target.entity = v[2];
-  }
-}
-
-function setEventId(target, v) {
-  if (version === 7) {
-    target.simulationAddress.site = v[0];
-    target.simulationAddress.application = v[1];
-  } else {
-    target.site = v[0];
-    target.application = v[1];
-  }
-  target.eventNumber = v[2];
-}
-
-function setType(target, t) {
-  target.entityKind = t[0];
-  target.domain = t[1];
-  target.country = t[2];
-  target.category = t[3];
-  target.subcategory = t[4];
-  if (version === 7) target.specific = t[5];
-  else target.spec = t[5];
-  target.extra = t[6];
-}
-
-function setVec(target, v) {
-  target.x = v[0];
-  target.y = v[1];
-  target.z = v[2];
-}
+const {setId, setEventId, setType, setVec, setDescriptor} = od.fields(version);
 
 function setHeader(pdu, length) {
   pdu.exerciseID = header.exercise;
@@ -143,14 +105,6 @@ function setHeader(pdu, length) {
   } else {
     pdu.pduLength = length;
   }
-}
-
-function setDescriptor(target, d) {
-  setType(version === 7 ? target.munitionType : target.munition, d.munition);
-  target.warhead = d.warhead;
-  target.fuse = d.fuse;
-  target.quantity = d.quantity;
-  target.rate = d.rate;
 }
 
 /** One variable parameter (articulation parameter) record object. */

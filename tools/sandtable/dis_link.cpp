@@ -113,12 +113,25 @@ std::string idText(const dis::EntityId& id) {
 
 nlohmann::json xyz(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
 
+/// Adds lon, lat (WGS-84 degrees) and height (metres above the ellipsoid)
+/// of a frame position to `j`, so a report can be checked against a
+/// sender's geodetic positions without this database's frame; nothing
+/// when PROJ cannot convert it.
+void addGeodetic(nlohmann::json& j, const geodesy::DatabaseFrame& frame, const Eigen::Vector3d& p) {
+  const auto g = frame.toLonLatHeight({p.x(), p.y(), p.z()});
+  if (!g) return;
+  j["lon"] = g->lon;
+  j["lat"] = g->lat;
+  j["height"] = g->height;
+}
+
 }  // namespace
 
 nlohmann::json disJson(const DisLink& link, const sim::Simulation& s) {
   const sim_dis::GatewayCounters& c = link.gateway->counters();
   const sim_dis::RemoteCounters& r = link.gateway->remotes().counters();
   const dis::ReceiverCounters rc = link.receiver->counters();
+  const geodesy::DatabaseFrame& frame = link.gateway->remotes().frame().frame();
   nlohmann::json remotes = nlohmann::json::array();
   for (const auto& [key, e] : link.gateway->remotes().all()) {
     const sim::Entity* shown = e.simId == UINT32_MAX ? nullptr : s.find(e.simId);
@@ -129,6 +142,7 @@ nlohmann::json disJson(const DisLink& link, const sim::Simulation& s) {
                         {"sim_id", e.simId == UINT32_MAX ? nlohmann::json(nullptr) : nlohmann::json(e.simId)}};
     if (shown) {
       j["position"] = xyz(shown->position);  // as this simulation shows it at its last step
+      addGeodetic(j, frame, shown->position);
       j["heading_deg"] = shown->headingDeg;
       j["alive"] = shown->alive;
       j["icon"] = shown->icon;
@@ -137,14 +151,20 @@ nlohmann::json disJson(const DisLink& link, const sim::Simulation& s) {
   }
   nlohmann::json departed = nlohmann::json::array();
   for (const sim_dis::Departed& d : link.gateway->departed()) {
-    departed.push_back({{"id", idText(d.id)}, {"marking", d.marking}, {"why", d.why}, {"position", xyz(d.position)}});
+    nlohmann::json j = {{"id", idText(d.id)}, {"marking", d.marking}, {"why", d.why}, {"position", xyz(d.position)}};
+    addGeodetic(j, frame, d.position);
+    departed.push_back(std::move(j));
   }
   nlohmann::json local = nlohmann::json::array();
   for (const sim::Entity& e : s.entities()) {
     if (e.controller == sim::Controller::remote || e.domain == sim::Domain::munition) continue;
     local.push_back({{"id", idText(link.gateway->disId(e.id))}, {"name", e.name}, {"position", xyz(e.position)}});
   }
-  return {{"sent_pdus", c.sentPdus},
+  // The wall clock now, just after the last step: a sender on this host
+  // can tell where its entities were at the moment the positions show.
+  const double unixS = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return {{"unix_time_s", unixS},
+          {"sent_pdus", c.sentPdus},
           {"sent_bytes", c.sentBytes},
           {"send_errors", link.sendErrors},
           {"datagrams", rc.datagrams},

@@ -40,8 +40,10 @@ std::string disSummary(const DisLink& link);
 /// The panel's line: "DIS 31 PDU/S  40 TRACKED  12 CORRECTIONS  0 DROPPED";
 /// `last` keeps (wall seconds, PDUs) of the previous call for the rate.
 std::string disPanelLine(const DisLink& link, std::pair<double, std::uint64_t>& last);
-/// The same as JSON, with every remote entity tracked at the end, those
-/// that left, and this simulation's own entities where they are now.
+/// The same as JSON, with every remote entity tracked at the end (frame
+/// position and WGS-84 lon, lat, height), those that left, this
+/// simulation's own entities where they are now, and the wall clock
+/// (unix_time_s) when it was made.
 nlohmann::json disJson(const DisLink& link, const sim::Simulation& s);
 
 }  // namespace sandtable::cli
