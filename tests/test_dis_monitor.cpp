@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 #include <ogr_spatialref.h>
 
+#include "sandtable/testing/process.h"
 #include "sandtable/dis/pcap.h"
 #include "sandtable/dis/pdu.h"
 #include "test_support.h"
@@ -47,15 +48,6 @@ std::array<double, 3> osr(const std::array<double, 3>& in, bool toGeocentric) {
   EXPECT_TRUE(ct && ct->Transform(1, &x, &y, &z));
   OGRCoordinateTransformation::DestroyCT(ct);
   return {x, y, z};
-}
-
-std::string shell(const std::string& command) {
-  std::string out;
-  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(command.c_str(), "r"), pclose);
-  if (!p) return out;
-  std::array<char, 4096> buf{};
-  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p.get())) out.append(buf.data(), n);
-  return out;
 }
 
 std::vector<std::vector<std::string>> tsv(const std::string& text) {
@@ -162,7 +154,7 @@ TEST(DisMonitorCli, inspectReportsWhatWiresharkReadsAndDeadReckonsByHand) {
   // Wireshark's reading of every Entity State PDU: the last of each id is
   // what the monitor reports as sent.
   if (std::system("command -v tshark >/dev/null 2>&1") == 0) {
-    const auto rows = tsv(shell("tshark -r '" + pcap + "' -Y 'dis.pdu_type == 1' -T fields -E occurrence=f "
+    const auto rows = tsv(fixtures::commandOutput("tshark -r '" + pcap + "' -Y 'dis.pdu_type == 1' -T fields -E occurrence=f "
                                 "-e dis.entity_id_site -e dis.entity_id_application -e dis.entity_id_entity "
                                 "-e dis.entity_location.x -e dis.entity_location.y -e dis.entity_location.z "
                                 "-e dis.entity_marking 2>/dev/null"));

@@ -34,6 +34,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "sandtable/testing/process.h"
 #include "sandtable/dis/pdu.h"
 #include "sandtable/dis/socket.h"
 #include "opendis_support.h"
@@ -269,18 +270,6 @@ void checkOpenDisBuilds(int version) {
 TEST(OpenDis, sandtableDecodesEveryFieldOpenDis7Sets) { checkOpenDisBuilds(7); }
 TEST(OpenDis, sandtableDecodesEveryFieldOpenDis6Sets) { checkOpenDisBuilds(6); }
 
-/// A UDP port nobody holds now (the kernel's pick for an ephemeral bind).
-std::uint16_t freePort() {
-  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in s{};
-  s.sin_family = AF_INET;
-  ::bind(fd, reinterpret_cast<sockaddr*>(&s), sizeof s);
-  socklen_t len = sizeof s;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&s), &len);
-  ::close(fd);
-  return ntohs(s.sin_port);
-}
-
 /// Node sends Open-DIS's three PDUs over UDP to 127.0.0.1; a Receiver on
 /// that port queues them, and each decodes to every field as set.
 void checkOpenDisSendsOverUdp(int version) {
@@ -292,7 +281,7 @@ void checkOpenDisSendsOverUdp(int version) {
   ASSERT_EQ(pdus.size(), 3u);
   SocketOptions o;
   o.address = "127.0.0.1";
-  o.port = freePort();
+  o.port = fixtures::freeUdpPort();
   auto socket = UdpSocket::open(o);
   ASSERT_TRUE(socket.ok()) << socket.error();
   auto receiver = Receiver::start(std::move(socket.value()));

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "dis_example.h"
+#include "sandtable/testing/process.h"
 #include "sandtable/dis/pcap.h"
 
 namespace sandtable::dis {
@@ -39,15 +40,6 @@ std::vector<std::byte> slurp(const fs::path& p) {
 
 void spit(const fs::path& p, const std::vector<std::byte>& b) {
   std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), std::streamsize(b.size()));
-}
-
-std::string run(const std::string& command) {
-  std::string out;
-  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(command.c_str(), "r"), pclose);
-  if (!p) return out;
-  std::array<char, 4096> buf{};
-  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p.get())) out.append(buf.data(), n);
-  return out;
 }
 
 constexpr std::uint32_t ip4(unsigned a, unsigned b, unsigned c, unsigned d) { return a << 24 | b << 16 | c << 8 | d; }
@@ -259,8 +251,8 @@ TEST(Pcap, tsharkDissectsTheWrittenFileAsDis) {
     ASSERT_TRUE(w->close());
   }
   const std::string read = "tshark -r '" + file.string() + "' -o ip.check_checksum:TRUE 2>/dev/null ";
-  EXPECT_EQ(run(read + "-Y '_ws.malformed || _ws.expert.severity >= warning'"), "");
-  EXPECT_EQ(run(read + "-T fields -E separator=, -E occurrence=f -e frame.time_epoch -e ip.src -e ip.dst "
+  EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed || _ws.expert.severity >= warning'"), "");
+  EXPECT_EQ(fixtures::commandOutput(read + "-T fields -E separator=, -E occurrence=f -e frame.time_epoch -e ip.src -e ip.dst "
                        "-e ip.checksum.status -e udp.dstport -e dis.pdu_type -e dis.entity_id_entity"),
             "1700000000.250000000,192.168.1.7,255.255.255.255,1,3000,1,772\n"
             "1700000000.500000000,192.168.1.8,239.1.2.3,1,3000,1,9\n");
@@ -359,7 +351,7 @@ TEST(Pcap, tsharkReadsTheHandBuiltCookedCaptures) {
   for (auto [link, head] : {std::pair{113u, sll}, std::pair{276u, sll2}}) {
     const fs::path file = dir.path / ("cooked" + std::to_string(link) + ".pcap");
     spit(file, handPcap(link, {{withHeader(head, packet)}}));
-    EXPECT_EQ(run("tshark -r '" + file.string() + "' -T fields -e ip.src -e udp.dstport -e dis.pdu_type 2>/dev/null"),
+    EXPECT_EQ(fixtures::commandOutput("tshark -r '" + file.string() + "' -T fields -e ip.src -e udp.dstport -e dis.pdu_type 2>/dev/null"),
               "10.1.2.3\t3000\t1\n")
         << link;
     ASSERT_TRUE(readPcap(file, nullptr)) << link;

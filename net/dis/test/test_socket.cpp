@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "sandtable/testing/process.h"
 #include "sandtable/dis/socket.h"
 #include "sandtable/testing/require.h"
 
@@ -28,18 +29,6 @@ namespace {
 
 constexpr std::uint32_t ip4(unsigned a, unsigned b, unsigned c, unsigned d) { return a << 24 | b << 16 | c << 8 | d; }
 constexpr std::uint32_t kLoopback = ip4(127, 0, 0, 1);
-
-/// A UDP port nobody holds now (the kernel's pick for an ephemeral bind).
-std::uint16_t freePort() {
-  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in s{};
-  s.sin_family = AF_INET;
-  ::bind(fd, reinterpret_cast<sockaddr*>(&s), sizeof s);
-  socklen_t len = sizeof s;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&s), &len);
-  ::close(fd);
-  return ntohs(s.sin_port);
-}
 
 /// A plain socket bound to ip:port without SO_REUSEADDR: a program that does not share.
 int bindExclusive(std::uint32_t ip, std::uint16_t port) {
@@ -162,7 +151,7 @@ TEST(DisSocket, badAddressesPortsAndInterfacesAreClearProblems) {
     EXPECT_EQ(s.problems().front().file, c.field);
     EXPECT_EQ(s.message(), c.message);
   }
-  Result<UdpSocket> unknown = UdpSocket::open(options("", freePort(), "nosuch0"));
+  Result<UdpSocket> unknown = UdpSocket::open(options("", fixtures::freeUdpPort(), "nosuch0"));
   ASSERT_FALSE(unknown);
   EXPECT_EQ(unknown.problems().front().file, "SocketOptions::interface");
   EXPECT_NE(unknown.message().find("no network interface named 'nosuch0' on this host (it has "), std::string::npos)
@@ -173,7 +162,7 @@ TEST(DisSocket, badAddressesPortsAndInterfacesAreClearProblems) {
 // ---- sockets on this host
 
 TEST(DisSocket, unicastToItselfCarriesSenderDestinationAndTime) {
-  const std::uint16_t port = freePort();
+  const std::uint16_t port = fixtures::freeUdpPort();
   Result<UdpSocket> s = UdpSocket::open(options("127.0.0.1", port));
   ASSERT_TRUE(s) << s.error();
   EXPECT_EQ(s->endpoint().delivery, Delivery::unicast);
@@ -212,19 +201,19 @@ void bothHear(const SocketOptions& o, std::uint32_t wantDestination) {
 }
 
 TEST(DisSocket, broadcastReachesEverySocketOnThePort) {
-  bothHear(options("127.255.255.255", freePort()), ip4(127, 255, 255, 255));
-  bothHear(options("", freePort(), "lo"), ip4(127, 255, 255, 255));
+  bothHear(options("127.255.255.255", fixtures::freeUdpPort()), ip4(127, 255, 255, 255));
+  bothHear(options("", fixtures::freeUdpPort(), "lo"), ip4(127, 255, 255, 255));
   // The default: whichever broadcast this host's routes give, heard here too.
   Result<Endpoint> e = resolveEndpoint(options("", 3000));
   ASSERT_TRUE(e);
-  bothHear(options("", freePort()), e->destination.ip);
+  bothHear(options("", fixtures::freeUdpPort()), e->destination.ip);
 }
 
 TEST(DisSocket, multicastReachesEveryMemberOnThePort) {
-  bothHear(options("239.255.36.1", freePort()), ip4(239, 255, 36, 1));
-  bothHear(options("239.255.36.2", freePort(), "lo"), ip4(239, 255, 36, 2));
+  bothHear(options("239.255.36.1", fixtures::freeUdpPort()), ip4(239, 255, 36, 1));
+  bothHear(options("239.255.36.2", fixtures::freeUdpPort(), "lo"), ip4(239, 255, 36, 2));
   // A socket of another group on the same port hears neither (IP_MULTICAST_ALL off).
-  const std::uint16_t port = freePort();
+  const std::uint16_t port = fixtures::freeUdpPort();
   Result<UdpSocket> a = UdpSocket::open(options("239.255.36.3", port, "lo"));
   Result<UdpSocket> other = UdpSocket::open(options("239.255.36.4", port, "lo"));
   ASSERT_TRUE(a && other);
@@ -236,7 +225,7 @@ TEST(DisSocket, multicastReachesEveryMemberOnThePort) {
 
 TEST(DisSocket, aPortTakenByAProgramThatDoesNotShareIsAClearProblem) {
   for (std::uint32_t ip : {0u, kLoopback}) {
-    const std::uint16_t port = freePort();
+    const std::uint16_t port = fixtures::freeUdpPort();
     const int fd = bindExclusive(ip, port);
     ASSERT_GE(fd, 0);
     Result<UdpSocket> s = UdpSocket::open(options("127.0.0.1", port));
@@ -322,14 +311,14 @@ TEST(DisSocket, aHostWithOnlyLoopbackBroadcastsAndMulticastsOnIt) {
 // ---- the receiver
 
 TEST(DisReceiver, countsEveryDatagramOfABurst) {
-  const std::uint16_t port = freePort();
+  const std::uint16_t port = fixtures::freeUdpPort();
   Result<UdpSocket> listen = UdpSocket::open(options("127.0.0.1", port));
   ASSERT_TRUE(listen) << listen.error();
   Result<std::unique_ptr<Receiver>> r = Receiver::start(std::move(listen.value()));
   ASSERT_TRUE(r) << r.error();
   Receiver& receiver = *r.value();
   SocketOptions from = options("127.0.0.1", port);
-  from.port = freePort();  // the sender's own port; it sends to 127.0.0.1:port
+  from.port = fixtures::freeUdpPort();  // the sender's own port; it sends to 127.0.0.1:port
   Result<UdpSocket> sender = UdpSocket::open(from);
   ASSERT_TRUE(sender) << sender.error();
   const Address to{kLoopback, port};
@@ -391,7 +380,7 @@ TEST(DisReceiver, countsEveryDatagramOfABurst) {
 // The kernel's drop count (SO_RXQ_OVFL): a socket with a tiny buffer that
 // nobody reads while a burst arrives.
 TEST(DisReceiver, kernelDropsAreCountedWhenTheBufferOverflows) {
-  SocketOptions o = options("127.0.0.1", freePort());
+  SocketOptions o = options("127.0.0.1", fixtures::freeUdpPort());
   o.receiveBufferBytes = 1;  // the kernel's minimum
   Result<UdpSocket> s = UdpSocket::open(o);
   ASSERT_TRUE(s) << s.error();
@@ -408,7 +397,7 @@ TEST(DisReceiver, kernelDropsAreCountedWhenTheBufferOverflows) {
 }
 
 TEST(DisReceiver, aFullQueueDropsAndCountsTheNewest) {
-  const std::uint16_t port = freePort();
+  const std::uint16_t port = fixtures::freeUdpPort();
   Result<UdpSocket> listen = UdpSocket::open(options("127.0.0.1", port));
   ASSERT_TRUE(listen);
   Result<std::unique_ptr<Receiver>> r = Receiver::start(std::move(listen.value()), {.queueCapacity = 10});
@@ -432,12 +421,12 @@ TEST(DisReceiver, aFullQueueDropsAndCountsTheNewest) {
   EXPECT_EQ(got.back().bytes, std::vector<std::byte>(3, std::byte{9}));
   EXPECT_EQ(receiver.drain(got), 0u);
   EXPECT_TRUE(got.empty());
-  EXPECT_FALSE(Receiver::start(std::move(UdpSocket::open(options("127.0.0.1", freePort())).value()),
+  EXPECT_FALSE(Receiver::start(std::move(UdpSocket::open(options("127.0.0.1", fixtures::freeUdpPort())).value()),
                                {.queueCapacity = 0}));
 }
 
 TEST(DisReceiver, stopsPromptlyWithNothingArriving) {
-  Result<UdpSocket> listen = UdpSocket::open(options("127.0.0.1", freePort()));
+  Result<UdpSocket> listen = UdpSocket::open(options("127.0.0.1", fixtures::freeUdpPort()));
   ASSERT_TRUE(listen);
   Result<std::unique_ptr<Receiver>> r = Receiver::start(std::move(listen.value()));
   ASSERT_TRUE(r);

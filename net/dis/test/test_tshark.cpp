@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "dis_example.h"
+#include "sandtable/testing/process.h"
 #include "sandtable/dis/pcap.h"
 
 namespace sandtable::dis {
@@ -31,15 +32,6 @@ void writePcap(const std::filesystem::path& path, const std::vector<std::byte>& 
   ASSERT_TRUE(w->close());
 }
 
-std::string run(const std::string& command) {
-  std::string out;
-  std::unique_ptr<FILE, int (*)(FILE*)> p(popen(command.c_str(), "r"), pclose);
-  if (!p) return out;
-  std::array<char, 4096> buf{};
-  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), p.get())) out.append(buf.data(), n);
-  return out;
-}
-
 /// tshark's first value (`occurrence` "f"; "l" the last, "a" all: 4.0 takes
 /// no number, and entity-id fields are shared by every id in a PDU) of each
 /// field in the capture `read` opens, against `want`.
@@ -47,7 +39,7 @@ void expectFields(const std::string& read, const std::vector<std::pair<std::stri
                   const std::string& occurrence = "f") {
   std::string command = read + "-T fields -E occurrence=" + occurrence + " -E separator=/t";
   for (const auto& [field, value] : want) command += " -e " + field;
-  const std::string line = run(command);
+  const std::string line = fixtures::commandOutput(command);
   std::vector<std::string> got;
   std::string cell;
   for (char c : line) {
@@ -70,7 +62,7 @@ TEST(DisTshark, wiresharkReadsEveryFieldOfOurEntityStatePdu) {
   const auto pcap = dir / "es.pcap";
   writePcap(pcap, encode(testexample::exampleHeader(), testexample::example()));
   const std::string read = "tshark -r '" + pcap.string() + "' 2>/dev/null ";
-  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed && dis'"), "");
   // First occurrences: the entity type's fields come before the alternative type's.
   const std::vector<std::pair<std::string, std::string>> want = {
       {"dis.proto_ver", "7"},
@@ -121,7 +113,7 @@ TEST(DisTshark, wiresharkReadsOurFireAndDetonationPdus) {
   f.range = 2.0f;
   writePcap(dir / "fire.pcap", encode(testexample::exampleHeader(), f));
   std::string read = "tshark -r '" + (dir / "fire.pcap").string() + "' 2>/dev/null ";
-  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed && dis'"), "");
   expectFields(read, {{"dis.pdu_type", "2"},
                       {"dis.pdu_length", "96"},
                       {"dis.entity_id_site", "1"},
@@ -145,7 +137,7 @@ TEST(DisTshark, wiresharkReadsOurFireAndDetonationPdus) {
   d.parameters.push_back(toParameter(ArticulatedPart{0, 0, 4096 + 11, 1.5f}));
   writePcap(dir / "detonation.pcap", encode(testexample::exampleHeader(), d));
   read = "tshark -r '" + (dir / "detonation.pcap").string() + "' 2>/dev/null ";
-  EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+  EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed && dis'"), "");
   expectFields(read, {{"dis.pdu_type", "3"},
                       {"dis.pdu_length", "120"},
                       {"dis.event_number", "9"},
@@ -175,7 +167,7 @@ TEST(DisTshark, wiresharkReadsOurSimulationManagementAndObjectPdus) {
   for (const auto& [type, bytes] : requests) {
     writePcap(dir / "request.pcap", bytes);
     const std::string read = "tshark -r '" + (dir / "request.pcap").string() + "' 2>/dev/null ";
-    EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+    EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed && dis'"), "");
     expectFields(read, {{"dis.proto_ver", "7"},
                         {"dis.pdu_type", type},
                         {"dis.proto_fam", "5"},
@@ -200,7 +192,7 @@ TEST(DisTshark, wiresharkReadsOurSimulationManagementAndObjectPdus) {
   for (const auto& [type, length, bytes] : objects) {
     writePcap(dir / "object.pcap", bytes);
     const std::string read = "tshark -r '" + (dir / "object.pcap").string() + "' 2>/dev/null ";
-    EXPECT_EQ(run(read + "-Y '_ws.malformed && dis'"), "");
+    EXPECT_EQ(fixtures::commandOutput(read + "-Y '_ws.malformed && dis'"), "");
     expectFields(read, {{"dis.proto_ver", "7"},
                         {"dis.exer_id", "3"},
                         {"dis.pdu_type", type},

@@ -708,21 +708,29 @@ void Simulation::sense(Entity& e, const Entity& m, const Eigen::Vector3d& at) {
   }
 }
 
-void Simulation::senseRemoteMunition(const Entity& m) {
-  // A round another simulation flies: its owner decides what it hits (a
-  // Detonation PDU), but our entities see it go by (Figure 70's near miss).
-  const auto key = cellKey(m.position.x(), m.position.z(), options_.entityBoxM);
+template <typename Visit>
+void Simulation::forEntitiesNear(const Eigen::Vector3d& p, Visit&& visit) {
+  // The 3 x 3 cells of entityBoxM around p: every entity within a box of
+  // it (bucketEntities filled the cells at the start of the step).
+  const auto key = cellKey(p.x(), p.z(), options_.entityBoxM);
   const auto cx = std::int64_t(key >> 32), cz = std::int64_t(key & 0xffffffffu);
   for (std::int64_t dx = -1; dx <= 1; ++dx) {
     for (std::int64_t dz = -1; dz <= 1; ++dz) {
       const std::uint64_t k = (std::uint64_t(cx + dx) << 32) | std::uint64_t(cz + dz);
       for (auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(k, 0u));
            it != cells_.end() && it->first == k; ++it) {
-        Entity& e = records_[it->second].entity;
-        if (e.alive && e.id != m.launcher) sense(e, m, m.position);
+        visit(records_[it->second].entity);
       }
     }
   }
+}
+
+void Simulation::senseRemoteMunition(const Entity& m) {
+  // A round another simulation flies: its owner decides what it hits (a
+  // Detonation PDU), but our entities see it go by (Figure 70's near miss).
+  forEntitiesNear(m.position, [&](Entity& e) {
+    if (e.alive && e.id != m.launcher) sense(e, m, m.position);
+  });
 }
 
 void Simulation::flyMunition(Entity& m) {
@@ -765,34 +773,24 @@ void Simulation::flyMunition(Entity& m) {
     }
   }
   // ...and entities, through the same 100 m cells as the moving pairs.
-  const auto key = cellKey(b.x(), b.z(), options_.entityBoxM);
-  const auto cx = std::int64_t(key >> 32), cz = std::int64_t(key & 0xffffffffu);
-  for (std::int64_t dx = -1; dx <= 1; ++dx) {
-    for (std::int64_t dz = -1; dz <= 1; ++dz) {
-      const std::uint64_t k = (std::uint64_t(cx + dx) << 32) | std::uint64_t(cz + dz);
-      for (auto it = std::lower_bound(cells_.begin(), cells_.end(), std::make_pair(k, 0u));
-           it != cells_.end() && it->first == k; ++it) {
-        Entity& e = records_[it->second].entity;
-        if (!e.alive || e.id == m.launcher) continue;
-        const Eigen::Vector3d centre = e.position + Eigen::Vector3d(0, e.height * 0.5, 0);
-        if (auto t = sweptHitsSphere(a, b, e.sphereRadius + type.radius, centre); t && *t < best) {
-          best = *t;
-          hitEntity = e.id;
-          hitObject = UINT32_MAX;
-          detail = "entity";
-        }
-        // Figure 70: the kill box kills; the near-miss box is sensed.
-        const BehaviourOptions& o = options_.behaviour;
-        if (inBox(e, b, o.killBoxM) && hitEntity == UINT32_MAX) {
-          hitEntity = e.id;
-          best = std::min(best, 1.0);
-          detail = "kill box";
-        } else {
-          sense(e, m, b);
-        }
-      }
+  forEntitiesNear(b, [&](Entity& e) {
+    if (!e.alive || e.id == m.launcher) return;
+    const Eigen::Vector3d centre = e.position + Eigen::Vector3d(0, e.height * 0.5, 0);
+    if (auto t = sweptHitsSphere(a, b, e.sphereRadius + type.radius, centre); t && *t < best) {
+      best = *t;
+      hitEntity = e.id;
+      hitObject = UINT32_MAX;
+      detail = "entity";
     }
-  }
+    // Figure 70: the kill box kills; the near-miss box is sensed.
+    if (inBox(e, b, options_.behaviour.killBoxM) && hitEntity == UINT32_MAX) {
+      hitEntity = e.id;
+      best = std::min(best, 1.0);
+      detail = "kill box";
+    } else {
+      sense(e, m, b);
+    }
+  });
   if (best <= 1) {
     detonate(m, a + (b - a) * best, hitEntity, hitObject, detail);
   } else if (m.fuseS <= 0) {

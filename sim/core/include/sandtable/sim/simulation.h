@@ -270,6 +270,10 @@ class Simulation {
   /// `m` at `at` once, turns, and may fire back.
   void sense(Entity& e, const Entity& m, const Eigen::Vector3d& at);
   void senseRemoteMunition(const Entity& m);
+  /// Calls visit(Entity&) for every live, non-munition entity in the cells
+  /// around `p` (the moving pairs' cells, filled at the start of the step).
+  template <typename Visit>
+  void forEntitiesNear(const Eigen::Vector3d& p, Visit&& visit);
   void detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hitEntity, std::uint32_t hitObject,
                 const std::string& detail);
   void collideStatic(Record& r);
