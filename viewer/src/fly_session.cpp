@@ -258,7 +258,7 @@ std::vector<FrameStats::ScreenLabel> project(const std::vector<EntityLabel>& lab
                                                   l.position.z() - buf.originZ, 1.0);
     if (c.w() <= 1e-6) continue;
     const double x = c.x() / c.w(), y = c.y() / c.w();
-    if (std::abs(x) > 1.1 || std::abs(y) > 1.1) continue;
+    if (std::abs(x) > 1.05 || std::abs(y) > 1.05) continue;  // off the frame
     FrameStats::ScreenLabel s;
     s.x = int(std::lround((x * 0.5 + 0.5) * width));
     s.y = int(std::lround((0.5 - y * 0.5) * height));
@@ -297,8 +297,10 @@ bool overlaps(const render::PixelBox& a, const render::PixelBox& b) {
 /// label is left out, so a crowd far away does not turn into a smudge.
 void drawLabels(render::Overlay& overlay, const FrameStats& s) {
   const int scale = overlay.layer().width >= 1600 ? 2 : 1;
+  constexpr std::size_t kMaxLabelsDrawn = 64;
   std::vector<render::PixelBox> taken{s.hudPanel};
   for (const FrameStats::ScreenLabel& l : s.labels) {
+    if (taken.size() > kMaxLabelsDrawn) break;
     const int w = render::textWidth(l.text, scale), h = render::kGlyphHeight * scale;
     const render::PixelBox box{l.x - w / 2 - 1, l.y - h - 1, w + 2, h + 2};
     if (std::any_of(taken.begin(), taken.end(), [&](const render::PixelBox& t) { return overlaps(t, box); })) continue;

@@ -173,7 +173,6 @@ std::vector<EntityLabel> SimSession::labels(const Eigen::Vector3d& eye) const {
     near.emplace_back(d, std::move(l));
   }
   std::sort(near.begin(), near.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  if (near.size() > options_.maxLabels) near.resize(options_.maxLabels);
   std::vector<EntityLabel> out;
   out.reserve(near.size());
   for (auto& [d, l] : near) out.push_back(std::move(l));

@@ -99,10 +99,10 @@ struct SimSessionOptions {
   /// Lines added to the panel (fly --dis: the network's figures); may be empty.
   std::function<std::vector<std::string>()> extraPanel;
   /// Names drawn over the entities within labelRangeM of the eye (fly
-  /// --dis: the DIS markings), nearest first, at most maxLabels.
+  /// --dis: the DIS markings), nearest first (the viewer draws the first
+  /// kMaxLabelsDrawn in the frame that do not overlap).
   bool labels = false;
   double labelRangeM = 4000;
-  std::size_t maxLabels = 64;
 };
 
 /// A name to draw over an entity: where (world metres, above its top) and
