@@ -662,7 +662,7 @@ void registerFly(CLI::App& root, Commands& c) {
                   "Fraction of each icon's far range over which its objects fade in (0 pops them in)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_flag("--no-object-lod", args->noObjectLod,
-                "Draw every object in the view distance at its icon's full detail (no ranges, no sprites)");
+                "Draw every object in the view distance, and every entity, at its icon's full detail (no ranges, no sprites)");
   sub->add_option("--impostor-pixels", args->impostorPixels,
                   "Objects drawn smaller than this many pixels become impostor sprites (0: always meshes)")
       ->capture_default_str()->check(CLI::Range(0.0, 255.0));

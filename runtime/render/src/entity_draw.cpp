@@ -168,8 +168,9 @@ bool hasState(const iconpack::Icon& icon, iconpack::State s) {
 
 double length(const std::array<float, 3>& v) { return std::hypot(double(v[0]), double(v[1]), double(v[2])); }
 
-/// One state of one icon: body, turret and gun index ranges over one vertex run.
-EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, EntityMeshes& out, float& reach,
+/// One state of one icon: body, turret and gun index ranges per level over
+/// one vertex run.
+EntityLevels flattenState(const iconpack::Icon& icon, iconpack::State state, EntityMeshes& out, float& reach,
                          std::array<float, 6>& body3) {
   EntityShape shape;
   const auto base = std::int32_t(out.vertices.size());
@@ -181,7 +182,8 @@ EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, Enti
     shape.gunPivot = shape.gunTurns ? originIn(icon, *gunPart, *turretPart) : iconpack::partOrigin(icon, *gunPart);
   }
   enum Group { kBodyGroup, kTurretGroup, kGunGroup };
-  std::array<std::vector<std::uint32_t>, 3> groups;
+  const std::size_t levels = std::max<std::size_t>(1, icon.ranges.size());
+  std::vector<std::array<std::vector<std::uint32_t>, 3>> groups(levels);  // [level][group]
   for (std::size_t p = 0; p < icon.parts.size(); ++p) {
     const iconpack::Part& part = icon.parts[p];
     if (part.state != state) continue;
@@ -214,8 +216,9 @@ EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, Enti
           body3[k + 3] = std::max(body3[k + 3], at[k]);
         }
       }
-      if (m.levels.empty()) continue;
-      for (const std::uint32_t i : m.levels[0]) groups[group].push_back(first + i);
+      for (std::size_t l = 0; l < levels && l < m.levels.size(); ++l) {
+        for (const std::uint32_t i : m.levels[l]) groups[l][group].push_back(first + i);
+      }
     }
   }
   const auto append = [&](const std::vector<std::uint32_t>& indices) {
@@ -223,10 +226,13 @@ EntityShape flattenState(const iconpack::Icon& icon, iconpack::State state, Enti
     out.indices.insert(out.indices.end(), indices.begin(), indices.end());
     return range;
   };
-  shape.body = append(groups[kBodyGroup]);
-  shape.turret = append(groups[kTurretGroup]);
-  shape.gun = append(groups[kGunGroup]);
-  return shape;
+  EntityLevels perLevel(levels, shape);
+  for (std::size_t l = 0; l < levels; ++l) {
+    perLevel[l].body = append(groups[l][kBodyGroup]);
+    perLevel[l].turret = append(groups[l][kTurretGroup]);
+    perLevel[l].gun = append(groups[l][kGunGroup]);
+  }
+  return perLevel;
 }
 
 std::array<float, 4> toArray(const Eigen::Quaterniond& q) {
@@ -250,7 +256,7 @@ EntityMeshes flattenEntityIcons(const iconpack::Pack& pack) {
   for (const iconpack::Icon& icon : pack.icons) {
     float reach = 0;
     std::array<float, 6> body{INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY}, deadBody = body;
-    std::array<EntityShape, 2> shapes;
+    std::array<EntityLevels, 2> shapes;
     shapes[0] = flattenState(icon, iconpack::State::alive, out, reach, body);
     // No dead parts: the dead draw as the living (a jeep has no wreck).
     shapes[1] = hasState(icon, iconpack::State::dead)
@@ -398,7 +404,7 @@ Status EntityRenderer::create(const RenderSettings& s, GLuint textures) {
     farRange_.push_back(icon.ranges.empty() ? INFINITY : double(icon.ranges.back()));
   }
   bool anyTextured = false;
-  for (const auto& st : shapes_) anyTextured = anyTextured || st[0].textured || st[1].textured;
+  for (const auto& st : shapes_) anyTextured = anyTextured || st[0][0].textured || st[1][0].textured;
   textures_ = textures;
   if (textures_ == 0 && anyTextured) {
     std::vector<std::string> warnings;
@@ -487,6 +493,19 @@ double EntityRenderer::drawnY(const scene::DisplayBuffer& buf, const ModuleRende
   return d.y;
 }
 
+int EntityRenderer::levelOf(const scene::DynamicInstance& d, double distance, double radius,
+                            double viewDistance) const {
+  const iconpack::Icon& icon = settings_.icons->icons[d.icon];
+  // The sphere's near side: an entity is drawn out to where all of it has
+  // left the far range, and takes a coarser level only once all of it is
+  // past the switch range.
+  const double nearSide = std::max(0.0, distance - radius);
+  const bool inRange = nearSide < std::min(farRange_[d.icon], viewDistance);
+  if (!settings_.objectLod || icon.ranges.empty()) return inRange ? 0 : -1;
+  float fade = 1;  // entities pop: a tank half dithered away would read as a ghost
+  return iconLevelAt(icon, nearSide, viewDistance, 0.0, fade);
+}
+
 void EntityRenderer::add(const scene::DisplayBuffer& buf, const scene::DynamicInstance& d, double y,
                          const std::array<Eigen::Vector4d, 5>& planes, RenderStats& stats) {
   if (d.icon >= shapes_.size()) return;
@@ -495,7 +514,8 @@ void EntityRenderer::add(const scene::DisplayBuffer& buf, const scene::DynamicIn
   const Eigen::Vector3d eye(cam.x - buf.originX, cam.y, cam.z - buf.originZ);
   const double radius = double(reach_[d.icon]) * double(d.scale);
   const double distance = (origin - eye).norm();
-  if (distance - radius >= std::min(farRange_[d.icon], cam.viewDistance)) return;
+  const int level = levelOf(d, distance, radius, cam.viewDistance);
+  if (level < 0) return;
   const Eigen::Vector4d c(origin.x(), origin.y(), origin.z(), 1.0);
   for (const auto& p : planes) {
     if (p.dot(c) < -radius) return;
@@ -504,7 +524,8 @@ void EntityRenderer::add(const scene::DisplayBuffer& buf, const scene::DynamicIn
   if (d.shadow && distance < 1000) {
     appendShadow(origin, d.orientation, d.scale, footprint_[d.icon], shadowVertices_);
   }
-  const EntityShape& shape = shapes_[d.icon][d.dead ? 1 : 0];
+  const EntityLevels& levels = shapes_[d.icon][d.dead ? 1 : 0];
+  const EntityShape& shape = levels[std::min(std::size_t(level), levels.size() - 1)];
   EntityInstanceGpu g{};
   g.x = float(origin.x());
   g.y = float(origin.y());

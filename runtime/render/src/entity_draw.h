@@ -5,16 +5,24 @@
 // changed (knocked over, stumps, ruins), which the object pass hands over.
 // Private to the renderer; every GL call on the render thread.
 //
-// Meshes. At create() every icon is flattened per state (alive, dead) into
-// three groups at full detail (level 0): the body (every part but these
+// Meshes. At create() every icon is flattened per state (alive, dead) and
+// per level of detail into three groups: the body (every part but these
 // two), the turret (the first part named "turret" and its children), and
 // the gun (the first part named "gun" and its children, taken out of the
-// turret when it hangs from it). The turret's vertices are in its own frame
-// so that it turns about its ring (its origin, iconpack::partOrigin), the
-// gun's in its own so that it elevates about its trunnion (its origin). An
-// icon without dead parts draws its alive parts when dead. Entities are few: no coarser levels, no impostors, no
-// thinning; each is drawn out to its icon's far range (capped at the view
-// distance).
+// turret when it hangs from it). The levels share one vertex run per state;
+// each has its own index lists, split into the same groups, so the turret
+// turns and the gun elevates at every level. The turret's vertices are in
+// its own frame so that it turns about its ring (its origin,
+// iconpack::partOrigin), the gun's in its own so that it elevates about its
+// trunnion (its origin). An icon without dead parts draws its alive parts
+// when dead.
+//
+// Levels. An entity takes its icon's level by the object pass's rule
+// (iconLevelAt, no fade) at the near side of its bounding sphere, so it is
+// drawn out to where that sphere leaves the far range (capped at the view
+// distance), as before the levels; with RenderSettings::objectLod false
+// every entity is drawn at level 0 out to there (the benchmark's
+// baseline). No impostors, no thinning: entities are not trees.
 //
 // Instances. Each draw has its origin, scale, a body-to-world quaternion,
 // the turret's pivot and angle and the gun's trunnion and elevation (zero
@@ -23,7 +31,7 @@
 // Y at the ring (the hull's gun does not turn), then rotates by the
 // quaternion (full pitch, roll and heading, where static objects take a
 // heading only). Instances are sorted by group: one instanced draw per
-// (icon state, group) in view, however many entities show it.
+// (icon state, level, group) in view, however many entities show it.
 //
 // Ground. An instance marked onSurface stands on the finest surface (the
 // simulator's); it is moved by the difference between the surface drawn
@@ -58,7 +66,8 @@ namespace sandtable::render::detail {
 
 class ModuleRenderer;
 
-/// One icon state's three groups in the entity buffers.
+/// One icon state's three groups at one level of detail in the entity
+/// buffers (the levels of a state share its vertices and pivots).
 struct EntityShape {
   IconLevelRange body, turret, gun;     ///< count 0: none
   std::array<float, 3> pivot{0, 0, 0};  ///< the turret's ring, body frame
@@ -69,12 +78,16 @@ struct EntityShape {
   bool textured = false;
 };
 
-/// Every icon flattened for entities: [icon][state], state 0 alive, 1 dead
-/// (the alive shape again when the icon has no dead parts). Pure CPU.
+/// One icon state's shapes, one per level of the icon (Icon::ranges; one,
+/// with no indices, when it has none).
+using EntityLevels = std::vector<EntityShape>;
+
+/// Every icon flattened for entities: [icon][state][level], state 0 alive,
+/// 1 dead (the alive shapes again when the icon has no dead parts). Pure CPU.
 struct EntityMeshes {
   std::vector<IconVertex> vertices;
   std::vector<std::uint32_t> indices;
-  std::vector<std::array<EntityShape, 2>> shapes;
+  std::vector<std::array<EntityLevels, 2>> shapes;
   std::vector<float> reach;  ///< per icon: farthest vertex from the origin (bounding sphere), unscaled
   /// Per icon: its alive body's extent (min x, y, z, max x, y, z), the
   /// turret and gun left out (the gun overhangs): the contact shadow's footprint.
@@ -165,7 +178,11 @@ class EntityRenderer {
   bool ownTextures_ = false;
   GLuint vao_ = 0, vertexBuffer_ = 0, indexBuffer_ = 0, instanceBuffer_ = 0;
   GLuint effectVao_ = 0, effectBuffer_ = 0;
-  std::vector<std::array<EntityShape, 2>> shapes_;
+  /// The level instance `d` is drawn at, `distance` metres from the eye
+  /// with a bounding sphere of `radius`; -1: not drawn (beyond the far range).
+  int levelOf(const scene::DynamicInstance& d, double distance, double radius, double viewDistance) const;
+
+  std::vector<std::array<EntityLevels, 2>> shapes_;
   std::vector<float> reach_;
   std::vector<double> farRange_;  ///< per icon: its last switch range (infinite without ranges)
   std::optional<world::GroundClamp> clamp_;  ///< module mode: the surfaces of every level

@@ -52,7 +52,7 @@ iconpack::Pack pack() {
 TEST(EntityShapes, theTurretTurnsAboutItsRingAndTheDeadFallBackToTheLiving) {
   const EntityMeshes m = flattenEntityIcons(pack());
   ASSERT_EQ(m.shapes.size(), 2u);
-  const EntityShape& alive = m.shapes[0][0];
+  const EntityShape& alive = m.shapes[0][0][0];
   EXPECT_EQ(alive.body.count, 6u);    // the hull's two triangles
   EXPECT_EQ(alive.turret.count, 6u);  // the turret's
   EXPECT_FLOAT_EQ(alive.pivot[1], 1.6f);
@@ -64,13 +64,13 @@ TEST(EntityShapes, theTurretTurnsAboutItsRingAndTheDeadFallBackToTheLiving) {
   const IconVertex& h = m.vertices[std::size_t(alive.body.baseVertex) + m.indices[alive.body.firstIndex]];
   EXPECT_FLOAT_EQ(h.y, 0.5f);
   // Dead: the wreck alone, no turret.
-  const EntityShape& dead = m.shapes[0][1];
+  const EntityShape& dead = m.shapes[0][1][0];
   EXPECT_EQ(dead.body.count, 6u);
   EXPECT_EQ(dead.turret.count, 0u);
   EXPECT_NE(dead.body.baseVertex, alive.body.baseVertex);
   // The jeep has no dead parts: dead, it draws as it did alive.
-  EXPECT_EQ(m.shapes[1][1].body.baseVertex, m.shapes[1][0].body.baseVertex);
-  EXPECT_EQ(m.shapes[1][1].body.count, m.shapes[1][0].body.count);
+  EXPECT_EQ(m.shapes[1][1][0].body.baseVertex, m.shapes[1][0][0].body.baseVertex);
+  EXPECT_EQ(m.shapes[1][1][0].body.count, m.shapes[1][0][0].body.count);
   // The bounding radius covers the gun turned anywhere: 6 m of gun from a
   // ring 1.6 m up, and the hull's corners.
   EXPECT_GE(m.reach[0], std::hypot(6.0f, 0.4f));
@@ -100,7 +100,7 @@ TEST(EntityShapes, theGunElevatesAboutItsTrunnionOnTheTurretOrOnTheHull) {
   destroyer.parts.push_back(gun);
   p.icons.push_back(destroyer);
   const EntityMeshes m = flattenEntityIcons(p);
-  const EntityShape& t = m.shapes[0][0];
+  const EntityShape& t = m.shapes[0][0][0];
   EXPECT_EQ(t.body.count, 6u);
   EXPECT_EQ(t.turret.count, 6u);  // the gun is not the turret's any more
   EXPECT_EQ(t.gun.count, 6u);
@@ -115,15 +115,54 @@ TEST(EntityShapes, theGunElevatesAboutItsTrunnionOnTheTurretOrOnTheHull) {
   EXPECT_GE(m.reach[0], std::hypot(4.1f, 0.1f));
   EXPECT_GE(m.reach[0] + 1e-5f, std::hypot(4.1f, 0.1f) + std::hypot(0.4f, 1.9f) + 1.6f);
   // The dead wreck has no gun.
-  EXPECT_EQ(m.shapes[0][1].gun.count, 0u);
+  EXPECT_EQ(m.shapes[0][1][0].gun.count, 0u);
   // The destroyer's gun hangs from the hull: it pitches in the body frame and never turns.
-  const EntityShape& d = m.shapes[2][0];
+  const EntityShape& d = m.shapes[2][0][0];
   EXPECT_EQ(d.turret.count, 0u);
   EXPECT_EQ(d.gun.count, 6u);
   EXPECT_FALSE(d.gunTurns);
   EXPECT_EQ(d.gunPivot, (std::array<float, 3>{0, 1.2f, -2.0f}));
   // Neither gun widens the shadow's footprint.
   EXPECT_FLOAT_EQ(m.footprint[2][2], -3.5f);
+}
+
+TEST(EntityShapes, everyLevelKeepsTheBodyTurretAndGunGroupsOverOneVertexRun) {
+  // Two levels: the hull and turret lose a triangle at level 1; the gun
+  // hangs from the turret at both.
+  iconpack::Pack p = pack();
+  iconpack::Icon& tank = p.icons[0];
+  tank.ranges = {300, 5000};
+  iconpack::Part gun;
+  gun.name = "gun";
+  gun.parent = 1;
+  gun.offset = {0, 0.4f, -1.9f};
+  gun.meshes = {quad(-0.1f, 0.1f, 0.1f, -4.1f, -0.1f)};
+  tank.parts.insert(tank.parts.begin() + 2, gun);
+  for (iconpack::Part& part : tank.parts) {
+    for (iconpack::Mesh& mesh : part.meshes) {
+      const std::vector<std::uint32_t> full = mesh.levels[0];
+      mesh.levels = {full, part.name == "gun" ? full : std::vector<std::uint32_t>(full.begin(), full.begin() + 3)};
+    }
+  }
+  const EntityMeshes m = flattenEntityIcons(p);
+  const EntityLevels& alive = m.shapes[0][0];
+  ASSERT_EQ(alive.size(), 2u);
+  EXPECT_EQ(alive[0].body.count, 6u);
+  EXPECT_EQ(alive[1].body.count, 3u);
+  EXPECT_EQ(alive[1].turret.count, 3u);
+  EXPECT_EQ(alive[1].gun.count, 6u);
+  // One vertex run and the same pivots at every level.
+  EXPECT_EQ(alive[1].body.baseVertex, alive[0].body.baseVertex);
+  EXPECT_EQ(alive[1].gun.baseVertex, alive[0].gun.baseVertex);
+  EXPECT_NE(alive[1].body.firstIndex, alive[0].body.firstIndex);
+  EXPECT_EQ(alive[1].pivot, alive[0].pivot);
+  EXPECT_EQ(alive[1].gunPivot, alive[0].gunPivot);
+  EXPECT_TRUE(alive[1].gunTurns);
+  // The same vertices: level 1's first turret index is level 0's.
+  EXPECT_EQ(m.indices[alive[1].turret.firstIndex], m.indices[alive[0].turret.firstIndex]);
+  // The dead wreck has two levels too; the jeep one (its ranges).
+  EXPECT_EQ(m.shapes[0][1].size(), 2u);
+  EXPECT_EQ(m.shapes[1][0].size(), 1u);
 }
 
 Eigen::Vector3d rotate(const std::array<float, 4>& q, const Eigen::Vector3d& v) {

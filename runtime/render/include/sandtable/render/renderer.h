@@ -121,9 +121,10 @@ struct DrawChoices {
   /// last switch range, capped at the view distance) instead of popping
   /// in; 0 pops. 0 .. 1.
   double objectFade = kDefaultObjectFade;
-  /// Objects take their icon's level of detail by range and vanish past
-  /// its far range (seed IX.B.1); false: every object out to the view
-  /// distance is drawn at full detail (the benchmark's baseline).
+  /// Objects and entities take their icon's level of detail by range and
+  /// objects vanish past its far range (seed IX.B.1); false: every object
+  /// out to the view distance, and every entity out to its far range, is
+  /// drawn at full detail (the benchmark's baseline).
   bool objectLod = true;
   /// An object whose projected size (its icon's sprite square: the larger
   /// of its height and its width about its origin, times its scale) is
