@@ -747,7 +747,7 @@ Result<DisBenchReport> runDisBench(const DisBenchOptions& o, const Notes& notes)
       "memory: one PDU per datagram; apply is the update rounds (entities known), create the first round",
       "loopback: sender, receiver thread and consumer share this machine's cores; latency one-way on one steady clock",
       "watch: the gateway's pre-step and the simulation's step with N remote entities, no rendering; the viewer's "
-      "frame rate with N tracked entities is not measured (no fly --dis yet)",
+      "frame rate with N tracked entities is measured with fly --dis beside a publishing sim --dis (docs/DIS.md 13)",
       "table9: errors are horizontal for land entities (receivers align them to the ground), 3-D for aircraft"};
   DisBenchReport rep;
   rep.json = std::move(j);

@@ -91,7 +91,7 @@ void printHuman(const nlohmann::json& j) {
                 d(c, "before_step_ms"), d(c, "sim_step_ms"), d(c, "frame_ms"),
                 c["fits_30fps"].get<bool>() ? "fits 30 fps" : "over 30 fps");
   }
-  std::printf("   The viewer's frame rate with N tracked entities is NOT measured: fly has no --dis yet.\n");
+  std::printf("   The viewer's own frame rate (drawing too) is measured with fly --dis beside sim --dis: docs/DIS.md §13.\n");
 }
 
 int run(Args a) {
