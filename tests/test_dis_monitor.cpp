@@ -302,7 +302,7 @@ TEST(DisMonitorCli, recordHearsWhatPlaySendsAtTheRecordedPace) {
   EXPECT_EQ(j["entities"][0]["marking"], "ALPHA");
   EXPECT_EQ(j["entities"][1]["marking"], "BRAVO");
   // 4 s of capture at twice the pace: 2 s, give or take the scheduler.
-  EXPECT_NEAR(j["window_s"].get<double>(), 2.0, 0.2);
+  EXPECT_NEAR(j["window_s"].get<double>(), 2.0, 0.5);  // a loaded machine delays sends, never hurries them
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -328,7 +329,9 @@ std::string partsText(const dis::EntityReport& e) {
   return out.empty() ? "-" : out;
 }
 
-void printReport(std::FILE* out, const dis::Report& r, const StatesAt* at) {
+/// `maxEntities` bounds the entity rows (the live table, redrawn each second).
+void printReport(std::FILE* out, const dis::Report& r, const StatesAt* at,
+                 std::size_t maxEntities = std::numeric_limits<std::size_t>::max()) {
   const double t0 = r.firstS;
   std::fprintf(out, "%s s, %llu datagrams, %llu PDUs (%llu Fire, %llu Detonation, %llu of undecoded types), "
                     "%llu malformed, %llu of other exercises\n",
@@ -349,7 +352,12 @@ void printReport(std::FILE* out, const dis::Report& r, const StatesAt* at) {
 
   rows = {{"ENTITY", "MARKING", "TYPE", "FORCE", "DR", "UPDATES", "MAX GAP S", "LAST S", "LON", "LAT", "HEIGHT M",
            "HEADING", "PITCH", "ROLL", "PARTS"}};
+  std::size_t unlisted = 0;
   for (const dis::EntityReport& e : r.entities) {
+    if (rows.size() > maxEntities) {
+      ++unlisted;
+      continue;
+    }
     dis::Vec3d location = e.location;
     dis::Euler orientation = e.orientation;
     if (at) {
@@ -372,6 +380,7 @@ void printReport(std::FILE* out, const dis::Report& r, const StatesAt* at) {
   if (at) std::fprintf(out, "entities at %s s (dead reckoned from the last PDU before)\n", fixed(at->atS, 3).c_str());
   else std::fprintf(out, "entities (as their last PDU has them)\n");
   printTable(out, rows);
+  if (unlisted > 0) std::fprintf(out, "  ... and %zu more entities (--json lists every one)\n", unlisted);
 
   if (r.malformed > 0) {
     std::fprintf(out, "malformed PDUs: %llu\n", (unsigned long long)r.malformed);
@@ -551,7 +560,7 @@ int runMonitor(const LiveArgs& a) {
                   where.c_str(), steadyNow() - start, (unsigned long long)(r.datagrams - lastDatagrams),
                   (unsigned long long)(r.pdus - lastPdus), (unsigned long long)c.queueDropped,
                   (unsigned long long)c.kernelDropped);
-      printReport(stdout, r, nullptr);
+      printReport(stdout, r, nullptr, 40);
     } else {
       std::printf("%.0f s  datagrams %llu (+%llu)  PDUs %llu (+%llu)  senders %zu  entities %zu  malformed %llu  "
                   "other exercise %llu  dropped %llu\n",

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "sandtable/dis/monitor.h"
@@ -356,6 +357,47 @@ TEST(DisMonitor, reckonsFromThePduBeforeATimeBetweenTheLastTwo) {
   ASSERT_TRUE(after.has_value());
   EXPECT_NEAR(after->location.y, 1001.0, 1e-9);
   EXPECT_FALSE(m.state({1, 2, 1}, 5.0).has_value());
+}
+
+// Hostile bytes: every prefix of a two-PDU datagram and random datagrams
+// (some with a plausible header) are counted, never crash, and every
+// datagram is accounted for as at least one PDU or one malformed PDU.
+TEST(DisMonitor, everyPrefixAndRandomBytesAreCounted) {
+  Monitor m;
+  EntityState e = entity({1, 2, 1});
+  e.parameters.push_back(toParameter(ArticulatedPart{1, 0, 4096 + 11, 1.5f}));
+  const auto a = encode(header(), e);
+  Fire f;
+  const auto b = encode(header(), f);
+  std::vector<std::byte> both(a);
+  both.insert(both.end(), b.begin(), b.end());
+  std::uint64_t datagrams = 0;
+  for (std::size_t n = 0; n <= both.size(); ++n) {
+    Datagram d = datagram(double(n), kA, {});
+    d.bytes.assign(both.begin(), both.begin() + std::ptrdiff_t(n));
+    m.add(d);
+    ++datagrams;
+    const Report r = m.report();
+    ASSERT_GE(r.pdus + r.malformed, datagrams) << n;
+  }
+  std::mt19937 rng(36);
+  for (int k = 0; k < 20000; ++k) {
+    Datagram d = datagram(1000.0 + k, Address{std::uint32_t(rng()), std::uint16_t(rng())}, {});
+    d.bytes.resize(rng() % 400);
+    for (auto& x : d.bytes) x = std::byte(rng());
+    if (k % 2 == 0 && d.bytes.size() >= 12) {  // a plausible header, so bodies are reached
+      d.bytes[0] = std::byte(7);
+      d.bytes[2] = std::byte(1 + rng() % 3);
+      d.bytes[8] = std::byte(d.bytes.size() >> 8);
+      d.bytes[9] = std::byte(d.bytes.size() & 255);
+    }
+    m.add(d);
+  }
+  const Report r = m.report();
+  EXPECT_EQ(r.datagrams, datagrams + 20000);
+  EXPECT_GE(r.pdus + r.malformed, r.datagrams);
+  EXPECT_LE(r.senders.size(), MonitorOptions{}.maxSenders);
+  EXPECT_LE(r.reasons.size(), MonitorOptions{}.maxReasons);
 }
 
 }  // namespace
