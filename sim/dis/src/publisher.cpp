@@ -13,6 +13,9 @@ dis::Vec3f toFloat(const dis::Vec3d& v) { return {float(v.x), float(v.y), float(
 
 double angleBetweenDeg(double a, double b) { return std::abs(sim::turnBetween(a, b)); }
 
+/// The turret's azimuth from the hull's nose, degrees (the PDU's articulated part).
+double turretOf(const sim::Entity& e) { return sim::turnBetween(e.headingDeg, e.gunAzimuthDeg); }
+
 }  // namespace
 
 std::uint8_t Publisher::algorithmFor(sim::Domain d) const {
@@ -43,7 +46,7 @@ std::optional<dis::EntityState> Publisher::build(const sim::Entity& e, const Ide
   s.appearance = e.alive ? 0 : kAppearanceDestroyed;
   s.marking = dis::Marking::ascii(e.name);
   if (e.armed) {
-    const double turret = sim::turnBetween(e.headingDeg, e.gunAzimuthDeg) * sim::kDegToRad;
+    const double turret = turretOf(e) * sim::kDegToRad;
     s.parameters.push_back(dis::toParameter(dis::ArticulatedPart{0, 0, kTurretAzimuth, float(turret)}));
     s.parameters.push_back(
         dis::toParameter(dis::ArticulatedPart{0, 0, kGunElevation, float(e.gunElevationDeg * sim::kDegToRad)}));
@@ -62,6 +65,12 @@ CopyError Publisher::error(const Copy& c, const sim::Entity& e, double nowS) con
   err.angleDeg = angleBetweenDeg(shown.headingDeg, e.headingDeg);
   if (!ground) {
     err.angleDeg = std::max({err.angleDeg, std::abs(shown.pitchDeg - e.pitchDeg), angleBetweenDeg(shown.rollDeg, e.rollDeg)});
+  }
+  if (e.armed) {
+    // Articulated parts are not dead reckoned: a turret or gun that turned
+    // past the threshold needs a PDU too (IEEE 1278.1 asks it of them).
+    err.angleDeg = std::max({err.angleDeg, angleBetweenDeg(c.turretDeg, turretOf(e)),
+                             std::abs(c.gunDeg - e.gunElevationDeg)});
   }
   return err;
 }
@@ -88,6 +97,8 @@ std::optional<dis::EntityState> Publisher::offer(const sim::Entity& e, const Ide
   c.motion = dis::motionOf(*s);
   c.sentS = nowS;
   c.alive = e.alive;
+  c.turretDeg = turretOf(e);
+  c.gunDeg = e.gunElevationDeg;
   copies_[e.id] = std::move(c);
   ++sent_;
   return s;

@@ -48,7 +48,6 @@ struct Outgoing {
   Identity who;
   sim::ScriptLine last;  ///< the line applied last
   bool started = false, dead = false;
-  double sentViewDeg = 0, sentGunDeg = 0;  ///< turret and gun (world bearing, degrees) of the last PDU
 };
 
 class ScriptPublisher {
@@ -143,20 +142,9 @@ void ScriptPublisher::send(std::vector<std::byte> bytes, double t) {
 }
 
 void ScriptPublisher::offer(Outgoing& out, double t, bool force) {
-  place(out, t);
-  // The publisher's rule watches the hull alone; a turret or gun that
-  // turned past the angle threshold (a line's View_Direction, the aim of a
-  // Fire_Flag) goes out too, as IEEE 1278.1 asks of articulated parts.
-  const sim::Entity& e = out.entity;
-  const double angle = o_.publishing.thresholds.angleDeg;
-  if (e.armed && (std::abs(sim::turnBetween(out.sentViewDeg, e.gunAzimuthDeg)) > angle ||
-                  std::abs(out.sentGunDeg - e.gunElevationDeg) > angle)) {
-    force = true;
-  }
+  place(out, t);  // a turned turret or gun goes out by the publisher's angle threshold
   const std::uint64_t unplaceable = publisher_.unplaceable();
   if (auto s = publisher_.offer(out.entity, out.who, t, force)) {
-    out.sentViewDeg = e.gunAzimuthDeg;
-    out.sentGunDeg = e.gunElevationDeg;
     send(dis::encode(headerAt(o_.exercise, t), *s), t);
     ++out.map.entityStates;
     ++result_.entityStates;

@@ -7,7 +7,8 @@
 // Land entities are aligned to the ground by their receivers (seed
 // "align-to-ground": height, pitch and roll come from the drawn terrain),
 // so for them only the horizontal error and the heading count: a tank
-// climbing a hill sends no PDUs for its pitch.
+// climbing a hill sends no PDUs for its pitch. An armed entity's turret
+// and gun, which no algorithm reckons, count against the angle threshold.
 //
 // Thread safety: one thread owns a Publisher.
 #include <cstdint>
@@ -69,6 +70,7 @@ class Publisher {
     double sentS = 0;
     Anchor anchor;
     bool alive = true;
+    double turretDeg = 0, gunDeg = 0;  ///< armed: the turret (from the hull's nose) and gun as sent
   };
   CopyError error(const Copy& c, const sim::Entity& e, double nowS) const;
   std::optional<dis::EntityState> build(const sim::Entity& e, const Identity& who, Anchor& anchor) const;
