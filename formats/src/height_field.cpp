@@ -2,6 +2,9 @@
 #include "sandtable/formats/height_field.h"
 
 #include <algorithm>
+#include <cmath>
+
+#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::grid {
 
@@ -43,6 +46,18 @@ std::pair<float, float> GridHeightField::elevationBounds() const {
 std::shared_ptr<const HeightField> heightField(std::shared_ptr<const GridFile> grid) {
   if (!grid) return nullptr;
   return std::make_shared<const GridHeightField>(std::move(grid));
+}
+
+
+double refinedHeight(const RefinedSquare& r, double fx, double fz, bool& inside) {
+  const double u = std::clamp(fx, 0.0, 1.0) * double(r.cells), v = std::clamp(fz, 0.0, 1.0) * double(r.cells);
+  inside = u >= double(r.a0) && u <= double(r.a1) && v >= double(r.b0) && v <= double(r.b1);
+  if (!inside) return 0;
+  // The fine square holding (u, v), the last one on the patch's far edges.
+  const auto a = std::min(std::uint32_t(std::floor(u)), r.a1 - 1);
+  const auto b = std::min(std::uint32_t(std::floor(v)), r.b1 - 1);
+  return terrain::planeHeight(u - double(a), v - double(b), double(r.at(a, b)), double(r.at(a + 1, b)),
+                              double(r.at(a, b + 1)), double(r.at(a + 1, b + 1)));
 }
 
 }  // namespace sandtable::grid

@@ -57,6 +57,15 @@ std::optional<double> GroundClamp::surfaceXZ(double x, double z, DrawnLevel draw
     here += q.weights[c] * grid_->elevation(q.i[c], q.j[c]);
     if (morphs) next += q.weights[c] * latticeHeight(level + 1, q.i[c] * s, q.j[c] * s);
   }
+  // Level 0 draws a refined square's patch (dynamic terrain); the coarser
+  // levels draw their lattices (docs/DYNAMIC.md, "Edits smaller than a post").
+  if (level == 0 && grid_->anyRefined()) {
+    if (const auto r = grid_->refined(q.i[0], q.j[0])) {
+      bool inside = false;
+      const double h = grid::refinedHeight(*r, (u - q.i[0]), (v - q.j[0]), inside);
+      if (inside) here = h;
+    }
+  }
   if (!morphs) return here;
   const double m = std::clamp(double(drawn.morph), 0.0, 1.0);
   return (1.0 - m) * here + m * next;

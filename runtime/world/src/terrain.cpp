@@ -30,6 +30,15 @@ std::optional<TerrainSample> Terrain::sampleXZ(double x, double z) const {
   TerrainSample out;
   out.upperTriangle = terrain::halfAt(q.fx, q.fz) == module::Half::upper;
   out.elevation = terrain::planeHeight(q.fx, q.fz, nw, ne, sw, se);
+  // A refined square (a crater smaller than a post) is its fine lattice
+  // inside the patch's rectangle, its planes outside it.
+  if (grid_->anyRefined()) {
+    if (const auto r = grid_->refined(i, j)) {
+      bool inside = false;
+      const double h = grid::refinedHeight(*r, q.fx, q.fz, inside);
+      if (inside) out.elevation = h;
+    }
+  }
   const auto ni = static_cast<std::uint32_t>(std::lround(std::clamp(u, 0.0, maxI)));
   const auto nj = static_cast<std::uint32_t>(std::lround(std::clamp(v, 0.0, maxJ)));
   out.material = grid_->material(ni, nj);

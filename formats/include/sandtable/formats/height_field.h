@@ -70,6 +70,37 @@ struct PostLayout {
   double originEasting = 0, originNorthing = 0;
 };
 
+/// Sub-post detail in one grid square (dynamic terrain: a crater smaller
+/// than a post; docs/DYNAMIC.md). Square (i, j) (posts i..i+1, j..j+1) is
+/// divided into `cells` x `cells` fine squares (a power of two, 2..256);
+/// the patch holds fine posts a0..a1 (east) x b0..b1 (south), inclusive,
+/// 0 <= a0 < a1 <= cells, row-major in `heights`. Inside that rectangle the
+/// surface is the fine lattice, each fine square split SW-NE (the terrain
+/// rule one step finer: the square's own diagonal runs along fine
+/// diagonals, so every fine triangle lies in one half of the square);
+/// outside it, the square's two planes over its corner posts. A fine post
+/// on the rectangle's border that is not on the square's edge lies on those
+/// planes, so the two surfaces meet without a step; along the square's
+/// edges the neighbour square carries the same heights (its own patch, or
+/// its planes where the patch's edge posts are on them).
+/// Immutable once published: readers hold it by shared_ptr.
+struct RefinedSquare {
+  std::uint32_t i = 0, j = 0;
+  std::uint32_t cells = 0;
+  std::uint32_t a0 = 0, b0 = 0, a1 = 0, b1 = 0;
+  std::vector<float> heights;  ///< (b1 - b0 + 1) * (a1 - a0 + 1)
+  std::uint64_t generation = 0;
+  std::uint32_t width() const { return a1 - a0 + 1; }
+  float at(std::uint32_t a, std::uint32_t b) const { return heights[std::size_t(b - b0) * width() + (a - a0)]; }
+};
+
+/// Height of `r`'s fine surface at fractions (fx, fz) in [0, 1] of its
+/// square, or a negative `inside` when the point is outside the patch's
+/// rectangle (the caller then uses the square's planes). The one place the
+/// fine lattice is interpolated (Terrain::sampleXZ, the ground clamp, the
+/// re-mesher's checks).
+double refinedHeight(const RefinedSquare& r, double fx, double fz, bool& inside);
+
 class HeightField {
  public:
   HeightField() = default;
@@ -101,6 +132,16 @@ class HeightField {
   /// The generation of the newest change that touched a post of `posts`;
   /// 0 when none did.
   virtual std::uint64_t regionGeneration(const PostRect& posts) const = 0;
+
+  /// The refined patch of square (i, j) (i < postsX - 1, j < postsZ - 1),
+  /// or null: the square is its two planes. A snapshot: a later change
+  /// publishes a new patch and leaves this one valid.
+  virtual std::shared_ptr<const RefinedSquare> refined(std::uint32_t /*i*/, std::uint32_t /*j*/) const {
+    return nullptr;
+  }
+  /// False when no square is refined (readers skip the lookup); may turn
+  /// true after a change, never back.
+  virtual bool anyRefined() const { return false; }
 
   using ChangeFn = std::function<void(const HeightChange&)>;
   /// Calls `fn` after every later change until unsubscribe(token). Const:
