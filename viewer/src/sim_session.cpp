@@ -290,13 +290,18 @@ void SimSession::fill(scene::DynamicScene& out) const {
     out.flashes.push_back(f);
   }
   const auto& objects = sim_->world().objects();
-  for (const std::uint32_t k : changedObjects_) {
+  for (const std::uint32_t changed : changedObjects_) {
+    // A re-meshed module (dynamic terrain) holds the object at a new index.
+    const std::uint32_t k = sim_->world().currentIndex(changed);
     if (k >= objects.size()) continue;
     const sim::StaticObject& o = objects[k];
     if (o.state == sim::ObjectState::standing) continue;
     out.objectOverrides.push_back({o.moduleX, o.moduleZ, o.index, lookOf(o.state)});
   }
   std::sort(out.objectOverrides.begin(), out.objectOverrides.end());
+  const auto same = [](const scene::ObjectOverride& a, const scene::ObjectOverride& b) { return a.key() == b.key(); };
+  out.objectOverrides.erase(std::unique(out.objectOverrides.begin(), out.objectOverrides.end(), same),
+                            out.objectOverrides.end());
 }
 
 std::vector<render::MapMark> SimSession::mapMarks() const {

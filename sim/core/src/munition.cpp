@@ -8,10 +8,20 @@ namespace sandtable::sim {
 
 const std::vector<MunitionType>& builtinMunitions() {
   static const std::vector<MunitionType> types = {
-      {"missile", true, 250, 40, 24, 0.2},
-      {"round", false, 900, 0, 6, 0.1},
+      {"missile", true, 250, 40, 24, 0.2, CraterSize::medium},
+      {"round", false, 900, 0, 6, 0.1, CraterSize::small},
   };
   return types;
+}
+
+const char* craterSizeName(CraterSize s) {
+  switch (s) {
+    case CraterSize::none: return "none";
+    case CraterSize::small: return "small";
+    case CraterSize::medium: return "medium";
+    case CraterSize::large: return "large";
+  }
+  return "?";
 }
 
 namespace {

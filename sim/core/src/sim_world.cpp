@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/pack.h"
@@ -259,9 +260,28 @@ Status SimWorld::readModule(std::uint32_t kx, std::uint32_t kz, module::Module& 
     st.moduleX = kx;
     st.moduleZ = kz;
     st.index = i;
+    st.id = o.id;
     objects_.push_back(st);
   }
   return {};
+}
+
+void SimWorld::retire(std::uint32_t kx, std::uint32_t kz, std::size_t first) {
+  // The module's objects of older generations are retired (their indices
+  // stay valid for events and the viewer's overrides); each hands its
+  // state to the object of the same id in the new generation, so a tree
+  // knocked over stays down when a crater re-meshes its module.
+  std::unordered_map<std::uint64_t, std::uint32_t> fresh;
+  for (std::size_t i = first; i < objects_.size(); ++i) fresh.emplace(objects_[i].id, std::uint32_t(i));
+  for (std::size_t i = 0; i < first; ++i) {
+    StaticObject& o = objects_[i];
+    if (!o.current || o.moduleX != kx || o.moduleZ != kz) continue;
+    o.current = false;
+    const auto it = fresh.find(o.id);
+    if (it == fresh.end()) continue;
+    o.successor = it->second;
+    objects_[it->second].state = o.state;
+  }
 }
 
 Status SimWorld::loadModules() {
@@ -303,12 +323,7 @@ Result<std::uint32_t> SimWorld::refresh() {
       problems.insert(problems.end(), st.problems().begin(), st.problems().end());
       continue;
     }
-    // The module's objects of older generations are retired (their
-    // indices stay valid for events and the viewer's overrides).
-    for (std::size_t i = 0; i < first; ++i) {
-      StaticObject& o = objects_[i];
-      if (o.moduleX == k.kx && o.moduleZ == k.kz) o.current = false;
-    }
+    retire(k.kx, k.kz, first);
     ++read;
   }
   if (read) buildSquares(options_);

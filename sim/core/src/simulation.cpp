@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
+#include "sandtable/edits/profile.h"
 #include "sandtable/sim/motion.h"
 #include "sandtable/sim/step_host.h"
 
@@ -20,6 +22,7 @@ const char* eventKindName(EventKind k) {
     case EventKind::crash: return "crash";
     case EventKind::aground: return "aground";
     case EventKind::removed: return "removed";
+    case EventKind::terrainEdit: return "terrain-edit";
   }
   return "?";
 }
@@ -814,7 +817,48 @@ void Simulation::detonate(Entity& m, const Eigen::Vector3d& at, std::uint32_t hi
     const StaticOutcome out = lookup(options_.table, "missile", objectKindName(ob.kind), m.speedMs);
     applyObjectResult(hitObject, out.object);
   }
-  if (detail == "terrain") ++counters_.collisions.terrain;
+  if (detail == "terrain") {
+    ++counters_.collisions.terrain;
+    leaveCrater(m, at);
+  }
+}
+
+void Simulation::leaveCrater(const Entity& m, const Eigen::Vector3d& at) {
+  const CraterSize size = munitionTypes_[m.munitionType].crater;
+  if (!options_.craters || size == CraterSize::none) return;
+  const edits::CraterSize c = size == CraterSize::small    ? edits::kCraterSmall
+                              : size == CraterSize::medium ? edits::kCraterMedium
+                                                           : edits::kCraterLarge;
+  edit::Edit e;
+  e.kind = edit::Kind::crater;
+  e.id = nextEditId_++;
+  e.time = timeS();
+  e.origin = options_.editOrigin;
+  e.points = {{at.x(), at.z()}};
+  e.radius = c.radius;
+  e.depth = c.depth;
+  e.munition = std::uint16_t(m.munitionType + 1);
+  pendingEdits_.push_back(e);
+  emit(Event{0, EventKind::terrainEdit, m.id, UINT32_MAX, UINT32_MAX, at, munitionTypes_[m.munitionType].name,
+             std::string("crater ") + craterSizeName(size)});
+}
+
+std::uint32_t Simulation::objectsInCrater(const edit::Edit& crater) {
+  if (crater.kind != edit::Kind::crater || crater.points.empty()) return 0;
+  const double x = crater.points[0][0], z = crater.points[0][1];
+  scratch_.clear();
+  world_->objectsNear(x, z, crater.radius, -std::numeric_limits<double>::infinity(), scratch_, nullptr);
+  std::uint32_t changed = 0;
+  for (const std::uint32_t o : scratch_) {
+    const StaticObject& ob = world_->objects()[o];
+    if (!ob.current || ob.kind != ObjectKind::tree || ob.state != ObjectState::standing) continue;
+    if (std::hypot(ob.x - x, ob.z - z) > crater.radius) continue;
+    world_->setObjectState(o, ObjectState::knockedOver);
+    emit(Event{0, EventKind::objectCollision, UINT32_MAX, UINT32_MAX, o, Eigen::Vector3d(ob.x, ob.baseY, ob.z),
+               "", "crater/knocked-over"});
+    ++changed;
+  }
+  return changed;
 }
 
 }  // namespace sandtable::sim

@@ -240,5 +240,25 @@ TEST(SimWorldModules, aNewGenerationReplacesExactlyThatModulesSoilObjectsAndSqua
   EXPECT_EQ(o.source->reads.load(), int(kModules * kModules) + 1);
 }
 
+TEST(SimWorldModules, anObjectKeepsItsStateInItsModulesNewGeneration) {
+  const Opened o = openOverMemory();
+  SimWorld& w = *o.world;
+  std::uint32_t old = UINT32_MAX;
+  for (std::uint32_t k = 0; k < w.objects().size(); ++k) {
+    if (w.objects()[k].moduleX == 1 && w.objects()[k].moduleZ == 2) old = k;
+  }
+  ASSERT_NE(old, UINT32_MAX);
+  w.setObjectState(old, ObjectState::knockedOver);
+  // A crater re-meshes the module: same object (same id), new base.
+  o.source->replace(1, 2, makeModule(1, 2, 99, 40, 120, 7, 12));
+  ASSERT_TRUE(w.refresh());
+  const std::uint32_t now = w.currentIndex(old);
+  ASSERT_EQ(now, std::uint32_t(w.objects().size() - 1));
+  EXPECT_FALSE(w.objects()[old].current);
+  EXPECT_EQ(w.objects()[old].successor, now);
+  EXPECT_EQ(w.objects()[now].state, ObjectState::knockedOver);
+  EXPECT_EQ(w.currentIndex(now), now);
+}
+
 }  // namespace
 }  // namespace sandtable::sim

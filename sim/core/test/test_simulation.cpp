@@ -157,6 +157,54 @@ TEST(Simulation, aMunitionFoundUnderTheSurfaceDetonatesWhereItsSegmentCrossedIt)
   EXPECT_NEAR(det->position.y(), *w->groundAt(det->position.x(), det->position.z()), 0.02);
 }
 
+TEST(Simulation, aRoundThatHitsTheGroundLeavesItsCraterAtTheImpactAndFellsTheTreesInIt) {
+  auto w = test::makeWorld(hills);
+  Simulation sim(w);
+  ASSERT_TRUE(sim.add(vehicle(1000, 1000, 0, 0)));
+  sim.fire(0, 0, -5, 1);  // the ballistic round: a small crater (munition.cpp's table)
+  sim.runFor(5);
+  const Event* det = nullptr;
+  const Event* edit = nullptr;
+  for (const Event& ev : sim.events()) {
+    if (ev.kind == EventKind::detonation) det = &ev;
+    if (ev.kind == EventKind::terrainEdit) edit = &ev;
+  }
+  ASSERT_NE(det, nullptr);
+  ASSERT_NE(edit, nullptr);
+  EXPECT_EQ(edit->detail, "crater small");
+  const auto edits = sim.takeTerrainEdits();
+  ASSERT_EQ(edits.size(), 1u);
+  EXPECT_TRUE(sim.takeTerrainEdits().empty());
+  const edit::Edit& c = edits[0];
+  EXPECT_EQ(c.kind, edit::Kind::crater);
+  // Figure 27: at the true impact point the binary search found.
+  EXPECT_EQ(c.points[0][0], det->position.x());
+  EXPECT_EQ(c.points[0][1], det->position.z());
+  EXPECT_EQ(c.radius, 1.0);
+  EXPECT_EQ(c.depth, 0.5);
+  EXPECT_EQ(edit::checkEdit(c), "");
+
+  // Trees: one inside the radius falls, one outside it stands.
+  const double x = c.points[0][0], z = c.points[0][1];
+  w->setObjects({tree(*w, x + 0.5, z), tree(*w, x + 3, z)});
+  EXPECT_EQ(sim.objectsInCrater(c), 1u);
+  EXPECT_EQ(w->objects()[0].state, ObjectState::knockedOver);
+  EXPECT_EQ(w->objects()[1].state, ObjectState::standing);
+  EXPECT_EQ(sim.objectsInCrater(c), 0u);  // already down
+}
+
+TEST(Simulation, cratersCanBeTurnedOff) {
+  auto w = test::makeWorld(hills);
+  SimOptions o;
+  o.craters = false;
+  Simulation sim(w, o);
+  ASSERT_TRUE(sim.add(vehicle(1000, 1000, 0, 0)));
+  sim.fire(0, 0, -5, 1);
+  sim.runFor(5);
+  EXPECT_EQ(sim.counters().detonations, 1u);
+  EXPECT_TRUE(sim.takeTerrainEdits().empty());
+}
+
 /// A sim of `n` zig-zagging entities among 4,000 trees, with some missiles.
 std::string run(std::uint64_t seed, bool brute, int n = 150) {
   auto w = test::makeWorld(hills);

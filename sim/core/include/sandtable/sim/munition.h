@@ -16,6 +16,12 @@ namespace sandtable::sim {
 
 /// A kind of munition. The built-in table holds a guided missile and a
 /// ballistic tank round.
+/// The crater a munition leaves where it hits the ground (dynamic terrain,
+/// docs/DYNAMIC.md): the seed's small, medium and large (edits/profile.h
+/// gives their radius and depth), or none.
+enum class CraterSize : std::uint8_t { none, small, medium, large };
+const char* craterSizeName(CraterSize s);
+
 struct MunitionType {
   std::string name;
   bool guided = false;
@@ -23,6 +29,7 @@ struct MunitionType {
   double turnRateDegS = 30;   ///< guided: steering limit
   double lifeS = 20;          ///< detonates in the air after this long
   double radius = 0.2;        ///< its own size for the swept tests
+  CraterSize crater = CraterSize::none;  ///< left where it hits the ground
 };
 const std::vector<MunitionType>& builtinMunitions();
 

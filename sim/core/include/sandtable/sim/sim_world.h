@@ -69,9 +69,14 @@ struct StaticObject {
   ObjectKind kind = ObjectKind::rock;
   ObjectState state = ObjectState::standing;
   std::uint32_t moduleX = 0, moduleZ = 0, index = 0;  ///< where it is stored
+  std::uint64_t id = 0;  ///< module::Object::id: the same object in every generation of its module
   /// False once a newer generation of its module replaced it: kept so that
   /// indices stay valid, never an obstacle and never drawn.
   bool current = true;
+  /// Once retired: the index of the same object (same id) in the newer
+  /// generation, which took over its state; UINT32_MAX when the newer
+  /// generation no longer has it (a removed object).
+  std::uint32_t successor = UINT32_MAX;
 };
 
 /// Which level is drawn at world (x, z).
@@ -162,6 +167,12 @@ class SimWorld {
   /// Replaces the objects and rebuilds the squares (tests build worlds).
   void setObjects(std::vector<StaticObject> objects, const SimWorldOptions& options = {});
   void setObjectState(std::uint32_t object, ObjectState state) { objects_[object].state = state; }
+  /// The current index of object `object`: itself, or the successor of a
+  /// retired one (UINT32_MAX when its module's newer generation dropped it).
+  std::uint32_t currentIndex(std::uint32_t object) const {
+    while (object < objects_.size() && !objects_[object].current) object = objects_[object].successor;
+    return object < objects_.size() ? object : UINT32_MAX;
+  }
   double squareM() const { return square_; }
   std::uint32_t squaresX() const { return squaresX_; }
   std::uint32_t squaresZ() const { return squaresZ_; }
@@ -191,6 +202,9 @@ class SimWorld {
   /// appends its objects (the caller retires the old ones).
   Status readModule(std::uint32_t kx, std::uint32_t kz, module::Module& scratch);
   Status loadModules();
+  /// Retires module (kx, kz)'s objects before index `first` (its newer
+  /// generation starts there), carrying states to their successors.
+  void retire(std::uint32_t kx, std::uint32_t kz, std::size_t first);
 
   std::shared_ptr<const grid::HeightField> grid_;
   world::GroundClamp clamp_;

@@ -29,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "sandtable/formats/edit.h"
 #include "sandtable/sim/aircraft.h"
 #include "sandtable/sim/behaviour.h"
 #include "sandtable/sim/collision_response.h"
@@ -48,6 +49,7 @@ enum class EventKind : std::uint8_t {
   crash,            ///< an aircraft met the ground
   aground,          ///< a ship's step towards land was refused
   removed,          ///< Simulation::remove took the entity out of the run
+  terrainEdit,      ///< the simulation made a terrain edit (a crater where a round hit the ground)
 };
 const char* eventKindName(EventKind k);
 
@@ -91,6 +93,13 @@ struct SimOptions {
   /// Land entities stay at most this far from the drawn surface; checked
   /// by the tests.
   double groundToleranceM = 0.01;
+  /// Munitions that hit the ground leave their crater (MunitionType::crater)
+  /// as a terrain edit for the step host to apply (takeTerrainEdits).
+  bool craters = true;
+  /// The origin of the edits this simulation makes (edit.h): 0 alone, the
+  /// DIS site << 16 | application on a network, so every process orders
+  /// the same edits alike.
+  edit::Origin editOrigin = 0;
 };
 
 /// Counters of the last steps, for the summary and the benchmark.
@@ -189,6 +198,16 @@ class Simulation {
   /// listed with the step's own, so viewers and reports show it alike.
   void addEvent(Event ev) { emit(std::move(ev)); }
 
+  /// The terrain edits the steps since the last call made, in step order
+  /// (craters where munitions hit the ground). The step host applies them
+  /// (sim/terrain_edits.h) and calls objectsInCrater for each crater.
+  std::vector<edit::Edit> takeTerrainEdits() { return std::exchange(pendingEdits_, {}); }
+  /// What a crater does to the static objects inside it (docs/DYNAMIC.md):
+  /// a standing tree whose trunk is within the crater's radius falls
+  /// (knocked over). For every crater applied, local or received. Returns
+  /// the objects changed.
+  std::uint32_t objectsInCrater(const edit::Edit& crater);
+
   /// An aircraft type for air entities (Entity::aircraftType indexes it).
   std::uint32_t addAircraftType(AircraftParams params);
   /// The aircraft state of an air entity (position, velocity and
@@ -266,6 +285,7 @@ class Simulation {
   void move(Record& r);
   void moveAir(Record& r);
   void flyMunition(Entity& m);
+  void leaveCrater(const Entity& m, const Eigen::Vector3d& at);
   /// Figure 70's near miss: entity `e` with fight or flight senses munition
   /// `m` at `at` once, turns, and may fire back.
   void sense(Entity& e, const Entity& m, const Eigen::Vector3d& at);
@@ -298,6 +318,8 @@ class Simulation {
   std::vector<AircraftParams> aircraftTypes_;
   std::vector<MunitionType> munitionTypes_;
   std::vector<Event> events_;
+  std::vector<edit::Edit> pendingEdits_;
+  std::uint64_t nextEditId_ = 1;
   SimCounters counters_;
   std::uint64_t steps_ = 0;
   std::uint64_t draws_ = 0;  ///< random draws made (behaviours)
