@@ -5,9 +5,12 @@
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
+#include <deque>
 #include <thread>
+#include <utility>
 
 namespace sandtable::jobs {
 
@@ -96,6 +99,60 @@ void orderedPipeline(std::size_t n, int threads, std::size_t inFlight,
             tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order,
                                                 [&](std::size_t i) { finish(i); }));
   });
+}
+
+struct SerialQueue::State {
+  mutable std::mutex mutex;
+  std::deque<std::function<void()>> items;
+  std::size_t unfinished = 0;
+  bool draining = false;
+  tbb::task_group group;
+
+  /// Runs items until none is left; one drain at a time (draining), so the
+  /// items run in order and never concurrently.
+  void drain() {
+    for (;;) {
+      std::function<void()> item;
+      {
+        std::lock_guard lock(mutex);
+        if (items.empty()) {
+          draining = false;
+          return;
+        }
+        item = std::move(items.front());
+        items.pop_front();
+      }
+      item();
+      std::lock_guard lock(mutex);
+      --unfinished;
+    }
+  }
+};
+
+SerialQueue::SerialQueue() : s_(std::make_unique<State>()) {}
+
+SerialQueue::~SerialQueue() { s_->group.wait(); }
+
+void SerialQueue::submit(std::function<void()> item) {
+  bool start = false;
+  {
+    std::lock_guard lock(s_->mutex);
+    s_->items.push_back(std::move(item));
+    ++s_->unfinished;
+    start = !std::exchange(s_->draining, true);
+  }
+  if (start) s_->group.run([s = s_.get()] { s->drain(); });
+}
+
+void SerialQueue::wait() {
+  // Joins the group, so the waiting thread runs a drain itself when no
+  // worker is free (one worker, or every worker busy in a build stage).
+  s_->group.wait();
+}
+
+std::size_t SerialQueue::pending() const {
+  std::lock_guard lock(s_->mutex);
+  return s_->unfinished;
 }
 
 }  // namespace sandtable::jobs

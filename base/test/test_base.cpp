@@ -192,3 +192,36 @@ TEST(Stats, nearestRankAndMedian) {
   EXPECT_EQ(stats::median({4, 1, 3, 2}), 2.5);
   EXPECT_EQ(stats::median({}), 0.0);
 }
+
+namespace sandtable {
+namespace {
+
+TEST(SerialQueue, itemsRunOneAtATimeInTheOrderSubmitted) {
+  jobs::SerialQueue q;
+  std::vector<int> order;
+  std::atomic<int> running{0}, most{0};
+  for (int k = 0; k < 200; ++k) {
+    q.submit([&, k] {
+      const int now = ++running;
+      most = std::max(most.load(), now);
+      order.push_back(k);
+      --running;
+    });
+  }
+  q.wait();
+  EXPECT_EQ(q.pending(), 0u);
+  ASSERT_EQ(order.size(), 200u);
+  for (int k = 0; k < 200; ++k) EXPECT_EQ(order[std::size_t(k)], k);
+  EXPECT_EQ(most.load(), 1);
+}
+
+TEST(SerialQueue, submitsFromManyThreadsAllRun) {
+  jobs::SerialQueue q;
+  std::atomic<int> ran{0};
+  jobs::parallelFor(64, 0, [&](std::size_t) { q.submit([&] { ++ran; }); });
+  q.wait();
+  EXPECT_EQ(ran.load(), 64);
+}
+
+}  // namespace
+}  // namespace sandtable

@@ -117,4 +117,30 @@ class Scratch {
   std::vector<std::unique_ptr<State>> free_;
 };
 
+/// Background work run one item at a time, in the order submitted, on the
+/// shared workers (a oneTBB task group): the dynamic-terrain editor
+/// re-meshes modules off the render thread through one, and a later item
+/// sees everything an earlier one did.
+///
+/// Thread safety: submit and pending may be called from any thread, wait
+/// from one thread at a time (the owner's); items never run concurrently
+/// with each other. The destructor waits for every item submitted.
+class SerialQueue {
+ public:
+  SerialQueue();
+  ~SerialQueue();
+  SerialQueue(const SerialQueue&) = delete;
+  SerialQueue& operator=(const SerialQueue&) = delete;
+  /// Queues `item`; returns at once.
+  void submit(std::function<void()> item);
+  /// Returns once every item submitted before the call has run.
+  void wait();
+  /// Items submitted and not yet finished.
+  std::size_t pending() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> s_;
+};
+
 }  // namespace sandtable::jobs
