@@ -165,6 +165,46 @@ TEST(SimDisObjects, everyKindRoundTripsThroughItsBytesToTheSendersEdit) {
   }
 }
 
+TEST(SimDisObjects, asReceivedIsAFixedPointForRandomEditsOverAHundredKilometres) {
+  // Segments from 5 cm to 3 km, anywhere on a 100 km UTM database: the
+  // round trip lands every point within half the grid (plus what the float
+  // angles lose) and a second round trip changes no bit.
+  const DisFrame frame = testFrame();
+  const ObjectSender s = sender();
+  std::mt19937_64 rng(43);
+  std::uniform_real_distribution<double> place(0, 100000), unit(0, 1);
+  double worst = 0;
+  for (int k = 0; k < 1000; ++k) {
+    edit::Edit e;
+    if (k % 4 == 0) {
+      e = crater(std::uint64_t(k + 1), place(rng), place(rng), 0.2 + 10 * unit(rng), 3600 * 5 * unit(rng));
+    } else {
+      std::vector<std::array<double, 2>> points = {{place(rng), place(rng)}};
+      const int segments = 1 + int(rng() % 20);
+      for (int j = 0; j < segments; ++j) {
+        const double length = 0.05 * std::pow(60000.0, unit(rng));  // 5 cm .. 3 km, log-uniform
+        const double heading = 2 * 3.141592653589793 * unit(rng);
+        points.push_back({points.back()[0] + length * std::sin(heading), points.back()[1] - length * std::cos(heading)});
+      }
+      e = line(k % 2 ? edit::Kind::berm : edit::Kind::ditch, std::uint64_t(k + 1), points, 100 * unit(rng));
+    }
+    auto once = asReceived(e, frame, s);
+    ASSERT_TRUE(once.ok()) << once.error();
+    auto twice = asReceived(once.value(), frame, s);
+    ASSERT_TRUE(twice.ok()) << twice.error();
+    ASSERT_TRUE(bitIdentical(twice.value(), once.value())) << k;
+    ASSERT_EQ(once->points.size(), e.points.size()) << k;
+    for (std::size_t j = 0; j < e.points.size(); ++j) {
+      for (int axis = 0; axis < 2; ++axis) {
+        worst = std::max(worst, std::abs(once->points[j][std::size_t(axis)] - e.points[j][std::size_t(axis)]));
+      }
+    }
+  }
+  EXPECT_LT(worst, kObjectGridM / 2 + 0.001);
+  std::printf("largest move of a point by the round trip: %.3f mm (half the grid is %.3f mm)\n", worst * 1000,
+              kObjectGridM / 2 * 1000);
+}
+
 TEST(SimDisObjects, craterSizesSnapToTheNearestClass) {
   const std::vector<std::pair<double, edits::CraterSize>> cases = {
       {0.1, edits::kCraterSmall},  {1.0, edits::kCraterSmall},   {2.0, edits::kCraterSmall},
