@@ -136,7 +136,7 @@ void Gateway::applyPdu(const dis::Pdu& pdu, const dis::Address& sender) {
       return;
     }
     ++counters_.objects;
-    if (auto e = objects_.receive(pdu, sim_.timeS())) receivedEdits_.push_back(std::move(*e));
+    for (edit::Edit& e : objects_.receive(pdu, sim_.timeS())) receivedEdits_.push_back(std::move(e));
   } else {
     ++counters_.unknownType;
   }

@@ -52,13 +52,14 @@ dis::Header objectHeader(const ObjectSender& s, const edit::Edit& e, dis::PduTyp
 }
 
 Result<dis::Pdu> craterPdu(edit::Edit e, const DisFrame& frame, const ObjectSender& s, const dis::ObjectId& id,
-                           std::uint16_t update) {
+                           std::uint16_t update, const dis::ObjectId& previous) {
   snapCrater(e);
   const double x = e.points[0][0], z = e.points[0][1];
   auto anchor = frame.anchorAtFrame({x, groundAt(s, x, z), z});
   if (!anchor) return problem("toPdu", "crater at (" + std::to_string(x) + ", " + std::to_string(z) + "): " + anchor.message());
   dis::PointObjectState p;
   p.id = id;
+  p.referenced = previous;
   p.updateNumber = update;
   p.type = kCraterTypes[craterClass(e.radius)];
   p.location = anchor->ecef;
@@ -72,7 +73,7 @@ Result<dis::Pdu> craterPdu(edit::Edit e, const DisFrame& frame, const ObjectSend
 }
 
 Result<dis::Pdu> linearPdu(const edit::Edit& e, const DisFrame& frame, const ObjectSender& s, const dis::ObjectId& id,
-                           std::uint16_t update) {
+                           std::uint16_t update, const dis::ObjectId& previous) {
   const std::string stage = "toPdu: " + std::string(edit::kindName(e.kind));
   const std::size_t n = e.points.size() - 1;
   if (n > dis::kMaxSegments) {
@@ -81,6 +82,7 @@ Result<dis::Pdu> linearPdu(const edit::Edit& e, const DisFrame& frame, const Obj
   }
   dis::LinearObjectState l;
   l.id = id;
+  l.referenced = previous;
   l.updateNumber = update;
   l.requester = {s.site, s.application};
   l.receiver = {kAll, kAll};
@@ -243,7 +245,8 @@ void snapCrater(edit::Edit& e) {
   e.depth = c.depth;
 }
 
-Result<dis::Pdu> toPdu(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender) {
+Result<dis::Pdu> toPdu(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender,
+                       const dis::ObjectId& previous) {
   if (std::string m = edit::checkEdit(e); !m.empty()) return problem("toPdu", m);
   if (e.id >> 32 != 0) {
     return problem("toPdu", "edit id " + std::to_string(e.id) +
@@ -252,9 +255,9 @@ Result<dis::Pdu> toPdu(const edit::Edit& e, const DisFrame& frame, const ObjectS
   const dis::ObjectId id{sender.site, sender.application, std::uint16_t(e.id & 0xFFFF)};
   const auto update = std::uint16_t(e.id >> 16);
   switch (e.kind) {
-    case edit::Kind::crater: return craterPdu(e, frame, sender, id, update);
+    case edit::Kind::crater: return craterPdu(e, frame, sender, id, update, previous);
     case edit::Kind::berm:
-    case edit::Kind::ditch: return linearPdu(e, frame, sender, id, update);
+    case edit::Kind::ditch: return linearPdu(e, frame, sender, id, update, previous);
     default: break;
   }
   return problem("toPdu", std::string(edit::kindName(e.kind)) + " edits do not travel as DIS objects");
@@ -272,8 +275,9 @@ Result<std::optional<edit::Edit>> fromPdu(const dis::Pdu& pdu, const DisFrame& f
   return problem("fromPdu", "PDU type " + std::to_string(pdu.header.type) + " is not a Point or Linear Object State");
 }
 
-Result<EncodedEdit> encodeEdit(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender) {
-  auto pdu = toPdu(e, frame, sender);
+Result<EncodedEdit> encodeEdit(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender,
+                               const dis::ObjectId& previous) {
+  auto pdu = toPdu(e, frame, sender, previous);
   if (!pdu) return pdu.problems();
   EncodedEdit out;
   out.bytes = encodeObject(pdu.value());

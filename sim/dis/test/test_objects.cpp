@@ -467,49 +467,96 @@ TEST(SimDisObjectTracker, heartbeatsAndCopiesAreDuplicatesAndANewUpdateIsANewEdi
   auto send = [&](std::span<const std::byte> bytes) { wire.emplace_back(bytes.begin(), bytes.end()); };
   auto published = a.publish(crater(5, 100, 100, 1), send);
   ASSERT_TRUE(published.ok());
-  EXPECT_FALSE(a.publish(crater(5, 200, 200, 1), send).ok());  // the same id again
-  EXPECT_EQ(a.publish(crater(5, 200, 200, 1), send).message(), "ObjectTracker::publish: edit id 5 was published already");
-  // 5 + 65,536: object number 5 again, update 1.
+  EXPECT_EQ(a.publish(crater(5, 200, 200, 1), send).message(),
+            "ObjectTracker::publish: edit id 5 does not follow 5 by 1 to 65,535");
+  EXPECT_EQ(a.publish(crater(65541, 200, 200, 1), send).message(),
+            "ObjectTracker::publish: edit id 65541 does not follow 5 by 1 to 65,535");
+  auto between = a.publish(crater(60000, 200, 200, 3), send);
+  ASSERT_TRUE(between.ok());
+  // 5 + 65,536: object number 5 again, update 1; it follows object 60,000.
   auto wrapped = a.publish(crater(5 + 65536, 300, 300, 7), send);
   ASSERT_TRUE(wrapped.ok());
-  ASSERT_EQ(wire.size(), 2u);
+  ASSERT_EQ(wire.size(), 3u);
   auto take = [&](const std::vector<std::byte>& bytes) {
     auto pdu = dis::decode(bytes, "test");
     EXPECT_TRUE(pdu.ok());
     return b.receive(pdu.value(), 10);
   };
-  // The update arrives first: still a new edit, and the first one after it too.
-  auto first = take(wire[1]);
-  ASSERT_TRUE(first.has_value());
-  EXPECT_TRUE(bitIdentical(*first, wrapped.value()));
-  auto second = take(wire[0]);
-  ASSERT_TRUE(second.has_value());
-  EXPECT_TRUE(bitIdentical(*second, published.value()));
-  EXPECT_FALSE(take(wire[0]).has_value());  // a heartbeat
-  EXPECT_FALSE(take(wire[1]).has_value());
+  // The update arrives first: it waits for the edit it follows, and comes with it.
+  EXPECT_TRUE(take(wire[2]).empty());
+  EXPECT_EQ(b.counters().held, 1u);
+  const std::vector<edit::Edit> first = take(wire[0]);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_TRUE(bitIdentical(first[0], published.value()));
+  const std::vector<edit::Edit> both = take(wire[1]);
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_TRUE(bitIdentical(both[0], between.value()));
+  EXPECT_TRUE(bitIdentical(both[1], wrapped.value()));
+  EXPECT_EQ(both[1].id, 65541u);
+  EXPECT_TRUE(take(wire[0]).empty());  // heartbeats
+  EXPECT_TRUE(take(wire[2]).empty());
   const TrackerCounters& c = b.counters();
-  EXPECT_EQ(c.received, 4u);
-  EXPECT_EQ(c.edits, 2u);
+  EXPECT_EQ(c.received, 5u);
+  EXPECT_EQ(c.edits, 3u);
   EXPECT_EQ(c.updates, 1u);
   EXPECT_EQ(c.duplicates, 2u);
-  EXPECT_EQ(b.received().size(), 2u);
+  EXPECT_EQ(c.waited, 1u);
+  EXPECT_EQ(c.held, 0u);
+  EXPECT_EQ(b.received().size(), 3u);
   // A type without edit: counted by type once per object and update; a malformed PDU every time.
   auto rubble = dis::decode(wire[0], "test");
   rubble->pointObject->type = kBuildingRubbleType;
   rubble->pointObject->id.object = 77;
-  EXPECT_FALSE(b.receive(rubble.value(), 10).has_value());
-  EXPECT_FALSE(b.receive(rubble.value(), 10).has_value());
+  EXPECT_TRUE(b.receive(rubble.value(), 10).empty());
+  EXPECT_TRUE(b.receive(rubble.value(), 10).empty());
   EXPECT_EQ(c.withoutEdit, 1u);
   EXPECT_EQ(c.byType.at(objectTypeKey(kBuildingRubbleType)), 1u);
   EXPECT_EQ(c.duplicates, 3u);
   auto bad = dis::decode(wire[0], "test");
   bad->pointObject->id.object = 78;
   bad->pointObject->location.x = std::nan("");
-  EXPECT_FALSE(b.receive(bad.value(), 10).has_value());
-  EXPECT_FALSE(b.receive(bad.value(), 10).has_value());
+  EXPECT_TRUE(b.receive(bad.value(), 10).empty());
+  EXPECT_TRUE(b.receive(bad.value(), 10).empty());
   EXPECT_EQ(c.malformed, 2u);
   EXPECT_EQ(c.lastMalformed, " @0: fromPdu: crater: the location is not finite");
   EXPECT_EQ(c.received, c.edits + c.duplicates + c.malformed + c.withoutEdit);
+}
+
+TEST(SimDisObjectTracker, oneSendersEditsAreHandedOnInItsOrderWhateverOrderTheyArrive) {
+  const DisFrame frame = testFrame();
+  ObjectTracker a(frame, sender(1, 1)), b(frame, sender(2, 1));
+  std::vector<dis::Pdu> wire;
+  auto send = [&](std::span<const std::byte> bytes) {
+    auto pdu = dis::decode(bytes, "test");
+    ASSERT_TRUE(pdu.ok());
+    wire.push_back(pdu.value());
+  };
+  std::vector<edit::Edit> order;
+  for (std::uint64_t id : {3, 4, 9, 65540}) {  // ids with gaps; the last is object 4 again, update 1
+    auto e = a.publish(id == 9 ? line(edit::Kind::berm, id, {{0, 0}, {50, 0}}) : crater(id, 10.0 * double(id % 100), 5, 1), send);
+    ASSERT_TRUE(e.ok()) << e.error();
+    order.push_back(e.value());
+  }
+  ASSERT_EQ(wire.size(), 4u);
+  EXPECT_EQ(wire[0].pointObject->referenced, (dis::ObjectId{0, 0, 0}));
+  EXPECT_EQ(wire[1].pointObject->referenced, (dis::ObjectId{1, 1, 3}));
+  EXPECT_EQ(wire[2].linearObject->referenced, (dis::ObjectId{1, 1, 4}));
+  EXPECT_EQ(wire[3].pointObject->referenced, (dis::ObjectId{1, 1, 9}));
+  EXPECT_EQ(wire[3].pointObject->id, (dis::ObjectId{1, 1, 4}));
+  EXPECT_EQ(wire[3].pointObject->updateNumber, 1);
+  // A foreign object (no reference) in between is handed on at once.
+  dis::Pdu foreign = wire[0];
+  foreign.pointObject->id = {7, 7, 1};
+  EXPECT_TRUE(b.receive(wire[3], 10).empty());
+  EXPECT_TRUE(b.receive(wire[1], 10).empty());
+  EXPECT_EQ(b.receive(foreign, 10).size(), 1u);
+  EXPECT_TRUE(b.receive(wire[2], 10).empty());
+  EXPECT_EQ(b.counters().held, 3u);
+  const std::vector<edit::Edit> all = b.receive(wire[0], 10);
+  ASSERT_EQ(all.size(), 4u);
+  for (std::size_t k = 0; k < 4; ++k) EXPECT_TRUE(bitIdentical(all[k], order[k])) << k;
+  EXPECT_EQ(b.counters().waited, 3u);
+  EXPECT_EQ(b.counters().held, 0u);
 }
 
 // ------------------------------------------------------------ two gateways
@@ -578,24 +625,36 @@ TEST(SimDisObjectTracker, twoGatewaysWithTenPercentLossEndWithTheSameEdits) {
   }
   const TrackerCounters &ca = t.ga->objects().counters(), &cb = t.gb->objects().counters();
   std::printf("datagrams passed %llu, dropped %llu; A: heartbeats %llu, edits %llu, duplicates %llu, all held at "
-              "%.2f s; B: heartbeats %llu, edits %llu, duplicates %llu, all held at %.2f s\n",
+              "%.2f s, waited %llu; B: heartbeats %llu, edits %llu, duplicates %llu, all held at %.2f s, waited %llu\n",
               (unsigned long long)passed, (unsigned long long)dropped, (unsigned long long)ca.heartbeats,
               (unsigned long long)ca.edits, (unsigned long long)ca.duplicates, completeA / 60.0,
-              (unsigned long long)cb.heartbeats, (unsigned long long)cb.edits, (unsigned long long)cb.duplicates,
-              completeB / 60.0);
+              (unsigned long long)ca.waited, (unsigned long long)cb.heartbeats, (unsigned long long)cb.edits,
+              (unsigned long long)cb.duplicates, completeB / 60.0, (unsigned long long)cb.waited);
   EXPECT_GT(dropped, passed / 20);  // about a tenth was lost
   const std::vector<edit::Edit> a = groundOf(*t.ga), b = groundOf(*t.gb);
   ASSERT_EQ(a.size(), 200u + 80u);
   ASSERT_EQ(b.size(), a.size());
   for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(bitIdentical(a[k], b[k])) << k;
-  // What each editor was handed is that set, each edit once.
+  // What each editor was handed is that set, each edit once, and each sender's in the order it applied them.
   EXPECT_EQ(appliedA.size(), a.size());
   EXPECT_EQ(appliedB.size(), b.size());
+  auto of = [](const std::vector<edit::Edit>& applied, edit::Origin origin) {
+    std::vector<edit::Edit> out;
+    for (const edit::Edit& e : applied) {
+      if (e.origin == origin) out.push_back(e);
+    }
+    return out;
+  };
+  const edit::Origin siteA = 1 << 16 | 1, siteB = 2 << 16 | 1;
+  EXPECT_EQ(of(appliedB, siteA), of(appliedA, siteA));
+  EXPECT_EQ(of(appliedA, siteB), of(appliedB, siteB));
+  EXPECT_EQ(of(appliedA, siteA).size(), 200u);
   for (const Gateway* g : {t.ga.get(), t.gb.get()}) {
     const TrackerCounters& c = g->objects().counters();
     EXPECT_EQ(c.malformed, 0u);
     EXPECT_GT(c.duplicates, 0u);
     EXPECT_EQ(c.received, c.edits + c.duplicates);
+    EXPECT_EQ(c.held, 0u);
     EXPECT_EQ(g->counters().objects, c.received);
   }
   // Heartbeats made up for the losses: more edits arrived than first sends got through.
@@ -615,6 +674,7 @@ TEST(SimDisObjectTracker, aWatcherThatJoinsLateConvergesAtTheNextHeartbeat) {
   listening = true;
   for (int step = 0; step < 60 * 5 + 2; ++step) t.step();
   EXPECT_EQ(t.gb->objects().received().size(), 50u);
+  EXPECT_EQ(t.gb->objects().received(), t.ga->objects().published());  // in the publisher's order
   const std::vector<edit::Edit> a = groundOf(*t.ga), b = groundOf(*t.gb);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(bitIdentical(a[k], b[k])) << k;

@@ -9,9 +9,10 @@
 // Terrain edits travel as synthetic-environment objects (object_tracker.h,
 // docs/DIS.md §14): publishEdit sends a local edit now and on the
 // heartbeat after, and returns the edit to apply locally (the one
-// receivers make); the edits other participants publish are queued for
-// takeReceivedEdits, which the caller drains each step and applies in its
-// editor, in that order. The gateway applies no edit itself.
+// receivers make); the edits other participants publish are queued, each
+// sender's in its order, for takeReceivedEdits, which the caller drains
+// each step and applies in its editor, in that order. The gateway applies
+// no edit itself.
 //
 // The transport is the caller's: `drain` hands over the datagrams that
 // arrived (a dis::Receiver's, a capture's, a test's) and `send` takes one
@@ -102,8 +103,10 @@ class Gateway {
   /// same ground. Refuses what ObjectTracker::publish refuses, and any
   /// edit when publish is off.
   Result<edit::Edit> publishEdit(const edit::Edit& e);
-  /// The remote edits that arrived since the last call, in arrival order
-  /// (each object id and update number once); the caller applies them.
+  /// The remote edits that arrived since the last call (each object id and
+  /// update number once), each sender's in the order it applied them
+  /// (ObjectTracker: a later one waits for an earlier one lost); the caller
+  /// applies them in this order.
   std::vector<edit::Edit> takeReceivedEdits();
   const ObjectTracker& objects() const { return objects_; }
 

@@ -13,11 +13,24 @@
 //
 // Receiving: an object is known by its id and update number. A pair seen
 // before (a heartbeat, a copy) yields nothing. A pair not seen before
-// yields its edit, whatever the order of arrival; when the object id was
-// known with another update number (a sender that extended a berm, or one
-// whose object numbers wrapped), the new state is a NEW edit with its own
-// id (update << 16 | object), applied on top of the old one and counted
-// in `updates`: edits are never undone here.
+// yields its edit; when the object id was known with another update
+// number (a sender that extended a berm, or one whose object numbers
+// wrapped), the new state is a NEW edit with its own id (update << 16 |
+// object), applied on top of the old one and counted in `updates`: edits
+// are never undone here.
+//
+// Order: overlapping edits applied in another order give other floats,
+// so a receiver must apply one sender's edits in the order the sender
+// applied them, whatever order loss and heartbeats bring them in. Each
+// published object references (the referenced object id) the object its
+// sender published before it; a received edit whose referenced object is
+// of the same sender and not yet handed on is held until it is, then
+// handed on with every edit that waited behind it. A referenced object of
+// another sender, or none (0:0:0, the first; foreign senders), holds
+// nothing. The referenced object's update number is the one that makes
+// its id the latest below this object's, which is exact because publish
+// takes only ids that grow by 1 to 65,535. Edits of different senders are
+// handed on in arrival order.
 //
 // Thread safety: one thread owns a tracker (the gateway's).
 #include <cstdint>
@@ -26,6 +39,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -50,6 +64,8 @@ struct TrackerCounters {
   std::uint64_t duplicates = 0;  ///< an object id and update number seen before: nothing to do
   std::uint64_t malformed = 0;   ///< refused by fromPdu (lastMalformed says why)
   std::uint64_t withoutEdit = 0; ///< objects of a type that makes no edit (byType says which)
+  std::uint64_t waited = 0;      ///< edits (and objects without edit) that arrived before the one they follow
+  std::uint64_t held = 0;        ///< of those, still waiting now
   /// Objects that make no edit, by objectTypeKey (name: objectTypeName),
   /// once per object id and update number: unknown types, and the
   /// recognised ones Sandtable does not apply (building rubble, vehicle defilade).
@@ -67,19 +83,21 @@ class ObjectTracker {
   /// goes to `send` now and on every heartbeat after. Returns the edit as
   /// every receiver makes it (asReceived, from the very bytes sent): the
   /// caller applies that one, not `e`. Refuses what toPdu refuses, and an
-  /// id already published.
+  /// id that does not follow the last one published by 1 to 65,535 (so
+  /// receivers can tell which object each follows).
   Result<edit::Edit> publish(const edit::Edit& e, const Send& send);
   /// Sends the heartbeats due by `nowS` (seconds, the caller's clock; the
   /// first call only starts the clock) and returns how many.
   std::size_t heartbeat(double nowS, const Send& send);
   /// A decoded Point or Linear Object State PDU from another participant,
-  /// read with the receiver's clock `nowS`: the new edit, or nullopt
-  /// (counted: duplicate, malformed, a type without edit).
-  std::optional<edit::Edit> receive(const dis::Pdu& pdu, double nowS);
+  /// read with the receiver's clock `nowS`: the edits it makes ready, in
+  /// their senders' order (its own, and those that waited behind it), or
+  /// none (counted: a duplicate, malformed, a type without edit, or held).
+  std::vector<edit::Edit> receive(const dis::Pdu& pdu, double nowS);
 
   /// The local edits published (as received), in order.
   const std::vector<edit::Edit>& published() const { return published_; }
-  /// The remote edits received, in the order they arrived.
+  /// The remote edits handed on, in the order receive() handed them on.
   const std::vector<edit::Edit>& received() const { return received_; }
   const TrackerCounters& counters() const { return counters_; }
   const TrackerOptions& options() const { return options_; }
@@ -91,12 +109,22 @@ class ObjectTracker {
   TrackerCounters counters_;
   std::vector<edit::Edit> published_;
   std::vector<std::vector<std::byte>> bytes_;  ///< each published object's PDU, as first sent
-  std::unordered_set<std::uint64_t> publishedIds_;
+  std::optional<std::uint64_t> lastId_;  ///< the last edit id published
   std::size_t cursor_ = 0;      ///< the next object a heartbeat sends
   double credit_ = 0;           ///< heartbeats owed, fractional
   std::optional<double> lastS_;
-  std::unordered_set<std::uint64_t> seen_;     ///< site, application, object, update
+  /// An object received before the one it follows.
+  struct Held {
+    std::uint64_t key = 0;
+    std::optional<edit::Edit> edit;  ///< none: a type without edit
+  };
+  void handOn(std::uint64_t key, std::optional<edit::Edit> e, std::vector<edit::Edit>& out);
+
+  std::optional<dis::ObjectId> previous_;      ///< the last object published
+  std::unordered_set<std::uint64_t> seen_;     ///< keys (site, application, object, update) received
+  std::unordered_set<std::uint64_t> done_;     ///< keys handed on (or without edit)
   std::unordered_set<std::uint64_t> objects_;  ///< site, application, object
+  std::unordered_map<std::uint64_t, std::vector<Held>> waiting_;  ///< by the key they follow
   std::vector<edit::Edit> received_;
 };
 

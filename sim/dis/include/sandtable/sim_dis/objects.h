@@ -26,6 +26,8 @@
 //    hour (relative, bit 0 clear), rounded to the timestamp's unit
 //    (3600 / 2^31 s); the receiver puts it in the latest hour that is not
 //    more than kClockSkewS after its own clock (unwrapTime);
+//  - referenced object id = the object the sender published before (the
+//    tracker's order; fromPdu ignores it);
 //  - crater: its size class only (snapCrater: radius and depth are one of
 //    edits::kCraterSmall/Medium/Large), as the subcategory;
 //  - berm / ditch: width, height (berm) or depth (ditch) as float32, side
@@ -111,10 +113,14 @@ struct ObjectSender {
 };
 
 /// The PDU of a crater, berm or ditch edit (header and the point or linear
-/// body, as dis::decode gives it). Refuses, saying why: an edit checkEdit
-/// refuses; another kind; an id of 2^32 or more; more than dis::kMaxSegments
+/// body, as dis::decode gives it). `previous` is the object the sender
+/// published before this one (0:0:0 for none), written as the referenced
+/// object id: receivers hand on one sender's edits in its order
+/// (object_tracker.h). Refuses, saying why: an edit checkEdit refuses;
+/// another kind; an id of 2^32 or more; more than dis::kMaxSegments
 /// segments; a segment shorter than kObjectGridM; a point PROJ cannot convert.
-Result<dis::Pdu> toPdu(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender);
+Result<dis::Pdu> toPdu(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender,
+                       const dis::ObjectId& previous = {});
 /// The bytes of a PDU that toPdu made (or any with a point or linear body).
 std::vector<std::byte> encodeObject(const dis::Pdu& pdu);
 
@@ -134,7 +140,8 @@ struct EncodedEdit {
   std::vector<std::byte> bytes;
   edit::Edit edit;
 };
-Result<EncodedEdit> encodeEdit(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender);
+Result<EncodedEdit> encodeEdit(const edit::Edit& e, const DisFrame& frame, const ObjectSender& sender,
+                               const dis::ObjectId& previous = {});
 
 /// encodeEdit(e).edit: the edit every receiver applies when `sender`
 /// publishes `e`. The sender applies this one, not `e`.
