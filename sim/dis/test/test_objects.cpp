@@ -166,7 +166,7 @@ TEST(SimDisObjects, everyKindRoundTripsThroughItsBytesToTheSendersEdit) {
 }
 
 TEST(SimDisObjects, asReceivedIsAFixedPointForRandomEditsOverAHundredKilometres) {
-  // Segments from 5 cm to 3 km, anywhere on a 100 km UTM database: the
+  // Segments from 5 cm to 10 km, anywhere on a 100 km UTM database: the
   // round trip lands every point within half the grid (plus what the float
   // angles lose) and a second round trip changes no bit.
   const DisFrame frame = testFrame();
@@ -182,7 +182,7 @@ TEST(SimDisObjects, asReceivedIsAFixedPointForRandomEditsOverAHundredKilometres)
       std::vector<std::array<double, 2>> points = {{place(rng), place(rng)}};
       const int segments = 1 + int(rng() % 20);
       for (int j = 0; j < segments; ++j) {
-        const double length = 0.05 * std::pow(60000.0, unit(rng));  // 5 cm .. 3 km, log-uniform
+        const double length = 0.05 * std::pow(200000.0, unit(rng));  // 5 cm .. 10 km, log-uniform
         const double heading = 2 * 3.141592653589793 * unit(rng);
         points.push_back({points.back()[0] + length * std::sin(heading), points.back()[1] - length * std::cos(heading)});
       }
@@ -200,7 +200,8 @@ TEST(SimDisObjects, asReceivedIsAFixedPointForRandomEditsOverAHundredKilometres)
       }
     }
   }
-  EXPECT_LT(worst, kObjectGridM / 2 + 0.001);
+  // The grid's rounding, plus what the float32 angles and length lose: about 1e-7 of a segment's length.
+  EXPECT_LT(worst, kObjectGridM / 2 + 0.0015);
   std::printf("largest move of a point by the round trip: %.3f mm (half the grid is %.3f mm)\n", worst * 1000,
               kObjectGridM / 2 * 1000);
 }
