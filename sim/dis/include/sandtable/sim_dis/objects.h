@@ -14,7 +14,8 @@
 // receiver reconstructs from the same bytes, never `e` itself. asReceived
 // is idempotent: asReceived(asReceived(e)) == asReceived(e) bit for bit,
 // because fromPdu puts every position on a 1/256 m grid of the database
-// frame and every value on what its field carries exactly.
+// frame and every value on what its field carries exactly (tested for
+// segments up to 10 km long).
 //
 // What travels (docs/DIS.md §14 has the bytes):
 //  - object id = site : application : (edit id & 0xFFFF), update number =
