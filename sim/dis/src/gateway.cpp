@@ -50,6 +50,10 @@ Gateway::Gateway(sim::Simulation& simulation, DisFrame frame, GatewayOptions opt
       remotes_(frame, options.remote),
       publisher_(frame, options.publishing),
       frame_(std::move(frame)),
+      objects_(frame_,
+               {options.exercise, options.site, options.application,
+                [&world = simulation.world()](double x, double z) { return world.groundAt(x, z).value_or(0.0); }},
+               options.objects),
       wall_(systemSecondsPastHour),
       icons_(simulation.world().icons()) {}
 
@@ -73,6 +77,7 @@ void Gateway::afterStep() {
   }
   publishEntities();
   publishEvents();
+  objects_.heartbeat(sim_.timeS(), [this](std::span<const std::byte> bytes) { sendPdu(bytes); });
 }
 
 void Gateway::apply(const std::vector<dis::Datagram>& datagrams) {
@@ -124,6 +129,14 @@ void Gateway::applyPdu(const dis::Pdu& pdu, const dis::Address& sender) {
     applyDetonation(*pdu.detonation);
   } else if (pdu.removeEntity) {
     applyRemove(pdu.removeEntity->receiving);
+  } else if (pdu.pointObject || pdu.linearObject) {
+    const dis::ObjectId& id = pdu.pointObject ? pdu.pointObject->id : pdu.linearObject->id;
+    if (id.site == options_.site && id.application == options_.application) {
+      ++counters_.own;
+      return;
+    }
+    ++counters_.objects;
+    for (edit::Edit& e : objects_.receive(pdu, sim_.timeS())) receivedEdits_.push_back(std::move(e));
   } else {
     ++counters_.unknownType;
   }
@@ -348,7 +361,7 @@ dis::Header Gateway::header() const {
   return h;
 }
 
-void Gateway::sendPdu(const std::vector<std::byte>& bytes) {
+void Gateway::sendPdu(std::span<const std::byte> bytes) {
   if (bytes.empty() || !send_) return;
   send_(bytes);
   ++counters_.sentPdus;
@@ -384,6 +397,17 @@ void Gateway::retire(std::uint32_t simId) {
   r.receiving = id;
   r.requestId = ++requests_;
   sendPdu(dis::encode(header(), r));
+}
+
+Result<edit::Edit> Gateway::publishEdit(const edit::Edit& e) {
+  if (!options_.publish) return Problem{"", 0, "Gateway::publishEdit: publish is off (a watcher sends nothing)"};
+  return objects_.publish(e, [this](std::span<const std::byte> bytes) { sendPdu(bytes); });
+}
+
+std::vector<edit::Edit> Gateway::takeReceivedEdits() {
+  std::vector<edit::Edit> out;
+  out.swap(receivedEdits_);
+  return out;
 }
 
 void Gateway::retireAll() {

@@ -47,6 +47,7 @@ struct TwoSims {
   sim::Simulation a, b;
   std::deque<dis::Datagram> toA, toB;
   Filter intoB;
+  Filter intoA;  ///< the same for what A drains
   std::unique_ptr<Gateway> ga, gb;
   sim::StepHost ha{a}, hb{b};
 
@@ -55,7 +56,7 @@ struct TwoSims {
     oa.site = 1;
     ob.site = 2;
     oa.remote.blendLandS = ob.remote.blendLandS = 0;
-    ga = std::make_unique<Gateway>(a, testFrame(), oa, drainer(toA, nullptr), sender(toB));
+    ga = std::make_unique<Gateway>(a, testFrame(), oa, drainer(toA, &intoA), sender(toB));
     gb = std::make_unique<Gateway>(b, testFrame(), ob, drainer(toB, &intoB), sender(toA));
     ga->attach(ha);
     gb->attach(hb);

@@ -6,6 +6,14 @@
 // after each step it publishes the local entities that need a PDU and the
 // step's fires and detonations.
 //
+// Terrain edits travel as synthetic-environment objects (object_tracker.h,
+// docs/DIS.md §14): publishEdit sends a local edit now and on the
+// heartbeat after, and returns the edit to apply locally (the one
+// receivers make); the edits other participants publish are queued, each
+// sender's in its order, for takeReceivedEdits, which the caller drains
+// each step and applies in its editor, in that order. The gateway applies
+// no edit itself.
+//
 // The transport is the caller's: `drain` hands over the datagrams that
 // arrived (a dis::Receiver's, a capture's, a test's) and `send` takes one
 // encoded PDU. A gateway with publish off is a stealth watcher (fly --dis).
@@ -26,6 +34,7 @@
 #include "sandtable/formats/dis_icons.h"
 #include "sandtable/sim/simulation.h"
 #include "sandtable/sim/step_host.h"
+#include "sandtable/sim_dis/object_tracker.h"
 #include "sandtable/sim_dis/publisher.h"
 #include "sandtable/sim_dis/remote.h"
 
@@ -42,6 +51,7 @@ struct GatewayOptions {
   bool absoluteTime = false;
   PublishOptions publishing;
   RemoteOptions remote;
+  TrackerOptions objects;  ///< terrain edits as DIS objects: the heartbeat
 };
 
 /// Why PDUs were not applied, and what was.
@@ -52,6 +62,7 @@ struct GatewayCounters {
   std::uint64_t malformed = 0;      ///< refused by the decoder
   std::uint64_t unknownType = 0;    ///< a type the gateway does not apply (counted, not an error)
   std::uint64_t entityStates = 0, fires = 0, detonations = 0, removes = 0;
+  std::uint64_t objects = 0;        ///< Point and Linear Object State PDUs handed to the tracker (its counters say more)
   std::uint64_t hitsTaken = 0;      ///< local entities killed by remote detonations
   std::uint64_t unknownIcons = 0;   ///< remote entities given a fallback icon (no `dis` pattern matched)
   std::uint64_t notAdded = 0;       ///< remote entities off this database
@@ -85,6 +96,20 @@ class Gateway {
   /// deactivating Entity State PDU and a Remove Entity PDU each.
   void retireAll();
 
+  /// Publishes local terrain edit `e` (a crater, berm or ditch; its time
+  /// the simulation's): its object PDU goes out now and on every heartbeat
+  /// after (afterStep). Returns the edit as receivers make it
+  /// (asReceived): apply that one, not `e`, so that both ends hold the
+  /// same ground. Refuses what ObjectTracker::publish refuses, and any
+  /// edit when publish is off.
+  Result<edit::Edit> publishEdit(const edit::Edit& e);
+  /// The remote edits that arrived since the last call (each object id and
+  /// update number once), each sender's in the order it applied them
+  /// (ObjectTracker: a later one waits for an earlier one lost); the caller
+  /// applies them in this order.
+  std::vector<edit::Edit> takeReceivedEdits();
+  const ObjectTracker& objects() const { return objects_; }
+
   /// The wall clock in seconds past the hour (absolute timestamps); tests
   /// replace it.
   void setWallClock(std::function<double()> secondsPastHour) { wall_ = std::move(secondsPastHour); }
@@ -115,7 +140,7 @@ class Gateway {
   void flyRemoteMunitions();
   void publishEntities();
   void publishEvents();
-  void sendPdu(const std::vector<std::byte>& bytes);
+  void sendPdu(std::span<const std::byte> bytes);
   dis::Header header() const;
   double pduTime(const dis::Header& h) const;
   Identity identityOf(const sim::Entity& e) const;
@@ -128,6 +153,8 @@ class Gateway {
   RemoteEntities remotes_;
   Publisher publisher_;
   DisFrame frame_;
+  ObjectTracker objects_;
+  std::vector<edit::Edit> receivedEdits_;
   GatewayCounters counters_;
   std::function<double()> wall_;
   iconpack::DisIconMap icons_;
