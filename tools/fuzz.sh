@@ -6,7 +6,7 @@
 # leak, sanitizer report or timeout fails the script (exit 1); the input
 # that did it is kept under BUILD_DIR/crashes/. Run by .ci/run.
 # Usage: tools/fuzz.sh [BUILD_DIR]   (default build-fuzz)
-# Environment: SANDTABLE_FUZZ_SECONDS (per target, default 6: 10 targets, about a minute),
+# Environment: SANDTABLE_FUZZ_SECONDS (per target, default 6: 11 targets, about a minute),
 #   SANDTABLE_FUZZ_RUNS (most inputs per target, default 200000),
 #   SANDTABLE_CLI (the CLI that builds the seed database, default build/tools/sandtable).
 set -euo pipefail
@@ -79,6 +79,19 @@ python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.
   89abcdef4090000000000000c00000000000000040080000000000003f000000bf8000003e80000042c80000 \
   40800000402000003f00000000000000020100000000000040a0000000000000c00000000000000040080000 \
   000000000000000000000000000000004248000040800000000000000000000000000000
+# The journal target starts from the golden journal (docs/FORMAT.md §14.6): the header, a crater
+# and a berm in one write.
+mkdir -p "$seeds/sandtable_fuzz_journal"
+python3 -c "import sys; open(sys.argv[1], 'wb').write(bytes.fromhex(''.join(sys.argv[2:])))" \
+  "$seeds/sandtable_fuzz_journal/golden" \
+  53414e444a524e4c01000000180000000000000073647a07750000001800000000000000b0f0e4406af4e8a7 \
+  0100000000000000000000000000294002000100010000000000000840000000000000f83f00000000000000 \
+  000000000000000000000000000000000000000000000000000000000000000000f03f000000000000000000 \
+  0000000000000002000100000000000000000059400000000000006940850000001800000000000000736240 \
+  20449fc53902000000000000000000000000002a400000000002000000000000000000000000000000000000 \
+  000000000040000000000000f83f000000000000e03f00000000000000000000000000000000f03f00000000 \
+  00000000000000000000000000000200000000000000000020c0000000000000104000000000000038400000 \
+  000000001040
 # The sim text target's first byte picks the reader: 0 script, 1 scenario,
 # 2 aircraft, 3 collision table.
 mkdir -p "$seeds/sandtable_fuzz_sim_text"

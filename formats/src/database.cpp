@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/edit_journal.h"
 #include "sandtable/formats/module_check.h"
 
 namespace sandtable {
@@ -66,7 +67,9 @@ void checkFiles(const std::string& dir, const manifest::Manifest& m, const Work&
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
-    const bool listed = name == manifest::kFileName ||
+    // The edit journal lies beside the database unlisted: it grows while
+    // the database is in use, so no manifest CRC could cover it.
+    const bool listed = name == manifest::kFileName || name == journal::kFileName ||
                         std::any_of(m.files.begin(), m.files.end(), [&](const auto& f) { return f.path == name; });
     if (!listed) out.push_back({e.path().string(), 0, "database: file is not listed in the manifest"});
   }
@@ -304,7 +307,18 @@ Status validateDatabase(const std::string& directory, const Work& work) {
   checkModules(directory, m.value(), g ? g.value().get() : nullptr, iconCount, work, out);
   if (stopped(directory + "/" + pack::kPackFileName)) return out;
   out.insert(out.end(), iconProblems.begin(), iconProblems.end());  // after the modules', as before
-  return out;
+  // The journal beside the database, when there is one: damage is a
+  // problem, a torn tail (what a crash leaves, cut when it is next opened)
+  // a warning.
+  Warnings warnings;
+  if (const std::string path = journal::defaultPath(directory); fs::exists(path, ec)) {
+    const auto j = journal::readJournal(path);
+    out.insert(out.end(), j.problems().begin(), j.problems().end());
+    if (j) warnings = j->warnings;
+  }
+  Status result(std::move(out));
+  result.addWarnings(warnings);
+  return result;
 }
 
 }  // namespace sandtable

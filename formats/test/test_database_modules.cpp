@@ -12,6 +12,7 @@
 #include "hand_modules.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/formats/edit_journal.h"
 #include "sandtable/formats/manifest.h"
 #include "sandtable/formats/module_check.h"
 
@@ -239,6 +240,58 @@ TEST_F(DatabaseModules, badlyBrokenModulesGiveAShortReportInPackOrder) {
   EXPECT_TRUE(find(ps, "more max-height problems not listed"));
   EXPECT_TRUE(find(ps, "more skirt problems not listed"));
   EXPECT_TRUE(find(ps, "skirt depth 0.500 m is less than"));
+}
+
+// The edit journal beside the database is not an unlisted entry; it is read
+// when present: damage is a problem, a torn tail a warning.
+TEST_F(DatabaseModules, journalBesideTheDatabaseIsReadNotCalledUnlisted) {
+  write();
+  const std::string path = journal::defaultPath(dir_);
+  EXPECT_EQ(path, dir_ + "/edits.journal");
+  edit::Edit crater;
+  crater.id = 1;
+  crater.points = {{40.0, 50.0}};
+  crater.radius = 3;
+  crater.depth = 1;
+  {
+    auto w = journal::JournalWriter::open(path);
+    ASSERT_TRUE(w.ok()) << w.error();
+    ASSERT_EQ(w.value()->append(crater).message(), "");
+    crater.id = 2;
+    ASSERT_EQ(w.value()->append(crater).message(), "");
+    ASSERT_EQ(w.value()->close().message(), "");
+  }
+  const Status sound = validateDatabase(dir_);
+  EXPECT_EQ(joined(sound.problems()), "");
+  EXPECT_TRUE(sound.warnings().empty());
+  // A torn tail: a warning naming the journal and the cut.
+  const auto size = fs::file_size(path);
+  fs::resize_file(path, size - 3);
+  const Status torn = validateDatabase(dir_);
+  EXPECT_EQ(joined(torn.problems()), "");
+  ASSERT_EQ(torn.warnings().size(), 1u);
+  EXPECT_EQ(torn.warnings().front().file, path);
+  EXPECT_EQ(torn.warnings().front().offset, journal::kHeaderBytes + (size - journal::kHeaderBytes) / 2);
+  // Damage to the first of two records: a problem.
+  {
+    auto w = journal::JournalWriter::open(path);  // cuts the tail
+    ASSERT_TRUE(w.ok()) << w.error();
+    ASSERT_EQ(w.value()->append(crater).message(), "");
+  }
+  auto bytes = readSmallFile(path, 1 << 20);
+  ASSERT_TRUE(bytes.ok());
+  bytes.value()[journal::kHeaderBytes + 30] ^= std::byte{1};
+  ASSERT_EQ(writeFileAtomic(path, bytes.value()).message(), "");
+  const auto ps = validateDatabase(dir_).problems();
+  ASSERT_EQ(ps.size(), 1u) << joined(ps);
+  EXPECT_EQ(ps.front().file, path);
+  EXPECT_EQ(ps.front().offset, journal::kHeaderBytes);
+  EXPECT_NE(ps.front().message.find("payload checksum mismatch"), std::string::npos) << ps.front().message;
+  // Any other file is still an unlisted entry.
+  fs::rename(path, dir_ + "/edits.journal.old");
+  const auto other = validateDatabase(dir_).problems();
+  ASSERT_EQ(other.size(), 1u) << joined(other);
+  EXPECT_EQ(other.front().message, "database: file is not listed in the manifest");
 }
 
 }  // namespace

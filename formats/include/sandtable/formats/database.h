@@ -46,7 +46,10 @@ std::uint64_t databaseOpens();
 /// (validatePack), the pack index against manifest and grid, materials.txt, icons.pack (decoded),
 /// and every module's geometry and its edges against its neighbours
 /// (module_check.h; docs/VALIDATE.md), at most a few problems of
-/// each kind per module. Ok when the database is sound.
+/// each kind per module. The edit journal beside the database
+/// (journal::defaultPath), which the manifest does not list, is read when
+/// present: its problems are the database's, a torn tail is a warning on
+/// the result. Ok when the database is sound.
 /// `work` reports progress by stage ("checking files", "checking grid",
 /// "checking pack", "checking modules") and may cancel: the problems found
 /// so far are returned, the last one kCancelledMessage.
