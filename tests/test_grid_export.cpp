@@ -286,7 +286,8 @@ TEST(GridExport, ctrlCStopsABigExportAndLeavesNothing) {
   ASSERT_EQ(b.exitCode, 0) << b.err;
   const std::string script = std::string(SANDTABLE_CLI) + " export '" + (t / "db") + "' --grid -o '" + (t / "g.tif") +
                              "' 2>'" + (t / "err") + "' & p=$!; "
-                             "while kill -0 $p 2>/dev/null && ! grep -q 'writing grid' '" + (t / "err") + "'; do sleep 0.01; done; "
+                             "while kill -0 $p 2>/dev/null && ! grep -q 'writing grid' '" + (t / "err") +
+                             "'; do sleep 0.01; done; "
                              "kill -INT $p; wait $p; echo $?";
   const std::string rc = fixtures::commandOutput(script);
   EXPECT_EQ(rc, "130\n");

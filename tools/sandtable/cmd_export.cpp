@@ -416,7 +416,8 @@ int runExport(ExportArgs& a) {
 
 void registerExport(CLI::App& root, Commands& c) {
   auto a = std::make_shared<ExportArgs>();
-  auto* sub = root.add_subcommand("export", "Write load modules as OBJ + MTL or glTF 2.0 (.gltf/.glb), or the elevation grid as a GeoTIFF");
+  auto* sub = root.add_subcommand(
+      "export", "Write load modules as OBJ + MTL or glTF 2.0 (.gltf/.glb), or the elevation grid as a GeoTIFF");
   sub->footer(
       "Frame: metres, X east, Y up, Z south (north is -Z), origin at the NW corner of --module;\n"
       "one material per class (named from materials.txt), skirts as material \"skirt\".\n"
