@@ -9,6 +9,7 @@
 #include <set>
 
 #include "sandtable/edits/profile.h"
+#include "sandtable/sim/scenario_load.h"
 #include "sandtable/sim/script.h"
 
 namespace sandtable::sim {
@@ -528,6 +529,84 @@ TEST(Scenario, EntityCountsPastTheCapAreRefusedAtTheirLine) {
       "cap.scenario");
   ASSERT_TRUE(atCap.ok()) << atCap.error();
   EXPECT_EQ(atCap->groups[0].count, 99999);
+}
+
+// makeTerrainEdits (scenario_load.h): the lines become edits in the database
+// frame, placed as entities are (X = easting - origin, Z = origin - northing).
+TEST(Scenario, TerrainEditsBecomeEditsInTheDatabaseFrame) {
+  // 201 x 101 posts 10 m apart: X 0 .. 2000, Z 0 .. 1000.
+  const grid::PostLayout layout{201, 101, 10.0, 500000.0, 4000000.0};
+  const auto p = parseScenario(
+      "sandtable-scenario 1\nframe projected\n"
+      "crater at=500100,3999900 size=small\n"
+      "berm line=499990,4000000;501000,3999500 width=2 height=1.5\n"  // crosses the west edge: kept
+      "ditch line=500200,3999200;500300,3999200 width=1 depth=3 slope=1\n"
+      "flatten polygon=500500,3999500;500600,3999500;500600,3999400 height=42\n",
+      "p.scenario");
+  ASSERT_TRUE(p.ok()) << p.error();
+  const auto r = makeTerrainEdits(p.value(), nullptr, layout);
+  ASSERT_TRUE(r.ok()) << r.error();
+  const auto& e = r.value();
+  ASSERT_EQ(e.size(), 4u);
+  for (std::size_t k = 0; k < e.size(); ++k) {
+    EXPECT_EQ(e[k].id, k + 1);
+    EXPECT_EQ(e[k].origin, 0u);
+    EXPECT_EQ(e[k].time, 0);
+    EXPECT_EQ(edit::checkEdit(e[k]), "");
+  }
+  EXPECT_EQ(e[0].kind, edit::Kind::crater);
+  EXPECT_EQ(e[0].points, (std::vector<std::array<double, 2>>{{100, 100}}));
+  EXPECT_EQ(e[0].radius, edits::kCraterSmall.radius);
+  EXPECT_EQ(e[0].depth, edits::kCraterSmall.depth);
+  EXPECT_EQ(e[1].kind, edit::Kind::berm);
+  EXPECT_EQ(e[1].points, (std::vector<std::array<double, 2>>{{-10, 0}, {1000, 500}}));
+  EXPECT_EQ(e[1].width, 2);
+  EXPECT_EQ(e[1].height, 1.5);
+  EXPECT_EQ(e[1].sideSlope, kScenarioDefaultSlope);
+  EXPECT_EQ(e[2].kind, edit::Kind::ditch);
+  EXPECT_EQ(e[2].points, (std::vector<std::array<double, 2>>{{200, 800}, {300, 800}}));
+  EXPECT_EQ(e[2].height, 3);  // the depth
+  EXPECT_EQ(e[2].sideSlope, 1);
+  EXPECT_EQ(e[3].kind, edit::Kind::flatten);
+  EXPECT_EQ(e[3].points, (std::vector<std::array<double, 2>>{{500, 500}, {600, 500}, {600, 600}}));
+  EXPECT_EQ(e[3].height, 42);
+
+  // Lon/lat through the caller's transformer, as entities' at= is.
+  const auto ll = parseScenario("sandtable-scenario 1\ncrater at=13.001,41.999 radius=4 depth=2\n", "ll.scenario");
+  ASSERT_TRUE(ll.ok()) << ll.error();
+  const world::ToProjectedFn toy = [](double lon, double lat, double& east, double& north) -> std::string {
+    east = 500000 + (lon - 13) * 100000;
+    north = 4000000 + (lat - 42) * 100000;
+    return {};
+  };
+  const auto placed = makeTerrainEdits(ll.value(), toy, layout);
+  ASSERT_TRUE(placed.ok()) << placed.error();
+  EXPECT_NEAR(placed.value()[0].points[0][0], 100, 1e-6);
+  EXPECT_NEAR(placed.value()[0].points[0][1], 100, 1e-6);
+  EXPECT_EQ(placed.value()[0].radius, 4);
+
+  // Problems name the file, the line and the kind.
+  const auto noCrs = makeTerrainEdits(ll.value(), nullptr, layout);
+  ASSERT_FALSE(noCrs.ok());
+  EXPECT_EQ(noCrs.problems()[0].file, "ll.scenario");
+  EXPECT_EQ(noCrs.problems()[0].message, "scenario: line 2: crater: lon/lat positions need the database's CRS");
+  const world::ToProjectedFn refuses = [](double, double, double&, double&) -> std::string { return "off the map"; };
+  const auto refused = makeTerrainEdits(ll.value(), refuses, layout);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.problems()[0].message, "scenario: line 2: crater: off the map");
+  const auto far = parseScenario(
+      "sandtable-scenario 1\nframe projected\ncrater at=500100,3999900 size=small\n"
+      "ditch line=510000,3999000;511000,3999000 width=1 depth=3\n",
+      "far.scenario");
+  ASSERT_TRUE(far.ok()) << far.error();
+  const auto outside = makeTerrainEdits(far.value(), nullptr, layout);
+  ASSERT_FALSE(outside.ok());
+  ASSERT_EQ(outside.problems().size(), 1u);
+  EXPECT_EQ(outside.problems()[0].message.rfind("scenario: line 4: ditch: lies wholly outside the database: it "
+                                                "reaches X 9993.5 .. 11006.5, Z 993.5 .. 1006.5 m",
+                                                0),
+            0u)
+      << outside.problems()[0].message;
 }
 
 }  // namespace
