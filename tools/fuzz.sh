@@ -98,6 +98,7 @@ mkdir -p "$seeds/sandtable_fuzz_sim_text"
 pick() { { printf "\\x$1"; cat "$2"; } >"$seeds/sandtable_fuzz_sim_text/$1-$(basename "$2")"; }
 pick 00 samples/demo.script
 pick 01 samples/demo.scenario
+pick 01 samples/terrain.scenario
 for f in samples/aircraft/*.txt; do pick 02 "$f"; done
 pick 03 samples/collisions.txt
 

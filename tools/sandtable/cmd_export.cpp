@@ -1,6 +1,9 @@
-// sandtable export: load modules as OBJ + MTL or glTF 2.0 for other tools.
+// sandtable export: load modules as OBJ + MTL or glTF 2.0 for other tools,
+// and the elevation grid as a GeoTIFF (--grid).
+#include <atomic>
 #include <cctype>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -10,8 +13,11 @@
 
 #include "commands.h"
 #include "db_util.h"
+#include "progress.h"
+#include "sandtable/converters/grid_export.h"
 #include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/bytes.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/formats/mesh_export.h"
 #include "sandtable/formats/object_export.h"
 
@@ -31,6 +37,7 @@ struct ExportArgs {
   std::uint32_t iconLevel = 0;
   std::string icon;              ///< export this icon alone
   bool noSkirts = false;
+  bool grid = false;  ///< the elevation grid as a GeoTIFF instead of modules
   bool json = false;
 };
 
@@ -204,7 +211,81 @@ std::string objectMode(const ExportArgs& a, const std::string& format, const Dat
   return mode;
 }
 
+// ---------------------------------------------------------------- --grid
+
+std::atomic<bool> gGridCancel{false};
+volatile std::sig_atomic_t gGridSignal = 0;
+
+/// Stops the grid export, which then removes its temporary file; a second
+/// signal ends the process at once (as `build` does).
+void onGridSignal(int sig) {
+  gGridSignal = sig;
+  gGridCancel.store(true);
+  std::signal(sig, SIG_DFL);
+}
+
+/// Below this many posts the file is written in well under a second: no
+/// progress lines.
+constexpr std::uint64_t kGridProgressPosts = std::uint64_t(1) << 22;
+
+/// `export DB --grid -o FILE.tif`: `field` (the database's grid, or the
+/// same posts edited) as a GeoTIFF in the manifest's CRS.
+int exportGrid(const ExportArgs& a, const Database& db, const grid::HeightField& field) {
+  const std::string ext = lower(fs::path(a.output).extension().string());
+  if (ext != ".tif" && ext != ".tiff") {
+    return usageError("export", "--grid writes a GeoTIFF; give an output ending in .tif or .tiff (not " + a.output +
+                                    ")");
+  }
+  const auto& man = db.manifest;
+  const std::uint64_t posts = std::uint64_t(field.postsX()) * field.postsZ();
+  std::signal(SIGINT, onGridSignal);
+  std::signal(SIGTERM, onGridSignal);
+  Progress progress(a.json || posts < kGridProgressPosts);
+  Work work;
+  work.progress = [&](double f, const std::string& stage) { progress.update(f, stage); };
+  work.cancel = &gGridCancel;
+  auto written = convert::exportGridGeoTiff(field, man.crsWkt, a.output, work);
+  progress.done();
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  if (!written && gGridSignal != 0) {
+    std::fprintf(stderr, "sandtable export: cancelled by signal %d; nothing was written to %s\n", int(gGridSignal),
+                 a.output.c_str());
+    return 128 + gGridSignal;  // the shell's convention for a process ended by a signal
+  }
+  if (!written) return reportProblems("export", written.problems());
+  const convert::GridExportReport& r = written.value();
+  if (a.json) {
+    const nlohmann::json j = {{"database", a.dir},
+                              {"path", r.path},
+                              {"format", "GTiff"},
+                              {"data_type", "Float32"},
+                              {"size", {r.postsX, r.postsZ}},
+                              {"posts", r.posts},
+                              {"bytes", r.bytes},
+                              {"spacing_m", field.spacing()},
+                              {"area_or_point", "Point"},
+                              {"origin_easting", field.originEasting()},
+                              {"origin_northing", field.originNorthing()},
+                              {"crs_name", man.crsName},
+                              {"epsg", man.epsg}};
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("wrote %s: %u x %u posts at %g m in %s, Float32, %llu bytes\n", r.path.c_str(), r.postsX, r.postsZ,
+                field.spacing(), man.crsName.c_str(), static_cast<unsigned long long>(r.bytes));
+  }
+  return kOk;
+}
+
 int runExport(ExportArgs& a) {
+  if (a.grid) {
+    auto db = openOrReport("export", a.dir);
+    if (!db) return kUsage;
+    // The grid file's posts as they were built; an edited field (a
+    // journal's edits over these posts) is exported the same way.
+    const grid::GridHeightField field(*db->grid);
+    return exportGrid(a, *db, field);
+  }
   const int sources = int(!a.from.empty()) + int(!a.lonlat.empty()) + int(!a.xy.empty()) + int(!a.icon.empty());
   if (sources != 1) {
     return usageError("export", "give exactly one of --module KX KZ, --lonlat LON LAT, --xy E N or --icon NAME");
@@ -335,7 +416,8 @@ int runExport(ExportArgs& a) {
 
 void registerExport(CLI::App& root, Commands& c) {
   auto a = std::make_shared<ExportArgs>();
-  auto* sub = root.add_subcommand("export", "Write load modules as OBJ + MTL or glTF 2.0 (.gltf/.glb)");
+  auto* sub = root.add_subcommand(
+      "export", "Write load modules as OBJ + MTL or glTF 2.0 (.gltf/.glb), or the elevation grid as a GeoTIFF");
   sub->footer(
       "Frame: metres, X east, Y up, Z south (north is -Z), origin at the NW corner of --module;\n"
       "one material per class (named from materials.txt), skirts as material \"skirt\".\n"
@@ -344,7 +426,8 @@ void registerExport(CLI::App& root, Commands& c) {
       "  sandtable export db --lonlat 7.42 43.74 -o monaco.glb\n"
       "  sandtable export db --module 0 0 --to 2 1 --level 1 --format gltf -o area.glb\n"
       "  sandtable export db --module 3 4 --objects flatten -o m34-trees.obj\n"
-      "  sandtable export db --icon tree -o tree.glb");
+      "  sandtable export db --icon tree -o tree.glb\n"
+      "  sandtable export db --grid -o ground.tif      (the elevation grid as a GeoTIFF, docs/EXPORT.md)");
   sub->add_option("DB", a->dir, "Database directory")->required();
   auto* module = sub->add_option("--module", a->from, "Module column and row (north-west module of the range)")
                      ->expected(2);
@@ -364,8 +447,17 @@ void registerExport(CLI::App& root, Commands& c) {
       ->default_val("auto")
       ->check(CLI::IsMember({"auto", "instanced", "flatten", "none"}));
   sub->add_option("--icon-level", a->iconLevel, "Icons' level of detail, 0 = full")->default_val(0);
-  sub->add_option("--icon", a->icon, "Export this icon of icons.pack alone, in its own frame")
-      ->excludes(module)->excludes(lonlat);
+  auto* icon = sub->add_option("--icon", a->icon, "Export this icon of icons.pack alone, in its own frame")
+                   ->excludes(module)->excludes(lonlat);
+  auto* grid = sub->add_flag("--grid", a->grid,
+                             "Write the elevation grid as a Float32 GeoTIFF (-o FILE.tif) in the database's CRS, "
+                             "one pixel per post, instead of modules");
+  // The module and icon modes' options mean nothing to the grid.
+  for (const char* name : {"--module", "--to", "--level", "--format", "--no-skirts", "--objects", "--icon-level"}) {
+    grid->excludes(sub->get_option(name));
+  }
+  grid->excludes(lonlat)->excludes(icon);
+  grid->excludes(sub->get_option("--xy"));
   sub->add_flag("--json", a->json, "Print a JSON summary");
   c.add(sub, [a] {
     ExportArgs args = *a;  // runExport fills in --module from a point

@@ -1,5 +1,5 @@
 // Scenario loading for the CLI: the database's CRS turns lon/lat into the
-// grid's easting and northing.
+// grid's easting and northing, for entities and terrain edits alike.
 #include "sim_setup.h"
 
 #include <cstdio>
@@ -46,7 +46,12 @@ std::optional<SimSetup> setUpSimulation(const std::string& cmd, const paging::Wo
     reportProblems(cmd, made.problems());
     return std::nullopt;
   }
-  return SimSetup{world.value(), std::move(made.value()), crs};
+  auto edits = sim::makeTerrainEdits(scen.value(), toProjected, world.value()->heights().layout());
+  if (!edits) {
+    reportProblems(cmd, edits.problems());
+    return std::nullopt;
+  }
+  return SimSetup{world.value(), std::move(made.value()), crs, std::move(edits.value())};
 }
 
 }  // namespace sandtable::cli

@@ -8,6 +8,7 @@
 #include <map>
 
 #include "sandtable/base/hash.h"
+#include "sandtable/edits/profile.h"
 #include "sandtable/sim/entity.h"
 #include "text.h"
 
@@ -31,6 +32,37 @@ constexpr const char* kEntityKeys =
     "aircraft, fuel (and the word driven)";
 constexpr const char* kGroupKeys =
     "name, icon, force, domain, mobility, area, heading, speed, altitude, agl, behaviour, aircraft, fuel";
+// Terrain edit lines' bounds: a crater from a hand grenade's to a large
+// bomb's, earthworks a few metres to a kilometre wide and up to 100 m high
+// or deep; a flatten's height from below the Dead Sea to above Everest.
+constexpr double kMinCraterRadiusM = edits::kFinestSpacing;
+constexpr double kMaxCraterRadiusM = 500;
+constexpr double kMaxEditDepthM = 100;
+constexpr double kMaxEditWidthM = 1000;
+constexpr double kMaxSlope = 100;  // rise over run: near a wall
+constexpr double kMaxGroundM = 9000;
+
+/// A terrain edit directive: its kind and keys.
+struct EditDirective {
+  std::string_view word;
+  edit::Kind kind;
+  std::vector<std::string_view> keys;
+  const char* keyList;
+};
+
+/// The edit directive `word` names, or null.
+const EditDirective* editDirective(std::string_view word) {
+  static const EditDirective table[] = {
+      {"crater", edit::Kind::crater, {"at", "size", "radius", "depth"}, "at, size, radius, depth"},
+      {"berm", edit::Kind::berm, {"line", "width", "height", "slope"}, "line, width, height, slope"},
+      {"ditch", edit::Kind::ditch, {"line", "width", "depth", "slope"}, "line, width, depth, slope"},
+      {"flatten", edit::Kind::flatten, {"polygon", "height", "slope"}, "polygon, height, slope"},
+  };
+  for (const auto& d : table) {
+    if (d.word == word) return &d;
+  }
+  return nullptr;
+}
 
 /// "A,B,..." as exactly n finite numbers.
 std::optional<std::vector<double>> numberList(std::string_view s, std::size_t n) {
@@ -118,6 +150,9 @@ std::uint64_t nameKey(std::string_view s) {
   return h;
 }
 
+/// Which kind of line a key=value list belongs to: its messages differ.
+enum class Owner { entity, group, edit };
+
 /// One key=value of a directive, and where it is.
 struct Field {
   std::string_view value;
@@ -184,10 +219,13 @@ class Reader {
       entityLine(tok);
     } else if (d == "group") {
       groupLine(tok);
+    } else if (const EditDirective* directive = editDirective(d)) {
+      editLine(tok, *directive);
     } else if (d == "sandtable-scenario") {
       fail(tok[0].column, "the header \"sandtable-scenario\" may come only once, on the first line");
     } else {
-      fail(tok[0].column, "unknown directive " + text::quoted(d) + "; the directives are frame, seed, entity and group");
+      fail(tok[0].column, "unknown directive " + text::quoted(d) +
+                              "; the directives are frame, seed, entity, group, crater, berm, ditch and flatten");
     }
     return true;
   }
@@ -207,8 +245,8 @@ class Reader {
   }
 
   void frameLine(const std::vector<Token>& tok) {
-    if (frameSet_ || !out_.entities.empty() || !out_.groups.empty()) {
-      return fail(tok[0].column, "\"frame\" may come once, before the first entity or group");
+    if (frameSet_ || !out_.entities.empty() || !out_.groups.empty() || !out_.terrainEdits.empty()) {
+      return fail(tok[0].column, "\"frame\" may come once, before the first entity, group or terrain edit");
     }
     if (tok.size() != 2 || (tok[1].text != "lonlat" && tok[1].text != "projected")) {
       const std::size_t col = tok.size() > 1 ? tok[1].column : tok[0].column;
@@ -234,10 +272,11 @@ class Reader {
   }
 
   /// Reads key=value words from tok[first]; `allowed` lists the keys.
-  /// Sets `driven` for the bare word when allowDriven. False on a problem.
+  /// Sets `driven` for the bare word on an entity line. False on a problem.
   bool fields(const std::vector<Token>& tok, std::size_t first, const std::vector<std::string_view>& allowed,
-              const char* keyList, bool allowDriven, std::map<std::string_view, Field>& out,
+              const char* keyList, Owner owner, std::map<std::string_view, Field>& out,
               std::optional<std::size_t>& drivenColumn) {
+    const bool allowDriven = owner == Owner::entity;
     bool ok = true;
     for (std::size_t k = first; k < tok.size(); ++k) {
       const Token& t = tok[k];
@@ -251,7 +290,7 @@ class Reader {
           drivenColumn = t.column;
           continue;
         }
-        if (t.text == "driven") {
+        if (t.text == "driven" && owner == Owner::group) {
           fail(t.column, "a group cannot be driven; make the driven entity an entity line");
         } else {
           fail(t.column, "unexpected word " + text::quoted(t.text) + "; write key=value, the keys are " + keyList);
@@ -263,7 +302,7 @@ class Reader {
       if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
         std::string m = "unknown key " + text::quoted(key) + "; the keys are ";
         m += keyList;
-        if (!allowDriven && (key == "at" || key == "script" || key == "script-entity")) {
+        if (owner == Owner::group && (key == "at" || key == "script" || key == "script-entity")) {
           m = text::quoted(key) + " is not for a group: its members are scattered over area= (keys: ";
           m += keyList;
           m += ")";
@@ -507,7 +546,7 @@ class Reader {
     static const std::vector<std::string_view> keys = {
         "icon", "force", "domain", "mobility", "at", "heading", "speed", "altitude", "agl", "behaviour",
         "script", "script-entity", "aircraft", "fuel"};
-    if (!fields(tok, 2, keys, kEntityKeys, true, f, drivenColumn) || !named) return;
+    if (!fields(tok, 2, keys, kEntityKeys, Owner::entity, f, drivenColumn) || !named) return;
     EntitySpec e;
     e.name = std::string(tok[1].text);
     e.line = line_;
@@ -600,7 +639,7 @@ class Reader {
     std::optional<std::size_t> drivenColumn;
     static const std::vector<std::string_view> keys = {"name", "icon", "force", "domain", "mobility", "area", "heading",
                                                        "speed", "altitude", "agl", "behaviour", "aircraft", "fuel"};
-    if (!fields(tok, 2, keys, kGroupKeys, false, f, drivenColumn)) return;
+    if (!fields(tok, 2, keys, kGroupKeys, Owner::group, f, drivenColumn)) return;
     GroupSpec g;
     g.count = static_cast<int>(*count);
     g.line = line_;
@@ -656,6 +695,217 @@ class Reader {
     g.fuel = c.fuel;
     if (!claimEntities(*count, tok[1].column)) return;
     out_.groups.push_back(std::move(g));
+  }
+
+  /// key=V with lo < V <= hi (lo <= V when `zeroAllowed`); nothing when
+  /// the key is absent. False on a problem.
+  bool bounded(const std::map<std::string_view, Field>& f, std::string_view key, double lo, bool zeroAllowed, double hi,
+               const char* unit, std::optional<double>& out) {
+    const auto it = f.find(key);
+    if (it == f.end()) return true;
+    const Field& v = it->second;
+    const std::string bounds = std::string(zeroAllowed ? "from " : "above ") + shortNumber(lo) +
+                               (zeroAllowed ? " to " : " and at most ") + shortNumber(hi) + " " + unit;
+    const auto n = finiteNumber(v.value);
+    if (!n) {
+      fail(v.valueColumn, std::string(key) + "=" + std::string(v.value) + " is not a number " + bounds);
+      return false;
+    }
+    if (*n < lo || (*n == lo && !zeroAllowed) || *n > hi) {
+      fail(v.valueColumn, std::string(key) + "=" + std::string(v.value) + " is out of bounds; give a value " + bounds);
+      return false;
+    }
+    out = *n;
+    return true;
+  }
+
+  /// A required key's value, or a problem at the directive naming it.
+  bool required(const std::map<std::string_view, Field>& f, std::string_view key, std::size_t directiveColumn,
+                const std::string& who, const std::string& form) {
+    if (f.count(key)) return true;
+    fail(directiveColumn, who + " has no " + std::string(key) + "=; add " + std::string(key) + "=" + form);
+    return false;
+  }
+
+  /// "A,B;C,D;..." (line= or polygon=) in the file's frame: at least
+  /// `least` points, at most kMaxScenarioEditPoints, counted before any is
+  /// stored.
+  bool pointList(const Field& f, std::string_view key, std::size_t least, const std::string& who,
+                 std::vector<std::array<double, 2>>& out) {
+    const bool lonLat = out_.frame == ScenarioFrame::lonLat;
+    const char* pair = lonLat ? "LON,LAT" : "EASTING,NORTHING";
+    const std::size_t count = 1 + static_cast<std::size_t>(std::count(f.value.begin(), f.value.end(), ';'));
+    if (count > kMaxScenarioEditPoints) {
+      fail(f.valueColumn, std::string(key) + "= has " + std::to_string(count) + " points, more than the " +
+                              std::to_string(kMaxScenarioEditPoints) + " a line may hold; split it into several lines");
+      return false;
+    }
+    if (count < least) {
+      fail(f.valueColumn, std::string(key) + "= has " + std::to_string(count) + " point" + (count == 1 ? "" : "s") +
+                              "; " + who + " needs at least " + std::to_string(least) + ": " + pair + ";" + pair +
+                              (least > 2 ? std::string(";") + pair : std::string()) + " ...");
+      return false;
+    }
+    out.reserve(count);
+    std::string_view rest = f.value;
+    std::size_t column = f.valueColumn;
+    for (std::size_t k = 1; k <= count; ++k) {
+      const std::size_t semi = rest.find(';');
+      const std::string_view piece = rest.substr(0, semi);
+      const auto v = numberList(piece, 2);
+      if (!v) {
+        fail(column, "point " + std::to_string(k) + " " + text::quoted(piece) + " of " + std::string(key) +
+                         "= must be two numbers " + pair + "; write the points as " + pair + ";" + pair +
+                         " ... with no spaces");
+        return false;
+      }
+      if (lonLat && ((*v)[0] < -180 || (*v)[0] > 180 || (*v)[1] < -90 || (*v)[1] > 90)) {
+        fail(column, "point " + std::to_string(k) + ": lon " + shortNumber((*v)[0]) + " lat " + shortNumber((*v)[1]) +
+                         " is not a position in degrees; for easting,northing put \"frame projected\" before the "
+                         "first entity");
+        return false;
+      }
+      out.push_back({(*v)[0], (*v)[1]});
+      column += piece.size() + 1;
+      if (semi != std::string_view::npos) rest.remove_prefix(semi + 1);
+    }
+    return true;
+  }
+
+  /// A crater's size: size=small|medium|large (edits/profile.h), or
+  /// radius= and depth= both.
+  bool craterSize(const std::map<std::string_view, Field>& f, std::size_t directiveColumn, TerrainEditSpec& e) {
+    const auto size = f.find("size"), radius = f.find("radius"), depth = f.find("depth");
+    if (size != f.end()) {
+      if (radius != f.end() || depth != f.end()) {
+        const Field& extra = radius != f.end() ? radius->second : depth->second;
+        fail(extra.keyColumn, "give size= or radius= and depth=, not both");
+        return false;
+      }
+      const std::string_view w = size->second.value;
+      const edits::CraterSize* c = w == "small"    ? &edits::kCraterSmall
+                                   : w == "medium" ? &edits::kCraterMedium
+                                   : w == "large"  ? &edits::kCraterLarge
+                                                   : nullptr;
+      if (!c) {
+        auto both = [](const edits::CraterSize& z) {
+          return shortNumber(z.radius) + " m, " + shortNumber(z.depth) + " m";
+        };
+        fail(size->second.valueColumn, "size=" + std::string(w) + " must be small (radius, depth: " +
+                                           both(edits::kCraterSmall) + "), medium (" + both(edits::kCraterMedium) +
+                                           ") or large (" + both(edits::kCraterLarge) + "); or give radius=M depth=M");
+        return false;
+      }
+      e.radius = c->radius;
+      e.depth = c->depth;
+      return true;
+    }
+    if (radius == f.end() && depth == f.end()) {
+      fail(directiveColumn, "crater has no size=; add size=small|medium|large, or radius=M depth=M");
+      return false;
+    }
+    if (radius == f.end() || depth == f.end()) {
+      const Field& given = radius != f.end() ? radius->second : depth->second;
+      fail(given.keyColumn, radius != f.end() ? "radius= needs depth= (the centre's depth below the ground, metres)"
+                                              : "depth= needs radius= (the rim crest's radius, metres)");
+      return false;
+    }
+    std::optional<double> r, d;
+    bool ok = bounded(f, "radius", kMinCraterRadiusM, true, kMaxCraterRadiusM, "metres", r);
+    ok = bounded(f, "depth", 0, false, kMaxEditDepthM, "metres", d) && ok;
+    if (!ok) return false;
+    e.radius = *r;
+    e.depth = *d;
+    return true;
+  }
+
+  /// Twice the signed area of a polygon (the shoelace formula), in the
+  /// file's units: zero when every corner lies on one line.
+  static double twiceArea(const std::vector<std::array<double, 2>>& p) {
+    double a = 0;
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const auto& u = p[k];
+      const auto& v = p[(k + 1) % p.size()];
+      a += u[0] * v[1] - v[0] * u[1];
+    }
+    return a;
+  }
+
+  /// line= or polygon=: the points, a line with some length, a polygon
+  /// with some area.
+  bool shape(const Field& f, std::string_view key, const std::string& who, TerrainEditSpec& e) {
+    const bool flatten = e.kind == edit::Kind::flatten;
+    if (!pointList(f, key, flatten ? 3 : 2, who, e.points)) return false;
+    if (flatten && twiceArea(e.points) == 0) {
+      fail(f.valueColumn, "polygon= encloses no area: its corners lie on one line; give three or more corners around "
+                          "the ground to flatten");
+      return false;
+    }
+    const auto& first = e.points.front();
+    if (!flatten && std::all_of(e.points.begin(), e.points.end(), [&](const auto& p) { return p == first; })) {
+      fail(f.valueColumn, "line= has no length: every point is the same; give the line's two ends");
+      return false;
+    }
+    return true;
+  }
+
+  /// berm and ditch: line=, width=, height= or depth=; flatten: polygon=,
+  /// height=; all three: slope=.
+  bool earthwork(const std::map<std::string_view, Field>& f, std::size_t col, const std::string& who,
+                 TerrainEditSpec& e) {
+    const bool flatten = e.kind == edit::Kind::flatten, berm = e.kind == edit::Kind::berm;
+    const std::string pair = e.lonLat ? "LON,LAT" : "EASTING,NORTHING";
+    const std::string_view where = flatten ? "polygon" : "line";
+    const std::string form = pair + ";" + pair + (flatten ? ";" + pair : std::string()) + "...";
+    bool ok = required(f, where, col, who, form) && shape(f.at(where), where, who, e);
+    std::optional<double> width, rise, slope;
+    if (flatten) {
+      ok = required(f, "height", col, who, "M (metres above the datum)") &&
+           bounded(f, "height", -500, true, kMaxGroundM, "metres above the datum", rise) && ok;
+    } else {
+      const char* riseKey = berm ? "height" : "depth";
+      const char* widthForm =
+          berm ? "M (the crest's width, metres; 0 for a ridge)" : "M (the floor's width, metres; 0 for a V)";
+      ok = required(f, "width", col, who, widthForm) &&
+           bounded(f, "width", 0, true, kMaxEditWidthM, "metres", width) && ok;
+      ok = required(f, riseKey, col, who, "M (metres)") &&
+           bounded(f, riseKey, 0, false, kMaxEditDepthM, "metres", rise) && ok;
+    }
+    ok = bounded(f, "slope", 0, false, kMaxSlope, "(rise over run; 0.5 is 1 up in 2 across)", slope) && ok;
+    if (!ok) return false;
+    e.width = width.value_or(0);
+    e.height = *rise;
+    e.sideSlope = slope.value_or(kScenarioDefaultSlope);
+    return true;
+  }
+
+  /// `crater`, `berm`, `ditch` or `flatten`: one terrain edit.
+  void editLine(const std::vector<Token>& tok, const EditDirective& d) {
+    const std::size_t col = tok[0].column;
+    // Before anything of the line is read or stored.
+    if (out_.terrainEdits.size() >= kMaxScenarioEdits) {
+      return fail(col, "this line is terrain edit " + std::to_string(out_.terrainEdits.size() + 1) +
+                           ", more than the " + std::to_string(kMaxScenarioEdits) +
+                           " a scenario may hold (crater, berm, ditch and flatten lines together)");
+    }
+    std::map<std::string_view, Field> f;
+    std::optional<std::size_t> noDriven;
+    if (!fields(tok, 1, d.keys, d.keyList, Owner::edit, f, noDriven)) return;
+    TerrainEditSpec e;
+    e.kind = d.kind;
+    e.lonLat = out_.frame == ScenarioFrame::lonLat;
+    e.line = line_;
+    const std::string who(d.word);
+    bool ok = true;
+    if (e.kind == edit::Kind::crater) {
+      std::vector<double> v;
+      ok = required(f, "at", col, who, e.lonLat ? "LON,LAT" : "EASTING,NORTHING") && position(f.at("at"), 2, v);
+      if (ok) e.points = {{v[0], v[1]}};
+      ok = craterSize(f, col, e) && ok;
+    } else {
+      ok = earthwork(f, col, who, e);
+    }
+    if (ok) out_.terrainEdits.push_back(std::move(e));
   }
 
   /// Counts `n` more entities against kMaxScenarioEntities; false (with

@@ -1,7 +1,10 @@
-// A parsed scenario made into a running simulation.
+// A parsed scenario made into a running simulation, and its terrain edits.
 #include "sandtable/sim/scenario_load.h"
 
+#include <cstdio>
 #include <map>
+
+#include "sandtable/edits/profile.h"
 
 namespace sandtable::sim {
 
@@ -25,6 +28,21 @@ VehicleParams defaultVehicle(Mobility m, Domain d) {
 }
 
 namespace {
+
+/// World (x, z) of A,B as a scenario writes it (lon/lat through
+/// `toProjected`, or easting,northing): the one rule for entities and
+/// terrain edits. "" or why it cannot be placed.
+std::string toWorld(double a, double b, bool lonLat, const world::ToProjectedFn& toProjected, double originEasting,
+                    double originNorthing, double& x, double& z) {
+  double e = a, n = b;
+  if (lonLat) {
+    if (!toProjected) return "lon/lat positions need the database's CRS";
+    if (std::string why = toProjected(a, b, e, n); !why.empty()) return why;
+  }
+  x = e - originEasting;
+  z = originNorthing - n;
+  return {};
+}
 
 Domain domainOf(ScenarioDomain d) {
   switch (d) {
@@ -102,14 +120,9 @@ class Loader {
   /// World (x, z) of the spec's position, or of its script's first line.
   bool position(const EntitySpec& spec, const ScriptFile* script, double& x, double& z) {
     if (spec.a && spec.b) {
-      double e = *spec.a, n = *spec.b;
-      if (spec.lonLat) {
-        if (!toProjected_) return fail(spec, "lon/lat positions need the database's CRS");
-        if (std::string why = toProjected_(*spec.a, *spec.b, e, n); !why.empty()) return fail(spec, why);
-      }
-      x = e - world_->originEasting();
-      z = world_->originNorthing() - n;
-      return true;
+      const std::string why =
+          toWorld(*spec.a, *spec.b, spec.lonLat, toProjected_, world_->originEasting(), world_->originNorthing(), x, z);
+      return why.empty() || fail(spec, why);
     }
     if (script) {
       for (const ScriptLine& l : script->lines) {
@@ -191,6 +204,61 @@ class Loader {
 Result<std::unique_ptr<Simulation>> makeSimulation(std::shared_ptr<SimWorld> world, const Scenario& scenario,
                                                    const world::ToProjectedFn& toProjected, SimOptions options) {
   return Loader(std::move(world), scenario, toProjected, std::move(options)).run();
+}
+
+Result<std::vector<edit::Edit>> makeTerrainEdits(const Scenario& scenario, const world::ToProjectedFn& toProjected,
+                                                 const grid::PostLayout& layout) {
+  std::vector<Problem> problems;
+  auto fail = [&](const TerrainEditSpec& spec, const std::string& message) {
+    problems.push_back({scenario.source, 0,
+                        "scenario: line " + std::to_string(spec.line) + ": " +
+                            std::string(edit::kindName(spec.kind)) + ": " + message});
+  };
+  const double east = layout.spacing * (layout.postsX - 1), south = layout.spacing * (layout.postsZ - 1);
+  std::vector<edit::Edit> out;
+  out.reserve(scenario.terrainEdits.size());
+  for (std::size_t k = 0; k < scenario.terrainEdits.size(); ++k) {
+    const TerrainEditSpec& spec = scenario.terrainEdits[k];
+    edit::Edit e;
+    e.id = k + 1;
+    e.time = 0;
+    e.origin = 0;
+    e.kind = spec.kind;
+    e.radius = spec.radius;
+    e.depth = spec.depth;
+    e.width = spec.width;
+    e.height = spec.height;
+    e.sideSlope = spec.sideSlope;
+    e.points.reserve(spec.points.size());
+    std::string why;
+    for (const auto& p : spec.points) {
+      double x = 0, z = 0;
+      why = toWorld(p[0], p[1], spec.lonLat, toProjected, layout.originEasting, layout.originNorthing, x, z);
+      if (!why.empty()) break;
+      e.points.push_back({x, z});
+    }
+    if (!why.empty()) {
+      fail(spec, why);
+      continue;
+    }
+    if (std::string bad = edit::checkEdit(e); !bad.empty()) {
+      fail(spec, bad);
+      continue;
+    }
+    const edits::Box box = edits::support(e);
+    if (box.x1 < 0 || box.x0 > east || box.z1 < 0 || box.z0 > south) {
+      char where[200];
+      std::snprintf(where, sizeof where,
+                    "lies wholly outside the database: it reaches X %.1f .. %.1f, Z %.1f .. %.1f m, the grid "
+                    "covers X 0 .. %.1f, Z 0 .. %.1f m (east and south of its north-west post)",
+                    box.x0, box.x1, box.z0, box.z1, east, south);
+      fail(spec, where);
+      continue;
+    }
+    out.push_back(std::move(e));
+  }
+  if (!problems.empty()) return problems;
+  return out;
 }
 
 }  // namespace sandtable::sim

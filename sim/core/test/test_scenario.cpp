@@ -8,6 +8,8 @@
 #include <fstream>
 #include <set>
 
+#include "sandtable/edits/profile.h"
+#include "sandtable/sim/scenario_load.h"
 #include "sandtable/sim/script.h"
 
 namespace sandtable::sim {
@@ -237,6 +239,46 @@ TEST(Scenario, EveryErrorNamesLineColumnAndFix) {
       {"seed -1\n", 2, "-1", "whole number from 0 to 18446744073709551615"},
       {"seed 18446744073709551616\n", 2, "1844", "whole number"},
       {"sandtable-scenario 1\n", 2, "sandtable", "only once"},
+      // Terrain edit lines.
+      {"crater size=small\n", 2, "crater", "crater has no at=; add at=LON,LAT"},
+      {"crater at=1,2\n", 2, "crater", "crater has no size=; add size=small|medium|large, or radius=M depth=M"},
+      {"crater at=1,2 size=huge\n", 2, "huge", "size=huge must be small (radius, depth: 1 m, 0.5 m), medium (3 m, 1.2 m)"},
+      {"crater at=1,2 size=small depth=3\n", 2, "depth", "give size= or radius= and depth=, not both"},
+      {"crater at=1,2 size=small size=large\n", 2, "size", "size= is given twice", 2},
+      {"crater at=1,2 radius=3\n", 2, "radius", "radius= needs depth="},
+      {"crater at=1,2 depth=3\n", 2, "depth", "depth= needs radius="},
+      {"crater at=1,2 radius=0.1 depth=1\n", 2, "0.1", "radius=0.1 is out of bounds; give a value from 0.5 to 500 metres"},
+      {"crater at=1,2 radius=3 depth=0\n", 2, "0", "depth=0 is out of bounds; give a value above 0 and at most 100 metres"},
+      {"crater at=1,2 radius=3 depth=deep\n", 2, "deep", "depth=deep is not a number above 0 and at most 100 metres"},
+      {"crater at=1,2 size=small icon=tank\n", 2, "icon", "unknown key \"icon\"; the keys are at, size, radius, depth"},
+      {"crater at=1,2 size=small driven\n", 2, "driven", "unexpected word \"driven\"; write key=value"},
+      {"crater at=512000,4680000 size=small\n", 2, "512000", "frame projected"},
+      {"crater at=1,2,3 size=small\n", 2, "1,2,3", "must be 2 numbers LON,LAT"},
+      {"berm line=1,2 width=3 height=2\n", 2, "1,2", "line= has 1 point; berm needs at least 2: LON,LAT;LON,LAT"},
+      {"berm line=1,2;3,x width=3 height=2\n", 2, "3,x", "point 2 \"3,x\" of line= must be two numbers LON,LAT"},
+      {"berm line=1,2;3,4; width=3 height=2\n", 2, " width", "point 3 \"\" of line= must be two numbers"},
+      {"berm line=1,2;1,2 width=3 height=2\n", 2, "1,2", "line= has no length"},
+      {"berm line=1,2;3,4 height=2\n", 2, "berm", "berm has no width=; add width=M (the crest's width"},
+      {"berm line=1,2;3,4 width=3\n", 2, "berm", "berm has no height=; add height=M"},
+      {"berm width=3 height=2\n", 2, "berm", "berm has no line=; add line=LON,LAT;LON,LAT..."},
+      {"berm line=1,2;3,4 width=3 height=2 depth=1\n", 2, "depth",
+       "unknown key \"depth\"; the keys are line, width, height, slope"},
+      {"berm line=1,2;3,4 width=-1 height=2\n", 2, "-1", "width=-1 is out of bounds; give a value from 0 to 1000 metres"},
+      {"berm line=1,2;3,4 width=3 height=101\n", 2, "101", "height=101 is out of bounds"},
+      {"berm line=1,2;3,4 width=3 height=2 slope=0\n", 2, "0", "slope=0 is out of bounds; give a value above 0 and "
+                                                              "at most 100 (rise over run"},
+      {"ditch line=1,2;3,4 width=3 height=2\n", 2, "height",
+       "unknown key \"height\"; the keys are line, width, depth, slope"},
+      {"ditch line=1,2;3,4 depth=2\n", 2, "ditch", "ditch has no width=; add width=M (the floor's width"},
+      {"ditch line=1,2;3,4 width=3\n", 2, "ditch", "ditch has no depth="},
+      {"ditch line=1,200;3,4 width=3 depth=2\n", 2, "1,200", "point 1: lon 1 lat 200 is not a position in degrees"},
+      {"flatten polygon=1,2;3,4 height=5\n", 2, "1,2", "polygon= has 2 points; flatten needs at least 3"},
+      {"flatten polygon=0,0;1,1;2,2 height=5\n", 2, "0,0", "polygon= encloses no area"},
+      {"flatten polygon=0,0;1,0;0,1\n", 2, "flatten", "flatten has no height=; add height=M (metres above the datum)"},
+      {"flatten polygon=0,0;1,0;0,1 height=10000\n", 2, "10000", "give a value from -500 to 9000 metres above the datum"},
+      {"flatten polygon=0,0;1,0;0,1 height=5 width=3\n", 2, "width",
+       "unknown key \"width\"; the keys are polygon, height, slope"},
+      {"crater at=1,2 size=small\nframe projected\n", 3, "frame", "before the first entity, group or terrain edit"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.lines);
@@ -257,6 +299,112 @@ TEST(Scenario, EveryErrorNamesLineColumnAndFix) {
     EXPECT_EQ(p.message.rfind(prefix, 0), 0u) << p.message << " (wanted " << prefix << ")";
     EXPECT_NE(p.message.find(c.words), std::string::npos) << p.message;
   }
+}
+
+TEST(Scenario, TerrainEditLinesParseFieldByField) {
+  const auto r = parseScenario(
+      "sandtable-scenario 1\n"
+      "crater at=13.30,42.29 size=medium\n"
+      "crater at=13.31,42.28 radius=4.5 depth=2     # a bomb\n"
+      "entity lead icon=tank at=13.30,42.29\n"
+      "berm line=13.30,42.29;13.31,42.29;13.31,42.30 width=2 height=1.5\n"
+      "ditch  line=13.32,42.29;13.33,42.29 depth=3 width=0 slope=1\n"
+      "flatten polygon=13.30,42.30;13.31,42.30;13.31,42.31;13.30,42.31 height=-12.5 slope=0.25\n"
+      "crater at=13.32,42.30 size=small\n"
+      "crater at=13.33,42.30 size=large\n",
+      "edits.scenario");
+  ASSERT_TRUE(r.ok()) << r.error();
+  const auto& t = r->terrainEdits;
+  ASSERT_EQ(t.size(), 7u);
+  EXPECT_EQ(r->entities.size(), 1u);
+
+  EXPECT_EQ(t[0].kind, edit::Kind::crater);
+  EXPECT_EQ(t[0].points, (std::vector<std::array<double, 2>>{{13.30, 42.29}}));
+  EXPECT_TRUE(t[0].lonLat);
+  EXPECT_EQ(t[0].radius, edits::kCraterMedium.radius);
+  EXPECT_EQ(t[0].depth, edits::kCraterMedium.depth);
+  EXPECT_EQ(t[0].line, 2);
+  EXPECT_EQ(t[1].radius, 4.5);
+  EXPECT_EQ(t[1].depth, 2);
+  EXPECT_EQ(t[1].line, 3);
+  EXPECT_EQ(t[5].radius, edits::kCraterSmall.radius);
+  EXPECT_EQ(t[5].depth, edits::kCraterSmall.depth);
+  EXPECT_EQ(t[6].radius, edits::kCraterLarge.radius);
+  EXPECT_EQ(t[6].depth, edits::kCraterLarge.depth);
+
+  EXPECT_EQ(t[2].kind, edit::Kind::berm);
+  EXPECT_EQ(t[2].points, (std::vector<std::array<double, 2>>{{13.30, 42.29}, {13.31, 42.29}, {13.31, 42.30}}));
+  EXPECT_EQ(t[2].width, 2);
+  EXPECT_EQ(t[2].height, 1.5);
+  EXPECT_EQ(t[2].sideSlope, kScenarioDefaultSlope);
+  EXPECT_EQ(t[2].line, 5);
+
+  EXPECT_EQ(t[3].kind, edit::Kind::ditch);
+  EXPECT_EQ(t[3].points.size(), 2u);
+  EXPECT_EQ(t[3].width, 0);
+  EXPECT_EQ(t[3].height, 3);  // a ditch's depth= is the edit's height
+  EXPECT_EQ(t[3].sideSlope, 1);
+
+  EXPECT_EQ(t[4].kind, edit::Kind::flatten);
+  EXPECT_EQ(t[4].points.size(), 4u);
+  EXPECT_EQ(t[4].points[2], (std::array<double, 2>{13.31, 42.31}));
+  EXPECT_EQ(t[4].height, -12.5);
+  EXPECT_EQ(t[4].sideSlope, 0.25);
+
+  // Projected: easting,northing kept as written, beyond lon/lat's range.
+  const auto p = parseScenario(
+      "sandtable-scenario 1\nframe projected\n"
+      "crater at=683500.5,5540000 radius=10 depth=3\n"
+      "berm line=683000,5539000;684000,5539500 width=4 height=2 slope=0.3\n",
+      "p.scenario");
+  ASSERT_TRUE(p.ok()) << p.error();
+  EXPECT_FALSE(p->terrainEdits[0].lonLat);
+  EXPECT_EQ(p->terrainEdits[0].points[0], (std::array<double, 2>{683500.5, 5540000}));
+  EXPECT_EQ(p->terrainEdits[1].points[1], (std::array<double, 2>{684000, 5539500}));
+}
+
+TEST(Scenario, TerrainEditCapsAreRefusedAtTheirLine) {
+  // 4,096 points in one line= are read; 4,097 are refused, counted before
+  // any is stored.
+  auto berm = [](std::size_t n) {
+    std::string v = "sandtable-scenario 1\nframe projected\nberm width=1 height=1 line=";
+    for (std::size_t k = 0; k < n; ++k) {
+      // Piece by piece: GCC 12 warns (-Wrestrict, a false positive) on
+      // `"..." + std::string` here.
+      if (k) v += ';';
+      v += std::to_string(k);
+      v += ",0";
+    }
+    return v + "\n";
+  };
+  const auto atCap = parseScenario(berm(kMaxScenarioEditPoints), "b.scenario");
+  ASSERT_TRUE(atCap.ok()) << atCap.error();
+  EXPECT_EQ(atCap->terrainEdits[0].points.size(), 4096u);
+  EXPECT_EQ(atCap->terrainEdits[0].points.back(), (std::array<double, 2>{4095, 0}));
+  const auto over = parseScenario(berm(kMaxScenarioEditPoints + 1), "b.scenario");
+  ASSERT_FALSE(over.ok());
+  EXPECT_NE(over.error().find("line 3, column 28: line= has 4097 points, more than the 4096 a line may hold"),
+            std::string::npos)
+      << over.error();
+  // A million separators are refused the same way.
+  const auto huge = parseScenario("sandtable-scenario 1\nditch width=1 depth=1 line=" + std::string(1000000, ';') + "\n",
+                                  "h.scenario");
+  ASSERT_FALSE(huge.ok());
+  EXPECT_NE(huge.error().find("line= has 1000001 points"), std::string::npos) << huge.error();
+
+  // 100,000 edit lines are read; the 100,001st is refused at its line.
+  std::string many = "sandtable-scenario 1\nframe projected\n";
+  for (std::size_t k = 0; k < kMaxScenarioEdits; ++k) many += "crater at=0,0 size=small\n";
+  const auto full = parseScenario(many, "m.scenario");
+  ASSERT_TRUE(full.ok()) << full.error();
+  EXPECT_EQ(full->terrainEdits.size(), kMaxScenarioEdits);
+  many += "berm line=0,0;1,1 width=1 height=1\n";
+  const auto past = parseScenario(many, "m.scenario");
+  ASSERT_FALSE(past.ok());
+  EXPECT_EQ(past.problems().size(), 1u);
+  EXPECT_NE(past.error().find("line 100003, column 1: this line is terrain edit 100001, more than the 100000"),
+            std::string::npos)
+      << past.error();
 }
 
 TEST(Scenario, HeaderErrorsStopTheReading) {
@@ -381,6 +529,84 @@ TEST(Scenario, EntityCountsPastTheCapAreRefusedAtTheirLine) {
       "cap.scenario");
   ASSERT_TRUE(atCap.ok()) << atCap.error();
   EXPECT_EQ(atCap->groups[0].count, 99999);
+}
+
+// makeTerrainEdits (scenario_load.h): the lines become edits in the database
+// frame, placed as entities are (X = easting - origin, Z = origin - northing).
+TEST(Scenario, TerrainEditsBecomeEditsInTheDatabaseFrame) {
+  // 201 x 101 posts 10 m apart: X 0 .. 2000, Z 0 .. 1000.
+  const grid::PostLayout layout{201, 101, 10.0, 500000.0, 4000000.0};
+  const auto p = parseScenario(
+      "sandtable-scenario 1\nframe projected\n"
+      "crater at=500100,3999900 size=small\n"
+      "berm line=499990,4000000;501000,3999500 width=2 height=1.5\n"  // crosses the west edge: kept
+      "ditch line=500200,3999200;500300,3999200 width=1 depth=3 slope=1\n"
+      "flatten polygon=500500,3999500;500600,3999500;500600,3999400 height=42\n",
+      "p.scenario");
+  ASSERT_TRUE(p.ok()) << p.error();
+  const auto r = makeTerrainEdits(p.value(), nullptr, layout);
+  ASSERT_TRUE(r.ok()) << r.error();
+  const auto& e = r.value();
+  ASSERT_EQ(e.size(), 4u);
+  for (std::size_t k = 0; k < e.size(); ++k) {
+    EXPECT_EQ(e[k].id, k + 1);
+    EXPECT_EQ(e[k].origin, 0u);
+    EXPECT_EQ(e[k].time, 0);
+    EXPECT_EQ(edit::checkEdit(e[k]), "");
+  }
+  EXPECT_EQ(e[0].kind, edit::Kind::crater);
+  EXPECT_EQ(e[0].points, (std::vector<std::array<double, 2>>{{100, 100}}));
+  EXPECT_EQ(e[0].radius, edits::kCraterSmall.radius);
+  EXPECT_EQ(e[0].depth, edits::kCraterSmall.depth);
+  EXPECT_EQ(e[1].kind, edit::Kind::berm);
+  EXPECT_EQ(e[1].points, (std::vector<std::array<double, 2>>{{-10, 0}, {1000, 500}}));
+  EXPECT_EQ(e[1].width, 2);
+  EXPECT_EQ(e[1].height, 1.5);
+  EXPECT_EQ(e[1].sideSlope, kScenarioDefaultSlope);
+  EXPECT_EQ(e[2].kind, edit::Kind::ditch);
+  EXPECT_EQ(e[2].points, (std::vector<std::array<double, 2>>{{200, 800}, {300, 800}}));
+  EXPECT_EQ(e[2].height, 3);  // the depth
+  EXPECT_EQ(e[2].sideSlope, 1);
+  EXPECT_EQ(e[3].kind, edit::Kind::flatten);
+  EXPECT_EQ(e[3].points, (std::vector<std::array<double, 2>>{{500, 500}, {600, 500}, {600, 600}}));
+  EXPECT_EQ(e[3].height, 42);
+
+  // Lon/lat through the caller's transformer, as entities' at= is.
+  const auto ll = parseScenario("sandtable-scenario 1\ncrater at=13.001,41.999 radius=4 depth=2\n", "ll.scenario");
+  ASSERT_TRUE(ll.ok()) << ll.error();
+  const world::ToProjectedFn toy = [](double lon, double lat, double& east, double& north) -> std::string {
+    east = 500000 + (lon - 13) * 100000;
+    north = 4000000 + (lat - 42) * 100000;
+    return {};
+  };
+  const auto placed = makeTerrainEdits(ll.value(), toy, layout);
+  ASSERT_TRUE(placed.ok()) << placed.error();
+  EXPECT_NEAR(placed.value()[0].points[0][0], 100, 1e-6);
+  EXPECT_NEAR(placed.value()[0].points[0][1], 100, 1e-6);
+  EXPECT_EQ(placed.value()[0].radius, 4);
+
+  // Problems name the file, the line and the kind.
+  const auto noCrs = makeTerrainEdits(ll.value(), nullptr, layout);
+  ASSERT_FALSE(noCrs.ok());
+  EXPECT_EQ(noCrs.problems()[0].file, "ll.scenario");
+  EXPECT_EQ(noCrs.problems()[0].message, "scenario: line 2: crater: lon/lat positions need the database's CRS");
+  const world::ToProjectedFn refuses = [](double, double, double&, double&) -> std::string { return "off the map"; };
+  const auto refused = makeTerrainEdits(ll.value(), refuses, layout);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.problems()[0].message, "scenario: line 2: crater: off the map");
+  const auto far = parseScenario(
+      "sandtable-scenario 1\nframe projected\ncrater at=500100,3999900 size=small\n"
+      "ditch line=510000,3999000;511000,3999000 width=1 depth=3\n",
+      "far.scenario");
+  ASSERT_TRUE(far.ok()) << far.error();
+  const auto outside = makeTerrainEdits(far.value(), nullptr, layout);
+  ASSERT_FALSE(outside.ok());
+  ASSERT_EQ(outside.problems().size(), 1u);
+  EXPECT_EQ(outside.problems()[0].message.rfind("scenario: line 4: ditch: lies wholly outside the database: it "
+                                                "reaches X 9993.5 .. 11006.5, Z 993.5 .. 1006.5 m",
+                                                0),
+            0u)
+      << outside.problems()[0].message;
 }
 
 }  // namespace

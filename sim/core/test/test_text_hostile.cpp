@@ -48,6 +48,7 @@ TEST(TextHostile, everyPrefixAndManyMutationsOfTheSamplesFailCleanly) {
   const std::vector<std::pair<std::string, Reader>> cases = {
       {"samples/demo.script", reader(parseScript)},
       {"samples/demo.scenario", reader(parseScenario)},
+      {"samples/terrain.scenario", reader(parseScenario)},  // crater, berm, ditch and flatten lines
       {"samples/aircraft/trainer.txt", reader(parseAircraft)},
       {"samples/collisions.txt", reader(parseCollisionTable)},
   };

@@ -1,16 +1,19 @@
 #pragma once
 // Scenario files (`sandtable-scenario 1`, docs/SCRIPTS.md §5): the
-// entities a simulation starts with, one `entity` line each, and `group`
-// lines that scatter many entities at random (placed by the seed). The
-// reader checks every word and reports each problem with its line and
-// column; positions stay as written (lon/lat or easting/northing): the
-// simulator converts them to the database frame with its own transformer.
+// entities a simulation starts with, one `entity` line each, `group`
+// lines that scatter many entities at random (placed by the seed), and
+// pre-placed terrain edits (`crater`, `berm`, `ditch`, `flatten`: the ground
+// as it is when the simulation starts; docs/DYNAMIC.md). The reader checks
+// every word and reports each problem with its line and column; positions
+// stay as written (lon/lat or easting/northing): the simulator converts
+// them to the database frame with its own transformer.
 //
 // The enums here name the file's words. They carry a Scenario prefix so
 // that they never clash with the simulator's own entity types, which map
 // from them.
 //
 // Thread safety: pure functions on caller-owned values.
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -18,6 +21,7 @@
 #include <vector>
 
 #include "sandtable/base/result.h"
+#include "sandtable/formats/edit.h"
 
 namespace sandtable::sim {
 
@@ -89,11 +93,39 @@ struct GroupSpec {
   int line = 0;
 };
 
+/// Caps the reader checks before it allocates: points in one line= or
+/// polygon=, and terrain edit lines in a file.
+inline constexpr std::size_t kMaxScenarioEditPoints = 4096;
+inline constexpr std::size_t kMaxScenarioEdits = 100000;
+/// A berm's, ditch's or flatten's side slope (rise over run) when the line
+/// gives no slope=.
+inline constexpr double kScenarioDefaultSlope = 0.5;
+
+/// One `crater`, `berm`, `ditch` or `flatten` line: a terrain edit made
+/// before the first step. The fields are edit::Edit's (edit.h), with the
+/// points in the file's frame as written; makeTerrainEdits (scenario_load.h)
+/// converts them to the database frame.
+struct TerrainEditSpec {
+  edit::Kind kind = edit::Kind::crater;  ///< crater, berm, ditch or flatten
+  /// at= (crater, one point), line= (berm and ditch, a polyline of 2 or
+  /// more) or polygon= (flatten, 3 or more, closed implicitly): A,B pairs
+  /// as written, lon,lat (lonLat true) or easting,northing.
+  std::vector<std::array<double, 2>> points;
+  bool lonLat = true;
+  double radius = 0;     ///< crater: rim crest radius, metres (size= or radius=)
+  double depth = 0;      ///< crater: centre depth below the ground before, metres
+  double width = 0;      ///< berm crest / ditch floor width, metres
+  double height = 0;     ///< berm height= , ditch depth=, flatten height= (absolute, above the datum), metres
+  double sideSlope = 0;  ///< berm, ditch, flatten: slope=, rise over run (kScenarioDefaultSlope)
+  int line = 0;
+};
+
 struct Scenario {
   ScenarioFrame frame = ScenarioFrame::lonLat;
   std::optional<std::uint64_t> seed;
   std::vector<EntitySpec> entities;
   std::vector<GroupSpec> groups;
+  std::vector<TerrainEditSpec> terrainEdits;  ///< file order
   std::optional<std::size_t> driven;  ///< index into entities
   std::string source;                 ///< the file name given to the reader
 };
