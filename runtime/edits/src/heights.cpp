@@ -182,11 +182,36 @@ struct EditedHeights::Tile {
 
   std::atomic<Posts*> posts{nullptr};
   /// Bit local(i, j) set when square (i, j) has a patch: a reader of an
-  /// unrefined square never touches `patches` (no reference count traffic).
+  /// unrefined square never takes the lock below.
   std::array<std::atomic<std::uint64_t>, kTilePosts / 64> refinedBits{};
-  std::atomic<std::shared_ptr<const Patches>> patches;
+
+  /// The current list. A mutex, not std::atomic<std::shared_ptr>: GCC 12's
+  /// load() unlocks with a relaxed order, so a reader's copy is not ordered
+  /// before the writer's next store (ThreadSanitizer reports the race).
+  std::shared_ptr<const Patches> patchList() const {
+    std::lock_guard lock(patchesMutex_);
+    return patches_;
+  }
+  void setPatchList(std::shared_ptr<const Patches> list) {
+    std::lock_guard lock(patchesMutex_);
+    patches_ = std::move(list);
+  }
+  /// Square (i, j)'s patch, or null; the lock is held for the search and
+  /// one reference count increment.
+  std::shared_ptr<const grid::RefinedSquare> find(std::uint32_t i, std::uint32_t j) const {
+    const std::uint32_t key = local(i, j);
+    std::lock_guard lock(patchesMutex_);
+    if (!patches_) return nullptr;
+    const auto it = std::lower_bound(patches_->begin(), patches_->end(), key,
+                                     [](const auto& p, std::uint32_t k) { return local(p->i, p->j) < k; });
+    return it != patches_->end() && (*it)->i == i && (*it)->j == j ? *it : nullptr;
+  }
 
   ~Tile() { delete posts.load(std::memory_order_relaxed); }
+
+ private:
+  mutable std::mutex patchesMutex_;
+  std::shared_ptr<const Patches> patches_;
 };
 
 /// Everything one apply() will publish, computed before any of it is.
@@ -267,11 +292,7 @@ std::shared_ptr<const grid::RefinedSquare> EditedHeights::refined(std::uint32_t 
   if (!t) return nullptr;
   const std::uint32_t k = local(i, j);
   if (!((t->refinedBits[k / 64].load(std::memory_order_acquire) >> (k % 64)) & 1u)) return nullptr;
-  const std::shared_ptr<const Tile::Patches> list = t->patches.load(std::memory_order_acquire);
-  if (!list) return nullptr;
-  const auto it = std::lower_bound(list->begin(), list->end(), k,
-                                   [](const auto& p, std::uint32_t key) { return local(p->i, p->j) < key; });
-  return it != list->end() && (*it)->i == i && (*it)->j == j ? *it : nullptr;
+  return t->find(i, j);
 }
 
 // ------------------------------------------------------------------ apply
@@ -487,7 +508,7 @@ void EditedHeights::publish(Plan& plan, HeightsChange& out) {
   }
   for (auto& [k, fresh] : byTile) {
     Tile& t = tileForWrite(fresh.front()->i, fresh.front()->j);
-    const std::shared_ptr<const Tile::Patches> old = t.patches.load(std::memory_order_relaxed);
+    const std::shared_ptr<const Tile::Patches> old = t.patchList();
     auto list = std::make_shared<Tile::Patches>(old ? *old : Tile::Patches{});
     for (auto& p : fresh) {
       const std::uint32_t key = local(p->i, p->j);
@@ -496,8 +517,8 @@ void EditedHeights::publish(Plan& plan, HeightsChange& out) {
       if (it != list->end() && local((*it)->i, (*it)->j) == key) *it = std::move(p);
       else list->insert(it, std::move(p));
     }
-    t.patches.store(std::move(list), std::memory_order_release);
-    for (const auto& p : *t.patches.load(std::memory_order_relaxed)) {
+    t.setPatchList(list);
+    for (const auto& p : *list) {
       const std::uint32_t key = local(p->i, p->j);
       t.refinedBits[key / 64].fetch_or(std::uint64_t(1) << (key % 64), std::memory_order_release);
     }
@@ -534,7 +555,7 @@ std::uint64_t EditedHeights::contentHash() const {
           add(std::bit_cast<std::uint32_t>(d));
         }
       }
-      if (const auto list = t->patches.load(std::memory_order_acquire)) {
+      if (const auto list = t->patchList()) {
         for (const auto& p : *list) {
           add(std::uint64_t(p->i) << 32 | p->j);
           add(std::uint64_t(p->cells) << 32 | p->a0);
@@ -560,7 +581,7 @@ HeightsStats EditedHeights::stats() const {
       ++st.tiles;
       st.bytes += sizeof(Tile::Posts);
     }
-    if (const auto list = t->patches.load(std::memory_order_acquire)) {
+    if (const auto list = t->patchList()) {
       st.bytes += sizeof(Tile::Patches) + list->capacity() * sizeof(list->front());
       for (const auto& p : *list) {
         ++st.refinedSquares;

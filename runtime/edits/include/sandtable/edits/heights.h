@@ -23,11 +23,15 @@
 //
 // Thread contract: height_field.h's. One writer calls apply() (it takes a
 // lock, so a second writer waits rather than races); any number of readers
-// call the const queries meanwhile. A change writes its posts (atomically,
-// per value: a reader never sees half a float or half a normal), publishes
-// its patches as new shared_ptr<const RefinedSquare> (the old ones stay
-// valid for whoever holds them), then bumps the tile and field generations
-// (release), then notifies listeners on the writer's thread.
+// call the const queries meanwhile, lock-free but for refined() of a
+// refined square (a per-tile lock held for a search and a reference count).
+// A change writes its posts (atomically, per value: a reader never sees
+// half a float or half a normal; a reader that sees a post of a change
+// sees the bounds that hold it), publishes its patches as new
+// shared_ptr<const RefinedSquare> (the old ones stay valid for whoever
+// holds them), then bumps the tile and field generations (release), then
+// notifies listeners on the writer's thread with the writer's lock held:
+// a listener must not call apply().
 #include <array>
 #include <atomic>
 #include <cstddef>
