@@ -164,6 +164,20 @@ Stored store(float base, float to) {
   return {d, d == 0.0f ? base : base + d};
 }
 
+/// True when a berm or ditch reaches no point of square (i, j): the
+/// square's centre is further from the line than the profile's reach (what
+/// support() widened the points' box by) and half the square's diagonal.
+/// A long diagonal line's box holds many such squares; they would come out
+/// unchanged, so skipping them only saves evaluating the profile there.
+bool beyondReach(const edit::Edit& e, std::uint32_t i, std::uint32_t j, double s) {
+  if (e.kind != edit::Kind::berm && e.kind != edit::Kind::ditch) return false;
+  double east = e.points.front()[0];
+  for (const auto& p : e.points) east = std::max(east, p[0]);
+  const double reach = support(e).x1 - east;
+  const double d = distanceToPolyline(e.points, (double(i) + 0.5) * s, (double(j) + 0.5) * s);
+  return d > reach + s * std::sqrt(0.5) + 1e-6 * s;
+}
+
 std::string describe(const edit::Edit& e) {
   return std::string(edit::kindName(e.kind)) + " " + std::to_string(e.id);
 }
@@ -362,20 +376,23 @@ Result<HeightsChange> EditedHeights::apply(const edit::Edit& e) {
     return c;
   };
 
-  // Sub-post detail: every square the box meets, on one lattice (the
-  // finest any of them has, at least the edit's), so that squares sharing
-  // an edge carry the same fine posts along it.
+  // Sub-post detail: every square the box meets (but those a line cannot
+  // reach), on one lattice (the finest any of them has, at least the
+  // edit's), so that squares sharing an edge carry the same fine posts
+  // along it.
   const std::uint32_t cells = refineCells(e, s);
   if (cells > 0) {
     const Range si = squaresMeeting(W, s, box.x0, box.x1), sj = squaresMeeting(H, s, box.z0, box.z1);
     std::uint32_t lattice = cells;
     for (std::uint32_t j = sj.lo; j < sj.hi; ++j) {
       for (std::uint32_t i = si.lo; i < si.hi; ++i) {
-        if (const auto p = refined(i, j)) lattice = std::max(lattice, p->cells);
+        const auto p = refined(i, j);
+        if (p && !beyondReach(e, i, j, s)) lattice = std::max(lattice, p->cells);
       }
     }
     for (std::uint32_t j = sj.lo; j < sj.hi; ++j) {
       for (std::uint32_t i = si.lo; i < si.hi; ++i) {
+        if (beyondReach(e, i, j, s)) continue;
         const SquareIndex q{i, j};
         const Corners before = current(q);
         grid::RefinedSquare p;
