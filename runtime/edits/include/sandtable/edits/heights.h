@@ -109,9 +109,8 @@ class EditedHeights final : public grid::HeightField {
   std::shared_ptr<const grid::RefinedSquare> refined(std::uint32_t i, std::uint32_t j) const override;
   bool anyRefined() const override { return anyRefined_.load(std::memory_order_acquire); }
 
-  struct Tile;  // heights.cpp
-
  private:
+  struct Tile;  // heights.cpp
   struct Plan;
   const Tile* tileAt(std::uint32_t i, std::uint32_t j) const;
   Tile& tileForWrite(std::uint32_t i, std::uint32_t j);
