@@ -155,17 +155,6 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   return true;
 }
 
-/// grid::toSnorm, inlined: clamp to [-1, 1], scale, round half away from
-/// zero (as lroundf; y - trunc(y) is exact in float). Normals here are
-/// finite: the grid has no voids left when it is written.
-inline std::int16_t snorm(float v) {
-  const float y = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
-  int t = static_cast<int>(y);  // toward zero; |y| <= 32767
-  const float frac = y - static_cast<float>(t);
-  t += int(frac >= 0.5f) - int(frac <= -0.5f);  // no branch: frac is noise
-  return static_cast<std::int16_t>(t);
-}
-
 /// Grid rows held in memory: row `first` at `data`, and their classes
 /// (null: every post valid).
 struct GridRows {
@@ -179,31 +168,24 @@ struct GridRows {
 
 /// One block of the grid file. Posts beyond the grid's edge repeat the
 /// edge posts, so every block is complete and plausible. Needs the rows of
-/// the block and one more on each side (clamped to the grid).
+/// the block and one more on each side (clamped to the grid). Normals by
+/// grid::postNormal, the rule the dynamic-terrain overlay shares.
 void fillBlock(const GridRows& g, const Frame& f, std::uint32_t bx, std::uint32_t bz, grid::BlockData& b) {
-  const double inv2s = 1.0 / (2.0 * f.spacing);
   const long W = long(f.postsX), H = long(f.postsZ);
+  const auto at = [&g](std::uint32_t i, std::uint32_t j) { return g.row(long(j))[i]; };
   for (std::uint32_t lz = 0; lz < grid::kBlockPosts; ++lz) {
     const long j = std::min<long>(bz * grid::kBlockPosts + lz, H - 1);
-    // Rows j - 1, j, j + 1, clamped to the grid.
-    const float* up = g.row(std::max(j - 1, 0L));
     const float* mid = g.row(j);
-    const float* down = g.row(std::min(j + 1, H - 1));
     const std::uint8_t* was = g.classes(j);
-    const double zEdge = (j == 0 || j == H - 1 ? 2.0 : 1.0);
     for (std::uint32_t lx = 0; lx < grid::kBlockPosts; ++lx) {
       const long i = std::min<long>(bx * grid::kBlockPosts + lx, W - 1);
-      const long il = std::max(i - 1, 0L), ir = std::min(i + 1, W - 1);
       const std::size_t k = lz * grid::kBlockPosts + lx;
       const float h = mid[i];
       b.elevation[k] = h;
-      // Central differences; one-sided on the grid edge (clamped index).
-      const double dx = (mid[ir] - mid[il]) * inv2s * (i == 0 || i == W - 1 ? 2.0 : 1.0);
-      const double dz = (down[i] - up[i]) * inv2s * zEdge;
-      const double len = std::sqrt(dx * dx + 1.0 + dz * dz);
-      b.normalX[k] = snorm(static_cast<float>(-dx / len));
-      b.normalY[k] = snorm(static_cast<float>(1.0 / len));
-      b.normalZ[k] = snorm(static_cast<float>(-dz / len));
+      const grid::PostNormal n = grid::postNormal(at, std::uint32_t(i), std::uint32_t(j), f.postsX, f.postsZ, f.spacing);
+      b.normalX[k] = n[0];
+      b.normalY[k] = n[1];
+      b.normalZ[k] = n[2];
       const std::uint8_t c = was ? was[i] : std::uint8_t(detail::kValidPost);
       b.material[k] = c == detail::kSeaPost    ? kWater
                       : c == detail::kVoidPost ? kFilledVoid

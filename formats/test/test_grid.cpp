@@ -64,6 +64,29 @@ std::string hex(std::span<const std::byte> b) {
   return s;
 }
 
+TEST(Grid, inlinedSnormRoundsAsToSnorm) {
+  // Every value a normal component can take, in steps finer than a snorm step.
+  for (int k = -70000; k <= 70000; ++k) {
+    const float v = float(k) / 65534.0f + 1e-7f * float(k % 7);
+    ASSERT_EQ(toSnormFinite(v), toSnorm(v)) << v;
+  }
+  EXPECT_EQ(toSnormFinite(2.0f), 32767);
+  EXPECT_EQ(toSnormFinite(-2.0f), -32767);
+}
+
+TEST(Grid, postNormalIsTheUnitNormalOfAPlaneAndOneSidedAtTheEdges) {
+  // A plane rising 0.5 m per metre east and falling 0.25 per metre south,
+  // posts 10 m apart: every post, edges included, has the plane's normal.
+  const auto at = [](std::uint32_t i, std::uint32_t j) { return float(100.0 + 5.0 * i - 2.5 * j); };
+  const double len = std::sqrt(0.25 + 1.0 + 0.0625);
+  const PostNormal want{toSnorm(float(-0.5 / len)), toSnorm(float(1.0 / len)), toSnorm(float(0.25 / len))};
+  for (const auto& [i, j] : {std::pair{0u, 0u}, std::pair{3u, 2u}, std::pair{7u, 4u}, std::pair{7u, 0u}}) {
+    EXPECT_EQ(postNormal(at, i, j, 8, 5, 10.0), want) << i << " " << j;
+  }
+  // A single post: flat.
+  EXPECT_EQ(postNormal(at, 0, 0, 1, 1, 10.0), (PostNormal{0, 32767, 0}));
+}
+
 TEST(Grid, layoutConstantsArePinned) {
   EXPECT_EQ(kBlockBytes, 45056u);
   EXPECT_EQ(kNormalXPlane, 16384u);

@@ -15,12 +15,16 @@
 // Thread safety: GridFile is immutable after open(); every const method may
 // be called from any thread. GridWriter::writeBlock may be called
 // concurrently for distinct blocks; finish() must run alone.
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "sandtable/base/result.h"
@@ -111,6 +115,50 @@ void encodeBlock(const BlockData& b, std::span<std::byte> out);
 /// Snorm helpers: int16 = round(v * 32767).
 std::int16_t toSnorm(float v);
 inline float fromSnorm(std::int16_t v) { return float(v) / 32767.0f; }
+
+#if defined(__GNUC__) || defined(__clang__)
+#define SANDTABLE_GRID_INLINE [[gnu::always_inline]] inline
+#else
+#define SANDTABLE_GRID_INLINE inline
+#endif
+
+/// toSnorm for a finite value, inlined for the per-post loops: clamp to
+/// [-1, 1], scale, round half away from zero (as lroundf; y - trunc(y) is
+/// exact in float), so it gives toSnorm's values.
+SANDTABLE_GRID_INLINE std::int16_t toSnormFinite(float v) {
+  const float y = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
+  int t = static_cast<int>(y);  // toward zero; |y| <= 32767
+  const float frac = y - static_cast<float>(t);
+  t += int(frac >= 0.5f) - int(frac <= -0.5f);  // no branch: frac is noise
+  return static_cast<std::int16_t>(t);
+}
+
+/// A post's normal as the grid stores it: X, Y, Z snorm (world frame).
+using PostNormal = std::array<std::int16_t, 3>;
+
+/// The normal at post (i, j) of a postsX x postsZ grid of posts `spacing`
+/// apart, from the elevations `at(i, j)` (float) of its neighbours: central
+/// differences, one-sided on the grid's edge (the missing neighbour is the
+/// post itself and the difference counts double). The one rule: the
+/// elevation build writes it into every block, the dynamic-terrain overlay
+/// (runtime/edits, heights.h) recomputes it at edited posts, so an edited
+/// post's normal is the one a build of the edited heights would write.
+/// Always inlined so that it takes its caller's floating-point flags; both
+/// callers are built -ffp-contract=off, so they round alike on every machine.
+template <typename At>
+  requires std::same_as<std::invoke_result_t<const At&, std::uint32_t, std::uint32_t>, float>
+SANDTABLE_GRID_INLINE PostNormal postNormal(const At& at, std::uint32_t i, std::uint32_t j, std::uint32_t postsX,
+                                            std::uint32_t postsZ, double spacing) {
+  const double inv2s = 1.0 / (2.0 * spacing);
+  const std::uint32_t il = i > 0 ? i - 1 : 0, ir = std::min(i + 1, postsX - 1);
+  const std::uint32_t ju = j > 0 ? j - 1 : 0, jd = std::min(j + 1, postsZ - 1);
+  // The differences in float (the posts' type), the rest in double.
+  const double dx = (at(ir, j) - at(il, j)) * inv2s * (i == 0 || i == postsX - 1 ? 2.0 : 1.0);
+  const double dz = (at(i, jd) - at(i, ju)) * inv2s * (j == 0 || j == postsZ - 1 ? 2.0 : 1.0);
+  const double len = std::sqrt(dx * dx + 1.0 + dz * dz);
+  return {toSnormFinite(static_cast<float>(-dx / len)), toSnormFinite(static_cast<float>(1.0 / len)),
+          toSnormFinite(static_cast<float>(-dz / len))};
+}
 
 /// Writes a grid file. The file appears at `path` only when finish() succeeds.
 class GridWriter {

@@ -56,8 +56,9 @@ struct PostRect {
   bool operator==(const PostRect&) const = default;
 };
 
-/// One change: the posts whose elevation, normal or material changed, and
-/// the generation that holds them.
+/// One change: the posts whose elevation, normal or material changed and
+/// the corner posts of every refined square whose patch changed (its
+/// surface did; refined()), and the generation that holds them.
 struct HeightChange {
   PostRect posts;
   std::uint64_t generation = 0;
