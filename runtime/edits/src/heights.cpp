@@ -555,6 +555,59 @@ void EditedHeights::publish(Plan& plan, HeightsChange& out) {
   notifyChanged({region, g});
 }
 
+// ----------------------------------------------------------------- reset
+
+HeightsChange EditedHeights::reset() {
+  std::lock_guard lock(writer_);
+  const std::uint64_t g = generation_.load(std::memory_order_relaxed) + 1;
+  const std::uint32_t W = postsX(), H = postsZ();
+  HeightsChange out;
+  grid::PostRect region;
+  const auto unite = [&region](const grid::PostRect& r) {
+    region = region.empty() ? r
+                            : grid::PostRect{std::min(region.i0, r.i0), std::min(region.j0, r.j0),
+                                             std::max(region.i1, r.i1), std::max(region.j1, r.j1)};
+  };
+  for (std::uint32_t tz = 0; tz < tilesZ_; ++tz) {
+    for (std::uint32_t tx = 0; tx < tilesX_; ++tx) {
+      Tile* t = tiles_[std::size_t(tz) * tilesX_ + tx].load(std::memory_order_relaxed);
+      if (!t) continue;
+      const grid::PostRect whole{tx * kTile, tz * kTile, std::min((tx + 1) * kTile, W), std::min((tz + 1) * kTile, H)};
+      if (Tile::Posts* p = t->posts.load(std::memory_order_relaxed)) {
+        bool edited = false;
+        for (std::uint32_t k = 0; k < kTilePosts; ++k) {
+          edited |= p->delta[k].load(std::memory_order_relaxed) != 0.0f ||
+                    p->normal[k].load(std::memory_order_relaxed) != 0;
+          p->delta[k].store(0.0f, std::memory_order_release);
+          p->normal[k].store(0, std::memory_order_release);
+        }
+        if (edited) unite(whole);
+      }
+      if (const auto list = t->patchList(); list && !list->empty()) {
+        for (const auto& q : *list) {
+          out.squares.push_back({q->i, q->j});
+          unite({q->i, q->j, std::min(q->i + 2, W), std::min(q->j + 2, H)});
+        }
+        for (auto& bits : t->refinedBits) bits.store(0, std::memory_order_release);
+        t->setPatchList(nullptr);
+      }
+    }
+  }
+  if (region.empty()) return out;
+  std::sort(out.squares.begin(), out.squares.end());
+  for (std::uint32_t tz = region.j0 / kTile; tz <= (region.j1 - 1) / kTile; ++tz) {
+    for (std::uint32_t tx = region.i0 / kTile; tx <= (region.i1 - 1) / kTile; ++tx) {
+      tileGenerations_[std::size_t(tz) * tilesX_ + tx].store(g, std::memory_order_release);
+    }
+  }
+  generation_.store(g, std::memory_order_release);
+  out.posts = region;
+  out.region = region;
+  out.generation = g;
+  notifyChanged({region, g});
+  return out;
+}
+
 // ------------------------------------------------------------- read back
 
 std::uint64_t EditedHeights::contentHash() const {

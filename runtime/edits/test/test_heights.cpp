@@ -415,6 +415,30 @@ TEST_F(MonacoHeights, theSameEditsInTheSameOrderGiveBitIdenticalHeights) {
   EXPECT_NE(one->contentHash(), two->contentHash());
 }
 
+TEST_F(MonacoHeights, resetReturnsToTheBaseAndTheSameEditsAgainGiveTheSameGround) {
+  const auto orig = original();
+  const auto [pi, pj] = steepestPost(*orig);
+  const auto a = overlay();
+  const auto edits = randomEdits(60, *a, pi - 10, pj - 10);
+  for (const edit::Edit& e : edits) ASSERT_TRUE(a->apply(e));
+  const std::uint64_t edited = a->contentHash();
+  const std::uint64_t g = a->generation();
+  const HeightsChange cleared = a->reset();
+  EXPECT_GT(cleared.generation, g);
+  EXPECT_FALSE(cleared.region.empty());
+  EXPECT_EQ(a->contentHash(), overlay()->contentHash());
+  for (std::uint32_t j = pj - 12; j < pj + 12; ++j) {
+    for (std::uint32_t i = pi - 12; i < pi + 12; ++i) {
+      ASSERT_EQ(bitsOf(a->elevation(i, j)), bitsOf(orig->elevation(i, j)));
+      ASSERT_EQ(a->refined(i, j), nullptr);
+    }
+  }
+  for (const edit::Edit& e : edits) ASSERT_TRUE(a->apply(e));
+  EXPECT_EQ(a->contentHash(), edited);
+  EXPECT_TRUE(a->reset().generation > 0);
+  EXPECT_TRUE(a->reset().empty());  // nothing left to clear
+}
+
 TEST_F(MonacoHeights, readersOnManyThreadsSeeOnlyWhatTheContractAllows) {
   const auto orig = original();
   const auto [pi, pj] = steepestPost(*orig);

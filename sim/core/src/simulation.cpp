@@ -831,7 +831,7 @@ void Simulation::leaveCrater(const Entity& m, const Eigen::Vector3d& at) {
                                                            : edits::kCraterLarge;
   edit::Edit e;
   e.kind = edit::Kind::crater;
-  e.id = nextEditId_++;
+  e.id = newEditId();
   e.time = timeS();
   e.origin = options_.editOrigin;
   e.points = {{at.x(), at.z()}};

@@ -91,6 +91,12 @@ class EditedHeights final : public grid::HeightField {
   /// change heights, a support wholly outside the grid. Writer only.
   Result<HeightsChange> apply(const edit::Edit& e);
 
+  /// Back to the base's heights: every delta, normal and patch dropped
+  /// (the editor re-applies its edits in key order after an edit arrived
+  /// out of order). Bounds stay as wide as they were. Writer only; the
+  /// change covers every post and square that was edited.
+  HeightsChange reset();
+
   /// A 64-bit hash of every edited post's delta and every patch, in grid
   /// order: equal in two processes that applied the same edits in the same
   /// order. Any thread.

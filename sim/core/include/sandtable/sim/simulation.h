@@ -202,6 +202,11 @@ class Simulation {
   /// (craters where munitions hit the ground). The step host applies them
   /// (sim/terrain_edits.h) and calls objectsInCrater for each crater.
   std::vector<edit::Edit> takeTerrainEdits() { return std::exchange(pendingEdits_, {}); }
+  /// The id the next edit this simulation makes gets (ids of one origin
+  /// must not repeat: a journal replayed before the run holds earlier ones).
+  void setNextEditId(std::uint64_t id) { nextEditId_ = id; }
+  /// Takes the next id for an edit of this simulation's origin.
+  std::uint64_t newEditId() { return nextEditId_++; }
   /// What a crater does to the static objects inside it (docs/DYNAMIC.md):
   /// a standing tree whose trunk is within the crater's radius falls
   /// (knocked over). For every crater applied, local or received. Returns
