@@ -23,13 +23,13 @@ namespace {
 
 std::string bad(Kind k, const char* field, const char* rule, double got) {
   std::ostringstream s;
-  s << "edit: " << kindName(k) << ": " << field << " must be " << rule << " (got " << got << ")";
+  s << "edit: " << kindName(k) << ": Edit::" << field << " must be " << rule << " (got " << got << ")";
   return s.str();
 }
 
 std::string needPoints(Kind k, std::size_t least, std::size_t got) {
   std::ostringstream s;
-  s << "edit: " << kindName(k) << ": points needs at least " << least << " (got " << got << ")";
+  s << "edit: " << kindName(k) << ": Edit::points needs at least " << least << " (got " << got << ")";
   return s.str();
 }
 
@@ -39,7 +39,7 @@ std::string checkEdit(const Edit& e) {
   if (std::uint8_t(e.kind) < 1 || std::uint8_t(e.kind) > kMaxKind) return "edit: kind " + std::to_string(int(e.kind)) + " is unknown";
   if (!std::isfinite(e.time)) return bad(e.kind, "time", "finite", e.time);
   for (const auto& p : e.points) {
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1])) return "edit: " + std::string(kindName(e.kind)) + ": points must be finite";
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1])) return "edit: " + std::string(kindName(e.kind)) + ": Edit::points must be finite";
   }
   const auto positive = [&](const char* field, double v) { return v > 0 && std::isfinite(v) ? std::string() : bad(e.kind, field, "> 0", v); };
   switch (e.kind) {

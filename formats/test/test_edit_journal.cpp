@@ -304,10 +304,10 @@ TEST(EditJournal, encoderRefusesWhatTheReaderWouldRefuse) {
   std::vector<std::byte> out;
   Edit bad = goldenCrater();
   bad.radius = -1;
-  EXPECT_EQ(encodeRecord(bad, kHeaderBytes, out).message(), "edit: crater: radius must be > 0 (got -1)");
+  EXPECT_EQ(encodeRecord(bad, kHeaderBytes, out).message(), "edit: crater: Edit::radius must be > 0 (got -1)");
   Edit two = goldenCrater();
   two.points.push_back({1, 2});
-  EXPECT_EQ(encodeRecord(two, kHeaderBytes, out).message(), "edit: crater: points needs at least 1 (got 2)");
+  EXPECT_EQ(encodeRecord(two, kHeaderBytes, out).message(), "edit: crater: Edit::points needs at least 1 (got 2)");
   Edit many = goldenBerm();
   many.points.assign(kMaxLinePoints + 1, {1.0, 2.0});
   EXPECT_EQ(encodeRecord(many, kHeaderBytes, out).message(),
@@ -469,9 +469,9 @@ TEST(EditJournal, hostileFieldsGiveTheirMessagesBeforeAllocating) {
       {"crater without a point", crater + payloadField::pointCount, 0, 4,
        "h @141: journal: record at byte 24: point count 0 needs 0 bytes of points, the payload holds 16"},
       {"negative radius", crater + payloadField::radius, 0xbff0000000000000ull, 8,
-       "h @24: journal: record at byte 24: edit: crater: radius must be > 0 (got -1)"},
+       "h @24: journal: record at byte 24: edit: crater: Edit::radius must be > 0 (got -1)"},
       {"NaN time", berm + payloadField::time, 0x7ff8000000000000ull, 8,
-       "h @161: journal: record at byte 161: edit: berm: time must be finite (got nan)"},
+       "h @161: journal: record at byte 161: edit: berm: Edit::time must be finite (got nan)"},
       {"batch start in the header", kCraterAt + headField::batchStart, 23, 8,
        "h @28: journal: record at byte 24: batch start 23 is not between the header's end (24) and the record"},
       {"batch start after the record", kBermAt + headField::batchStart, 162, 8,
@@ -607,7 +607,7 @@ TEST(EditJournal, writerFlushesWhenTheBatchIsFullOrDue) {
   Edit bad = edits[0];
   bad.depth = 0;
   EXPECT_EQ(j.append(bad).error(), path + " @" + std::to_string(j.durableBytes()) +
-                                     ": edit: crater: depth must be > 0 (got 0)");
+                                     ": edit: crater: Edit::depth must be > 0 (got 0)");
   EXPECT_EQ(j.waiting(), 0u);
   ASSERT_EQ(j.append(edits[6]).message(), "");
   EXPECT_EQ(j.close().message(), "");  // close flushes

@@ -9,6 +9,14 @@ namespace {
 /// Longest first where one field name starts another.
 constexpr std::pair<std::string_view, std::string_view> kFieldFlags[] = {
     {"ElevationOptions::sources", "--elevation"},
+    {"Edit::radius", "--radius"},
+    {"Edit::depth", "--depth"},
+    {"Edit::width", "--width"},
+    {"Edit::height", "--height"},
+    {"Edit::sideSlope", "--slope"},
+    {"Edit::points", "--lonlat/--xy, --line or --polygon"},
+    {"Edit::scale", "--scale"},
+    {"Edit::heading", "--heading"},
     {"SocketOptions::address", "--dis"},
     {"SocketOptions::port", "--dis"},
     {"SocketOptions::interface", "--dis-interface"},

@@ -86,11 +86,11 @@ TEST(Profile, refinementFollowsTheFeatureSize) {
 
 TEST(Edit, checkNamesTheField) {
   auto e = crater(0, 0, -1, 1);
-  EXPECT_EQ(edit::checkEdit(e), "edit: crater: radius must be > 0 (got -1)");
+  EXPECT_EQ(edit::checkEdit(e), "edit: crater: Edit::radius must be > 0 (got -1)");
   e.radius = 1;
   EXPECT_EQ(edit::checkEdit(e), "");
   e.points.clear();
-  EXPECT_EQ(edit::checkEdit(e), "edit: crater: points needs at least 1 (got 0)");
+  EXPECT_EQ(edit::checkEdit(e), "edit: crater: Edit::points needs at least 1 (got 0)");
 }
 
 }  // namespace

@@ -332,7 +332,7 @@ TEST(SimDisObjects, toPduRefusesWhatDoesNotTravel) {
   for (int k = 0; k < 129; ++k) many.push_back({double(k), 0});
   const std::vector<std::pair<edit::Edit, std::string>> cases = {
       {flatten, "toPdu: flatten edits do not travel as DIS objects"},
-      {bad, "toPdu: edit: crater: radius must be > 0 (got -1)"},
+      {bad, "toPdu: edit: crater: Edit::radius must be > 0 (got -1)"},
       {line(edit::Kind::berm, 1, many), "toPdu: berm: 128 segments; a Linear Object State PDU carries at most 127"},
       {line(edit::Kind::ditch, 1, {{0, 0}, {10, 0}, {10.001, 0.001}}),
        "toPdu: ditch: segment 2 is 0.001414 m long, under the 0.003906 m grid"},

@@ -69,7 +69,8 @@ inline constexpr bool changesHeights(Kind k) { return k >= Kind::crater && k <= 
 
 /// Checks the parameters an edit of its kind needs (finite, positive where
 /// they must be, enough points); the message names the field
-/// ("edit: crater: radius must be > 0 (got -1)"). Empty when valid.
+/// ("edit: crater: Edit::radius must be > 0 (got -1)"; the CLI maps the
+/// field to its flag). Empty when valid.
 std::string checkEdit(const Edit& e);
 
 }  // namespace sandtable::edit
