@@ -163,7 +163,18 @@ void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, floa
   // Lattice vertices already emitted by the skin are reused when found at
   // exactly the lattice position, so skirts share the skin's edge vertices.
   std::vector<std::uint32_t> cache(lat.xs.size() * lat.zs.size(), UINT32_MAX);
-  for (std::uint32_t v = 0; v < level.vertices.size(); ++v) {
+  // The builder writes the posts first, row by row: when vertices 0..P-1
+  // are exactly them, the search below would find just these (the first
+  // match wins), so it is skipped (most of addSkirts' time on a big level).
+  bool postsFirst = level.vertices.size() >= cache.size();
+  for (std::size_t k = 0; postsFirst && k < cache.size(); ++k) {
+    const Vertex& p = level.vertices[k];
+    postsFirst = p.x == float(lat.xs[k % lat.xs.size()]) && p.z == float(lat.zs[k / lat.xs.size()]) && p.y == lat.heights[k];
+  }
+  if (postsFirst) {
+    for (std::size_t k = 0; k < cache.size(); ++k) cache[k] = std::uint32_t(k);
+  }
+  for (std::uint32_t v = postsFirst ? std::uint32_t(level.vertices.size()) : 0; v < level.vertices.size(); ++v) {
     const Vertex& p = level.vertices[v];
     const std::size_t a = firstAtOrAbove(lat.xs, lat.spacing, double(p.x) - 1e-4);
     const std::size_t b = firstAtOrAbove(lat.zs, lat.spacing, double(p.z) - 1e-4);
