@@ -148,6 +148,7 @@ Result<RemeshReport> EditedModules::remesh(const grid::PostRect& changedPosts,
     states.push_back(st.value());
   }
   report.triangles.assign(header().levels, 0);
+  report.patchSquares.assign(header().levels, 0);
   for (std::size_t n = 0; n < states.size(); ++n) {
     State& st = *states[n];
     const paging::ModuleKey k = report.modules[n];
@@ -167,6 +168,9 @@ Result<RemeshReport> EditedModules::remesh(const grid::PostRect& changedPosts,
     p->module = detail::rebuildModule(in, stats);
     p->generation = nextGeneration_++;
     report.refinedSquares += stats.refinedSquares;
+    for (std::size_t l = 0; l < stats.patchSquares.size() && l < report.patchSquares.size(); ++l) {
+      report.patchSquares[l] += stats.patchSquares[l];
+    }
     for (std::size_t l = 0; l < p->module.levels.size() && l < report.triangles.size(); ++l) {
       report.triangles[l] += p->module.levels[l].indices.size() / 3;
     }

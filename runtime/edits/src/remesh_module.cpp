@@ -99,6 +99,10 @@ class Rebuilder {
     }
     node_ = meshing::nodeSquares(in_.squares, levels);
     depths_ = meshing::skirtDepths(after_, w_, node_);
+    lineVertices_.resize(std::size_t(levels));
+    fineStep_.resize(std::size_t(levels));
+    stats_.patchSquares.assign(std::size_t(levels), 0);
+    refinedSquares();
     module::Module out;
     out.kx = base.kx;
     out.kz = base.kz;
@@ -114,6 +118,16 @@ class Rebuilder {
     return out;
   }
 
+  /// The window's refined grid squares (grid post of their north-west corner).
+  void refinedSquares() {
+    if (!in_.heights->anyRefined()) return;
+    for (std::uint32_t j = w_.j0; j < w_.j1; ++j) {
+      for (std::uint32_t i = w_.i0; i < w_.i1; ++i) {
+        if (in_.heights->refined(i, j)) refined_.push_back({i, j});
+      }
+    }
+  }
+
  private:
   const RebuildInput& in_;
   RebuildStats& stats_;
@@ -122,22 +136,24 @@ class Rebuilder {
   std::vector<LevelLattice> draped_;  ///< after_, heights as the re-draped lattice vertices carry them
   std::uint32_t node_ = 1;
   std::vector<float> depths_;
-  /// Level 0's fine vertices on grid lines (skirt tops), and where they
-  /// are in grid posts (skirt depths).
-  std::vector<std::uint32_t> lineVertices_;
+  /// Per level, the targets' vertices on lattice lines (skirt tops), and
+  /// where they are in grid posts (skirt depths).
+  std::vector<std::vector<std::uint32_t>> lineVertices_;
   struct LinePoint {
     double U = 0, V = 0;  ///< fractional grid posts
     bool vertical = false;  ///< on a post column (else a post row)
     double y = 0;
   };
   std::vector<LinePoint> linePoints_;
-  std::vector<SquareMesh> meshes_;  ///< level 0's refined squares
+  Patches patches_{*in_.heights};
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> refined_;  ///< the window's refined grid squares
+  std::vector<SquareMesh> meshes_;  ///< this level's targets
   std::vector<std::uint32_t> scratch_;
   std::vector<PendingGroup> pending_;
   std::vector<std::uint32_t> freshFrom_;  ///< per level: vertices from here on got no base normal
-  /// Level 0: per vertex, the fine step (grid posts) of the patch whose
+  /// Per level and vertex, the fine step (grid posts) of the patch whose
   /// surface gives its normal; 0: the posts' normals.
-  std::vector<double> fineStep_;
+  std::vector<std::vector<double>> fineStep_;
 
   std::uint16_t skirtMaterial(const Level& b) const {
     for (const Group& g : b.groups) {
@@ -239,23 +255,30 @@ class Rebuilder {
     for (std::size_t k = 0; k < posts; ++k) draped.heights[k] = out.vertices[k].y;
     draped_.push_back(std::move(draped));
 
-    // Level 0's refined squares.
+    // The lattice squares that take patches: at level 0 every refined grid
+    // square, coarser where the detail matters (Patches::target).
     std::vector<const SquareMesh*> target(nx * nz, nullptr);
-    if (l == 0 && in_.heights->anyRefined()) {
-      meshes_.clear();
-      meshes_.reserve(nx * nz);
-      for (std::size_t sb = 0; sb < nz; ++sb) {
-        for (std::size_t sa = 0; sa < nx; ++sa) {
-          const auto i = std::uint32_t(w_.i0 + sa), j = std::uint32_t(w_.j0 + sb);
-          const std::size_t nw = sb * (nx + 1) + sa;
-          const std::array<double, 4> corners = {out.vertices[nw].y, out.vertices[nw + 1].y, out.vertices[nw + nx + 1].y,
-                                                 out.vertices[nw + nx + 2].y};
-          SquareMesh m;
-          if (!meshRefinedSquare(*in_.heights, i, j, corners, m)) continue;
-          meshes_.push_back(std::move(m));
-          target[sb * nx + sa] = &meshes_.back();
-          ++stats_.refinedSquares;
-        }
+    meshes_.clear();
+    if (!refined_.empty()) {
+      const std::uint32_t span = 1u << l;
+      std::vector<std::pair<std::uint32_t, std::uint32_t>> qs;
+      for (const auto& [i, j] : refined_) qs.push_back({(j - w_.j0) / span, (i - w_.i0) / span});
+      std::sort(qs.begin(), qs.end());
+      qs.erase(std::unique(qs.begin(), qs.end()), qs.end());
+      meshes_.reserve(qs.size());
+      for (const auto& [sb, sa] : qs) {
+        if (sa >= nx || sb >= nz) continue;
+        Target* t = patches_.target(l, w_.i0 + sa * span, w_.j0 + sb * span);
+        if (!t) continue;
+        const std::size_t nw = sb * (nx + 1) + sa;
+        const std::array<double, 4> corners = {out.vertices[nw].y, out.vertices[nw + 1].y, out.vertices[nw + nx + 1].y,
+                                               out.vertices[nw + nx + 2].y};
+        SquareMesh m;
+        if (!meshTarget(patches_, *t, corners, m)) continue;
+        meshes_.push_back(std::move(m));
+        target[sb * nx + sa] = &meshes_.back();
+        ++stats_.patchSquares[std::size_t(l)];
+        if (l == 0) ++stats_.refinedSquares;
       }
     }
     const std::uint32_t kept = std::uint32_t(out.vertices.size());
@@ -268,7 +291,7 @@ class Rebuilder {
       const SquareMesh* m = g.square < target.size() ? target[g.square] : nullptr;
       if (m && isSkin(g)) continue;  // replaced below
       if (m && isDecal(g)) {
-        clipDecal(b, g, *m, out);
+        clipDecal(l, b, g, *m, out);
         continue;
       }
       PendingGroup p{g, std::uint32_t(scratch_.size())};
@@ -277,9 +300,9 @@ class Rebuilder {
       }
       pending_.push_back(p);
     }
-    if (l == 0 && !meshes_.empty()) {
+    if (!meshes_.empty()) {
       baseSurface.emplace(b, false);
-      for (const SquareMesh& m : meshes_) skin(m, *baseSurface, out);
+      for (const SquareMesh& m : meshes_) skin(l, m, *baseSurface, out);
     }
     // Groups in the level's order, each one run of indices.
     std::stable_sort(pending_.begin(), pending_.end(),
@@ -300,10 +323,16 @@ class Rebuilder {
     freshFrom_.push_back(normals ? kept : 0);
   }
 
-  /// Appends vertex (u, v) of square mesh `m` at height y, skin texture.
-  std::uint32_t addVertex(Level& out, const SquareMesh& m, const UV& p, double y) {
+  /// Module-local x and z of (u, v) in target `m`.
+  std::array<double, 2> local(const SquareMesh& m, const UV& p) const {
     const double s = in_.heights->spacing();
-    const double x = (double(m.i - w_.i0) + p.u / m.n) * s, z = (double(m.j - w_.j0) + p.v / m.n) * s;
+    const Target& t = *m.target;
+    return {(double(t.gi - w_.i0) + p.u / t.cells) * s, (double(t.gj - w_.j0) + p.v / t.cells) * s};
+  }
+
+  /// Appends vertex (u, v) of target `m` at height y, skin texture.
+  std::uint32_t addVertex(Level& out, const SquareMesh& m, const UV& p, double y) {
+    const auto [x, z] = local(m, p);
     const double s0 = module::skinTextureOffset(after_[0].moduleX), t0 = module::skinTextureOffset(after_[0].moduleZ);
     const Vertex vx{float(x), float(y), float(z), float((s0 + double(float(x))) / module::kSkinTextureRepeat),
                     float((t0 + double(float(z))) / module::kSkinTextureRepeat)};
@@ -311,14 +340,16 @@ class Rebuilder {
     return std::uint32_t(out.vertices.size() - 1);
   }
 
-  /// A refined square's new skin: its triangles, each with the base skin's
-  /// class under its centre, or the crater class below the ground before.
-  void skin(const SquareMesh& m, const module::Surface& surface, Level& out) {
-    const std::size_t nx = after_[0].xs.size() - 1, sa = m.i - w_.i0, sb = m.j - w_.j0;
+  /// A target's new skin: its triangles, each with the base skin's class
+  /// under its centre, or the crater class below the ground before.
+  void skin(int l, const SquareMesh& m, const module::Surface& surface, Level& out) {
+    const Target& t = *m.target;
+    const std::size_t nx = after_[std::size_t(l)].xs.size() - 1, sa = (t.gi - w_.i0) >> l, sb = (t.gj - w_.j0) >> l;
     const std::uint32_t square = std::uint32_t(sb * nx + sa);
     const std::size_t nw = sb * (nx + 1) + sa;
     const std::uint32_t corner[4] = {std::uint32_t(nw), std::uint32_t(nw + 1), std::uint32_t(nw + nx + 1),
                                      std::uint32_t(nw + nx + 2)};
+    std::vector<double>& step = fineStep_[std::size_t(l)];
     std::vector<std::uint32_t> id(m.uv.size());
     for (std::size_t k = 0; k < m.uv.size(); ++k) {
       if (k < 4) {
@@ -326,25 +357,24 @@ class Rebuilder {
         continue;
       }
       id[k] = addVertex(out, m, m.uv[k], m.y[k]);
-      fineStep_.resize(out.vertices.size(), 0);
-      const bool inFine = !m.fineEmpty() && m.uv[k].u >= m.fa0 && m.uv[k].u <= m.fa1 && m.uv[k].v >= m.fb0 && m.uv[k].v <= m.fb1;
-      fineStep_[id[k]] = inFine ? 1.0 / m.n : 0.0;
+      step.resize(out.vertices.size(), 0);
+      step[id[k]] = t.inRegion(m.uv[k].u, m.uv[k].v) ? 1.0 / t.cells : 0.0;
       if (m.sides[k]) {
-        lineVertices_.push_back(id[k]);
-        linePoints_.push_back({double(m.i) + m.uv[k].u / m.n, double(m.j) + m.uv[k].v / m.n,
+        lineVertices_[std::size_t(l)].push_back(id[k]);
+        linePoints_.push_back({double(t.gi) + m.uv[k].u / t.cells, double(t.gj) + m.uv[k].v / t.cells,
                                (m.sides[k] & (kWest | kEast)) != 0, m.y[k]});
       }
     }
-    const LevelLattice& o = before_[0];
+    const LevelLattice& o = before_[std::size_t(l)];
     const std::size_t w = o.xs.size();
     const double onw = o.heights[sb * w + sa], one = o.heights[sb * w + sa + 1];
     const double osw = o.heights[(sb + 1) * w + sa], ose = o.heights[(sb + 1) * w + sa + 1];
     // One pending group per (half, material), in triangle order.
     std::vector<std::pair<std::pair<Half, std::uint16_t>, std::vector<std::uint32_t>>> runs;
-    for (const SquareMesh::Tri& t : m.tris) {
+    for (const SquareMesh::Tri& tri : m.tris) {
       UV c{0, 0};
-      bool below = t.fine;
-      for (const std::uint32_t k : t.v) {
+      bool below = tri.fine;
+      for (const std::uint32_t k : tri.v) {
         c.u += m.uv[k].u / 3, c.v += m.uv[k].v / 3;
         const double before = terrain::planeHeight(m.uv[k].u / m.n, m.uv[k].v / m.n, onw, one, osw, ose);
         below = below && m.y[k] < before - kCraterFloorDepth;
@@ -353,15 +383,15 @@ class Rebuilder {
       if (below && in_.options->craterMaterial) {
         material = *in_.options->craterMaterial;
       } else {
-        const double s = in_.heights->spacing();
-        material = surface.skin((double(sa) + c.u / m.n) * s, (double(sb) + c.v / m.n) * s).material;
+        const auto [x, z] = local(m, c);
+        material = surface.skin(x, z).material;
       }
-      auto it = std::find_if(runs.begin(), runs.end(), [&](const auto& r) { return r.first == std::pair{t.half, material}; });
+      auto it = std::find_if(runs.begin(), runs.end(), [&](const auto& r) { return r.first == std::pair{tri.half, material}; });
       if (it == runs.end()) {
-        runs.push_back({{t.half, material}, {}});
+        runs.push_back({{tri.half, material}, {}});
         it = runs.end() - 1;
       }
-      for (const std::uint32_t k : t.v) it->second.push_back(id[k]);
+      for (const std::uint32_t k : tri.v) it->second.push_back(id[k]);
     }
     for (const auto& [key, idx] : runs) {
       Group g;
@@ -378,14 +408,16 @@ class Rebuilder {
   /// A decal group of a refined square, clipped against the square's new
   /// triangles of its half: each piece on its triangle's plane, texture
   /// coordinates interpolated from the decal triangle.
-  void clipDecal(const Level& b, const Group& g, const SquareMesh& m, Level& out) {
+  void clipDecal(int l, const Level& b, const Group& g, const SquareMesh& m, Level& out) {
+    const Target& tg = *m.target;
+    const auto [x0, z0] = local(m, {0, 0});
     const double s = in_.heights->spacing();
-    const double x0 = double(m.i - w_.i0) * s, z0 = double(m.j - w_.j0) * s;
-    auto toUV = [&](const Vertex& p) { return UV{(double(p.x) - x0) / s * m.n, (double(p.z) - z0) / s * m.n}; };
+    auto toUV = [&](const Vertex& p) { return UV{(double(p.x) - x0) / s * tg.cells, (double(p.z) - z0) / s * tg.cells}; };
     PendingGroup pg{g, std::uint32_t(scratch_.size())};
     pg.g.indexCount = 0;
     std::vector<std::uint32_t> candidates;
     std::vector<UV> poly;
+    std::vector<double>& step = fineStep_[std::size_t(l)];
     for (std::uint32_t k = g.firstIndex; k < g.firstIndex + g.indexCount; k += 3) {
       std::array<Vertex, 3> dv;
       std::array<UV, 3> d;
@@ -394,22 +426,21 @@ class Rebuilder {
         d[std::size_t(q)] = toUV(dv[std::size_t(q)]);
       }
       candidates.clear();
-      if (!m.fineEmpty()) {
-        const double u0 = std::min({d[0].u, d[1].u, d[2].u}), u1 = std::max({d[0].u, d[1].u, d[2].u});
-        const double v0 = std::min({d[0].v, d[1].v, d[2].v}), v1 = std::max({d[0].v, d[1].v, d[2].v});
-        const auto a0 = std::uint32_t(std::clamp(std::floor(u0), double(m.fa0), double(m.fa1)));
-        const auto a1 = std::uint32_t(std::clamp(std::ceil(u1), double(m.fa0), double(m.fa1)));
-        const auto b0 = std::uint32_t(std::clamp(std::floor(v0), double(m.fb0), double(m.fb1)));
-        const auto b1 = std::uint32_t(std::clamp(std::ceil(v1), double(m.fb0), double(m.fb1)));
-        const std::uint32_t fw = m.fa1 - m.fa0;
+      if (!m.fineTris.empty()) {
+        const double n = m.n;
+        const auto a0 = std::uint32_t(std::clamp(std::floor(std::min({d[0].u, d[1].u, d[2].u})), 0.0, n));
+        const auto a1 = std::uint32_t(std::clamp(std::ceil(std::max({d[0].u, d[1].u, d[2].u})), 0.0, n));
+        const auto b0 = std::uint32_t(std::clamp(std::floor(std::min({d[0].v, d[1].v, d[2].v})), 0.0, n));
+        const auto b1 = std::uint32_t(std::clamp(std::ceil(std::max({d[0].v, d[1].v, d[2].v})), 0.0, n));
         for (std::uint32_t fb = b0; fb < b1; ++fb) {
           for (std::uint32_t fa = a0; fa < a1; ++fa) {
-            const std::size_t c = std::size_t(fb - m.fb0) * fw + (fa - m.fa0);
-            for (std::uint32_t t = m.fineStart[c]; t < m.fineStart[c + 1]; ++t) candidates.push_back(t);
+            const auto it = m.fineTris.find(std::uint64_t(fa) << 32 | fb);
+            if (it == m.fineTris.end()) continue;
+            for (std::uint32_t t = it->second.first; t < it->second.second; ++t) candidates.push_back(t);
           }
         }
       }
-      for (std::uint32_t t = m.restBegin(); t < m.tris.size(); ++t) candidates.push_back(t);
+      for (std::uint32_t t = m.restBegin; t < m.tris.size(); ++t) candidates.push_back(t);
       for (const std::uint32_t t : candidates) {
         const SquareMesh::Tri& tri = m.tris[t];
         if (tri.half != g.half) continue;
@@ -427,11 +458,11 @@ class Rebuilder {
           const auto wd = barycentric(d[0], d[1], d[2], p);
           const double st[2] = {wd[0] * dv[0].s + wd[1] * dv[1].s + wd[2] * dv[2].s,
                                 wd[0] * dv[0].t + wd[1] * dv[1].t + wd[2] * dv[2].t};
-          out.vertices.push_back({float(x0 + p.u / m.n * s), float(y), float(z0 + p.v / m.n * s),
-                                  float(std::max(0.0, st[0])), float(std::clamp(st[1], 0.0, 1.0))});
+          const auto [x, z] = local(m, p);
+          out.vertices.push_back({float(x), float(y), float(z), float(std::max(0.0, st[0])), float(std::clamp(st[1], 0.0, 1.0))});
         }
-        fineStep_.resize(out.vertices.size(), 0);
-        for (std::uint32_t q = first; q < out.vertices.size(); ++q) fineStep_[q] = tri.fine ? 1.0 / m.n : 0.0;
+        step.resize(out.vertices.size(), 0);
+        for (std::uint32_t q = first; q < out.vertices.size(); ++q) step[q] = tri.fine ? 1.0 / tg.cells : 0.0;
         for (std::uint32_t q = 1; q + 1 < poly.size(); ++q) {
           scratch_.insert(scratch_.end(), {first, first + q, first + q + 1});
           pg.g.indexCount += 3;
@@ -448,11 +479,16 @@ class Rebuilder {
   void deepenSkirts() {
     const int levels = int(after_.size());
     for (const LinePoint& p : linePoints_) {
-      std::vector<double> surf(std::size_t(levels), p.y);
+      // Each level's surface there, with and without the patch's detail
+      // (whether a level draws it at this very point is its neighbours'
+      // business too): the deepest need of either.
+      const double d = patches_.detail(p.U, p.V);
+      std::vector<std::array<double, 2>> surf(static_cast<std::size_t>(levels));
       double lowest = p.y;
-      for (int l = 1; l < levels; ++l) {
-        surf[std::size_t(l)] = latticeSurface(after_[std::size_t(l)], w_, l, p.U, p.V);
-        lowest = std::min(lowest, surf[std::size_t(l)]);
+      for (int l = 0; l < levels; ++l) {
+        const double plane = latticeSurface(after_[std::size_t(l)], w_, l, p.U, p.V);
+        surf[std::size_t(l)] = {plane, plane + d};
+        lowest = std::min({lowest, plane, plane + d});
       }
       const double c = p.vertical ? p.U : p.V;
       const std::uint32_t first = p.vertical ? w_.i0 : w_.j0, last = p.vertical ? w_.i1 : w_.j1;
@@ -460,7 +496,8 @@ class Rebuilder {
       for (int l = 0; l < levels; ++l) {
         const std::uint32_t edge = node_ << l;  // node edge in level-0 posts
         if ((line - first) % edge != 0 && line != last) continue;
-        const auto need = float(surf[std::size_t(l)] - lowest + meshing::kSkirtMargin);
+        const double top = std::max({surf[std::size_t(l)][0], surf[std::size_t(l)][1], p.y});
+        const auto need = float(top - lowest + meshing::kSkirtMargin);
         depths_[std::size_t(l)] = std::max(depths_[std::size_t(l)], need);
       }
     }
@@ -468,8 +505,8 @@ class Rebuilder {
 
   void finish(int l, Level& out) {
     const Level& b = in_.base->levels[std::size_t(l)];
-    const std::span<const std::uint32_t> lines = l == 0 ? std::span<const std::uint32_t>(lineVertices_) : std::span<const std::uint32_t>();
-    meshing::finishLevel(draped_[std::size_t(l)], node_, depths_[std::size_t(l)], skirtMaterial(b), out, lines);
+    meshing::finishLevel(draped_[std::size_t(l)], node_, depths_[std::size_t(l)], skirtMaterial(b), out,
+                         lineVertices_[std::size_t(l)]);
     if (b.normals.empty()) {
       out.normals.clear();
       return;
@@ -489,8 +526,9 @@ class Rebuilder {
       const Vertex& p = out.vertices[k];
       const double X = x0 + p.x, Z = z0 + p.z;
       if (k < fresh && !dirty(X / s, Z / s)) continue;
-      if (l == 0 && k < fineStep_.size() && fineStep_[k] > 0) {
-        const double U = X / s, V = Z / s, d = 0.5 * fineStep_[k];
+      const std::vector<double>& step = fineStep_[std::size_t(l)];
+      if (k < step.size() && step[k] > 0) {
+        const double U = X / s, V = Z / s, d = 0.5 * step[k];
         const double gx = (level0Surface(*in_.heights, U + d, V) - level0Surface(*in_.heights, U - d, V)) / (2 * d * s);
         const double gz = (level0Surface(*in_.heights, U, V + d) - level0Surface(*in_.heights, U, V - d)) / (2 * d * s);
         out.normals[k] = meshing::packNormal({-gx, 1.0, -gz});
@@ -518,14 +556,21 @@ void placeObjects(module::Module& m, const grid::HeightField& h, std::uint32_t s
   if (m.levels.empty() || !h.anyRefined()) return;
   const double s = h.spacing();
   const double U0 = double(m.kx) * squares, V0 = double(m.kz) * squares;
+  Patches patches(h);
   for (std::size_t k = 0; k < m.objects.size(); ++k) {
     const double U = U0 + double(m.objects[k].x) / s, V = V0 + double(m.objects[k].z) / s;
     const terrain::SquarePoint q = terrain::squareAt(U, V, h.postsX(), h.postsZ());
-    const auto r = h.refined(q.i, q.j);
-    if (!r) continue;
-    bool inside = false;
-    const double y = grid::refinedHeight(*r, q.fx, q.fz, inside);
-    if (inside) m.levels[0].objectY[k] = float(y);
+    if (!h.refined(q.i, q.j)) continue;
+    // On every level whose square there takes the patch, and where its
+    // fine region holds the object: that level's surface.
+    for (std::size_t l = 0; l < m.levels.size(); ++l) {
+      const std::uint32_t span = 1u << l;
+      Target* t = patches.target(int(l), q.i / span * span, q.j / span * span);
+      if (!t) continue;
+      patches.region(*t);
+      if (!t->inRegion((U - t->gi) * t->cells, (V - t->gj) * t->cells)) continue;
+      m.levels[l].objectY[k] = float(patches.interiorHeightAt(*t, U, V));
+    }
   }
 }
 

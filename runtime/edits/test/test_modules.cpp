@@ -541,6 +541,204 @@ TEST(EditedModules, neighbourPatchesOfOtherCellsAndPatchesOnAnUnrefinedEdgeLeave
   for (const auto& [a, b] : squares) expectRefinedSquare(*f.heights, *f.modules, a, b);
 }
 
+TEST(EditedModules, coarserLevelsTakeACraterWhereItDepartsMoreThanTheirOwnError) {
+  REQUIRE_BAYREUTH();
+  RemeshOptions o;
+  o.craterMaterial = 4242;
+  Fixture f = fixture(*db, o);
+  const pack::IndexHeader& hd = f.modules->header();
+  const double s = f.heights->spacing();
+  // The flattest 4 x 4 block of grid squares (a level-2 lattice square)
+  // inside a module: its planes' error against the posts under it.
+  auto error = [&](std::uint32_t gi, std::uint32_t gj, std::uint32_t span) {
+    double e = 0;
+    for (std::uint32_t z = 0; z <= span; ++z) {
+      for (std::uint32_t x = 0; x <= span; ++x) {
+        const double plane = terrain::planeHeight(double(x) / span, double(z) / span, double(f.heights->elevation(gi, gj)),
+                                                  double(f.heights->elevation(gi + span, gj)),
+                                                  double(f.heights->elevation(gi, gj + span)),
+                                                  double(f.heights->elevation(gi + span, gj + span)));
+        e = std::max(e, std::fabs(f.heights->elevation(gi + x, gj + z) - plane));
+      }
+    }
+    return e;
+  };
+  std::uint32_t bi = 0, bj = 0;
+  double best = 1e9;
+  for (std::uint32_t gj = hd.moduleSquares; gj + 4 < 2 * hd.moduleSquares; gj += 4) {
+    for (std::uint32_t gi = hd.moduleSquares; gi + 4 < 2 * hd.moduleSquares; gi += 4) {
+      const double e = error(gi, gj, 4);
+      if (e < best) best = e, bi = gi, bj = gj;
+    }
+  }
+  ASSERT_LT(best, 1.0) << "no flat 120 m square in module (1, 1)";
+  // A large crater (7.5 m, 2.5 m deep) in the block's second grid square,
+  // its support (30 m) clear of the posts.
+  edit::Edit e;
+  e.kind = edit::Kind::crater;
+  e.points = {{(bi + 1.5) * s, (bj + 1.5) * s}};
+  e.radius = 6.0;
+  e.depth = 2.0;
+  const auto squares = test::craterPatches(*f.heights, e, 64);
+  ASSERT_EQ(squares.size(), 1u);
+  const auto report = f.modules->remesh({}, squares);
+  ASSERT_TRUE(report.ok()) << report.error();
+  const module::Module m = readModule(*f.modules, 1, 1);
+  const auto r = f.heights->refined(bi + 1, bj + 1);
+  // The patch's detail: its largest departure from its grid square's planes.
+  double detail = 0;
+  for (std::uint32_t b = r->b0; b <= r->b1; ++b) {
+    for (std::uint32_t a = r->a0; a <= r->a1; ++a) {
+      const double plane = terrain::planeHeight(double(a) / r->cells, double(b) / r->cells, double(f.heights->elevation(bi + 1, bj + 1)),
+                                                double(f.heights->elevation(bi + 2, bj + 1)),
+                                                double(f.heights->elevation(bi + 1, bj + 2)),
+                                                double(f.heights->elevation(bi + 2, bj + 2)));
+      detail = std::max(detail, std::fabs(double(r->at(a, b)) - plane));
+    }
+  }
+  EXPECT_EQ(report->patchSquares[0], 1u);
+  for (std::size_t l = 1; l < m.levels.size(); ++l) {
+    const std::uint32_t span = 1u << l, gi = (bi + 1) / span * span, gj = (bj + 1) / span * span;
+    EXPECT_EQ(report->patchSquares[l], error(gi, gj, span) < detail ? 1u : 0u) << "level " << l;
+  }
+  ASSERT_GE(report->patchSquares[2], 1u);
+  for (std::size_t l = 1; l < m.levels.size(); ++l) {
+    if (report->patchSquares[l] == 0) continue;
+    SCOPED_TRACE("level " + std::to_string(l));
+    const module::Level& lv = m.levels[l];
+    const std::uint32_t span = 1u << l, gi = (bi + 1) / span * span, gj = (bj + 1) / span * span;
+    const std::uint32_t sa = (gi - hd.moduleSquares) / span, sb = (gj - hd.moduleSquares) / span;
+    const std::vector<Tri> skin = squareTriangles(lv, sb * lv.squaresX + sa, true);
+    EXPECT_GT(skin.size(), 100u);
+    const double x0 = sa * span * s, z0 = sb * span * s, side = span * s;
+    // The level's planes plus the patch's detail, at every fine post.
+    auto planeQ = [&](double fx, double fz) {
+      return terrain::planeHeight(fx, fz, double(f.heights->elevation(gi, gj)), double(f.heights->elevation(gi + span, gj)),
+                                  double(f.heights->elevation(gi, gj + span)),
+                                  double(f.heights->elevation(gi + span, gj + span)));
+    };
+    const double gx0 = (bi + 1) * s - hd.moduleSize, gz0 = (bj + 1) * s - hd.moduleSize;  // the grid square, module-local
+    double worst = 0, deepest = 0;
+    for (std::uint32_t b = r->b0; b <= r->b1; ++b) {
+      for (std::uint32_t a = r->a0; a <= r->a1; ++a) {
+        const double fx = double(a) / r->cells, fz = double(b) / r->cells;
+        const double grid0 = terrain::planeHeight(fx, fz, double(f.heights->elevation(bi + 1, bj + 1)),
+                                                  double(f.heights->elevation(bi + 2, bj + 1)),
+                                                  double(f.heights->elevation(bi + 1, bj + 2)),
+                                                  double(f.heights->elevation(bi + 2, bj + 2)));
+        const double x = gx0 + fx * s, z = gz0 + fz * s;
+        const double want = planeQ((x - x0) / side, (z - z0) / side) + (double(r->at(a, b)) - grid0);
+        worst = std::max(worst, std::fabs(surfaceAt(skin, x, z) - want));
+        deepest = std::min(deepest, double(r->at(a, b)) - grid0);
+      }
+    }
+    EXPECT_LE(worst, tolerance(lv));
+    EXPECT_LT(deepest, -1.5);
+    // Each point of the square under exactly one triangle, the area whole,
+    // and each side one edge from corner to corner (nothing beside it moved).
+    double area = 0;
+    for (const Tri& t : skin) area += upArea(t.v[0], t.v[1], t.v[2]);
+    EXPECT_NEAR(area / (side * side), 1.0, 1e-6);
+    std::mt19937_64 rng(l);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    int bad = 0;
+    for (int k = 0; k < 400; ++k) {
+      int holders = 0;
+      surfaceAt(skin, x0 + unit(rng) * side, z0 + unit(rng) * side, &holders);
+      bad += holders != 1;
+    }
+    EXPECT_EQ(bad, 0);
+    for (const Tri& t : skin) {
+      for (const module::Vertex& v : t.v) {
+        const bool onSide = std::fabs(v.x - x0) < 1e-3 || std::fabs(v.x - (x0 + side)) < 1e-3 ||
+                            std::fabs(v.z - z0) < 1e-3 || std::fabs(v.z - (z0 + side)) < 1e-3;
+        const bool corner = (std::fabs(v.x - x0) < 1e-3 || std::fabs(v.x - (x0 + side)) < 1e-3) &&
+                            (std::fabs(v.z - z0) < 1e-3 || std::fabs(v.z - (z0 + side)) < 1e-3);
+        EXPECT_TRUE(!onSide || corner) << "a vertex on a side at " << v.x << ", " << v.z;
+      }
+    }
+  }
+  // The crater's floor takes its class on the coarse levels too, and an
+  // object in it stands on every level's surface.
+  edit::Edit add;
+  add.kind = edit::Kind::addObject;
+  add.points = e.points;
+  add.icon = 0;
+  ASSERT_TRUE(f.modules->editObject(add).ok());
+  const module::Module withObject = readModule(*f.modules, 1, 1);
+  const auto it = std::find_if(withObject.objects.begin(), withObject.objects.end(),
+                               [](const module::Object& x) { return !module::isScattered(x.id) && x.icon == 0; });
+  ASSERT_NE(it, withObject.objects.end());
+  const std::size_t k = std::size_t(it - withObject.objects.begin());
+  for (std::size_t l = 0; l < withObject.levels.size(); ++l) {
+    const module::Level& lv = withObject.levels[l];
+    const std::uint32_t span = 1u << l;
+    const std::uint32_t sa = ((bi + 1) / span * span - hd.moduleSquares) / span, sb = ((bj + 1) / span * span - hd.moduleSquares) / span;
+    const double ground = surfaceAt(squareTriangles(lv, sb * lv.squaresX + sa, true), it->x, it->z);
+    EXPECT_NEAR(lv.objectY[k], ground, tolerance(lv)) << "level " << l;
+  }
+}
+
+TEST(EditedModules, coarseSquaresTakingACraterAcrossAModuleEdgeCarryTheSameEdgeOnBothSides) {
+  REQUIRE_BAYREUTH();
+  Fixture f = fixture(*db);
+  const pack::IndexHeader& hd = f.modules->header();
+  const double s = f.heights->spacing();
+  const std::uint32_t i = 2 * hd.moduleSquares;  // the edge between modules (1, 1) and (2, 1)
+  auto error = [&](std::uint32_t gi, std::uint32_t gj, std::uint32_t span) {
+    double e = 0;
+    for (std::uint32_t z = 0; z <= span; ++z) {
+      for (std::uint32_t x = 0; x <= span; ++x) {
+        const double plane = terrain::planeHeight(double(x) / span, double(z) / span, double(f.heights->elevation(gi, gj)),
+                                                  double(f.heights->elevation(gi + span, gj)),
+                                                  double(f.heights->elevation(gi, gj + span)),
+                                                  double(f.heights->elevation(gi + span, gj + span)));
+        e = std::max(e, std::fabs(f.heights->elevation(gi + x, gj + z) - plane));
+      }
+    }
+    return e;
+  };
+  // The flattest pair of level-1 squares either side of the edge.
+  std::uint32_t bj = 0;
+  double best = 1e9;
+  for (std::uint32_t gj = hd.moduleSquares; gj + 2 < 2 * hd.moduleSquares; gj += 2) {
+    const double e = std::max(error(i - 2, gj, 2), error(i, gj, 2));
+    if (e < best) best = e, bj = gj;
+  }
+  edit::Edit e;
+  e.kind = edit::Kind::crater;
+  e.points = {{i * s, (bj + 0.5) * s}};
+  e.radius = 6.0;
+  e.depth = 2.0;
+  const auto squares = test::craterPatches(*f.heights, e, 64);
+  ASSERT_EQ(squares.size(), 2u);
+  const auto report = f.modules->remesh({}, squares);
+  ASSERT_TRUE(report.ok()) << report.error();
+  if (best > 1.5) GTEST_SKIP() << "no flat pair of squares on the edge (error " << best << " m)";
+  ASSERT_GE(report->patchSquares[1], 2u);
+  const module::Module west = readModule(*f.modules, 1, 1), east = readModule(*f.modules, 2, 1);
+  for (std::size_t l = 0; l < west.levels.size(); ++l) {
+    const std::uint32_t span = 1u << l;
+    const std::uint32_t sb = (bj / span * span - hd.moduleSquares) / span;
+    // The shared side's skin vertices (z, y) on each module's side of it.
+    auto side = [&](const module::Level& lv, std::uint32_t sa, float x) {
+      std::set<std::pair<float, float>> out;
+      for (const Tri& t : squareTriangles(lv, sb * lv.squaresX + sa, true)) {
+        for (const module::Vertex& v : t.v) {
+          if (v.x == x) out.insert({v.z, v.y});
+        }
+      }
+      return out;
+    };
+    const auto a = side(west.levels[l], west.levels[l].squaresX - 1, float(hd.moduleSize));
+    const auto b = side(east.levels[l], 0, 0.0f);
+    EXPECT_EQ(a, b) << "level " << l;
+    if (l <= 1) {
+      EXPECT_GT(a.size(), 10u) << "level " << l << ": the fine edge";
+    }
+  }
+}
+
 // ------------------------------------------------------------ object edits
 
 TEST(EditedModules, objectEditsArePublishedAndKeptThroughRemeshing) {

@@ -80,6 +80,9 @@ struct RemeshReport {
   /// and skirts), finest first.
   std::vector<std::uint64_t> triangles;
   std::uint64_t refinedSquares = 0;  ///< level-0 squares meshed from a refined patch
+  /// Per level, lattice squares meshed from refined patches (level 0's are
+  /// refinedSquares; a coarser level's where the detail matters to it).
+  std::vector<std::uint64_t> patchSquares;
   double seconds = 0;                ///< CPU seconds of the calling thread, rebuild and publish
 };
 
