@@ -5,6 +5,7 @@
 #include "sandtable/converters/modules.h"
 
 #include "sandtable/meshing/assemble.h"
+#include "sandtable/meshing/normals.h"
 
 #include <algorithm>
 #include <atomic>
@@ -125,7 +126,7 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
         if (objects) {
           placeObjects(*o.objects, pointsOf[k], double(kx) * r.moduleSize, double(kz) * r.moduleSize, m, b.objects);
         }
-        if (o.moduleVersion >= module::kVersion2 && o.normals) fillNormals(g, r.moduleSquares, m);  // v1 has no place for them
+        if (o.moduleVersion >= module::kVersion2 && o.normals) meshing::fillNormals(grid::GridHeightField(g), r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
         auto packed = writer.value()->compress(m);

@@ -1,5 +1,5 @@
-// Module encoding choices and the v1 -> v2 database upgrade (modules.h):
-// normals from the grid, records encoded as asked, and `sandtable upgrade`.
+// The database upgrade (modules.h): records re-encoded as asked, and
+// `sandtable upgrade`.
 #include <fcntl.h>
 #include <stdio.h>  // renameat2, RENAME_EXCHANGE
 #include <unistd.h>
@@ -15,56 +15,10 @@
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/manifest.h"
 #include "sandtable/formats/materials.h"
-#include "sandtable/formats/terrain_rule.h"
 
 namespace sandtable::convert {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-/// The grid's normal at world (x, z) metres from its north-west post,
-/// interpolated on the SW-NE grid triangle there (the renderer's sampleGrid
-/// rule, runtime/render/src/module_draw.cpp), so a lattice vertex gets its
-/// post's normal exactly.
-std::array<double, 3> gridNormal(const grid::GridFile& g, double x, double z) {
-  const terrain::SquarePoint q = terrain::squareAt(x / g.spacing(), z / g.spacing(), g.postsX(), g.postsZ());
-  const std::uint32_t i = q.i, j = q.j;
-  const std::array<double, 4> w = terrain::cornerWeights(q.fx, q.fz);
-  const std::uint32_t pi[4] = {i, i + 1, i, i + 1}, pj[4] = {j, j, j + 1, j + 1};
-  std::array<double, 3> n{0, 0, 0};
-  for (int k = 0; k < 4; ++k) {
-    if (w[std::size_t(k)] == 0.0) continue;
-    const auto p = g.normal(std::min<std::uint32_t>(pi[k], g.postsX() - 1), std::min<std::uint32_t>(pj[k], g.postsZ() - 1));
-    for (int c = 0; c < 3; ++c) n[std::size_t(c)] += w[std::size_t(k)] * p[std::size_t(c)];
-  }
-  return n;
-}
-
-/// Rounds both snorm16 halves of an octahedral normal to kNormalBits
-/// significant bits (the low 16 - kNormalBits bits zero), so the module
-/// encoder drops them: 2^-9 on the octahedron is under 0.2 degrees.
-std::uint32_t roundNormal(std::uint32_t n) {
-  constexpr int drop = 16 - kNormalBits;
-  const auto r = [](std::uint32_t c) {
-    const long v = std::lround(double(std::int16_t(std::uint16_t(c))) / (1 << drop));
-    return std::uint32_t(std::uint16_t(std::int16_t(std::clamp(v * (1 << drop), -32768L, 32767L - ((1L << drop) - 1)))));
-  };
-  return r(n & 0xffffu) | r(n >> 16) << 16;
-}
-
-}  // namespace
-
-void fillNormals(const grid::GridFile& g, std::uint32_t squares, module::Module& m) {
-  const double x0 = double(m.kx) * squares * g.spacing(), z0 = double(m.kz) * squares * g.spacing();
-  for (module::Level& l : m.levels) {
-    l.normals.resize(l.vertices.size());
-    for (std::size_t k = 0; k < l.vertices.size(); ++k) {
-      const auto n = gridNormal(g, x0 + l.vertices[k].x, z0 + l.vertices[k].z);
-      l.normals[k] = roundNormal(module::octEncode(float(n[0]), float(n[1]), float(n[2])));
-    }
-  }
-}
 
 // ---------------------------------------------------------------- upgrade
 

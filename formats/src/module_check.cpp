@@ -217,7 +217,7 @@ const char* halfName(Half h) {
 
 class ModuleRun {
  public:
-  ModuleRun(const grid::GridFile& g, const pack::IndexHeader& h, const CheckOptions& o,
+  ModuleRun(const grid::HeightField& g, const pack::IndexHeader& h, const CheckOptions& o,
             const std::vector<int>& classIndex, const Module& m, std::uint64_t offset, Report& r)
       : g_(g), h_(h), o_(o), classIndex_(classIndex), m_(m), offset_(offset), r_(r) {
     who_ = "module (" + str(m.kx) + "," + str(m.kz) + ")";
@@ -242,7 +242,7 @@ class ModuleRun {
   }
 
  private:
-  const grid::GridFile& g_;
+  const grid::HeightField& g_;
   const pack::IndexHeader& h_;
   const CheckOptions& o_;
   const std::vector<int>& classIndex_;
@@ -861,7 +861,23 @@ class ModuleRun {
 
 ModuleChecker::ModuleChecker(const grid::GridFile& grid, const pack::IndexHeader& header,
                              std::string file, CheckOptions options)
+    : owned_(std::make_unique<const grid::GridHeightField>(grid)),
+      grid_(*owned_),
+      header_(header),
+      file_(std::move(file)),
+      options_(options) {
+  indexClasses();
+}
+
+ModuleChecker::~ModuleChecker() = default;
+
+ModuleChecker::ModuleChecker(const grid::HeightField& grid, const pack::IndexHeader& header,
+                             std::string file, CheckOptions options)
     : grid_(grid), header_(header), file_(std::move(file)), options_(options) {
+  indexClasses();
+}
+
+void ModuleChecker::indexClasses() {
   if (options_.materials) {
     for (std::size_t k = 0; k < options_.materials->classes.size(); ++k) {
       const std::uint16_t id = options_.materials->classes[k].id;

@@ -44,12 +44,12 @@ void plainSkin(const LevelLattice& lat, std::uint16_t material, module::Level& o
 }
 
 std::uint64_t finishLevel(const LevelLattice& lat, std::uint32_t node, float depth, std::uint16_t skirtMaterial,
-                          module::Level& level) {
+                          module::Level& level, std::span<const std::uint32_t> lineVertices) {
   level.spacing = lat.spacing;
   level.squaresX = std::uint32_t(lat.xs.size() - 1);
   level.squaresZ = std::uint32_t(lat.zs.size() - 1);
   level.skirtDepth = depth;
-  const std::uint64_t skirts = addSkirts(level, lat, node, depth, skirtMaterial);
+  const std::uint64_t skirts = addSkirts(level, lat, node, depth, skirtMaterial, lineVertices);
   computeMaxHeights(level);
   return skirts;
 }

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <utility>
 
 #include "sandtable/formats/terrain_rule.h"
@@ -125,13 +126,55 @@ std::size_t firstAtOrAbove(const std::vector<double>& xs, double spacing, double
   return i;
 }
 
+/// Extra vertices on the lattice lines, bucketed by line and sorted along
+/// it: rows[b] holds (x, vertex) of those on row b, cols[a] (z, vertex).
+struct LineVertices {
+  std::vector<std::vector<std::pair<float, std::uint32_t>>> rows, cols;
+  bool empty = true;
+};
+
+LineVertices bucketLineVertices(const Level& level, const LevelLattice& lat, std::span<const std::uint32_t> extra) {
+  LineVertices out;
+  if (extra.empty()) return out;
+  out.rows.resize(lat.zs.size());
+  out.cols.resize(lat.xs.size());
+  for (const std::uint32_t v : extra) {
+    const Vertex& p = level.vertices[v];
+    const std::size_t a = firstAtOrAbove(lat.xs, lat.spacing, double(p.x) - 1e-4);
+    const std::size_t b = firstAtOrAbove(lat.zs, lat.spacing, double(p.z) - 1e-4);
+    const bool onCol = a < lat.xs.size() && float(lat.xs[a]) == p.x;
+    const bool onRow = b < lat.zs.size() && float(lat.zs[b]) == p.z;
+    if (onCol == onRow) continue;  // a post (already a top) or on no line
+    if (onRow) out.rows[b].push_back({p.x, v});
+    else out.cols[a].push_back({p.z, v});
+    out.empty = false;
+  }
+  for (auto* lines : {&out.rows, &out.cols}) {
+    for (auto& line : *lines) std::sort(line.begin(), line.end());
+  }
+  return out;
+}
+
 /// The skirt groups and their indices, apart from the level's.
 void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, float depth, std::uint16_t material,
-                 std::vector<Group>& groups, std::vector<std::uint32_t>& indices) {
+                 std::span<const std::uint32_t> lineVertices, std::vector<Group>& groups,
+                 std::vector<std::uint32_t>& indices) {
+  const LineVertices extra = bucketLineVertices(level, lat, lineVertices);
   // Lattice vertices already emitted by the skin are reused when found at
   // exactly the lattice position, so skirts share the skin's edge vertices.
   std::vector<std::uint32_t> cache(lat.xs.size() * lat.zs.size(), UINT32_MAX);
-  for (std::uint32_t v = 0; v < level.vertices.size(); ++v) {
+  // The builder writes the posts first, row by row: when vertices 0..P-1
+  // are exactly them, the search below would find just these (the first
+  // match wins), so it is skipped (most of addSkirts' time on a big level).
+  bool postsFirst = level.vertices.size() >= cache.size();
+  for (std::size_t k = 0; postsFirst && k < cache.size(); ++k) {
+    const Vertex& p = level.vertices[k];
+    postsFirst = p.x == float(lat.xs[k % lat.xs.size()]) && p.z == float(lat.zs[k / lat.xs.size()]) && p.y == lat.heights[k];
+  }
+  if (postsFirst) {
+    for (std::size_t k = 0; k < cache.size(); ++k) cache[k] = std::uint32_t(k);
+  }
+  for (std::uint32_t v = postsFirst ? std::uint32_t(level.vertices.size()) : 0; v < level.vertices.size(); ++v) {
     const Vertex& p = level.vertices[v];
     const std::size_t a = firstAtOrAbove(lat.xs, lat.spacing, double(p.x) - 1e-4);
     const std::size_t b = firstAtOrAbove(lat.zs, lat.spacing, double(p.z) - 1e-4);
@@ -153,6 +196,20 @@ void skirtGroups(Level& level, const LevelLattice& lat, std::uint32_t node, floa
       top.clear();
       for (std::size_t k = 0; k < side.posts(); ++k) {
         top.push_back(latticeVertex(level, lat, side.column(k), side.row(k), cache));
+        if (extra.empty || k + 1 == side.posts()) continue;
+        // The surface's own vertices between this post and the next (a
+        // refined square's fine edge): the skirt follows them down.
+        const bool alongRow = side.b0 == side.b1;
+        const auto& line = alongRow ? extra.rows[side.b0] : extra.cols[side.a0];
+        const double lo = alongRow ? lat.xs[side.column(k)] : lat.zs[side.row(k)];
+        const double hi = alongRow ? lat.xs[side.column(k + 1)] : lat.zs[side.row(k + 1)];
+        auto it = std::upper_bound(line.begin(), line.end(), std::pair{float(lo), UINT32_MAX});
+        for (; it != line.end() && double(it->first) < hi; ++it) {
+          if (double(it->first) > lo && (top.empty() || level.vertices[top.back()].x != level.vertices[it->second].x ||
+                                          level.vertices[top.back()].z != level.vertices[it->second].z)) {
+            top.push_back(it->second);
+          }
+        }
       }
       appendSkirtSide(level, top, depth, indices);
     }
@@ -206,10 +263,10 @@ void mergeGroups(Level& level, const std::vector<Group>& extra, const std::vecto
 }  // namespace
 
 std::uint64_t addSkirts(Level& level, const LevelLattice& lat, std::uint32_t node, float depth,
-                        std::uint16_t material) {
+                        std::uint16_t material, std::span<const std::uint32_t> lineVertices) {
   std::vector<Group> groups;
   std::vector<std::uint32_t> indices;
-  skirtGroups(level, lat, node, depth, material, groups, indices);
+  skirtGroups(level, lat, node, depth, material, lineVertices, groups, indices);
   mergeGroups(level, groups, indices);
   return indices.size() / 3;
 }

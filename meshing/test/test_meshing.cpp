@@ -271,6 +271,42 @@ TEST(Meshing, skirtsHangAlongEveryNodeEdgeAndShareTheSkinsPosts) {
   EXPECT_EQ(skirtSquares, nodeCorners);
 }
 
+TEST(Meshing, skirtsPassThroughTheSurfacesVerticesBetweenPostsOnANodeLine) {
+  const auto g = makeGrid("skirt-lines", 17, 17, slope);
+  const ModuleWindow w = moduleWindow(grid::GridHeightField(*g), 16, 3, 0, 0);
+  const LevelLattice lat = levelLattice(grid::GridHeightField(*g), w, 0);
+  module::Level plain, fine;
+  plainSkin(lat, 1, plain);
+  plainSkin(lat, 1, fine);
+  // Two vertices on node line x = 40 (column 4) between rows 1 and 2 (a
+  // refined square's fine edge, out of order), one on no line.
+  const auto on = std::uint32_t(fine.vertices.size());
+  fine.vertices.push_back({40.0f, 90.0f, 17.5f, 0, 0});
+  fine.vertices.push_back({40.0f, 91.0f, 12.5f, 0, 0});
+  fine.vertices.push_back({41.0f, 92.0f, 12.5f, 0, 0});
+  const std::uint32_t extra[] = {on, on + 1, on + 2};
+  const std::uint64_t plainTris = addSkirts(plain, lat, 4, 2.5f, 9);
+  const std::uint64_t tris = addSkirts(fine, lat, 4, 2.5f, 9, extra);
+  // Both nodes beside the line (its west and east sides) gain a quad per
+  // vertex on it; the vertex off the lines gains nothing.
+  EXPECT_EQ(tris, plainTris + 2 * 2 * 2);
+  std::set<std::pair<float, float>> tops;  // (z, y) of skirt vertices on x = 40 between z 10 and 20
+  for (const module::Group& gr : fine.groups) {
+    if (gr.half != module::Half::skirt) continue;
+    for (std::uint32_t q = gr.firstIndex; q < gr.firstIndex + gr.indexCount; ++q) {
+      const module::Vertex& v = fine.vertices[fine.indices[q]];
+      if (v.x == 40.0f && v.z > 10.0f && v.z < 20.0f) tops.insert({v.z, v.y});
+    }
+  }
+  const std::set<std::pair<float, float>> want = {{12.5f, 91.0f}, {12.5f, 88.5f}, {17.5f, 90.0f}, {17.5f, 87.5f}};
+  EXPECT_EQ(tops, want);
+  // No extra vertices: the builder's skirts, bit for bit.
+  module::Level again;
+  plainSkin(lat, 1, again);
+  addSkirts(again, lat, 4, 2.5f, 9, {});
+  EXPECT_EQ(again.indices, plain.indices);
+}
+
 TEST(Meshing, assembledModulesHaveEveryLevelWithHeightsAndSkirts) {
   const auto g = makeGrid("assemble", 30, 21, slope);
   int calls = 0;

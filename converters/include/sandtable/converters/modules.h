@@ -97,12 +97,6 @@ module::Module buildModule(const grid::GridFile& grid, const Culture& culture,
                            std::uint32_t kx, std::uint32_t kz, LevelTotals* totals = nullptr,
                            StageSeconds* stages = nullptr);
 
-/// Fills every level's normals (module::Level::normals, octahedral) from
-/// the grid's post normals, interpolated on the grid triangle under each
-/// vertex as the renderer samples them (docs/FORMAT.md §2 "Normals"),
-/// rounded to kNormalBits significant bits per component so they compress.
-inline constexpr int kNormalBits = 10;
-void fillNormals(const grid::GridFile& grid, std::uint32_t squares, module::Module& m);
 
 struct UpgradeOptions {
   double heightStep = kBuildHeightStep;  ///< as ModuleOptions::heightStep

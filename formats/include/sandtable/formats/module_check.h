@@ -16,12 +16,14 @@
 // Thread safety: a ModuleChecker is immutable after construction; check()
 // and neighbours() may run concurrently on distinct modules.
 #include <array>
-#include <optional>
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "sandtable/formats/grid.h"
+#include "sandtable/formats/height_field.h"
 #include "sandtable/formats/materials.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
@@ -81,6 +83,12 @@ class ModuleChecker {
   /// The grid must outlive the checker.
   ModuleChecker(const grid::GridFile& grid, const pack::IndexHeader& header, std::string file,
                 CheckOptions options = {});
+  /// The same against any HeightField's posts (dynamic terrain: modules
+  /// re-meshed from edited heights are checked against those heights). The
+  /// field must outlive the checker and hold still while it checks.
+  ModuleChecker(const grid::HeightField& heights, const pack::IndexHeader& header, std::string file,
+                CheckOptions options = {});
+  ~ModuleChecker();
 
   /// Every per-module check, at every level. `offset` is the module's byte
   /// offset in the pack (named in every problem). Fills `edges` for the
@@ -97,11 +105,13 @@ class ModuleChecker {
   const CheckOptions& options() const { return options_; }
 
  private:
-  const grid::GridFile& grid_;
+  std::unique_ptr<const grid::HeightField> owned_;  ///< the GridFile constructor's adapter
+  const grid::HeightField& grid_;
   pack::IndexHeader header_;
   std::string file_;
   CheckOptions options_;
   std::vector<int> classIndex_;  ///< material id -> index in options_.materials->classes, or -1
+  void indexClasses();
 };
 
 /// One module: ModuleChecker(g, h, file, o).check(m, offset).

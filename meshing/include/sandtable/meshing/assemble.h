@@ -9,6 +9,7 @@
 // is called on the caller's thread, level by level, finest first.
 #include <cstdint>
 #include <functional>
+#include <span>
 
 #include "sandtable/formats/height_field.h"
 #include "sandtable/formats/module.h"
@@ -32,8 +33,9 @@ void plainSkin(const LevelLattice& lat, std::uint16_t material, module::Level& o
 /// Completes a level whose skin is filled: spacing and squares from the
 /// lattice, skirts of `depth` along every node edge (`node` squares, the
 /// same at every level), maxHeight. Returns the skirt triangles added.
+/// `lineVertices`: as addSkirts' (a re-meshed level's fine edge vertices).
 std::uint64_t finishLevel(const LevelLattice& lat, std::uint32_t node, float depth, std::uint16_t skirtMaterial,
-                          module::Level& level);
+                          module::Level& level, std::span<const std::uint32_t> lineVertices = {});
 
 /// Module (kx, kz) of `levels` levels with `squares` level-0 squares a
 /// side: every level's lattice, skirt depths from all of them

@@ -5,6 +5,7 @@
 //
 // Thread safety: pure functions over values and a read-only grid.
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "sandtable/formats/grid.h"
@@ -37,7 +38,12 @@ float blockRangeDepth(const grid::GridFile& g, const ModuleWindow& w, float seed
 /// material) with the indices kept contiguous per group. The level's
 /// index storage keeps its capacity when it suffices. Returns the skirt
 /// triangles added.
+/// `lineVertices` (dynamic terrain: the fine vertices of a refined square
+/// on its edges) are level vertices lying exactly on a lattice line
+/// between two posts: a node side along that line takes them as top
+/// vertices too, in order, so its skirt follows the surface's edge between
+/// the posts. Empty (the builder): the skirts above, unchanged.
 std::uint64_t addSkirts(module::Level& level, const LevelLattice& lat, std::uint32_t node, float depth,
-                        std::uint16_t material);
+                        std::uint16_t material, std::span<const std::uint32_t> lineVertices = {});
 
 }  // namespace sandtable::meshing
