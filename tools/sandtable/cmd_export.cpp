@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "db_util.h"
+#include "journal_util.h"
 #include "progress.h"
 #include "sandtable/converters/grid_export.h"
 #include "sandtable/geodesy/geodesy.h"
@@ -28,6 +29,7 @@ namespace fs = std::filesystem;
 
 struct ExportArgs {
   std::string dir;
+  std::string journal;  ///< --grid: terrain edits over the posts (journal_util.h)
   std::vector<std::uint32_t> from, to;
   std::vector<double> lonlat, xy;  ///< a point whose module is the north-west one
   std::uint32_t level = 0;
@@ -279,12 +281,11 @@ int exportGrid(const ExportArgs& a, const Database& db, const grid::HeightField&
 
 int runExport(ExportArgs& a) {
   if (a.grid) {
-    auto db = openOrReport("export", a.dir);
-    if (!db) return kUsage;
-    // The grid file's posts as they were built; an edited field (a
-    // journal's edits over these posts) is exported the same way.
-    const grid::GridHeightField field(*db->grid);
-    return exportGrid(a, *db, field);
+    // The posts as the journal left them (the database's own edits.journal
+    // when there is one; --journal none: as built).
+    auto ew = openEditedWorld("export", a.dir, a.journal, /*append=*/false, editorOptions(false, false));
+    if (!ew) return kUsage;
+    return exportGrid(a, ew->base->database(), *ew->world()->heights());
   }
   const int sources = int(!a.from.empty()) + int(!a.lonlat.empty()) + int(!a.xy.empty()) + int(!a.icon.empty());
   if (sources != 1) {
@@ -458,6 +459,9 @@ void registerExport(CLI::App& root, Commands& c) {
   }
   grid->excludes(lonlat)->excludes(icon);
   grid->excludes(sub->get_option("--xy"));
+  sub->add_option("--journal", a->journal,
+                  "--grid: terrain edits over the posts (default: DB/edits.journal when present; none: as built)")
+      ->needs(grid);
   sub->add_flag("--json", a->json, "Print a JSON summary");
   c.add(sub, [a] {
     ExportArgs args = *a;  // runExport fills in --module from a point

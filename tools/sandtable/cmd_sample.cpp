@@ -8,6 +8,7 @@
 
 #include "commands.h"
 #include "db_util.h"
+#include "journal_util.h"
 #include "sandtable/geodesy/geodesy.h"
 #include "sandtable/world/terrain.h"
 
@@ -18,6 +19,7 @@ struct SampleArgs {
   std::string dir;
   std::vector<double> lonlat, xy;
   std::string points;
+  std::string journal;
   bool json = false;
 };
 
@@ -52,11 +54,13 @@ Result<std::vector<std::array<double, 2>>> readPoints(const std::string& path) {
 int runSample(const SampleArgs& a) {
   const int modes = !a.lonlat.empty() + !a.xy.empty() + !a.points.empty();
   if (modes != 1) return usageError("sample", "give exactly one of --lonlat LON LAT, --xy E N or --points FILE");
-  auto db = openOrReport("sample", a.dir);
-  if (!db) return kUsage;
-  auto geo = geodesy::Projection::create(db->manifest.crsWkt);
+  // The ground as the journal left it (the database's own edits.journal
+  // when there is one; --journal none: as built).
+  auto ew = openEditedWorld("sample", a.dir, a.journal, /*append=*/false, editorOptions(false, false));
+  if (!ew) return kUsage;
+  auto geo = geodesy::Projection::create(ew->base->manifest().crsWkt);
   if (!geo) return usageError("sample", geo.error());
-  world::Terrain terrain(db->grid);
+  world::Terrain terrain(ew->world()->heights());
 
   std::vector<Point> pts;
   if (!a.points.empty()) {
@@ -129,6 +133,8 @@ void registerSample(CLI::App& root, Commands& c) {
   sub->add_option("--lonlat", a->lonlat, "LON LAT in WGS 84 degrees")->expected(2);
   sub->add_option("--xy", a->xy, "EASTING NORTHING in the database CRS")->expected(2);
   sub->add_option("--points", a->points, "File of \"lon lat\" lines ('#' starts a comment)");
+  sub->add_option("--journal", a->journal,
+                  "Terrain edits to sample over (default: DB/edits.journal when present; none: the ground as built)");
   sub->add_flag("--json", a->json, "Print JSON");
   c.add(sub, [a] { return runSample(*a); });
 }

@@ -18,7 +18,9 @@
 #include "sandtable/sim/collision_response.h"
 #include "sandtable/sim/report.h"
 #include "sandtable/sim/step_host.h"
+#include "journal_util.h"
 #include "sim_setup.h"
+#include "terrain_link.h"
 
 namespace sandtable::cli {
 namespace {
@@ -31,7 +33,7 @@ std::atomic<bool> gCancel{false};
 void onSignal(int) { gCancel.store(true); }
 
 struct SimArgs {
-  std::string db, scenario, record, collisions;
+  std::string db, scenario, record, collisions, journal;
   double duration = 120;
   std::optional<std::uint64_t> seed;
   bool json = false, bruteForce = false, realTime = false;
@@ -61,8 +63,15 @@ int runSim(const SimArgs& a) {
     if (!table) return reportProblems("sim", table.problems());
     options.table = std::move(table.value());
   }
-  const std::shared_ptr<const paging::World> world = openWorldOrReport("sim", a.db);
-  if (!world) return kUsage;
+  // On a network every process orders edits by (time, origin, id): the
+  // origin is this simulation's DIS site and application.
+  if (!a.dis.endpoint.empty()) options.editOrigin = edit::Origin(a.dis.site << 16 | a.dis.application);
+  // The ground the journal left (the database's own edits.journal when
+  // there is one); the run's edits are appended only to a --journal given.
+  const bool append = !a.journal.empty() && a.journal != "none";
+  auto ew = openEditedWorld("sim", a.db, a.journal, append, editorOptions(true, false));
+  if (!ew) return kUsage;
+  const std::shared_ptr<const paging::World> world = ew->world();
   auto setup = setUpSimulation("sim", *world, a.scenario, a.seed, options);
   if (!setup) return kUsage;
   sim::Simulation& s = *setup->sim;
@@ -83,6 +92,8 @@ int runSim(const SimArgs& a) {
   host.setCancel(&gCancel);
   if (a.realTime || link) host.setPacing(sim::Pacing::realTime);  // a networked run keeps the exercise's time
   if (link) link->gateway->attach(host);
+  const auto terrain = linkTerrain(s, *ew->editor, link.get(), setup->terrainEdits);
+  terrain->attach(host);
   const std::uint64_t steps = host.stepsFor(a.duration);
   host.addAfterStep([&](const sim::Simulation& at) {
     const std::uint64_t k = at.steps();
@@ -101,6 +112,9 @@ int runSim(const SimArgs& a) {
     return usageError("sim", "cancelled at " + std::to_string(s.timeS()) + " s; nothing was written");
   }
   progress.done();
+  ew->editor->wait();
+  if (Status st = ew->editor->flush(); !st) return reportProblems("sim", st.problems());
+  const std::string journal = append ? ew->journal : std::string();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!a.record.empty()) {
     s.finishRecording();
@@ -111,12 +125,16 @@ int runSim(const SimArgs& a) {
                         {"wall_s", wall},   {"summary", sim::summaryJson(s)}, {"events", sim::eventsJson(s)}};
     if (!a.record.empty()) j["recorded"] = a.record;
     if (link) j["dis"] = disJson(*link, s);
+    j["terrain"] = terrainJson(*terrain, *ew->editor, journal);
     std::printf("%s\n", j.dump(1).c_str());
   } else {
     std::printf("%s", sim::summaryText(s).c_str());
     std::printf("wall time %.2f s (%.1fx real time)\n", wall, wall > 0 ? s.timeS() / wall : 0.0);
     if (!a.record.empty()) std::printf("recorded %s\n", a.record.c_str());
     if (link) std::printf("%s", disSummary(*link).c_str());
+    if (terrain->counters().applied || !ew->editor->edits().empty()) {
+      std::printf("%s", terrainSummary(*terrain, *ew->editor, journal).c_str());
+    }
   }
   return kOk;
 }
@@ -145,6 +163,9 @@ void registerSim(CLI::App& root, Commands& c) {
   sub->add_flag("--real-time", a->realTime,
                 "Pace the steps to the wall clock instead of running as fast as possible (always, with --dis)");
   addDisOptions(sub, a->dis);
+  sub->add_option("--journal", a->journal,
+                  "Terrain edits: start from FILE and append the run's edits to it (default: start from "
+                  "DB/edits.journal when present and keep the run's edits in memory; none: the ground as built)");
   c.add(sub, [a] { return runSim(*a); });
 }
 

@@ -35,6 +35,7 @@ void registerIcons(CLI::App& root, Commands& c);
 void registerSim(CLI::App& root, Commands& c);
 void registerScript(CLI::App& root, Commands& c);
 void registerDis(CLI::App& root, Commands& c);
+void registerEdits(CLI::App& root, Commands& c);
 
 /// Prints "sandtable CMD: error: MSG" to stderr and returns kUsage. When the
 /// command was given --json, main also prints every error of the run as one

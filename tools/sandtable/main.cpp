@@ -101,6 +101,7 @@ int main(int argc, char** argv) {
   registerSim(app, commands);
   registerScript(app, commands);
   registerDis(app, commands);
+  registerEdits(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
