@@ -268,18 +268,32 @@ void addApply(CLI::App& edits, Commands& c) {
   apply->require_subcommand(1);
   apply->footer(
       "Examples:\n"
-      "  sandtable edits apply db crater --lonlat 7.42 43.74 --radius 3 --depth 1.2\n"
+      "  sandtable edits apply db --journal battle.journal crater --lonlat 7.42 43.74 --radius 3 --depth 1.2\n"
       "  sandtable edits apply db berm --line \"11.57 49.96, 11.58 49.96\" --width 2 --height 1.5\n"
       "  sandtable edits apply db flatten --polygon \"E N, E N, E N\" --projected --height 412\n"
       "The journal is DB/edits.journal unless --journal FILE; every edit is appended to it.");
+  // DB and --journal go before the kind (`edits apply DB --journal J
+  // crater ...`) or after it (`edits apply crater DB ...`).
+  auto common = std::make_shared<ApplyArgs>();
+  apply->add_option("DB", common->dir, "Database directory");
+  apply->add_option("--journal", common->journal, "Journal to append to (default: DB/edits.journal)");
   const auto sub = [&](const char* name, const char* what) {
     auto a = std::make_shared<ApplyArgs>();
     a->kind = name;
     auto* s = apply->add_subcommand(name, what);
-    s->add_option("DB", a->dir, "Database directory")->required();
+    s->add_option("DB", a->dir, "Database directory (or give it before the kind)");
     s->add_option("--journal", a->journal, "Journal to append to (default: DB/edits.journal)");
     s->add_flag("--json", a->json, "Print JSON");
-    c.add(s, [a] { return runApply(*a); });
+    c.add(s, [a, common] {
+      if (a->dir.empty()) a->dir = common->dir;
+      if (a->journal.empty()) a->journal = common->journal;
+      if (a->dir.empty()) {
+        return usageError("edits apply " + a->kind,
+                          "the database is missing: give DB before the kind (`edits apply DB " + a->kind +
+                              " ...`) or after it");
+      }
+      return runApply(*a);
+    });
     return std::pair{s, a};
   };
   {

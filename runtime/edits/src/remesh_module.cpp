@@ -169,11 +169,11 @@ class Rebuilder {
     b = square / nx;
   }
 
-  /// How much the ground under (x, z) moved on level l: the change of the
-  /// half-plane `half` of lattice square `square` (or of the plane under
-  /// the point when `half` is skirt: objects). Exactly 0 where none of the
+  /// The ground under (x, z) on level l before and after the edit: the
+  /// half-plane `half` of lattice square `square` (or the plane under the
+  /// point when `half` is skirt: objects). Empty where none of the
   /// square's posts changed.
-  double planeChange(int l, std::uint32_t square, Half half, double x, double z) const {
+  std::optional<std::pair<double, double>> planes(int l, std::uint32_t square, Half half, double x, double z) const {
     const LevelLattice& o = before_[std::size_t(l)];
     const LevelLattice& n = after_[std::size_t(l)];
     const std::size_t w = o.xs.size();
@@ -187,14 +187,25 @@ class Rebuilder {
     const std::size_t k[4] = {b * w + a, b * w + a + 1, (b + 1) * w + a, (b + 1) * w + a + 1};
     bool same = true;
     for (const std::size_t c : k) same = same && o.heights[c] == n.heights[c];
-    if (same) return 0;
+    if (same) return std::nullopt;
     const double fx = (x - o.xs[a]) / (o.xs[a + 1] - o.xs[a]), fz = (z - o.zs[b]) / (o.zs[b + 1] - o.zs[b]);
     auto plane = [&](const LevelLattice& lat) {
       const double nw = lat.heights[k[0]], ne = lat.heights[k[1]], sw = lat.heights[k[2]], se = lat.heights[k[3]];
       return half == Half::skirt ? terrain::planeHeight(fx, fz, nw, ne, sw, se)
                                  : terrain::halfPlane(half, fx, fz, nw, ne, sw, se);
     };
-    return plane(n) - plane(o);
+    return std::pair{plane(o), plane(n)};
+  }
+
+  /// Where a kept vertex at height y over ground `was` goes when the ground
+  /// becomes `now`. A vertex on the ground but for the base pack's height
+  /// quantisation goes exactly onto the new ground: moving it by the change
+  /// would carry the old rounding into the next encoding, up to a whole
+  /// step off the planes (validate's lattice and planarity checks allow
+  /// half a step).
+  static double follow(double y, double was, double now, double step) {
+    if (std::fabs(y - was) <= 0.5 * step + 1e-6 * std::max(1.0, std::fabs(was))) return now;
+    return y + (now - was);
   }
 
   void rebuildLevel(int l, Level& out) {
@@ -239,12 +250,14 @@ class Rebuilder {
       if (v >= posts && owner[v] == UINT32_MAX) continue;
       Vertex p = verts[v];
       if (v < posts) {
-        const double d = double(after_[std::size_t(l)].heights[v]) - double(before_[std::size_t(l)].heights[v]);
-        p.y = float(double(p.y) + d);
+        const double was = before_[std::size_t(l)].heights[v], now = after_[std::size_t(l)].heights[v];
+        if (was != now) p.y = float(follow(p.y, was, now, b.heightStep));
       } else {
         const Group& g = b.groups[owner[v]];
         const Half half = g.priority < module::kPriorityObject ? g.half : Half::skirt;
-        p.y = float(double(p.y) + planeChange(l, g.square, half, p.x, p.z));
+        if (const auto ground = planes(l, g.square, half, p.x, p.z)) {
+          p.y = float(follow(p.y, ground->first, ground->second, b.heightStep));
+        }
       }
       remap[v] = std::uint32_t(out.vertices.size());
       out.vertices.push_back(p);

@@ -673,7 +673,7 @@ class SmallGrid : public ::testing::Test {
 TEST_F(SmallGrid, refusesBadEditsAndEditsOutsideTheGridWithClearMessages) {
   auto r = heights_->apply(crater(50, 50, -1, 1));
   ASSERT_FALSE(r);
-  EXPECT_NE(r.message().find("edits: EditedHeights::apply: edit: crater: radius"), std::string::npos) << r.message();
+  EXPECT_NE(r.message().find("edits: EditedHeights::apply: edit: crater: Edit::radius"), std::string::npos) << r.message();
   edit::Edit obj;
   obj.kind = edit::Kind::removeObject;
   obj.id = 4;

@@ -200,7 +200,7 @@ class Simulation {
 
   /// The terrain edits the steps since the last call made, in step order
   /// (craters where munitions hit the ground). The step host applies them
-  /// (sim/terrain_edits.h) and calls objectsInCrater for each crater.
+  /// (terrain_edits.h) and calls objectsInCrater for each crater.
   std::vector<edit::Edit> takeTerrainEdits() { return std::exchange(pendingEdits_, {}); }
   /// The id the next edit this simulation makes gets (ids of one origin
   /// must not repeat: a journal replayed before the run holds earlier ones).
