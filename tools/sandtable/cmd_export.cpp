@@ -29,7 +29,7 @@ namespace fs = std::filesystem;
 
 struct ExportArgs {
   std::string dir;
-  std::string journal;  ///< --grid: terrain edits over the posts (journal_util.h)
+  std::string journal;  ///< terrain edits over the posts and modules (journal_util.h)
   std::vector<std::uint32_t> from, to;
   std::vector<double> lonlat, xy;  ///< a point whose module is the north-west one
   std::uint32_t level = 0;
@@ -279,6 +279,15 @@ int exportGrid(const ExportArgs& a, const Database& db, const grid::HeightField&
   return kOk;
 }
 
+/// Module (kx, kz) from the edited world when there is one, else the pack.
+Result<module::Module> readModule(const Database& db, const std::optional<EditedWorld>& edited, std::uint32_t kx,
+                                  std::uint32_t kz) {
+  if (!edited) return db.modules->read(kx, kz);
+  module::Module m;
+  if (auto r = edited->world()->modules()->read(kx, kz, m); !r) return r.problems();
+  return m;
+}
+
 int runExport(ExportArgs& a) {
   if (a.grid) {
     // The posts as the journal left them (the database's own edits.journal
@@ -303,8 +312,14 @@ int runExport(ExportArgs& a) {
   if (!db->modules) {
     return usageError("export", a.dir + " has no load modules (built with --no-modules?); rebuild it with modules");
   }
-  const pack::PackReader& pack = *db->modules;
-  const pack::IndexHeader& h = pack.header();
+  // The modules as the journal left them, re-meshed (the database's own
+  // edits.journal when there is one; --journal none: as built).
+  std::optional<EditedWorld> edited;
+  if (!journalPath(a.dir, a.journal).empty()) {
+    edited = openEditedWorld("export", a.dir, a.journal, /*append=*/false, editorOptions(true, false));
+    if (!edited) return kUsage;
+  }
+  const pack::IndexHeader& h = db->modules->header();
   std::optional<Point> point;
   if (a.from.empty()) {
     point.emplace();
@@ -341,7 +356,7 @@ int runExport(ExportArgs& a) {
   const double edge = double(h.moduleSquares) * db->grid->spacing();
   for (std::uint32_t kz = kz0; kz <= kz1; ++kz) {
     for (std::uint32_t kx = kx0; kx <= kx1; ++kx) {
-      auto m = pack.read(kx, kz);
+      Result<module::Module> m = readModule(*db, edited, kx, kz);
       if (!m) {
         reportProblems("export", m.problems());
         std::fprintf(stderr, "sandtable export: hint: run `sandtable validate %s` for a full report\n", a.dir.c_str());
@@ -460,8 +475,8 @@ void registerExport(CLI::App& root, Commands& c) {
   grid->excludes(lonlat)->excludes(icon);
   grid->excludes(sub->get_option("--xy"));
   sub->add_option("--journal", a->journal,
-                  "--grid: terrain edits over the posts (default: DB/edits.journal when present; none: as built)")
-      ->needs(grid);
+                  "Terrain edits: the grid's posts and the modules re-meshed as the journal leaves them "
+                  "(default: DB/edits.journal when present; none: as built)");
   sub->add_flag("--json", a->json, "Print a JSON summary");
   c.add(sub, [a] {
     ExportArgs args = *a;  // runExport fills in --module from a point

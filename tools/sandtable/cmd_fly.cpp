@@ -29,6 +29,8 @@
 #include "sandtable/viewer/video.h"
 #include "sandtable/viewer/x11_window.h"
 #include "dis_link.h"
+#include "journal_util.h"
+#include "terrain_link.h"
 #include "sim_setup.h"
 
 namespace sandtable::cli {
@@ -43,6 +45,7 @@ constexpr const char* kName = "fly";
 
 struct FlyArgs {
   std::string database;
+  std::string journal;  ///< --journal (journal_util.h)
   std::string pngDir;
   std::uint32_t frames = 30;
   std::string size = "1280x720";
@@ -474,9 +477,29 @@ void watchNetwork(DisLink& link, viewer::SimSessionOptions& so) {
 /// The scenario's simulation for the session, and the stealth eye's start
 /// near its entities; "" or a usage error (kUsage with the problem printed
 /// when the text is "-").
+/// The terrain edits on the map: a ring at each crater and at each point of
+/// a berm, ditch or flattened polygon (the newest kMaxEditMarks).
+std::vector<render::MapMark> editMarks(const edits::Editor& editor) {
+  constexpr std::size_t kMaxEditMarks = 4096;
+  std::vector<render::MapMark> marks;
+  const auto& all = editor.edits();
+  for (std::size_t k = all.size() > kMaxEditMarks ? all.size() - kMaxEditMarks : 0; k < all.size(); ++k) {
+    for (const auto& p : all[k].points) {
+      render::MapMark m;
+      m.x = p[0], m.z = p[1];
+      m.edit = true;
+      marks.push_back(m);
+    }
+  }
+  return marks;
+}
+
 std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightOptions& o, FlySessionSettings& ss,
-                          std::unique_ptr<DisLink>& link) {
-  auto setup = setUpSimulation(kName, shared, a.scenario, a.seed);
+                          std::unique_ptr<DisLink>& link, edits::Editor& editor,
+                          std::unique_ptr<sim::TerrainEditing>& terrain) {
+  sim::SimOptions options;
+  if (!a.dis.endpoint.empty()) options.editOrigin = edit::Origin(a.dis.site << 16 | a.dis.application);
+  auto setup = setUpSimulation(kName, shared, a.scenario, a.seed, options);
   if (!setup) return "-";
   viewer::SimSessionOptions so;
   so.attach = a.attach;
@@ -491,10 +514,20 @@ std::string setUpScenario(const FlyArgs& a, const paging::World& shared, FlightO
     watchNetwork(*link, so);
     ss.realTimeHeadless = true;
   }
+  // The panel counts the terrain edits, the map marks them.
+  so.extraPanel = [network = so.extraPanel, &editor] {
+    std::vector<std::string> lines = network ? network() : std::vector<std::string>{};
+    lines.push_back(terrainPanelLine(editor));
+    return lines;
+  };
+  so.extraMarks = [&editor] { return editMarks(editor); };
   const std::shared_ptr<sim::SimWorld> world = setup->world;
+  const std::vector<edit::Edit> preplaced = std::move(setup->terrainEdits);
   auto session = viewer::SimSession::create(std::move(setup->sim), so);
   if (!session) return session.problems().front().message;
   if (link) link->gateway->attach(session.value()->stepHost());
+  terrain = linkTerrain(session.value()->simulation(), editor, link.get(), preplaced);
+  terrain->attach(session.value()->stepHost());
   const sim::Simulation& s = session.value()->simulation();
   // Unless told where, the stealth eye starts behind the scenario's focus.
   std::optional<std::uint32_t> focus = session.value()->focus();
@@ -544,9 +577,13 @@ int run(FlyArgs& a) {
   if (std::string err = checkArgs(a); !err.empty()) return usageError(kName, err);
   // The run's one database open: the flight, the map and the simulation
   // share this World.
-  auto opened = paging::World::open(a.database);
-  if (!opened) return usageError(kName, opened.error());
-  const std::shared_ptr<const paging::World> world = opened.value();
+  // The ground the journal left (the database's own edits.journal when
+  // there is one); a scenario's edits are appended to a --journal given.
+  const bool append = !a.journal.empty() && a.journal != "none" && !a.scenario.empty();
+  auto ew = openEditedWorld(kName, a.database, a.journal, append, editorOptions(true, true));
+  if (!ew) return kUsage;
+  ew->editor->wait();  // the journal's ground, re-meshed, from the first frame
+  const std::shared_ptr<const paging::World> world = ew->world();
   const Database* db = &world->database();
   auto geo = geodesy::Projection::create(db->manifest.crsWkt);
   if (!geo) return usageError(kName, geo.error());
@@ -556,8 +593,11 @@ int run(FlyArgs& a) {
   }
   FlySessionSettings ss;
   std::unique_ptr<DisLink> link;  // outlives the flight: the session's hooks call its gateway
-  if (!a.scenario.empty() || !a.dis.endpoint.empty()) {
-    const std::string err = setUpScenario(a, *world, o, ss, link);
+  std::unique_ptr<sim::TerrainEditing> terrain;  // likewise
+  // A journal alone also gets a (still) simulation: its panel counts the
+  // edits and its map marks them.
+  if (!a.scenario.empty() || !a.dis.endpoint.empty() || !ew->editor->edits().empty()) {
+    const std::string err = setUpScenario(a, *world, o, ss, link, *ew->editor, terrain);
     if (err == "-") return kUsage;  // setUpSimulation printed the problems
     if (!err.empty()) return usageError(kName, err);
   }
@@ -602,8 +642,13 @@ int run(FlyArgs& a) {
     std::fprintf(stderr, "sandtable fly: error: %s\n", withFlags(sessionStatus.problems().front().message).c_str());
     return kProblems;
   }
+  ew->editor->wait();
+  if (Status st = ew->editor->flush(); !st) return reportProblems(kName, st.problems());
   printSummary(o, report.value(), session, a);
   if (link) std::printf("  %s", disSummary(*link).c_str());
+  if (terrain && !ew->editor->edits().empty()) {
+    std::printf("  %s", terrainSummary(*terrain, *ew->editor, append ? ew->journal : std::string()).c_str());
+  }
   return kOk;
 }
 
@@ -692,6 +737,9 @@ void registerFly(CLI::App& root, Commands& c) {
   sub->add_option("--video", args->videoFile, "Also encode the frames into FILE (e.g. flight.mp4) with ffmpeg");
   sub->add_option("--screenshot-dir", args->screenshotDir,
                   "Where p / F12 write screenshot_NNNN.png (default: the --png directory, else .)");
+  sub->add_option("--journal", args->journal,
+                  "Terrain edits: start from FILE (default: DB/edits.journal when present; none: the ground as "
+                  "built); with --scenario the run's edits are appended to it");
   sub->add_option("--scenario", args->scenario,
                   "Run this scenario's entities (docs/SCRIPTS.md) and draw them (docs/VIEWER.md, Entities)");
   sub->add_option("--seed", args->seed, "--scenario: random seed (default: the scenario's seed line, else 1)");

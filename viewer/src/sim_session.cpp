@@ -306,6 +306,7 @@ void SimSession::fill(scene::DynamicScene& out) const {
 
 std::vector<render::MapMark> SimSession::mapMarks() const {
   std::vector<render::MapMark> marks;
+  if (options_.extraMarks) marks = options_.extraMarks();
   for (const sim::Entity& e : sim_->entities()) {
     if (!isTarget(e)) continue;
     marks.push_back({e.position.x(), e.position.z(), e.headingDeg, e.force, e.alive, attached_ == e.id});

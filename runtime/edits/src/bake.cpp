@@ -143,7 +143,9 @@ Result<BakeReport> bake(const paging::World& base, const std::vector<edit::Edit>
   auto heights = std::make_shared<EditedHeights>(base.heights());
   auto posts = std::make_shared<PostsOnly>(heights);
   std::unique_ptr<EditedModules> modules;
-  if (base.modules()) modules = std::make_unique<EditedModules>(base.modules(), base.heights(), posts);
+  if (base.modules()) {
+    modules = std::make_unique<EditedModules>(base.modules(), base.heights(), posts, remeshOptionsFor(base));
+  }
   for (const edit::Edit& e : sorted) {
     if (work.cancelled()) return Problem{out.string(), 0, "bake: cancelled; nothing was written"};
     const std::string what = "bake: edit " + std::to_string(e.id) + " (" + std::string(edit::kindName(e.kind)) + "): ";

@@ -53,6 +53,10 @@ Result<std::unique_ptr<Editor>> Editor::open(std::shared_ptr<const paging::World
   std::unique_ptr<Editor> ed(new Editor());
   ed->base_ = base;
   ed->options_ = std::move(options);
+  // What the caller left unset comes from the database.
+  const RemeshOptions implied = remeshOptionsFor(*base);
+  if (!ed->options_.remesh.craterMaterial) ed->options_.remesh.craterMaterial = implied.craterMaterial;
+  if (ed->options_.remesh.iconCylinders.empty()) ed->options_.remesh.iconCylinders = implied.iconCylinders;
   ed->heights_ = std::make_shared<EditedHeights>(base->heights());
   if (base->modules() && ed->options_.meshModules) {
     ed->modules_ = std::make_shared<EditedModules>(base->modules(), base->heights(), ed->heights_, ed->options_.remesh);

@@ -302,4 +302,21 @@ std::uint64_t EditedModules::changedSince(std::uint64_t since, std::vector<pagin
   return std::max<std::uint64_t>(since, log_.size());
 }
 
+RemeshOptions remeshOptionsFor(const paging::World& world) {
+  RemeshOptions o;
+  if (const auto& table = world.materials()) {
+    for (const char* name : {"crater", "soil"}) {
+      const materials::Class* c = table->findByName(name);
+      if (c && c->kind == materials::Kind::area) {
+        o.craterMaterial = c->id;
+        break;
+      }
+    }
+  }
+  if (const auto& icons = world.icons()) {
+    for (const iconpack::Icon& icon : icons->icons) o.iconCylinders.push_back({icon.cylinderRadius, icon.cylinderHeight});
+  }
+  return o;
+}
+
 }  // namespace sandtable::edits

@@ -219,10 +219,23 @@ void MapView::drawMarks(Image& frame, const MapLayout& box, const std::vector<Ma
   const int x0 = std::max(0, box.x), y0 = std::max(0, box.y);
   const int x1 = std::min(int(frame.width), box.x + box.width), y1 = std::min(int(frame.height), box.y + box.height);
   const int size = std::max(3, box.width / 60);
-  // The dead under the living, the selected one last (on top).
+  // Terrain edits first, as rings; the dead under the living, the selected
+  // one last (on top).
+  for (const MapMark& m : marks) {
+    int px = 0, py = 0;
+    if (!m.edit || !pixelOf(box, m.x, m.z, px, py)) continue;
+    const int r = std::max(2, size / 2);
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const int d2 = dx * dx + dy * dy;
+        if (d2 > r * r || d2 < (r - 1) * (r - 1)) continue;
+        if (px + dx >= x0 && px + dx < x1 && py + dy >= y0 && py + dy < y1) put(frame, px + dx, py + dy, kEditMarkColour);
+      }
+    }
+  }
   for (const int pass : {0, 1, 2}) {
     for (const MapMark& m : marks) {
-      if (pass != (m.selected ? 2 : m.alive ? 1 : 0)) continue;
+      if (m.edit || pass != (m.selected ? 2 : m.alive ? 1 : 0)) continue;
       int px = 0, py = 0;
       if (!pixelOf(box, m.x, m.z, px, py)) continue;
       if (!m.alive) {

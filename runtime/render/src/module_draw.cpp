@@ -60,6 +60,32 @@ struct GridSample {
   float water = 0;
 };
 
+/// Tilts normal `n` at square point `q` by the slope of a refined square's
+/// detail (its fine surface less the square's planes; docs/DYNAMIC.md), so
+/// that a crater far smaller than a post is lit as one. Unchanged outside a
+/// patch.
+void addDetailSlope(const grid::HeightField& g, const terrain::SquarePoint& q, Eigen::Vector3d& n) {
+  const auto r = g.refined(q.i, q.j);
+  if (!r || r->cells == 0 || !(n.y() > 0)) return;
+  const double nw = g.elevation(q.i, q.j), ne = g.elevation(q.i + 1, q.j);
+  const double sw = g.elevation(q.i, q.j + 1), se = g.elevation(q.i + 1, q.j + 1);
+  bool ok = true;
+  const auto detail = [&](double fx, double fz) {
+    bool inside = false;
+    const double y = grid::refinedHeight(*r, fx, fz, inside);
+    ok = ok && inside;
+    return y - terrain::planeHeight(fx, fz, nw, ne, sw, se);
+  };
+  const double h = 0.5 / double(r->cells);
+  const double x0 = std::max(0.0, q.fx - h), x1 = std::min(1.0, q.fx + h);
+  const double z0 = std::max(0.0, q.fz - h), z1 = std::min(1.0, q.fz + h);
+  const double ddx = (detail(x1, q.fz) - detail(x0, q.fz)) / ((x1 - x0) * g.spacing());
+  const double ddz = (detail(q.fx, z1) - detail(q.fx, z0)) / ((z1 - z0) * g.spacing());
+  if (!ok) return;
+  const double sx = -n.x() / n.y() + ddx, sz = -n.z() / n.y() + ddz;
+  n = Eigen::Vector3d(-sx, 1.0, -sz).normalized();
+}
+
 GridSample sampleGrid(const grid::HeightField& g, const std::array<float, 256>& water, double x, double z) {
   const terrain::SquarePoint q = terrain::squareAt(x / g.spacing(), z / g.spacing(), g.postsX(), g.postsZ());
   const std::uint32_t i = q.i, j = q.j;
@@ -74,7 +100,9 @@ GridSample sampleGrid(const grid::HeightField& g, const std::array<float, 256>& 
     n += w[k] * Eigen::Vector3d(p[0], p[1], p[2]);
     wet += w[k] * water[g.material(posts[k][0], posts[k][1])];
   }
-  if (n.norm() > 0) out.normal = n.normalized().cast<float>();
+  if (n.norm() > 0) n.normalize();
+  if (g.anyRefined()) addDetailSlope(g, q, n);
+  if (n.norm() > 0) out.normal = n.cast<float>();
   out.water = float(wet);
   return out;
 }
@@ -308,6 +336,7 @@ struct UploadScratch {
   std::vector<std::vector<const module::Group*>> byNode;
   std::vector<std::vector<std::uint32_t>> squaresByNode;
   std::vector<std::uint32_t> colour, skinTriangles;
+  std::vector<std::uint8_t> offLattice;
   std::vector<float> area;
 };
 
@@ -369,6 +398,31 @@ void tightenSkirtFeet(const paging::ResidentModule& m, std::uint32_t levelIndex,
 
 }  // namespace
 
+/// Marks the skirt feet of `level`: vertices that only skirt groups use and
+/// that lie below the lattice surface. Not every vertex below the lattice
+/// is a foot: a crater's floor and a ditch are skin below it
+/// (docs/DYNAMIC.md), and raising them as feet would fill the crater.
+void markFeet(const module::Level& level, const PostMap& posts, std::vector<std::uint8_t>& isFoot) {
+  // 1: used by a skirt, 2: used by anything else.
+  isFoot.assign(level.vertices.size(), 0);
+  for (const module::Group& g : level.groups) {
+    const std::uint8_t use = g.half == module::Half::skirt ? 1 : 2;
+    const std::size_t end = std::min<std::size_t>(std::size_t(g.firstIndex) + g.indexCount, level.indices.size());
+    for (std::size_t i = g.firstIndex; i < end; ++i) {
+      if (level.indices[i] < level.vertices.size()) isFoot[level.indices[i]] |= use;
+    }
+  }
+  for (std::size_t k = 0; k < level.vertices.size(); ++k) {
+    if (isFoot[k] != 1) {
+      isFoot[k] = 0;
+      continue;
+    }
+    const auto& v = level.vertices[k];
+    const auto yl = posts.heightAt(v.x, v.z);
+    isFoot[k] = yl && v.y < *yl - 0.01;
+  }
+}
+
 void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, const MeshSettings& s, LevelMesh& out) {
   UploadScratch& sc = scratch();
   const module::Level& level = m.levels[levelIndex];
@@ -385,12 +439,12 @@ void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, c
   // lowest surface of every level there, so a skirt from a morphed edge
   // down to its unmoved foot still covers any neighbour's edge.
   sc.delta.assign(level.vertices.size(), 0.0f);
-  sc.isFoot.assign(level.vertices.size(), 0);
+  markFeet(level, posts, sc.isFoot);
   for (std::size_t k = 0; k < level.vertices.size(); ++k) {
     const auto& v = level.vertices[k];
+    if (!coarser || sc.isFoot[k]) continue;
     const auto yl = posts.heightAt(v.x, v.z);
-    sc.isFoot[k] = yl && v.y < *yl - 0.01;
-    if (!coarser || !yl || sc.isFoot[k]) continue;
+    if (!yl) continue;
     if (const auto yc = sc.posts[levelIndex + 1].heightAt(v.x, v.z)) sc.delta[k] = float(*yc - *yl);
   }
   const bool flat = s.flat;
@@ -440,9 +494,19 @@ void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, c
   sc.colour.assign(2 * squares, packColour(fallback.upper, SurfaceKind::colour));
   sc.area.assign(2 * squares, -1.0f);
   sc.skinTriangles.assign(squares, 0);
+  sc.offLattice.assign(squares, 0);
   for (const module::Group& g : level.groups) {
     if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt || g.square >= squares) continue;
     sc.skinTriangles[g.square] += g.indexCount / 3;
+    // A square re-meshed with a refined patch (docs/DYNAMIC.md) has skin
+    // off its lattice planes (by more than the height rounding of the
+    // vertex and its posts): a lattice drawn there would cover a crater.
+    const double off = std::max(0.02, 2.0 * level.heightStep);
+    for (std::uint32_t i = 0; i < g.indexCount && !sc.offLattice[g.square]; ++i) {
+      const auto& v = level.vertices[level.indices[g.firstIndex + i]];
+      const auto yl = posts.heightAt(v.x, v.z);
+      sc.offLattice[g.square] = yl && std::abs(v.y - *yl) > off;
+    }
     float area = 0;
     for (std::uint32_t t = 0; t + 2 < g.indexCount; t += 3) {
       const auto& a = level.vertices[level.indices[g.firstIndex + t]];
@@ -546,7 +610,7 @@ void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, c
   for (auto& v : sc.squaresByNode) v.clear();
   bool anyCut = false;
   for (std::uint32_t q = 0; q < squares; ++q) {
-    if (sc.skinTriangles[q] <= 2) continue;
+    if (sc.skinTriangles[q] <= 2 || sc.offLattice[q]) continue;
     anyCut = true;
     sc.squaresByNode[scene::nodeOfSquare(level, q, nodeSquares, side)].push_back(q);
   }
@@ -590,15 +654,10 @@ void raiseSkirtFeet(const paging::ResidentModule& m, const std::vector<LevelMesh
     LevelMesh* mesh = meshes[l];
     if (!mesh) continue;
     const module::Level& level = m.levels[l];
-    // The feet as buildLevelMesh found them: below this level's lattice.
+    // The feet as buildLevelMesh found them.
     sc.y.resize(level.vertices.size());
-    sc.isFoot.assign(level.vertices.size(), 0);
-    for (std::size_t k = 0; k < level.vertices.size(); ++k) {
-      const auto& v = level.vertices[k];
-      sc.y[k] = v.y;
-      const auto yl = sc.posts[l].heightAt(v.x, v.z);
-      sc.isFoot[k] = yl && v.y < *yl - 0.01;
-    }
+    for (std::size_t k = 0; k < level.vertices.size(); ++k) sc.y[k] = level.vertices[k].y;
+    markFeet(level, sc.posts[l], sc.isFoot);
     tightenSkirtFeet(m, l, sc.isFoot, sc.posts, sc.y);
     mesh->feet.clear();
     for (std::size_t i = 0; i < mesh->source.size(); ++i) {

@@ -98,6 +98,8 @@ struct SimSessionOptions {
   std::function<std::optional<std::uint32_t>(const std::string&)> findEntity;
   /// Lines added to the panel (fly --dis: the network's figures); may be empty.
   std::function<std::vector<std::string>()> extraPanel;
+  /// Marks added to the map under the entities (the terrain edits); may be empty.
+  std::function<std::vector<render::MapMark>()> extraMarks;
   /// Names drawn over the entities within labelRangeM of the eye (fly
   /// --dis: the DIS markings), nearest first (the viewer draws the first
   /// kMaxLabelsDrawn in the frame that do not overlap).

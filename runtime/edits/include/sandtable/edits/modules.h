@@ -53,6 +53,7 @@
 #include "sandtable/formats/height_field.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/paging/module_source.h"
+#include "sandtable/paging/world.h"
 
 namespace sandtable::edits {
 
@@ -68,6 +69,11 @@ struct RemeshOptions {
   /// past the end: an added object gets 0 x 0, a switched one keeps its size.
   std::vector<std::array<float, 2>> iconCylinders;
 };
+
+/// The options a database implies: the crater floor's class (the
+/// materials table's "crater" class, else its "soil"; none without either)
+/// and every icon's bounding cylinder from icons.pack.
+RemeshOptions remeshOptionsFor(const paging::World& world);
 
 /// How far below the ground before a refined triangle must lie to take
 /// RemeshOptions::craterMaterial, metres.

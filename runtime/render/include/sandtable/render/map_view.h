@@ -61,7 +61,12 @@ struct MapMark {
   std::uint8_t force = 0; ///< 0 neutral, 1 blue, 2 red, 3 green
   bool alive = true;
   bool selected = false;  ///< the entity the eye is attached to: drawn larger, with a white edge
+  /// A terrain edit (a crater, a berm's or a ditch's point), not an entity:
+  /// a small ring in kEditMarkColour under the entities.
+  bool edit = false;
 };
+
+inline constexpr Rgb kEditMarkColour{235, 150, 40};
 
 /// A force's map colour: 1 blue, 2 red, 3 green, anything else neutral grey.
 Rgb forceColour(std::uint8_t force);
