@@ -203,7 +203,10 @@ class Rebuilder {
   /// would carry the old rounding into the next encoding, up to a whole
   /// step off the planes (validate's lattice and planarity checks allow
   /// half a step).
+  /// Where the ground did not move (a square's edge whose posts kept their
+  /// heights), nothing moves: the neighbour across the edge keeps it too.
   static double follow(double y, double was, double now, double step) {
+    if (now == was) return y;
     if (std::fabs(y - was) <= 0.5 * step + 1e-6 * std::max(1.0, std::fabs(was))) return now;
     return y + (now - was);
   }

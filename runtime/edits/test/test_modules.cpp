@@ -216,7 +216,10 @@ TEST(EditedModules, aChangeAtAModuleCornerRebuildsExactlyTheFourModulesAndEveryL
       const module::Level& lv = m.levels[l];
       const std::uint32_t w = lv.squaresX + 1;
       const std::size_t corner = (k.kz == 0 ? std::size_t(lv.squaresZ) * w : 0) + (k.kx == 0 ? lv.squaresX : 0);
-      EXPECT_NEAR(lv.vertices[corner].y - b.levels[l].vertices[corner].y, 2.5, 1e-3) << k.kx << ", " << k.kz << " level " << l;
+      // Onto the new ground exactly: off the base's rounded height by at
+      // most half its height step.
+      EXPECT_NEAR(lv.vertices[corner].y - b.levels[l].vertices[corner].y, 2.5, 0.5 * b.levels[l].heightStep + 1e-4)
+          << k.kx << ", " << k.kz << " level " << l;
     }
   }
   expectModulesPass(*db, *f.heights, *f.modules, want);
@@ -884,7 +887,7 @@ TEST(EditedModules, thePagerSwapsARebuiltModuleIn) {
   const paging::ResidentRef r = p.resident(1, 1);
   ASSERT_TRUE(r);
   EXPECT_EQ(r.module().generation, f.modules->generation(1, 1));
-  EXPECT_NEAR(r.level(0).vertices[0].y - before, 3.0, 1e-3);
+  EXPECT_NEAR(r.level(0).vertices[0].y - before, 3.0, 0.5 * r.level(0).heightStep + 1e-4);  // onto the new post: the base rounding goes
   EXPECT_GE(p.metrics().reloaded, 1u);
   EXPECT_EQ(p.metrics().holesInWindow, 0u);
 }
