@@ -398,5 +398,170 @@ TEST_F(DynamicMonaco, aCraterOnASteepSlopeHasItsDepthItsVolumeAndATankFollowsIt)
   driveATankThroughTheCrater(db(), journal, source, {ci, cj}, R, depth, t);
 }
 
+// ============================================================== Bayreuth
+
+/// North of Bayreuth from SRTM with its OSM (roads, forests, a town) at
+/// 30 m and the sample icons, as tests/test_dis_sim.cpp builds it.
+class DynamicBayreuth : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!haveData()) return;
+    convert::initGdal();
+    tmp_ = new TempDir("dyn-bayreuth");
+    const auto b = runCli({"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.55", "49.94",
+                           "11.62", "49.99", "--spacing", "30", "--culture", data("culture/osm/north-bayreuth.osm.gz"),
+                           "--icons", std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt", "-o", *tmp_ / "db"});
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    tmp_ = nullptr;
+  }
+  void SetUp() override { SANDTABLE_REQUIRE_DATA(); }
+  static std::string db() { return *tmp_ / "db"; }
+  static inline TempDir* tmp_ = nullptr;
+};
+
+// ----------------------------------------------- two processes, 10 % loss
+
+/// A UDP socket on 127.0.0.1:port sharing the port (SO_REUSEADDR) with the
+/// `sim --dis 127.0.0.1:port` that binds 0.0.0.0:port: the kernel hands a
+/// datagram sent to 127.0.0.1:port to the socket bound to that address
+/// rather than the wildcard, so the relay, not the sim, reads what the sim
+/// sends, and a datagram the relay sends to 127.0.0.2:port reaches only the
+/// sim.
+int relaySocket(std::uint16_t port) {
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  const int one = 1;
+  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(port);
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << "relay bind 127.0.0.1:" << port;
+  return fd;
+}
+
+/// Forwards every datagram sim A sends (to 127.0.0.1:portA) to sim B
+/// (127.0.0.2:portB) and back, dropping each with probability 10 %
+/// (a fixed-seed generator): the lossy link, where the kernel has
+/// no netem for `tc` to add loss with (`unshare -rn` + `tc qdisc add dev lo
+/// root netem loss 10%`: "Specified qdisc kind is unknown"). The first
+/// crater PDU each way is always dropped, so a heartbeat must bring it.
+class LossyRelay {
+ public:
+  LossyRelay(std::uint16_t portA, std::uint16_t portB) : ports_{portA, portB} {
+    fds_[0] = relaySocket(portA), fds_[1] = relaySocket(portB);
+    thread_ = std::thread([this] { run(); });
+  }
+  ~LossyRelay() {
+    stop_ = true;
+    thread_.join();
+    ::close(fds_[0]), ::close(fds_[1]);
+  }
+  std::uint64_t forwarded(int from) const { return forwarded_[from]; }
+  std::uint64_t dropped(int from) const { return dropped_[from]; }
+  std::uint64_t droppedObjects(int from) const { return droppedObjects_[from]; }
+
+ private:
+  void run() {
+    std::mt19937_64 rng(37);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<char> buf(65536);
+    while (!stop_) {
+      pollfd p[2] = {{fds_[0], POLLIN, 0}, {fds_[1], POLLIN, 0}};
+      if (::poll(p, 2, 50) <= 0) continue;
+      for (int from = 0; from < 2; ++from) {
+        if (!(p[from].revents & POLLIN)) continue;
+        const ssize_t n = ::recv(fds_[from], buf.data(), buf.size(), MSG_DONTWAIT);
+        if (n <= 0) continue;
+        // DIS PDU header byte 2 is the PDU type: 43 Point Object State (a crater).
+        const bool object = n > 2 && static_cast<unsigned char>(buf[2]) == 43;
+        const bool firstObject = object && !droppedObject_[from];
+        if (u(rng) < 0.10 || firstObject) {
+          ++dropped_[from];
+          if (object) ++droppedObjects_[from], droppedObject_[from] = true;
+          continue;
+        }
+        sockaddr_in to{};
+        to.sin_family = AF_INET;
+        to.sin_port = htons(ports_[1 - from]);
+        to.sin_addr.s_addr = htonl(0x7f000002);  // 127.0.0.2: the sim's wildcard socket, not the relay's
+        ::sendto(fds_[1 - from], buf.data(), std::size_t(n), 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
+        ++forwarded_[from];
+      }
+    }
+  }
+  std::array<std::uint16_t, 2> ports_;
+  std::array<int, 2> fds_{};
+  std::array<std::atomic<std::uint64_t>, 2> forwarded_{}, dropped_{}, droppedObjects_{};
+  std::array<bool, 2> droppedObject_{};
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// A scripted tank at (x, z) firing eight rounds 0.08 below level round the
+/// compass from 1.5 s to 8.5 s: those that meet the ground make craters.
+std::string firingScript(int entity, double x, double z) {
+  char line[160];
+  std::snprintf(line, sizeof line, "00 00 00 %d 2 %.1f 0.0 %.1f 90.0 90.0 0.0 0.0 0.0 0 1\n", entity, x, z);
+  std::string out = line;
+  for (int k = 0; k < 8; ++k) {
+    std::snprintf(line, sizeof line, "00 00 %02d.5 %d 2 %.1f 0.0 %.1f 90.0 %.1f -0.08 0.0 0.0 1 1\n", k + 1, entity, x,
+                  z, 20.0 + 40 * k);
+    out += line;
+  }
+  return out;
+}
+
+TEST_F(DynamicBayreuth, twoSimProcessesFiringOverALinkLosingTenPercentEndWithTheSameGround) {
+  TempDir t("dyn-dis");
+  for (const auto& [name, x, z] : {std::tuple{"a", 2000.0, 2000.0}, std::tuple{"b", 3000.0, 3200.0}}) {
+    spit(t / (std::string(name) + ".script"), firingScript(1, x, z));
+    spit(t / (std::string(name) + ".scenario"), "sandtable-scenario 1\nentity gun icon=tank force=blue script=" +
+                                                    (t / (std::string(name) + ".script")) + " script-entity=1\n");
+  }
+  const std::uint16_t portA = std::uint16_t(40000 + ::getpid() % 10000 * 2), portB = std::uint16_t(portA + 1);
+  CommandResult a, b;
+  std::uint64_t forwarded[2], dropped[2], droppedObjects[2];
+  {
+    LossyRelay relay(portA, portB);
+    // 22 s: the last crater comes at 8.5 s; a lost object PDU comes back
+    // on the 5 s heartbeat (DIS.md §14.4), so each is sent at least 3
+    // times before the end (lost every time: 1 in 1,000).
+    auto run = [&](const std::string& name, std::uint16_t port, const char* site, CommandResult& out) {
+      out = runCli({"sim", db(), "--scenario", t / (name + ".scenario"), "--dis", "127.0.0.1:" + std::to_string(port),
+                    "--site", site, "--duration", "22", "--journal", "none", "--json"});
+    };
+    std::thread ta([&] { run("a", portA, "1", a); });
+    std::thread tb([&] { run("b", portB, "2", b); });
+    ta.join(), tb.join();
+    for (int k = 0; k < 2; ++k) forwarded[k] = relay.forwarded(k), dropped[k] = relay.dropped(k),
+                                    droppedObjects[k] = relay.droppedObjects(k);
+  }
+  ASSERT_EQ(a.exitCode, 0) << a.err;
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  const auto ja = nlohmann::json::parse(a.out)["terrain"], jb = nlohmann::json::parse(b.out)["terrain"];
+  const std::uint64_t localA = ja["local"], localB = jb["local"];
+  EXPECT_GE(localA, 2u);
+  EXPECT_GE(localB, 2u);
+  EXPECT_EQ(ja["received"], localB);
+  EXPECT_EQ(jb["received"], localA);
+  EXPECT_EQ(ja["edits"], localA + localB);
+  EXPECT_EQ(jb["edits"], localA + localB);
+  EXPECT_EQ(ja["refused"], 0);
+  EXPECT_EQ(jb["refused"], 0);
+  EXPECT_EQ(ja["content_hash"], jb["content_hash"]);
+  // Crater PDUs were lost each way, and came back on heartbeats.
+  for (int k = 0; k < 2; ++k) EXPECT_GE(droppedObjects[k], 1u);
+  std::printf("[ dis 10 %% loss ] A made %llu craters, B %llu; A holds %s edits (hash %s, %s duplicates), B %s (hash "
+              "%s, %s duplicates); relay A->B %llu forwarded %llu dropped (%llu crater PDUs), B->A %llu forwarded %llu dropped (%llu)\n",
+              (unsigned long long)localA, (unsigned long long)localB, ja["edits"].dump().c_str(),
+              ja["content_hash"].get<std::string>().c_str(), ja["duplicates"].dump().c_str(), jb["edits"].dump().c_str(),
+              jb["content_hash"].get<std::string>().c_str(), jb["duplicates"].dump().c_str(),
+              (unsigned long long)forwarded[0], (unsigned long long)dropped[0], (unsigned long long)droppedObjects[0],
+              (unsigned long long)forwarded[1], (unsigned long long)dropped[1], (unsigned long long)droppedObjects[1]);
+}
+
 }  // namespace
 }  // namespace sandtable::test
