@@ -42,6 +42,7 @@
 #include "sandtable/converters/crs.h"
 #include "sandtable/edits/editor.h"
 #include "sandtable/paging/world.h"
+#include "sandtable/render/renderer.h"
 #include "sandtable/sim/sim_world.h"
 #include "sandtable/sim/simulation.h"
 #include "sandtable/sim/units.h"
@@ -561,6 +562,124 @@ TEST_F(DynamicBayreuth, twoSimProcessesFiringOverALinkLosingTenPercentEndWithThe
               jb["content_hash"].get<std::string>().c_str(), jb["duplicates"].dump().c_str(),
               (unsigned long long)forwarded[0], (unsigned long long)dropped[0], (unsigned long long)droppedObjects[0],
               (unsigned long long)forwarded[1], (unsigned long long)dropped[1], (unsigned long long)droppedObjects[1]);
+}
+
+// ------------------------------------------------- a crater on a corner
+
+/// Module (kx, kz)'s vertices at `level` that lie more than `drop` metres
+/// lower in `after` than in `before` (same vertex index).
+std::size_t lowered(const module::Module& before, const module::Module& after, std::size_t level, double drop) {
+  const auto& b = before.levels[level].vertices;
+  const auto& a = after.levels[level].vertices;
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) n += double(b[k].y) - double(a[k].y) > drop;
+  return n;
+}
+
+/// The corner post shared by modules (kx-1..kx, kz-1..kz), in the database's
+/// CRS, and the journal holding a crater (R 90 m, 12 m deep) on it.
+struct CornerCrater {
+  std::uint32_t kx = 2, kz = 2;
+  double easting = 0, northing = 0;
+  std::string journal;
+};
+
+CornerCrater cornerCrater(const paging::World& w, const TempDir& t, const std::string& db) {
+  CornerCrater c;
+  const pack::IndexHeader& h = w.modules()->header();
+  EXPECT_GE(h.modulesX, 3u);
+  EXPECT_GE(h.modulesZ, 3u);
+  const double spacing = h.moduleSize / h.moduleSquares;
+  c.easting = w.manifest().originEasting + c.kx * h.moduleSquares * spacing;
+  c.northing = w.manifest().originNorthing - c.kz * h.moduleSquares * spacing;
+  c.journal = t / "corner.journal";
+  const auto a = runCli({"edits", "apply", "crater", db, "--journal", c.journal, "--xy", std::to_string(c.easting),
+                         std::to_string(c.northing), "--radius", "90", "--depth", "12", "--json"});
+  EXPECT_EQ(a.exitCode, 0) << a.err;
+  if (a.exitCode == 0) {
+    EXPECT_EQ(nlohmann::json::parse(a.out)["modules_remeshed"], 4) << a.out;
+  }
+  return c;
+}
+
+TEST_F(DynamicBayreuth, aCraterOnAModuleCornerRemeshesFourModulesAtEveryLevelAndLeavesNoHole) {
+  std::string why;
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  TempDir t("dyn-corner");
+  auto base = paging::World::open(db());
+  ASSERT_TRUE(base.ok()) << base.error();
+  const CornerCrater c = cornerCrater(*base.value(), t, db());
+
+  // The editor replaying the journal: the four modules round the corner
+  // get new generations, and at every level the corner post (a lattice
+  // post of every level) is lower, as the grid says: d below.
+  edits::EditorOptions eo;
+  eo.journal = c.journal;
+  eo.readOnly = true;
+  eo.background = false;
+  auto ed = edits::Editor::open(base.value(), eo);
+  ASSERT_TRUE(ed.ok()) << ed.error();
+  const auto& edited = *ed.value()->modules();
+  const auto& built = *base.value()->modules();
+  for (std::uint32_t z = c.kz - 1; z <= c.kz; ++z) {
+    for (std::uint32_t x = c.kx - 1; x <= c.kx; ++x) {
+      SCOPED_TRACE("module " + std::to_string(x) + "," + std::to_string(z));
+      EXPECT_GT(edited.generation(x, z), 0u);
+      module::Module before, after;
+      ASSERT_TRUE(built.read(x, z, before).ok());
+      ASSERT_TRUE(edited.read(x, z, after).ok());
+      ASSERT_EQ(after.levels.size(), before.levels.size());
+      for (std::size_t level = 0; level < after.levels.size(); ++level) {
+        EXPECT_GE(lowered(before, after, level, 11.0), 1u) << "level " << level;  // the corner post, 12 m down
+      }
+    }
+  }
+  EXPECT_EQ(edited.generation(0, 0), 0u);
+  EXPECT_EQ(edited.generation(c.kx + 1, c.kz), 0u);
+
+  // Baked; drawn from 150 m up and 150 m south, looking at it 45 degrees
+  // down, against magenta with no sky: no pixel of the clear colour below
+  // the silhouette at any selection rule.
+  const auto bk = runCli({"edits", "bake", db(), c.journal, "-o", t / "baked"});
+  ASSERT_EQ(bk.exitCode, 0) << bk.err;
+  const LonLat ll(base.value()->manifest().crsWkt);
+  const auto eye = ll.lonLat(c.easting, c.northing - 150);
+  for (const char* lod : {"full", "rings", "sse"}) {
+    const std::string dir = t / (std::string("png-") + lod);
+    std::filesystem::create_directories(dir);
+    const auto f = runCli({"fly", t / "baked", "--headless", "--png", dir, "--frames", "2", "--at",
+                           std::to_string(eye[0]), std::to_string(eye[1]), "--height", "150", "--pitch", "-45",
+                           "--heading", "0", "--no-sky", "--no-fog", "--no-hud", "--lod", lod, "--pager-sync", "--mode",
+                           "modules", "--size", "480x320"});
+    ASSERT_EQ(f.exitCode, 0) << f.err;
+    const render::Image img = readPng(dir + "/frame_00001.png");
+    ASSERT_GT(img.width, 0u);
+    const std::uint64_t holes = holesBelowTheSilhouette(img);
+    EXPECT_EQ(holes, 0u) << lod;
+    std::printf("[ corner crater ] --lod %s: %llu magenta pixels below the silhouette\n", lod,
+                (unsigned long long)holes);
+    if (const char* keep = std::getenv("SANDTABLE_KEEP_PNG")) {
+      std::filesystem::copy_file(dir + "/frame_00001.png", std::string(keep) + "/corner-" + lod + ".png",
+                                 std::filesystem::copy_options::overwrite_existing);
+    }
+  }
+}
+
+// DISABLED: validate fails on a baked database from the lattice heights'
+// 1 cm quantisation against the baked grid's float posts (the ~7 mm issue
+// the lead is fixing): "module (1,1) level 0 square 894 lower: skin
+// triangle ... has y 450.500, 0.009 m off the grid triangle's plane
+// (450.509)", skirt vertices 0.009 m outside their band, lattice posts
+// 8 mm from the grid. Enable when bake writes lattice heights validate accepts.
+TEST_F(DynamicBayreuth, DISABLED_aBakedCraterOnAModuleCornerValidates) {
+  TempDir t("dyn-corner-validate");
+  auto base = paging::World::open(db());
+  ASSERT_TRUE(base.ok()) << base.error();
+  const CornerCrater c = cornerCrater(*base.value(), t, db());
+  const auto bk = runCli({"edits", "bake", db(), c.journal, "-o", t / "baked"});
+  ASSERT_EQ(bk.exitCode, 0) << bk.err;
+  const auto v = runCli({"validate", t / "baked"});
+  EXPECT_EQ(v.exitCode, 0) << v.out << v.err;
 }
 
 }  // namespace
