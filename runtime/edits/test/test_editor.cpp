@@ -11,19 +11,27 @@
 //    it; readOnly writes nothing;
 //  - meshModules=false leaves world().modules() the base's; the background
 //    re-mesh, waited for, gives the modules the in-apply() re-mesh gives;
-//  - nextId per origin, and the stats' counts.
+//  - nextId per origin, and the stats' counts;
+//  - bake: the baked grid (exported by the CLI, read through GDAL) holds
+//    the edited posts; `validate` on it (disabled: a known bug, below).
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 #include <ogr_spatialref.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <bit>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "sandtable/converters/elevation.h"
+#include "sandtable/edits/bake.h"
 #include "sandtable/edits/editor.h"
 #include "sandtable/edits/profile.h"
 #include "sandtable/formats/edit_journal.h"
@@ -462,6 +470,102 @@ TEST_F(Editing, statsCountWhatHappened) {
   EXPECT_EQ(s.rebuilds, 1u);
   EXPECT_EQ(s.remeshes, 0u);
   EXPECT_EQ(ed->edits().size(), 7u);
+}
+
+/// Runs the sandtable CLI; its exit code, its output in `log`.
+int cli(const std::string& args, std::string& log) {
+  const std::string out = (fs::temp_directory_path() / ("sandtable-editor-cli." + std::to_string(::getpid()))).string();
+  const int rc = std::system(("'" + std::string(SANDTABLE_CLI) + "' " + args + " > '" + out + "' 2>&1").c_str());
+  std::ifstream f(out);
+  log.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  fs::remove(out);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+/// A Float32 GeoTIFF's first band, read through GDAL; empty when it does
+/// not open.
+std::vector<float> readTiff(const std::string& path, int& width, int& height) {
+  GDALAllRegister();
+  std::vector<float> px;
+  auto* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
+  if (!ds) return px;
+  width = ds->GetRasterXSize(), height = ds->GetRasterYSize();
+  px.resize(std::size_t(width) * std::size_t(height));
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, width, height, px.data(), width, height, GDT_Float32, 0, 0) !=
+      CE_None) {
+    px.clear();
+  }
+  GDALClose(ds);
+  return px;
+}
+
+/// A crater and a berm the posts carry (10 m posts: the crater's radius and
+/// the berm's half width plus side run are at least two posts).
+std::vector<edit::Edit> craterAndBerm() {
+  return {battle().back(), line(8, 8.0, edit::Kind::berm, {{200, 1300}, {700, 1350}}, 20, 2, 0.2)};
+}
+
+// Baking a crater and a berm: the baked grid, exported and read back
+// through GDAL, holds the edited posts (the crater's also against the
+// profile by hand), and the baked database opens.
+TEST_F(Editing, aBakedDatabaseHoldsTheEditedPosts) {
+  const std::vector<edit::Edit> edits = craterAndBerm();
+  const edit::Edit& far = edits[0];
+  auto ed = open(heightsOnly());
+  ASSERT_TRUE(ed);
+  applyAll(*ed, edits);
+  const std::string out = path("baked");
+  fs::remove_all(out);
+  const auto report = bake(**world_, edits, out);
+  ASSERT_TRUE(report) << report.error();
+  EXPECT_EQ(report.value().edits, 2u);
+  EXPECT_GT(report.value().modulesRemeshed, 0u);
+  auto opened = paging::World::open(out);
+  ASSERT_TRUE(opened) << opened.error();
+  ASSERT_TRUE(opened.value()->modules());
+
+  std::string log;
+  ASSERT_EQ(cli("export '" + out + "' --journal none --grid -o '" + path("baked.tif") + "'", log), 0) << log;
+  int w = 0, h = 0;
+  const std::vector<float> baked = readTiff(path("baked.tif"), w, h);
+  ASSERT_FALSE(baked.empty());
+  const EditedHeights& want = *ed->heights();
+  ASSERT_EQ(std::uint32_t(w), want.postsX());
+  ASSERT_EQ(std::uint32_t(h), want.postsZ());
+  auto g = grid::GridFile::open((*world_)->directory() + "/grid.stg");
+  ASSERT_TRUE(g) << g.error();
+  std::size_t moved = 0, byHand = 0;
+  const double cx = far.points[0][0], cz = far.points[0][1], s = want.spacing();
+  for (std::uint32_t j = 0; j < want.postsZ(); ++j) {
+    for (std::uint32_t i = 0; i < want.postsX(); ++i) {
+      const float y = baked[std::size_t(j) * std::size_t(w) + i];
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(y), std::bit_cast<std::uint32_t>(want.elevation(i, j))) << i << " " << j;
+      moved += y != g.value()->elevation(i, j);
+      const double r = std::hypot(i * s - cx, j * s - cz);
+      if (r < 2 * far.radius) {
+        EXPECT_NEAR(y, double(g.value()->elevation(i, j)) + craterByHand(far.radius, far.depth, r), 1e-4);
+        ++byHand;
+      }
+    }
+  }
+  EXPECT_GT(moved, 100u);
+  EXPECT_GT(byHand, 30u);
+}
+
+// DISABLED: `sandtable validate` fails on a baked database today (known,
+// being fixed in main): bake (runtime/edits/src/bake.cpp) writes the
+// re-meshed modules with vertex y still quantised on the base pack's
+// height step, so lattice vertices of touched modules lie ~7 mm off the
+// edited grid ("vertex 167 at lattice post (2,5) = grid post (66,133) has
+// y 302.179993; the grid says 302.173065"), and the off-plane and skirt
+// checks follow from it (83 problems here). Enable once fixed.
+TEST_F(Editing, DISABLED_aBakedDatabaseValidates) {
+  const std::string out = path("baked-validate");
+  fs::remove_all(out);
+  const auto report = bake(**world_, craterAndBerm(), out);
+  ASSERT_TRUE(report) << report.error();
+  std::string log;
+  EXPECT_EQ(cli("validate '" + out + "'", log), 0) << log;
 }
 
 }  // namespace
