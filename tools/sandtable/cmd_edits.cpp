@@ -272,14 +272,22 @@ void addApply(CLI::App& edits, Commands& c) {
       "  sandtable edits apply db berm --line \"11.57 49.96, 11.58 49.96\" --width 2 --height 1.5\n"
       "  sandtable edits apply db flatten --polygon \"E N, E N, E N\" --projected --height 412\n"
       "The journal is DB/edits.journal unless --journal FILE; every edit is appended to it.");
+  // DB and --journal come before the kind (`edits apply DB --journal J
+  // crater ...`), as the examples write it; --journal and --json may also
+  // follow the kind's options (fallthrough to apply).
+  auto common = std::make_shared<ApplyArgs>();
+  apply->add_option("DB", common->dir, "Database directory")->required();
+  apply->add_option("--journal", common->journal, "Journal to append to (default: DB/edits.journal)");
+  apply->add_flag("--json", common->json, "Print JSON");
   const auto sub = [&](const char* name, const char* what) {
     auto a = std::make_shared<ApplyArgs>();
     a->kind = name;
     auto* s = apply->add_subcommand(name, what);
-    s->add_option("DB", a->dir, "Database directory")->required();
-    s->add_option("--journal", a->journal, "Journal to append to (default: DB/edits.journal)");
-    s->add_flag("--json", a->json, "Print JSON");
-    c.add(s, [a] { return runApply(*a); });
+    s->fallthrough();
+    c.add(s, [a, common] {
+      a->dir = common->dir, a->journal = common->journal, a->json = common->json;
+      return runApply(*a);
+    });
     return std::pair{s, a};
   };
   {
