@@ -277,6 +277,7 @@ void addApply(CLI::App& edits, Commands& c) {
   auto common = std::make_shared<ApplyArgs>();
   apply->add_option("DB", common->dir, "Database directory");
   apply->add_option("--journal", common->journal, "Journal to append to (default: DB/edits.journal)");
+  apply->add_flag("--json", common->json, "Print JSON");
   const auto sub = [&](const char* name, const char* what) {
     auto a = std::make_shared<ApplyArgs>();
     a->kind = name;
@@ -287,6 +288,7 @@ void addApply(CLI::App& edits, Commands& c) {
     c.add(s, [a, common] {
       if (a->dir.empty()) a->dir = common->dir;
       if (a->journal.empty()) a->journal = common->journal;
+      a->json = a->json || common->json;
       if (a->dir.empty()) {
         return usageError("edits apply " + a->kind,
                           "the database is missing: give DB before the kind (`edits apply DB " + a->kind +

@@ -33,6 +33,15 @@ std::optional<EditedWorld> openEditedWorld(const std::string& cmd, const std::st
     usageError(cmd, "--journal " + flag + ": no such file (give an existing journal, or none)");
     return std::nullopt;
   }
+  if (append && !flag.empty() && flag != "none") {
+    // Said before anything is applied, naming the flag (the writer would
+    // fail later on its temp file's name).
+    const std::filesystem::path parent = std::filesystem::path(out.journal).parent_path();
+    if (!parent.empty() && !std::filesystem::is_directory(parent)) {
+      usageError(cmd, "--journal " + flag + ": no directory " + parent.string() + " to write the journal in");
+      return std::nullopt;
+    }
+  }
   // The database's own journal is read when present; a run appends to it
   // only when asked to.
   if (flag.empty() && !append && !std::filesystem::exists(out.journal)) out.journal.clear();
