@@ -8,7 +8,7 @@
 //    reads and pitches by that ground's slope;
 //  - Bayreuth with its OSM, a crater on a module corner: four modules
 //    re-meshed at every level, no magenta shows through the baked database
-//    at full, rings and sse (its validate is DISABLED_, below);
+//    at full, rings and sse, and validate passes on the baked database;
 //  - two `sim --dis` processes through a relay that drops 10 % of the
 //    datagrams end with the same edits and the same heights hash.
 #include <gtest/gtest.h>
@@ -662,13 +662,8 @@ TEST_F(DynamicBayreuth, aCraterOnAModuleCornerRemeshesFourModulesAtEveryLevelAnd
   }
 }
 
-// DISABLED: validate fails on a baked database from the lattice heights'
-// 1 cm quantisation against the baked grid's float posts (the ~7 mm issue
-// the lead is fixing): "module (1,1) level 0 square 894 lower: skin
-// triangle ... has y 450.500, 0.009 m off the grid triangle's plane
-// (450.509)", skirt vertices 0.009 m outside their band, lattice posts
-// 8 mm from the grid. Enable when bake writes lattice heights validate accepts.
-TEST_F(DynamicBayreuth, DISABLED_aBakedCraterOnAModuleCornerValidates) {
+// Every geometric check of validate passes on the baked corner crater.
+TEST_F(DynamicBayreuth, aBakedCraterOnAModuleCornerValidates) {
   TempDir t("dyn-corner-validate");
   auto base = paging::World::open(db());
   ASSERT_TRUE(base.ok()) << base.error();

@@ -552,14 +552,10 @@ TEST_F(Editing, aBakedDatabaseHoldsTheEditedPosts) {
   EXPECT_GT(byHand, 30u);
 }
 
-// DISABLED: `sandtable validate` fails on a baked database today (known,
-// being fixed in main): bake (runtime/edits/src/bake.cpp) writes the
-// re-meshed modules with vertex y still quantised on the base pack's
-// height step, so lattice vertices of touched modules lie ~7 mm off the
-// edited grid ("vertex 167 at lattice post (2,5) = grid post (66,133) has
-// y 302.179993; the grid says 302.173065"), and the off-plane and skirt
-// checks follow from it (83 problems here). Enable once fixed.
-TEST_F(Editing, DISABLED_aBakedDatabaseValidates) {
+// Validate passes on a baked database: re-meshed vertices go exactly onto
+// the edited ground, so the base pack's height rounding is not carried
+// into the new encoding (it was: 83 problems, 7 mm off the lattice).
+TEST_F(Editing, aBakedDatabaseValidates) {
   const std::string out = path("baked-validate");
   fs::remove_all(out);
   const auto report = bake(**world_, craterAndBerm(), out);
