@@ -10,12 +10,15 @@
 // square or the square beside one (a refined square's fine edge depends on
 // its neighbours). A touched module is rebuilt from its base module (read
 // once from the base source and kept decoded) and the edited heights:
-//  - every skin, decal and object vertex moves by the change of its
-//    level's lattice plane under it (terrain_rule.h's halfPlane on the
-//    group's half for skin and decals, planeHeight at the point for
-//    objects), from the ground the base was built on to the edited one, so
-//    skin and decals lie on the new planes (module_check's planarity) and
-//    the ground where nothing changed keeps its bytes;
+//  - every skin, decal and object vertex where its level's lattice plane
+//    moved (terrain_rule.h's halfPlane on the group's half for skin and
+//    decals, planeHeight at the point for objects) follows it: a vertex on
+//    the old ground but for the pack's height rounding goes exactly onto
+//    the new ground (moving it by the change would carry the rounding into
+//    the next encoding, up to a whole step off), any other moves by the
+//    change; where the plane did not move nothing moves, so skin and decals
+//    lie on the new planes (module_check's planarity) and the ground where
+//    nothing changed keeps its bytes;
 //  - a refined square (height_field.h's RefinedSquare) at level 0 becomes
 //    the fine lattice inside its patch and a constrained triangulation of
 //    the rest of the square (CGAL) that follows the square's diagonal and
@@ -23,8 +26,11 @@
 //    triangles (CGAL's Triangle_2 intersection); fine posts on an edge
 //    beside an unrefined square are dropped (no T-junction), those beside a
 //    refined one kept, with the neighbour's edge points added, so both
-//    squares carry the same vertices (docs/DYNAMIC.md). Coarser levels are
-//    re-draped onto their lattices (they do not take the patch);
+//    squares carry the same vertices (docs/DYNAMIC.md). A coarser level's
+//    lattice square takes the patch where its detail departs from the
+//    square's planes by more than the level's own error (the levels' error
+//    rule), drawn on that level's planes plus the detail; elsewhere the
+//    level is re-draped onto its lattice;
 //  - skirts are rebuilt along every node edge (through the fine edge
 //    vertices), as deep as every level's edges need, fine points included;
 //    maxHeight, normals (meshing::fillNormals' rule; the fine surface's
