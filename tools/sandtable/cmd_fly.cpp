@@ -477,17 +477,29 @@ void watchNetwork(DisLink& link, viewer::SimSessionOptions& so) {
 /// The scenario's simulation for the session, and the stealth eye's start
 /// near its entities; "" or a usage error (kUsage with the problem printed
 /// when the text is "-").
-/// The terrain edits on the map: a ring at each crater and at each point of
-/// a berm, ditch or flattened polygon (the newest kMaxEditMarks).
+/// The terrain edits on the map (the newest kMaxEditMarks): a ring at each
+/// crater, a berm's or a ditch's line, a flattened polygon's outline.
 std::vector<render::MapMark> editMarks(const edits::Editor& editor) {
   constexpr std::size_t kMaxEditMarks = 4096;
   std::vector<render::MapMark> marks;
   const auto& all = editor.edits();
   for (std::size_t k = all.size() > kMaxEditMarks ? all.size() - kMaxEditMarks : 0; k < all.size(); ++k) {
-    for (const auto& p : all[k].points) {
-      render::MapMark m;
-      m.x = p[0], m.z = p[1];
-      m.edit = true;
+    const edit::Edit& e = all[k];
+    if (!edit::changesHeights(e.kind) || e.points.empty()) continue;
+    render::MapMark m;
+    m.edit = true;
+    m.x = e.points[0][0], m.z = e.points[0][1];
+    if (e.points.size() == 1) {
+      marks.push_back(m);
+      continue;
+    }
+    const bool closed = e.kind == edit::Kind::flatten;
+    const std::size_t segments = closed ? e.points.size() : e.points.size() - 1;
+    for (std::size_t s = 0; s < segments; ++s) {
+      const auto& a = e.points[s];
+      const auto& b = e.points[(s + 1) % e.points.size()];
+      m.x = a[0], m.z = a[1];
+      m.to = std::array<double, 2>{b[0], b[1]};
       marks.push_back(m);
     }
   }

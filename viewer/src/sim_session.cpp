@@ -309,7 +309,13 @@ std::vector<render::MapMark> SimSession::mapMarks() const {
   if (options_.extraMarks) marks = options_.extraMarks();
   for (const sim::Entity& e : sim_->entities()) {
     if (!isTarget(e)) continue;
-    marks.push_back({e.position.x(), e.position.z(), e.headingDeg, e.force, e.alive, attached_ == e.id});
+    render::MapMark m;
+    m.x = e.position.x(), m.z = e.position.z();
+    m.headingDeg = e.headingDeg;
+    m.force = e.force;
+    m.alive = e.alive;
+    m.selected = attached_ == e.id;
+    marks.push_back(m);
   }
   return marks;
 }

@@ -215,6 +215,19 @@ bool MapView::pixelOf(const MapLayout& layout, double x, double z, int& px, int&
   return true;
 }
 
+void MapView::drawEditLine(Image& frame, const MapLayout& box, double xa, double za, double xb, double zb) {
+  if (!box.drawn || !(box.window.width() > 0)) return;
+  // One sample per pixel along it; the parts off the map are skipped.
+  const double pixels = std::hypot(xb - xa, zb - za) * box.width / box.window.width();
+  const int n = int(std::min(4096.0, std::ceil(pixels))) + 1;
+  for (int k = 0; k <= n; ++k) {
+    const double t = double(k) / n;
+    int px = 0, py = 0;
+    if (!pixelOf(box, xa + t * (xb - xa), za + t * (zb - za), px, py)) continue;
+    if (px >= 0 && px < int(frame.width) && py >= 0 && py < int(frame.height)) put(frame, px, py, kEditMarkColour);
+  }
+}
+
 void MapView::drawMarks(Image& frame, const MapLayout& box, const std::vector<MapMark>& marks) const {
   const int x0 = std::max(0, box.x), y0 = std::max(0, box.y);
   const int x1 = std::min(int(frame.width), box.x + box.width), y1 = std::min(int(frame.height), box.y + box.height);
@@ -223,6 +236,10 @@ void MapView::drawMarks(Image& frame, const MapLayout& box, const std::vector<Ma
   // one last (on top).
   for (const MapMark& m : marks) {
     int px = 0, py = 0;
+    if (m.edit && m.to) {
+      drawEditLine(frame, box, m.x, m.z, (*m.to)[0], (*m.to)[1]);
+      continue;
+    }
     if (!m.edit || !pixelOf(box, m.x, m.z, px, py)) continue;
     const int r = std::max(2, size / 2);
     for (int dy = -r; dy <= r; ++dy) {

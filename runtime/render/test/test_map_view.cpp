@@ -260,10 +260,10 @@ TEST_F(MapViewTest, EntitiesAreArrowsInTheirForcesColoursTheDeadDimmedUnderTheVi
   Image frame = filled(640, 480, Rgb{10, 200, 10});
   // The database is 1290 x 990 m; the map shows all of it (full scale).
   const std::vector<MapMark> marks = {
-      {300, 200, 90, 2, true, false},   // red, alive, heading east
-      {600, 700, 0, 1, true, false},    // blue
-      {1000, 500, 0, 3, false, false},  // green, dead
-      {200, 800, 0, 0, true, false},    // neutral
+      {300, 200, 90, 2, true, false, false, std::nullopt},   // red, alive, heading east
+      {600, 700, 0, 1, true, false, false, std::nullopt},    // blue
+      {1000, 500, 0, 3, false, false, false, std::nullopt},  // green, dead
+      {200, 800, 0, 0, true, false, false, std::nullopt},    // neutral
   };
   const MapLayout l = map.compose(frame, 900, 300, 0, marks);
   ASSERT_TRUE(l.drawn);

@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <optional>
 #include <vector>
 
 #include "sandtable/formats/grid.h"
@@ -61,9 +62,11 @@ struct MapMark {
   std::uint8_t force = 0; ///< 0 neutral, 1 blue, 2 red, 3 green
   bool alive = true;
   bool selected = false;  ///< the entity the eye is attached to: drawn larger, with a white edge
-  /// A terrain edit (a crater, a berm's or a ditch's point), not an entity:
-  /// a small ring in kEditMarkColour under the entities.
+  /// A terrain edit, not an entity, in kEditMarkColour under the entities:
+  /// a small ring at (x, z) (a crater), or with `to` a line from (x, z) to
+  /// it (a berm's or a ditch's segment, a flattened polygon's edge).
   bool edit = false;
+  std::optional<std::array<double, 2>> to;
 };
 
 inline constexpr Rgb kEditMarkColour{235, 150, 40};
@@ -120,6 +123,8 @@ class MapView {
                     const std::vector<MapMark>& marks = {}, bool showViewer = true);
   /// The frame pixel of world (x, z) on the map `layout` drew; false off it.
   static bool pixelOf(const MapLayout& layout, double x, double z, int& px, int& py);
+  /// A terrain edit's line from world (xa, za) to (xb, zb), clipped to the map.
+  static void drawEditLine(Image& frame, const MapLayout& box, double xa, double za, double xb, double zb);
 
   /// The window Figure 40 gives for a viewer at (eyeX, eyeZ), before any
   /// inner-box hysteresis: centred on the viewer, clamped to the database.
