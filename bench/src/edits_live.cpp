@@ -228,8 +228,10 @@ nlohmann::json frameJson(const FrameRun& r, const Tracker& t) {
 /// quarter millisecond with a pager update each time.
 Result<nlohmann::json> latency(Rig& rig, const paging::World& w, const EditsBenchOptions& o, const Notes& notes) {
   Tracker t;
+  std::vector<double> worker;
   for (std::uint32_t k = 0; k < o.latencySamples; ++k) {
     rig.editor->wait();
+    const double cpu0 = rig.editor->stats().remeshSeconds;
     if (Status st = applyCrater(rig, w, o, t, 0); !st) return st.problems();
     const auto t0 = Clock::now();
     while (t.open() > 0 && msSince(t0, Clock::now()) < 5000) {
@@ -237,12 +239,15 @@ Result<nlohmann::json> latency(Rig& rig, const paging::World& w, const EditsBenc
       t.poll(*rig.editor->modules(), *rig.pager, 0);
       std::this_thread::sleep_for(std::chrono::microseconds(250));
     }
+    rig.editor->wait();
+    worker.push_back(1e3 * (rig.editor->stats().remeshSeconds - cpu0));
   }
   std::vector<double> frames;
   for (double ms : t.drawnMs()) frames.push_back(std::ceil(ms / (1e3 * kFrameSeconds)));
   const nlohmann::json j = {{"samples", o.latencySamples},
                             {"drawn", t.drawnMs().size()},
                             {"modules_touched_mean", double(t.touched()) / double(o.latencySamples)},
+                            {"worker_cpu_ms", spread(worker)},
                             {"published_ms", spread(t.publishedMs())},
                             {"drawn_ms", spread(t.drawnMs())},
                             {"drawn_frames_60hz", spread(frames)}};

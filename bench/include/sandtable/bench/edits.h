@@ -81,7 +81,9 @@ struct EditsBenchReport {
   /// replay_per_100k_s, meshed {edits, replay_s, per_100k_s, modules_remeshed}},
   /// memory {craters, heights_bytes, remeshed_module_bytes, modules_remeshed,
   /// rss_delta_bytes, per_1000 {heights_bytes, remeshed_module_bytes,
-  /// rss_delta_bytes}}, latency {samples, published_ms {p50, p95, max},
+  /// rss_delta_bytes}}, pager {view_distance_m, loaders, window_modules,
+  /// log}, latency {samples, drawn, worker_cpu_ms {p50, p95, max},
+  /// published_ms {p50, p95, max},
   /// drawn_ms {...}, drawn_frames_60hz {...}, modules_touched_mean},
   /// sustained[] {rate_per_s, seconds, craters, frames, hole_frames,
   /// holes, frames_over_budget, frame_ms {p50, p95, max}, latency_frames
