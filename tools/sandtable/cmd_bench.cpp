@@ -63,6 +63,7 @@ void registerBench(CLI::App& root, Commands& c) {
   registerBenchMakeDb(*bench, c);
   registerBenchSim(*bench, c);
   registerBenchDis(*bench, c);
+  registerBenchEdits(*bench, c);
 }
 
 }  // namespace sandtable::cli

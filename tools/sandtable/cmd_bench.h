@@ -36,5 +36,6 @@ void registerBenchPaging(CLI::App& bench, Commands& c);
 void registerBenchMakeDb(CLI::App& bench, Commands& c);
 void registerBenchSim(CLI::App& bench, Commands& c);
 void registerBenchDis(CLI::App& bench, Commands& c);
+void registerBenchEdits(CLI::App& bench, Commands& c);
 
 }  // namespace sandtable::cli
