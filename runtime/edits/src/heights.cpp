@@ -191,7 +191,7 @@ struct EditedHeights::Tile {
     std::array<std::atomic<float>, kTilePosts> delta{};
     std::array<std::atomic<std::uint64_t>, kTilePosts> normal{};
   };
-  /// Patches sorted by local square index; replaced whole (copy on write).
+  /// Patches sorted by local square index.
   using Patches = std::vector<std::shared_ptr<const grid::RefinedSquare>>;
 
   std::atomic<Posts*> posts{nullptr};
@@ -199,33 +199,43 @@ struct EditedHeights::Tile {
   /// unrefined square never takes the lock below.
   std::array<std::atomic<std::uint64_t>, kTilePosts / 64> refinedBits{};
 
-  /// The current list. A mutex, not std::atomic<std::shared_ptr>: GCC 12's
-  /// load() unlocks with a relaxed order, so a reader's copy is not ordered
-  /// before the writer's next store (ThreadSanitizer reports the race).
-  std::shared_ptr<const Patches> patchList() const {
+  /// A copy of the list (reset, hashing, statistics).
+  Patches patchList() const {
     std::lock_guard lock(patchesMutex_);
     return patches_;
   }
-  void setPatchList(std::shared_ptr<const Patches> list) {
+  /// Puts `fresh` in, replacing a square's patch, in place under the lock:
+  /// a change costs its own patches, not a copy of the tile's list (a copy
+  /// on write made a replay quadratic in the patches of a tile).
+  void upsert(std::vector<std::shared_ptr<const grid::RefinedSquare>>& fresh) {
     std::lock_guard lock(patchesMutex_);
-    patches_ = std::move(list);
+    for (auto& p : fresh) {
+      const std::uint32_t key = local(p->i, p->j);
+      const auto it = std::lower_bound(patches_.begin(), patches_.end(), key,
+                                       [](const auto& x, std::uint32_t v) { return local(x->i, x->j) < v; });
+      if (it != patches_.end() && local((*it)->i, (*it)->j) == key) *it = std::move(p);
+      else patches_.insert(it, std::move(p));
+    }
+  }
+  void clearPatches() {
+    std::lock_guard lock(patchesMutex_);
+    patches_.clear();
   }
   /// Square (i, j)'s patch, or null; the lock is held for the search and
   /// one reference count increment.
   std::shared_ptr<const grid::RefinedSquare> find(std::uint32_t i, std::uint32_t j) const {
     const std::uint32_t key = local(i, j);
     std::lock_guard lock(patchesMutex_);
-    if (!patches_) return nullptr;
-    const auto it = std::lower_bound(patches_->begin(), patches_->end(), key,
+    const auto it = std::lower_bound(patches_.begin(), patches_.end(), key,
                                      [](const auto& p, std::uint32_t k) { return local(p->i, p->j) < k; });
-    return it != patches_->end() && (*it)->i == i && (*it)->j == j ? *it : nullptr;
+    return it != patches_.end() && (*it)->i == i && (*it)->j == j ? *it : nullptr;
   }
 
   ~Tile() { delete posts.load(std::memory_order_relaxed); }
 
  private:
   mutable std::mutex patchesMutex_;
-  std::shared_ptr<const Patches> patches_;
+  Patches patches_;
 };
 
 /// Everything one apply() will publish, computed before any of it is.
@@ -525,18 +535,11 @@ void EditedHeights::publish(Plan& plan, HeightsChange& out) {
   }
   for (auto& [k, fresh] : byTile) {
     Tile& t = tileForWrite(fresh.front()->i, fresh.front()->j);
-    const std::shared_ptr<const Tile::Patches> old = t.patchList();
-    auto list = std::make_shared<Tile::Patches>(old ? *old : Tile::Patches{});
-    for (auto& p : fresh) {
-      const std::uint32_t key = local(p->i, p->j);
-      const auto it = std::lower_bound(list->begin(), list->end(), key,
-                                       [](const auto& x, std::uint32_t v) { return local(x->i, x->j) < v; });
-      if (it != list->end() && local((*it)->i, (*it)->j) == key) *it = std::move(p);
-      else list->insert(it, std::move(p));
-    }
-    t.setPatchList(list);
-    for (const auto& p : *list) {
-      const std::uint32_t key = local(p->i, p->j);
+    std::vector<std::uint32_t> keys;
+    for (const auto& p : fresh) keys.push_back(local(p->i, p->j));
+    t.upsert(fresh);
+    // After the patch is in: a reader that sees the bit finds it.
+    for (const std::uint32_t key : keys) {
       t.refinedBits[key / 64].fetch_or(std::uint64_t(1) << (key % 64), std::memory_order_release);
     }
   }
@@ -583,13 +586,13 @@ HeightsChange EditedHeights::reset() {
         }
         if (edited) unite(whole);
       }
-      if (const auto list = t->patchList(); list && !list->empty()) {
-        for (const auto& q : *list) {
+      if (const auto list = t->patchList(); !list.empty()) {
+        for (const auto& q : list) {
           out.squares.push_back({q->i, q->j});
           unite({q->i, q->j, std::min(q->i + 2, W), std::min(q->j + 2, H)});
         }
         for (auto& bits : t->refinedBits) bits.store(0, std::memory_order_release);
-        t->setPatchList(nullptr);
+        t->clearPatches();
       }
     }
   }
@@ -625,14 +628,12 @@ std::uint64_t EditedHeights::contentHash() const {
           add(std::bit_cast<std::uint32_t>(d));
         }
       }
-      if (const auto list = t->patchList()) {
-        for (const auto& p : *list) {
-          add(std::uint64_t(p->i) << 32 | p->j);
-          add(std::uint64_t(p->cells) << 32 | p->a0);
-          add(std::uint64_t(p->b0) << 32 | p->a1);
-          add(p->b1);
-          for (const float v : p->heights) add(std::bit_cast<std::uint32_t>(v));
-        }
+      for (const auto& p : t->patchList()) {
+        add(std::uint64_t(p->i) << 32 | p->j);
+        add(std::uint64_t(p->cells) << 32 | p->a0);
+        add(std::uint64_t(p->b0) << 32 | p->a1);
+        add(p->b1);
+        for (const float v : p->heights) add(std::bit_cast<std::uint32_t>(v));
       }
     }
   }
@@ -651,9 +652,9 @@ HeightsStats EditedHeights::stats() const {
       ++st.tiles;
       st.bytes += sizeof(Tile::Posts);
     }
-    if (const auto list = t->patchList()) {
-      st.bytes += sizeof(Tile::Patches) + list->capacity() * sizeof(list->front());
-      for (const auto& p : *list) {
+    if (const auto list = t->patchList(); !list.empty()) {
+      st.bytes += sizeof(Tile::Patches) + list.size() * sizeof(list.front());
+      for (const auto& p : list) {
         ++st.refinedSquares;
         st.finePosts += p->heights.size();
         // make_shared: one block for the control block and the square.

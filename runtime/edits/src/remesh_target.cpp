@@ -233,6 +233,8 @@ class TargetMesher {
     m_.target = &t_;
     m_.n = t_.n();
     n_ = std::uint32_t(t_.n());
+    onPost_.assign(std::size_t(n_ + 1) * (n_ + 1), kNone);
+    offPost_.clear();
     rects_ = p_.region(t_);
     sidePoints();
     bool extra = false;
@@ -255,7 +257,26 @@ class TargetMesher {
   /// Per side (0 north, 1 south, 2 west, 3 east), the fractions of every
   /// vertex on it, corners included, sorted.
   std::array<std::vector<double>, 4> side_;
-  std::map<std::pair<double, double>, std::uint32_t> byUV_;
+  /// Vertex ids by position: a fine post's in a dense table (most of
+  /// them), any other point's (a neighbour's finer edge points) in a map.
+  static constexpr std::uint32_t kNone = UINT32_MAX;
+  std::vector<std::uint32_t> onPost_;
+  std::map<std::pair<double, double>, std::uint32_t> offPost_;
+
+  /// q's index in onPost_, or SIZE_MAX when q is not a fine post.
+  std::size_t postIndex(const UV& q) const {
+    const double n = double(n_);
+    if (!(q.u >= 0 && q.u <= n && q.v >= 0 && q.v <= n) || q.u != std::floor(q.u) || q.v != std::floor(q.v)) {
+      return SIZE_MAX;
+    }
+    return std::size_t(q.v) * (n_ + 1) + std::size_t(q.u);
+  }
+  /// The vertex at q, or kNone.
+  std::uint32_t find(const UV& q) const {
+    if (const std::size_t k = postIndex(q); k != SIZE_MAX) return onPost_[k];
+    const auto it = offPost_.find({q.u, q.v});
+    return it == offPost_.end() ? kNone : it->second;
+  }
 
   /// Whether fine square (a, b) is in the fine region.
   bool inRegion(std::int64_t a, std::int64_t b) const {
@@ -304,21 +325,27 @@ class TargetMesher {
   }
 
   std::uint32_t add(const UV& q, double y) {
-    const auto [it, fresh] = byUV_.try_emplace({q.u, q.v}, std::uint32_t(m_.uv.size()));
-    if (fresh) {
+    const std::size_t k = postIndex(q);
+    std::uint32_t* slot = k != SIZE_MAX ? &onPost_[k] : &offPost_.try_emplace({q.u, q.v}, kNone).first->second;
+    if (*slot == kNone) {
+      *slot = std::uint32_t(m_.uv.size());
       m_.uv.push_back(q);
       m_.y.push_back(y);
       m_.sides.push_back(sidesOf(q));
     }
-    return it->second;
+    return *slot;
   }
 
-  std::uint32_t id(const UV& q) const { return byUV_.at({q.u, q.v}); }
+  std::uint32_t id(const UV& q) const {
+    const std::uint32_t v = find(q);
+    assert(v != kNone);
+    return v;
+  }
 
   /// A vertex at (u, v): a corner's height is the caller's (its lattice
   /// vertex), a point on a side its side's rule, any other the target's.
   std::uint32_t point(const UV& q) {
-    if (const auto it = byUV_.find({q.u, q.v}); it != byUV_.end()) return it->second;
+    if (const std::uint32_t v = find(q); v != kNone) return v;
     const std::uint8_t s = sidesOf(q);
     if (s & kNorth && (s & (kWest | kEast))) return add(q, cornerY_[s & kWest ? 0 : 1]);
     if (s & kSouth && (s & (kWest | kEast))) return add(q, cornerY_[s & kWest ? 2 : 3]);
@@ -449,13 +476,13 @@ class TargetMesher {
     for (std::uint32_t k = 0; k < n_; ++k) {
       const bool fine = inRegion(k, n_ - 1 - k);
       const UV end{double(k + 1), double(n_ - 1 - k)};
-      const auto at = byUV_.find({end.u, end.v});
+      const std::uint32_t at = find(end);
       if (fine) {
-        if (at != byUV_.end()) from = use(at->second);
+        if (at != kNone) from = use(at);
         continue;
       }
-      if (at == byUV_.end()) continue;  // no vertex there: the run goes on
-      const std::uint32_t to = use(at->second);
+      if (at == kNone) continue;  // no vertex there: the run goes on
+      const std::uint32_t to = use(at);
       if (to != from) cons.push_back({from, to});
       from = to;
     }
