@@ -30,9 +30,17 @@ $st fly "$out/db" --headless --png "$out/frames" --frames 60 --size 1280x720 --h
 echo "== fly the scenario (headless EGL), attached to a blue tank as the first missiles fly"
 $st fly "$out/db" --scenario samples/demo.scenario --attach blue3 --sim-start 6 --headless --png "$out/battle" \
   --frames 60 --size 1280x720 --map
+echo "== dynamic terrain: samples/terrain.scenario's craters, berm, ditch and flattened position, journaled"
+rm -f "$out/terrain.journal"
+$st sim "$out/db" --scenario samples/terrain.scenario --duration 5 --journal "$out/terrain.journal"
+$st edits list "$out/terrain.journal"
+$st fly "$out/db" --journal "$out/terrain.journal" --headless --png "$out/crater" --frames 1 --size 1280x720 \
+  --at 13.355 42.2733 --height 25 --pitch -50 --heading 0 --map --map-scale sixteenth
+$st export "$out/db" --journal "$out/terrain.journal" --grid -o "$out/ground-after.tif"
 echo
 echo "demo: database  $out/db"
 echo "demo: images    $out/frames/frame_*.png"
 echo "demo: stats     $out/frames/stats.json"
 echo "demo: sim       $out/sim.json (summary and event log), $out/lead.script (the driven tank, Figure 71 lines)"
 echo "demo: battle    $out/battle/frame_*.png, $out/battle/stats.json"
+echo "demo: terrain   $out/terrain.journal (the edits), $out/crater/frame_00000.png (a crater), $out/ground-after.tif (the edited grid, GeoTIFF)"

@@ -29,8 +29,10 @@ std::string terrainSummary(const sim::TerrainEditing& t, const edits::Editor& ed
                 static_cast<unsigned long long>(c.failed), editor.edits().size(),
                 static_cast<unsigned long long>(st.byKind[std::size_t(edit::Kind::crater)]),
                 static_cast<unsigned long long>(c.objectsFelled), static_cast<unsigned long long>(st.modulesRemeshed),
-                st.remeshSeconds * 1e3, journal.empty() ? "not journaled (give --journal FILE to keep them)" :
-                                                          ("journal " + journal).c_str());
+                st.remeshSeconds * 1e3,
+                !journal.empty()  ? ("journal " + journal).c_str()
+                : c.applied == 0 ? "nothing new to journal"
+                                 : "not journaled (give --journal FILE to keep them)");
   std::string out = line;
   if (!c.lastError.empty()) out += "  last refused: " + c.lastError + "\n";
   return out;

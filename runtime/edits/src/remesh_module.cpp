@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 
 #include "remesh_internal.h"
@@ -356,6 +357,52 @@ class Rebuilder {
     return std::uint32_t(out.vertices.size() - 1);
   }
 
+  /// Splits fine triangle `tri` along the crater floor's edge (where `f`,
+  /// linear on it, is 0) into its floor part (into `floor`) and the rest
+  /// (into `ground`), both on its plane and wound as it is. A crossing
+  /// point is shared by the two triangles of an edge (`crossings`) and
+  /// computed from the edge's ends in one order, so no T-junction opens.
+  /// False, touching nothing, when the edge crosses an edge on the square's
+  /// side: the neighbour square would need the same point.
+  bool splitAtFloor(int l, const SquareMesh& m, const SquareMesh::Tri& tri, const std::vector<double>& f,
+                    const std::vector<std::uint32_t>& id, const Target& t,
+                    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t>& crossings, Level& out,
+                    std::vector<std::uint32_t>& floor, std::vector<std::uint32_t>& ground) {
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = tri.v[std::size_t(e)], b = tri.v[std::size_t((e + 1) % 3)];
+      if ((f[a] > 0) != (f[b] > 0) && (m.sides[a] & m.sides[b])) return false;
+    }
+    std::vector<double>& step = fineStep_[std::size_t(l)];
+    const auto crossing = [&](std::uint32_t a, std::uint32_t b) {
+      if (b < a) std::swap(a, b);
+      const auto [it, fresh] = crossings.try_emplace({a, b}, 0u);
+      if (fresh) {
+        const double s = f[a] / (f[a] - f[b]);
+        const UV p{m.uv[a].u + s * (m.uv[b].u - m.uv[a].u), m.uv[a].v + s * (m.uv[b].v - m.uv[a].v)};
+        it->second = addVertex(out, m, p, m.y[a] + s * (m.y[b] - m.y[a]));
+        step.resize(out.vertices.size(), 0);
+        step[it->second] = 1.0 / t.cells;
+      }
+      return it->second;
+    };
+    std::vector<std::uint32_t> in, outside;  // the two polygons, in the triangle's order
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = tri.v[std::size_t(e)], b = tri.v[std::size_t((e + 1) % 3)];
+      (f[a] > 0 ? in : outside).push_back(id[a]);
+      if ((f[a] > 0) != (f[b] > 0)) {
+        const std::uint32_t x = crossing(a, b);
+        in.push_back(x);
+        outside.push_back(x);
+      }
+    }
+    const auto fan = [](const std::vector<std::uint32_t>& poly, std::vector<std::uint32_t>& into) {
+      for (std::size_t k = 1; k + 1 < poly.size(); ++k) into.insert(into.end(), {poly[0], poly[k], poly[k + 1]});
+    };
+    fan(in, floor);
+    fan(outside, ground);
+    return true;
+  }
+
   /// A target's new skin: its triangles, each with the base skin's class
   /// under its centre, or the crater class below the ground before.
   void skin(int l, const SquareMesh& m, const module::Surface& surface, Level& out) {
@@ -387,29 +434,43 @@ class Rebuilder {
     const double osw = o.heights[(sb + 1) * w + sa], ose = o.heights[(sb + 1) * w + sa + 1];
     // One pending group per (half, material), in triangle order.
     std::vector<std::pair<std::pair<Half, std::uint16_t>, std::vector<std::uint32_t>>> runs;
+    // A run's index (not a reference: making another run may move them).
+    const auto runOf = [&runs](Half half, std::uint16_t material) {
+      auto it = std::find_if(runs.begin(), runs.end(), [&](const auto& r) { return r.first == std::pair{half, material}; });
+      if (it != runs.end()) return std::size_t(it - runs.begin());
+      runs.push_back({{half, material}, {}});
+      return runs.size() - 1;
+    };
+    // How far each vertex lies below the ground before, less the floor's
+    // threshold: positive on the crater's floor.
+    std::vector<double> f(m.uv.size());
+    for (std::size_t k = 0; k < m.uv.size(); ++k) {
+      f[k] = terrain::planeHeight(m.uv[k].u / m.n, m.uv[k].v / m.n, onw, one, osw, ose) - m.y[k] - kCraterFloorDepth;
+    }
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> crossings;
     for (const SquareMesh::Tri& tri : m.tris) {
       UV c{0, 0};
-      bool below = tri.fine;
-      for (const std::uint32_t k : tri.v) {
-        c.u += m.uv[k].u / 3, c.v += m.uv[k].v / 3;
-        const double before = terrain::planeHeight(m.uv[k].u / m.n, m.uv[k].v / m.n, onw, one, osw, ose);
-        below = below && m.y[k] < before - kCraterFloorDepth;
+      for (const std::uint32_t k : tri.v) c.u += m.uv[k].u / 3, c.v += m.uv[k].v / 3;
+      const auto [cx, cz] = local(m, c);
+      const std::uint16_t ground = surface.skin(cx, cz).material;
+      int floorCorners = 0;
+      for (const std::uint32_t k : tri.v) floorCorners += f[k] > 0;
+      const std::size_t groundRun = runOf(tri.half, ground);
+      if (!tri.fine || !in_.options->craterMaterial || floorCorners == 0) {
+        for (const std::uint32_t k : tri.v) runs[groundRun].second.push_back(id[k]);
+        continue;
       }
-      std::uint16_t material = 0;
-      if (below && in_.options->craterMaterial) {
-        material = *in_.options->craterMaterial;
-      } else {
-        const auto [x, z] = local(m, c);
-        material = surface.skin(x, z).material;
+      const std::size_t floorRun = runOf(tri.half, *in_.options->craterMaterial);
+      if (floorCorners == 3 ||
+          !splitAtFloor(l, m, tri, f, id, t, crossings, out, runs[floorRun].second, runs[groundRun].second)) {
+        // Whole, or crossing the square's side (where the neighbour square
+        // could not split at the same point): by its centre.
+        const double depth = (f[tri.v[0]] + f[tri.v[1]] + f[tri.v[2]]) / 3;
+        for (const std::uint32_t k : tri.v) runs[depth > 0 ? floorRun : groundRun].second.push_back(id[k]);
       }
-      auto it = std::find_if(runs.begin(), runs.end(), [&](const auto& r) { return r.first == std::pair{tri.half, material}; });
-      if (it == runs.end()) {
-        runs.push_back({{tri.half, material}, {}});
-        it = runs.end() - 1;
-      }
-      for (const std::uint32_t k : tri.v) it->second.push_back(id[k]);
     }
     for (const auto& [key, idx] : runs) {
+      if (idx.empty()) continue;
       Group g;
       g.square = square;
       g.half = key.first;

@@ -65,7 +65,7 @@ namespace sandtable::edits {
 
 struct RemeshOptions {
   /// Material class id given to skin triangles inside a refined patch whose
-  /// three corners lie more than kCraterFloorDepth below the ground the base
+  /// centre lies more than kCraterFloorDepth below the ground the base
   /// modules were built on (a crater's floor shows soil, not the grass
   /// around it). The caller picks the class from its material table (an
   /// area class); none keeps the skin's own class there.
