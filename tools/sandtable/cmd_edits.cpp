@@ -278,10 +278,13 @@ void addApply(CLI::App& edits, Commands& c) {
   apply->add_option("DB", common->dir, "Database directory");
   apply->add_option("--journal", common->journal, "Journal to append to (default: DB/edits.journal)");
   apply->add_flag("--json", common->json, "Print JSON");
-  const auto sub = [&](const char* name, const char* what) {
+  // `positionals` come before the optional DB (remove-object's ID).
+  const auto sub = [&](const char* name, const char* what,
+                       const std::function<void(CLI::App&, ApplyArgs&)>& positionals = {}) {
     auto a = std::make_shared<ApplyArgs>();
     a->kind = name;
     auto* s = apply->add_subcommand(name, what);
+    if (positionals) positionals(*s, *a);
     s->add_option("DB", a->dir, "Database directory (or give it before the kind)");
     s->add_option("--journal", a->journal, "Journal to append to (default: DB/edits.journal)");
     s->add_flag("--json", a->json, "Print JSON");
@@ -322,8 +325,9 @@ void addApply(CLI::App& edits, Commands& c) {
     s->add_option("--slope", a->slope, "Side slope of the cut or fill around it (default 0.5)");
   }
   {
-    auto [s, a] = sub("remove-object", "Remove a static object");
-    s->add_option("ID", a->object, "The object's id in its module (export --objects lists them)")->required();
+    auto [s, a] = sub("remove-object", "Remove a static object", [](CLI::App& app, ApplyArgs& args) {
+      app.add_option("ID", args.object, "The object's id in its module (export --objects lists them)")->required();
+    });
     s->add_option("--module", a->module, "KX KZ: the object's load module")->expected(2)->required();
   }
 }

@@ -887,7 +887,9 @@ TEST(EditedModules, thePagerSwapsARebuiltModuleIn) {
   const paging::ResidentRef r = p.resident(1, 1);
   ASSERT_TRUE(r);
   EXPECT_EQ(r.module().generation, f.modules->generation(1, 1));
-  EXPECT_NEAR(r.level(0).vertices[0].y - before, 3.0, 0.5 * r.level(0).heightStep + 1e-4);  // onto the new post: the base rounding goes
+  // Onto the new post exactly: the base's rounding (the fixture's default
+  // height step) goes.
+  EXPECT_NEAR(r.level(0).vertices[0].y - before, 3.0, 0.5 * module::kDefaultHeightStep + 1e-4);
   EXPECT_GE(p.metrics().reloaded, 1u);
   EXPECT_EQ(p.metrics().holesInWindow, 0u);
 }
