@@ -9,7 +9,10 @@
 //    read through GDAL;
 //  - `export --journal J --grid` differs from the unedited export exactly
 //    in the craters' footprints, by the profile worked by hand;
-//  - bad input exits 2 naming the flag (or the object).
+//  - bad input exits 2 naming the flag (or the object);
+//  - add-object, switch-object and scale-object: the journal's modules hold
+//    the added icon where OGR puts its lon/lat, and the switched and scaled
+//    object as asked.
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 #include <ogr_spatialref.h>
@@ -20,8 +23,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/edits/editor.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/formats/module.h"
+#include "sandtable/paging/world.h"
 #include "test_support.h"
 
 namespace sandtable::test {
@@ -273,6 +278,103 @@ TEST_F(EditsCli, badInputExitsTwoNamingTheFlag) {
   // Nothing was journalled.
   EXPECT_FALSE(std::filesystem::exists(j) && runCli({"edits", "list", j, "--json"}).out.find("\"id\"") != std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(at("no-such-dir")));
+}
+
+TEST(EditsCliObjects, addedSwitchedAndScaledObjectsAreInTheJournalsModules) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir t("editsobjects");
+  const std::string db = t / "db", j = t / "objects.journal";
+  spit(t / "objects.csv", "lon,lat,icon\n11.585,49.955,tree\n");
+  const auto b = runCli({"build", "--elevation", data("elevation/srtm/N49E011.hgt.zip"), "--extent", "11.57", "49.95",
+                         "11.60", "49.965", "--spacing", "30", "--objects", t / "objects.csv", "--icons",
+                         std::string(SANDTABLE_SOURCE_DIR) + "/samples/icons.txt", "-o", db});
+  ASSERT_EQ(b.exitCode, 0) << b.err;
+  auto opened = openDatabase(db);
+  ASSERT_TRUE(opened.ok()) << opened.error();
+  ASSERT_TRUE(opened->icons);
+  const auto iconOf = [&](const std::string& name) {
+    for (std::size_t k = 0; k < opened->icons->icons.size(); ++k) {
+      if (opened->icons->icons[k].name == name) return int(k);
+    }
+    return -1;
+  };
+  const int tank = iconOf("tank"), rock = iconOf("rock"), tree = iconOf("tree");
+  ASSERT_GE(tank, 0);
+  ASSERT_GE(rock, 0);
+  // The explicit tree: its module and id.
+  const auto& h = opened->modules->header();
+  std::uint32_t kx = 0, kz = 0;
+  std::uint64_t id = 0;
+  bool found = false;
+  for (std::uint32_t z = 0; z < h.modulesZ && !found; ++z) {
+    for (std::uint32_t x = 0; x < h.modulesX && !found; ++x) {
+      module::Module m;
+      ASSERT_TRUE(opened->modules->readInto(x, z, m).ok());
+      for (const auto& o : m.objects) {
+        if (o.cls == module::kObjectClassExplicit && o.icon == tree) kx = x, kz = z, id = o.id, found = true;
+      }
+    }
+  }
+  ASSERT_TRUE(found) << "the build placed no explicit tree";
+  const std::vector<std::string> head = {"edits", "apply", db, "--journal", j};
+  const auto apply = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), head.begin(), head.end());
+    const auto r = runCli(args);
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+  };
+  apply({"add-object", "--icon", "tank", "--lonlat", "11.58", "49.957", "--heading", "90", "--scale", "2"});
+  apply({"switch-object", std::to_string(id), "--module", std::to_string(kx), std::to_string(kz), "--icon", "rock"});
+  apply({"scale-object", std::to_string(id), "--module", std::to_string(kx), std::to_string(kz), "--scale", "3"});
+  const auto bad = runCli({"edits", "apply", db, "--journal", j, "add-object", "--icon", "dragon", "--lonlat", "11.58",
+                           "49.957"});
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_NE(bad.err.find("--icon dragon: no such icon"), std::string::npos) << bad.err;
+
+  // Where OGR puts the tank's lon/lat, in the database frame.
+  OGRSpatialReference wgs, frame;
+  wgs.SetWellKnownGeogCS("WGS84");
+  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  ASSERT_EQ(frame.importFromWkt(opened->manifest.crsWkt.c_str()), OGRERR_NONE);
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs, &frame));
+  ASSERT_TRUE(ct);
+  double e = 11.58, n = 49.957;
+  ASSERT_TRUE(ct->Transform(1, &e, &n));
+  const double fx = e - opened->manifest.originEasting, fz = opened->manifest.originNorthing - n;
+
+  // The journal's world, as fly and sim open it.
+  auto world = paging::World::open(db);
+  ASSERT_TRUE(world.ok()) << world.error();
+  edits::EditorOptions o;
+  o.journal = j;
+  o.readOnly = true;
+  o.background = false;
+  auto ed = edits::Editor::open(world.value(), o);
+  ASSERT_TRUE(ed.ok()) << ed.error();
+  const double size = h.moduleSize;
+  bool tankSeen = false, treeSeen = false;
+  for (std::uint32_t z = 0; z < h.modulesZ; ++z) {
+    for (std::uint32_t x = 0; x < h.modulesX; ++x) {
+      module::Module m;
+      ASSERT_TRUE(ed.value()->world()->modules()->read(x, z, m).ok());
+      for (const auto& obj : m.objects) {
+        if (obj.icon == tank) {
+          tankSeen = true;
+          EXPECT_NEAR(x * size + obj.x, fx, 0.01);
+          EXPECT_NEAR(z * size + obj.z, fz, 0.01);
+          EXPECT_NEAR(obj.heading, 16384, 1);  // 90 degrees of 65536 a turn
+          EXPECT_FLOAT_EQ(obj.scale, 2.0f);
+        }
+        if (x == kx && z == kz && obj.id == id) {
+          treeSeen = true;
+          EXPECT_EQ(obj.icon, rock);
+          EXPECT_FLOAT_EQ(obj.scale, 3.0f);
+        }
+      }
+    }
+  }
+  EXPECT_TRUE(tankSeen) << "the added tank is in no module";
+  EXPECT_TRUE(treeSeen) << "the switched object is gone";
 }
 
 }  // namespace

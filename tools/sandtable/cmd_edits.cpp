@@ -5,6 +5,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <numbers>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -31,6 +32,9 @@ struct ApplyArgs {
   double radius = 0, depth = 0, width = 0, height = 0, slope = 0.5;
   std::uint64_t object = 0;
   std::vector<std::uint32_t> module;
+  std::string icon;                  ///< add-object, switch-object: a name in icons.pack
+  std::uint16_t iconIndex = 0;       ///< `icon` resolved by runApply
+  double headingDeg = 0, scale = 1;  ///< add-object, scale-object
   bool json = false;
 };
 
@@ -76,13 +80,30 @@ Result<edit::Edit> editFrom(const ApplyArgs& a, const ToFrame& toFrame) {
     }
     return {};
   };
-  if (a.kind == "crater") {
-    e.kind = edit::Kind::crater;
-    if (a.lonlat.empty() == a.xy.empty()) return Problem{"", 0, "crater: give exactly one of --lonlat LON LAT or --xy E N"};
+  const auto onePoint = [&]() -> Status {
+    if (a.lonlat.empty() == a.xy.empty()) return Problem{"", 0, a.kind + ": give exactly one of --lonlat LON LAT or --xy E N"};
     const bool xy = !a.xy.empty();
     const auto& p = xy ? a.xy : a.lonlat;
-    if (Status st = points({{p[0], p[1]}}, xy); !st) return st.problems();
+    return points({{p[0], p[1]}}, xy);
+  };
+  const auto inModule = [&]() -> Status {
+    if (a.module.size() != 2) return Problem{"", 0, a.kind + ": give --module KX KZ, the object's load module"};
+    e.object = a.object;
+    e.moduleX = a.module[0], e.moduleZ = a.module[1];
+    return {};
+  };
+  if (a.kind == "crater") {
+    e.kind = edit::Kind::crater;
+    if (Status st = onePoint(); !st) return st.problems();
     e.radius = a.radius, e.depth = a.depth;
+  } else if (a.kind == "add-object") {
+    e.kind = edit::Kind::addObject;
+    if (Status st = onePoint(); !st) return st.problems();
+    e.icon = a.iconIndex, e.heading = a.headingDeg * std::numbers::pi / 180.0, e.scale = a.scale;
+  } else if (a.kind == "switch-object" || a.kind == "scale-object") {
+    e.kind = a.kind == "switch-object" ? edit::Kind::switchObject : edit::Kind::scaleObject;
+    if (Status st = inModule(); !st) return st.problems();
+    e.icon = a.iconIndex, e.scale = a.scale;
   } else if (a.kind == "berm" || a.kind == "ditch") {
     e.kind = a.kind == "berm" ? edit::Kind::berm : edit::Kind::ditch;
     auto pts = parsePairs(a.line, "--line");
@@ -98,9 +119,7 @@ Result<edit::Edit> editFrom(const ApplyArgs& a, const ToFrame& toFrame) {
     e.height = a.height, e.sideSlope = a.slope;
   } else {
     e.kind = edit::Kind::removeObject;
-    e.object = a.object;
-    if (a.module.size() != 2) return Problem{"", 0, "remove-object: give --module KX KZ, the object's load module"};
-    e.moduleX = a.module[0], e.moduleZ = a.module[1];
+    if (Status st = inModule(); !st) return st.problems();
   }
   return e;
 }
@@ -124,10 +143,29 @@ nlohmann::json editJson(const edit::Edit& e) {
   return j;
 }
 
-int runApply(const ApplyArgs& a) {
+/// `name`'s index in the database's icons.pack; a message naming --icon
+/// and the icons there are when it is not one.
+Result<std::uint16_t> iconIndex(const paging::World& w, const std::string& name) {
+  std::string names;
+  if (const auto& pack = w.icons()) {
+    for (std::size_t k = 0; k < pack->icons.size(); ++k) {
+      if (pack->icons[k].name == name) return std::uint16_t(k);
+      names += (names.empty() ? "" : ", ") + pack->icons[k].name;
+    }
+  }
+  return Problem{"", 0, "--icon " + name + ": no such icon in the database's icons.pack" +
+                            (names.empty() ? std::string(" (it has none; build with --icons)") : " (it has " + names + ")")};
+}
+
+int runApply(ApplyArgs& a) {
   const std::string cmd = "edits apply";
   auto ew = openEditedWorld(cmd, a.dir, a.journal, /*append=*/true, editorOptions(true, false));
   if (!ew) return kUsage;
+  if (!a.icon.empty()) {
+    auto k = iconIndex(*ew->base, a.icon);
+    if (!k) return usageError(cmd, k.problems().front().message);
+    a.iconIndex = k.value();
+  }
   ToFrame toFrame;
   const auto& man = ew->base->manifest();
   toFrame.originE = man.originEasting, toFrame.originN = man.originNorthing;
@@ -135,7 +173,7 @@ int runApply(const ApplyArgs& a) {
   if (!geo) return usageError(cmd, geo.error());
   toFrame.geo.emplace(std::move(geo.value()));
   auto made = editFrom(a, toFrame);
-  if (!made) return usageError(cmd, withFlags(made.error()));
+  if (!made) return usageError(cmd, withFlags(made.problems().front().message));
   edit::Edit e = made.value();
   edits::Editor& ed = *ew->editor;
   e.id = ed.nextId(0);
@@ -162,6 +200,10 @@ int runApply(const ApplyArgs& a) {
     j["modules_remeshed"] = st.modulesRemeshed;
     j["remesh_s"] = st.remeshSeconds;
     std::printf("%s\n", j.dump(2).c_str());
+  } else if (!edit::changesHeights(e.kind)) {
+    std::printf("applied %s %llu: its module's objects follow in a new generation\n",
+                std::string(edit::kindName(e.kind)).c_str(), static_cast<unsigned long long>(e.id));
+    std::printf("journal %s now holds %zu edits\n", ew->journal.c_str(), ed.edits().size());
   } else {
     std::printf("applied %s %llu: %zu refined squares, %llu posts in the changed box, %llu modules re-meshed (%.1f ms)\n",
                 std::string(edit::kindName(e.kind)).c_str(), static_cast<unsigned long long>(e.id), c.squares.size(),
@@ -324,10 +366,29 @@ void addApply(CLI::App& edits, Commands& c) {
     s->add_option("--height", a->height, "Height, metres above the datum")->required();
     s->add_option("--slope", a->slope, "Side slope of the cut or fill around it (default 0.5)");
   }
+  const auto objectId = [](CLI::App& app, ApplyArgs& args) {
+    app.add_option("ID", args.object, "The object's id in its module (export --objects lists them)")->required();
+  };
   {
-    auto [s, a] = sub("remove-object", "Remove a static object", [](CLI::App& app, ApplyArgs& args) {
-      app.add_option("ID", args.object, "The object's id in its module (export --objects lists them)")->required();
-    });
+    auto [s, a] = sub("add-object", "Place a static object (an icon of icons.pack)");
+    s->add_option("--icon", a->icon, "Icon name in the database's icons.pack")->required();
+    s->add_option("--lonlat", a->lonlat, "Where, LON LAT (WGS 84 degrees)")->expected(2);
+    s->add_option("--xy", a->xy, "Where, EASTING NORTHING in the database CRS")->expected(2);
+    s->add_option("--heading", a->headingDeg, "Degrees clockwise from grid north (default 0)");
+    s->add_option("--scale", a->scale, "Uniform scale (default 1)");
+  }
+  {
+    auto [s, a] = sub("switch-object", "Show another icon for a static object (the seed's model switching)", objectId);
+    s->add_option("--module", a->module, "KX KZ: the object's load module")->expected(2)->required();
+    s->add_option("--icon", a->icon, "Icon name in the database's icons.pack")->required();
+  }
+  {
+    auto [s, a] = sub("scale-object", "Scale a static object (the seed's scaling)", objectId);
+    s->add_option("--module", a->module, "KX KZ: the object's load module")->expected(2)->required();
+    s->add_option("--scale", a->scale, "Uniform scale")->required();
+  }
+  {
+    auto [s, a] = sub("remove-object", "Remove a static object", objectId);
     s->add_option("--module", a->module, "KX KZ: the object's load module")->expected(2)->required();
   }
 }

@@ -487,9 +487,11 @@ class Rebuilder {
   /// coordinates interpolated from the decal triangle.
   void clipDecal(int l, const Level& b, const Group& g, const SquareMesh& m, Level& out) {
     const Target& tg = *m.target;
-    const auto [x0, z0] = local(m, {0, 0});
+    const std::array<double, 2> origin = local(m, {0, 0});  // not a structured binding: clang 14 cannot capture one
     const double s = in_.heights->spacing();
-    auto toUV = [&](const Vertex& p) { return UV{(double(p.x) - x0) / s * tg.cells, (double(p.z) - z0) / s * tg.cells}; };
+    auto toUV = [&](const Vertex& p) {
+      return UV{(double(p.x) - origin[0]) / s * tg.cells, (double(p.z) - origin[1]) / s * tg.cells};
+    };
     PendingGroup pg{g, std::uint32_t(scratch_.size())};
     pg.g.indexCount = 0;
     std::vector<std::uint32_t> candidates;

@@ -519,7 +519,7 @@ TEST(SimDisObjectTracker, heartbeatsAndCopiesAreDuplicatesAndANewUpdateIsANewEdi
   EXPECT_TRUE(b.receive(bad.value(), 10).empty());
   EXPECT_TRUE(b.receive(bad.value(), 10).empty());
   EXPECT_EQ(c.malformed, 2u);
-  EXPECT_EQ(c.lastMalformed, " @0: fromPdu: crater: the location is not finite");
+  EXPECT_EQ(c.lastMalformed, "fromPdu: crater: the location is not finite");
   EXPECT_EQ(c.received, c.edits + c.duplicates + c.malformed + c.withoutEdit);
 }
 

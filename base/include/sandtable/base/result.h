@@ -26,7 +26,10 @@ struct Problem {
   std::string message;     ///< starts with the stage that found it
 
   /// "file @offset: message", the form every tool prints.
+  /// "FILE @OFFSET: MESSAGE"; the message alone when there is no file or
+  /// place to name (an option's value, a computed result).
   std::string str() const {
+    if (file.empty() && offset == 0) return message;
     return file + " @" + std::to_string(offset) + ": " + message;
   }
 };
