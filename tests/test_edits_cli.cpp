@@ -68,6 +68,21 @@ std::string num(double v) {
   return b;
 }
 
+/// Where OGR (independently of geodesy) puts WGS 84 (lon, lat) in the
+/// database frame of `m` (x east, z south of its origin); false when OGR
+/// cannot transform it.
+bool ogrFrame(const manifest::Manifest& m, double lon, double lat, double& x, double& z) {
+  OGRSpatialReference wgs, frame;
+  wgs.SetWellKnownGeogCS("WGS84");
+  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  if (frame.importFromWkt(m.crsWkt.c_str()) != OGRERR_NONE) return false;
+  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs, &frame));
+  if (!ct || !ct->Transform(1, &lon, &lat)) return false;
+  x = lon - m.originEasting, z = m.originNorthing - lat;
+  return true;
+}
+
 class EditsCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -174,17 +189,10 @@ TEST_F(EditsCli, everyKindIsAppliedAndListedWithItsFields) {
   EXPECT_NEAR(e[5]["points_xz"][0][1].get<double>(), 700.5, 1e-6);
 
   // The crater's lon/lat where OGR puts it in the database frame.
-  OGRSpatialReference wgs, frame;
-  wgs.SetWellKnownGeogCS("WGS84");
-  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  ASSERT_EQ(frame.importFromWkt(opened->manifest.crsWkt.c_str()), OGRERR_NONE);
-  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs, &frame));
-  ASSERT_TRUE(ct);
-  double x = 11.585, y = 49.96;
-  ASSERT_TRUE(ct->Transform(1, &x, &y));
-  EXPECT_NEAR(e[0]["points_xz"][0][0].get<double>(), x - originE_, 1e-3);
-  EXPECT_NEAR(e[0]["points_xz"][0][1].get<double>(), originN_ - y, 1e-3);
+  double x = 0, z = 0;
+  ASSERT_TRUE(ogrFrame(opened->manifest, 11.585, 49.96, x, z));
+  EXPECT_NEAR(e[0]["points_xz"][0][0].get<double>(), x, 1e-3);
+  EXPECT_NEAR(e[0]["points_xz"][0][1].get<double>(), z, 1e-3);
 
   // The plain listing names them too.
   const auto text = runCli({"edits", "list", j});
@@ -331,16 +339,8 @@ TEST(EditsCliObjects, addedSwitchedAndScaledObjectsAreInTheJournalsModules) {
   EXPECT_NE(bad.err.find("--icon dragon: no such icon"), std::string::npos) << bad.err;
 
   // Where OGR puts the tank's lon/lat, in the database frame.
-  OGRSpatialReference wgs, frame;
-  wgs.SetWellKnownGeogCS("WGS84");
-  wgs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  ASSERT_EQ(frame.importFromWkt(opened->manifest.crsWkt.c_str()), OGRERR_NONE);
-  frame.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  std::unique_ptr<OGRCoordinateTransformation> ct(OGRCreateCoordinateTransformation(&wgs, &frame));
-  ASSERT_TRUE(ct);
-  double e = 11.58, n = 49.957;
-  ASSERT_TRUE(ct->Transform(1, &e, &n));
-  const double fx = e - opened->manifest.originEasting, fz = opened->manifest.originNorthing - n;
+  double fx = 0, fz = 0;
+  ASSERT_TRUE(ogrFrame(opened->manifest, 11.58, 49.957, fx, fz));
 
   // The journal's world, as fly and sim open it.
   auto world = paging::World::open(db);

@@ -495,14 +495,16 @@ void buildLevelMesh(const paging::ResidentModule& m, std::uint32_t levelIndex, c
   sc.area.assign(2 * squares, -1.0f);
   sc.skinTriangles.assign(squares, 0);
   sc.offLattice.assign(squares, 0);
+  const bool anyRefined = s.grid && s.grid->anyRefined();
   for (const module::Group& g : level.groups) {
     if (g.priority != module::kPrioritySkin || g.half == module::Half::skirt || g.square >= squares) continue;
     sc.skinTriangles[g.square] += g.indexCount / 3;
     // A square re-meshed with a refined patch (docs/DYNAMIC.md) has skin
     // off its lattice planes (by more than the height rounding of the
     // vertex and its posts): a lattice drawn there would cover a crater.
+    // Only refined squares leave their planes: no scan on an unedited world.
     const double off = std::max(0.02, 2.0 * level.heightStep);
-    for (std::uint32_t i = 0; i < g.indexCount && !sc.offLattice[g.square]; ++i) {
+    for (std::uint32_t i = 0; anyRefined && i < g.indexCount && !sc.offLattice[g.square]; ++i) {
       const auto& v = level.vertices[level.indices[g.firstIndex + i]];
       const auto yl = posts.heightAt(v.x, v.z);
       sc.offLattice[g.square] = yl && std::abs(v.y - *yl) > off;
