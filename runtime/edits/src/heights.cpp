@@ -108,6 +108,7 @@ grid::RefinedSquare resample(const grid::RefinedSquare& old, std::uint32_t cells
   grid::RefinedSquare p;
   p.i = old.i, p.j = old.j, p.cells = cells;
   p.a0 = old.a0 * k, p.b0 = old.b0 * k, p.a1 = old.a1 * k, p.b1 = old.b1 * k;
+  p.da0 = old.da0 * k, p.db0 = old.db0 * k, p.da1 = old.da1 * k, p.db1 = old.db1 * k;
   p.heights.resize(std::size_t(p.b1 - p.b0 + 1) * p.width());
   std::size_t n = 0;
   for (std::uint32_t b = p.b0; b <= p.b1; ++b) {
@@ -413,9 +414,17 @@ Result<HeightsChange> EditedHeights::apply(const edit::Edit& e) {
         // the square's planes move with it.
         const bool moved = cornerChanged(q);
         const auto ra = snapOutward(i, lattice, s, box.x0, box.x1), rb = snapOutward(j, lattice, s, box.z0, box.z1);
-        grow(p, lattice, moved ? std::array<std::uint32_t, 4>{0, lattice, 0, lattice}
-                               : std::array<std::uint32_t, 4>{ra[0], ra[1], rb[0], rb[1]},
-             before);
+        const std::array<std::uint32_t, 4> boxFine{ra[0], ra[1], rb[0], rb[1]};
+        const bool had = p.cells != 0;
+        const std::array<std::uint32_t, 4> detailWas = p.detail();
+        grow(p, lattice, moved ? std::array<std::uint32_t, 4>{0, lattice, 0, lattice} : boxFine, before);
+        // The detail: what it was and the box. Outside it the fine posts
+        // are the ground before, on the planes of the corners before (the
+        // rest planes), however far the patch reaches.
+        p.da0 = had ? std::min(detailWas[0], boxFine[0]) : boxFine[0];
+        p.db0 = had ? std::min(detailWas[1], boxFine[2]) : boxFine[2];
+        p.da1 = had ? std::max(detailWas[2], boxFine[1]) : boxFine[1];
+        p.db1 = had ? std::max(detailWas[3], boxFine[3]) : boxFine[3];
         const auto xa = [&](std::uint32_t a) { return finePos(i, a, lattice, s); };
         const auto zb = [&](std::uint32_t b) { return finePos(j, b, lattice, s); };
         const Range fa = strictlyInside(lattice + 1, xa, box.x0, box.x1);

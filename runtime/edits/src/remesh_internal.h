@@ -95,10 +95,6 @@ class Patches {
   /// Height of `t`'s surface at (u, v) fine units inside it: level 0 the
   /// patch's fine post; a coarser level its planes plus the detail.
   double interiorHeight(const Target& t, double u, double v) const;
-  /// The same anywhere in its fine region, at post coordinates (U, V) (an
-  /// object's base): level 0 refinedHeight, a coarser level its planes
-  /// plus the detail.
-  double interiorHeightAt(const Target& t, double U, double V) const;
 
  private:
   const grid::HeightField& h_;

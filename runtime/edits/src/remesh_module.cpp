@@ -636,19 +636,20 @@ void placeObjects(module::Module& m, const grid::HeightField& h, std::uint32_t s
   const double s = h.spacing();
   const double U0 = double(m.kx) * squares, V0 = double(m.kz) * squares;
   Patches patches(h);
+  std::vector<std::optional<module::Surface>> surfaces(m.levels.size());
   for (std::size_t k = 0; k < m.objects.size(); ++k) {
     const double U = U0 + double(m.objects[k].x) / s, V = V0 + double(m.objects[k].z) / s;
     const terrain::SquarePoint q = terrain::squareAt(U, V, h.postsX(), h.postsZ());
     if (!h.refined(q.i, q.j)) continue;
-    // On every level whose square there takes the patch, and where its
-    // fine region holds the object: that level's surface.
+    // On every level whose square there takes the patch: the skin drawn
+    // there (the fine lattice, or the rest triangles, which leave the
+    // level's planes where the patch is wider than its detail).
     for (std::size_t l = 0; l < m.levels.size(); ++l) {
       const std::uint32_t span = 1u << l;
-      Target* t = patches.target(int(l), q.i / span * span, q.j / span * span);
-      if (!t) continue;
-      patches.region(*t);
-      if (!t->inRegion((U - t->gi) * t->cells, (V - t->gj) * t->cells)) continue;
-      m.levels[l].objectY[k] = float(patches.interiorHeightAt(*t, U, V));
+      if (!patches.target(int(l), q.i / span * span, q.j / span * span)) continue;
+      if (!surfaces[l]) surfaces[l].emplace(m.levels[l], false);
+      const module::Surface::Hit hit = surfaces[l]->skin(m.objects[k].x, m.objects[k].z);
+      if (std::isfinite(hit.y)) m.levels[l].objectY[k] = hit.y;
     }
   }
 }

@@ -97,8 +97,9 @@ Target* Patches::target(int level, std::uint32_t gi, std::uint32_t gj) {
       if (!r) continue;
       t.cells = std::max(t.cells, r->cells);
       if (level == 0) continue;
-      for (std::uint32_t b = r->b0; b <= r->b1; ++b) {
-        for (std::uint32_t a = r->a0; a <= r->a1; ++a) {
+      const auto d = r->detail();
+      for (std::uint32_t b = d[1]; b <= d[3]; ++b) {
+        for (std::uint32_t a = d[0]; a <= d[2]; ++a) {
           const double plane = planesAt(h_, gi + x, gj + z, 1, double(a) / r->cells, double(b) / r->cells);
           detailMax = std::max(detailMax, std::fabs(double(r->at(a, b)) - plane));
         }
@@ -145,7 +146,9 @@ const std::vector<Target::Rect>& Patches::region(Target& t) {
         const std::int64_t ni = std::int64_t(t.gi) + di * std::int64_t(span), nj = std::int64_t(t.gj) + dj * std::int64_t(span);
         return ni >= 0 && nj >= 0 && target(t.level, std::uint32_t(ni), std::uint32_t(nj)) != nullptr;
       };
-      std::uint32_t a0 = r->a0, a1 = r->a1, b0 = r->b0, b1 = r->b1;
+      // The patch's detail only: its other fine posts lie on two planes
+      // (RefinedSquare), which the rest triangles draw exactly.
+      auto [a0, b0, a1, b1] = r->detail();
       const std::uint32_t n = r->cells;
       if (a0 == 0 && !farDraws(-1, 0, x == 0)) a0 = 1;
       if (a1 == n && !farDraws(1, 0, x + 1 == span)) a1 = n - 1;
@@ -207,16 +210,6 @@ double Patches::interiorHeight(const Target& t, double u, double v) const {
   }
   const double n = t.n();
   return planesAt(h_, t.gi, t.gj, t.span, u / n, v / n) + detail(t.gi + u / t.cells, t.gj + v / t.cells);
-}
-
-double Patches::interiorHeightAt(const Target& t, double U, double V) const {
-  if (t.level == 0) {
-    bool inside = false;
-    const double y = grid::refinedHeight(*patchAt(h_, t.gi, t.gj), U - t.gi, V - t.gj, inside);
-    if (inside) return y;
-    return planesAt(h_, t.gi, t.gj, 1, U - t.gi, V - t.gj);
-  }
-  return planesAt(h_, t.gi, t.gj, t.span, (U - t.gi) / t.span, (V - t.gj) / t.span) + detail(U, V);
 }
 
 // ---------------------------------------------------------------- one target's mesh

@@ -14,6 +14,7 @@
 #include <random>
 #include <set>
 
+#include "sandtable/edits/heights.h"
 #include "sandtable/edits/modules.h"
 #include "sandtable/edits/profile.h"
 #include "sandtable/formats/module_check.h"
@@ -300,7 +301,7 @@ Crater craterAt(TestHeights& h, double x, double z, std::uint32_t cells) {
 /// Every check of a refined square's level-0 triangles: heights at the fine
 /// posts and inside the patch are refinedHeight's, the skin covers the
 /// square once, and its sides meet each neighbour without a T-junction.
-void expectRefinedSquare(const TestHeights& h, const paging::ModuleSource& src, std::uint32_t i, std::uint32_t j) {
+void expectRefinedSquare(const grid::HeightField& h, const paging::ModuleSource& src, std::uint32_t i, std::uint32_t j) {
   const pack::IndexHeader& hd = src.header();
   const std::uint32_t sq = hd.moduleSquares, kx = std::min(i / sq, hd.modulesX - 1), kz = std::min(j / sq, hd.modulesZ - 1);
   const module::Module m = readModule(src, kx, kz);
@@ -542,6 +543,79 @@ TEST(EditedModules, neighbourPatchesOfOtherCellsAndPatchesOnAnUnrefinedEdgeLeave
   ASSERT_TRUE(report.ok()) << report.error();
   EXPECT_EQ(report->refinedSquares, 3u);
   for (const auto& [a, b] : squares) expectRefinedSquare(*f.heights, *f.modules, a, b);
+}
+
+TEST(EditedModules, aCraterOnAPostMeshesItsDetailFineAndTheRestOfTheFourSquaresAsTheGroundBefore) {
+  REQUIRE_BAYREUTH();
+  // The overlay itself (heights.h): a crater on a post moves the post, so
+  // the four squares round it are refined whole (their planes moved, the
+  // ground away from the crater did not), and only the crater's box is
+  // detail.
+  auto heights = std::make_shared<EditedHeights>(grid::heightField(db->grid));
+  auto pack = std::make_shared<paging::PackSource>(db->modules);
+  EditedModules modules(pack, grid::heightField(db->grid), heights);
+  const pack::IndexHeader& hd = modules.header();
+  const double s = heights->spacing();
+  const std::uint32_t pi = hd.moduleSquares + 10, pj = hd.moduleSquares + 11;  // inside module (1, 1)
+  edit::Edit e;
+  e.kind = edit::Kind::crater;
+  e.points = {{pi * s, pj * s}};
+  e.radius = kCraterMedium.radius;
+  e.depth = kCraterMedium.depth;
+  e.id = 1;
+  const float before = heights->elevation(pi, pj);
+  const auto change = heights->apply(e);
+  ASSERT_TRUE(change.ok()) << change.error();
+  EXPECT_NEAR(heights->elevation(pi, pj), before - e.depth, 1e-3);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> squares;
+  for (const SquareIndex& q : change->squares) squares.emplace_back(q.i, q.j);
+  ASSERT_EQ(squares.size(), 4u);
+  const auto report = modules.remesh(change->posts, squares);
+  ASSERT_TRUE(report.ok()) << report.error();
+  EXPECT_EQ(report->modules, (std::vector<paging::ModuleKey>{{1, 1}}));
+  const module::Module m = readModule(modules, 1, 1);
+  std::size_t fineSquares = 0;
+  for (const auto& [i, j] : squares) {
+    const auto r = heights->refined(i, j);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(std::tie(r->a0, r->b0, r->a1, r->b1), std::make_tuple(0u, 0u, r->cells, r->cells)) << "refined whole";
+    const auto d = r->detail();
+    EXPECT_LT((d[2] - d[0]) * (d[3] - d[1]), r->cells * r->cells / 4) << "the detail is the crater's box";
+    fineSquares += std::size_t(d[2] - d[0]) * (d[3] - d[1]);
+    // The drawn skin equals the overlay's surface at every fine post and
+    // anywhere in the square; each side meets its neighbour.
+    expectRefinedSquare(*heights, modules, i, j);
+  }
+  // The four squares' skin: the detail's fine triangles and a few dozen
+  // rest triangles, not the whole squares' fine lattices.
+  std::size_t tris = 0;
+  for (const auto& [i, j] : squares) {
+    const module::Level& l0 = m.levels[0];
+    tris += squareTriangles(l0, (j - hd.moduleSquares) * l0.squaresX + (i - hd.moduleSquares), true).size();
+  }
+  EXPECT_LE(tris, 2 * fineSquares + 200);
+
+  // A second crater on the next post east (two squares now hold two
+  // craters' detail, one at each of their corners), then a large one the
+  // posts carry (the patches ride on their planes' change): still exact.
+  edit::Edit e2 = e;
+  e2.id = 2;
+  e2.points = {{(pi + 1) * s, pj * s}};
+  edit::Edit e3 = e;
+  e3.id = 3;
+  e3.points = {{(pi + 2.5) * s, (pj + 0.5) * s}};
+  e3.radius = 70;
+  e3.depth = 3;
+  std::set<std::pair<std::uint32_t, std::uint32_t>> all(squares.begin(), squares.end());
+  for (const edit::Edit& next : {e2, e3}) {
+    const auto c = heights->apply(next);
+    ASSERT_TRUE(c.ok()) << c.error();
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> sq;
+    for (const SquareIndex& q : c->squares) sq.emplace_back(q.i, q.j), all.insert({q.i, q.j});
+    ASSERT_TRUE(modules.remesh(c->posts, sq).ok());
+  }
+  EXPECT_EQ(all.size(), 6u);
+  for (const auto& [i, j] : all) expectRefinedSquare(*heights, modules, i, j);
 }
 
 TEST(EditedModules, coarserLevelsTakeACraterWhereItDepartsMoreThanTheirOwnError) {

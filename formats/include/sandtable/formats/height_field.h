@@ -84,11 +84,25 @@ struct PostLayout {
 /// planes, so the two surfaces meet without a step; along the square's
 /// edges the neighbour square carries the same heights (its own patch, or
 /// its planes where the patch's edge posts are on them).
+/// The detail rectangle da0..da1 x db0..db1 (inside the patch's; unset,
+/// da1 == 0, means the patch's own) holds every fine post that departs
+/// from one pair of planes, the rest planes: each half of the square one
+/// plane, through the square's corner posts where a corner lies outside
+/// the detail rectangle. The patch is wider than its detail when a corner
+/// post moved under it (a crater on a post): the square's planes moved, the
+/// ground away from the crater did not, so the whole square is fine posts,
+/// but a mesher draws those outside the detail as the rest planes.
 /// Immutable once published: readers hold it by shared_ptr.
 struct RefinedSquare {
   std::uint32_t i = 0, j = 0;
   std::uint32_t cells = 0;
   std::uint32_t a0 = 0, b0 = 0, a1 = 0, b1 = 0;
+  std::uint32_t da0 = 0, db0 = 0, da1 = 0, db1 = 0;
+  /// The detail rectangle {a0, b0, a1, b1}: the patch's own when unset.
+  std::array<std::uint32_t, 4> detail() const {
+    if (da1 > da0) return {da0, db0, da1, db1};
+    return {a0, b0, a1, b1};
+  }
   std::vector<float> heights;  ///< (b1 - b0 + 1) * (a1 - a0 + 1)
   std::uint64_t generation = 0;
   std::uint32_t width() const { return a1 - a0 + 1; }
