@@ -38,14 +38,6 @@ grid::PostRect areaOf(const edit::Edit& e, const grid::HeightField& h) {
   return r;
 }
 
-grid::PostRect unite(const grid::PostRect& a, const grid::PostRect& b) {
-  if (a.empty()) return b;
-  if (b.empty()) return a;
-  return {std::min(a.i0, b.i0), std::min(a.j0, b.j0), std::max(a.i1, b.i1), std::max(a.j1, b.j1)};
-}
-
-std::uint64_t area(const grid::PostRect& r) { return r.empty() ? 0 : std::uint64_t(r.i1 - r.i0) * (r.j1 - r.j0); }
-
 }  // namespace
 
 Result<std::unique_ptr<Editor>> Editor::open(std::shared_ptr<const paging::World> base, EditorOptions options) {
@@ -220,41 +212,26 @@ void Editor::runRemesh() {
     changes.swap(pending_);
   }
   if (changes.empty()) return;  // an earlier run took them
-  // Changes near each other are re-meshed together (one rebuild of a
-  // module a burst of craters touched), far ones apart (their union would
-  // rebuild every module between them).
-  struct Batch {
-    grid::PostRect posts;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> squares;
-  };
-  std::vector<Batch> batches;
+  // One rebuild per module for everything pending: a burst of craters
+  // (a battle) costs each module it touches one rebuild, however many of
+  // them fell on it.
+  std::vector<EditedModules::Change> list;
+  list.reserve(changes.size());
   for (const HeightsChange& c : changes) {
-    const grid::PostRect r = c.region.empty() ? c.posts : c.region;
-    Batch* into = nullptr;
-    for (Batch& b : batches) {
-      if (area(unite(b.posts, r)) <= 2 * (area(b.posts) + area(r))) {
-        into = &b;
-        break;
-      }
-    }
-    if (!into) into = &batches.emplace_back();
-    into->posts = unite(into->posts, c.posts);
-    for (const SquareIndex& s : c.squares) into->squares.emplace_back(s.i, s.j);
+    EditedModules::Change& l = list.emplace_back();
+    l.posts = c.posts;
+    for (const SquareIndex& s : c.squares) l.squares.emplace_back(s.i, s.j);
   }
-  for (Batch& b : batches) {
-    std::sort(b.squares.begin(), b.squares.end());
-    b.squares.erase(std::unique(b.squares.begin(), b.squares.end()), b.squares.end());
-    auto r = modules_->remesh(b.posts, b.squares);
-    std::lock_guard lock(statsMutex_);
-    ++stats_.remeshes;
-    if (!r) {
-      ++stats_.remeshFailures;
-      stats_.lastRemeshError = r.error();
-      continue;
-    }
-    stats_.modulesRemeshed += r.value().modules.size();
-    stats_.remeshSeconds += r.value().seconds;
+  auto r = modules_->remesh(list);
+  std::lock_guard lock(statsMutex_);
+  ++stats_.remeshes;
+  if (!r) {
+    ++stats_.remeshFailures;
+    stats_.lastRemeshError = r.error();
+    return;
   }
+  stats_.modulesRemeshed += r.value().modules.size();
+  stats_.remeshSeconds += r.value().seconds;
 }
 
 Status Editor::tick() {

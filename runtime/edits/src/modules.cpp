@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <map>
 #include <set>
 #include <string>
 
@@ -128,18 +129,36 @@ void EditedModules::commit() {
 
 Result<RemeshReport> EditedModules::remesh(const grid::PostRect& changedPosts,
                                            std::span<const std::pair<std::uint32_t, std::uint32_t>> changedRefinedSquares) {
+  const Change one{changedPosts, {changedRefinedSquares.begin(), changedRefinedSquares.end()}};
+  return remesh(std::span<const Change>(&one, 1));
+}
+
+Result<RemeshReport> EditedModules::remesh(std::span<const Change> changes) {
   const double t0 = threadSeconds();
   RemeshReport report;
-  report.modules = touched(changedPosts, changedRefinedSquares);
-  // Normals change at the changed posts and the triangles beside them.
-  grid::PostRect dirty = changedPosts;
-  if (!dirty.empty()) {
-    dirty.i0 = dirty.i0 > 0 ? dirty.i0 - 1 : 0;
-    dirty.j0 = dirty.j0 > 0 ? dirty.j0 - 1 : 0;
-    dirty.i1 = std::min(dirty.i1 + 1, heights_->postsX());
-    dirty.j1 = std::min(dirty.j1 + 1, heights_->postsZ());
+  // Each touched module with the posts whose normals its changes moved:
+  // the changed posts and the triangles beside them, and every changed
+  // refined square's corners.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, grid::PostRect> dirtyOf;  // (kz, kx): row-major
+  for (const Change& c : changes) {
+    grid::PostRect dirty = c.posts;
+    if (!dirty.empty()) {
+      dirty.i0 = dirty.i0 > 0 ? dirty.i0 - 1 : 0;
+      dirty.j0 = dirty.j0 > 0 ? dirty.j0 - 1 : 0;
+      dirty.i1 = std::min(dirty.i1 + 1, heights_->postsX());
+      dirty.j1 = std::min(dirty.j1 + 1, heights_->postsZ());
+    }
+    for (const auto& [i, j] : c.squares) dirty = unite(dirty, {i, j, i + 2, j + 2});
+    for (const paging::ModuleKey& k : touched(c.posts, c.squares)) {
+      grid::PostRect& d = dirtyOf[{k.kz, k.kx}];
+      d = unite(d, dirty);
+    }
   }
-  for (const auto& [i, j] : changedRefinedSquares) dirty = unite(dirty, {i, j, i + 2, j + 2});
+  std::vector<grid::PostRect> dirtyRects;
+  for (const auto& [key, d] : dirtyOf) {
+    report.modules.push_back({key.second, key.first});
+    dirtyRects.push_back(d);
+  }
   // Every base first: a module that does not read publishes nothing.
   std::vector<State*> states;
   for (const paging::ModuleKey& k : report.modules) {
@@ -152,7 +171,7 @@ Result<RemeshReport> EditedModules::remesh(const grid::PostRect& changedPosts,
   for (std::size_t n = 0; n < states.size(); ++n) {
     State& st = *states[n];
     const paging::ModuleKey k = report.modules[n];
-    st.dirty = unite(st.dirty, dirty);
+    st.dirty = unite(st.dirty, dirtyRects[n]);
     detail::RebuildInput in;
     in.base = st.base.get();
     in.objects = &st.objects;

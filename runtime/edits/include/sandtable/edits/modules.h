@@ -116,6 +116,16 @@ class EditedModules final : public paging::ModuleSource {
   Result<RemeshReport> remesh(const grid::PostRect& changedPosts,
                               std::span<const std::pair<std::uint32_t, std::uint32_t>> changedRefinedSquares);
 
+  /// One change of the heights for the list form of remesh().
+  struct Change {
+    grid::PostRect posts;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> squares;
+  };
+  /// Every module any of `changes` touches, each rebuilt once (a burst of
+  /// craters over many modules costs one rebuild per module, not one per
+  /// crater), row-major. Problems as above.
+  Result<RemeshReport> remesh(std::span<const Change> changes);
+
   /// An object edit (edit::Kind addObject, removeObject, switchObject,
   /// scaleObject) on its module, published as a newer generation: add at
   /// points[0] (an explicit object, heading and scale as given, id one past
