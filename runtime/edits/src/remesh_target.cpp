@@ -108,6 +108,11 @@ Target* Patches::target(int level, std::uint32_t gi, std::uint32_t gj) {
   }
   if (t.cells == 0) return nullptr;
   if (level > 0) {
+    // A coarser level takes the patch on its own fine lattice, 2^level
+    // times coarser (the levels halve their posts; a crater's 0.5 m
+    // detail drawn at every level would multiply its triangles by the
+    // number of levels).
+    t.cells = std::max(1u, t.cells >> level);
     // The levels' error rule (scene::levelErrors): how far this square's
     // planes lie from the finest posts under it. A patch whose detail
     // departs less than that changes nothing the level's error does not
@@ -148,15 +153,19 @@ const std::vector<Target::Rect>& Patches::region(Target& t) {
       };
       // The patch's detail only: its other fine posts lie on two planes
       // (RefinedSquare), which the rest triangles draw exactly.
-      auto [a0, b0, a1, b1] = r->detail();
-      const std::uint32_t n = r->cells;
+      const auto d = r->detail();
+      // Patch units to the target's (both powers of two; a coarser level's
+      // are coarser), outward.
+      const std::uint64_t n = r->cells, c = t.cells;
+      const auto lo = [&](std::uint32_t f) { return std::uint32_t(f * c / n); };
+      const auto hi = [&](std::uint32_t f) { return std::uint32_t((f * c + n - 1) / n); };
+      std::uint32_t a0 = lo(d[0]), b0 = lo(d[1]), a1 = hi(d[2]), b1 = hi(d[3]);
       if (a0 == 0 && !farDraws(-1, 0, x == 0)) a0 = 1;
-      if (a1 == n && !farDraws(1, 0, x + 1 == span)) a1 = n - 1;
+      if (a1 == c && !farDraws(1, 0, x + 1 == span)) a1 = t.cells - 1;
       if (b0 == 0 && !farDraws(0, -1, z == 0)) b0 = 1;
-      if (b1 == n && !farDraws(0, 1, z + 1 == span)) b1 = n - 1;
+      if (b1 == c && !farDraws(0, 1, z + 1 == span)) b1 = t.cells - 1;
       if (a0 >= a1 || b0 >= b1) continue;
-      const std::uint32_t k = t.cells / n;  // both powers of two
-      t.rects.push_back({x * t.cells + a0 * k, z * t.cells + b0 * k, x * t.cells + a1 * k, z * t.cells + b1 * k});
+      t.rects.push_back({x * t.cells + a0, z * t.cells + b0, x * t.cells + a1, z * t.cells + b1});
     }
   }
   return t.rects;

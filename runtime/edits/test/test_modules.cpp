@@ -688,7 +688,8 @@ TEST(EditedModules, coarserLevelsTakeACraterWhereItDepartsMoreThanTheirOwnError)
     const std::vector<Tri> skin = squareTriangles(lv, sb * lv.squaresX + sa, true);
     EXPECT_GT(skin.size(), 100u);
     const double x0 = sa * span * s, z0 = sb * span * s, side = span * s;
-    // The level's planes plus the patch's detail, at every fine post.
+    // The level's planes plus the patch's detail, at every fine post of
+    // the level's own lattice (the patch's, 2^level times coarser).
     auto planeQ = [&](double fx, double fz) {
       return terrain::planeHeight(fx, fz, double(f.heights->elevation(gi, gj)), double(f.heights->elevation(gi + span, gj)),
                                   double(f.heights->elevation(gi, gj + span)),
@@ -698,6 +699,7 @@ TEST(EditedModules, coarserLevelsTakeACraterWhereItDepartsMoreThanTheirOwnError)
     double worst = 0, deepest = 0;
     for (std::uint32_t b = r->b0; b <= r->b1; ++b) {
       for (std::uint32_t a = r->a0; a <= r->a1; ++a) {
+        if (a % span != 0 || b % span != 0) continue;
         const double fx = double(a) / r->cells, fz = double(b) / r->cells;
         const double grid0 = terrain::planeHeight(fx, fz, double(f.heights->elevation(bi + 1, bj + 1)),
                                                   double(f.heights->elevation(bi + 2, bj + 1)),

@@ -29,8 +29,11 @@
 //    squares carry the same vertices (docs/DYNAMIC.md). A coarser level's
 //    lattice square takes the patch where its detail departs from the
 //    square's planes by more than the level's own error (the levels' error
-//    rule), drawn on that level's planes plus the detail; elsewhere the
-//    level is re-draped onto its lattice;
+//    rule), drawn on that level's planes plus the detail, on a fine lattice
+//    2^level times coarser than the patch's; elsewhere the level is
+//    re-draped onto its lattice. Only a patch's detail rectangle is drawn
+//    fine (RefinedSquare): its other fine posts lie on two planes, which
+//    the rest triangles draw exactly;
 //  - skirts are rebuilt along every node edge (through the fine edge
 //    vertices), as deep as every level's edges need, fine points included;
 //    maxHeight, normals (meshing::fillNormals' rule; the fine surface's
