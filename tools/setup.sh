@@ -24,6 +24,8 @@ packages=(
   libx11-dev libxtst-dev xvfb xauth  # stealth viewer window (Xlib + EGL on X11); Xvfb + XTest run its test
   ffmpeg                          # fly --video; installed so its tests run (CI fails a test that would skip)
   libpcap-dev                     # libpcap: DIS capture files, pcap and pcapng (net/dis/)
+  libcurl4-openssl-dev            # libcurl: HTTP range reads of databases on a web server (net/http/)
+  nginx-light                     # the web server the HTTP tests start on loopback (testing/nginx.h)
   tshark                          # Wireshark's DIS dissector: an independent reader of our PDUs (net/dis tests)
   clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
   zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds
