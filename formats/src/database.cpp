@@ -237,11 +237,21 @@ void checkModules(const std::string& dir, const manifest::Manifest& m, const gri
 
 namespace {
 std::atomic<std::uint64_t> gDatabaseOpens{0};
+
+/// modules.idx from `directory` (size capped by the manifest's check of
+/// the index header) and the pack through `pack`.
+Result<std::shared_ptr<const pack::PackReader>> openRemotePack(const std::string& directory,
+                                                              std::shared_ptr<const RangeSource> pack) {
+  const std::string path = directory + "/" + pack::kIndexFileName;
+  auto bytes = readSmallFile(path, std::uint64_t(1) << 32);
+  if (!bytes) return bytes.problems();
+  return pack::PackReader::openRemote(std::move(bytes.value()), path, std::move(pack));
+}
 }  // namespace
 
 std::uint64_t databaseOpens() { return gDatabaseOpens.load(std::memory_order_relaxed); }
 
-Result<Database> openDatabase(const std::string& directory) {
+Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack) {
   gDatabaseOpens.fetch_add(1, std::memory_order_relaxed);
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) {
@@ -255,7 +265,7 @@ Result<Database> openDatabase(const std::string& directory) {
   std::vector<Problem> problems;
   checkAgreement(db.manifest, db.grid->header(), db.grid->path(), problems);
   if (lists(db.manifest, pack::kIndexFileName) || lists(db.manifest, pack::kPackFileName)) {
-    auto r = pack::PackReader::open(directory);
+    auto r = remotePack ? openRemotePack(directory, std::move(remotePack)) : pack::PackReader::open(directory);
     if (!r) return r.problems();
     checkPackAgreement(db.manifest, &db.grid->header(), r.value()->header(), r.value()->indexPath(), problems);
     db.modules = r.value();

@@ -162,30 +162,8 @@ Result<module::Module> decodeRecord(const IndexHeader& h, const Extent& e, std::
   return m;
 }
 
-/// Opens modules.pack and checks its header; with the index header `h`,
-/// also its size and header CRC. Returns the descriptor (or -1) and appends
-/// problems to `out` (an open pack with a bad header still returns its
-/// descriptor, so that validatePack can go on to the records).
-int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
-  const int fd = ::open(packPath.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    out.add({packPath, 0, std::string("pack: cannot open: ") + std::strerror(errno)});
-    return -1;
-  }
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    out.add({packPath, 0, "pack: not a regular file"});
-    return -1;
-  }
-  const auto size = static_cast<std::uint64_t>(st.st_size);
-  std::vector<std::byte> head(
-      static_cast<std::size_t>(std::min<std::uint64_t>(size, kPackHeaderBytes)));
-  if (const Status read = preadAll(fd, head.data(), head.size(), 0); !read) {
-    ::close(fd);
-    out.add({packPath, 0, "pack: cannot read the header: " + read.message()});
-    return -1;
-  }
+void checkPackHead(std::span<const std::byte> head, std::uint64_t size, const std::string& packPath, const IndexHeader* h,
+                   Status& out) {
   const Status header = checkPackHeader(head, packPath);
   const bool headerOk = header.ok();
   out.merge(header);
@@ -213,6 +191,33 @@ int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
       }
     }
   }
+}
+
+/// Opens modules.pack and checks its header; with the index header `h`,
+/// also its size and header CRC. Returns the descriptor (or -1) and appends
+/// problems to `out` (an open pack with a bad header still returns its
+/// descriptor, so that validatePack can go on to the records).
+int openPack(const std::string& packPath, const IndexHeader* h, Status& out) {
+  const int fd = ::open(packPath.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    out.add({packPath, 0, std::string("pack: cannot open: ") + std::strerror(errno)});
+    return -1;
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    out.add({packPath, 0, "pack: not a regular file"});
+    return -1;
+  }
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  std::vector<std::byte> head(
+      static_cast<std::size_t>(std::min<std::uint64_t>(size, kPackHeaderBytes)));
+  if (const Status read = preadAll(fd, head.data(), head.size(), 0); !read) {
+    ::close(fd);
+    out.add({packPath, 0, "pack: cannot read the header: " + read.message()});
+    return -1;
+  }
+  checkPackHead(head, size, packPath, h, out);
   return fd;
 }
 

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/base/range_source.h"
 #include "sandtable/formats/pack.h"
 
 namespace sandtable::pack::detail {
@@ -36,6 +37,15 @@ inline std::uint64_t entryOffset(const IndexHeader& h, std::uint32_t kx, std::ui
 /// Reads exactly n bytes at `off` (a short file is an error). The problem
 /// has no file, only the offset and the reason.
 Status preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off);
+
+/// Where a reader's pack bytes come from: a local descriptor, or a
+/// RangeSource (a pack on a web server) when `remote` is set.
+struct Source {
+  int fd = -1;
+  const RangeSource* remote = nullptr;
+  /// Exactly n bytes at `off`; the problem's message says why not.
+  Status read(std::byte* data, std::size_t n, std::uint64_t off) const;
+};
 
 /// A whole file mapped read-only (nothing mapped when it is empty).
 class MappedFile {
@@ -116,6 +126,11 @@ Result<module::Module> decodeRecord(const IndexHeader& h, const Extent& e, std::
 /// problems to `out` (an open pack with a bad header still returns its
 /// descriptor, so that validatePack can go on to the records).
 int openPack(const std::string& packPath, const IndexHeader* h, Status& out);
+/// openPack's checks of the pack's first bytes (`head`, up to the header's
+/// size) and its `size` (against the index header `h` when given), for a
+/// pack read some other way (a RangeSource).
+void checkPackHead(std::span<const std::byte> head, std::uint64_t size, const std::string& packPath, const IndexHeader* h,
+                   Status& out);
 
 /// Checks the entry table against the header's CRC.
 Status checkTableCrc(const IndexHeader& h, std::span<const std::byte> index, const std::string& indexPath);

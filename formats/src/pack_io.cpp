@@ -38,6 +38,12 @@ MappedFile::~MappedFile() {
   if (base_) ::munmap(const_cast<std::byte*>(base_), size_);
 }
 
+Status Source::read(std::byte* data, std::size_t n, std::uint64_t off) const {
+  if (!remote) return preadAll(fd, data, n, off);
+  if (const Status r = remote->read(off, {data, n}); !r) return Problem{"", off, r.message()};
+  return {};
+}
+
 Status MappedFile::open(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return Problem{path, 0, std::string("cannot open: ") + std::strerror(errno)};

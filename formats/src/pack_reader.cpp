@@ -3,6 +3,7 @@
 #include <cassert>
 
 #include "pack_internal.h"
+#include "sandtable/base/range_source.h"
 #include "sandtable/formats/bytes.h"
 
 namespace sandtable::pack {
@@ -11,8 +12,14 @@ using namespace detail;
 struct PackReader::State {
   std::string packPath, indexPath;
   MappedFile index;
+  std::vector<std::byte> indexOwned;  ///< the index's bytes when they came from elsewhere (openRemote)
   FdGuard pack;
+  std::shared_ptr<const RangeSource> remote;  ///< the pack's bytes when not a local file
   IndexHeader header;
+  std::span<const std::byte> indexBytes() const {
+    return indexOwned.empty() ? index.bytes() : std::span<const std::byte>(indexOwned);
+  }
+  Source source() const { return {pack.fd, remote.get()}; }
 };
 
 PackReader::PackReader(std::unique_ptr<State> s) : state_(std::move(s)) {}
@@ -37,7 +44,30 @@ Result<std::shared_ptr<const PackReader>> PackReader::open(const std::string& di
   return std::shared_ptr<const PackReader>(new PackReader(std::move(s)));
 }
 
+Result<std::shared_ptr<const PackReader>> PackReader::openRemote(std::vector<std::byte> index, const std::string& indexName,
+                                                                std::shared_ptr<const RangeSource> pack) {
+  auto s = std::make_unique<State>();
+  s->indexPath = indexName;
+  s->packPath = pack->name();
+  s->indexOwned = std::move(index);
+  if (s->indexOwned.empty()) return Problem{indexName, 0, "pack index: empty"};
+  auto h = decodeIndexHeader(s->indexOwned, s->indexPath, s->indexOwned.size());
+  if (!h) return h.problems();
+  s->header = h.value();
+  if (const Status table = checkTableCrc(s->header, s->indexOwned, s->indexPath); !table) return table.problems();
+  std::vector<std::byte> head(std::size_t(std::min<std::uint64_t>(pack->size(), kPackHeaderBytes)));
+  if (const Status read = pack->read(0, head); !read) {
+    return Problem{s->packPath, 0, "pack: cannot read the header: " + read.message()};
+  }
+  Status checked;
+  checkPackHead(head, pack->size(), s->packPath, &s->header, checked);
+  if (!checked) return checked.problems();
+  s->remote = std::move(pack);
+  return std::shared_ptr<const PackReader>(new PackReader(std::move(s)));
+}
+
 const IndexHeader& PackReader::header() const { return state_->header; }
+const RangeSource* PackReader::remote() const { return state_->remote.get(); }
 int PackReader::packFd() const { return state_->pack.fd; }
 std::string PackReader::packPath() const { return state_->packPath; }
 std::string PackReader::indexPath() const { return state_->indexPath; }
@@ -45,7 +75,7 @@ std::string PackReader::indexPath() const { return state_->indexPath; }
 Entry PackReader::entry(std::uint32_t kx, std::uint32_t kz) const {
   const IndexHeader& h = state_->header;
   assert(kx < h.modulesX && kz < h.modulesZ);
-  return decodeEntry(state_->index.bytes().subspan(entryOffset(h, kx, kz), h.entryBytes()), h.version);
+  return decodeEntry(state_->indexBytes().subspan(entryOffset(h, kx, kz), h.entryBytes()), h.version);
 }
 
 std::uint32_t PackReader::coarseLevel() const { return state_->header.coarseLevel; }
@@ -68,7 +98,7 @@ namespace {
 
 /// One pread of a record of (kx, kz), checked and decompressed.
 Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, std::uint32_t kx,
-                                          std::uint32_t kz, Part part, int fd, const std::string& packPath,
+                                          std::uint32_t kz, Part part, const Source& src, const std::string& packPath,
                                           const std::string& indexPath, bool checkRawCrc) {
   if (const Status checked = checkEntry(h, e, kx, kz, indexPath); !checked) return checked.problems();
   if (partLevels(h, part) == 0) {
@@ -78,7 +108,7 @@ Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, 
   const Extent x = extentOf(e, part);
   thread_local std::vector<std::byte> record;  // reused: no allocation per read
   record.resize(x.compressedBytes);
-  if (const Status read = preadAll(fd, record.data(), record.size(), x.offset); !read) {
+  if (const Status read = src.read(record.data(), record.size(), x.offset); !read) {
     return Problem{packPath, x.offset,
                    "pack: cannot read the record of " + partName(kx, kz, part) + ": " + read.message()};
   }
@@ -87,8 +117,8 @@ Result<std::vector<std::byte>> readRecord(const IndexHeader& h, const Entry& e, 
 
 /// Reads one record of (kx, kz) and decodes it into `out` (the part's
 /// levels only), reusing per-thread buffers and out's capacity.
-Status readPartInto(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part, int fd,
-                    const std::string& packPath, module::Module& out) {
+Status readPartInto(const IndexHeader& h, const Extent& x, std::uint32_t kx, std::uint32_t kz, Part part,
+                    const Source& src, const std::string& packPath, module::Module& out) {
   thread_local std::vector<std::byte> record, raw;  // reused: no allocation per read
   record.resize(x.compressedBytes);
   // The name only on failure: "fine module (kx,kz)" is too long for the
@@ -96,8 +126,16 @@ Status readPartInto(const IndexHeader& h, const Extent& x, std::uint32_t kx, std
   auto fail = [&](const std::string& msg) {
     return Status(Problem{packPath, x.offset, "pack: " + partName(kx, kz, part) + msg});
   };
-  if (const Status read = preadAll(fd, record.data(), record.size(), x.offset); !read) {
+  if (const Status read = src.read(record.data(), record.size(), x.offset); !read) {
     return fail(": cannot read the record: " + read.message());
+  }
+  if (src.remote && crc32(record) != x.compressedCrc) {
+    // Altered or cut on the way (a proxy, a torn response): fetched again
+    // once, past the remote's cache, before it counts as corrupt.
+    src.remote->refresh(x.offset, record.size());
+    if (const Status again = src.read(record.data(), record.size(), x.offset); !again) {
+      return fail(": cannot read the record: " + again.message());
+    }
   }
   if (const std::uint32_t c = crc32(record); c != x.compressedCrc) {
     return fail(" record checksum mismatch (stored " + crcHex(x.compressedCrc) + ", computed " + crcHex(c) +
@@ -129,7 +167,7 @@ void placeLevels(module::Module& part, std::uint32_t first, std::uint32_t levels
 
 Result<std::vector<std::byte>> PackReader::readRaw(std::uint32_t kx, std::uint32_t kz, Part part) const {
   const State& s = *state_;
-  return readRecord(s.header, entry(kx, kz), kx, kz, part, s.pack.fd, s.packPath, s.indexPath, true);
+  return readRecord(s.header, entry(kx, kz), kx, kz, part, s.source(), s.packPath, s.indexPath, true);
 }
 
 Result<module::Module> PackReader::read(std::uint32_t kx, std::uint32_t kz) const {
@@ -144,10 +182,10 @@ Status PackReader::readCoarseInto(std::uint32_t kx, std::uint32_t kz, module::Mo
   if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) return checked.problems().front();
   if (s.header.version < kVersion2) {
     // The whole module decodes straight into `out`.
-    return readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.pack.fd, s.packPath, out);
+    return readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.source(), s.packPath, out);
   }
   thread_local module::Module part;  // its vectors trade places with out's: no allocation once warm
-  if (Status r = readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.pack.fd, s.packPath, part); !r) return r;
+  if (Status r = readPartInto(s.header, e.coarse(), kx, kz, Part::coarse, s.source(), s.packPath, part); !r) return r;
   placeLevels(part, s.header.coarseLevel, s.header.levels, out);
   return {};
 }
@@ -161,7 +199,7 @@ Status PackReader::readFineInto(std::uint32_t kx, std::uint32_t kz, module::Modu
   const Entry e = entry(kx, kz);
   if (Status checked = checkEntry(s.header, e, kx, kz, s.indexPath); !checked) return checked.problems().front();
   thread_local module::Module part;
-  if (Status r = readPartInto(s.header, e.fine, kx, kz, Part::fine, s.pack.fd, s.packPath, part); !r) return r;
+  if (Status r = readPartInto(s.header, e.fine, kx, kz, Part::fine, s.source(), s.packPath, part); !r) return r;
   placeLevels(part, 0, s.header.levels, out);
   return {};
 }

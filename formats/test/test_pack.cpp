@@ -7,12 +7,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <thread>
 
 #include "module_samples.h"
+#include "sandtable/base/range_source.h"
 #include "sandtable/formats/bytes.h"
 #include "sandtable/formats/pack.h"
 
@@ -758,6 +760,88 @@ TEST(Pack, compressRoundTripsAndDecompressRefusesBadFrames) {
   EXPECT_FALSE(cut.ok());
   EXPECT_EQ(cut.message().rfind("zstd: ", 0), 0u) << cut.message();
   EXPECT_FALSE(decompress({}, 10, out).ok());
+}
+
+}  // namespace
+}  // namespace sandtable::pack
+
+namespace sandtable::pack {
+namespace {
+
+/// A pack's bytes served from memory as a web server would: `alter` reads
+/// come back with one byte flipped (a damaged response) until refresh().
+class MemoryRange final : public RangeSource {
+ public:
+  MemoryRange(std::vector<std::byte> bytes, int alter) : bytes_(std::move(bytes)), alter_(alter) {}
+  const std::string& name() const override { return name_; }
+  std::uint64_t size() const override { return bytes_.size(); }
+  Status read(std::uint64_t off, std::span<std::byte> out) const override {
+    ++reads;
+    if (off + out.size() > bytes_.size()) return Problem{"", off, "past the end"};
+    std::copy_n(bytes_.begin() + std::ptrdiff_t(off), out.size(), out.begin());
+    if (off > 0 && alter_ > 0) out[out.size() / 2] ^= std::byte{0x40};
+    return {};
+  }
+  void refresh(std::uint64_t, std::uint64_t) const override {
+    ++refreshes;
+    if (alter_ > 0) --alter_;
+  }
+  mutable int reads = 0, refreshes = 0;
+
+ private:
+  std::string name_ = "http://example.org/db/modules.pack";
+  std::vector<std::byte> bytes_;
+  mutable int alter_ = 0;
+};
+
+std::vector<std::byte> fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<std::byte> b(s.size());
+  std::memcpy(b.data(), s.data(), s.size());
+  return b;
+}
+
+TEST(PackRemote, readsEveryModuleAsFromDiskAndFetchesADamagedRecordOnceMore) {
+  const std::string dir = tempDir("remote");
+  const IndexHeader h = smallHeader(2, 2);
+  writePack(dir, h);
+  auto local = PackReader::open(dir);
+  ASSERT_TRUE(local.ok()) << local.error();
+  const auto idx = fileBytes(dir + "/" + kIndexFileName), pk = fileBytes(dir + "/" + kPackFileName);
+  // Sound: every module equals the local read.
+  auto sound = std::make_shared<MemoryRange>(pk, 0);
+  auto r = PackReader::openRemote(idx, "modules.idx", sound);
+  ASSERT_TRUE(r.ok()) << r.error();
+  EXPECT_EQ(r.value()->packFd(), -1);
+  for (std::uint32_t kz = 0; kz < 2; ++kz) {
+    for (std::uint32_t kx = 0; kx < 2; ++kx) {
+      auto a = local.value()->read(kx, kz), b = r.value()->read(kx, kz);
+      ASSERT_TRUE(a.ok() && b.ok()) << b.error();
+      EXPECT_EQ(module::encode(a.value()), module::encode(b.value()));
+    }
+  }
+  EXPECT_EQ(sound->refreshes, 0);
+  // One damaged response: fetched again after refresh(), then sound.
+  auto once = std::make_shared<MemoryRange>(pk, 1);
+  auto r1 = PackReader::openRemote(idx, "modules.idx", once);
+  ASSERT_TRUE(r1.ok()) << r1.error();
+  module::Module m;
+  EXPECT_TRUE(r1.value()->readInto(1, 1, m).ok());
+  EXPECT_EQ(once->refreshes, 1);
+  // Damaged every time: the record's checksum error, naming the URL.
+  auto always = std::make_shared<MemoryRange>(pk, 1000);
+  auto r2 = PackReader::openRemote(idx, "modules.idx", always);
+  ASSERT_TRUE(r2.ok()) << r2.error();
+  const Status bad = r2.value()->readInto(1, 0, m);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().find("checksum mismatch"), std::string::npos) << bad.error();
+  EXPECT_EQ(bad.problems()[0].file, "http://example.org/db/modules.pack");
+  // A pack from another build (its size differs from the index's) is refused at open.
+  auto shortPack = std::vector<std::byte>(pk.begin(), pk.end() - 10);
+  auto r3 = PackReader::openRemote(idx, "modules.idx", std::make_shared<MemoryRange>(shortPack, 0));
+  ASSERT_FALSE(r3.ok());
+  EXPECT_NE(r3.error().find("truncated"), std::string::npos) << r3.error();
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "commands.h"
 #include "progress.h"
 #include "sandtable/converters/validate.h"
+#include "sandtable/paging/remote.h"
 
 namespace sandtable::cli {
 namespace {
@@ -19,7 +20,20 @@ namespace {
 std::atomic<bool> gCancel{false};
 void onSignal(int) { gCancel.store(true); }
 
-int runValidate(const std::string& dir, bool json) {
+int runValidate(const std::string& given, bool json) {
+  std::string dir = given;
+  if (http::isUrl(given)) {
+    // Every file fetched whole into the local mirror (each checked against
+    // the manifest on the way), then the mirror checked as any database.
+    paging::RemoteOptions o;
+    o.wholePack = true;
+    auto mirror = paging::mirrorRemote(given, o);
+    if (!mirror) {
+      reportProblems("validate", mirror.problems());
+      return int(kProblems);
+    }
+    dir = mirror.value();
+  }
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) {
     return usageError("validate", dir + " is not a directory");

@@ -7,13 +7,15 @@
 
 #include "commands.h"
 #include "sandtable/formats/database.h"
+#include "sandtable/paging/remote.h"
 #include "sandtable/paging/world.h"
 
 namespace sandtable::cli {
 
-/// Opens a database or prints every problem and returns nullopt.
+/// Opens a database (a directory, or an http(s):// URL: paging/remote.h)
+/// or prints every problem and returns nullopt.
 inline std::optional<Database> openOrReport(const std::string& cmd, const std::string& dir) {
-  auto db = openDatabase(dir);
+  auto db = paging::openDatabaseAt(dir);
   if (!db) {
     reportProblems(cmd, db.problems());
     std::fprintf(stderr, "sandtable %s: hint: run `sandtable validate %s` for a full report\n", cmd.c_str(), dir.c_str());

@@ -1,6 +1,8 @@
 // PackSource: modules.pack as the pager's module source (module_source.h).
 #include "sandtable/paging/module_source.h"
 
+#include "sandtable/base/range_source.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 
@@ -43,14 +45,20 @@ Status PackSource::readFine(std::uint32_t kx, std::uint32_t kz, module::Module& 
 bool PackSource::missing(std::uint32_t kx, std::uint32_t kz) const {
   const pack::Entry e = pack_->entry(kx, kz);
   if (e.compressedBytes == 0) return true;
-  struct stat st {};
-  if (::fstat(pack_->packFd(), &st) != 0) return false;
-  const auto size = std::uint64_t(st.st_size);
+  std::uint64_t size = 0;
+  if (const RangeSource* r = pack_->remote()) {
+    size = r->size();
+  } else {
+    struct stat st {};
+    if (::fstat(pack_->packFd(), &st) != 0) return false;
+    size = std::uint64_t(st.st_size);
+  }
   return e.offset + e.compressedBytes > size ||
          (e.fine.compressedBytes > 0 && e.fine.offset + e.fine.compressedBytes > size);
 }
 
 void PackSource::willNeed(std::span<const ModuleKey> keys, bool fine) const {
+  if (pack_->remote()) return;  // a web server's pack: the loaders' own reads are the requests
   // Reused per thread: a loader hints every strip without allocating once warm.
   thread_local std::vector<std::pair<std::uint64_t, std::uint64_t>> runs;  // [begin, end)
   runs.clear();

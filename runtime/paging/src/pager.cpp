@@ -9,6 +9,7 @@
 
 #include "pager_internal.h"
 #include "sandtable/paging/world.h"
+#include "sandtable/paging/remote.h"
 
 namespace sandtable::paging {
 
@@ -928,7 +929,7 @@ Result<std::unique_ptr<Pager>> Pager::open(const World& world, const PagerOption
 
 Result<std::unique_ptr<Pager>> Pager::open(const std::string& directory,
                                            const PagerOptions& options) {
-  auto db = openDatabase(directory);
+  auto db = openDatabaseAt(directory);  // a URL too (remote.h)
   if (!db) return db.problems();
   return open(db.value(), options);
 }

@@ -1,6 +1,8 @@
 // The database opened once (world.h).
 #include "sandtable/paging/world.h"
 
+#include "sandtable/paging/remote.h"
+
 namespace sandtable::paging {
 namespace {
 
@@ -12,7 +14,7 @@ std::shared_ptr<const ModuleSource> packSourceOf(const Database& db) {
 }  // namespace
 
 Result<std::shared_ptr<const World>> World::open(const std::string& directory) {
-  auto db = openDatabase(directory);
+  auto db = openDatabaseAt(directory);  // a URL: mirrored, the pack read over HTTP (remote.h)
   if (!db) return db.problems();
   return std::make_shared<const World>(std::move(db.value()));
 }

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/base/range_source.h"
 #include "sandtable/formats/grid.h"
 #include "sandtable/formats/manifest.h"
 #include "sandtable/formats/icon_pack.h"
@@ -34,7 +35,10 @@ struct Database {
 /// grid (header checks only), opens the pack index and reads the material
 /// table when listed, and checks that grid, pack index and manifest agree.
 /// Cheap; reads neither the elevation data nor any module.
-Result<Database> openDatabase(const std::string& directory);
+/// With `remotePack` (a database on a web server, mirrored but for its
+/// pack: paging/remote.h), modules.pack is read by range through it and
+/// only modules.idx comes from `directory`.
+Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack = {});
 /// How many times openDatabase has been called in this process (one
 /// atomic, every call counted, failed ones too): the test that `sim` and
 /// `fly --scenario` open their database once reads it.

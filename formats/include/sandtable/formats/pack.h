@@ -38,6 +38,10 @@
 #include "sandtable/base/result.h"
 #include "sandtable/base/work.h"
 
+namespace sandtable {
+class RangeSource;
+}
+
 namespace sandtable::pack {
 
 inline constexpr std::array<char, 8> kPackMagic = {'S', 'A', 'N', 'D', 'P', 'A', 'C', 'K'};
@@ -277,6 +281,13 @@ class PackReader {
   /// against the index and the pack's size (O(table)). Does not read any
   /// record; validatePack does.
   static Result<std::shared_ptr<const PackReader>> open(const std::string& directory);
+  /// The same over bytes that are not local files (issue 38, a database
+  /// on a web server): the index's bytes as read (`indexName` names them
+  /// in messages) and the pack read by range through `pack`. The same
+  /// checks; a record whose checksum fails is read once more, after
+  /// pack->refresh(), before it is an error. packFd() is -1.
+  static Result<std::shared_ptr<const PackReader>> openRemote(std::vector<std::byte> index, const std::string& indexName,
+                                                              std::shared_ptr<const RangeSource> pack);
   ~PackReader();
   PackReader(const PackReader&) = delete;
   PackReader& operator=(const PackReader&) = delete;
@@ -317,7 +328,10 @@ class PackReader {
   /// its buffers have grown to the largest module. On failure returns
   /// read's problem.
   Status readInto(std::uint32_t kx, std::uint32_t kz, module::Module& out) const;
+  /// The pack's descriptor; -1 when it is read through remote().
   int packFd() const;
+  /// The pack's RangeSource (openRemote), or null for a local file.
+  const RangeSource* remote() const;
   std::string packPath() const;
   std::string indexPath() const;
 

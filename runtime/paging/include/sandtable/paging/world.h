@@ -28,7 +28,8 @@ namespace sandtable::paging {
 
 class World {
  public:
-  /// Opens a database directory (the one openDatabase of the run).
+  /// Opens a database directory, or an http(s):// URL (remote.h: the small
+  /// files mirrored, modules.pack read by range); the one open of the run.
   static Result<std::shared_ptr<const World>> open(const std::string& directory);
   /// Over a database already open: the grid file's posts, the pack (when
   /// there is one) as a PackSource.

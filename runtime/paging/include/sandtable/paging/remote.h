@@ -1,0 +1,48 @@
+#pragma once
+// A database on a web server (issue 38 part B; docs/HTTP.md, "Databases
+// on a web server"): `fly http://HOST/PATH/db` and the rest open it here.
+//
+// The server holds the database directory as `build` wrote it. The small
+// files (manifest.json, grid.stg, modules.idx, materials.txt, icons.pack)
+// are mirrored whole into a local cache directory, each checked against the
+// manifest's size and CRC-32 (kept when the copy there already matches);
+// modules.pack stays on the server and is read by range (net/http), each
+// record checked by its own CRCs as from disk, fetched again once when
+// they fail. The database's directory is then the mirror (a journal beside
+// it is local).
+//
+// Thread contract: call from one thread; what it returns keeps its own.
+#include <memory>
+#include <string>
+
+#include "sandtable/base/result.h"
+#include "sandtable/formats/database.h"
+#include "sandtable/http/client.h"
+
+namespace sandtable::paging {
+
+struct RemoteOptions {
+  http::ClientOptions client;
+  /// Where the mirror goes; empty: remoteCacheDirectory(url).
+  std::string cacheDirectory;
+  /// modules.pack mirrored whole too (validate reads every record).
+  bool wholePack = false;
+};
+
+/// $SANDTABLE_CACHE, else $XDG_CACHE_HOME/sandtable, else
+/// ~/.cache/sandtable, else /tmp/sandtable-cache; then one directory per
+/// URL (its host and a hash of the whole URL).
+std::string remoteCacheDirectory(const std::string& url);
+
+/// Mirrors the database at `url` (trailing slashes ignored) and returns
+/// the mirror's directory. Problems name the URL and file: unreachable, no
+/// manifest, a file whose size or CRC differs from the manifest's.
+Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o = {});
+
+/// Mirrors, then opens the database with modules.pack read over HTTP.
+Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions& o = {});
+
+/// openRemoteDatabase for a URL, openDatabase for a directory.
+Result<Database> openDatabaseAt(const std::string& pathOrUrl);
+
+}  // namespace sandtable::paging
