@@ -25,6 +25,7 @@
 #include "sandtable/base/stats.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/paging/pager.h"
+#include "sandtable/paging/remote.h"
 
 namespace sandtable::bench {
 namespace {
@@ -404,11 +405,11 @@ void sample(const paging::Pager& pager, FlightResult& out) {
 
 Result<FlightResult> fly(const PagingBenchOptions& a, const Flight& f, const FlightPath& path, const Notes& notes) {
   FlightResult out;
-  if (!a.warm) {
+  if (!a.warm && !paging::isRemote(a.database)) {  // a URL: the server's cache is the server's
     dropCache(a.database);
     out.cachedAfterDrop = cachedFraction(a.database);
   }
-  auto dbr = openDatabase(a.database);
+  auto dbr = paging::openDatabaseAt(a.database);
   if (!dbr) return dbr.problems();
   const Database db = std::move(dbr.value());
   auto pr = paging::Pager::open(db, pagerOptions(a, f.mode, notes));
@@ -460,6 +461,7 @@ Result<FlightResult> fly(const PagingBenchOptions& a, const Flight& f, const Fli
 /// and the copy into reused storage that publishing does. Modules are taken
 /// along the path, as a flight meets them.
 json stageBreakdown(const PagingBenchOptions& a, const FlightPath& path, std::size_t want) {
+  if (paging::isRemote(a.database)) return json::object();  // preads of a local pack
   if (!a.warm) dropCache(a.database);
   auto dbr = openDatabase(a.database);
   if (!dbr || !dbr->modules) return json::object();
@@ -788,7 +790,7 @@ Result<PagingBenchReport> runPagingBench(const PagingBenchOptions& options, cons
   PagingBenchOptions a = options;
   pack::IndexHeader h;
   {
-    auto db = openDatabase(a.database);
+    auto db = paging::openDatabaseAt(a.database);  // a URL too (paging/remote.h)
     if (!db) return db.problems();
     if (const std::string err = checkOptions(a, db.value()); !err.empty()) return Problem{"", 0, err};
     h = db->modules->header();

@@ -119,6 +119,8 @@ Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions&
   return openDatabase(dir.value(), pack);
 }
 
+bool isRemote(const std::string& pathOrUrl) { return http::isUrl(pathOrUrl); }
+
 Result<Database> openDatabaseAt(const std::string& pathOrUrl) {
   if (http::isUrl(pathOrUrl)) return openRemoteDatabase(pathOrUrl);
   return openDatabase(pathOrUrl);

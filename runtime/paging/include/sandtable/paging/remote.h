@@ -42,6 +42,9 @@ Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o 
 /// Mirrors, then opens the database with modules.pack read over HTTP.
 Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions& o = {});
 
+/// Whether `pathOrUrl` names a database on a web server (http:// or https://).
+bool isRemote(const std::string& pathOrUrl);
+
 /// openRemoteDatabase for a URL, openDatabase for a directory.
 Result<Database> openDatabaseAt(const std::string& pathOrUrl);
 
