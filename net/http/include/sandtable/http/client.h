@@ -40,7 +40,7 @@ struct ClientOptions {
   std::uint32_t retries = 2;             ///< tries after the first, for transient failures
   double retryPauseSeconds = 0.05;       ///< before the first retry; doubled each time
   std::uint64_t cacheBytes = 256ull << 20;  ///< the block cache's bound (0: no cache)
-  std::uint32_t blockBytes = 256u << 10;    ///< cache block size (a power of two, 4 KiB .. 16 MiB)
+  std::uint32_t blockBytes = 64u << 10;     ///< cache block size (a power of two, 4 KiB .. 16 MiB)
 };
 
 /// A file on a server, as open() found it.
