@@ -4,11 +4,15 @@
 // the directory; `info` says the same; `validate` passes over HTTP and
 // names the file when the server's copy is damaged; a pack record altered
 // on the server is refused by its CRC (after one fetch again), and the
-// viewer flies on what it has.
+// viewer flies on what it has; a second open fetches only the manifest and
+// the pack's header; a grid on the server that is not the manifest's is
+// refused, named by its URL.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include <nlohmann/json.hpp>
 
@@ -115,6 +119,35 @@ TEST_F(HttpDatabase, aDamagedCopyOnTheServerIsNamedAndAlteredRecordsAreRefused) 
   ASSERT_EQ(f.exitCode, 0) << f.err;
   EXPECT_NE(f.err.find("checksum mismatch"), std::string::npos) << f.err;
   EXPECT_TRUE(fs::exists(*dir_ / "frames-bad/frame_00002.png"));
+}
+
+TEST_F(HttpDatabase, theMirrorIsKeptAndADamagedGridOnTheServerIsNamed) {
+  // A fresh mirror: info fetches the manifest and every small file.
+  ::setenv("SANDTABLE_CACHE", (*dir_ / "cache-mirror").c_str(), 1);
+  const std::uint64_t r0 = nginx_->requests();
+  const auto first = runCli({"info", url()});
+  ASSERT_EQ(first.exitCode, 0) << first.err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // nginx logs after it answers
+  const std::uint64_t r1 = nginx_->requests();
+  EXPECT_GE(r1 - r0, 3u);  // the manifest, grid.stg, modules.idx, ...
+  // Again: the copies match the manifest, so only the manifest, the pack's
+  // HEAD and its header (checked against the index) are asked for.
+  const auto second = runCli({"info", url()});
+  ASSERT_EQ(second.exitCode, 0) << second.err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(nginx_->requests() - r1, 3u);
+  // A grid on the server that is not the manifest's is refused, by URL.
+  const std::string bad = *dir_ / "www/badgrid";
+  fs::remove_all(bad);
+  fs::copy(local(), bad, fs::copy_options::recursive);
+  std::string grid = slurpFile(bad + "/grid.stg");
+  ASSERT_GT(grid.size(), 4096u);
+  grid[grid.size() - 100] = char(grid[grid.size() - 100] ^ 0x01);
+  spit(bad + "/grid.stg", grid);
+  const auto r = runCli({"info", url("badgrid")});
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find(url("badgrid") + "/grid.stg"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("damaged or from another build"), std::string::npos) << r.err;
 }
 
 TEST_F(HttpDatabase, aMissingDatabaseIsAClearError) {
