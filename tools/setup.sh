@@ -26,6 +26,7 @@ packages=(
   libpcap-dev                     # libpcap: DIS capture files, pcap and pcapng (net/dis/)
   libcurl4-openssl-dev            # libcurl: HTTP range reads of databases on a web server (net/http/)
   nginx-light                     # the web server the HTTP tests start on loopback (testing/nginx.h)
+  openssl                         # the HTTPS test makes its own certificate for 127.0.0.1
   tshark                          # Wireshark's DIS dissector: an independent reader of our PDUs (net/dis tests)
   clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
   zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds

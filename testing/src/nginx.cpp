@@ -67,6 +67,23 @@ std::unique_ptr<Nginx> Nginx::start(const std::string& root, std::uint16_t port,
   return n;
 }
 
+std::unique_ptr<Nginx> Nginx::startTls(const std::string& root, const std::string& certFile, const std::string& keyFile,
+                                       std::string& why) {
+  auto n = std::unique_ptr<Nginx>(new Nginx());
+  n->root_ = std::filesystem::absolute(root).string();
+  n->cert_ = std::filesystem::absolute(certFile).string();
+  n->key_ = std::filesystem::absolute(keyFile).string();
+  n->port_ = freeTcpPort();
+  std::string tmpl = (std::filesystem::temp_directory_path() / "sandtable-nginx-XXXXXX").string();
+  if (!::mkdtemp(tmpl.data())) {
+    why = "mkdtemp failed";
+    return nullptr;
+  }
+  n->dir_ = tmpl;
+  if (!n->launch(why)) return nullptr;
+  return n;
+}
+
 bool Nginx::launch(std::string& why) {
   const std::string d = dir_;
   std::filesystem::create_directories(d + "/tmp");
@@ -78,7 +95,9 @@ bool Nginx::launch(std::string& why) {
       << "http {\n  access_log " << d << "/access.log;\n  client_body_temp_path " << d << "/tmp;\n"
       << "  keepalive_requests 100000;\n  keepalive_timeout 60s;\n  sendfile on;\n"
       << "  types { application/octet-stream bin; }\n  default_type application/octet-stream;\n"
-      << "  server {\n    listen 127.0.0.1:" << port_ << ";\n    root " << root_ << ";\n    location / { }\n  }\n}\n";
+      << "  server {\n    listen 127.0.0.1:" << port_ << (cert_.empty() ? "" : " ssl http2") << ";\n";
+    if (!cert_.empty()) c << "    ssl_certificate " << cert_ << ";\n    ssl_certificate_key " << key_ << ";\n";
+    c << "    root " << root_ << ";\n    location / { }\n  }\n}\n";
   }
   std::vector<std::string> args = {"nginx", "-p", d, "-c", d + "/nginx.conf", "-e", d + "/error.log"};
   std::vector<char*> argv;
@@ -135,7 +154,7 @@ Nginx::~Nginx() {
   std::filesystem::remove_all(dir_, ec);
 }
 
-std::string Nginx::url() const { return "http://127.0.0.1:" + std::to_string(port_); }
+std::string Nginx::url() const { return (cert_.empty() ? "http://" : "https://") + std::string("127.0.0.1:") + std::to_string(port_); }
 
 std::uint64_t Nginx::requests() const {
   std::ifstream in(dir_ + "/access.log");

@@ -29,6 +29,7 @@ struct Response {
   std::uint64_t contentLength = UINT64_MAX;  ///< from the header; UINT64_MAX: none
   double firstByteSeconds = 0;
   long connects = 0;
+  long httpVersion = 0;  ///< CURLINFO_HTTP_VERSION
 };
 
 struct Sink {
@@ -94,6 +95,16 @@ bool parseContentRange(const std::string& v, std::uint64_t& a, std::uint64_t& b,
 }
 
 bool transient(const Response& r) {
+  switch (r.code) {
+    case CURLE_PEER_FAILED_VERIFICATION:  // an untrusted certificate stays untrusted
+    case CURLE_SSL_CACERT_BADFILE:
+    case CURLE_UNSUPPORTED_PROTOCOL:
+    case CURLE_URL_MALFORMAT:
+    case CURLE_COULDNT_RESOLVE_HOST:
+      return false;
+    default:
+      break;
+  }
   if (r.code != CURLE_OK) return true;  // no connection, a timeout, a cut transfer, an overlong body
   return r.status >= 500;
 }
@@ -174,6 +185,7 @@ struct Client::Impl {
     curl_easy_setopt(h, CURLOPT_HEADERDATA, &r);
     curl_easy_setopt(h, CURLOPT_WRITEFUNCTION, onBody);
     curl_easy_setopt(h, CURLOPT_WRITEDATA, &sink);
+    if (!o.caFile.empty()) curl_easy_setopt(h, CURLOPT_CAINFO, o.caFile.c_str());
     if (head) curl_easy_setopt(h, CURLOPT_NOBODY, 1L);
     if (ranged) curl_easy_setopt(h, CURLOPT_RANGE, range.c_str());
     if (!head && !ranged) curl_easy_setopt(h, CURLOPT_MAXFILESIZE_LARGE, curl_off_t(cap));
@@ -182,11 +194,13 @@ struct Client::Impl {
     curl_easy_getinfo(h, CURLINFO_RESPONSE_CODE, &r.status);
     curl_easy_getinfo(h, CURLINFO_STARTTRANSFER_TIME, &r.firstByteSeconds);
     curl_easy_getinfo(h, CURLINFO_NUM_CONNECTS, &r.connects);
+    curl_easy_getinfo(h, CURLINFO_HTTP_VERSION, &r.httpVersion);
     giveBack(h);
     std::lock_guard lock(statsMu);
     ++stats.requests;
     stats.bytesFetched += r.body.size();
     stats.connectionsOpened += std::uint64_t(std::max(0L, r.connects));
+    if (r.code == CURLE_OK && r.httpVersion == long(CURL_HTTP_VERSION_2_0)) ++stats.http2Responses;
     if (r.code == CURLE_OK && r.firstByteSeconds > 0) {
       stats.rttSeconds = stats.rttSeconds == 0 ? r.firstByteSeconds : 0.875 * stats.rttSeconds + 0.125 * r.firstByteSeconds;
     }

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdlib>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -179,6 +180,37 @@ TEST(HttpClient, aServerThatStopsIsAnErrorAndReadsRecoverWhenItReturns) {
   ASSERT_TRUE(nginx->restart(why)) << why;
   EXPECT_TRUE(c->read(f.value(), 0, out).ok());
   EXPECT_EQ(out, preadFile(dataDir() + "/" + kFile, 0, out.size()));
+}
+
+TEST(HttpClient, httpsWithHttp2ReadsTheSameBytesAndAnUntrustedCertificateIsRefused) {
+  SANDTABLE_REQUIRE(fs::exists(dataDir() + "/" + kFile), "../shared/data (" << kFile << ")");
+  // A certificate for 127.0.0.1 made here (openssl), trusted through caFile.
+  const fs::path tmp = fs::temp_directory_path() / ("sandtable-tls-" + std::to_string(::getpid()));
+  fs::create_directories(tmp);
+  const std::string cert = (tmp / "cert.pem").string(), key = (tmp / "key.pem").string();
+  const std::string cmd = "openssl req -x509 -newkey rsa:2048 -nodes -keyout " + key + " -out " + cert +
+                          " -days 2 -subj /CN=127.0.0.1 -addext subjectAltName=IP:127.0.0.1 >/dev/null 2>&1";
+  SANDTABLE_REQUIRE(std::system(cmd.c_str()) == 0 && fs::exists(cert), "openssl (to make a test certificate)");
+  std::string why;
+  auto nginx = testsupport::Nginx::startTls(dataDir(), cert, key, why);
+  SANDTABLE_REQUIRE(nginx != nullptr, "nginx with TLS: " << why);
+  ASSERT_EQ(nginx->url().rfind("https://", 0), 0u);
+  ClientOptions o;
+  o.caFile = cert;
+  const auto c = client(o);
+  const auto f = c->open(nginx->url() + "/" + kFile);
+  ASSERT_TRUE(f.ok()) << f.error();
+  std::vector<std::byte> got(100000);
+  ASSERT_TRUE(c->read(f.value(), 12345, got).ok());
+  EXPECT_EQ(got, preadFile(dataDir() + "/" + kFile, 12345, got.size()));
+  EXPECT_EQ(c->stats().http2Responses, c->stats().requests) << "the server offers HTTP/2 over TLS";
+  // Without the certificate: refused, and said why.
+  const auto plain = client();
+  const auto untrusted = plain->open(nginx->url() + "/" + kFile);
+  ASSERT_FALSE(untrusted.ok());
+  EXPECT_EQ(plain->stats().retries, 0u) << "not a transient failure";
+  EXPECT_NE(untrusted.error().find("certificate"), std::string::npos) << untrusted.error();
+  fs::remove_all(tmp);
 }
 
 // ------------------------------------------------- a misbehaving server

@@ -19,6 +19,10 @@ class Nginx {
   /// with `why` set, when nginx is not installed or does not come up within
   /// 5 s.
   static std::unique_ptr<Nginx> start(const std::string& root, std::uint16_t port, std::string& why);
+  /// The same over TLS with HTTP/2 (`listen ... ssl http2`), with this
+  /// PEM certificate and key; url() is then https://.
+  static std::unique_ptr<Nginx> startTls(const std::string& root, const std::string& certFile, const std::string& keyFile,
+                                         std::string& why);
   ~Nginx();
 
   /// Stops the server (the port is free again); start() it again with
@@ -28,7 +32,7 @@ class Nginx {
   bool restart(std::string& why);
 
   std::uint16_t port() const { return port_; }
-  /// "http://127.0.0.1:PORT".
+  /// "http://127.0.0.1:PORT" (https:// over TLS).
   std::string url() const;
   /// Requests nginx logged so far (its access log's lines).
   std::uint64_t requests() const;
@@ -37,7 +41,7 @@ class Nginx {
   Nginx() = default;
   bool launch(std::string& why);
 
-  std::string root_, dir_;
+  std::string root_, dir_, cert_, key_;
   std::uint16_t port_ = 0;
   pid_t pid_ = -1;
 };

@@ -41,6 +41,9 @@ struct ClientOptions {
   double retryPauseSeconds = 0.05;       ///< before the first retry; doubled each time
   std::uint64_t cacheBytes = 256ull << 20;  ///< the block cache's bound (0: no cache)
   std::uint32_t blockBytes = 64u << 10;     ///< cache block size (a power of two, 4 KiB .. 16 MiB)
+  /// PEM certificates to trust for https:// instead of the system's (a
+  /// site's own CA); empty: the system's store.
+  std::string caFile;
 };
 
 /// A file on a server, as open() found it.
@@ -58,6 +61,7 @@ struct ClientStats {
   std::uint64_t cacheBytes = 0;         ///< held now
   std::uint64_t retries = 0;            ///< requests repeated after a transient failure
   std::uint64_t failures = 0;           ///< reads and opens that returned an error
+  std::uint64_t http2Responses = 0;     ///< responses that came over HTTP/2
   double rttSeconds = 0;                ///< time to the first byte, smoothed over requests (0: none yet)
 };
 
