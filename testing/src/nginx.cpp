@@ -57,14 +57,7 @@ std::unique_ptr<Nginx> Nginx::start(const std::string& root, std::uint16_t port,
   auto n = std::unique_ptr<Nginx>(new Nginx());
   n->root_ = std::filesystem::absolute(root).string();
   n->port_ = port ? port : freeTcpPort();
-  std::string tmpl = (std::filesystem::temp_directory_path() / "sandtable-nginx-XXXXXX").string();
-  if (!::mkdtemp(tmpl.data())) {
-    why = "mkdtemp failed";
-    return nullptr;
-  }
-  n->dir_ = tmpl;
-  if (!n->launch(why)) return nullptr;
-  return n;
+  return n->begin(why) ? std::move(n) : nullptr;
 }
 
 std::unique_ptr<Nginx> Nginx::startTls(const std::string& root, const std::string& certFile, const std::string& keyFile,
@@ -74,14 +67,17 @@ std::unique_ptr<Nginx> Nginx::startTls(const std::string& root, const std::strin
   n->cert_ = std::filesystem::absolute(certFile).string();
   n->key_ = std::filesystem::absolute(keyFile).string();
   n->port_ = freeTcpPort();
+  return n->begin(why) ? std::move(n) : nullptr;
+}
+
+bool Nginx::begin(std::string& why) {
   std::string tmpl = (std::filesystem::temp_directory_path() / "sandtable-nginx-XXXXXX").string();
   if (!::mkdtemp(tmpl.data())) {
     why = "mkdtemp failed";
-    return nullptr;
+    return false;
   }
-  n->dir_ = tmpl;
-  if (!n->launch(why)) return nullptr;
-  return n;
+  dir_ = tmpl;
+  return launch(why);
 }
 
 bool Nginx::launch(std::string& why) {

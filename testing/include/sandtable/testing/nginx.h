@@ -39,6 +39,8 @@ class Nginx {
 
  private:
   Nginx() = default;
+  /// Makes its directory, then launch().
+  bool begin(std::string& why);
   bool launch(std::string& why);
 
   std::string root_, dir_, cert_, key_;
