@@ -70,13 +70,14 @@ std::string remoteCacheDirectory(const std::string& url) {
   return root + "/" + host + "-" + hex;
 }
 
-Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o) {
+namespace {
+
+/// mirrorRemote through `client` (openRemoteDatabase then reads the pack
+/// through the same one, on the same connections).
+Result<std::string> mirrorWith(const http::Client& client, const std::string& url, const RemoteOptions& o) {
   const std::string base = trimmed(url);
-  if (!http::isUrl(base)) return Problem{url, 0, "remote database: not an http:// or https:// URL"};
-  auto client = http::Client::create(o.client);
-  if (!client) return client.problems();
   const std::string manifestUrl = base + "/" + manifest::kFileName;
-  auto bytes = client.value()->get(manifestUrl, 16u << 20);
+  auto bytes = client.get(manifestUrl, 16u << 20);
   if (!bytes) return bytes.problems();
   auto m = manifest::decode(bytes.value(), manifestUrl);
   if (!m) return m.problems();
@@ -90,7 +91,7 @@ Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o)
     const std::string local = dir + "/" + f.path;
     if (matches(local, f)) continue;
     const std::string fileUrl = base + "/" + f.path;
-    auto got = client.value()->get(fileUrl, f.bytes);
+    auto got = client.get(fileUrl, f.bytes);
     if (!got) return got.problems();
     if (got->size() != f.bytes || crc32(got.value()) != f.crc) {
       return Problem{fileUrl, 0, "remote database: " + std::to_string(got->size()) + " bytes with CRC " + crcHex(crc32(got.value())) +
@@ -105,13 +106,23 @@ Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o)
   return dir;
 }
 
+}  // namespace
+
+Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o) {
+  if (!http::isUrl(url)) return Problem{url, 0, "remote database: not an http:// or https:// URL"};
+  auto client = http::Client::create(o.client);
+  if (!client) return client.problems();
+  return mirrorWith(*client.value(), url, o);
+}
+
 Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions& o) {
-  auto dir = mirrorRemote(url, o);
+  if (!http::isUrl(url)) return Problem{url, 0, "remote database: not an http:// or https:// URL"};
+  auto client = http::Client::create(o.client);
+  if (!client) return client.problems();
+  auto dir = mirrorWith(*client.value(), url, o);
   if (!dir) return dir.problems();
   std::shared_ptr<const RangeSource> pack;
   if (!o.wholePack && fs::exists(dir.value() + "/" + pack::kIndexFileName)) {
-    auto client = http::Client::create(o.client);
-    if (!client) return client.problems();
     auto r = http::RemoteRange::open(client.value(), trimmed(url) + "/" + pack::kPackFileName);
     if (!r) return r.problems();
     pack = r.value();
