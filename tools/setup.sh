@@ -30,6 +30,7 @@ packages=(
   tshark                          # Wireshark's DIS dissector: an independent reader of our PDUs (net/dis tests)
   clang libclang-rt-dev           # clang with libFuzzer (-fsanitize=fuzzer): tools/fuzz.sh, run by .ci/run
   zstd                            # the zstd tool: tools/fuzz.sh unpacks pack records into module seeds
+  slurm-wlm munge                 # a one-node Slurm cluster (tools/slurm-local.sh) for the Slurm tests
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and micro-benchmarks
 )
 

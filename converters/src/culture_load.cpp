@@ -308,7 +308,12 @@ Result<bool> Loader::readSource(const std::string& source) {
                                 " features lie outside the database (dropped, not a warning)");
   }
   outside = 0;
-  for (const auto& [l, s] : layers) {
+  // In layer-name order: the map's order follows heap addresses, and the
+  // manifest must not change from one run to the next.
+  std::vector<const LayerState*> byName;
+  for (const auto& entry : layers) byName.push_back(entry.second.get());
+  std::sort(byName.begin(), byName.end(), [](const LayerState* a, const LayerState* b) { return a->name < b->name; });
+  for (const LayerState* s : byName) {
     if (s->defaulted > 0 && c.stats_.messages.size() < kMaxMessages) {
       // Counted per feature already; one message per layer.
       c.stats_.messages.push_back("culture: " + source + " layer " + s->name + ": " + std::to_string(s->defaulted) +

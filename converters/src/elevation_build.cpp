@@ -14,6 +14,7 @@
 #include <optional>
 #include <string_view>
 
+#include "build_stages.h"
 #include "elevation_internal.h"
 #include "sandtable/base/jobs.h"
 #include "sandtable/converters/culture.h"
@@ -61,30 +62,13 @@ KernelChoice chooseKernel(const std::string& request, const std::string& fit, do
   return k;
 }
 
-namespace {
+namespace detail {
 
-using detail::Frame;
+
 
 /// Material indices written by an elevation-only build.
 enum Material : std::uint8_t { kGround = 0, kWater = 1, kFilledVoid = 2 };
 
-/// Removes the partial directory unless the build was published.
-class PartialDirectory {
- public:
-  explicit PartialDirectory(std::string path) : path_(std::move(path)) {}
-  ~PartialDirectory() {
-    if (!published_) {
-      std::error_code ec;
-      fs::remove_all(path_, ec);
-    }
-  }
-  const std::string& path() const { return path_; }
-  void published() { published_ = true; }
-
- private:
-  std::string path_;
-  bool published_ = false;
-};
 
 std::string utcNow() {
   const std::time_t t = std::time(nullptr);
@@ -155,16 +139,6 @@ Result<bool> checkOptions(const ElevationOptions& o) {
   return true;
 }
 
-/// Grid rows held in memory: row `first` at `data`, and their classes
-/// (null: every post valid).
-struct GridRows {
-  const float* data = nullptr;
-  const std::uint8_t* cls = nullptr;
-  long first = 0;
-  std::size_t w = 0;
-  const float* row(long j) const { return data + std::size_t(j - first) * w; }
-  const std::uint8_t* classes(long j) const { return cls ? cls + std::size_t(j - first) * w : nullptr; }
-};
 
 /// One block of the grid file. Posts beyond the grid's edge repeat the
 /// edge posts, so every block is complete and plausible. Needs the rows of
@@ -194,11 +168,6 @@ void fillBlock(const GridRows& g, const Frame& f, std::uint32_t bx, std::uint32_
   }
 }
 
-/// The written grid's header and the CRC-32 of the whole file.
-struct WrittenGrid {
-  grid::Header header;
-  std::uint32_t crc = 0;
-};
 
 /// Writes block rows [bz0, bz1) from `g`, in parallel.
 Status writeBlockRows(grid::GridWriter& writer, const Frame& f, const GridRows& g, std::uint32_t bz0,
@@ -283,7 +252,7 @@ class ScratchFile {
 
 /// Rows per band: whole 64-row strips, as many as the budget allows, at
 /// least one strip; the grid's height when it all fits.
-std::uint32_t planBandRows(std::uint64_t budget, const Frame& f, const detail::BandCost& c) {
+std::uint32_t planBandRows(std::uint64_t budget, const Frame& f, const BandCost& c) {
   const double avail = double(budget) - c.fixed;
   std::uint64_t rows = avail > 0 && c.perRow > 0 ? static_cast<std::uint64_t>(avail / c.perRow) : 0;
   rows = std::max<std::uint64_t>(rows / kMinBandRows * kMinBandRows, kMinBandRows);
@@ -351,16 +320,6 @@ manifest::Manifest makeManifest(const ElevationOptions& o, const Frame& f, const
   return m;
 }
 
-/// The material table, culture and icons of a build with modules (empty
-/// without).
-struct CultureSetup {
-  materials::Table table;
-  std::shared_ptr<const Culture> culture;
-  iconpack::Pack icons;
-  Warnings iconWarnings;
-  ObjectPlan objects;
-  Warnings objectWarnings;
-};
 
 /// The icon database: the definitions' icons and the built-in tree, or the
 /// tree alone. Built before the grid, so a bad model fails fast.
@@ -375,13 +334,17 @@ Status loadIcons(const ElevationOptions& o, CultureSetup& c) {
   return {};
 }
 
+Result<materials::Table> loadMaterials(const ElevationOptions& o) {
+  return o.materials.empty()
+             ? materials::parse(std::as_bytes(std::span(std::string_view(detail::defaultMaterialsText()))),
+                                "built-in materials")
+             : materials::readFile(o.materials);
+}
+
 Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, const ProgressFn& progress) {
   CultureSetup c;
   if (!o.modules) return c;
-  auto table = o.materials.empty()
-                   ? materials::parse(std::as_bytes(std::span(std::string_view(detail::defaultMaterialsText()))),
-                                      "built-in materials")
-                   : materials::readFile(o.materials);
+  auto table = loadMaterials(o);
   if (!table) return table.problems();
   c.table = std::move(table.value());
   CultureOptions co;
@@ -400,10 +363,7 @@ Result<CultureSetup> loadCulture(const ElevationOptions& o, const Frame& f, cons
   return c;
 }
 
-Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& gridPath, const std::string& dir,
-                                  const CultureSetup& c, ElevationReport& report, const ProgressFn& progress) {
-  auto grid = grid::GridFile::open(gridPath);
-  if (!grid) return grid.problems();
+ModuleOptions moduleOptions(const ElevationOptions& o, const CultureSetup& c) {
   ModuleOptions mo;
   mo.moduleSize = o.moduleSize;
   mo.levels = o.levels;
@@ -413,8 +373,11 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
   mo.heightStep = o.heightStep;
   mo.normals = o.moduleNormals;
   mo.objects = &c.objects;
-  auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, mo, progress);
-  if (!r) return r.problems();
+  return mo;
+}
+
+Status writeModuleSideFiles(const std::string& dir, const CultureSetup& c, const ModuleReport& r,
+                            ElevationReport& report) {
   const std::string text = materials::format(c.table);
   const auto bytes = std::as_bytes(std::span(text.data(), text.size()));
   if (Status st = writeFileAtomic(dir + "/" + materials::kFileName, bytes); !st) {
@@ -426,13 +389,23 @@ Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& 
     return Problem{dir, 0, "build: " + st.message()};
   }
   auto& files = report.manifest.files;
-  files.push_back({pack::kPackFileName, r->packBytes, r->packCrc});
-  files.push_back({pack::kIndexFileName, r->indexBytes, r->indexCrc});
+  files.push_back({pack::kPackFileName, r.packBytes, r.packCrc});
+  files.push_back({pack::kIndexFileName, r.indexBytes, r.indexCrc});
   files.push_back({materials::kFileName, text.size(), crc32(bytes)});
   files.push_back({iconpack::kFileName, iconBytes->size(), crc32(iconBytes.value())});
-  report.manifest.moduleSize = r->moduleSize;
-  report.modules = r->modules;
-  report.moduleSeconds = r->seconds;
+  report.manifest.moduleSize = r.moduleSize;
+  report.modules = r.modules;
+  report.moduleSeconds = r.seconds;
+  return {};
+}
+
+Result<ModuleReport> writeModules(const ElevationOptions& o, const std::string& gridPath, const std::string& dir,
+                                  const CultureSetup& c, ElevationReport& report, const ProgressFn& progress) {
+  auto grid = grid::GridFile::open(gridPath);
+  if (!grid) return grid.problems();
+  auto r = buildModules(dir, *grid.value(), *c.culture, c.table.defaultArea, moduleOptions(o, c), progress);
+  if (!r) return r.problems();
+  if (Status st = writeModuleSideFiles(dir, c, r.value(), report); !st) return st.problems();
   return r;
 }
 
@@ -458,11 +431,16 @@ std::string objectClassName(const materials::Table& t, std::uint16_t cls) {
   return c ? c->name : "class " + std::to_string(cls);
 }
 
-nlohmann::json objectsReportJson(const ElevationOptions& o, const CultureSetup& c, const ModuleReport& r) {
-  nlohmann::json byClass = nlohmann::json::object(), warnings = nlohmann::json::array(),
-                 files = nlohmann::json::array();
-  for (const auto& [cls, n] : r.objects.byClass) byClass[objectClassName(c.table, cls)] = n;
+nlohmann::json objectWarningsJson(const CultureSetup& c) {
+  nlohmann::json warnings = nlohmann::json::array();
   for (const Problem& w : c.objectWarnings) warnings.push_back(w.str());
+  return warnings;
+}
+
+nlohmann::json objectsReportJson(const ElevationOptions& o, const materials::Table& table,
+                                 const nlohmann::json& warnings, const ModuleReport& r) {
+  nlohmann::json byClass = nlohmann::json::object(), files = nlohmann::json::array();
+  for (const auto& [cls, n] : r.objects.byClass) byClass[objectClassName(table, cls)] = n;
   for (const auto& f : o.objects) files.push_back(f);
   return {{"count", r.objects.placed},
           {"by_class", byClass},
@@ -533,9 +511,55 @@ nlohmann::json cultureReportJson(const ElevationOptions& o, const Culture& c) {
           {"classes", classes}};
 }
 
-}  // namespace
+void describeBuild(const ElevationOptions& o, const BuildFacts& b, const std::optional<ModuleReport>& modules,
+                   const ModuleJson& mj, std::chrono::steady_clock::time_point t0, ElevationReport& report) {
+  report.posts = std::uint64_t(report.manifest.postsX) * report.manifest.postsZ;
+  report.voidsFilled = b.voidsFilled;
+  report.seaPosts = b.seaPosts;
+  report.kernel = b.kernel;
+  report.accuracy = b.accuracy;
+  report.resampleSeconds = b.resampleSeconds;
+  report.bandRows = b.bandRows;
+  report.bands = b.bands;
+  report.banded = b.banded;
+  report.bandBytes = b.bandBytes;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
+  const KernelChoice& kernel = b.kernel;
+  report.manifest.build = {
+      {"crs_request", o.crs},        {"resample", kernel.resample}, {"fit", kernel.fit},
+      {"resample_request", o.resample}, {"resample_reason", kernel.reason},
+      {"spacing_ratio", kernel.spacingRatio},
+      {"spacing_request_m", o.spacing}, {"voids_filled", report.voidsFilled},
+      {"sea_posts", report.seaPosts}, {"sea_from_voids", o.seaFromVoids},
+      {"posts", report.posts},       {"seconds", report.seconds},
+      {"resample_seconds", b.resampleSeconds}, {"posts_per_second", report.postsPerSecond},
+      {"memory", {{"budget_bytes", o.memoryBudgetBytes}, {"band_rows", b.bandRows}, {"bands", b.bands},
+                  {"banded", b.banded}, {"band_bytes_estimate", report.bandBytes}}},
+      {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
+      {"accuracy", accuracyJson(b.accuracy)},
+      {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m, or sea from voids)"}, {"2", "filled void"}}}};
+  if (o.seaFromVoids) {
+    char rule[200];
+    std::snprintf(rule, sizeof rule,
+                  "void components reached from the grid's edge through voids and posts <= 0 m, whose shore posts "
+                  "have a median elevation within %g m of 0, are sea: 0 m, material 1",
+                  kSeaShoreMedianM);
+    report.manifest.build["sea_rule"] = rule;
+  }
+  if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
+  if (modules) {
+    report.manifest.build["modules"] = moduleReportJson(*modules);
+    report.manifest.build["culture"] = mj.culture;
+    report.manifest.build["icons"] = mj.icons;
+    report.manifest.build["objects"] = mj.objects;
+  }
+}
+
+}  // namespace detail
 
 Result<ElevationReport> buildElevation(const ElevationOptions& o, const ProgressFn& progress) {
+  using namespace detail;
   const auto t0 = std::chrono::steady_clock::now();
   if (auto ok = checkOptions(o); !ok) return ok.problems();
   auto paths = expandSources(o.sources);
@@ -676,46 +700,15 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
     if (!built) return built.problems();
     modules = built.value();
   }
-  report.posts = std::uint64_t(f.postsX) * f.postsZ;
-  report.voidsFilled = voidsFilled;
-  report.seaPosts = seaPosts;
-  report.kernel = kernel;
-  report.accuracy = accuracy;
-  report.resampleSeconds = resampleSeconds;
-  report.bandRows = bandRows;
-  report.bands = bands;
-  report.banded = banded;
-  report.bandBytes = static_cast<std::uint64_t>(cost.fixed + cost.perRow * bandRows);
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  report.postsPerSecond = double(report.posts) / std::max(report.seconds, 1e-9);
-  report.manifest.build = {
-      {"crs_request", o.crs},        {"resample", kernel.resample}, {"fit", kernel.fit},
-      {"resample_request", o.resample}, {"resample_reason", kernel.reason},
-      {"spacing_ratio", kernel.spacingRatio},
-      {"spacing_request_m", o.spacing}, {"voids_filled", report.voidsFilled},
-      {"sea_posts", report.seaPosts}, {"sea_from_voids", o.seaFromVoids},
-      {"posts", report.posts},       {"seconds", report.seconds},
-      {"resample_seconds", resampleSeconds}, {"posts_per_second", report.postsPerSecond},
-      {"memory", {{"budget_bytes", o.memoryBudgetBytes}, {"band_rows", bandRows}, {"bands", bands},
-                  {"banded", banded}, {"band_bytes_estimate", report.bandBytes}}},
-      {"void_fill", "GDALFillNodata within 64 posts; beyond, the same on 16x coarser grids, interpolated back"},
-      {"accuracy", accuracyJson(accuracy)},
-      {"materials", {{"0", "ground"}, {"1", "water (elevation <= 0 m, or sea from voids)"}, {"2", "filled void"}}}};
-  if (o.seaFromVoids) {
-    char rule[200];
-    std::snprintf(rule, sizeof rule,
-                  "void components reached from the grid's edge through voids and posts <= 0 m, whose shore posts "
-                  "have a median elevation within %g m of 0, are sea: 0 m, material 1",
-                  kSeaShoreMedianM);
-    report.manifest.build["sea_rule"] = rule;
-  }
-  if (o.extent) report.manifest.build["extent_lonlat"] = *o.extent;
+  BuildFacts facts{kernel, accuracy, voidsFilled, seaPosts, resampleSeconds, bandRows, bands, banded,
+                   static_cast<std::uint64_t>(cost.fixed + cost.perRow * bandRows)};
+  ModuleJson moduleJson;
   if (modules) {
-    report.manifest.build["modules"] = moduleReportJson(*modules);
-    report.manifest.build["culture"] = cultureReportJson(o, *culture.value().culture);
-    report.manifest.build["icons"] = iconsReportJson(o, culture.value());
-    report.manifest.build["objects"] = objectsReportJson(o, culture.value(), *modules);
+    moduleJson.culture = cultureReportJson(o, *culture.value().culture);
+    moduleJson.icons = iconsReportJson(o, culture.value());
+    moduleJson.objects = objectsReportJson(o, culture.value().table, objectWarningsJson(culture.value()), *modules);
   }
+  describeBuild(o, facts, modules, moduleJson, t0, report);
 
   const std::string text = manifest::encode(report.manifest);
   if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,

@@ -60,15 +60,21 @@ module::Module buildModule(const grid::GridFile& g, const Culture& culture, std:
   return out;
 }
 
-Result<ModuleReport> buildModules(const std::string& directory, const grid::GridFile& g, const Culture& culture,
-                                  std::uint16_t skirtMaterial, const ModuleOptions& o, const ProgressFn& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
+ModuleReport moduleLayout(const grid::GridFile& g, const ModuleOptions& o) {
   ModuleReport r;
   r.moduleSquares = moduleSquares(o.moduleSize, g.spacing(), o.levels);
   r.moduleSize = r.moduleSquares * g.spacing();
   r.modulesX = (g.postsX() - 2) / r.moduleSquares + 1;
   r.modulesZ = (g.postsZ() - 2) / r.moduleSquares + 1;
   r.modules = std::uint64_t(r.modulesX) * r.modulesZ;
+  r.moduleVersion = o.moduleVersion;
+  r.heightStep = o.moduleVersion >= module::kVersion2 ? o.heightStep : 0.0;
+  r.normals = o.moduleVersion >= module::kVersion2 && o.normals;
+  return r;
+}
+
+Result<std::unique_ptr<pack::PackWriter>> createPackWriter(const std::string& directory, const ModuleReport& r,
+                                                           const ModuleOptions& o) {
   pack::IndexHeader h;
   h.modulesX = r.modulesX;
   h.modulesZ = r.modulesZ;
@@ -79,11 +85,37 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   // in Morton order, so the pager reads coarse versions in small runs.
   pack::PackLayout layout = pack::PackLayout::split(h.levels);
   layout.encode = {.version = o.moduleVersion, .heightStep = o.heightStep};
-  auto writer = pack::PackWriter::create(directory, h, o.zstdLevel, layout);
-  if (!writer) return writer.problems();
+  return pack::PackWriter::create(directory, h, o.zstdLevel, layout);
+}
+
+void addTotals(ModuleReport& r, const std::vector<LevelTotals>& totals) {
+  for (std::size_t l = 0; l < totals.size() && l < r.levels.size(); ++l) {
+    r.levels[l].triangles += totals[l].triangles;
+    r.levels[l].skinPolygons += totals[l].skinPolygons;
+    r.levels[l].decalPolygons += totals[l].decalPolygons;
+    r.levels[l].skirtTriangles += totals[l].skirtTriangles;
+    r.levels[l].buildings += totals[l].buildings;
+    r.levels[l].buildingTriangles += totals[l].buildingTriangles;
+  }
+}
+
+void addObjects(ObjectTotals& to, const ObjectTotals& from) {
+  to.placed += from.placed;
+  to.scatterRefused += from.scatterRefused;
+  for (const auto& [cls, n] : from.byClass) to.byClass[cls] += n;
+}
+
+Result<ModuleReport> buildModuleRows(const grid::GridFile& g, const Culture& culture, std::uint16_t skirtMaterial,
+                                     const ModuleOptions& o, ModuleRows rows, const pack::PackWriter& compressor,
+                                     const ModuleAppend& append, const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ModuleReport r = moduleLayout(g, o);
+  const std::uint32_t row1 = rows.count == 0 ? r.modulesZ : std::min(r.modulesZ, rows.first + rows.count);
+  const std::uint64_t first = std::uint64_t(rows.first) * r.modulesX;
+  const std::uint64_t n = rows.first < row1 ? std::uint64_t(row1 - rows.first) * r.modulesX : 0;
 
   // Modules are built and compressed on every worker and appended in
-  // row-major order: the pack does not depend on thread timing.
+  // row-major order: the records do not depend on thread timing.
   struct Built {
     std::optional<pack::PackWriter::Record> record;  ///< none: skipped or failed
     std::string error;
@@ -96,12 +128,13 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   std::vector<std::vector<std::uint32_t>> pointsOf;
   const bool objects = o.objects && !o.objects->empty() && o.moduleVersion >= module::kVersion5;  // 5 and 6
   if (objects) {
-    pointsOf.resize(r.modules);
+    pointsOf.resize(n);
     for (std::size_t k = 0; k < o.objects->points.size(); ++k) {
       const auto& p = o.objects->points[k];
       const auto kx = std::min(std::uint32_t(std::max(0.0, p.x / r.moduleSize)), r.modulesX - 1);
       const auto kz = std::min(std::uint32_t(std::max(0.0, p.z / r.moduleSize)), r.modulesZ - 1);
-      pointsOf[std::size_t(kz) * r.modulesX + kx].push_back(std::uint32_t(k));
+      const std::uint64_t at = std::uint64_t(kz) * r.modulesX + kx;
+      if (at >= first && at - first < n) pointsOf[at - first].push_back(std::uint32_t(k));
     }
   }
   std::atomic<bool> stop{false};
@@ -115,21 +148,22 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
   // other workers idle behind it (a few MB of compressed records).
   constexpr std::size_t kInFlightPerWorker = 32;
   jobs::orderedPipeline<Built>(
-      r.modules, o.threads, kInFlightPerWorker * std::size_t(jobs::threadCount(o.threads)),
-      [&](std::size_t k) {
+      n, o.threads, kInFlightPerWorker * std::size_t(jobs::threadCount(o.threads)),
+      [&](std::size_t i) {
         Built b;
         if (stop || cancelRequested()) return b;
         b.totals.assign(std::size_t(o.levels), {});
+        const std::uint64_t k = first + i;
         const auto kx = std::uint32_t(k % r.modulesX), kz = std::uint32_t(k / r.modulesX);
         module::Module m =
             buildModule(g, culture, skirtMaterial, r.moduleSquares, o.levels, kx, kz, b.totals.data(), &b.stages);
         if (objects) {
-          placeObjects(*o.objects, pointsOf[k], double(kx) * r.moduleSize, double(kz) * r.moduleSize, m, b.objects);
+          placeObjects(*o.objects, pointsOf[i], double(kx) * r.moduleSize, double(kz) * r.moduleSize, m, b.objects);
         }
         if (o.moduleVersion >= module::kVersion2 && o.normals) meshing::fillNormals(grid::GridHeightField(g), r.moduleSquares, m);  // v1 has no place for them
         if (cancelRequested()) return b;  // not compressed nor written: the build is being abandoned
         const double tc = threadCpuSeconds();
-        auto packed = writer.value()->compress(m);
+        auto packed = compressor.compress(m);
         b.stages.compress = threadCpuSeconds() - tc;
         if (packed) b.record = std::move(packed.value());
         else b.error = packed.problems().front().message;
@@ -138,12 +172,10 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
       [&](std::size_t, Built&& b) {
         if (stop) return;
         const double tw = threadCpuSeconds();
-        if (b.record) b.error = writer.value()->append(std::move(*b.record)).message();
+        if (b.record) b.error = append(std::move(*b.record)).message();
         b.stages.write = threadCpuSeconds() - tw;
         r.stages += b.stages;
-        r.objects.placed += b.objects.placed;
-        r.objects.scatterRefused += b.objects.scatterRefused;
-        for (const auto& [cls, n] : b.objects.byClass) r.objects.byClass[cls] += n;
+        addObjects(r.objects, b.objects);
         if (!b.error.empty()) {
           error = b.error;  // the first in module order
           stop = true;
@@ -153,35 +185,40 @@ Result<ModuleReport> buildModules(const std::string& directory, const grid::Grid
           stop = true;  // cancelled
           return;
         }
-        for (std::size_t l = 0; l < b.totals.size(); ++l) {
-          r.levels[l].triangles += b.totals[l].triangles;
-          r.levels[l].skinPolygons += b.totals[l].skinPolygons;
-          r.levels[l].decalPolygons += b.totals[l].decalPolygons;
-          r.levels[l].skirtTriangles += b.totals[l].skirtTriangles;
-          r.levels[l].buildings += b.totals[l].buildings;
-          r.levels[l].buildingTriangles += b.totals[l].buildingTriangles;
-        }
+        addTotals(r, b.totals);
         ++done;
         const auto now = std::chrono::steady_clock::now();
         if (progress && now - lastReport >= std::chrono::milliseconds(100)) {
-          progress(double(done) / double(r.modules), "modules");
+          progress(double(done) / double(n), "modules");
           lastReport = now;
         }
       },
       &stop);
-  if (!error.empty()) return Problem{directory, 0, "build: modules: " + error};
-  if (cancelRequested()) return Problem{directory, 0, "build: cancelled"};
+  if (!error.empty()) return Problem{"", 0, "build: modules: " + error};
+  if (cancelRequested()) return Problem{"", 0, "build: cancelled"};
   if (progress) progress(1.0, "modules");
-  if (Status st = writer.value()->finish(); !st) return Problem{directory, 0, "build: modules: " + st.message()};
-  r.sizes = writer.value()->stats();
-  r.packBytes = writer.value()->packBytes();
-  r.indexBytes = writer.value()->indexBytes();
-  r.packCrc = writer.value()->packCrc();
-  r.indexCrc = writer.value()->indexCrc();
+  r.modules = n;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  r.moduleVersion = o.moduleVersion;
-  r.heightStep = o.moduleVersion >= module::kVersion2 ? o.heightStep : 0.0;
-  r.normals = o.moduleVersion >= module::kVersion2 && o.normals;
+  return r;
+}
+
+Result<ModuleReport> buildModules(const std::string& directory, const grid::GridFile& g, const Culture& culture,
+                                  std::uint16_t skirtMaterial, const ModuleOptions& o, const ProgressFn& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto writer = createPackWriter(directory, moduleLayout(g, o), o);
+  if (!writer) return writer.problems();
+  pack::PackWriter& w = *writer.value();
+  auto built = buildModuleRows(g, culture, skirtMaterial, o, {}, w,
+                               [&w](pack::PackWriter::Record&& rec) { return w.append(std::move(rec)); }, progress);
+  if (!built) return Problem{directory, 0, built.problems().front().message};
+  ModuleReport r = std::move(built.value());
+  if (Status st = w.finish(); !st) return Problem{directory, 0, "build: modules: " + st.message()};
+  r.sizes = w.stats();
+  r.packBytes = w.packBytes();
+  r.indexBytes = w.indexBytes();
+  r.packCrc = w.packCrc();
+  r.indexCrc = w.indexCrc();
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
 

@@ -213,6 +213,21 @@ Status GridWriter::writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockDat
   return {};
 }
 
+Status GridWriter::writeEncodedBlock(std::uint32_t bx, std::uint32_t bz, std::span<const std::byte> bytes,
+                                     const BlockEntry& e) {
+  if (bx >= header_.blocksX || bz >= header_.blocksZ || bytes.size() != kBlockBytes || crc32(bytes) != e.crc) {
+    return Problem{path_, 0, "grid writer: block (" + std::to_string(bx) + ", " + std::to_string(bz) +
+                                 ") is outside the grid, of the wrong size, or does not match its CRC"};
+  }
+  entries_[std::size_t(bz) * header_.blocksX + bx] = {e.crc, e.minElevation, e.maxElevation, 0};
+  const std::uint64_t off = header_.dataOffset + (std::uint64_t(bz) * header_.blocksX + bx) * kBlockBytes;
+  if (const Status w = pwriteAll(fd_, bytes.data(), bytes.size(), off); !w) {
+    return Problem{path_, 0, "grid writer: " + path_ + ": " + w.message()};
+  }
+  ::sync_file_range(fd_, static_cast<off_t>(off), static_cast<off_t>(bytes.size()), SYNC_FILE_RANGE_WRITE);
+  return {};
+}
+
 Status GridWriter::finish() {
   std::vector<std::byte> table(header_.dataOffset - header_.blockTableOffset, std::byte{0});
   float mn = INFINITY, mx = -INFINITY;

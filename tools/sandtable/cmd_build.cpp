@@ -3,9 +3,11 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 
 #include <nlohmann/json.hpp>
 
+#include "build_distributed.h"
 #include "commands.h"
 #include "culture_report.h"
 #include "progress.h"
@@ -61,6 +63,9 @@ struct BuildArgs {
   convert::ElevationOptions o;
   std::vector<double> extent;
   bool json = false;
+  DistributedArgs d;
+  std::uint32_t tasks = 0;
+  std::string parts;
 };
 
 volatile std::sig_atomic_t gSignal = 0;
@@ -105,34 +110,10 @@ nlohmann::json estimateJson(const convert::BuildEstimate& e) {
           {"slow", e.slow},           {"too_big", e.tooBig}};
 }
 
-int runBuild(BuildArgs& a) {
-  if (!a.extent.empty()) {
-    if (a.extent.size() != 4) return usageError("build", "--extent takes WEST SOUTH EAST NORTH");
-    a.o.extent = std::array<double, 4>{a.extent[0], a.extent[1], a.extent[2], a.extent[3]};
-  }
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
-  Progress progress(a.json);
-  convert::BuildEstimate estimate;
-  a.o.onEstimate = [&](const convert::BuildEstimate& e) {
-    estimate = e;
-    if (!a.json) printEstimate(e);
-  };
-  auto report = convert::buildElevation(a.o, [&](double f, const std::string& s) { progress.update(f, s); });
-  progress.done();
-  if (!report && gSignal != 0) {
-    std::fprintf(stderr, "sandtable build: cancelled by signal %d; nothing was written to %s\n", int(gSignal),
-                 a.o.output.c_str());
-    return 128 + gSignal;  // the shell's convention for a process ended by a signal
-  }
-  if (!report) {
-    reportProblems("build", report.problems());
-    std::fprintf(stderr, "sandtable build: nothing was written to %s\n", a.o.output.c_str());
-    return kUsage;
-  }
-  const auto& r = report.value();
-  if (a.json) {
-    nlohmann::json j = {{"output", a.o.output},       {"posts", r.posts},
+int printReport(const convert::ElevationReport& r, const std::string& output, bool asJson,
+                const convert::BuildEstimate& estimate) {
+  if (asJson) {
+    nlohmann::json j = {{"output", output},       {"posts", r.posts},
                         {"posts_x", r.manifest.postsX}, {"posts_z", r.manifest.postsZ},
                         {"spacing_m", r.manifest.spacing}, {"voids_filled", r.voidsFilled},
                         {"seconds", r.seconds},        {"resample_seconds", r.resampleSeconds},
@@ -140,7 +121,7 @@ int runBuild(BuildArgs& a) {
                         {"min_elevation", r.manifest.minElevation}, {"max_elevation", r.manifest.maxElevation},
                         {"estimate", estimateJson(estimate)}};
     j["sea_posts"] = r.seaPosts;
-    j["resample"] = {{"request", a.o.resample}, {"kernel", r.kernel.resample}, {"fit", r.kernel.fit},
+    j["resample"] = {{"request", r.manifest.build.value("resample_request", std::string())}, {"kernel", r.kernel.resample}, {"fit", r.kernel.fit},
                      {"spacing_ratio", r.kernel.spacingRatio}, {"reason", r.kernel.reason}};
     j["accuracy"] = r.manifest.build["accuracy"];
     if (r.manifest.build.contains("modules")) {
@@ -152,7 +133,7 @@ int runBuild(BuildArgs& a) {
     std::printf("%s\n", j.dump(2).c_str());
     return kOk;
   }
-  std::printf("built %s\n", a.o.output.c_str());
+  std::printf("built %s\n", output.c_str());
   std::printf("  frame      %s, %.2f m posts, %u x %u posts\n", r.manifest.crsName.c_str(), r.manifest.spacing,
               r.manifest.postsX, r.manifest.postsZ);
   std::printf("  elevation  %.1f .. %.1f m\n", r.manifest.minElevation, r.manifest.maxElevation);
@@ -173,6 +154,50 @@ int runBuild(BuildArgs& a) {
   return kOk;
 }
 
+int runBuild(BuildArgs& a) {
+  if (!a.extent.empty()) {
+    if (a.extent.size() != 4) return usageError("build", "--extent takes WEST SOUTH EAST NORTH");
+    a.o.extent = std::array<double, 4>{a.extent[0], a.extent[1], a.extent[2], a.extent[3]};
+  }
+  if (!a.d.task.empty()) return runTask(a.d, a.o.threads, a.json);
+  convert::BuildEstimate estimate;
+  const PrintReport print = [&](const convert::ElevationReport& r, const std::string& output) {
+    return printReport(r, output, a.json, estimate);
+  };
+  if (!a.d.merge.empty()) {
+    std::error_code ec;
+    const std::string out = a.o.output.empty() ? "" : std::filesystem::absolute(a.o.output, ec).string();
+    return runMerge(a.d, {out, a.o.force, a.o.threads}, print, a.json);
+  }
+  if (a.o.sources.empty() || a.o.output.empty()) {
+    return usageError("build", "--elevation and -o are required (except with --task or --merge)");
+  }
+  if (!a.d.executor.empty() || !a.d.planOnly.empty() || a.d.emitSbatch || a.tasks > 0 || !a.parts.empty()) {
+    if (a.d.executor.empty()) a.d.executor = "local";
+    return runPlanned({a.o, a.tasks, a.parts}, a.d, print, a.json);
+  }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  Progress progress(a.json);
+  a.o.onEstimate = [&](const convert::BuildEstimate& e) {
+    estimate = e;
+    if (!a.json) printEstimate(e);
+  };
+  auto report = convert::buildElevation(a.o, [&](double f, const std::string& s) { progress.update(f, s); });
+  progress.done();
+  if (!report && gSignal != 0) {
+    std::fprintf(stderr, "sandtable build: cancelled by signal %d; nothing was written to %s\n", int(gSignal),
+                 a.o.output.c_str());
+    return 128 + gSignal;  // the shell's convention for a process ended by a signal
+  }
+  if (!report) {
+    reportProblems("build", report.problems());
+    std::fprintf(stderr, "sandtable build: nothing was written to %s\n", a.o.output.c_str());
+    return kUsage;
+  }
+  return printReport(report.value(), a.o.output, a.json, estimate);
+}
+
 }  // namespace
 
 void registerBuild(CLI::App& root, Commands& c) {
@@ -183,8 +208,8 @@ void registerBuild(CLI::App& root, Commands& c) {
       "  sandtable build --elevation synth/dted2 --culture synth/culture.gpkg --spacing 31.25 -o db\n"
       "Sources: DTED (.dt0/.dt1/.dt2), SRTM (.hgt, .hgt.zip), USGS DEM (.dem), GeoTIFF, any GDAL raster;\n"
       "files, directories (searched recursively) or quoted globs. All sources must share one CRS.");
-  sub->add_option("--elevation", a->o.sources, "Elevation sources: files, directories or globs")->required();
-  sub->add_option("-o,--output", a->o.output, "Database directory to create")->required();
+  sub->add_option("--elevation", a->o.sources, "Elevation sources: files, directories or globs (required)");
+  sub->add_option("-o,--output", a->o.output, "Database directory to create (required)");
   sub->add_option("--crs", a->o.crs, "Target frame: utm (zone of the centre), cassini, or EPSG:n")
       ->default_val("utm");
   sub->add_option("--spacing", a->o.spacing, "Post spacing in metres (default: finest native spacing)");
@@ -246,6 +271,27 @@ void registerBuild(CLI::App& root, Commands& c) {
       ->default_str("1G");
   sub->add_flag("--force", a->o.force, "Replace an existing output directory (only once the new one is complete)");
   sub->add_flag("--json", a->json, "Print the build report as JSON");
+  auto* dist = "Distributed build (docs/DISTRIBUTED.md)";
+  sub->add_option("--executor", a->d.executor,
+                  "Split the build into tasks and run them: local (here, one after another) or slurm (one "
+                  "sbatch job array, then the merge); a rerun builds only the tasks whose part is missing or bad")
+      ->group(dist);
+  sub->add_option("--tasks", a->tasks, "Tasks to split the build into (default: one per 8 module rows)")->group(dist);
+  sub->add_option("--parts", a->parts, "Shared directory for the plan and the tasks' parts (default: OUTPUT.parts)")
+      ->group(dist);
+  sub->add_option("--partition", a->d.partition, "Slurm partition for the job array")->group(dist);
+  sub->add_option("--cpus-per-task", a->d.cpusPerTask, "Slurm CPUs per array task (its --threads)")
+      ->default_val(1)
+      ->group(dist);
+  sub->add_option("--plan", a->d.planOnly, "Write the plan (JSON) to this file and stop")->group(dist);
+  sub->add_flag("--emit-sbatch", a->d.emitSbatch,
+                "Write the plan and print the sbatch script instead of submitting it")
+      ->group(dist);
+  sub->add_option("--task", a->d.task, "Build task I of plan PLAN.json into its part (PLAN I)")
+      ->expected(2)
+      ->group(dist);
+  sub->add_option("--merge", a->d.merge, "Merge the parts of PLAN.json into the database (-o overrides its output)")
+      ->group(dist);
   c.add(sub, [a] { return runBuild(*a); });
 }
 

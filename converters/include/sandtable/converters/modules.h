@@ -4,6 +4,8 @@
 // the culture decaled onto every level's own triangles, skirts along every
 // quadtree node edge, stored in one pack file with a memory-mappable index.
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 
 #include "sandtable/converters/culture.h"
@@ -90,6 +92,36 @@ nlohmann::json sizeStatsJson(const pack::SizeStats& s);
 Result<ModuleReport> buildModules(const std::string& directory, const grid::GridFile& grid,
                                   const Culture& culture, std::uint16_t skirtMaterial,
                                   const ModuleOptions& options, const ProgressFn& progress);
+
+/// The module tiling of `grid` under `options` (modulesX/Z, squares, size,
+/// version fields); counts and stages zero.
+ModuleReport moduleLayout(const grid::GridFile& grid, const ModuleOptions& options);
+
+/// A pack writer for that tiling (pack v2, the layout the build writes).
+Result<std::unique_ptr<pack::PackWriter>> createPackWriter(const std::string& directory, const ModuleReport& layout,
+                                                           const ModuleOptions& options);
+
+/// Rows of modules [first, first + count); count 0: to the last row.
+struct ModuleRows {
+  std::uint32_t first = 0, count = 0;
+};
+/// Takes each compressed module, in row-major order, from the one thread
+/// that appends (buildModules: the pack writer; a distributed task: its part).
+using ModuleAppend = std::function<Status(pack::PackWriter::Record&&)>;
+
+/// The module stage over some rows: built and compressed (by `compressor`,
+/// whose compress() alone is used) on every worker, handed to `append` in
+/// row-major order. The one loop buildModules and a distributed build's
+/// tasks share. The report's modules counts the modules built; sizes and
+/// file fields are left zero.
+Result<ModuleReport> buildModuleRows(const grid::GridFile& grid, const Culture& culture, std::uint16_t skirtMaterial,
+                                     const ModuleOptions& options, ModuleRows rows,
+                                     const pack::PackWriter& compressor, const ModuleAppend& append,
+                                     const ProgressFn& progress);
+
+/// Sums another report's level totals and objects into r (a merge).
+void addTotals(ModuleReport& r, const std::vector<LevelTotals>& totals);
+void addObjects(ObjectTotals& to, const ObjectTotals& from);
 
 /// Builds one module (exposed for tests and benchmarks).
 module::Module buildModule(const grid::GridFile& grid, const Culture& culture,

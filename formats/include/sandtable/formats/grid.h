@@ -171,6 +171,11 @@ class GridWriter {
   /// Writes block (bx, bz). Safe to call concurrently for distinct blocks.
   /// Problems name the grid's path; messages start "grid writer: ".
   Status writeBlock(std::uint32_t bx, std::uint32_t bz, const BlockData& b);
+  /// Writes block (bx, bz) as encoded bytes (kBlockBytes) with its table
+  /// entry, as another writer made them (a distributed build's merge). The
+  /// bytes must match the entry's CRC. Same concurrency as writeBlock.
+  Status writeEncodedBlock(std::uint32_t bx, std::uint32_t bz, std::span<const std::byte> bytes,
+                           const BlockEntry& e);
   /// Writes table and header, fsyncs, and renames into place.
   Status finish();
   const Header& header() const { return header_; }
