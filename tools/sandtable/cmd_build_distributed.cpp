@@ -2,6 +2,7 @@
 // into tasks (docs/DISTRIBUTED.md). The library does the work
 // (sandtable/converters/distributed.h); this file maps flags, runs the
 // executor (tasks here, or a Slurm job array) and prints what happened.
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -121,7 +122,8 @@ int runSlurm(const convert::Plan& plan, const DistributedArgs& d, const std::vec
     std::fprintf(stderr,
                  "sandtable build: the job array ended (sbatch status %d) with %zu tasks unbuilt (%s); their logs "
                  "are %s/logs/task-N.out; run the same command again to build only those\n",
-                 status, left.size(), arrayList(left).c_str(), plan.parts.c_str());
+                 WIFEXITED(status) ? WEXITSTATUS(status) : status, left.size(), arrayList(left).c_str(),
+                 plan.parts.c_str());
     return kProblems;
   }
   return kOk;
