@@ -112,6 +112,13 @@ if [ -x "$cli" ] && [ -f "$data" ]; then
   seed sandtable_fuzz_grid "$db/grid.stg"
   seed sandtable_fuzz_manifest "$db/manifest.json"
   seed sandtable_fuzz_icon_pack "$db/icons.pack"
+  # A build part (docs/FORMAT.md §15): the same area planned as one task and built.
+  rm -rf "$build_dir/seed-parts"
+  if "$cli" build --elevation "$data" --extent 7.40 43.725 7.42 43.74 --spacing 30 -o "$build_dir/seed-dist" \
+      --plan "$build_dir/seed-plan.json" --parts "$build_dir/seed-parts" --tasks 1 >/dev/null 2>&1 &&
+    "$cli" build --task "$build_dir/seed-plan.json" 0 >/dev/null 2>&1; then
+    seed sandtable_fuzz_part "$build_dir/seed-parts/part-00000.stp"
+  fi
   mkdir -p "$seeds/sandtable_fuzz_pack"
   python3 - "$db" "$seeds/sandtable_fuzz_pack/db" <<'EOF'
 import struct, sys
