@@ -103,6 +103,10 @@ Status fsyncDirectory(const std::string& dir);
 /// Renames the finished directory into place (replacing an old one only
 /// after the new one is complete).
 Status publish(const std::string& partial, const std::string& output);
+/// Writes the manifest into the partial directory and publishes it as
+/// `output` (problems name `output`, messages start with `stage`).
+Status publishWithManifest(PartialDirectory& partial, const std::string& output, const manifest::Manifest& m,
+                           const std::string& stage);
 manifest::Manifest makeManifest(const ElevationOptions& o, const Frame& f, const grid::Header& h,
                                 const std::vector<Source>& sources);
 /// The material table: ElevationOptions::materials, or the built-in one.

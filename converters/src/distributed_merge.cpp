@@ -202,15 +202,9 @@ Result<ElevationReport> mergeParts(const Plan& plan, const MergeOptions& mopt, c
   mj.objects = detail::objectsReportJson(o, c.table, m.firstReport.at("object_warnings"), r);
   fs::remove(vrt, ec);
   detail::describeBuild(o, facts, r, mj, t0, report);
-  const std::string text = manifest::encode(report.manifest);
-  if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
-                                  std::as_bytes(std::span(text.data(), text.size())));
-      !st) {
-    return Problem{o.output, 0, "merge: " + st.message()};
+  if (Status st = detail::publishWithManifest(partial, o.output, report.manifest, "merge"); !st) {
+    return st.problems();
   }
-  if (cancelRequested()) return Problem{o.output, 0, "merge: cancelled"};
-  if (Status st = detail::publish(partial.path(), o.output); !st) return st.problems();
-  partial.published();
   if (progress) progress(1.0, "merged");
   return report;
 }

@@ -556,6 +556,20 @@ void describeBuild(const ElevationOptions& o, const BuildFacts& b, const std::op
   }
 }
 
+Status publishWithManifest(PartialDirectory& partial, const std::string& output, const manifest::Manifest& m,
+                           const std::string& stage) {
+  const std::string text = manifest::encode(m);
+  if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
+                                  std::as_bytes(std::span(text.data(), text.size())));
+      !st) {
+    return Problem{output, 0, stage + ": " + st.message()};
+  }
+  if (cancelRequested()) return Problem{output, 0, stage + ": cancelled"};
+  if (Status st = publish(partial.path(), output); !st) return st;
+  partial.published();
+  return {};
+}
+
 }  // namespace detail
 
 Result<ElevationReport> buildElevation(const ElevationOptions& o, const ProgressFn& progress) {
@@ -710,15 +724,7 @@ Result<ElevationReport> buildElevation(const ElevationOptions& o, const Progress
   }
   describeBuild(o, facts, modules, moduleJson, t0, report);
 
-  const std::string text = manifest::encode(report.manifest);
-  if (Status st = writeFileAtomic(partial.path() + "/" + manifest::kFileName,
-                                  std::as_bytes(std::span(text.data(), text.size())));
-      !st) {
-    return Problem{o.output, 0, "build: " + st.message()};
-  }
-  if (cancelRequested()) return Problem{o.output, 0, "build: cancelled"};
-  if (Status st = publish(partial.path(), o.output); !st) return st.problems();
-  partial.published();
+  if (Status st = publishWithManifest(partial, o.output, report.manifest, "build"); !st) return st.problems();
   return report;
 }
 
