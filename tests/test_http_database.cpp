@@ -8,8 +8,12 @@
 // the pack's header; a grid on the server that is not the manifest's is
 // refused, named by its URL.
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -80,6 +84,69 @@ TEST_F(HttpDatabase, flyDrawsTheSameFramesFromTheUrlAsFromTheDirectory) {
     EXPECT_EQ(slurpFile(e.path().string()), slurpFile(other)) << e.path().filename();
   }
   EXPECT_EQ(frames, 12);
+}
+
+/// tools/delay_proxy.py in front of a server: every byte RTT/2 late each way
+/// (this kernel has no sch_netem, so no `tc netem` in a namespace).
+class DelayProxy {
+ public:
+  DelayProxy(std::uint16_t upstream, int rttMs) {
+    int fds[2];
+    if (::pipe(fds) != 0) return;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::dup2(fds[1], 1);
+      ::close(fds[0]);
+      const std::string script = std::string(SANDTABLE_SOURCE_DIR) + "/tools/delay_proxy.py";
+      const std::string up = std::to_string(upstream), rtt = std::to_string(rttMs);
+      ::execlp("python3", "python3", script.c_str(), "0", "127.0.0.1", up.c_str(), rtt.c_str(), "--seconds", "600",
+               nullptr);
+      ::_exit(127);
+    }
+    ::close(fds[1]);
+    FILE* f = ::fdopen(fds[0], "r");
+    char line[64] = {};
+    if (f && std::fgets(line, sizeof line, f)) port_ = std::atoi(line + std::strlen("listening "));
+    if (f) std::fclose(f);
+  }
+  ~DelayProxy() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGTERM);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  std::uint16_t port() const { return std::uint16_t(port_); }
+
+ private:
+  pid_t pid_ = -1;
+  int port_ = 0;
+};
+
+// The round trips, 20 and 100 ms, added by a proxy the test starts:
+// the frames are still those drawn from the local copy (the viewer waits for
+// its loads, --pager-sync, so a slow link may only make it slower).
+TEST_F(HttpDatabase, flyOverTwentyAndAHundredMillisecondRoundTripsDrawsTheLocalFrames) {
+  std::string why;
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  const auto a = runCli(flyArgs(local(), *dir_ / "frames-rtt-local"));
+  ASSERT_EQ(a.exitCode, 0) << a.err;
+  for (const int rtt : {20, 100}) {
+    SCOPED_TRACE(std::to_string(rtt) + " ms");
+    DelayProxy proxy(nginx_->port(), rtt);
+    ASSERT_NE(proxy.port(), 0) << "tools/delay_proxy.py did not start";
+    ::setenv("SANDTABLE_CACHE", (*dir_ / ("cache-rtt" + std::to_string(rtt))).c_str(), 1);
+    const std::string out = *dir_ / ("frames-rtt" + std::to_string(rtt));
+    const auto b = runCli(flyArgs("http://127.0.0.1:" + std::to_string(proxy.port()) + "/db", out));
+    ASSERT_EQ(b.exitCode, 0) << b.err;
+    int frames = 0;
+    for (const auto& e : fs::directory_iterator(*dir_ / "frames-rtt-local")) {
+      if (e.path().extension() != ".png") continue;
+      ++frames;
+      EXPECT_EQ(slurpFile(e.path().string()), slurpFile(out + "/" + e.path().filename().string()))
+          << e.path().filename();
+    }
+    EXPECT_EQ(frames, 12);
+  }
 }
 
 TEST_F(HttpDatabase, infoAndValidateReadTheUrl) {

@@ -8,7 +8,8 @@ and its response take one RTT more, and throughput is not capped.
 
     tools/delay_proxy.py LISTEN_PORT UPSTREAM_HOST UPSTREAM_PORT RTT_MS [--seconds S]
 
-Listens on 127.0.0.1 only. Runs until killed or for --seconds.
+Listens on 127.0.0.1 only (LISTEN_PORT 0: a free port); prints
+"listening PORT" once it accepts. Runs until killed or for --seconds.
 """
 import argparse
 import asyncio
@@ -62,6 +63,7 @@ async def main():
         await asyncio.gather(pipe(cr, uw, half), pipe(ur, cw, half), return_exceptions=True)
 
     server = await asyncio.start_server(handle, "127.0.0.1", a.listen)
+    print("listening", server.sockets[0].getsockname()[1], flush=True)
     async with server:
         if a.seconds > 0:
             await asyncio.sleep(a.seconds)
