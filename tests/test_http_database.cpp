@@ -20,6 +20,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/paging/pager.h"
+#include "sandtable/paging/world.h"
 #include "sandtable/render/renderer.h"
 #include "sandtable/testing/nginx.h"
 #include "sandtable/testing/require.h"
@@ -147,6 +149,64 @@ TEST_F(HttpDatabase, flyOverTwentyAndAHundredMillisecondRoundTripsDrawsTheLocalF
     }
     EXPECT_EQ(frames, 12);
   }
+}
+
+/// Modules in the pager's window: resident real ones, placeholders, holes.
+struct WindowCount {
+  int real = 0, placeholders = 0, holes = 0;
+};
+WindowCount countWindow(const paging::Pager& p) {
+  WindowCount c;
+  const paging::ModuleRect w = p.window();
+  for (std::int64_t kz = w.z0; kz < w.z1; ++kz) {
+    for (std::int64_t kx = w.x0; kx < w.x1; ++kx) {
+      const auto r = p.resident(std::uint32_t(kx), std::uint32_t(kz), p.levels() - 1);
+      if (!r) ++c.holes;
+      else if (r.placeholder()) ++c.placeholders;
+      else ++c.real;
+    }
+  }
+  return c;
+}
+
+// The server stops while a viewer pages from it: the loads fail and are
+// counted, coarse placeholders (from the mirrored grid) stand in, nothing
+// crashes; when the server returns, the placeholders are read again
+// (paging/retrying_source.h) and every module in view is real again.
+TEST_F(HttpDatabase, theServerStoppingMidFlightLeavesPlaceholdersThatReloadWhenItComesBack) {
+  ::setenv("SANDTABLE_CACHE", (*dir_ / "cache-stop").c_str(), 1);
+  auto world = paging::World::open(url());  // the manifest, the mirror and the pack's header
+  ASSERT_TRUE(world.ok()) << world.error();
+  nginx_->stop();
+  paging::PagerOptions po;
+  po.viewDistance = 1500;
+  auto pager = paging::Pager::open(*world.value(), po);
+  ASSERT_TRUE(pager.ok()) << pager.error();
+  paging::Pager& p = *pager.value();
+  const auto start = std::chrono::steady_clock::now();
+  auto t = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  const double x = 1500, z = 1500;
+  for (int i = 0; i < 40; ++i) {
+    p.update(x, z, 0, 0, t());
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_TRUE(p.waitIdle(10));
+  const WindowCount down = countWindow(p);
+  EXPECT_GT(down.placeholders, 0) << "no load failed with the server stopped";
+  // (Those whose records came in the block the pack's header was read with are real.)
+  EXPECT_GT(p.metrics().corruptModules + p.metrics().missingModules, 0u) << "the failed loads were not counted";
+  std::string why;
+  ASSERT_TRUE(nginx_->restart(why)) << why;
+  WindowCount up;
+  for (int i = 0; i < 600 && (up.real == 0 || up.placeholders > 0 || up.holes > 0); ++i) {  // at most 15 s
+    p.update(x, z, 0, 0, t());
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    up = countWindow(p);
+  }
+  EXPECT_EQ(up.placeholders, 0) << "placeholders left after the server came back";
+  EXPECT_EQ(up.holes, 0);
+  EXPECT_EQ(up.real, down.placeholders + down.real + down.holes);
+  p.stop();
 }
 
 TEST_F(HttpDatabase, infoAndValidateReadTheUrl) {

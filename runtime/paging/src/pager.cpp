@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "pager_internal.h"
+#include "sandtable/paging/retrying_source.h"
 #include "sandtable/paging/world.h"
 #include "sandtable/paging/remote.h"
 
@@ -901,17 +902,10 @@ Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile>
   return openWith(std::move(grid), std::move(source), options, 0);
 }
 
-namespace {
-std::shared_ptr<const ModuleSource> packSource(std::shared_ptr<const pack::PackReader> pack) {
-  if (!pack) return nullptr;
-  return std::make_shared<const PackSource>(std::move(pack));
-}
-}  // namespace
-
 Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile> grid,
                                            std::shared_ptr<const pack::PackReader> pack,
                                            const PagerOptions& options) {
-  return openWith(std::move(grid), packSource(std::move(pack)), options, 0);
+  return openWith(std::move(grid), packSourceOf(std::move(pack)), options, 0);
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile> grid, std::nullptr_t,
@@ -920,7 +914,7 @@ Result<std::unique_ptr<Pager>> Pager::open(std::shared_ptr<const grid::GridFile>
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(const Database& db, const PagerOptions& options) {
-  return openWith(db.grid, packSource(db.modules), options, db.materials ? db.materials->defaultArea : 0);
+  return openWith(db.grid, packSourceOf(db.modules), options, db.materials ? db.materials->defaultArea : 0);
 }
 
 Result<std::unique_ptr<Pager>> Pager::open(const World& world, const PagerOptions& options) {

@@ -2,17 +2,9 @@
 #include "sandtable/paging/world.h"
 
 #include "sandtable/paging/remote.h"
+#include "sandtable/paging/retrying_source.h"
 
 namespace sandtable::paging {
-namespace {
-
-std::shared_ptr<const ModuleSource> packSourceOf(const Database& db) {
-  if (!db.modules) return nullptr;
-  return std::make_shared<const PackSource>(db.modules);
-}
-
-}  // namespace
-
 Result<std::shared_ptr<const World>> World::open(const std::string& directory) {
   auto db = openDatabaseAt(directory);  // a URL: mirrored, the pack read over HTTP (remote.h)
   if (!db) return db.problems();
@@ -21,7 +13,7 @@ Result<std::shared_ptr<const World>> World::open(const std::string& directory) {
 
 World::World(Database db) : db_(std::move(db)) {
   heights_ = grid::heightField(db_.grid);
-  modules_ = packSourceOf(db_);
+  modules_ = packSourceOf(db_.modules);  // retried when read over HTTP
 }
 
 World::World(Database db, std::shared_ptr<const grid::HeightField> heights, std::shared_ptr<const ModuleSource> modules)
