@@ -25,6 +25,7 @@ fastest speed (`sandtable bench make-db --size-km 60 -o DB` is).
 import argparse
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -66,7 +67,7 @@ class Nginx:
         with open(os.path.join(d, "nginx.conf"), "w") as c:
             c.write(f"daemon off;\nmaster_process off;\nworker_processes 1;\npid {d}/nginx.pid;\n"
                     f"error_log {d}/error.log warn;\nevents {{ worker_connections 1024; }}\n"
-                    f"http {{\n  log_format bytes '$msec $bytes_sent';\n  access_log {self.log} bytes;\n"
+                    f"http {{\n  log_format bytes '$msec $bytes_sent $uri';\n  access_log {self.log} bytes;\n"
                     f"  client_body_temp_path {d}/tmp;\n  keepalive_requests 100000;\n  keepalive_timeout 60s;\n"
                     f"  sendfile on;\n  default_type application/octet-stream;\n"
                     f"  server {{\n    listen 127.0.0.1:{self.port};\n    root {root};\n    location / {{ }}\n  }}\n}}\n")
@@ -77,15 +78,19 @@ class Nginx:
             sys.exit("http_paging: nginx did not start (is nginx-light installed? tools/setup.sh)")
 
     def served(self, t0, t1):
-        """Requests and bytes nginx logged between two wall-clock times."""
+        """Requests, bytes, and bytes by file name, that nginx logged
+        between two wall-clock times."""
         n = b = 0
+        by_file = {}
         with open(self.log) as f:
             for line in f:
                 parts = line.split()
-                if len(parts) == 2 and t0 <= float(parts[0]) <= t1:
+                if len(parts) == 3 and t0 <= float(parts[0]) <= t1:
                     n += 1
                     b += int(parts[1])
-        return n, b
+                    name = os.path.basename(parts[2])
+                    by_file[name] = by_file.get(name, 0) + int(parts[1])
+        return n, b, by_file
 
     def stop(self):
         self.proc.terminate()
@@ -103,9 +108,21 @@ class Proxy:
         self.proc.wait()
 
 
+CACHES = []
+
+
+def fresh_cache():
+    """An environment with an empty mirror and no record cache on disk:
+    every flight reads its records over the link (bench paging flies each
+    mode over the same ground, and a disk cache would serve the second),
+    as a new viewer on its own machine would."""
+    CACHES.append(tempfile.mkdtemp(prefix="sandtable-cache-"))
+    return dict(os.environ, SANDTABLE_CACHE=CACHES[-1], SANDTABLE_PACK_CACHE_MB="0")
+
+
 def paging(cli, db, speeds, seconds, extra=()):
     out = subprocess.run([cli, "bench", "paging", db, "--speeds", speeds, "--seconds", str(seconds), *PAGING, *extra],
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, env=fresh_cache())
     j = json.loads(out.stdout) if out.stdout.strip().startswith("{") else {}
     if out.returncode != 0 or "error" in j:
         sys.exit(f"http_paging: bench paging {db} failed: {j.get('error', out.stderr.strip()[-400:])}")
@@ -139,7 +156,6 @@ def main():
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     db = os.path.abspath(a.db)
-    os.environ["SANDTABLE_CACHE"] = tempfile.mkdtemp(prefix="sandtable-cache-")
     nginx = Nginx(os.path.dirname(db))
     name = os.path.basename(db)
     report = {"database": db, "speeds_kmh": [float(s) for s in a.speeds.split(",")], "seconds": a.seconds,
@@ -162,20 +178,22 @@ def main():
             cmd = [a.cli, "bench", "paging", url, "--speeds", a.viewer_speed, "--seconds", str(a.viewer_seconds),
                    *PAGING, "--loaders", "1"]
             t0 = time.time()
-            procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-                     for _ in range(a.viewers)]
+            procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                      env=fresh_cache()) for _ in range(a.viewers)]
             outs = [p.communicate()[0] for p in procs]
             t1 = time.time()
             time.sleep(0.3)  # nginx logs a request after answering it
             per = [holes_by_speed(json.loads(o)) for o in outs]
-            requests, sent = nginx.served(t0, t1 + 0.3)
+            requests, sent, by_file = nginx.served(t0, t1 + 0.3)
             report["viewers"] = {"count": a.viewers, "speed_kmh": float(a.viewer_speed), "wall_seconds": t1 - t0,
                                  "holes_per_viewer": {m: [v[m][float(a.viewer_speed)] for v in per]
                                                       for m in per[0]},
-                                 "server_requests": requests, "server_bytes": sent,
+                                 "server_requests": requests, "server_bytes": sent, "server_bytes_by_file": by_file,
                                  "server_bytes_per_second": sent / max(t1 - t0, 1e-9)}
     finally:
         nginx.stop()
+        for d in CACHES + [nginx.dir]:
+            shutil.rmtree(d, ignore_errors=True)
     if a.json:
         print(json.dumps(report, indent=2))
         return
@@ -192,7 +210,9 @@ def main():
         print(f"{v['count']} viewers at {v['speed_kmh']:.0f} km/h at once: " +
               ", ".join(f"{m} holes per viewer {int(min(h))}..{int(max(h))}" for m, h in v["holes_per_viewer"].items()) +
               f"; nginx {v['server_requests']} requests, {v['server_bytes'] / 1e6:.0f} MB in {v['wall_seconds']:.1f} s"
-              f" = {v['server_bytes_per_second'] / 1e6:.1f} MB/s")
+              f" = {v['server_bytes_per_second'] / 1e6:.1f} MB/s (" +
+              ", ".join(f"{k} {b / 1e6:.0f} MB" for k, b in sorted(v["server_bytes_by_file"].items(), key=lambda x: -x[1])) +
+              ")")
 
 
 if __name__ == "__main__":

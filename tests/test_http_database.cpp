@@ -209,6 +209,51 @@ TEST_F(HttpDatabase, theServerStoppingMidFlightLeavesPlaceholdersThatReloadWhenI
   p.stop();
 }
 
+// The pack's records are kept on disk beside the mirror (paging/disk_cache.h):
+// a second flight over the same ground asks nginx for no record, and draws
+// the same frames; a cached block damaged on disk fails its record's CRC,
+// is dropped and fetched again, and the frames are still the same.
+TEST_F(HttpDatabase, aSecondFlightReadsTheRecordsFromTheDiskCache) {
+  std::string why;
+  SANDTABLE_REQUIRE(render::headlessGlAvailable(why), "headless GL (EGL, Mesa): " << why);
+  const std::string cache = *dir_ / "cache-disk";
+  ::setenv("SANDTABLE_CACHE", cache.c_str(), 1);
+  const auto first = runCli(flyArgs(url(), *dir_ / "frames-disk1"));
+  ASSERT_EQ(first.exitCode, 0) << first.err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const std::uint64_t r1 = nginx_->requests();
+  const auto second = runCli(flyArgs(url(), *dir_ / "frames-disk2"));
+  ASSERT_EQ(second.exitCode, 0) << second.err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // The manifest and the pack's HEAD: not its header, nor any record.
+  EXPECT_EQ(nginx_->requests() - r1, 2u);
+  std::string cacheFile;
+  for (const auto& e : fs::recursive_directory_iterator(cache)) {
+    if (e.path().extension() == ".cache") cacheFile = e.path().string();
+  }
+  ASSERT_FALSE(cacheFile.empty()) << "no modules.pack.*.cache under " << cache;
+  // Damage every cached byte that is not a hole: each record read from it fails its CRC.
+  std::string bytes = slurpFile(cacheFile);
+  std::size_t flipped = 0;
+  for (std::size_t k = 0; k < bytes.size(); k += 997) {
+    if (bytes[k] != 0) bytes[k] = char(bytes[k] ^ 0x21), ++flipped;
+  }
+  ASSERT_GT(flipped, 10u);
+  spit(cacheFile, bytes);
+  const auto third = runCli(flyArgs(url(), *dir_ / "frames-disk3"));
+  ASSERT_EQ(third.exitCode, 0) << third.err;
+  for (const char* out : {"frames-disk2", "frames-disk3"}) {
+    for (const auto& e : fs::directory_iterator(*dir_ / "frames-disk1")) {
+      if (e.path().extension() != ".png") continue;
+      EXPECT_EQ(slurpFile(e.path().string()), slurpFile(*dir_ / (std::string(out) + "/" + e.path().filename().string())))
+          << out << "/" << e.path().filename();
+    }
+  }
+  EXPECT_EQ(third.err.find("checksum mismatch"), std::string::npos) << "a damaged cached block is fetched again, "
+                                                                       "not reported as a damaged module:\n"
+                                                                    << third.err;
+}
+
 TEST_F(HttpDatabase, infoAndValidateReadTheUrl) {
   const auto a = runCli({"info", local(), "--json"});
   const auto b = runCli({"info", url(), "--json"});
@@ -257,12 +302,13 @@ TEST_F(HttpDatabase, theMirrorIsKeptAndADamagedGridOnTheServerIsNamed) {
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // nginx logs after it answers
   const std::uint64_t r1 = nginx_->requests();
   EXPECT_GE(r1 - r0, 3u);  // the manifest, grid.stg, modules.idx, ...
-  // Again: the copies match the manifest, so only the manifest, the pack's
-  // HEAD and its header (checked against the index) are asked for.
+  // Again: the copies match the manifest and the pack's header is in the
+  // disk cache (checked against the index), so only the manifest and the
+  // pack's HEAD are asked for.
   const auto second = runCli({"info", url()});
   ASSERT_EQ(second.exitCode, 0) << second.err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(nginx_->requests() - r1, 3u);
+  EXPECT_EQ(nginx_->requests() - r1, 2u);
   // A grid on the server that is not the manifest's is refused, by URL.
   const std::string bad = *dir_ / "www/badgrid";
   fs::remove_all(bad);

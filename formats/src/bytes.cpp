@@ -126,4 +126,16 @@ Status pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off
   return {};
 }
 
+Status preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off) {
+  while (n > 0) {
+    const ssize_t r = ::pread(fd, data, n, static_cast<off_t>(off));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return Problem{"", off, r == 0 ? std::string("end of file") : std::strerror(errno)};
+    data += r;
+    n -= static_cast<std::size_t>(r);
+    off += static_cast<std::uint64_t>(r);
+  }
+  return {};
+}
+
 }  // namespace sandtable

@@ -56,11 +56,18 @@ Result<std::shared_ptr<const PackReader>> PackReader::openRemote(std::vector<std
   s->header = h.value();
   if (const Status table = checkTableCrc(s->header, s->indexOwned, s->indexPath); !table) return table.problems();
   std::vector<std::byte> head(std::size_t(std::min<std::uint64_t>(pack->size(), kPackHeaderBytes)));
-  if (const Status read = pack->read(0, head); !read) {
-    return Problem{s->packPath, 0, "pack: cannot read the header: " + read.message()};
-  }
   Status checked;
-  checkPackHead(head, pack->size(), s->packPath, &s->header, checked);
+  // As for a record: a header that fails its checks is read once more past
+  // any cache (refresh) before it is an error.
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    if (attempt > 0) pack->refresh(0, head.size());
+    if (const Status read = pack->read(0, head); !read) {
+      return Problem{s->packPath, 0, "pack: cannot read the header: " + read.message()};
+    }
+    checked = {};
+    checkPackHead(head, pack->size(), s->packPath, &s->header, checked);
+    if (checked) break;
+  }
   if (!checked) return checked.problems();
   s->remote = std::move(pack);
   return std::shared_ptr<const PackReader>(new PackReader(std::move(s)));

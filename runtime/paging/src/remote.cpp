@@ -115,6 +115,31 @@ Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o)
   return mirrorWith(*client.value(), url, o);
 }
 
+namespace {
+
+/// The pack behind its on-disk cache (none when its bound is 0), named by
+/// the manifest's CRC of the pack.
+Result<std::shared_ptr<const RangeSource>> packCache(std::shared_ptr<const RangeSource> pack, const std::string& dir,
+                                                     const RemoteOptions& o) {
+  DiskCacheOptions c = o.packCache;
+  if (const char* mb = std::getenv("SANDTABLE_PACK_CACHE_MB"); mb && *mb) {
+    c.maxBytes = std::strtoull(mb, nullptr, 10) << 20;
+  }
+  if (c.maxBytes == 0) return pack;
+  auto m = manifest::readFromDirectory(dir);
+  if (!m) return m.problems();
+  std::uint32_t crc = 0;
+  for (const auto& f : m->files) {
+    if (f.path == pack::kPackFileName) crc = f.crc;
+  }
+  // Beside the mirror, not in it: the mirror holds the database's files only.
+  auto cached = DiskCachedRange::open(std::move(pack), dir + ".records", pack::kPackFileName, crc, c);
+  if (!cached) return cached.problems();
+  return std::shared_ptr<const RangeSource>(cached.value());
+}
+
+}  // namespace
+
 Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions& o) {
   if (!http::isUrl(url)) return Problem{url, 0, "remote database: not an http:// or https:// URL"};
   auto client = http::Client::create(o.client);
@@ -126,6 +151,9 @@ Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions&
     auto r = http::RemoteRange::open(client.value(), trimmed(url) + "/" + pack::kPackFileName);
     if (!r) return r.problems();
     pack = r.value();
+    auto cached = packCache(pack, dir.value(), o);
+    if (!cached) return cached.problems();
+    pack = cached.value();
   }
   return openDatabase(dir.value(), pack);
 }

@@ -49,6 +49,10 @@ Status writeFileAtomic(const std::string& path, std::span<const std::byte> data)
 /// problem's message is strerror, its offset where the write failed.
 Status pwriteAll(int fd, const std::byte* data, std::size_t n, std::uint64_t off);
 
+/// Reads all n bytes at `off`, retrying short reads and EINTR; the end of
+/// the file before n bytes is a problem ("end of file") at its offset.
+Status preadAll(int fd, std::byte* data, std::size_t n, std::uint64_t off);
+
 /// Reads a whole (small) file; refuses files larger than `maxBytes`. The
 /// problem names `path`; its message says why ("cannot open: ...").
 Result<std::vector<std::byte>> readSmallFile(const std::string& path, std::uint64_t maxBytes);

@@ -18,6 +18,7 @@
 #include "sandtable/base/result.h"
 #include "sandtable/formats/database.h"
 #include "sandtable/http/client.h"
+#include "sandtable/paging/disk_cache.h"
 
 namespace sandtable::paging {
 
@@ -27,6 +28,9 @@ struct RemoteOptions {
   std::string cacheDirectory;
   /// modules.pack mirrored whole too (validate reads every record).
   bool wholePack = false;
+  /// The pack's records kept on disk beside the mirror (disk_cache.h);
+  /// maxBytes 0: none. $SANDTABLE_PACK_CACHE_MB, when set, overrides it.
+  DiskCacheOptions packCache;
 };
 
 /// $SANDTABLE_CACHE, else $XDG_CACHE_HOME/sandtable, else
