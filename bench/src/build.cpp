@@ -6,6 +6,8 @@
 // shared and noisy: a burst of load then falls on both sides alike.
 #include "sandtable/bench/build.h"
 
+#include "process.h"
+
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/resource.h>
@@ -234,18 +236,9 @@ class StageClock {
 /// Runs argv (argv[0] a path, no shell: no quoting issues) with stdout and
 /// stderr to `log`. Throws with the log's tail unless it exits 0.
 Sample runProcess(const std::vector<std::string>& argv, const fs::path& log) {
-  std::vector<char*> av;
-  for (const auto& s : argv) av.push_back(const_cast<char*>(s.c_str()));
-  av.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
   const auto t0 = Clock::now();
-  pid_t pid = 0;
-  const int rc = ::posix_spawn(&pid, av[0], &fa, nullptr, av.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
+  int rc = 0;
+  const pid_t pid = detail::spawnLogged(argv, log, rc);
   if (rc != 0) throw BenchError("cannot run " + argv[0] + ": " + std::strerror(rc));
   int status = 0;
   rusage ru{};

@@ -2,7 +2,6 @@
 #include "sandtable/bench/distributed_build.h"
 
 #include <fcntl.h>
-#include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -21,10 +20,9 @@
 #include <stdexcept>
 #include <thread>
 
+#include "process.h"
 #include "sandtable/converters/distributed.h"
 #include "sandtable/converters/elevation.h"
-
-extern char** environ;
 
 namespace sandtable::bench {
 
@@ -93,23 +91,11 @@ std::string joined(const std::vector<std::string>& v) {
   return s;
 }
 
-/// Starts this executable with `argv` (argv[0] its name), stdin from
-/// /dev/null, stdout and stderr to `log`.
+/// Starts argv[0] (the sandtable executable) with argv, its output to `log`.
 pid_t spawnChild(const std::vector<std::string>& argv, const fs::path& log) {
-  std::vector<char*> av;
-  for (const auto& s : argv) av.push_back(const_cast<char*>(s.c_str()));
-  av.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = 0;
-  // Every child is this executable: exec'd as /proc/self/exe, so a rebuild
-  // that replaces the file mid-run does not change (or break) the bench.
-  const int rc = ::posix_spawn(&pid, "/proc/self/exe", &fa, nullptr, av.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw DistFailure("cannot run " + argv[0] + ": " + std::strerror(rc));
+  int rc = 0;
+  const pid_t pid = detail::spawnLogged(argv, log, rc);
+  if (pid < 0) throw DistFailure("cannot run " + argv[0] + ": " + std::strerror(rc));
   return pid;
 }
 
