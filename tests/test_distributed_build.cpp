@@ -183,6 +183,30 @@ TEST(DistributedBuild, aPlanWhoseInputsChangedIsRefused) {
   EXPECT_NE(r.exitCode, 0);
 }
 
+// A task reads whole (for its CRC) only the sources under its rows: a cell
+// changed in place after the plan is refused by the task over it, naming
+// the file; the task over the other end of the mosaic need not read it.
+TEST(DistributedBuild, anElevationCellChangedAfterThePlanIsRefusedByTheTaskOverIt) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir tmp("dist-cell");
+  const std::string south = tmp / "n55.dt1", north = tmp / "n56.dt1";
+  fs::copy_file(data("elevation/dted/denmark-dhm/e010/n55.dt1"), south);
+  fs::copy_file(data("elevation/dted/denmark-dhm/e010/n56.dt1"), north);
+  const std::vector<std::string> args = {"build", "--elevation", south, north, "--extent", "10.30", "55.80", "10.60",
+                                         "56.20", "--spacing", "60", "-o", tmp / "db"};
+  auto r = runCli(with(args, {"--plan", tmp / "plan.json", "--tasks", "2"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  // The same size, another byte in the middle of the northern cell's posts.
+  std::string bytes = slurpFile(north);
+  bytes[bytes.size() / 2] = char(bytes[bytes.size() / 2] ^ 0x01);
+  spit(north, bytes);
+  r = runCli({"build", "--task", tmp / "plan.json", "0"});  // the northern rows
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find("n56.dt1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("another CRC-32"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("changed since the plan"), std::string::npos) << r.err;
+}
+
 TEST(DistributedBuild, aKilledTaskLeavesNoPartAndTheRerunBuildsOnlyIt) {
   SANDTABLE_REQUIRE_DATA();
   TempDir tmp("dist-kill");

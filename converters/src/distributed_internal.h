@@ -1,6 +1,8 @@
 #pragma once
 // What the plan, the tasks and the merge of a distributed build share
 // (distributed_plan.cpp).
+#include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -15,7 +17,20 @@ struct PlanFrame {
   Frame frame;
   KernelChoice kernel;
 };
-Result<PlanFrame> openPlanned(const ElevationOptions& o, int threads, const ProgressFn& progress);
+/// `checksums` false: the sources are not read whole (their CRCs come from
+/// checkSources).
+Result<PlanFrame> openPlanned(const ElevationOptions& o, int threads, const ProgressFn& progress,
+                              bool checksums = true);
+
+/// Checks the sources against the plan's elevation inputs: every path and
+/// size, and the CRC-32 (read whole here) of those `checksum` picks; then
+/// gives every source the plan's CRC (the manifest's). A task checksums
+/// the sources under its rows; the merge none (the tasks did).
+Status checkSources(const Plan& p, std::vector<Source>& sources,
+                    const std::function<bool(const Source&)>& checksum, int threads);
+/// The lon/lat box (west, south, east, north) of grid rows [j0, j1) of
+/// the frame, with a margin for the resampling kernels' reach.
+std::array<double, 4> rowsLonLat(const Frame& f, std::uint32_t j0, std::uint32_t j1);
 
 /// Size and CRC-32 of a file GDAL's VSI can read (local or /vsicurl/...).
 Result<PlanInput> fingerprint(const std::string& path, const std::string& kind);

@@ -140,11 +140,15 @@ Result<ElevationReport> mergeParts(const Plan& plan, const MergeOptions& mopt, c
       return p;
     }
   }
-  auto opened = detail::openPlanned(o, o.threads, {});
+  // The tasks checked every source under the grid against its CRC; the
+  // merge checks sizes and takes the plan's CRCs for the manifest.
+  auto opened = detail::openPlanned(o, o.threads, {}, false);
   if (!opened) return opened.problems();
-  const detail::PlanFrame& pf = opened.value();
+  detail::PlanFrame& pf = opened.value();
   const detail::Frame& f = pf.frame;
-  if (Status st = detail::sameInputs(plan, detail::elevationInputs(pf.sources), "elevation"); !st) return st.problems();
+  if (Status st = detail::checkSources(plan, pf.sources, [](const detail::Source&) { return false; }, o.threads); !st) {
+    return st.problems();
+  }
   auto others = detail::fingerprintOthers(o);
   if (!others) return others.problems();
   if (Status st = detail::sameInputs(plan, others.value(), "other"); !st) return st.problems();

@@ -3,12 +3,15 @@
 #include <cpl_vsi.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "build_stages.h"
 #include "distributed_internal.h"
 #include "sandtable/converters/distributed.h"
+#include "sandtable/base/jobs.h"
 #include "sandtable/formats/bytes.h"
+#include "sandtable/geodesy/geodesy.h"
 #include "sandtable/formats/part.h"
 #include "sandtable/meshing/lattice.h"
 
@@ -209,16 +212,71 @@ Status sameInputs(const Plan& p, const std::vector<PlanInput>& now, const std::s
   return {};
 }
 
-Result<PlanFrame> openPlanned(const ElevationOptions& o, int threads, const ProgressFn& progress) {
+Result<PlanFrame> openPlanned(const ElevationOptions& o, int threads, const ProgressFn& progress, bool checksums) {
   auto paths = expandSources(o.sources);
   if (!paths) return paths.problems();
-  auto sources = openSources(paths.value(), threads, progress);
+  auto sources = openSources(paths.value(), threads, progress, checksums);
   if (!sources) return sources.problems();
   auto frame = planFrame(o, sources.value());
   if (!frame) return frame.problems();
   PlanFrame pf{std::move(sources.value()), frame.value(), {}};
   pf.kernel = chooseKernel(o.resample, o.fit, pf.frame.spacing, nativeSpacingMetres(pf.sources));
   return pf;
+}
+
+Status checkSources(const Plan& p, std::vector<Source>& sources, const std::function<bool(const Source&)>& checksum,
+                    int threads) {
+  std::vector<const PlanInput*> planned;
+  for (const auto& in : p.inputs) {
+    if (in.kind == "elevation") planned.push_back(&in);
+  }
+  const std::string fix = "; the inputs changed since the plan was written: write a new plan (--plan) and build again";
+  if (planned.size() != sources.size()) {
+    return Problem{p.directory, 0, "plan: " + std::to_string(sources.size()) + " elevation inputs, the plan has " +
+                                       std::to_string(planned.size()) + fix};
+  }
+  std::vector<std::string> problems(sources.size());
+  jobs::parallelFor(sources.size(), threads, [&](std::size_t k) {
+    const PlanInput& a = *planned[k];
+    Source& s = sources[k];
+    std::uint32_t crc = a.crc;
+    if (a.path == s.path && a.bytes == s.bytes && checksum(s)) {
+      const auto now = crc32File(s.path);
+      crc = now ? now->crc : ~a.crc;
+    }
+    if (a.path != s.path || a.bytes != s.bytes || crc != a.crc) {
+      char d[160];
+      std::snprintf(d, sizeof d, "planned %llu bytes, CRC-32 %08x; now %llu bytes%s", static_cast<unsigned long long>(a.bytes),
+                    a.crc, static_cast<unsigned long long>(s.bytes), crc != a.crc ? ", another CRC-32" : "");
+      problems[k] = "plan: elevation input " + s.path + " " + d + fix;
+    }
+    s.crc = a.crc;
+  });
+  for (std::size_t k = 0; k < problems.size(); ++k) {
+    if (!problems[k].empty()) return Problem{sources[k].path, 0, problems[k]};
+  }
+  return {};
+}
+
+std::array<double, 4> rowsLonLat(const Frame& f, std::uint32_t j0, std::uint32_t j1) {
+  std::array<double, 4> box{INFINITY, INFINITY, -INFINITY, -INFINITY};
+  const auto projection = geodesy::Projection::create(f.crs.wkt);
+  if (!projection) return {-180, -90, 180, 90};  // cannot tell: every source is under the rows
+  const double e0 = f.originEasting, e1 = f.originEasting + (f.postsX - 1) * f.spacing;
+  const double n0 = f.originNorthing - j0 * f.spacing, n1 = f.originNorthing - (std::max(j1, j0 + 1) - 1) * f.spacing;
+  for (int k = 0; k <= 16; ++k) {
+    const double t = k / 16.0;
+    for (const auto& [e, n] : {std::pair{e0 + t * (e1 - e0), n0}, std::pair{e0 + t * (e1 - e0), n1},
+                              std::pair{e0, n0 + t * (n1 - n0)}, std::pair{e1, n0 + t * (n1 - n0)}}) {
+      const auto ll = projection->toLonLat({e, n});
+      if (!ll) return {-180, -90, 180, 90};
+      box = {std::min(box[0], ll->lon), std::min(box[1], ll->lat), std::max(box[2], ll->lon), std::max(box[3], ll->lat)};
+    }
+  }
+  // The kernels read source posts up to about a grid square beyond a post;
+  // 0.05 degrees (5 km) is far more than any spacing a build takes.
+  constexpr double kMarginDeg = 0.05;
+  return {box[0] - kMarginDeg, box[1] - kMarginDeg, box[2] + kMarginDeg, box[3] + kMarginDeg};
 }
 
 Status sameFrame(const Plan& p, const Frame& f) {

@@ -163,16 +163,24 @@ Result<TaskReport> buildTask(const Plan& plan, std::uint32_t task, int threads, 
   }
   TaskWork w{plan, plan.tasks[task], plan.options, {}, {}, {}};
   w.o.threads = threads;
-  auto opened = detail::openPlanned(w.o, threads, {});
+  // Only the sources under this task's rows (and its halo) are read whole
+  // for their CRCs; the others are checked by size, and by the tasks under them.
+  auto opened = detail::openPlanned(w.o, threads, {}, false);
   if (!opened) return opened.problems();
   w.pf = std::move(opened.value());
-  if (Status st = detail::sameInputs(plan, detail::elevationInputs(w.pf.sources), "elevation"); !st) {
-    return st.problems();
-  }
+  if (Status st = detail::sameFrame(plan, w.pf.frame); !st) return st.problems();
+  const PlanTask& t0rows = plan.tasks[task];
+  const std::uint32_t B = grid::kBlockPosts;
+  const std::uint32_t j0 = t0rows.fillRow0 * B >= B ? t0rows.fillRow0 * B - B : 0;
+  const std::uint32_t j1 = std::min(w.pf.frame.postsZ, (t0rows.fillRow0 + t0rows.fillRows + 1) * B);
+  const std::array<double, 4> box = detail::rowsLonLat(w.pf.frame, j0, j1);
+  const auto under = [&box](const detail::Source& s) {
+    return s.lonLatBox[0] <= box[2] && s.lonLatBox[2] >= box[0] && s.lonLatBox[1] <= box[3] && s.lonLatBox[3] >= box[1];
+  };
+  if (Status st = detail::checkSources(plan, w.pf.sources, under, threads); !st) return st.problems();
   auto others = detail::fingerprintOthers(w.o);
   if (!others) return others.problems();
   if (Status st = detail::sameInputs(plan, others.value(), "other"); !st) return st.problems();
-  if (Status st = detail::sameFrame(plan, w.pf.frame); !st) return st.problems();
   auto culture = detail::loadCulture(w.o, w.pf.frame, {});
   if (!culture) return culture.problems();
   w.culture = std::move(culture.value());

@@ -38,8 +38,11 @@ struct Source {
 
 /// Opens each source, checks its georeferencing and reads its first and
 /// last blocks (truncation), in parallel.
+/// Without `checksums` the sources are not read whole: bytes is the file's
+/// size and crc 0 (a distributed task checks only the sources under its
+/// rows: checksumSources).
 Result<std::vector<Source>> openSources(const std::vector<std::string>& paths, int threads,
-                                        const ProgressFn& progress);
+                                        const ProgressFn& progress, bool checksums = true);
 
 /// The target grid: CRS, north-west corner post, spacing, post counts.
 struct Frame {

@@ -139,13 +139,19 @@ Result<bool> probeEnds(GDALRasterBand& band, const std::string& path) {
   return true;
 }
 
-Result<Source> openOne(const std::string& path) {
+Result<Source> openOne(const std::string& path, bool checksum) {
   Source s;
   s.path = fs::absolute(path).lexically_normal().string();
-  const auto crc = crc32File(path);
-  if (!crc) return Problem{path, 0, "source: cannot read the file"};
-  s.crc = crc->crc;
-  s.bytes = crc->bytes;
+  if (checksum) {
+    const auto crc = crc32File(path);
+    if (!crc) return Problem{path, 0, "source: cannot read the file"};
+    s.crc = crc->crc;
+    s.bytes = crc->bytes;
+  } else {
+    std::error_code ec;
+    s.bytes = fs::file_size(path, ec);
+    if (ec) return Problem{path, 0, "source: cannot read the file: " + ec.message()};
+  }
   CPLErrorReset();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
   if (!ds) {
@@ -181,14 +187,14 @@ Result<Source> openOne(const std::string& path) {
 }  // namespace
 
 Result<std::vector<Source>> openSources(const std::vector<std::string>& paths, int threads,
-                                        const ProgressFn& progress) {
+                                        const ProgressFn& progress, bool checksums) {
   initGdal();
   std::vector<std::optional<Result<Source>>> results(paths.size());
   std::size_t done = 0;
   std::mutex progressMutex;
   jobs::parallelFor(paths.size(), threads, [&](std::size_t k) {
     if (cancelRequested()) return;
-    results[k].emplace(openOne(paths[k]));
+    results[k].emplace(openOne(paths[k], checksums));
     std::lock_guard lock(progressMutex);
     if (progress) progress(double(++done) / double(paths.size()), "reading sources");
   });
