@@ -65,13 +65,6 @@ double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>
 
 }  // namespace
 
-double medianOf(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 namespace {
 
 std::string lastLines(const fs::path& log, int n) {
@@ -301,7 +294,7 @@ nlohmann::json distributedBuildJson(const DistributedBuildReport& r) {
   const double oneAll = r.oneAll.median(), one1 = r.one1.median(), serial = r.serial.median(),
                conc = r.concurrentStep.median(), merge = r.merge.median();
   std::vector<double> perTask;
-  for (const auto& t : r.perTask) perTask.push_back(medianOf(t));
+  for (const auto& t : r.perTask) perTask.push_back(stats::median(t));
   const double mergeBytes = double(r.partsBytes + r.dbBytes);
   nlohmann::json identical = nlohmann::json::object();
   bool all = true;

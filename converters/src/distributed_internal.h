@@ -37,8 +37,8 @@ Result<PlanInput> fingerprint(const std::string& path, const std::string& kind);
 /// The culture, materials, icons and objects files' fingerprints.
 Result<std::vector<PlanInput>> fingerprintOthers(const ElevationOptions& o);
 std::vector<PlanInput> elevationInputs(const std::vector<Source>& sources);
-/// Refuses inputs of `kind` (elevation, or any other) that differ from the plan's.
-Status sameInputs(const Plan& p, const std::vector<PlanInput>& now, const std::string& kind);
+/// Refuses culture, materials, icons and objects inputs that differ from the plan's.
+Status sameOtherInputs(const Plan& p, const std::vector<PlanInput>& now);
 /// Refuses a frame of another size than the plan's.
 Status sameFrame(const Plan& p, const Frame& f);
 

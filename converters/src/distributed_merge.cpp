@@ -151,7 +151,7 @@ Result<ElevationReport> mergeParts(const Plan& plan, const MergeOptions& mopt, c
   }
   auto others = detail::fingerprintOthers(o);
   if (!others) return others.problems();
-  if (Status st = detail::sameInputs(plan, others.value(), "other"); !st) return st.problems();
+  if (Status st = detail::sameOtherInputs(plan, others.value()); !st) return st.problems();
   if (Status st = detail::sameFrame(plan, f); !st) return st.problems();
   detail::CultureSetup c;
   auto table = detail::loadMaterials(o);

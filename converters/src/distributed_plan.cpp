@@ -190,14 +190,14 @@ std::vector<PlanInput> elevationInputs(const std::vector<Source>& sources) {
   return out;
 }
 
-Status sameInputs(const Plan& p, const std::vector<PlanInput>& now, const std::string& kind) {
+Status sameOtherInputs(const Plan& p, const std::vector<PlanInput>& now) {
   std::vector<PlanInput> planned;
   for (const auto& in : p.inputs) {
-    if (kind == "elevation" ? in.kind == "elevation" : in.kind != "elevation") planned.push_back(in);
+    if (in.kind != "elevation") planned.push_back(in);
   }
   const std::string fix = "; the inputs changed since the plan was written: write a new plan (--plan) and build again";
   if (planned.size() != now.size()) {
-    return Problem{p.directory, 0, "plan: " + std::to_string(now.size()) + " " + kind + " inputs, the plan has " +
+    return Problem{p.directory, 0, "plan: " + std::to_string(now.size()) + " culture, materials, icons and objects inputs, the plan has " +
                                        std::to_string(planned.size()) + fix};
   }
   for (std::size_t k = 0; k < now.size(); ++k) {

@@ -180,7 +180,7 @@ Result<TaskReport> buildTask(const Plan& plan, std::uint32_t task, int threads, 
   if (Status st = detail::checkSources(plan, w.pf.sources, under, threads); !st) return st.problems();
   auto others = detail::fingerprintOthers(w.o);
   if (!others) return others.problems();
-  if (Status st = detail::sameInputs(plan, others.value(), "other"); !st) return st.problems();
+  if (Status st = detail::sameOtherInputs(plan, others.value()); !st) return st.problems();
   auto culture = detail::loadCulture(w.o, w.pf.frame, {});
   if (!culture) return culture.problems();
   w.culture = std::move(culture.value());

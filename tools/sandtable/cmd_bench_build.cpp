@@ -187,13 +187,13 @@ void printDistributed(const bench::DistributedBuildReport& r) {
   std::printf("  (MB, the largest of the step's processes: peak RSS from wait4, mapped files included; anon: its\n"
               "  largest RssAnon, sampled every 5 ms. cpu s: user + system of all its processes)\n\n");
   std::vector<double> perTask;
-  for (const auto& t : r.perTask) perTask.push_back(bench::medianOf(t));
+  for (const auto& t : r.perTask) perTask.push_back(stats::median(t));
   const auto [lo, hi] = std::minmax_element(perTask.begin(), perTask.end());
   std::printf("tasks     1 at a time %.2f tasks/s, %d at a time %.2f tasks/s: speed-up %.2fx\n", r.tasks / serial,
               r.concurrent, r.tasks / conc, serial / conc);
   std::printf("          %d at a time, speed-up over the one-machine build: %.2fx (threads 1), %.2fx (threads %s)\n",
               r.concurrent, one1 / conc, oneAll / conc, threadsText(r.threads, r.cpus).c_str());
-  std::printf("          per task (median s, 1 at a time): min %.2f, median %.2f, max %.2f", *lo, bench::medianOf(perTask), *hi);
+  std::printf("          per task (median s, 1 at a time): min %.2f, median %.2f, max %.2f", *lo, stats::median(perTask), *hi);
   if (perTask.size() <= 16) {
     std::printf(":");
     for (std::size_t t = 0; t < perTask.size(); ++t) std::printf(" %zu:%.2f", t, perTask[t]);

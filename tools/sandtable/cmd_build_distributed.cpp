@@ -100,9 +100,12 @@ int runSlurm(const convert::Plan& plan, const DistributedArgs& d, const std::vec
         jobId.clear();
       }
       if (tick % 10 != 0 || quiet) continue;
-      const std::size_t left = missingTasks(plan).size();
-      if (todo.size() - std::min(todo.size(), left) != shown) {
-        shown = todo.size() - std::min(todo.size(), left);
+      // Parts that have landed (a part appears whole, by rename); checked
+      // byte by byte only once the array has ended.
+      std::size_t landed = 0;
+      for (const std::uint32_t t : todo) landed += fs::exists(convert::partPath(plan, t)) ? 1 : 0;
+      if (landed != shown) {
+        shown = landed;
         std::fprintf(stderr, "slurm: %zu of %zu tasks built\n", shown, todo.size());
       }
     }

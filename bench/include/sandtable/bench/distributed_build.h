@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sandtable/base/result.h"
+#include "sandtable/base/stats.h"
 #include "sandtable/bench/build.h"
 #include "sandtable/bench/notes.h"
 
@@ -30,9 +31,6 @@ struct DistributedBuildOptions {
 /// Flags the bench sets itself, refused among DistributedBuildOptions::buildArgs.
 extern const std::vector<std::string> kDistributedOwnFlags;
 inline constexpr double kMergeGoalPercent = 10;
-
-/// The median of `v` (0 when empty).
-double medianOf(std::vector<double> v);
 
 /// One child process as it ended.
 struct ChildRun {
@@ -52,11 +50,11 @@ struct DistributedStep {
   std::uint64_t peakRssBytes = 0, peakAnonBytes = 0;
   double cpuS = 0;  ///< median user + system seconds
   std::vector<double> cpuSamples;
-  double median() const { return medianOf(samples); }
+  double median() const { return stats::median(samples); }
   void add(double wallS, const ChildRun& r) {
     samples.push_back(wallS);
     cpuSamples.push_back(r.cpuS);
-    cpuS = medianOf(cpuSamples);
+    cpuS = stats::median(cpuSamples);
     peakRssBytes = std::max(peakRssBytes, r.peakRssBytes);
     peakAnonBytes = std::max(peakAnonBytes, r.peakAnonBytes);
   }
