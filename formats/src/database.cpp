@@ -251,7 +251,8 @@ Result<std::shared_ptr<const pack::PackReader>> openRemotePack(const std::string
 
 std::uint64_t databaseOpens() { return gDatabaseOpens.load(std::memory_order_relaxed); }
 
-Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack) {
+Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack,
+                              std::shared_ptr<const grid::GridFile> remoteGrid) {
   gDatabaseOpens.fetch_add(1, std::memory_order_relaxed);
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) {
@@ -259,7 +260,8 @@ Result<Database> openDatabase(const std::string& directory, std::shared_ptr<cons
   }
   auto m = manifest::readFromDirectory(directory);
   if (!m) return m.problems();
-  auto g = grid::GridFile::open(directory + "/" + manifest::kGridFileName);
+  auto g = remoteGrid ? Result<std::shared_ptr<const grid::GridFile>>(std::move(remoteGrid))
+                     : grid::GridFile::open(directory + "/" + manifest::kGridFileName);
   if (!g) return g.problems();
   Database db{directory, std::move(m.value()), g.value(), nullptr, std::nullopt, std::nullopt};
   std::vector<Problem> problems;

@@ -299,6 +299,7 @@ const std::byte* GridFile::postAddress(std::uint32_t i, std::uint32_t j, std::ui
   const std::uint32_t bx = i / kBlockPosts, bz = j / kBlockPosts;
   const std::uint32_t lx = i % kBlockPosts, lz = j % kBlockPosts;
   const std::uint64_t block = std::uint64_t(bz) * header_.blocksX + bx;
+  if (remote_) [[unlikely]] ensureBlock(block);
   return base_ + header_.dataOffset + block * kBlockBytes + plane +
          std::uint64_t(lz * kBlockPosts + lx) * width;
 }
@@ -320,7 +321,17 @@ std::uint8_t GridFile::material(std::uint32_t i, std::uint32_t j) const {
 std::span<const std::byte> GridFile::blockBytes(std::uint32_t bx, std::uint32_t bz) const {
   assert(bx < header_.blocksX && bz < header_.blocksZ);
   const std::uint64_t block = std::uint64_t(bz) * header_.blocksX + bx;
+  if (remote_) [[unlikely]] ensureBlock(block);
   return {base_ + header_.dataOffset + block * kBlockBytes, kBlockBytes};
+}
+
+std::span<const std::byte> GridFile::bytes() const {
+  if (remote_ && header_.blocksX > 0 && header_.blocksZ > 0) {
+    (void)fetchBlocks(0, 0, header_.blocksX - 1, header_.blocksZ - 1);
+    // Blocks another thread was fetching meanwhile are waited for.
+    for (std::uint64_t b = 0; b < header_.blockCount(); ++b) ensureBlock(b);
+  }
+  return {base_, size_};
 }
 
 BlockEntry GridFile::blockEntry(std::uint32_t bx, std::uint32_t bz) const {

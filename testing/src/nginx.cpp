@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -158,6 +159,28 @@ std::uint64_t Nginx::requests() const {
   std::string line;
   while (std::getline(in, line)) ++n;
   return n;
+}
+
+Nginx::Served Nginx::served(const std::string& path) const {
+  // The combined format: ... "GET /db/grid.stg HTTP/1.1" 206 45056 "-" "-"
+  std::ifstream in(dir_ + "/access.log");
+  Served s;
+  std::string line;
+  const std::string needle = " " + path + " HTTP/";
+  while (std::getline(in, line)) {
+    const auto at = line.find(needle);
+    if (at == std::string::npos) continue;
+    const auto close = line.find('"', at);
+    if (close == std::string::npos) continue;
+    unsigned status = 0;
+    unsigned long long bytes = 0;
+    if (std::sscanf(line.c_str() + close + 1, " %u %llu", &status, &bytes) != 2) continue;
+    ++s.requests;
+    s.bytes += bytes;
+    if (status == 206) ++s.ranges;
+    if (status == 200 && bytes > 0) ++s.whole;
+  }
+  return s;
 }
 
 }  // namespace sandtable::testsupport

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <vector>
@@ -15,10 +16,13 @@
 namespace sandtable::paging {
 namespace fs = std::filesystem;
 
-namespace {
+std::string cacheStem(const std::string& name, std::uint64_t size, std::uint32_t crc) {
+  char tag[64];
+  std::snprintf(tag, sizeof tag, ".%llu.%08x", static_cast<unsigned long long>(size), crc);
+  return name + tag;
+}
 
-/// Removes NAME.*.cache / NAME.*.map files of other builds.
-void removeOthers(const std::string& dir, const std::string& name, const std::string& keep) {
+void removeOtherCaches(const std::string& dir, const std::string& name, const std::string& keep) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string f = e.path().filename().string();
@@ -27,8 +31,6 @@ void removeOthers(const std::string& dir, const std::string& name, const std::st
   }
 }
 
-}  // namespace
-
 Result<std::shared_ptr<const DiskCachedRange>> DiskCachedRange::open(std::shared_ptr<const RangeSource> source,
                                                                      const std::string& dir, const std::string& name,
                                                                      std::uint32_t crc, DiskCacheOptions options) {
@@ -36,12 +38,10 @@ Result<std::shared_ptr<const DiskCachedRange>> DiskCachedRange::open(std::shared
   c->source_ = std::move(source);
   c->options_ = options;
   c->options_.blockBytes = std::max<std::uint32_t>(options.blockBytes, 4096);
-  char tag[64];
-  std::snprintf(tag, sizeof tag, ".%llu.%08x", static_cast<unsigned long long>(c->source_->size()), crc);
-  const std::string stem = name + tag;
+  const std::string stem = cacheStem(name, c->source_->size(), crc);
   std::error_code ec;
   fs::create_directories(dir, ec);
-  removeOthers(dir, name, stem);
+  removeOtherCaches(dir, name, stem);
   c->dataPath_ = dir + "/" + stem + ".cache";
   c->mapPath_ = dir + "/" + stem + ".map";
   c->blocks_ = (c->source_->size() + c->options_.blockBytes - 1) / c->options_.blockBytes;

@@ -66,6 +66,13 @@ std::size_t nextPow2(std::size_t n) {
   return p;
 }
 
+/// A remote grid's blocks that could not be fetched, each logged once.
+void logGridProblems(const Impl& im) {
+  for (const Problem& p : im.grid->takeRemoteProblems()) {
+    im.log(p.file + " at byte " + std::to_string(p.offset) + ": " + p.message + " (it stands in flat until it comes)");
+  }
+}
+
 void signalLoader(Loader& l) {
   l.signal.fetch_add(1, std::memory_order_release);
   l.signal.notify_one();
@@ -961,6 +968,7 @@ Result<std::unique_ptr<Pager>> Pager::openWith(std::shared_ptr<const grid::GridF
   auto im = std::make_unique<Impl>(g);
   im->options = options;
   im->grid = std::move(grid);
+  if (im->grid->remote()) im->gridFetches = std::make_unique<jobs::SerialQueue>();
   im->source = std::move(source);
   im->header = header;
   im->levels = im->source ? std::max<std::uint32_t>(1, header.levels) : 1;
@@ -1055,6 +1063,7 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
   noteUpdateInterval(im, timeNow);
   im.lastTime = timeNow;
   im.haveTime = true;
+  if (im.gridFetches) logGridProblems(im);
 
   // The window moves only at updates, so a strip asked for now must also
   // be in before the eye has gone one more update's way (at 1,000,000 km/h
@@ -1264,6 +1273,10 @@ void Pager::stop() {
     if (ld->thread.joinable()) ld->thread.join();
   }
   if (im.prefetcher.joinable()) im.prefetcher.join();
+  if (im.gridFetches) {
+    im.gridFetches->wait();
+    logGridProblems(im);
+  }
   im.stopped = true;
 }
 

@@ -15,6 +15,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "sandtable/base/jobs.h"
 #include "sandtable/paging/pager.h"
 
 namespace sandtable::paging::detail {
@@ -197,6 +198,9 @@ struct Pager::Impl {
   PagerOptions options;
   std::shared_ptr<const grid::GridFile> grid;
   std::shared_ptr<const ModuleSource> source;  ///< null in mmap mode without modules
+  /// A remote grid's blocks under each strip a loader takes, fetched off
+  /// the loaders' path (hintStrip); null for a local grid.
+  std::unique_ptr<jobs::SerialQueue> gridFetches;
   pack::IndexHeader header;                       ///< zero levels without a pack
   PagingGeometry geometry;
   std::uint32_t levels = 1;
@@ -267,5 +271,7 @@ void runPrefetcher(Pager::Impl& impl);
 /// modules just taken from the queue (a strip, or part of a refill) will be
 /// read, coarse and fine records.
 void hintStrip(Pager::Impl& impl, std::span<const ModuleKey> keys);
+/// Queues the fetch of a remote grid's blocks under `keys` (gridFetches).
+void fetchGridUnder(Pager::Impl& impl, std::span<const ModuleKey> keys);
 
 }  // namespace sandtable::paging

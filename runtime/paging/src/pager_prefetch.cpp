@@ -36,6 +36,28 @@ void hintStrip(Pager::Impl& im, std::span<const ModuleKey> keys) {
   // the disk has had the whole strip's coarse reads to fetch it. (A pack
   // v2 in Morton order holds the strip's records in a few runs each.)
   if (im.source) im.source->willNeed(keys, true);
+  if (im.gridFetches) fetchGridUnder(im, keys);
+}
+
+void fetchGridUnder(Pager::Impl& im, std::span<const ModuleKey> keys) {
+  // Queued strips the viewer has passed are not worth their requests: the
+  // readers fetch what they still need themselves.
+  constexpr std::size_t kMaxQueued = 8;
+  if (im.gridFetches->pending() >= kMaxQueued) return;
+  const grid::GridFile& g = *im.grid;
+  const double blockMetres = grid::kBlockPosts * g.spacing();
+  const double edge = im.geometry.moduleSize;
+  std::uint32_t kx0 = keys[0].kx, kx1 = kx0, kz0 = keys[0].kz, kz1 = kz0;
+  for (const ModuleKey& k : keys) {
+    kx0 = std::min(kx0, k.kx), kx1 = std::max(kx1, k.kx);
+    kz0 = std::min(kz0, k.kz), kz1 = std::max(kz1, k.kz);
+  }
+  // A module's skirts and the ground clamp read the posts on its edges,
+  // which may lie in the next block: one block of margin.
+  auto block = [&](double metres, double margin) { return std::max(0.0, std::floor(metres / blockMetres + margin)); };
+  const auto bx0 = std::uint32_t(block(kx0 * edge, -1)), bx1 = std::uint32_t(block((kx1 + 1) * edge, 0));
+  const auto bz0 = std::uint32_t(block(kz0 * edge, -1)), bz1 = std::uint32_t(block((kz1 + 1) * edge, 0));
+  im.gridFetches->submit([grid = im.grid, bx0, bz0, bx1, bz1] { (void)grid->fetchBlocks(bx0, bz0, bx1, bz1); });
 }
 
 void runPrefetcher(Pager::Impl& im) {

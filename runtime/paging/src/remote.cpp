@@ -87,7 +87,7 @@ Result<std::string> mirrorWith(const http::Client& client, const std::string& ur
   if (ec) return Problem{dir, 0, "remote database: cannot make the cache directory: " + ec.message()};
   for (const manifest::FileEntry& f : m->files) {
     if (!safePath(f.path)) return Problem{manifestUrl, 0, "remote database: the manifest lists '" + f.path + "', outside the database"};
-    if (f.path == pack::kPackFileName && !o.wholePack) continue;
+    if ((f.path == pack::kPackFileName || f.path == manifest::kGridFileName) && !o.wholePack) continue;
     const std::string local = dir + "/" + f.path;
     if (matches(local, f)) continue;
     const std::string fileUrl = base + "/" + f.path;
@@ -117,6 +117,16 @@ Result<std::string> mirrorRemote(const std::string& url, const RemoteOptions& o)
 
 namespace {
 
+/// The entry of `name` in the mirror's manifest (size and CRC).
+Result<manifest::FileEntry> manifestEntry(const std::string& dir, const std::string& name) {
+  auto m = manifest::readFromDirectory(dir);
+  if (!m) return m.problems();
+  for (const auto& f : m->files) {
+    if (f.path == name) return f;
+  }
+  return Problem{dir + "/" + manifest::kFileName, 0, "remote database: the manifest does not list " + name};
+}
+
 /// The pack behind its on-disk cache (none when its bound is 0), named by
 /// the manifest's CRC of the pack.
 Result<std::shared_ptr<const RangeSource>> packCache(std::shared_ptr<const RangeSource> pack, const std::string& dir,
@@ -126,16 +136,39 @@ Result<std::shared_ptr<const RangeSource>> packCache(std::shared_ptr<const Range
     c.maxBytes = std::strtoull(mb, nullptr, 10) << 20;
   }
   if (c.maxBytes == 0) return pack;
-  auto m = manifest::readFromDirectory(dir);
-  if (!m) return m.problems();
-  std::uint32_t crc = 0;
-  for (const auto& f : m->files) {
-    if (f.path == pack::kPackFileName) crc = f.crc;
-  }
+  auto entry = manifestEntry(dir, pack::kPackFileName);
+  if (!entry) return entry.problems();
   // Beside the mirror, not in it: the mirror holds the database's files only.
-  auto cached = DiskCachedRange::open(std::move(pack), dir + ".records", pack::kPackFileName, crc, c);
+  auto cached = DiskCachedRange::open(std::move(pack), dir + ".records", pack::kPackFileName, entry->crc, c);
   if (!cached) return cached.problems();
   return std::shared_ptr<const RangeSource>(cached.value());
+}
+
+/// grid.stg read by block through a client of its own with no memory cache
+/// (its blocks are kept in the local copy), into DIR.records/.
+Result<std::shared_ptr<const grid::GridFile>> remoteGrid(const std::string& url, const std::string& dir,
+                                                          const RemoteOptions& o) {
+  auto entry = manifestEntry(dir, manifest::kGridFileName);
+  if (!entry) return entry.problems();
+  http::ClientOptions co = o.client;
+  co.cacheBytes = 0;
+  auto client = http::Client::create(co);
+  if (!client) return client.problems();
+  auto range = http::RemoteRange::open(client.value(), trimmed(url) + "/" + manifest::kGridFileName);
+  if (!range) return range.problems();
+  if (range.value()->size() != entry->bytes) {
+    return Problem{range.value()->name(), 0,
+                   "remote database: the server's file is " + std::to_string(range.value()->size()) +
+                       " bytes, the manifest says " + std::to_string(entry->bytes) + ": it is damaged or from another build"};
+  }
+  grid::RemoteGridOptions g = o.grid;
+  if (const char* mb = std::getenv("SANDTABLE_GRID_CACHE_MB"); mb && *mb) g.maxBytes = std::strtoull(mb, nullptr, 10) << 20;
+  const std::string records = dir + ".records";
+  std::error_code ec;
+  fs::create_directories(records, ec);
+  const std::string stem = cacheStem(manifest::kGridFileName, entry->bytes, entry->crc);
+  removeOtherCaches(records, manifest::kGridFileName, stem);
+  return grid::GridFile::openRemote(range.value(), records + "/" + stem + ".cache", entry->crc, g);
 }
 
 }  // namespace
@@ -155,7 +188,13 @@ Result<Database> openRemoteDatabase(const std::string& url, const RemoteOptions&
     if (!cached) return cached.problems();
     pack = cached.value();
   }
-  return openDatabase(dir.value(), pack);
+  std::shared_ptr<const grid::GridFile> grid;
+  if (!o.wholePack) {
+    auto g = remoteGrid(url, dir.value(), o);
+    if (!g) return g.problems();
+    grid = g.value();
+  }
+  return openDatabase(dir.value(), pack, grid);
 }
 
 bool isRemote(const std::string& pathOrUrl) { return http::isUrl(pathOrUrl); }

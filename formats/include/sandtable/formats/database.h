@@ -37,8 +37,11 @@ struct Database {
 /// Cheap; reads neither the elevation data nor any module.
 /// With `remotePack` (a database on a web server, mirrored but for its
 /// pack: paging/remote.h), modules.pack is read by range through it and
-/// only modules.idx comes from `directory`.
-Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack = {});
+/// only modules.idx comes from `directory`. With `remoteGrid` (opened by
+/// GridFile::openRemote), that is the grid and `directory` need not hold
+/// grid.stg.
+Result<Database> openDatabase(const std::string& directory, std::shared_ptr<const RangeSource> remotePack = {},
+                              std::shared_ptr<const grid::GridFile> remoteGrid = {});
 /// How many times openDatabase has been called in this process (one
 /// atomic, every call counted, failed ones too): the test that `sim` and
 /// `fly --scenario` open their database once reads it.

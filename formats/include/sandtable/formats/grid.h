@@ -13,7 +13,7 @@
 // northing originNorthing - j * spacing.
 //
 // Thread safety: GridFile is immutable after open(); every const method may
-// be called from any thread. GridWriter::writeBlock may be called
+// be called from any thread (a remote grid fills its copy under a lock). GridWriter::writeBlock may be called
 // concurrently for distinct blocks; finish() must run alone.
 #include <algorithm>
 #include <array>
@@ -27,6 +27,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "sandtable/base/range_source.h"
 #include "sandtable/base/result.h"
 #include "sandtable/base/work.h"
 
@@ -193,11 +194,54 @@ class GridWriter {
   std::uint32_t fileCrc_ = 0;
 };
 
+/// A grid on a web server, read by block (issue 38 part B; docs/HTTP.md,
+/// "The grid by range"): the options of GridFile::openRemote.
+struct RemoteGridOptions {
+  /// The local copy's bound; past it, blocks unused for evictAfterSeconds
+  /// are punched out (the file stays sparse). 0: no bound. A reader holds
+  /// a block's bytes only while it reads them: evictAfterSeconds must
+  /// exceed the longest such read.
+  std::uint64_t maxBytes = 1ull << 30;
+  double evictAfterSeconds = 30;
+  /// A block fetched on demand brings up to this many missing blocks east
+  /// of it in the same request (a block row is contiguous in the file).
+  std::uint32_t readaheadBlocks = 4;
+  /// A block whose fetch failed stands in flat (its table entry's middle
+  /// elevation, normals up) and is fetched again after this pause,
+  /// doubling to retryMaxSeconds while it keeps failing.
+  double retryFirstSeconds = 1, retryMaxSeconds = 30;
+};
+
+struct RemoteGridStats {
+  std::uint64_t requests = 0;       ///< ranges asked of the source
+  std::uint64_t fetchedBlocks = 0;  ///< blocks that came and passed their CRC
+  std::uint64_t diskBlocks = 0;     ///< blocks found whole in the local copy
+  std::uint64_t refetches = 0;      ///< blocks that failed their CRC and were asked again
+  std::uint64_t failedFetches = 0;  ///< fetches that failed (flat stand-ins written)
+  std::uint64_t evictedBlocks = 0;
+  std::uint64_t standIns = 0;       ///< blocks standing in flat now
+};
+
 /// A read-only, memory-mapped grid. open() checks only the header and the
 /// file size (O(1)); validateGrid() checks every byte.
+///
+/// A remote grid (openRemote) maps a sparse local copy and fills it block
+/// by block: the first read of a block checks it against its table CRC
+/// and fetches it when the copy lacks it or fails. Every accessor below
+/// does this, so no reader sees an unchecked block; a block that cannot
+/// be fetched reads as a flat stand-in until it can (remoteProblems()).
 class GridFile {
  public:
   static Result<std::shared_ptr<const GridFile>> open(const std::string& path);
+  /// Opens the grid in `source` (grid.stg on a web server) through the
+  /// local copy at `localPath`, created sparse when missing. Reads the
+  /// header page and the block table (one request) and checks them against
+  /// `fileCrc`, the manifest's CRC-32 of the whole file (the table holds
+  /// every block's CRC, so header, table and those CRCs combine to it).
+  /// Problems name the source or the local path.
+  static Result<std::shared_ptr<const GridFile>> openRemote(std::shared_ptr<const RangeSource> source,
+                                                            const std::string& localPath, std::uint32_t fileCrc,
+                                                            const RemoteGridOptions& options = {});
   ~GridFile();
   GridFile(const GridFile&) = delete;
   GridFile& operator=(const GridFile&) = delete;
@@ -216,7 +260,20 @@ class GridFile {
   /// Raw bytes of block (bx, bz), kBlockBytes long.
   std::span<const std::byte> blockBytes(std::uint32_t bx, std::uint32_t bz) const;
   BlockEntry blockEntry(std::uint32_t bx, std::uint32_t bz) const;
-  std::span<const std::byte> bytes() const { return {base_, size_}; }
+  /// The whole file (a remote grid fetches every block first).
+  std::span<const std::byte> bytes() const;
+
+  /// Whether the blocks come from a web server (openRemote).
+  bool remote() const { return remote_ != nullptr; }
+  /// Fetches the missing blocks of [bx0, bx1] x [bz0, bz1], inclusive
+  /// (clamped), one request per run of a block row; nothing for a local
+  /// grid. The problems of blocks that could not be fetched.
+  Status fetchBlocks(std::uint32_t bx0, std::uint32_t bz0, std::uint32_t bx1, std::uint32_t bz1) const;
+  RemoteGridStats remoteStats() const;
+  /// Fetch problems since the last call (each block's first failure once).
+  std::vector<Problem> takeRemoteProblems() const;
+
+  class Remote;  // grid_remote.cpp
 
  private:
   GridFile() = default;
@@ -224,6 +281,8 @@ class GridFile {
   Header header_;
   const std::byte* base_ = nullptr;
   std::size_t size_ = 0;
+  std::shared_ptr<Remote> remote_;
+  void ensureBlock(std::uint64_t block) const;
   const std::byte* postAddress(std::uint32_t i, std::uint32_t j, std::uint64_t plane,
                                std::uint32_t width) const;
 };

@@ -36,6 +36,13 @@ class Nginx {
   std::string url() const;
   /// Requests nginx logged so far (its access log's lines).
   std::uint64_t requests() const;
+  /// What the access log says was served for `path` (e.g. "/db/grid.stg"):
+  /// requests, of them 206 (a range) and 200 with a body (the whole
+  /// file), and body bytes sent.
+  struct Served {
+    std::uint64_t requests = 0, ranges = 0, whole = 0, bytes = 0;
+  };
+  Served served(const std::string& path) const;
 
  private:
   Nginx() = default;

@@ -34,6 +34,13 @@ struct DiskCacheStats {
   std::uint64_t hitBytes = 0, fetchedBytes = 0, evictedBlocks = 0, residentBlocks = 0;
 };
 
+/// NAME.SIZE.CRC: the stem of a cache file of a remote file whose whole
+/// bytes are SIZE long with CRC-32 CRC (the manifest's).
+std::string cacheStem(const std::string& name, std::uint64_t size, std::uint32_t crc);
+/// Removes DIR/NAME.*.cache and .map files whose name does not start with
+/// `keep`: the caches of other builds.
+void removeOtherCaches(const std::string& dir, const std::string& name, const std::string& keep);
+
 class DiskCachedRange final : public RangeSource {
  public:
   /// Opens (or starts) the cache of `source`, whose whole bytes have CRC-32

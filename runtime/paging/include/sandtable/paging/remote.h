@@ -3,13 +3,14 @@
 // on a web server"): `fly http://HOST/PATH/db` and the rest open it here.
 //
 // The server holds the database directory as `build` wrote it. The small
-// files (manifest.json, grid.stg, modules.idx, materials.txt, icons.pack)
-// are mirrored whole into a local cache directory, each checked against the
-// manifest's size and CRC-32 (kept when the copy there already matches);
-// modules.pack stays on the server and is read by range (net/http), each
-// record checked by its own CRCs as from disk, fetched again once when
-// they fail. The database's directory is then the mirror (a journal beside
-// it is local).
+// files (manifest.json, modules.idx, materials.txt, icons.pack) are
+// mirrored whole into a local cache directory, each checked against the
+// manifest's size and CRC-32 (kept when the copy there already matches).
+// modules.pack and grid.stg stay on the server and are read by range
+// (net/http): each pack record checked by its own CRCs as from disk,
+// fetched again once when they fail; each grid block by its table CRC, the
+// table by the manifest's CRC (GridFile::openRemote). The database's
+// directory is then the mirror (a journal beside it is local).
 //
 // Thread contract: call from one thread; what it returns keeps its own.
 #include <memory>
@@ -26,11 +27,15 @@ struct RemoteOptions {
   http::ClientOptions client;
   /// Where the mirror goes; empty: remoteCacheDirectory(url).
   std::string cacheDirectory;
-  /// modules.pack mirrored whole too (validate reads every record).
+  /// modules.pack and grid.stg mirrored whole too (validate reads every
+  /// byte).
   bool wholePack = false;
   /// The pack's records kept on disk beside the mirror (disk_cache.h);
   /// maxBytes 0: none. $SANDTABLE_PACK_CACHE_MB, when set, overrides it.
   DiskCacheOptions packCache;
+  /// The grid's local copy (grid.h); $SANDTABLE_GRID_CACHE_MB, when set,
+  /// overrides its bound.
+  grid::RemoteGridOptions grid;
 };
 
 /// $SANDTABLE_CACHE, else $XDG_CACHE_HOME/sandtable, else
