@@ -11,6 +11,7 @@
 #include <mutex>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace sandtable::http {
 
@@ -131,6 +132,10 @@ struct Client::Impl {
   std::list<Block> lru;
   std::unordered_map<std::string, std::list<Block>::iterator> blocks;
   std::uint64_t cached = 0;
+  /// Blocks a read is fetching now: another read of them waits for it
+  /// (`landed`) instead of asking again.
+  std::unordered_set<std::string> inflight;
+  std::condition_variable landed;
 
   mutable std::mutex statsMu;
   ClientStats stats;
@@ -286,8 +291,11 @@ struct Client::Impl {
     return true;
   }
   void insert(const std::string& k, std::vector<std::byte> bytes) {
-    if (bytes.size() > o.cacheBytes) return;
     std::lock_guard lock(cacheMu);
+    insertLocked(k, std::move(bytes));
+  }
+  void insertLocked(const std::string& k, std::vector<std::byte> bytes) {
+    if (bytes.size() > o.cacheBytes) return;
     if (const auto it = blocks.find(k); it != blocks.end()) {
       cached -= it->second->bytes.size();
       lru.erase(it->second);
@@ -310,6 +318,78 @@ struct Client::Impl {
       blocks.erase(it);
     }
   }
+  /// Blocks b0..b1 of `f` into `have`: from the cache, from a read of
+  /// another thread that is fetching them now (waited for), or fetched
+  /// here, each run of the missing ones in one request.
+  Status gather(const RemoteFile& f, std::uint64_t b0, std::uint64_t b1, std::vector<std::vector<std::byte>>& have) {
+    enum : std::uint8_t { kHave, kMine, kTheirs };
+    std::vector<std::uint8_t> from(have.size(), kHave);
+    {
+      std::lock_guard lock(cacheMu);
+      for (std::uint64_t b = b0; b <= b1; ++b) {
+        const std::string k = key(f, b);
+        if (const auto it = blocks.find(k); it != blocks.end()) {
+          lru.splice(lru.end(), lru, it->second);
+          have[b - b0] = it->second->bytes;
+        } else {
+          from[b - b0] = inflight.insert(k).second ? kMine : kTheirs;
+        }
+      }
+    }
+    for (std::uint64_t b = b0; b <= b1; ++b) count(from[b - b0] == kHave);
+    // Every block claimed here is released, fetched or not, so no waiter
+    // is left waiting for a failed read.
+    auto release = [&](std::uint64_t first, std::uint64_t last, bool fetched) {
+      {
+        std::lock_guard lock(cacheMu);
+        for (std::uint64_t k = first; k <= last; ++k) {
+          if (fetched) insertLocked(key(f, k), have[k - b0]);
+          inflight.erase(key(f, k));
+        }
+      }
+      landed.notify_all();
+    };
+    for (std::uint64_t b = b0; b <= b1;) {
+      if (from[b - b0] != kMine) {
+        ++b;
+        continue;
+      }
+      std::uint64_t e = b;
+      while (e + 1 <= b1 && from[e + 1 - b0] == kMine) ++e;
+      auto r = fetch(f, b * o.blockBytes, std::min(f.size, (e + 1) * o.blockBytes) - 1);
+      if (!r) {
+        for (std::uint64_t k = b; k <= b1; ++k) {
+          if (from[k - b0] == kMine) release(k, k, false);
+        }
+        return r.problems();
+      }
+      for (std::uint64_t k = b; k <= e; ++k) {
+        const std::uint64_t at = (k - b) * o.blockBytes, n = std::min<std::uint64_t>(o.blockBytes, r->size() - at);
+        have[k - b0].assign(r->begin() + std::ptrdiff_t(at), r->begin() + std::ptrdiff_t(at + n));
+      }
+      release(b, e, true);
+      b = e + 1;
+    }
+    for (std::uint64_t b = b0; b <= b1; ++b) {
+      if (from[b - b0] != kTheirs) continue;
+      const std::string k = key(f, b);
+      {
+        std::unique_lock lock(cacheMu);
+        landed.wait(lock, [&] { return !inflight.contains(k); });
+        if (const auto it = blocks.find(k); it != blocks.end()) {
+          have[b - b0] = it->second->bytes;
+          continue;
+        }
+      }
+      // Their read failed, or the block was evicted already: ask for it here.
+      auto r = fetch(f, b * o.blockBytes, std::min(f.size, (b + 1) * o.blockBytes) - 1);
+      if (!r) return r.problems();
+      have[b - b0] = std::move(r.value());
+      insert(k, have[b - b0]);
+    }
+    return {};
+  }
+
   void count(bool hit) {
     std::lock_guard lock(statsMu);
     (hit ? stats.cacheHits : stats.cacheMisses) += 1;
@@ -374,29 +454,7 @@ Status Client::read(const RemoteFile& f, std::uint64_t offset, std::span<std::by
   }
   const std::uint64_t bs = m.o.blockBytes, b0 = offset / bs, b1 = (offset + out.size() - 1) / bs;
   std::vector<std::vector<std::byte>> have(b1 - b0 + 1);
-  std::vector<bool> hit(have.size());
-  for (std::uint64_t b = b0; b <= b1; ++b) {
-    hit[b - b0] = m.lookup(m.key(f, b), have[b - b0]);
-    m.count(hit[b - b0]);
-  }
-  // Each run of missing blocks in one request.
-  for (std::uint64_t b = b0; b <= b1;) {
-    if (hit[b - b0]) {
-      ++b;
-      continue;
-    }
-    std::uint64_t e = b;
-    while (e + 1 <= b1 && !hit[e + 1 - b0]) ++e;
-    const std::uint64_t first = b * bs, last = std::min(f.size, (e + 1) * bs) - 1;
-    auto r = m.fetch(f, first, last);
-    if (!r) return r.problems();
-    for (std::uint64_t k = b; k <= e; ++k) {
-      const std::uint64_t from = (k - b) * bs, n = std::min<std::uint64_t>(bs, r->size() - from);
-      have[k - b0].assign(r->begin() + std::ptrdiff_t(from), r->begin() + std::ptrdiff_t(from + n));
-      m.insert(m.key(f, k), have[k - b0]);
-    }
-    b = e + 1;
-  }
+  if (Status st = m.gather(f, b0, b1, have); !st) return st;
   std::size_t done = 0;
   for (std::uint64_t b = b0; b <= b1; ++b) {
     const std::uint64_t start = b == b0 ? offset - b * bs : 0;
