@@ -131,7 +131,7 @@ void registerBenchPaging(CLI::App& bench, Commands& c) {
   sub->add_flag("--warm", o.warm, "Keep the page cache (skip the cold-cache drop)");
   sub->add_flag("!--no-coarse-first", o.coarseFirst,
                 "Read a v2 pack's modules whole, as for v1 (default: coarse records first, fine ones after)");
-  sub->add_flag("!--no-readahead", o.readahead, "No posix_fadvise WILLNEED hints for the strips the loaders take");
+  sub->add_flag("!--no-readahead", o.readahead, "No readahead for the strips the loaders take: no posix_fadvise WILLNEED on disk; over HTTP, no prefetch of their records and grid blocks");
   sub->add_flag("--json", a->json, "Print one JSON object");
   sub->add_option("--plot", o.plots, "Write holes and degraded frames against speed, FILE.png or FILE.svg (repeatable)")
       ->take_all()

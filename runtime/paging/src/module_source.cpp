@@ -11,7 +11,9 @@
 
 namespace sandtable::paging {
 
-PackSource::PackSource(std::shared_ptr<const pack::PackReader> pack) : pack_(std::move(pack)) {}
+PackSource::PackSource(std::shared_ptr<const pack::PackReader> pack) : pack_(std::move(pack)) {
+  if (pack_->remote()) prefetches_ = std::make_unique<jobs::SerialQueue>();
+}
 
 ModuleInfo PackSource::info(std::uint32_t kx, std::uint32_t kz) const {
   const pack::Entry e = pack_->entry(kx, kz);
@@ -57,35 +59,77 @@ bool PackSource::missing(std::uint32_t kx, std::uint32_t kz) const {
          (e.fine.compressedBytes > 0 && e.fine.offset + e.fine.compressedBytes > size);
 }
 
-void PackSource::willNeed(std::span<const ModuleKey> keys, bool fine) const {
-  if (pack_->remote()) return;  // a web server's pack: the loaders' own reads are the requests
-  // Reused per thread: a loader hints every strip without allocating once warm.
-  thread_local std::vector<std::pair<std::uint64_t, std::uint64_t>> runs;  // [begin, end)
+namespace {
+
+using Runs = std::vector<std::pair<std::uint64_t, std::uint64_t>>;  // [begin, end)
+
+/// The records of `keys` (coarse, or fine), sorted by offset and merged
+/// where they lie within `gap` bytes of each other (pack v2 in Morton order
+/// puts a strip's coarse records in a few runs).
+void recordRuns(const pack::PackReader& pack, std::span<const ModuleKey> keys, bool fine, std::uint64_t gap, Runs& runs) {
   runs.clear();
-  const pack::IndexHeader& h = pack_->header();
+  const pack::IndexHeader& h = pack.header();
   for (const ModuleKey& k : keys) {
     if (k.kx >= h.modulesX || k.kz >= h.modulesZ) continue;
-    const pack::Entry e = pack_->entry(k.kx, k.kz);
-    if (e.compressedBytes > 0) runs.emplace_back(e.offset, e.offset + e.compressedBytes);
-    if (fine && e.fine.compressedBytes > 0) runs.emplace_back(e.fine.offset, e.fine.offset + e.fine.compressedBytes);
+    const pack::Entry e = pack.entry(k.kx, k.kz);
+    const pack::Extent r = fine ? e.fine : e.coarse();
+    if (r.compressedBytes > 0) runs.emplace_back(r.offset, r.offset + r.compressedBytes);
   }
-  if (runs.empty()) return;
   std::sort(runs.begin(), runs.end());
-  // Records closer than this are read as one run: the disk reads the gap
-  // faster than it seeks, and one fadvise covers both.
-  constexpr std::uint64_t kMergeGap = 64 << 10;
-  std::uint64_t b = runs.front().first, e = runs.front().second;
-  auto advise = [&] { ::posix_fadvise(pack_->packFd(), off_t(b), off_t(e - b), POSIX_FADV_WILLNEED); };
-  for (std::size_t i = 1; i < runs.size(); ++i) {
-    if (runs[i].first <= e + kMergeGap) {
-      e = std::max(e, runs[i].second);
+  std::size_t out = 0;
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    if (out > 0 && runs[i].first <= runs[out - 1].second + gap) {
+      runs[out - 1].second = std::max(runs[out - 1].second, runs[i].second);
     } else {
-      advise();
-      b = runs[i].first;
-      e = runs[i].second;
+      runs[out++] = runs[i];
     }
   }
-  advise();
+  runs.resize(out);
+}
+
+}  // namespace
+
+PackSource::~PackSource() = default;
+
+void PackSource::willNeed(std::span<const ModuleKey> keys, bool fine) const {
+  // Records closer than this are read as one run: the disk reads the gap
+  // faster than it seeks, and a web server sends it faster than a round trip.
+  constexpr std::uint64_t kMergeGap = 64 << 10;
+  // Reused per thread: a loader hints every strip without allocating once warm.
+  thread_local Runs runs;
+  if (const RangeSource* remote = pack_->remote()) {
+    prefetchRemote(*remote, keys, fine);
+    return;
+  }
+  for (const bool f : {false, true}) {
+    if (f && !fine) break;
+    recordRuns(*pack_, keys, f, kMergeGap, runs);
+    for (const auto& [b, e] : runs) ::posix_fadvise(pack_->packFd(), off_t(b), off_t(e - b), POSIX_FADV_WILLNEED);
+  }
+}
+
+void PackSource::prefetchRemote(const RangeSource& remote, std::span<const ModuleKey> keys, bool fine) const {
+  // Strips the viewer has passed are not worth their requests: the loaders
+  // read what they still need themselves.
+  constexpr std::size_t kMaxQueued = 4;
+  constexpr std::uint64_t kMergeGap = 64 << 10;
+  if (!prefetches_ || prefetches_->pending() >= kMaxQueued) return;
+  // The coarse runs first: a late coarse record is a hole, a late fine one
+  // a coarse frame.
+  for (const bool f : {false, true}) {
+    if (f && !fine) break;
+    Runs runs;
+    recordRuns(*pack_, keys, f, kMergeGap, runs);
+    if (runs.empty()) continue;
+    // `remote` is the pack's own: the pack held here keeps it.
+    prefetches_->submit([pack = pack_, source = &remote, runs = std::move(runs)] {
+      std::vector<std::byte> sink;
+      for (const auto& [b, e] : runs) {
+        sink.resize(e - b);
+        (void)source->read(b, sink);  // a failure is the loader's to report when it reads
+      }
+    });
+  }
 }
 
 }  // namespace sandtable::paging

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "sandtable/base/jobs.h"
 #include "sandtable/base/result.h"
 #include "sandtable/formats/module.h"
 #include "sandtable/formats/pack.h"
@@ -103,15 +104,21 @@ class PackSource final : public ModuleSource {
   std::uint32_t coarseLevel() const override { return pack_->coarseLevel(); }
   Result<std::uint64_t> readCoarse(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override;
   Status readFine(std::uint32_t kx, std::uint32_t kz, module::Module& into) const override;
-  /// posix_fadvise(WILLNEED) over the records, sorted by offset and merged
-  /// where they lie within 64 KB of each other (pack v2 in Morton order
-  /// puts a strip's coarse records in a few runs).
+  /// The records, sorted by offset and merged where they lie within 64 KB
+  /// of each other (pack v2 in Morton order puts a strip's coarse records
+  /// in a few runs): posix_fadvise(WILLNEED) over a local pack; over a
+  /// remote one, each run read in one request off the caller's thread (a
+  /// jobs::SerialQueue, coarse runs before fine ones), into the caches the
+  /// loaders then read from. At most 4 strips queued; past that, none.
   void willNeed(std::span<const ModuleKey> keys, bool fine) const override;
   std::uint64_t changes() const override { return 0; }
   std::uint64_t changedSince(std::uint64_t since, std::vector<ModuleKey>&) const override { return since; }
+  ~PackSource() override;
 
  private:
+  void prefetchRemote(const RangeSource& remote, std::span<const ModuleKey> keys, bool fine) const;
   std::shared_ptr<const pack::PackReader> pack_;
+  std::unique_ptr<jobs::SerialQueue> prefetches_;  ///< a remote pack's; waited for by the destructor
 };
 
 }  // namespace sandtable::paging
