@@ -17,7 +17,7 @@ bytes per second from nginx's access log. --json prints one object.
 
     bench/http_paging.py DB [--rtts 0,20,100] [--speeds 1000,10000,30000,50000]
         [--seconds 5] [--viewers 20] [--viewer-speed 10000] [--viewer-seconds 10]
-        [--cli build/tools/sandtable] [--json]
+        [--cli build/tools/sandtable] [--paging-args "--no-readahead"] [--json]
 
 DB must be big enough for `bench paging` to fly straight for --seconds at the
 fastest speed (`sandtable bench make-db --size-km 60 -o DB` is).
@@ -78,8 +78,8 @@ class Nginx:
             sys.exit("http_paging: nginx did not start (is nginx-light installed? tools/setup.sh)")
 
     def served(self, t0, t1):
-        """Requests, bytes, and bytes by file name, that nginx logged
-        between two wall-clock times."""
+        """Requests, bytes, and (requests, bytes) by file name, that nginx
+        logged between two wall-clock times."""
         n = b = 0
         by_file = {}
         with open(self.log) as f:
@@ -89,7 +89,8 @@ class Nginx:
                     n += 1
                     b += int(parts[1])
                     name = os.path.basename(parts[2])
-                    by_file[name] = by_file.get(name, 0) + int(parts[1])
+                    r, sb = by_file.get(name, (0, 0))
+                    by_file[name] = (r + 1, sb + int(parts[1]))
         return n, b, by_file
 
     def stop(self):
@@ -153,6 +154,8 @@ def main():
     ap.add_argument("--viewer-speed", default="10000")
     ap.add_argument("--viewer-seconds", type=float, default=10)
     ap.add_argument("--cli", default=os.path.join(ROOT, "build", "tools", "sandtable"))
+    ap.add_argument("--paging-args", default="",
+                    help="more flags for every `bench paging` run, e.g. --no-readahead (no strip prefetch)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     db = os.path.abspath(a.db)
@@ -168,7 +171,7 @@ def main():
             proxy = Proxy(nginx.port, rtt) if kind == "http" and rtt > 0 else None
             port = proxy.port if proxy else nginx.port
             target = path or f"http://127.0.0.1:{port}/{name}"
-            j = paging(a.cli, target, a.speeds, a.seconds)
+            j = paging(a.cli, target, a.speeds, a.seconds, a.paging_args.split())
             if proxy:
                 proxy.stop()
             report["sources"].append({"source": kind, "rtt_ms": rtt, "target": target, "holes": holes_by_speed(j),
@@ -176,7 +179,7 @@ def main():
         if a.viewers > 0:
             url = f"http://127.0.0.1:{nginx.port}/{name}"
             cmd = [a.cli, "bench", "paging", url, "--speeds", a.viewer_speed, "--seconds", str(a.viewer_seconds),
-                   *PAGING, "--loaders", "1"]
+                   *PAGING, "--loaders", "1", *a.paging_args.split()]
             t0 = time.time()
             procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                                       env=fresh_cache()) for _ in range(a.viewers)]
@@ -211,7 +214,8 @@ def main():
               ", ".join(f"{m} holes per viewer {int(min(h))}..{int(max(h))}" for m, h in v["holes_per_viewer"].items()) +
               f"; nginx {v['server_requests']} requests, {v['server_bytes'] / 1e6:.0f} MB in {v['wall_seconds']:.1f} s"
               f" = {v['server_bytes_per_second'] / 1e6:.1f} MB/s (" +
-              ", ".join(f"{k} {b / 1e6:.0f} MB" for k, b in sorted(v["server_bytes_by_file"].items(), key=lambda x: -x[1])) +
+              ", ".join(f"{k} {rb[1] / 1e6:.0f} MB in {rb[0]} requests"
+                        for k, rb in sorted(v["server_bytes_by_file"].items(), key=lambda x: -x[1][1])) +
               ")")
 
 
