@@ -1,6 +1,9 @@
 // libFuzzer target: the grid file (FORMAT.md §3) on arbitrary bytes, read
 // as a database reads it: GridFile::open (header and sizes), a few posts
-// through the mapping, then validateGrid (every block). The header CRC,
+// through the mapping, then validateGrid (every block). Then as a web
+// server's grid (GridFile::openRemote, docs/HTTP.md) from memory, with the
+// bytes' own CRC as the manifest's: its posts must be the mapped file's
+// wherever the block came whole. The header CRC,
 // the file size field and the block table's CRC are resealed first, so
 // the fuzzer's bytes reach the layout and block checks instead of stopping
 // at a checksum. The bytes go through a file because the grid is only ever
@@ -9,10 +12,13 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdlib>
 #include <cstdint>
 #include <fstream>
+#include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -31,6 +37,23 @@ const std::string& scratchFile() {
   }();
   return path;
 }
+
+/// The bytes as a server would send them.
+class MemorySource final : public sandtable::RangeSource {
+ public:
+  explicit MemorySource(const std::vector<std::byte>& b) : b_(b) {}
+  const std::string& name() const override { return name_; }
+  std::uint64_t size() const override { return b_.size(); }
+  sandtable::Status read(std::uint64_t off, std::span<std::byte> out) const override {
+    if (off > b_.size() || out.size() > b_.size() - off) return sandtable::Problem{name_, off, "past the end"};
+    std::copy_n(b_.begin() + std::ptrdiff_t(off), out.size(), out.begin());
+    return {};
+  }
+
+ private:
+  const std::vector<std::byte>& b_;
+  std::string name_ = "http://fuzz/grid.stg";
+};
 
 void reseal(std::vector<std::byte>& b) {
   using namespace sandtable;
@@ -69,5 +92,22 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     (void)g.material(i, j);
   }
   (void)grid::validateGrid(scratchFile());
+
+  const std::string copy = scratchFile() + ".copy";
+  ::unlink(copy.c_str());
+  grid::RemoteGridOptions o;
+  o.retryFirstSeconds = 1e9;  // a failed block is not asked again within one input
+  const auto remote = grid::GridFile::openRemote(std::make_shared<MemorySource>(b), copy, crc32(b), o);
+  if (!remote.ok()) return 0;
+  const grid::GridFile& r = *remote.value();
+  if (r.header().blockCount() != g.header().blockCount()) __builtin_trap();
+  for (std::uint32_t bz = 0; bz < g.header().blocksZ; ++bz) {
+    for (std::uint32_t bx = 0; bx < g.header().blocksX; ++bx) {
+      const bool whole = crc32(g.blockBytes(bx, bz)) == g.blockEntry(bx, bz).crc;
+      const auto got = r.blockBytes(bx, bz);
+      // A whole block is the file's; any other stands in, never half-read.
+      if (whole && !std::equal(got.begin(), got.end(), g.blockBytes(bx, bz).begin())) __builtin_trap();
+    }
+  }
   return 0;
 }

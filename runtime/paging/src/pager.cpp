@@ -1063,7 +1063,10 @@ void Pager::update(double eyeX, double eyeZ, double velocityX, double velocityZ,
   noteUpdateInterval(im, timeNow);
   im.lastTime = timeNow;
   im.haveTime = true;
-  if (im.gridFetches) logGridProblems(im);
+  if (im.gridFetches) {
+    logGridProblems(im);
+    fetchGridAhead(im, eyeX, eyeZ, velocityX, velocityZ);
+  }
 
   // The window moves only at updates, so a strip asked for now must also
   // be in before the eye has gone one more update's way (at 1,000,000 km/h

@@ -198,9 +198,10 @@ struct Pager::Impl {
   PagerOptions options;
   std::shared_ptr<const grid::GridFile> grid;
   std::shared_ptr<const ModuleSource> source;  ///< null in mmap mode without modules
-  /// A remote grid's blocks under each strip a loader takes, fetched off
-  /// the loaders' path (hintStrip); null for a local grid.
+  /// A remote grid's blocks around and ahead of the eye, fetched off the
+  /// main thread (fetchGridAhead); null for a local grid.
   std::unique_ptr<jobs::SerialQueue> gridFetches;
+  std::int64_t gridAheadKey = INT64_MIN;  ///< the eye's block at the last fetch (main thread)
   pack::IndexHeader header;                       ///< zero levels without a pack
   PagingGeometry geometry;
   std::uint32_t levels = 1;
@@ -271,7 +272,8 @@ void runPrefetcher(Pager::Impl& impl);
 /// modules just taken from the queue (a strip, or part of a refill) will be
 /// read, coarse and fine records.
 void hintStrip(Pager::Impl& impl, std::span<const ModuleKey> keys);
-/// Queues the fetch of a remote grid's blocks under `keys` (gridFetches).
-void fetchGridUnder(Pager::Impl& impl, std::span<const ModuleKey> keys);
+/// Queues the fetch of a remote grid's blocks around the eye and ahead of
+/// it when the eye enters another block (gridFetches; main thread).
+void fetchGridAhead(Pager::Impl& impl, double eyeX, double eyeZ, double vx, double vz);
 
 }  // namespace sandtable::paging

@@ -36,27 +36,31 @@ void hintStrip(Pager::Impl& im, std::span<const ModuleKey> keys) {
   // the disk has had the whole strip's coarse reads to fetch it. (A pack
   // v2 in Morton order holds the strip's records in a few runs each.)
   if (im.source) im.source->willNeed(keys, true);
-  if (im.gridFetches) fetchGridUnder(im, keys);
 }
 
-void fetchGridUnder(Pager::Impl& im, std::span<const ModuleKey> keys) {
-  // Queued strips the viewer has passed are not worth their requests: the
-  // readers fetch what they still need themselves.
-  constexpr std::size_t kMaxQueued = 8;
-  if (im.gridFetches->pending() >= kMaxQueued) return;
+void fetchGridAhead(Pager::Impl& im, double eyeX, double eyeZ, double vx, double vz) {
+  // The grid's readers in module modes are the ground under the eye (the
+  // viewer's clamp, the simulator's entities near it) and placeholders:
+  // the blocks around the eye and along its way for the next few seconds,
+  // fetched when the eye enters another block. (The modules carry their
+  // own heights; the blocks under every strip would be bytes nobody reads.)
+  constexpr double kAheadSeconds = 2;
+  constexpr double kMaxAheadBlocks = 16;
   const grid::GridFile& g = *im.grid;
   const double blockMetres = grid::kBlockPosts * g.spacing();
-  const double edge = im.geometry.moduleSize;
-  std::uint32_t kx0 = keys[0].kx, kx1 = kx0, kz0 = keys[0].kz, kz1 = kz0;
-  for (const ModuleKey& k : keys) {
-    kx0 = std::min(kx0, k.kx), kx1 = std::max(kx1, k.kx);
-    kz0 = std::min(kz0, k.kz), kz1 = std::max(kz1, k.kz);
-  }
-  // A module's skirts and the ground clamp read the posts on its edges,
-  // which may lie in the next block: one block of margin.
-  auto block = [&](double metres, double margin) { return std::max(0.0, std::floor(metres / blockMetres + margin)); };
-  const auto bx0 = std::uint32_t(block(kx0 * edge, -1)), bx1 = std::uint32_t(block((kx1 + 1) * edge, 0));
-  const auto bz0 = std::uint32_t(block(kz0 * edge, -1)), bz1 = std::uint32_t(block((kz1 + 1) * edge, 0));
+  if (!std::isfinite(eyeX) || !std::isfinite(eyeZ)) return;
+  auto blockOf = [&](double m) { return std::floor(m / blockMetres); };
+  const std::int64_t key = (std::int64_t(blockOf(eyeZ)) << 32) ^ std::int64_t(blockOf(eyeX));
+  if (key == im.gridAheadKey || im.gridFetches->pending() >= 2) return;
+  im.gridAheadKey = key;
+  const double ax = std::clamp(std::isfinite(vx) ? vx * kAheadSeconds : 0.0, -kMaxAheadBlocks * blockMetres, kMaxAheadBlocks * blockMetres);
+  const double az = std::clamp(std::isfinite(vz) ? vz * kAheadSeconds : 0.0, -kMaxAheadBlocks * blockMetres, kMaxAheadBlocks * blockMetres);
+  auto clampBlock = [](double b, std::uint32_t count) { return std::uint32_t(std::clamp(b, 0.0, double(count) - 1)); };
+  const grid::Header& h = g.header();
+  const std::uint32_t bx0 = clampBlock(blockOf(eyeX + std::min(0.0, ax)) - 1, h.blocksX);
+  const std::uint32_t bx1 = clampBlock(blockOf(eyeX + std::max(0.0, ax)) + 1, h.blocksX);
+  const std::uint32_t bz0 = clampBlock(blockOf(eyeZ + std::min(0.0, az)) - 1, h.blocksZ);
+  const std::uint32_t bz1 = clampBlock(blockOf(eyeZ + std::max(0.0, az)) + 1, h.blocksZ);
   im.gridFetches->submit([grid = im.grid, bx0, bz0, bx1, bz1] { (void)grid->fetchBlocks(bx0, bz0, bx1, bz1); });
 }
 
