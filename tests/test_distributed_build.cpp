@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sandtable/testing/nginx.h"
 #include "sandtable/testing/require.h"
 #include "test_support.h"
 
@@ -205,6 +206,43 @@ TEST(DistributedBuild, anElevationCellChangedAfterThePlanIsRefusedByTheTaskOverI
   EXPECT_NE(r.err.find("n56.dt1"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("another CRC-32"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("changed since the plan"), std::string::npos) << r.err;
+}
+
+// Sources on a web server, read through GDAL's /vsicurl/, so workers need no
+// copy: the same bytes as a build from local copies, and a cell changed on
+// the server after the plan is refused by the task over it, by its path.
+TEST(DistributedBuild, sourcesOnAWebServerBuildTheSameBytesAndAChangedOneIsRefused) {
+  SANDTABLE_REQUIRE_DATA();
+  TempDir tmp("dist-vsicurl");
+  fs::create_directories(tmp / "www");
+  const std::string south = tmp / "www/n55.dt1", north = tmp / "www/n56.dt1";
+  fs::copy_file(data("elevation/dted/denmark-dhm/e010/n55.dt1"), south);
+  fs::copy_file(data("elevation/dted/denmark-dhm/e010/n56.dt1"), north);
+  std::string why;
+  auto nginx = testsupport::Nginx::start(tmp / "www", 0, why);
+  SANDTABLE_REQUIRE(nginx != nullptr, "nginx: " << why);
+  const std::string url = "/vsicurl/" + nginx->url();
+  const std::vector<std::string> extent = {"--extent", "10.02", "55.90", "10.20", "56.10", "--spacing", "60"};  // inland: no voids
+  auto r = runCli(with(with({"build", "--elevation", south, north}, extent), {"-o", tmp / "one"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const std::vector<std::string> remote = with({"build", "--elevation", url + "/n55.dt1", url + "/n56.dt1"}, extent);
+  r = runCli(with(remote, {"-o", tmp / "dist", "--executor", "local", "--tasks", "2"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  for (const char* n : {"grid.stg", "modules.pack", "modules.idx", "icons.pack", "materials.txt"}) {
+    EXPECT_TRUE(slurpFile(tmp / "one" + "/" + n) == slurpFile(tmp / "dist" + "/" + n)) << n;
+  }
+  EXPECT_GT(nginx->served("/n56.dt1").requests, 0u) << "the sources did not come from the server";
+  // The manifest names the sources as given.
+  EXPECT_NE(slurpFile(tmp / "dist/manifest.json").find(url + "/n56.dt1"), std::string::npos);
+  r = runCli(with(remote, {"-o", tmp / "db", "--plan", tmp / "plan.json", "--tasks", "2"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  std::string bytes = slurpFile(north);
+  bytes[bytes.size() / 2] = char(bytes[bytes.size() / 2] ^ 0x01);
+  spit(north, bytes);
+  r = runCli({"build", "--task", tmp / "plan.json", "0"});  // the northern rows
+  EXPECT_NE(r.exitCode, 0);
+  EXPECT_NE(r.err.find(url + "/n56.dt1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("another CRC-32"), std::string::npos) << r.err;
 }
 
 TEST(DistributedBuild, aKilledTaskLeavesNoPartAndTheRerunBuildsOnlyIt) {

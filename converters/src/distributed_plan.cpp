@@ -147,18 +147,9 @@ Status checkTiling(const Plan& p, const std::string& path) {
 namespace detail {
 
 Result<PlanInput> fingerprint(const std::string& path, const std::string& kind) {
-  VSILFILE* f = VSIFOpenL(path.c_str(), "rb");
-  if (!f) return Problem{path, 0, kind + ": cannot open the input"};
-  PlanInput in{path, kind, 0, 0};
-  std::vector<std::byte> buf(1 << 20);
-  for (;;) {
-    const std::size_t n = VSIFReadL(buf.data(), 1, buf.size(), f);
-    if (n == 0) break;
-    in.crc = crc32(std::span(buf.data(), n), in.crc);
-    in.bytes += n;
-  }
-  VSIFCloseL(f);
-  return in;
+  auto crc = crcThroughGdal(path, kind);
+  if (!crc) return crc.problems();
+  return PlanInput{path, kind, crc->bytes, crc->crc};
 }
 
 Result<std::vector<PlanInput>> fingerprintOthers(const ElevationOptions& o) {
@@ -241,7 +232,7 @@ Status checkSources(const Plan& p, std::vector<Source>& sources, const std::func
     Source& s = sources[k];
     std::uint32_t crc = a.crc;
     if (a.path == s.path && a.bytes == s.bytes && checksum(s)) {
-      const auto now = crc32File(s.path);
+      const auto now = crcThroughGdal(s.path, "source");
       crc = now ? now->crc : ~a.crc;
     }
     if (a.path != s.path || a.bytes != s.bytes || crc != a.crc) {

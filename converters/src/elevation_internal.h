@@ -9,6 +9,7 @@
 
 #include "sandtable/converters/crs.h"
 #include "sandtable/converters/elevation.h"
+#include "sandtable/formats/bytes.h"
 #include "sandtable/formats/grid.h"
 
 namespace sandtable::convert::detail {
@@ -22,6 +23,16 @@ inline constexpr double kMaxValid = 9000.0;
 inline float validOrNan(float x, bool hasNoData, float nd) {
   return (!std::isfinite(x) || (hasNoData && x == nd) || x < kMinValid || x > kMaxValid) ? NAN : x;
 }
+
+/// Whether `path` is one of GDAL's virtual file paths (/vsicurl/,
+/// /vsis3/, /vsizip/, ...): read through GDAL's VSI, never the local file
+/// system, and kept as given (no absolute path, no normalising: it would
+/// fold the "//" of "/vsizip//vsicurl/http://...").
+inline bool isGdalVirtual(const std::string& path) { return path.rfind("/vsi", 0) == 0; }
+
+/// Size and CRC-32 of an input, read whole through GDAL's VSI (a local
+/// file or a virtual path alike). Problems name the path and `kind`.
+Result<FileCrc> crcThroughGdal(const std::string& path, const std::string& kind);
 
 /// One opened and checked source raster.
 struct Source {

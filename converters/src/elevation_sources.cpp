@@ -67,7 +67,16 @@ Result<std::vector<std::string>> expandSources(const std::vector<std::string>& a
   for (const auto& a : args) {
     std::error_code ec;
     Result<std::vector<std::string>> part = std::vector<std::string>{};
-    if (a.find_first_of("*?[") != std::string::npos && !fs::exists(a, ec)) {
+    if (detail::isGdalVirtual(a)) {
+      // A web server's or a bucket's file: GDAL's to find, and not expanded.
+      initGdal();
+      VSIStatBufL st{};
+      if (VSIStatExL(a.c_str(), &st, VSI_STAT_EXISTS_FLAG) != 0) {
+        return Problem{a, 0, "source: GDAL finds no file at this virtual path (" + lastGdalError() +
+                                 "); check the URL or bucket and that the server is up"};
+      }
+      part = std::vector<std::string>{a};
+    } else if (a.find_first_of("*?[") != std::string::npos && !fs::exists(a, ec)) {
       part = expandGlob(a);
     } else if (fs::is_directory(a, ec)) {
       part = expandDirectory(a);
@@ -85,6 +94,24 @@ Result<std::vector<std::string>> expandSources(const std::vector<std::string>& a
 }
 
 namespace detail {
+
+Result<FileCrc> crcThroughGdal(const std::string& path, const std::string& kind) {
+  VSILFILE* f = VSIFOpenL(path.c_str(), "rb");
+  if (!f) return Problem{path, 0, kind + ": cannot open the file (" + lastGdalError() + ")"};
+  FileCrc out;
+  std::vector<std::byte> buf(1 << 20);
+  for (;;) {
+    const std::size_t n = VSIFReadL(buf.data(), 1, buf.size(), f);
+    if (n == 0) break;
+    out.crc = crc32(std::span(buf.data(), n), out.crc);
+    out.bytes += n;
+  }
+  // A read that stopped before the end is an error (a server gone mid-file).
+  const bool failed = VSIFEofL(f) == 0;
+  VSIFCloseL(f);
+  if (failed) return Problem{path, out.bytes, kind + ": cannot read the file (" + lastGdalError() + ")"};
+  return out;
+}
 
 namespace {
 
@@ -141,16 +168,18 @@ Result<bool> probeEnds(GDALRasterBand& band, const std::string& path) {
 
 Result<Source> openOne(const std::string& path, bool checksum) {
   Source s;
-  s.path = fs::absolute(path).lexically_normal().string();
+  s.path = isGdalVirtual(path) ? path : fs::absolute(path).lexically_normal().string();
   if (checksum) {
-    const auto crc = crc32File(path);
-    if (!crc) return Problem{path, 0, "source: cannot read the file"};
+    const auto crc = crcThroughGdal(path, "source");
+    if (!crc) return crc.problems();
     s.crc = crc->crc;
     s.bytes = crc->bytes;
   } else {
-    std::error_code ec;
-    s.bytes = fs::file_size(path, ec);
-    if (ec) return Problem{path, 0, "source: cannot read the file: " + ec.message()};
+    VSIStatBufL st{};
+    if (VSIStatExL(path.c_str(), &st, VSI_STAT_SIZE_FLAG) != 0) {
+      return Problem{path, 0, "source: cannot read the file: " + lastGdalError()};
+    }
+    s.bytes = std::uint64_t(st.st_size);
   }
   CPLErrorReset();
   std::unique_ptr<GDALDataset> ds(GDALDataset::Open(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
