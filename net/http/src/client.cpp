@@ -4,6 +4,7 @@
 #include <curl/curl.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
@@ -12,6 +13,7 @@
 #include <thread>
 #include <unordered_map>
 #include <unordered_set>
+#include <string_view>
 
 namespace sandtable::http {
 
@@ -26,7 +28,7 @@ struct Response {
   long status = 0;
   std::vector<std::byte> body;
   bool overlong = false;  ///< more bytes came than the cap allowed
-  std::string contentRange, etag;
+  std::string contentRange, etag, contentType;
   std::uint64_t contentLength = UINT64_MAX;  ///< from the header; UINT64_MAX: none
   double firstByteSeconds = 0;
   long connects = 0;
@@ -64,6 +66,7 @@ std::size_t onHeader(char* data, std::size_t size, std::size_t n, void* user) {
   if (line.rfind("HTTP/", 0) == 0) {  // a new response (after a redirect): forget the last one's
     r->contentRange.clear();
     r->etag.clear();
+    r->contentType.clear();
     r->contentLength = UINT64_MAX;
   }
   if (colon == std::string::npos) return size * n;
@@ -72,6 +75,7 @@ std::size_t onHeader(char* data, std::size_t size, std::size_t n, void* user) {
   const std::string value = trim(line.substr(colon + 1));
   if (name == "content-range") r->contentRange = value;
   if (name == "etag") r->etag = value;
+  if (name == "content-type") r->contentType = value;
   if (name == "content-length") {
     char* end = nullptr;
     const unsigned long long v = std::strtoull(value.c_str(), &end, 10);
@@ -91,6 +95,50 @@ bool parseContentRange(const std::string& v, std::uint64_t& a, std::uint64_t& b,
   if (std::sscanf(v.c_str(), "bytes %llu-%llu/%c", &x, &y, &star) == 3 && star == '*') {
     a = x, b = y, total = UINT64_MAX;
     return true;
+  }
+  return false;
+}
+
+/// One part of a multipart/byteranges body: its Content-Range and bytes.
+struct BodyPart {
+  std::uint64_t first = 0, last = 0, total = 0;
+  std::span<const std::byte> bytes;
+};
+
+/// The parts of a multipart/byteranges body (RFC 9110, 14.6) whose
+/// Content-Type is `type`. False when it is not one or does not parse.
+bool parseByteranges(std::span<const std::byte> body, const std::string& type, std::vector<BodyPart>& parts) {
+  const std::size_t at = type.find("boundary=");
+  if (type.rfind("multipart/byteranges", 0) != 0 || at == std::string::npos) return false;
+  std::string boundary = type.substr(at + 9);
+  boundary = boundary.substr(0, boundary.find(';'));
+  if (boundary.size() >= 2 && boundary.front() == '"' && boundary.back() == '"') boundary = boundary.substr(1, boundary.size() - 2);
+  if (boundary.empty()) return false;
+  const std::string_view text(reinterpret_cast<const char*>(body.data()), body.size());
+  const std::string delimiter = "--" + boundary;
+  std::size_t p = text.find(delimiter);
+  while (p != std::string_view::npos) {
+    p += delimiter.size();
+    if (text.substr(p, 2) == "--") return !parts.empty();  // the closing delimiter
+    const std::size_t headersEnd = text.find("\r\n\r\n", p);
+    if (headersEnd == std::string_view::npos) return false;
+    BodyPart part;
+    bool ranged = false;
+    for (std::size_t line = text.find("\r\n", p); line < headersEnd;) {
+      const std::size_t next = text.find("\r\n", line + 2);
+      std::string header(text.substr(line + 2, next - line - 2));
+      std::transform(header.begin(), header.begin() + std::ptrdiff_t(std::min<std::size_t>(header.size(), 14)),
+                     header.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+      if (header.rfind("content-range:", 0) == 0) {
+        ranged = parseContentRange(trim(header.substr(14)), part.first, part.last, part.total);
+      }
+      line = next;
+    }
+    const std::size_t data = headersEnd + 4;
+    if (!ranged || part.last < part.first || part.last - part.first + 1 > text.size() - data) return false;
+    part.bytes = body.subspan(data, part.last - part.first + 1);
+    parts.push_back(part);
+    p = text.find(delimiter, data + part.bytes.size());
   }
   return false;
 }
@@ -136,6 +184,7 @@ struct Client::Impl {
   /// (`landed`) instead of asking again.
   std::unordered_set<std::string> inflight;
   std::condition_variable landed;
+  std::atomic<bool> oneRangeOnly{false};  ///< the server answered a request for several ranges otherwise
 
   mutable std::mutex statsMu;
   ClientStats stats;
@@ -165,6 +214,13 @@ struct Client::Impl {
 
   /// One request: GET (range `first`..`last` when asked) or HEAD.
   Response once(const std::string& url, bool head, bool ranged, std::uint64_t first, std::uint64_t last, std::uint64_t cap) {
+    return onceWith(url, head, ranged ? std::to_string(first) + "-" + std::to_string(last) : std::string(), cap);
+  }
+
+  /// One request: GET (of the ranges `range`, "A-B[,C-D...]", when not
+  /// empty) or HEAD.
+  Response onceWith(const std::string& url, bool head, const std::string& range, std::uint64_t cap) {
+    const bool ranged = !range.empty();
     Response r;
     CURL* h = borrow();
     if (!h) {
@@ -175,7 +231,6 @@ struct Client::Impl {
     curl_easy_reset(h);  // keeps the connection cache
     char err[CURL_ERROR_SIZE] = {0};
     Sink sink{&r, cap};
-    const std::string range = std::to_string(first) + "-" + std::to_string(last);
     curl_easy_setopt(h, CURLOPT_URL, url.c_str());
     curl_easy_setopt(h, CURLOPT_NOSIGNAL, 1L);
     curl_easy_setopt(h, CURLOPT_ERRORBUFFER, err);
@@ -278,6 +333,76 @@ struct Client::Impl {
       return Problem{f.url, first, "http: " + why};
     }
     return std::move(r.body);
+  }
+
+  /// Runs [first, last] of f (sorted, apart) in one request of several
+  /// ranges, each part checked. `unsupported` is set when the server
+  /// answered, but not with those ranges in one response: ask one by one.
+  Result<std::vector<std::vector<std::byte>>> fetchMany(const RemoteFile& f,
+                                                        const std::vector<std::pair<std::uint64_t, std::uint64_t>>& runs,
+                                                        bool& unsupported) {
+    std::string spec;
+    std::uint64_t want = 0;
+    for (const auto& [a, b] : runs) {
+      if (!spec.empty()) spec += ',';
+      spec += std::to_string(a);
+      spec += '-';
+      spec += std::to_string(b);
+      want += b - a + 1;
+    }
+    std::vector<std::vector<std::byte>> out;
+    std::string why;
+    auto attempt = [&] {
+      Response x = onceWith(f.url, false, spec, want + 256 * runs.size() + 1024);
+      why.clear();
+      unsupported = false;
+      out.assign(runs.size(), {});
+      if (x.code != CURLE_OK || x.status != 206) {
+        unsupported = x.code == CURLE_OK && x.status == 200;
+        if (unsupported) why = "the server ignored the ranges (HTTP 200)";
+        return x;
+      }
+      std::vector<BodyPart> parts;
+      if (!parseByteranges(x.body, x.contentType, parts)) {
+        // One range for all of them (a server that merges), or not ranges.
+        BodyPart whole;
+        if (!parseContentRange(x.contentRange, whole.first, whole.last, whole.total) || whole.first > runs.front().first ||
+            whole.last < runs.back().second || x.body.size() != whole.last - whole.first + 1) {
+          unsupported = true;
+          why = "the server did not answer the ranges in one response";
+          return x;
+        }
+        whole.bytes = x.body;
+        parts.push_back(whole);
+      }
+      std::size_t found = 0;
+      for (std::size_t k = 0; k < runs.size(); ++k) {
+        for (const BodyPart& part : parts) {
+          if (part.first > runs[k].first || part.last < runs[k].second) continue;
+          if (part.total != UINT64_MAX && part.total != f.size) break;
+          const auto from = part.bytes.begin() + std::ptrdiff_t(runs[k].first - part.first);
+          out[k].assign(from, from + std::ptrdiff_t(runs[k].second - runs[k].first + 1));
+          ++found;
+          break;
+        }
+      }
+      if (found != runs.size()) {
+        unsupported = true;
+        why = "the server's parts are not the ranges asked";
+      } else if (!f.etag.empty() && !x.etag.empty() && x.etag != f.etag) {
+        why = "the file changed on the server: ETag " + x.etag + ", " + f.etag + " when opened";
+      }
+      return x;
+    };
+    const Response r = withRetries(attempt);
+    if (why.empty() && !(r.code == CURLE_OK && r.status == 206)) why = describe(r);
+    if (!why.empty()) {
+      failed();
+      return Problem{f.url, runs.front().first, "http: " + why};
+    }
+    std::lock_guard lock(statsMu);
+    ++stats.multiRangeRequests;
+    return out;
   }
 
   // Cache.
@@ -462,6 +587,72 @@ Status Client::read(const RemoteFile& f, std::uint64_t offset, std::span<std::by
     std::memcpy(out.data() + done, have[b - b0].data() + start, n);
     done += n;
   }
+  return {};
+}
+
+Status Client::prefetch(const RemoteFile& f, std::span<const std::pair<std::uint64_t, std::uint64_t>> ranges) const {
+  Impl& m = *impl_;
+  if (m.o.cacheBytes == 0) return {};
+  const std::uint64_t bs = m.o.blockBytes;
+  std::vector<std::uint64_t> wanted;
+  for (const auto& [a, e] : ranges) {
+    if (e <= a || e > f.size) continue;
+    for (std::uint64_t b = a / bs; b <= (e - 1) / bs; ++b) wanted.push_back(b);
+  }
+  std::sort(wanted.begin(), wanted.end());
+  wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+  std::vector<std::uint64_t> mine;  // claimed here: neither cached nor in flight
+  {
+    std::lock_guard lock(m.cacheMu);
+    for (const std::uint64_t b : wanted) {
+      const std::string k = m.key(f, b);
+      if (!m.blocks.contains(k) && m.inflight.insert(k).second) mine.push_back(b);
+    }
+  }
+  if (mine.empty()) return {};
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> runs;  // blocks [first, last]
+  for (const std::uint64_t b : mine) {
+    if (!runs.empty() && runs.back().second + 1 == b) {
+      runs.back().second = b;
+    } else {
+      runs.emplace_back(b, b);
+    }
+  }
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> bytes;  // [first, last] of each run
+  for (const auto& [b, e] : runs) bytes.emplace_back(b * bs, std::min(f.size, (e + 1) * bs) - 1);
+  Result<std::vector<std::vector<std::byte>>> got = std::vector<std::vector<std::byte>>{};
+  bool unsupported = false;
+  if (bytes.size() > 1 && !m.oneRangeOnly.load(std::memory_order_relaxed)) {
+    got = m.fetchMany(f, bytes, unsupported);
+    if (!got && unsupported) m.oneRangeOnly.store(true, std::memory_order_relaxed);
+  }
+  if (bytes.size() == 1 || m.oneRangeOnly.load(std::memory_order_relaxed)) {
+    got = std::vector<std::vector<std::byte>>{};
+    for (const auto& [a, e] : bytes) {
+      auto one = m.fetch(f, a, e);
+      if (!one) {
+        got = one.problems();
+        break;
+      }
+      got->push_back(std::move(one.value()));
+    }
+  }
+  {
+    std::lock_guard lock(m.cacheMu);
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      for (std::uint64_t b = runs[r].first; b <= runs[r].second; ++b) {
+        const std::string k = m.key(f, b);
+        if (got && r < got->size()) {
+          const std::vector<std::byte>& body = got.value()[r];
+          const std::uint64_t at = (b - runs[r].first) * bs, n = std::min<std::uint64_t>(bs, body.size() - at);
+          m.insertLocked(k, std::vector<std::byte>(body.begin() + std::ptrdiff_t(at), body.begin() + std::ptrdiff_t(at + n)));
+        }
+        m.inflight.erase(k);
+      }
+    }
+  }
+  m.landed.notify_all();
+  if (!got) return got.problems();
   return {};
 }
 

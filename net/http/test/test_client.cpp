@@ -135,6 +135,34 @@ TEST(HttpClient, blocksBeingFetchedAreWaitedForNotAskedAgain) {
   EXPECT_EQ(c->stats().bytesFetched, (off + n + o.blockBytes - 1) / o.blockBytes * o.blockBytes - off / o.blockBytes * o.blockBytes);
 }
 
+// A prefetch of several runs is one request (Range: bytes=A-B,C-D,...,
+// answered multipart/byteranges by nginx); the reads after it are cache
+// hits with the file's bytes.
+TEST(HttpClient, aPrefetchOfSeveralRangesIsOneRequest) {
+  START_NGINX(nginx);
+  const std::string local = dataDir() + "/" + kFile;
+  ClientOptions o;
+  o.blockBytes = 64 << 10;
+  const auto c = client(o);
+  const auto f = c->open(nginx->url() + "/" + kFile);
+  ASSERT_TRUE(f.ok()) << f.error();
+  const std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges = {
+      {10, 5000}, {300000, 300100}, {700000, 900000}, {f->size - 7, f->size}};
+  ASSERT_TRUE(c->prefetch(f.value(), ranges).ok());
+  EXPECT_EQ(c->stats().requests, 1u + 1u);  // HEAD, then the four runs at once
+  EXPECT_EQ(c->stats().multiRangeRequests, 1u);
+  for (const auto& [a, e] : ranges) {
+    std::vector<std::byte> got(e - a);
+    ASSERT_TRUE(c->read(f.value(), a, got).ok());
+    EXPECT_EQ(got, preadFile(local, a, e - a)) << a;
+  }
+  ASSERT_TRUE(c->prefetch(f.value(), ranges).ok());  // all cached: nothing asked
+  EXPECT_EQ(c->stats().requests, 2u);
+  for (int k = 0; k < 100 && nginx->requests() < 2; ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const auto served = nginx->served("/" + std::string(kFile));
+  EXPECT_EQ(served.ranges, 1u);
+}
+
 TEST(HttpClient, connectionsAreKeptAliveAcrossRequestsAndThreads) {
   START_NGINX(nginx);
   const std::string local = dataDir() + "/" + kFile;
@@ -367,6 +395,40 @@ TEST(HttpClient, optionsOutOfRangeNameTheirField) {
   EXPECT_NE(c.error().find("ClientOptions::blockBytes"), std::string::npos);
   EXPECT_TRUE(isUrl("https://example.org/db"));
   EXPECT_FALSE(isUrl("/data/db"));
+}
+
+// A server that answers a request for several ranges with the first one
+// only: the client asks one run at a time from then on, and the bytes are
+// right.
+TEST(HttpClient, aServerThatAnswersOneRangeOfSeveralIsAskedOneByOne) {
+  std::string content(20000, ' ');
+  for (std::size_t k = 0; k < content.size(); ++k) content[k] = char('a' + k % 26);
+  BadServer s(
+      [&](const std::string& req) {
+        unsigned long long a = 0, b = 0;
+        const auto at = req.find("Range: bytes=");
+        if (at == std::string::npos || std::sscanf(req.c_str() + at, "Range: bytes=%llu-%llu", &a, &b) != 2) {
+          return std::string("HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n");
+        }
+        return "HTTP/1.1 206 Partial Content\r\nContent-Range: bytes " + std::to_string(a) + "-" + std::to_string(b) +
+               "/20000\r\nContent-Length: " + std::to_string(b - a + 1) + "\r\n\r\n" + content.substr(a, b - a + 1);
+      },
+      3);
+  ClientOptions o = quick();
+  o.blockBytes = 4096;
+  o.cacheBytes = 1 << 20;
+  const auto c = client(o);
+  RemoteFile f;
+  f.url = s.url();
+  f.size = content.size();
+  const std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges = {{0, 100}, {10000, 10100}};
+  ASSERT_TRUE(c->prefetch(f, ranges).ok());
+  EXPECT_EQ(c->stats().multiRangeRequests, 0u);
+  EXPECT_EQ(c->stats().requests, 3u);  // the one for both, then one each
+  std::vector<std::byte> got(101);
+  ASSERT_TRUE(c->read(f, 10000, got).ok());
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(got.data()), got.size()), content.substr(10000, 101));
+  EXPECT_EQ(c->stats().requests, 3u);  // from the cache
 }
 
 }  // namespace

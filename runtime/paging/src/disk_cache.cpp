@@ -116,6 +116,23 @@ Status DiskCachedRange::read(std::uint64_t offset, std::span<std::byte> out) con
   return {};
 }
 
+void DiskCachedRange::prefetch(std::span<const std::pair<std::uint64_t, std::uint64_t>> ranges) const {
+  // Only what is not on disk goes on to the source (one request there).
+  const std::uint64_t B = options_.blockBytes;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> missing;
+  {
+    const std::lock_guard lock(mutex_);
+    for (const auto& [a, e] : ranges) {
+      if (e <= a || e > size()) continue;
+      for (std::uint64_t b = a / B; b <= (e - 1) / B; ++b) {
+        if (present_[b]) continue;
+        missing.emplace_back(std::max(a, b * B), std::min(e, (b + 1) * B));
+      }
+    }
+  }
+  if (!missing.empty()) source_->prefetch(missing);
+}
+
 void DiskCachedRange::refresh(std::uint64_t offset, std::uint64_t n) const {
   const std::uint64_t B = options_.blockBytes;
   if (n > 0 && offset < size()) {

@@ -121,14 +121,10 @@ void PackSource::prefetchRemote(const RangeSource& remote, std::span<const Modul
     Runs runs;
     recordRuns(*pack_, keys, f, kMergeGap, runs);
     if (runs.empty()) continue;
-    // `remote` is the pack's own: the pack held here keeps it.
-    prefetches_->submit([pack = pack_, source = &remote, runs = std::move(runs)] {
-      std::vector<std::byte> sink;
-      for (const auto& [b, e] : runs) {
-        sink.resize(e - b);
-        (void)source->read(b, sink);  // a failure is the loader's to report when it reads
-      }
-    });
+    // One request for all the runs (several ranges); `remote` is the
+    // pack's own, and the pack held here keeps it. A failure is the
+    // loader's to report when it reads.
+    prefetches_->submit([pack = pack_, source = &remote, runs = std::move(runs)] { source->prefetch(runs); });
   }
 }
 

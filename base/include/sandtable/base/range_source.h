@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 
 #include "sandtable/base/result.h"
 
@@ -27,6 +28,10 @@ class RangeSource {
   /// Forgets anything cached over [offset, offset + n), so the next read
   /// fetches it again: the caller's checksum refused what came.
   virtual void refresh(std::uint64_t /*offset*/, std::uint64_t /*n*/) const {}
+  /// Brings [offset, end) of each range closer, so that reads of them soon
+  /// are cheap: over HTTP, one request for all of them. A hint: a failure
+  /// is the later read's to report. Nothing by default.
+  virtual void prefetch(std::span<const std::pair<std::uint64_t, std::uint64_t>> /*ranges*/) const {}
 };
 
 }  // namespace sandtable

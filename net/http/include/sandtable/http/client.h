@@ -24,6 +24,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "sandtable/base/result.h"
@@ -62,6 +63,7 @@ struct ClientStats {
   std::uint64_t retries = 0;            ///< requests repeated after a transient failure
   std::uint64_t failures = 0;           ///< reads and opens that returned an error
   std::uint64_t http2Responses = 0;     ///< responses that came over HTTP/2
+  std::uint64_t multiRangeRequests = 0; ///< prefetch requests answered with several ranges at once
   double rttSeconds = 0;                ///< time to the first byte, smoothed over requests (0: none yet)
 };
 
@@ -83,6 +85,14 @@ class Client {
   /// Drops the cached blocks over [offset, offset + n) of `f`, so the next
   /// read fetches them again (a record whose checksum failed).
   void refresh(const RemoteFile& f, std::uint64_t offset, std::uint64_t n) const;
+  /// Brings the blocks over `ranges` ([offset, end) each) into the cache in
+  /// one request: every run of missing blocks is one range of a request
+  /// for several (`Range: bytes=A-B,C-D`, answered multipart/byteranges).
+  /// A server that answers otherwise is asked one run at a time from then
+  /// on. Blocks cached or being fetched are left alone; the caller's reads
+  /// wait for the ones this fetches (single flight). Nothing without a
+  /// cache.
+  Status prefetch(const RemoteFile& f, std::span<const std::pair<std::uint64_t, std::uint64_t>> ranges) const;
   /// A whole small file (a manifest, an index), refused before any
   /// allocation when it is longer than `maxBytes`.
   Result<std::vector<std::byte>> get(const std::string& url, std::uint64_t maxBytes) const;

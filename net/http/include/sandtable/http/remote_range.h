@@ -20,6 +20,9 @@ class RemoteRange final : public RangeSource {
   std::uint64_t size() const override { return file_.size; }
   Status read(std::uint64_t offset, std::span<std::byte> out) const override { return client_->read(file_, offset, out); }
   void refresh(std::uint64_t offset, std::uint64_t n) const override { client_->refresh(file_, offset, n); }
+  void prefetch(std::span<const std::pair<std::uint64_t, std::uint64_t>> ranges) const override {
+    (void)client_->prefetch(file_, ranges);
+  }
   const Client& client() const { return *client_; }
 
  private:

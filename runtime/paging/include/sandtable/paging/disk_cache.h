@@ -54,6 +54,8 @@ class DiskCachedRange final : public RangeSource {
   std::uint64_t size() const override { return source_->size(); }
   Status read(std::uint64_t offset, std::span<std::byte> out) const override;
   void refresh(std::uint64_t offset, std::uint64_t n) const override;
+  /// The parts of `ranges` not on disk, passed to the source's prefetch.
+  void prefetch(std::span<const std::pair<std::uint64_t, std::uint64_t>> ranges) const override;
   DiskCacheStats stats() const;
   const std::string& cachePath() const { return dataPath_; }
 
