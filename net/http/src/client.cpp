@@ -443,6 +443,25 @@ struct Client::Impl {
       blocks.erase(it);
     }
   }
+  /// Blocks [first, first + count) of f, claimed by this thread, are no
+  /// longer in flight: cached from `body` (their run's bytes) when it came,
+  /// and their waiters woken. Every claimed block is landed, fetched or
+  /// not, so no waiter is left waiting for a failed read.
+  void land(const RemoteFile& f, std::uint64_t first, std::uint64_t count, const std::vector<std::byte>* body) {
+    {
+      std::lock_guard lock(cacheMu);
+      for (std::uint64_t k = 0; k < count; ++k) {
+        const std::string kk = key(f, first + k);
+        if (body) {
+          const std::uint64_t at = k * o.blockBytes, n = std::min<std::uint64_t>(o.blockBytes, body->size() - at);
+          insertLocked(kk, std::vector<std::byte>(body->begin() + std::ptrdiff_t(at), body->begin() + std::ptrdiff_t(at + n)));
+        }
+        inflight.erase(kk);
+      }
+    }
+    landed.notify_all();
+  }
+
   /// Blocks b0..b1 of `f` into `have`: from the cache, from a read of
   /// another thread that is fetching them now (waited for), or fetched
   /// here, each run of the missing ones in one request.
@@ -462,18 +481,6 @@ struct Client::Impl {
       }
     }
     for (std::uint64_t b = b0; b <= b1; ++b) count(from[b - b0] == kHave);
-    // Every block claimed here is released, fetched or not, so no waiter
-    // is left waiting for a failed read.
-    auto release = [&](std::uint64_t first, std::uint64_t last, bool fetched) {
-      {
-        std::lock_guard lock(cacheMu);
-        for (std::uint64_t k = first; k <= last; ++k) {
-          if (fetched) insertLocked(key(f, k), have[k - b0]);
-          inflight.erase(key(f, k));
-        }
-      }
-      landed.notify_all();
-    };
     for (std::uint64_t b = b0; b <= b1;) {
       if (from[b - b0] != kMine) {
         ++b;
@@ -484,7 +491,7 @@ struct Client::Impl {
       auto r = fetch(f, b * o.blockBytes, std::min(f.size, (e + 1) * o.blockBytes) - 1);
       if (!r) {
         for (std::uint64_t k = b; k <= b1; ++k) {
-          if (from[k - b0] == kMine) release(k, k, false);
+          if (from[k - b0] == kMine) land(f, k, 1, nullptr);
         }
         return r.problems();
       }
@@ -492,7 +499,7 @@ struct Client::Impl {
         const std::uint64_t at = (k - b) * o.blockBytes, n = std::min<std::uint64_t>(o.blockBytes, r->size() - at);
         have[k - b0].assign(r->begin() + std::ptrdiff_t(at), r->begin() + std::ptrdiff_t(at + n));
       }
-      release(b, e, true);
+      land(f, b, e - b + 1, &r.value());
       b = e + 1;
     }
     for (std::uint64_t b = b0; b <= b1; ++b) {
@@ -637,21 +644,9 @@ Status Client::prefetch(const RemoteFile& f, std::span<const std::pair<std::uint
       got->push_back(std::move(one.value()));
     }
   }
-  {
-    std::lock_guard lock(m.cacheMu);
-    for (std::size_t r = 0; r < runs.size(); ++r) {
-      for (std::uint64_t b = runs[r].first; b <= runs[r].second; ++b) {
-        const std::string k = m.key(f, b);
-        if (got && r < got->size()) {
-          const std::vector<std::byte>& body = got.value()[r];
-          const std::uint64_t at = (b - runs[r].first) * bs, n = std::min<std::uint64_t>(bs, body.size() - at);
-          m.insertLocked(k, std::vector<std::byte>(body.begin() + std::ptrdiff_t(at), body.begin() + std::ptrdiff_t(at + n)));
-        }
-        m.inflight.erase(k);
-      }
-    }
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    m.land(f, runs[r].first, runs[r].second - runs[r].first + 1, got && r < got->size() ? &got.value()[r] : nullptr);
   }
-  m.landed.notify_all();
   if (!got) return got.problems();
   return {};
 }

@@ -63,10 +63,14 @@ namespace {
 
 using Runs = std::vector<std::pair<std::uint64_t, std::uint64_t>>;  // [begin, end)
 
+/// Records closer than this are read as one run: the disk reads the gap
+/// faster than it seeks, and a web server sends it faster than a round trip.
+constexpr std::uint64_t kMergeGap = 64 << 10;
+
 /// The records of `keys` (coarse, or fine), sorted by offset and merged
-/// where they lie within `gap` bytes of each other (pack v2 in Morton order
+/// where they lie within kMergeGap of each other (pack v2 in Morton order
 /// puts a strip's coarse records in a few runs).
-void recordRuns(const pack::PackReader& pack, std::span<const ModuleKey> keys, bool fine, std::uint64_t gap, Runs& runs) {
+void recordRuns(const pack::PackReader& pack, std::span<const ModuleKey> keys, bool fine, Runs& runs) {
   runs.clear();
   const pack::IndexHeader& h = pack.header();
   for (const ModuleKey& k : keys) {
@@ -78,7 +82,7 @@ void recordRuns(const pack::PackReader& pack, std::span<const ModuleKey> keys, b
   std::sort(runs.begin(), runs.end());
   std::size_t out = 0;
   for (std::size_t i = 0; i < runs.size(); ++i) {
-    if (out > 0 && runs[i].first <= runs[out - 1].second + gap) {
+    if (out > 0 && runs[i].first <= runs[out - 1].second + kMergeGap) {
       runs[out - 1].second = std::max(runs[out - 1].second, runs[i].second);
     } else {
       runs[out++] = runs[i];
@@ -92,18 +96,15 @@ void recordRuns(const pack::PackReader& pack, std::span<const ModuleKey> keys, b
 PackSource::~PackSource() = default;
 
 void PackSource::willNeed(std::span<const ModuleKey> keys, bool fine) const {
-  // Records closer than this are read as one run: the disk reads the gap
-  // faster than it seeks, and a web server sends it faster than a round trip.
-  constexpr std::uint64_t kMergeGap = 64 << 10;
-  // Reused per thread: a loader hints every strip without allocating once warm.
-  thread_local Runs runs;
   if (const RangeSource* remote = pack_->remote()) {
     prefetchRemote(*remote, keys, fine);
     return;
   }
+  // Reused per thread: a loader hints every strip without allocating once warm.
+  thread_local Runs runs;
   for (const bool f : {false, true}) {
     if (f && !fine) break;
-    recordRuns(*pack_, keys, f, kMergeGap, runs);
+    recordRuns(*pack_, keys, f, runs);
     for (const auto& [b, e] : runs) ::posix_fadvise(pack_->packFd(), off_t(b), off_t(e - b), POSIX_FADV_WILLNEED);
   }
 }
@@ -112,14 +113,13 @@ void PackSource::prefetchRemote(const RangeSource& remote, std::span<const Modul
   // Strips the viewer has passed are not worth their requests: the loaders
   // read what they still need themselves.
   constexpr std::size_t kMaxQueued = 4;
-  constexpr std::uint64_t kMergeGap = 64 << 10;
   if (!prefetches_ || prefetches_->pending() >= kMaxQueued) return;
   // The coarse runs first: a late coarse record is a hole, a late fine one
   // a coarse frame.
   for (const bool f : {false, true}) {
     if (f && !fine) break;
     Runs runs;
-    recordRuns(*pack_, keys, f, kMergeGap, runs);
+    recordRuns(*pack_, keys, f, runs);
     if (runs.empty()) continue;
     // One request for all the runs (several ranges); `remote` is the
     // pack's own, and the pack held here keeps it. A failure is the
